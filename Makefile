@@ -1,0 +1,116 @@
+# Top-level build and the README's two commands.
+#
+#   make demo   set up everything (Debian packages, .venv, C build) and run the demo
+#   make test   set up everything and run the whole test suite (real vcan; VM if needed)
+#
+# `make all` only builds the C code (C11, -Wall -Wextra -Werror), into build/.
+
+CC      ?= gcc
+BUILD   := build
+OPT     ?= -O2 -g
+WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wdouble-promotion
+CSTD    := -std=c11
+# Portable cores: no OS headers, float32-clean in the firmware.
+CFLAGS_CORE := $(CSTD) $(OPT) $(WARN) -fPIC
+CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
+CFLAGS_HOST := $(CSTD) $(OPT) $(WARN) -D_GNU_SOURCE -fPIC
+INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
+       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim
+
+CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/*.c)
+SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
+PLANT_SRC := $(wildcard plant_rt/core/*.c)
+FW_SRC    := $(wildcard firmware_shim/core/*.c)
+
+obj = $(patsubst %.c,$(BUILD)/obj/%.o,$(1))
+
+LIBCO    := $(BUILD)/libco.a
+LIBSCAN  := $(BUILD)/libco_socketcan.a
+LIBPLANT := $(BUILD)/libplant.a
+LIBFW    := $(BUILD)/libfw.a
+
+# Executables: tools and unit tests of each component.
+PROTO_TOOLS := $(patsubst protocols/tools/%.c,$(BUILD)/bin/%,$(wildcard protocols/tools/*.c))
+PROTO_TESTS := $(patsubst protocols/tests/%.c,$(BUILD)/tests/protocols_%,$(wildcard protocols/tests/test_*.c))
+PLANT_TOOLS := $(patsubst plant_rt/tools/%.c,$(BUILD)/bin/%,$(wildcard plant_rt/tools/*.c))
+PLANT_TESTS := $(patsubst plant_rt/tests/%.c,$(BUILD)/tests/plant_%,$(wildcard plant_rt/tests/test_*.c))
+FW_TOOLS    := $(patsubst firmware_shim/tools/%.c,$(BUILD)/bin/%,$(wildcard firmware_shim/tools/*.c))
+FW_TESTS    := $(patsubst firmware_shim/tests/%.c,$(BUILD)/tests/fw_%,$(wildcard firmware_shim/tests/test_*.c))
+NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
+               $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node)
+SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
+
+.PHONY: all clean demo test setup
+all: $(LIBCO) $(LIBSCAN) $(PROTO_TOOLS) $(PROTO_TESTS) $(PLANT_TOOLS) $(PLANT_TESTS) \
+     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB)
+
+setup:
+	@bash scripts/setup.sh
+
+demo: setup
+	@.venv/bin/bench demo
+
+test: setup
+	@bash scripts/run_tests.sh
+
+$(BUILD)/obj/protocols/socketcan/%.o: protocols/socketcan/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+$(BUILD)/obj/protocols/tools/%.o: protocols/tools/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+$(BUILD)/obj/plant_rt/node/%.o: plant_rt/node/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+$(BUILD)/obj/firmware_shim/shim/%.o: firmware_shim/shim/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+$(BUILD)/obj/firmware_shim/%.o: firmware_shim/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_FW) $(INC) -MMD -c $< -o $@
+$(BUILD)/obj/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_CORE) $(INC) -MMD -c $< -o $@
+
+$(LIBCO): $(call obj,$(CO_SRC))
+	@mkdir -p $(@D); rm -f $@; ar rcs $@ $^
+$(LIBSCAN): $(call obj,$(SCAN_SRC))
+	@mkdir -p $(@D); rm -f $@; ar rcs $@ $^
+$(LIBPLANT): $(call obj,$(PLANT_SRC))
+	@mkdir -p $(@D); rm -f $@; ar rcs $@ $^
+$(LIBFW): $(call obj,$(FW_SRC))
+	@mkdir -p $(@D); rm -f $@; ar rcs $@ $^
+
+$(BUILD)/bin/%: protocols/tools/%.c $(LIBSCAN) $(LIBCO)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBSCAN) $(LIBCO) -lm -o $@
+$(BUILD)/tests/protocols_%: protocols/tests/%.c $(LIBCO)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBCO) -lm -o $@
+$(BUILD)/bin/%: plant_rt/tools/%.c $(LIBPLANT)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBPLANT) -lm -o $@
+$(BUILD)/tests/plant_%: plant_rt/tests/%.c $(LIBPLANT)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBPLANT) -lm -o $@
+$(BUILD)/bin/%: firmware_shim/tools/%.c $(LIBFW)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
+$(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
+
+$(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $(LIBSCAN) $(LIBCO)
+	@mkdir -p $(@D)
+	$(CC) $^ -lm -o $@
+$(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
+	@mkdir -p $(@D)
+	$(CC) $^ -lm -o $@
+$(BUILD)/libhil.so: $(call obj,$(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(wildcard bench/direct/*.c))
+	@mkdir -p $(@D)
+	$(CC) -shared $^ -lm -o $@
+
+clean:
+	rm -rf $(BUILD)
+
+-include $(shell find $(BUILD)/obj -name '*.d' 2>/dev/null)

@@ -1,0 +1,103 @@
+"""The `bench` command."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    from .doctor import report
+
+    return report()
+
+
+def _cmd_vm(args: argparse.Namespace) -> int:
+    from .vm import VmError, VmOptions, run_in_vm
+
+    cmd = list(args.cmd)
+    if cmd and cmd[0] == "--":
+        cmd = cmd[1:]
+    if not cmd:
+        print("bench vm: give the command after `--`, e.g. `bench vm -- ip link show vcan0`", file=sys.stderr)
+        return 64
+    opts = VmOptions(cpus=args.cpus, memory=args.memory, timeout_s=args.timeout, kvm=args.kvm,
+                     interfaces=tuple(args.iface or ["vcan0"]), rwdirs=[Path(p) for p in args.rwdir or []])
+    try:
+        return run_in_vm(cmd, opts)
+    except VmError as exc:
+        print(f"bench vm: {exc}", file=sys.stderr)
+        return 69
+
+
+def _cmd_pingpong(args: argparse.Namespace) -> int:
+    from .pingpong import run_pingpong
+
+    res = run_pingpong(args.iface, args.count)
+    print(res.echo_output.strip())
+    print(res.ping_output.strip())
+    return 0 if res.bad == 0 and res.verified == res.frames else 1
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import main as demo_main
+
+    return demo_main(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="bench",
+        description="Hardware-in-the-loop bench for PMSM deadbeat current control over CANopen "
+                    "(SocketCAN; a virtme-ng VM supplies vcan when the host kernel has no CAN).",
+    )
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    d = sub.add_parser("doctor", help="report kernel CAN, vcan0, VM fallback and tool versions",
+                       description="One screen: what the bench found, each problem with the command that fixes it. "
+                                   "Exit 0 when CAN work can run (on the host or in the VM).")
+    d.set_defaults(func=_cmd_doctor)
+
+    v = sub.add_parser("vm", help="run a command inside the micro-VM with a real vcan0",
+                       description="Boot Debian's stock kernel under QEMU (virtme-ng), bring up vcan0, run CMD in the "
+                                   "current directory (the repository and the current directory are shared "
+                                   "read-write) and return CMD's exit status. Example: bench vm -- candump -n 1 vcan0")
+    v.add_argument("--cpus", type=int, default=2, help="guest CPUs (default 2)")
+    v.add_argument("--memory", default="2G", help="guest memory (default 2G)")
+    v.add_argument("--timeout", type=float, default=3600.0, help="seconds before the VM is killed (default 3600)")
+    v.add_argument("--kvm", action="store_true", help="use KVM acceleration (off by default: it fails on many hosts)")
+    v.add_argument("--iface", action="append", help="vcan interface to create (repeatable; default vcan0)")
+    v.add_argument("--rwdir", action="append", help="extra host directory shared read-write (repeatable)")
+    v.add_argument("cmd", nargs=argparse.REMAINDER, help="-- CMD [ARGS...]")
+    v.set_defaults(func=_cmd_vm)
+
+    pp = sub.add_parser("pingpong", help="C ping-pong between two processes on a CAN interface (needs SocketCAN)",
+                        description="Start an echo and a ping C process on IFACE, verify every answer, print "
+                                    "round-trip statistics. Run it through `bench vm --` on hosts without CAN.")
+    pp.add_argument("--iface", default="vcan0")
+    pp.add_argument("--count", type=int, default=1000)
+    pp.set_defaults(func=_cmd_pingpong)
+
+    dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
+                        description="Bring up the bus (host vcan0 or the VM) and run the demo scenario.")
+    dm.add_argument("--count", type=int, default=2000, help="frames to exchange")
+    dm.set_defaults(func=_cmd_demo)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 64
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,45 @@
+"""Two C processes exchanging frames over a real vcan: the bus smoke test and floor benchmark."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import time
+from dataclasses import dataclass
+
+from .paths import binary
+
+
+@dataclass
+class PingPongResult:
+    frames: int
+    verified: int
+    bad: int
+    rtt_median_us: float
+    rtt_p99_us: float
+    round_trips_per_s: float
+    echo_output: str
+    ping_output: str
+
+
+def run_pingpong(iface: str = "vcan0", count: int = 1000) -> PingPongResult:
+    """Start an echo process and a ping process on `iface`; both must exit cleanly."""
+    exe = str(binary("can_pingpong"))
+    echo = subprocess.Popen([exe, "echo", iface, str(count)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    try:
+        time.sleep(0.2)  # let the echo process bind before the first ping
+        ping = subprocess.run([exe, "ping", iface, str(count)], capture_output=True, text=True, timeout=600)
+        echo_out, _ = echo.communicate(timeout=30)
+    finally:
+        if echo.poll() is None:
+            echo.kill()
+    if ping.returncode != 0 or echo.returncode != 0:
+        raise RuntimeError(f"ping-pong failed: ping rc {ping.returncode}: {ping.stdout}{ping.stderr}; "
+                           f"echo rc {echo.returncode}: {echo_out}")
+    m = re.search(r"(\d+) frames sent, (\d+) answers verified, (\d+) bad", ping.stdout)
+    r = re.search(r"median (\d+) p99 (\d+) .*; (\d+) round trips/s", ping.stdout)
+    if not m or not r:
+        raise RuntimeError(f"unexpected ping output: {ping.stdout!r}")
+    return PingPongResult(int(m[1]), int(m[2]), int(m[3]), float(r[1]), float(r[2]), float(r[3]),
+                          echo_out, ping.stdout)

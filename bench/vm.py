@@ -1,0 +1,205 @@
+"""Run commands next to a real vcan0 inside a virtme-ng micro-VM.
+
+Many kernels (WSL2's, Docker Desktop's, CI containers', this project's own
+machines) are built without CAN. Debian's stock kernel ships ``vcan.ko``; virtme-ng
+boots it under QEMU with the host's root file system shared read-only and the
+directories we name shared read-write, so the same binaries and the same
+virtual environment run inside with a real SocketCAN ``vcan0``.
+
+Recipe and costs: ``docs/VM.md``. Pitfalls handled here: ``virtme-run`` must be
+on PATH, QEMU needs an open stdin and a pipe (not a file) for stdout, the exit
+status of the guest command comes back through a file in a shared directory,
+and almost no environment variable crosses into the guest.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .paths import REPO
+
+# Variables forwarded into the guest (everything else is dropped by virtme-ng).
+FORWARD_ENV = ("CI", "TERM", "COLUMNS", "LINES", "PYTHONPATH", "PYTHONHASHSEED", "VIRTUAL_ENV", "NO_COLOR")
+FORWARD_PREFIXES = ("BENCH_", "PYTEST_")
+BAD_PATH_CHARS = (" ", ",", "=", "\t", "\n")
+
+
+class VmError(RuntimeError):
+    """The VM fallback cannot run here; the message says how to fix it."""
+
+
+@dataclass
+class VmOptions:
+    cpus: int = 2
+    memory: str = "2G"
+    timeout_s: float = 3600.0
+    kvm: bool = False
+    interfaces: tuple[str, ...] = ("vcan0",)
+    rwdirs: list[Path] = field(default_factory=list)
+
+
+def vng_path() -> Path | None:
+    """The `vng` of this Python's environment, else the one on PATH."""
+    local = Path(sys.executable).parent / "vng"
+    if local.exists():
+        return local
+    found = shutil.which("vng")
+    return Path(found) if found else None
+
+
+def find_kernel() -> tuple[Path, str] | None:
+    """Newest /boot/vmlinuz-* whose modules include vcan.ko."""
+    candidates = []
+    for image in Path("/boot").glob("vmlinuz-*"):
+        ver = image.name[len("vmlinuz-"):]
+        mod_dir = Path("/lib/modules") / ver / "kernel" / "drivers" / "net" / "can"
+        if any(mod_dir.glob("vcan.ko*")) and os.access(image, os.R_OK):
+            candidates.append((image, ver))
+
+    def key(item: tuple[Path, str]) -> list[object]:
+        parts: list[object] = []
+        for chunk in item[1].replace("-", ".").split("."):
+            parts.append(int(chunk) if chunk.isdigit() else -1)
+        return parts
+
+    return max(candidates, key=key) if candidates else None
+
+
+def readiness() -> list[tuple[str, bool, str]]:
+    """(what, ok, detail or fix) for every piece the VM fallback needs."""
+    items: list[tuple[str, bool, str]] = []
+    vng = vng_path()
+    items.append(("virtme-ng (vng)", vng is not None,
+                  str(vng) if vng else "pip install virtme-ng==1.42 (make setup does it)"))
+    qemu = shutil.which("qemu-system-x86_64")
+    items.append(("qemu-system-x86_64", qemu is not None, qemu or "apt-get install qemu-system-x86"))
+    kern = find_kernel()
+    items.append(("kernel with vcan.ko", kern is not None,
+                  f"{kern[0]}" if kern else "apt-get install linux-image-amd64"))
+    busybox = shutil.which("busybox")
+    items.append(("busybox (initramfs)", busybox is not None, busybox or "apt-get install busybox-static"))
+    return items
+
+
+def _check_path(p: Path) -> Path:
+    p = p.resolve()
+    if any(c in str(p) for c in BAD_PATH_CHARS):
+        raise VmError(f"cannot share {p} with the VM: virtme-ng's --rwdir breaks on blanks, ',' and '='")
+    return p
+
+
+def _guest_script(cmd: list[str], cwd: Path, status_file: Path, interfaces: tuple[str, ...]) -> str:
+    env_lines = []
+    path = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "/usr/bin:/bin")])
+    env_lines.append(f"export PATH={shlex.quote(path)}")
+    for key, value in os.environ.items():
+        if key in FORWARD_ENV or key.startswith(FORWARD_PREFIXES):
+            env_lines.append(f"export {key}={shlex.quote(value)}")
+    # $HOME is read-only in the guest and /tmp is private to it: point caches there.
+    env_lines += [
+        "export HOME=/tmp/vmhome XDG_CACHE_HOME=/tmp/vmhome/.cache MPLCONFIGDIR=/tmp/vmhome/mpl",
+        "export PYTHONDONTWRITEBYTECODE=1 BENCH_IN_VM=1",
+        "mkdir -p /tmp/vmhome/.cache /tmp/vmhome/mpl",
+    ]
+    up = ["modprobe -a vcan can_raw can_bcm 2>/dev/null || modprobe -a vcan can_raw || exit 90"]
+    for name in interfaces:
+        up.append(f"ip link add dev {name} type vcan && ip link set {name} txqueuelen 4000 && "
+                  f"ip link set up {name} || {{ echo 'bench vm: cannot create {name}' >&2; echo 91 > {status_file}; exit 91; }}")
+    return "\n".join([
+        "#!/bin/sh",
+        *up,
+        *env_lines,
+        f"cd {shlex.quote(str(cwd))} || exit 92",
+        " ".join(shlex.quote(c) for c in cmd),
+        f"echo $? > {shlex.quote(str(status_file))}",
+        "",
+    ])
+
+
+def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None = None,
+              stdout: object = None) -> int:
+    """Boot the VM, bring up the vcan interfaces, run `cmd` in `cwd`, return its exit status.
+
+    Output of the command is streamed to `stdout` (default: sys.stdout) while it runs.
+    Returns 124 on timeout and 255 when the guest ended without reporting a status.
+    """
+    opts = options or VmOptions()
+    missing = [f"{what}: {fix}" for what, ok, fix in readiness() if not ok]
+    if missing:
+        raise VmError("the VM fallback is not ready:\n  " + "\n  ".join(missing))
+    kern = find_kernel()
+    assert kern is not None
+    vng = vng_path()
+    assert vng is not None
+    cwd = _check_path(cwd or Path.cwd())
+    jobs = REPO / "build" / "vm"
+    job = jobs / f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:8]}"
+    job.mkdir(parents=True, exist_ok=True)
+    status_file = job / "status"
+    script = job / "job.sh"
+    script.write_text(_guest_script(cmd, cwd, status_file, opts.interfaces))
+    rwdirs = {_check_path(REPO)}
+    if not cwd.is_relative_to(REPO):
+        rwdirs.add(cwd)
+    rwdirs.update(_check_path(p) for p in opts.rwdirs)
+    argv = [str(vng), "--run", str(kern[0]), "--user", "root", "--cpus", str(opts.cpus),
+            "--memory", opts.memory, "--force-9p"]
+    if not opts.kvm:
+        argv.append("--disable-kvm")
+    for d in sorted(rwdirs):
+        argv += ["--rwdir", str(d)]
+    argv += ["--exec", f"sh {script}"]
+    env = dict(os.environ)
+    env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])
+    out = stdout if stdout is not None else sys.stdout
+    timed_out = False
+    # QEMU reopens its stdout: give it a pipe (never a file) and an open stdin.
+    with subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, env=env, start_new_session=True) as proc:
+        assert proc.stdout is not None
+        deadline = time.monotonic() + opts.timeout_s
+        try:
+            for raw in iter(proc.stdout.readline, b""):
+                out.write(raw.decode(errors="replace"))  # type: ignore[attr-defined]
+                out.flush()  # type: ignore[attr-defined]
+                if time.monotonic() > deadline:
+                    timed_out = True
+                    break
+            if timed_out:
+                raise subprocess.TimeoutExpired(argv, opts.timeout_s)
+            proc.wait(timeout=max(1.0, deadline - time.monotonic()))
+        except (subprocess.TimeoutExpired, KeyboardInterrupt) as exc:
+            os.killpg(proc.pid, 15)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, 9)
+            if isinstance(exc, KeyboardInterrupt):
+                raise
+            sys.stderr.write(f"bench vm: timed out after {opts.timeout_s:.0f} s\n")
+            return 124
+    if not status_file.exists():
+        sys.stderr.write("bench vm: the guest ended without reporting the command's status "
+                         "(killed by a signal, or the guest kernel failed); see the output above\n")
+        return 255
+    status = int(status_file.read_text().strip() or "255")
+    shutil.rmtree(job, ignore_errors=True)
+    return status
+
+
+def run_here_or_in_vm(cmd: list[str], interfaces: tuple[str, ...] = ("vcan0",),
+                      timeout_s: float = 3600.0) -> int:
+    """Run `cmd` on the host when it has vcan, else inside the VM; return its status."""
+    from .canbus import host_has_vcan
+
+    if all(host_has_vcan(i) for i in interfaces):
+        return subprocess.call(cmd)
+    return run_in_vm(cmd, VmOptions(interfaces=interfaces, timeout_s=timeout_s))

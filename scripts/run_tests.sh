@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The whole test suite, in two pytest phases, then one combined verdict:
+#   1. host phase: everything that needs no CAN bus (C unit tests, models, CLI, fuzz ...)
+#   2. CAN phase: tests/can/ over a real vcan0 - on the host when its kernel has
+#      SocketCAN, otherwise inside the virtme-ng VM (booted once for the phase).
+# A CAN test that is skipped or deselected fails the run, as does a phase that
+# collected no test.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+PY=.venv/bin/python
+RES=build/test-results
+rm -rf "$RES"; mkdir -p "$RES"
+export PYTHONHASHSEED=0
+
+echo "== host phase: pytest tests (without tests/can) =="
+$PY -m pytest tests --ignore=tests/can -m "not can" --junitxml="$RES/host.xml" -q "$@"
+host_rc=$?
+
+echo "== CAN phase: pytest tests/can over real vcan0 =="
+if $PY -c 'from bench.canbus import host_has_vcan; import sys; sys.exit(0 if host_has_vcan() else 1)'; then
+    echo "(host SocketCAN)"
+    $PY -m pytest tests/can --junitxml="$RES/can.xml" -q -p no:cacheprovider "$@"
+    can_rc=$?
+else
+    echo "(host kernel has no SocketCAN: running the phase inside the virtme-ng VM)"
+    .venv/bin/bench vm --timeout 2400 -- $PY -m pytest tests/can --junitxml="$RES/can.xml" -q \
+        -p no:cacheprovider "$@"
+    can_rc=$?
+fi
+
+$PY -m bench.testsummary "$RES/host.xml" "$RES/can.xml"
+sum_rc=$?
+if [ $host_rc -ne 0 ] || [ $can_rc -ne 0 ] || [ $sum_rc -ne 0 ]; then
+    echo "test suite FAILED (host phase rc=$host_rc, CAN phase rc=$can_rc, summary rc=$sum_rc)"
+    exit 1
+fi
+echo "test suite passed"
