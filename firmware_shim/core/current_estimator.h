@@ -1,0 +1,77 @@
+/* current_estimator.h - You 2019 Sec. 3.2: predictive current estimator
+ * (Eq. 5-9, Fig. 4) and dead-time compensation from the estimated phase
+ * currents (Eq. 7, Fig. 3).
+ *
+ * Estimator per axis (x = q or d):
+ *   e(k)    = i_x(k) - i_hat_x(k-2)                 (z^-2 in the feedback path)
+ *   u(k)    = kp e(k) + integ(k),  integ(k) = integ(k-1) + ki Ts e(k)
+ *   i_hat(k)= B_hat (v*(k) + u(k)) + A_hat i_hat(k-1)  (Eq. 5/6 + PI)
+ * i_hat(k) predicts the current sampled at k+2.
+ *
+ * Integral gain derivation (see current_estimator.c for the algebra):
+ *   with kp from Eq. 8 the PI zero cancels the model pole A_hat, the loop
+ *   gain is g / (z (z - 1)) with g = ki Ts B_hat / (1 - A_hat) (= ki Ts / R_hat),
+ *   characteristic polynomial z^2 - z + g, tracking transfer function
+ *   i_hat(k-2)/i(k) = g / (z^2 - z + g).
+ *   Critical damping <=> g = 1/4 (double pole z = 0.5, -3 dB at 0.0732 fs =
+ *   1331 Hz for Ts = 55 us).  For a requested -3 dB bandwidth f_bw:
+ *     c = cos(2 pi f_bw Ts), b = 2 (2c + 1)(c - 1),
+ *     g = (b + sqrt(b^2 + 8 (1 - c))) / 2,
+ *   clamped to g <= 1/4 (never underdamped).  900 Hz gives g = 0.2003,
+ *   poles 0.724 / 0.276 (zeta > 1).  ki = g (1 - A_hat) / (B_hat Ts). */
+#ifndef CURRENT_ESTIMATOR_H
+#define CURRENT_ESTIMATOR_H
+
+#include <stdint.h>
+
+typedef struct {
+  uint8_t enable;            /* run the estimator (default 1) */
+  float bandwidth_Hz;        /* -3 dB of i_hat(k-2)/i(k), default 900 */
+  uint8_t deadtime_enable;   /* add dead-time compensation (default 0) */
+  float V_dt_V;              /* compensation voltage amplitude per phase */
+  float I_sat_A;             /* |i| above which the compensation saturates */
+} current_estimator_config_t;
+
+typedef struct {
+  /* model gains used by Eq. 5/6 */
+  float A_q, B_q_A_Vs, A_d, B_d_A_Vs;
+  /* PI gains (Eq. 8/9) */
+  float kp_q, ki_q_1_s, kp_d, ki_d_1_s;
+  float g_loop;              /* loop gain g of the design, for tracing */
+  /* predictions and histories: [0] = i_hat(k-1), [1] = i_hat(k-2) */
+  float i_hat_q_A, i_hat_d_A;
+  float i_hat_q_hist_A[2], i_hat_d_hist_A[2];
+  float integ_q_V, integ_d_V;
+  float err_q_A, err_d_A;
+  /* dead-time compensation output (stator frame) and phase currents */
+  float i_hat_a_A, i_hat_b_A, i_hat_c_A;
+  float v_dt_alpha_V, v_dt_beta_V;
+} current_estimator_state_t;
+
+void current_estimator_reset(current_estimator_state_t *st);
+
+/* Loop gain g for a requested bandwidth (clamped to 1/4, see above). */
+float current_estimator_loop_gain(float Ts_s, float bandwidth_Hz);
+
+/* Set the model (Eq. 5/6) gains of one axis (axis 0 = q, 1 = d). */
+void current_estimator_set_model(current_estimator_state_t *st, uint8_t axis,
+                                 float A, float B_A_Vs);
+/* Design the PI of one axis from its current model gains (Eq. 8/9). */
+void current_estimator_design_pi(const current_estimator_config_t *cfg,
+                                 current_estimator_state_t *st, uint8_t axis,
+                                 float Ts_s);
+
+/* One current period: measured i(k), decoupled voltage command v*(k). */
+void current_estimator_step(current_estimator_state_t *st, float Ts_s,
+                            float iq_A, float id_A, float v_q_V, float v_d_V);
+
+/* Per-phase dead-time voltage shape: V_dt * sat(i / I_sat). */
+float current_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A);
+
+/* Dead-time compensation in the stator frame from the estimated dq currents
+ * rotated with (cos_th, sin_th) to phases (Eq. 7). */
+void current_estimator_deadtime(const current_estimator_config_t *cfg,
+                                current_estimator_state_t *st, float cos_th,
+                                float sin_th);
+
+#endif

@@ -1,0 +1,324 @@
+/* drive_core.c - glue: transforms, controller switch, Eq. 4 decoupling,
+ * Eq. 33-35 limiting, dead-time compensation, Fig. 16 tuning pipeline. */
+#include "drive_core.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "dq_math.h"
+
+void drive_default_config(drive_config_t *cfg) {
+  memset(cfg, 0, sizeof(*cfg));
+  cfg->Ts_s = 55e-6f;               /* You 2019 Table A1 */
+  cfg->pole_pairs = 5.0f;           /* Table A2 */
+  cfg->speed_loop_divider = 8u;     /* 440 us / 55 us */
+  cfg->controller = (uint8_t)DRIVE_CTRL_DEADBEAT_YOU2019;
+  cfg->R_hat_ohm = 1.4f;
+  cfg->Ld_hat_H = 4.46e-3f;
+  cfg->Lq_hat_H = 4.54e-3f;
+  cfg->psi_hat_Wb = 0.042f;
+  cfg->Vmax_V = 139.0f;             /* Sec. 7 */
+  cfg->vlimit_radial = 0u;
+  cfg->decoupling_enable = 1u;
+  cfg->angle_advance_periods = 1.5f;
+  cfg->deadbeat.memory_mode = (uint8_t)DEADBEAT_MEMORY_UNLIMITED;
+  cfg->pi.bandwidth_Hz = 1000.0f;
+  cfg->estimator.enable = 1u;
+  cfg->estimator.bandwidth_Hz = 900.0f; /* Sec. 3.2 */
+  cfg->estimator.deadtime_enable = 0u;
+  cfg->estimator.V_dt_V = 0.0f;
+  cfg->estimator.I_sat_A = 1.0f;        /* Fig. 3 */
+  cfg->ident.enable = 0u;
+  cfg->ident.det_threshold_A2 = 0.2f;   /* Sec. 7 */
+  cfg->ident.window_m = 8u;
+  cfg->ident.identify_d_axis = 0u;
+  cfg->outer.J_kgm2 = 3.0e-5f;          /* not in the paper: bench value */
+  cfg->outer.speed_bw_Hz = 100.0f;      /* Sec. 3.1 */
+  cfg->outer.position_bw_Hz = 10.0f;    /* Sec. 3.1 */
+  cfg->outer.speed_pi_zero_ratio = 0.25f;
+  cfg->outer.iq_max_A = 4.0f;           /* rated current */
+  cfg->outer.profile_max_speed_rad_s = 314.159265f; /* 3000 rpm */
+  cfg->outer.profile_accel_rad_s2 = 2000.0f;
+}
+
+static void drive_recompute(drive_t *drv) {
+  const drive_config_t *c = &drv->cfg;
+  drive_state_t *s = &drv->st;
+  float Aq, Bq, Ad, Bd;
+  deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Lq_hat_H, &Aq, &Bq);
+  deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Ld_hat_H, &Ad, &Bd);
+  deadbeat_controller_gains(Aq, Bq, &drv->db.K1q_V_A, &drv->db.K2q_V_A);
+  deadbeat_controller_gains(Ad, Bd, &drv->db.K1d_V_A, &drv->db.K2d_V_A);
+  current_estimator_set_model(&drv->est, 0u, Aq, Bq);
+  current_estimator_set_model(&drv->est, 1u, Ad, Bd);
+  current_estimator_design_pi(&c->estimator, &drv->est, 0u, c->Ts_s);
+  current_estimator_design_pi(&c->estimator, &drv->est, 1u, c->Ts_s);
+  pi_current_design(&c->pi, &drv->pi, c->R_hat_ohm, c->Ld_hat_H, c->Lq_hat_H);
+  outer_loops_design(&c->outer, &drv->outer, c->pole_pairs, c->psi_hat_Wb);
+  s->Lq_active_H = c->Lq_hat_H;
+  s->Ld_active_H = c->Ld_hat_H;
+  if (s->controller_cache != c->controller) {
+    deadbeat_reset(&drv->db);
+    pi_current_reset(&drv->pi);
+  }
+  s->pending_q = s->pending_d = 0u;
+  s->est_pi_countdown = 0u;
+  s->R_hat_cache = c->R_hat_ohm;
+  s->Ld_hat_cache = c->Ld_hat_H;
+  s->Lq_hat_cache = c->Lq_hat_H;
+  s->psi_hat_cache = c->psi_hat_Wb;
+  s->controller_cache = c->controller;
+  s->tuning_cache = c->ident.enable;
+  s->dirty = 0u;
+}
+
+void drive_init(drive_t *drv, const drive_config_t *cfg) {
+  memset(drv, 0, sizeof(*drv));
+  drv->cfg = *cfg;
+  deadbeat_reset(&drv->db);
+  pi_current_reset(&drv->pi);
+  current_estimator_reset(&drv->est);
+  gain_id_reset(&drv->ident);
+  outer_loops_reset(&drv->outer);
+  drv->st.controller_cache = cfg->controller;
+  drive_recompute(drv);
+}
+
+void drive_apply_config(drive_t *drv) { drv->st.dirty = 1u; }
+
+void drive_attach_trace(drive_t *drv, trace_recorder_t *rec) { drv->trace = rec; }
+
+static void drive_check_config(drive_t *drv) {
+  const drive_config_t *c = &drv->cfg;
+  const drive_state_t *s = &drv->st;
+  if (s->dirty != 0u || c->R_hat_ohm != s->R_hat_cache ||
+      c->Ld_hat_H != s->Ld_hat_cache || c->Lq_hat_H != s->Lq_hat_cache ||
+      c->psi_hat_Wb != s->psi_hat_cache || c->controller != s->controller_cache ||
+      c->ident.enable != s->tuning_cache) {
+    drive_recompute(drv);
+  }
+}
+
+/* You 2019 Fig. 16: gains averaged at the speed-loop execution are loaded
+ * into the deadbeat controller and the estimator model at the next current
+ * period; the estimator PI two current periods after that. */
+static void drive_apply_pending_gains(drive_t *drv) {
+  drive_state_t *s = &drv->st;
+  if (s->est_pi_countdown != 0u) {
+    s->est_pi_countdown--;
+    if (s->est_pi_countdown == 0u) {
+      /* You 2019 Eq. 8/9 with the identified model gains */
+      current_estimator_design_pi(&drv->cfg.estimator, &drv->est, 0u, drv->cfg.Ts_s);
+      current_estimator_design_pi(&drv->cfg.estimator, &drv->est, 1u, drv->cfg.Ts_s);
+    }
+  }
+  if (s->pending_q == 0u && s->pending_d == 0u) {
+    return;
+  }
+  const gain_id_axis_state_t *q = &drv->ident.q;
+  const gain_id_axis_state_t *d =
+      drv->cfg.ident.identify_d_axis != 0u ? &drv->ident.d : &drv->ident.q;
+  if (s->pending_q != 0u) {
+    drv->db.K1q_V_A = q->K1_bar_V_A;
+    drv->db.K2q_V_A = q->K2_bar_V_A;
+    current_estimator_set_model(&drv->est, 0u, q->A_hat, q->B_hat_A_Vs);
+    s->Lq_active_H = q->L_hat_H;
+  }
+  if (s->pending_d != 0u) {
+    /* default (paper): d-axis gains copied from the q axis */
+    drv->db.K1d_V_A = d->K1_bar_V_A;
+    drv->db.K2d_V_A = d->K2_bar_V_A;
+    current_estimator_set_model(&drv->est, 1u, d->A_hat, d->B_hat_A_Vs);
+    s->Ld_active_H = d->L_hat_H;
+  }
+  s->pending_q = s->pending_d = 0u;
+  s->est_pi_countdown = 2u;
+  s->n_gain_updates++;
+}
+
+void drive_speed_step(drive_t *drv, float theta_m_rad) {
+  drive_config_t *c = &drv->cfg;
+  drive_state_t *s = &drv->st;
+  outer_loops_state_t *o = &drv->outer;
+  const float T_sp = c->Ts_s * (float)c->speed_loop_divider;
+
+  outer_loops_measure(o, theta_m_rad, T_sp);
+  s->omega_e_rad_s = c->pole_pairs * o->omega_m_rad_s;
+
+  switch ((drive_mode_t)drv->sp.mode) {
+    case DRIVE_MODE_POSITION:
+      outer_loops_profile(&c->outer, o, drv->sp.position_target_rad, T_sp);
+      (void)outer_loops_speed(&c->outer, o, outer_loops_position(o), T_sp);
+      break;
+    case DRIVE_MODE_SPEED:
+      o->pos_ref_rad = o->theta_unwrapped_rad;
+      o->vel_ref_rad_s = 0.0f;
+      (void)outer_loops_speed(&c->outer, o, drv->sp.speed_ref_rad_s, T_sp);
+      break;
+    case DRIVE_MODE_CURRENT:
+    default:
+      o->pos_ref_rad = o->theta_unwrapped_rad;
+      o->vel_ref_rad_s = 0.0f;
+      o->integ_A = 0.0f;
+      break;
+  }
+
+  /* You 2019 Fig. 16: Eq. 28-32 at the speed-loop execution */
+  if (c->ident.enable != 0u) {
+    if (gain_id_average(&c->ident, &drv->ident.q, c->Ts_s, c->R_hat_ohm)) {
+      s->pending_q = 1u;
+      if (c->ident.identify_d_axis == 0u) {
+        s->pending_d = 1u;
+      }
+    }
+    if (c->ident.identify_d_axis != 0u &&
+        gain_id_average(&c->ident, &drv->ident.d, c->Ts_s, c->R_hat_ohm)) {
+      s->pending_d = 1u;
+    }
+  }
+}
+
+static void drive_fill_signals(drive_t *drv, const drive_meas_t *m) {
+  float *g = drv->st.signals;
+  const drive_state_t *s = &drv->st;
+  g[TRACE_SIG_NONE] = 0.0f;
+  g[TRACE_SIG_IQ_REF] = s->iq_ref_A;
+  g[TRACE_SIG_IQ] = s->i_q_A;
+  g[TRACE_SIG_ID_REF] = s->id_ref_A;
+  g[TRACE_SIG_ID] = s->i_d_A;
+  g[TRACE_SIG_VQ] = s->v_q_V;
+  g[TRACE_SIG_VD] = s->v_d_V;
+  g[TRACE_SIG_VQ_STAR] = s->v_q_star_V;
+  g[TRACE_SIG_VD_STAR] = s->v_d_star_V;
+  g[TRACE_SIG_V_ALPHA] = s->v_alpha_V;
+  g[TRACE_SIG_V_BETA] = s->v_beta_V;
+  g[TRACE_SIG_DET] = drv->ident.q.det_A2;
+  g[TRACE_SIG_K1_HAT] = drv->ident.q.K1_hat_V_A;
+  g[TRACE_SIG_K2_HAT] = drv->ident.q.K2_hat_V_A;
+  g[TRACE_SIG_K1_BAR] = drv->ident.q.K1_bar_V_A;
+  g[TRACE_SIG_K2_BAR] = drv->ident.q.K2_bar_V_A;
+  g[TRACE_SIG_L_HAT] = drv->ident.q.L_hat_H;
+  g[TRACE_SIG_K1_ACTIVE] = drv->db.K1q_V_A;
+  g[TRACE_SIG_K2_ACTIVE] = drv->db.K2q_V_A;
+  g[TRACE_SIG_IQ_HAT] = drv->est.i_hat_q_A;
+  g[TRACE_SIG_ID_HAT] = drv->est.i_hat_d_A;
+  g[TRACE_SIG_OMEGA] = drv->outer.omega_m_rad_s;
+  g[TRACE_SIG_OMEGA_REF] = drv->outer.omega_ref_rad_s;
+  g[TRACE_SIG_THETA] = m->theta_m_rad;
+  g[TRACE_SIG_THETA_E] = s->theta_e_rad;
+  g[TRACE_SIG_POS_REF] = drv->outer.pos_ref_rad;
+  g[TRACE_SIG_I_A] = m->i_a_A;
+  g[TRACE_SIG_I_B] = m->i_b_A;
+  g[TRACE_SIG_V_LIMITED] = (float)s->v_limited;
+}
+
+void drive_current_step(drive_t *drv, const drive_meas_t *m, drive_cmd_t *cmd) {
+  drive_check_config(drv);
+  drive_apply_pending_gains(drv);
+
+  const drive_config_t *c = &drv->cfg;
+  drive_state_t *s = &drv->st;
+
+  /* electrical angle and transforms */
+  s->theta_e_rad = dq_wrap_pi(c->pole_pairs * m->theta_m_rad);
+  const float cs = cosf(s->theta_e_rad);
+  const float sn = sinf(s->theta_e_rad);
+  float i_al, i_be;
+  dq_clarke(m->i_a_A, m->i_b_A, &i_al, &i_be);
+  dq_park(i_al, i_be, cs, sn, &s->i_d_A, &s->i_q_A);
+
+  /* references */
+  s->id_ref_A = drv->sp.id_ref_A;
+  s->iq_ref_A = drv->sp.mode == (uint8_t)DRIVE_MODE_CURRENT ? drv->sp.iq_ref_A
+                                                           : drv->outer.iq_ref_A;
+
+  /* You 2019 Eq. 4: decoupling voltages with estimated parameters */
+  const float w = s->omega_e_rad_s;
+  if (c->decoupling_enable != 0u) {
+    s->v_q_ff_V = w * s->Ld_active_H * s->i_d_A + w * c->psi_hat_Wb;
+    s->v_d_ff_V = -w * s->Lq_active_H * s->i_q_A;
+  } else {
+    s->v_q_ff_V = 0.0f;
+    s->v_d_ff_V = 0.0f;
+  }
+
+  /* current controller (decoupled part) */
+  float vq_c = 0.0f, vd_c = 0.0f;
+  switch ((drive_controller_t)c->controller) {
+    case DRIVE_CTRL_PI:
+      pi_current_step(&drv->pi, c->Ts_s, s->iq_ref_A, s->i_q_A, s->id_ref_A,
+                      s->i_d_A, &vq_c, &vd_c);
+      break;
+    case DRIVE_CTRL_DEADBEAT_YOU2019:
+    default:
+      /* You 2019 Eq. 17 / Eq. 19 */
+      deadbeat_step(&drv->db, s->iq_ref_A, s->i_q_A, s->id_ref_A, s->i_d_A,
+                    &vq_c, &vd_c);
+      break;
+  }
+
+  /* You 2019 Eq. 33 (Fig. 7): limit the total stator voltage vector */
+  s->v_q_V = vq_c + s->v_q_ff_V;
+  s->v_d_V = vd_c + s->v_d_ff_V;
+  s->v_limited = dq_limit_voltage(&s->v_d_V, &s->v_q_V, c->Vmax_V, c->vlimit_radial);
+  /* You 2019 Eq. 34-35: decoupled command actually applied */
+  s->v_q_star_V = s->v_q_V - s->v_q_ff_V;
+  s->v_d_star_V = s->v_d_V - s->v_d_ff_V;
+
+  switch ((drive_controller_t)c->controller) {
+    case DRIVE_CTRL_PI:
+      pi_current_commit(&drv->pi, s->v_q_star_V, s->v_d_star_V);
+      break;
+    case DRIVE_CTRL_DEADBEAT_YOU2019:
+    default:
+      deadbeat_commit(&c->deadbeat, &drv->db, s->v_q_star_V, s->v_d_star_V);
+      break;
+  }
+
+  /* stator-frame command, rotated to the middle of its application
+   * interval [k+1, k+2] */
+  const float th_cmd = s->theta_e_rad + c->angle_advance_periods * w * c->Ts_s;
+  const float cc = cosf(th_cmd);
+  const float sc = sinf(th_cmd);
+  dq_inv_park(s->v_d_V, s->v_q_V, cc, sc, &s->v_alpha_V, &s->v_beta_V);
+
+  /* You 2019 Eq. 5-9 estimator, Eq. 7 dead-time compensation */
+  if (c->estimator.enable != 0u) {
+    current_estimator_step(&drv->est, c->Ts_s, s->i_q_A, s->i_d_A,
+                           s->v_q_star_V, s->v_d_star_V);
+    if (c->estimator.deadtime_enable != 0u) {
+      current_estimator_deadtime(&c->estimator, &drv->est, cc, sc);
+      s->v_alpha_V += drv->est.v_dt_alpha_V;
+      s->v_beta_V += drv->est.v_dt_beta_V;
+    }
+  }
+
+  /* You 2019 Eq. 22-27: identification every current period */
+  if (c->ident.enable != 0u) {
+    gain_id_sample(&c->ident, &drv->ident.q, s->i_q_A, s->v_q_star_V);
+    if (c->ident.identify_d_axis != 0u) {
+      gain_id_sample(&c->ident, &drv->ident.d, s->i_d_A, s->v_d_star_V);
+    }
+  }
+
+  cmd->v_alpha_V = s->v_alpha_V;
+  cmd->v_beta_V = s->v_beta_V;
+
+  /* outer loops every speed_loop_divider current periods */
+  s->speed_div_count++;
+  if (s->speed_div_count >= c->speed_loop_divider) {
+    s->speed_div_count = 0u;
+    drive_speed_step(drv, m->theta_m_rad);
+  }
+
+  drive_fill_signals(drv, m);
+  if (drv->trace != NULL) {
+    trace_sample(drv->trace, s->signals);
+  }
+  s->step_count++;
+}
+
+float drive_signal(const drive_t *drv, trace_signal_t id) {
+  if ((uint32_t)id >= (uint32_t)TRACE_SIG_COUNT) return 0.0f;
+  return drv->st.signals[id];
+}

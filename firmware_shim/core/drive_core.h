@@ -1,0 +1,129 @@
+/* drive_core.h - top-level PMSM current-control drive (glue).
+ *
+ * Timing model (You 2019 Fig. 1): the stator-frame command returned by
+ * drive_current_step() at sample k is applied by the PWM over [k+1, k+2] and
+ * first shows in the current sampled at k+2.
+ *
+ * Configuration: every field of drive_config_t (and of the nested per-block
+ * configs) is a flat scalar intended to become a CANopen OD entry.  The
+ * mismatch parameters R_hat_ohm, Ld_hat_H, Lq_hat_H, psi_hat_Wb, the
+ * controller selection and ident.enable (tuning switch) are watched every
+ * step and take effect at the next step when written; any other change
+ * requires drive_apply_config() (also effective at the next step). */
+#ifndef DRIVE_CORE_H
+#define DRIVE_CORE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "current_estimator.h"
+#include "deadbeat_z.h"
+#include "gain_identification.h"
+#include "outer_loops.h"
+#include "pi_current.h"
+#include "trace_recorder.h"
+
+typedef enum {
+  DRIVE_CTRL_PI = 0,
+  DRIVE_CTRL_DEADBEAT_YOU2019 = 1,
+  /* further current controllers are added here (switch in drive_core.c) */
+  DRIVE_CTRL_COUNT
+} drive_controller_t;
+
+typedef enum {
+  DRIVE_MODE_CURRENT = 0,
+  DRIVE_MODE_SPEED = 1,
+  DRIVE_MODE_POSITION = 2,
+} drive_mode_t;
+
+typedef struct {
+  float Ts_s;                 /* current period, default 55e-6 */
+  float pole_pairs;           /* default 5 */
+  uint16_t speed_loop_divider;/* default 8 */
+  uint8_t controller;         /* drive_controller_t, default DEADBEAT */
+  /* controller's motor model (mismatch knobs) */
+  float R_hat_ohm;            /* default 1.4 */
+  float Ld_hat_H;             /* default 4.46e-3 */
+  float Lq_hat_H;             /* default 4.54e-3 */
+  float psi_hat_Wb;           /* default 0.042 */
+  float Vmax_V;               /* Eq. 33 radius, default 139 */
+  uint8_t vlimit_radial;      /* 0: d priority (Eq. 34), 1: radial */
+  uint8_t decoupling_enable;  /* Eq. 4 feed-forward, default 1 */
+  float angle_advance_periods;/* inverse-Park angle advance in Ts, default 1.5 */
+  deadbeat_config_t deadbeat;
+  pi_current_config_t pi;
+  current_estimator_config_t estimator;
+  gain_identification_config_t ident; /* ident.enable = tuning switch */
+  outer_loops_config_t outer;
+} drive_config_t;
+
+typedef struct {
+  uint8_t mode;               /* drive_mode_t */
+  float iq_ref_A;             /* current mode */
+  float id_ref_A;             /* all modes */
+  float speed_ref_rad_s;      /* speed mode (mechanical) */
+  float position_target_rad;  /* position mode (mechanical, multi-turn) */
+} drive_setpoint_t;
+
+typedef struct {
+  float i_a_A, i_b_A;         /* phase currents from the ADC */
+  float theta_m_rad;          /* encoder mechanical angle */
+} drive_meas_t;
+
+typedef struct {
+  float v_alpha_V, v_beta_V;  /* stator-frame command, held over [k+1,k+2] */
+} drive_cmd_t;
+
+typedef struct {
+  uint32_t step_count;
+  uint16_t speed_div_count;
+  float theta_e_rad, omega_e_rad_s;
+  float i_d_A, i_q_A;
+  float iq_ref_A, id_ref_A;   /* references used in this step */
+  float v_q_ff_V, v_d_ff_V;   /* Eq. 4 */
+  float v_q_V, v_d_V;         /* total dq command after Eq. 33 */
+  float v_q_star_V, v_d_star_V;/* decoupled applied command (Eq. 35) */
+  float v_alpha_V, v_beta_V;
+  uint8_t v_limited;
+  /* active model used for feed-forward (config or identified, Eq. 32) */
+  float Lq_active_H, Ld_active_H;
+  /* Fig. 16 pipeline */
+  uint8_t pending_q, pending_d;
+  uint8_t est_pi_countdown;
+  uint32_t n_gain_updates;
+  /* cached watched config values */
+  float R_hat_cache, Ld_hat_cache, Lq_hat_cache, psi_hat_cache;
+  uint8_t controller_cache, tuning_cache;
+  uint8_t dirty;
+  float signals[TRACE_SIG_COUNT];
+} drive_state_t;
+
+typedef struct {
+  drive_config_t cfg;
+  drive_setpoint_t sp;
+  drive_state_t st;
+  deadbeat_state_t db;
+  pi_current_state_t pi;
+  current_estimator_state_t est;
+  gain_identification_state_t ident;
+  outer_loops_state_t outer;
+  trace_recorder_t *trace;    /* optional, NULL = no tracing */
+} drive_t;
+
+/* Defaults: You 2019 Table A1/A2 drive and motor. */
+void drive_default_config(drive_config_t *cfg);
+void drive_init(drive_t *drv, const drive_config_t *cfg);
+/* Mark the configuration changed; derived gains are recomputed at the start
+ * of the next drive_current_step(). */
+void drive_apply_config(drive_t *drv);
+void drive_attach_trace(drive_t *drv, trace_recorder_t *rec);
+
+/* Current-period "ISR". */
+void drive_current_step(drive_t *drv, const drive_meas_t *meas, drive_cmd_t *cmd);
+/* Speed/position period (called by drive_current_step every
+ * speed_loop_divider steps; public for tests). */
+void drive_speed_step(drive_t *drv, float theta_m_rad);
+
+float drive_signal(const drive_t *drv, trace_signal_t id);
+
+#endif

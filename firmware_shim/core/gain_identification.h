@@ -1,0 +1,80 @@
+/* gain_identification.h - You 2019 Sec. 6: online deadbeat gain
+ * identification (Eq. 22-32, Eq. 34-35), per axis.
+ *
+ * Eq. 31 correction: the paper prints B_hat = 1 / K2_bar, which contradicts
+ * its own definitions K1 = 1/B and K2 = A/B (Eq. 17/23).  We use
+ *   A_hat = K2_bar / K1_bar   (Eq. 30)
+ *   B_hat = 1 / K1_bar        (Eq. 31 corrected)
+ *   L_hat = -Ts R_hat / ln(A_hat)   (Eq. 32)
+ *
+ * Identification voltage: v(k-2), v(k-3) are the DECOUPLED voltages that
+ * were actually applied, v* = v_limited - v_ff (Eq. 35 generalised to both
+ * axes).  At speed the rotor-frame plant is
+ *   L di/dt = v - R i - e,   e_q = w L_d i_d + w psi,  e_d = -w L_q i_q,
+ * and with e constant over a period the exact discretisation is
+ *   i(k) = A i(k-1) + B (v(k-2) - e),
+ * so Eq. 22 holds for v - e; subtracting the feed-forward of Eq. 4 is the
+ * right thing to do and leaves only the feed-forward error (psi_hat, L_hat
+ * mismatch, and the w Ts rotation of the stator-frame-held vector) as a bias
+ * term in Eq. 23. */
+#ifndef GAIN_IDENTIFICATION_H
+#define GAIN_IDENTIFICATION_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#define GAIN_ID_MAX_WINDOW 16u
+
+typedef struct {
+  uint8_t enable;           /* tuning switch (default 0) */
+  float det_threshold_A2;   /* Eq. 27 threshold, default 0.2 A^2 (Sec. 7) */
+  uint8_t window_m;         /* Eq. 28-29 m, default 8, max 16 */
+  uint8_t identify_d_axis;  /* 0 (default, paper): copy q gains to d */
+} gain_identification_config_t;
+
+typedef struct {
+  /* history: i(k-1), i(k-2); v(k-1), v(k-2) (decoupled applied voltage) */
+  float i_hist_A[2];
+  float v_hist_V[2];
+  float v_km3_V;            /* v(k-3) at the next sample */
+  /* latest Eq. 24/25 result */
+  float det_A2;
+  float K1_hat_V_A, K2_hat_V_A;
+  uint8_t accepted;         /* latest identification passed Eq. 27 */
+  uint8_t primed;           /* number of valid history samples (max 3) */
+  /* window of accepted identifications (ring) */
+  float win_K1[GAIN_ID_MAX_WINDOW];
+  float win_K2[GAIN_ID_MAX_WINDOW];
+  float win_absdet[GAIN_ID_MAX_WINDOW];
+  uint8_t win_count, win_head;
+  /* Eq. 28-32 results */
+  float K1_bar_V_A, K2_bar_V_A;
+  float A_hat, B_hat_A_Vs, L_hat_H, R_id_ohm;
+  uint32_t n_identified, n_updates;
+} gain_id_axis_state_t;
+
+typedef struct {
+  gain_id_axis_state_t q;
+  gain_id_axis_state_t d;
+} gain_identification_state_t;
+
+void gain_id_reset_axis(gain_id_axis_state_t *ax);
+void gain_id_reset(gain_identification_state_t *st);
+
+/* Pure Eq. 24/25 solve.  Returns det(i) (Eq. 25). */
+float gain_id_solve(float i_k, float i_km1, float i_km2, float v_km2,
+                    float v_km3, float *K1, float *K2);
+
+/* One current period: sampled current i(k) and the decoupled voltage v*(k)
+ * actually applied (computed at k, acting over [k+1, k+2]). Identifies with
+ * i(k), i(k-1), i(k-2), v(k-2), v(k-3), then pushes i(k), v(k). */
+void gain_id_sample(const gain_identification_config_t *cfg,
+                    gain_id_axis_state_t *ax, float i_A, float v_applied_V);
+
+/* Speed-loop rate: det-weighted averages Eq. 28-29 and Eq. 30-32.  Returns
+ * true when a new, physically valid (K1 > 0, 0 < A < 1) set is available in
+ * ax->K1_bar..L_hat.  Clears the window. */
+bool gain_id_average(const gain_identification_config_t *cfg,
+                     gain_id_axis_state_t *ax, float Ts_s, float R_hat_ohm);
+
+#endif

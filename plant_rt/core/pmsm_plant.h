@@ -1,0 +1,258 @@
+/*
+ * pmsm_plant.h - portable PMSM plant emulator core (the "hardware" side of the
+ * hardware-in-the-loop bench).
+ *
+ * Timing contract (CANopen loop): at SYNC k the bench calls plant_sample() to
+ * get the ADC phase currents and the encoder angle at instant k, then calls
+ * plant_step() once per period with the voltage that the inverter outputs
+ * during [k, k+1).  The one-period computation delay of the drive (command of
+ * period k applied from k+1 to k+2) is handled by the bench, not here.
+ *
+ * Conventions
+ *  - SI units everywhere, encoded in the names.
+ *  - Clarke transform is amplitude invariant: v_alpha = phase-a voltage, a
+ *    balanced set of phase currents with peak I gives |i_alphabeta| = I.
+ *    The voltage command (v_alpha_V, v_beta_V) is therefore the PEAK
+ *    phase-to-neutral voltage vector; the SVPWM hexagon has its vertices at
+ *    2/3*Vdc and its inscribed circle has radius Vdc/sqrt(3).
+ *  - Power/torque carry the 3/2 factor of the amplitude-invariant transform:
+ *    P = 1.5 (vd id + vq iq), Te = 1.5 p (psi iq + (Ld - Lq) id iq).
+ *  - Rotor dq frame, d axis on the magnet, motor convention (You 2019 Eq. 1):
+ *      Ld did/dt = vd - R id + w Lq iq
+ *      Lq diq/dt = vq - R iq - w Ld id - w psi          (w = p * omega_m)
+ *  - theta_e = p * theta_m (d axis aligned with phase a at theta_m = 0).
+ *
+ * Integration
+ *  - LOCKED / IMPOSED_SPEED without saturation: exact.  The command is held
+ *    constant in the STATOR frame, so in the rotor frame it rotates:
+ *    d/dt [vd vq] = w [vq -vd].  The augmented state x = [id iq vd vq 1] obeys
+ *    dx/dt = A x with constant A; one period is x+ = expm(A Ts) x, computed
+ *    once in plant_prepare.  Energy integrals over the period are exact
+ *    quadratic forms x'Mx obtained with Van Loan's block exponential.
+ *  - FREE mechanics or saturation on: classical RK4 on
+ *    [id iq cos(th_e) sin(th_e) theta_m omega_m + 5 energy integrals] with
+ *    N sub-steps per period, N = max(rk4_min_substeps,
+ *    ceil(Ts*lambda/rk4_h_rel)), lambda = R/Lmin + |w| (+ the electromechanical
+ *    frequency sqrt(1.5 p^2 psi^2/(J Lmin)) in FREE mode).  See the tests for
+ *    the measured error.
+ *
+ * All functions take the config by const pointer; after any change of the
+ * config call plant_prepare() again (it keeps the electrical/mechanical
+ * state, recomputes the discretization and validates the parameters).
+ */
+#ifndef PMSM_PLANT_H
+#define PMSM_PLANT_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "plant_rng.h"
+
+/* ---- error codes returned by plant_prepare ---------------------------- */
+enum {
+    PLANT_OK = 0,
+    PLANT_ERR_NULL = -1,        /* NULL pointer */
+    PLANT_ERR_NONFINITE = -2,   /* NaN/Inf in a parameter */
+    PLANT_ERR_TS = -3,          /* Ts_s <= 0 */
+    PLANT_ERR_R = -4,           /* R_ohm < 0 */
+    PLANT_ERR_L = -5,           /* Ld_H <= 0 or Lq_H <= 0 */
+    PLANT_ERR_POLES = -6,       /* pole_pairs < 1 */
+    PLANT_ERR_PSI = -7,         /* psi_Wb < 0 */
+    PLANT_ERR_MECH = -8,        /* bad mode, J <= 0 in FREE, B < 0 */
+    PLANT_ERR_VDC = -9,         /* Vdc <= 0 while modulation limit/dead time on */
+    PLANT_ERR_DEADTIME = -10,   /* t_dead < 0, t_dead >= Ts_pwm, I_sat < 0 */
+    PLANT_ERR_SAT = -11,        /* saturation: I_sat <= 0 or Lq_inf not in (0, Lq] */
+    PLANT_ERR_SENSOR = -12,     /* negative LSB/noise/full scale */
+    PLANT_ERR_TRIP = -13,       /* I_trip < 0 */
+    PLANT_ERR_RK4 = -14,        /* rk4_h_rel not in (0, 1] */
+    PLANT_ERR_EXPM = -15,       /* matrix exponential failed (overflow) */
+    PLANT_ERR_ENUM = -16        /* modulation/hold enum out of range */
+};
+
+typedef enum {
+    PLANT_MECH_FREE = 0,          /* J domega/dt = Te - B omega - T_load */
+    PLANT_MECH_LOCKED = 1,        /* omega = 0, theta held */
+    PLANT_MECH_IMPOSED_SPEED = 2  /* dynamometer holds omega_imposed_rad_s */
+} plant_mech_mode_t;
+
+typedef enum {
+    PLANT_MOD_NONE = 0,       /* command applied as is */
+    PLANT_MOD_SVPWM_HEX = 1,  /* clip to hexagon, vertices 2/3 Vdc */
+    PLANT_MOD_CIRCLE = 2      /* clip to circle of radius Vdc/sqrt(3) */
+} plant_mod_limit_t;
+
+typedef enum {
+    PLANT_HOLD_STATOR = 0,  /* real inverter: alpha-beta command constant */
+    PLANT_HOLD_ROTOR = 1    /* idealised model: dq command constant (for comparison) */
+} plant_hold_frame_t;
+
+/* ---- parameters ------------------------------------------------------- */
+typedef struct {
+    /* timing */
+    double Ts_s;                  /* plant period = SYNC/current-loop period */
+
+    /* motor */
+    double R_ohm;                 /* phase resistance */
+    double Ld_H;
+    double Lq_H;                  /* unsaturated q inductance (Lq0) */
+    double psi_Wb;                /* magnet flux linkage (peak, per phase) */
+    int32_t pole_pairs;
+
+    /* q-axis saturation (off by default).  Flux-linkage model:
+     *   psi_q(iq) = Lq_inf*iq + (Lq - Lq_inf)*I_sat*atan(iq/I_sat)
+     *   L_inc(iq) = dpsi_q/diq = Lq_inf + (Lq - Lq_inf)/(1 + (iq/I_sat)^2)
+     *   W_q(iq)   = Lq_inf*iq^2/2 + (Lq - Lq_inf)*I_sat^2/2*ln(1+(iq/I_sat)^2)
+     * (W_q = integral of iq dpsi_q, so the model is energy consistent).  The
+     * d axis stays linear.  Torque uses the flux form
+     * Te = 1.5 p (psi_d iq - psi_q id), psi_d = Ld id + psi. */
+    bool sat_enable;
+    double sat_I_A;               /* current where L_inc drop is half of (Lq - Lq_inf) */
+    double sat_Lq_inf_H;          /* incremental inductance at |iq| -> inf */
+
+    /* mechanics */
+    plant_mech_mode_t mech_mode;
+    double J_kgm2;
+    double B_Nm_per_rad_s;        /* viscous friction */
+    double T_load_Nm;             /* constant load torque (opposes positive Te) */
+    double omega_imposed_rad_s;   /* mechanical speed in IMPOSED_SPEED mode */
+
+    /* inverter */
+    double Vdc_V;
+    plant_mod_limit_t mod_limit;
+    /* dead time: per-phase voltage error
+     *   dv_x = -V_dt * tanh(i_x / deadtime_I_sat_A),  V_dt = Vdc*t_dead/Ts_pwm
+     * from the phase currents at the start of the period (deadtime_I_sat_A = 0
+     * gives a hard sign()).  Off when t_dead_s == 0. */
+    double t_dead_s;
+    double Ts_pwm_s;              /* PWM carrier period; 0 -> use Ts_s */
+    double deadtime_I_sat_A;
+    plant_hold_frame_t hold_frame;
+
+    /* sensors */
+    double adc_lsb_A;             /* 0 = no quantization */
+    double adc_offset_a_A;
+    double adc_offset_b_A;
+    double adc_noise_std_A;       /* 0 = no noise */
+    double adc_full_scale_A;      /* 0 = no clipping, else clip to +-FS */
+    uint32_t encoder_lines;       /* 0 = ideal angle; else 4*lines counts/rev */
+    uint64_t rng_seed;
+
+    /* protection */
+    double I_trip_A;              /* 0 = off */
+
+    /* numerics of the RK4 path (FREE mechanics or saturation) */
+    double rk4_h_rel;             /* max h*lambda per sub-step (default 0.02) */
+    uint32_t rk4_min_substeps;    /* default 1 */
+} plant_config_t;
+
+/* ---- measurements (what the drive sees + truth for tracing) ----------- */
+typedef struct {
+    /* as measured */
+    float i_a_A;                  /* ADC phase a */
+    float i_b_A;                  /* ADC phase b */
+    float theta_m_rad;            /* encoder (quantized, [0, 2pi)) */
+    int32_t encoder_count;        /* [0, 4*lines) or -1 when ideal */
+    /* truth */
+    double i_a_true_A, i_b_true_A, i_c_true_A;
+    double i_alpha_A, i_beta_A;
+    double id_A, iq_A;
+    double theta_m_true_rad;      /* [0, 2pi) */
+    double theta_e_rad;           /* [0, 2pi) */
+    double omega_m_rad_s;
+    double torque_Nm;
+    double t_s;
+    uint64_t k;
+    bool tripped;
+} plant_meas_t;
+
+/* ---- energy accounting (all since the last plant_energy_reset) -------- */
+typedef struct {
+    double in_J;       /* integral of 1.5 (vd id + vq iq) */
+    double copper_J;   /* integral of 1.5 R (id^2 + iq^2) */
+    double mech_J;     /* integral of Te * omega_m (air-gap -> shaft) */
+    double friction_J; /* integral of B omega_m^2 (FREE mode only) */
+    double load_J;     /* integral of T_load omega_m (FREE mode only) */
+    double W_mag0_J;   /* stored magnetic energy at the reset */
+    double W_kin0_J;   /* kinetic energy at the reset */
+} plant_energy_t;
+
+/* ---- runtime state ----------------------------------------------------- */
+typedef struct {
+    /* electrical, rotor frame */
+    double id_A, iq_A;
+    /* mechanical */
+    double theta_m_rad;           /* [0, 2pi) */
+    int64_t revolutions;
+    double omega_m_rad_s;
+    double cos_e, sin_e;          /* of theta_e = p*theta_m */
+    /* time */
+    uint64_t k;
+    double t_s;
+    /* inverter trace of the last step */
+    double v_lim_alpha_V, v_lim_beta_V;   /* command after modulation limit */
+    double v_app_alpha_V, v_app_beta_V;   /* actually applied (dead time, trip) */
+    bool tripped;
+    /* energy */
+    plant_energy_t energy;
+    /* sensors */
+    plant_rng_t rng;
+
+    /* ---- discretization cache (written by plant_prepare) ---- */
+    int status;                   /* result of the last plant_prepare */
+    bool exact;                   /* exact matrix-exponential path */
+    double phi[2][5];             /* rows id, iq of expm(A Ts) */
+    double q_in[15], q_cu[15], q_mech[15];  /* packed upper x'Mx weights */
+    double rot_c, rot_s;          /* cos/sin(w Ts) */
+    double dtheta_m;              /* omega_m * Ts */
+    uint32_t resync;              /* steps since cos/sin resync */
+    double Vdt_V;                 /* dead-time error magnitude */
+    double lam_base;              /* R/Lmin (+ electromech. freq in FREE) */
+    double Lmin_H;
+    uint32_t last_substeps;       /* RK4 sub-steps used in the last period */
+} plant_state_t;
+
+/* Fill defaults: generic 1 ohm / 1 mH / 10 mWb motor, Ts = 100 us, LOCKED,
+ * every non-ideality off (no saturation, modulation limit, dead time, ADC
+ * noise/quantization/offset, encoder, trip). */
+void plant_config_defaults(plant_config_t *c);
+/* Turn every non-ideality off, keep motor/mechanics/timing parameters. */
+void plant_config_ideal(plant_config_t *c);
+
+/* Zero currents/angle/speed/energy, seed the RNG from c->rng_seed, and call
+ * plant_prepare(); the result is in s->status (plant_step is a no-op while
+ * s->status != 0). */
+void plant_init(plant_state_t *s, const plant_config_t *c);
+/* Validate c and (re)compute the discretization.  Returns PLANT_OK or a
+ * negative PLANT_ERR_*.  Keeps currents and angle; sets omega_m to 0 (LOCKED)
+ * or omega_imposed_rad_s (IMPOSED_SPEED). */
+int plant_prepare(plant_state_t *s, const plant_config_t *c);
+/* Measurement at the current instant (consumes RNG draws when noise is on). */
+void plant_sample(plant_state_t *s, const plant_config_t *c, plant_meas_t *m);
+/* Advance one period Ts with (v_alpha_V, v_beta_V) held in the stator frame
+ * (peak phase voltage vector, amplitude-invariant Clarke). */
+void plant_step(plant_state_t *s, const plant_config_t *c,
+                double v_alpha_V, double v_beta_V);
+void plant_clear_trip(plant_state_t *s);
+
+/* Helpers for tests / bench set-up. */
+void plant_set_currents(plant_state_t *s, double id_A, double iq_A);
+/* theta_m is wrapped to [0, 2pi); omega only matters in FREE mode. */
+void plant_set_mech(plant_state_t *s, const plant_config_t *c,
+                    double theta_m_rad, double omega_m_rad_s);
+double plant_torque_Nm(const plant_state_t *s, const plant_config_t *c);
+double plant_psi_q_Wb(const plant_config_t *c, double iq_A);
+double plant_Lq_inc_H(const plant_config_t *c, double iq_A);
+double plant_magnetic_energy_J(const plant_state_t *s, const plant_config_t *c);
+double plant_kinetic_energy_J(const plant_state_t *s, const plant_config_t *c);
+/* Zero the energy integrals and take the present stored energies as reference. */
+void plant_energy_reset(plant_state_t *s, const plant_config_t *c);
+/* in - copper - (W_mag - W_mag0) - mech  (0 up to integration error). */
+double plant_energy_residual_J(const plant_state_t *s, const plant_config_t *c);
+/* Per-phase dead-time voltage error for a phase current (exposed for tests). */
+double plant_deadtime_phase_error_V(const plant_config_t *c, double i_phase_A);
+/* Apply the modulation limit of c to a command in place. */
+void plant_modulation_limit(const plant_config_t *c, double *v_alpha_V,
+                            double *v_beta_V);
+
+#endif

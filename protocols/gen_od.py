@@ -1,0 +1,285 @@
+#!/usr/bin/env python3
+"""Generate the C object dictionary of a node from its EDS file.
+
+The EDS files in protocols/eds/ are the single source of truth of the CANopen
+contract. This generator reads them with python `canopen` (the same reader the
+bench uses) and writes protocols/generated/od_<node>.h/.c: a RAM struct holding
+every value, its EDS defaults, a sorted entry table (access, PDO mapping,
+node-ID relative defaults, LowLimit/HighLimit ranges) and #defines for the
+indices and sub-indices the node code uses.
+
+    python protocols/gen_od.py            # regenerate all
+    python protocols/gen_od.py --check    # exit 1 if a generated file is stale
+
+`canopen` parses integer LowLimit/HighLimit but ignores REAL32 ones; those are
+read from the same EDS section with configparser.
+"""
+
+from __future__ import annotations
+
+import argparse
+import configparser
+import logging
+import re
+import struct
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
+
+HERE = Path(__file__).resolve().parent
+EDS_DIR = HERE / "eds"
+OUT_DIR = HERE / "generated"
+NODES = ("plant", "drive")
+STRING_MIN_CAPACITY = 32
+
+C_TYPES = {
+    datatypes.BOOLEAN: "uint8_t",
+    datatypes.INTEGER8: "int8_t",
+    datatypes.INTEGER16: "int16_t",
+    datatypes.INTEGER32: "int32_t",
+    datatypes.UNSIGNED8: "uint8_t",
+    datatypes.UNSIGNED16: "uint16_t",
+    datatypes.UNSIGNED32: "uint32_t",
+    datatypes.REAL32: "float",
+}
+DT_NAMES = {
+    datatypes.BOOLEAN: "CO_DT_BOOLEAN", datatypes.INTEGER8: "CO_DT_INTEGER8",
+    datatypes.INTEGER16: "CO_DT_INTEGER16", datatypes.INTEGER32: "CO_DT_INTEGER32",
+    datatypes.UNSIGNED8: "CO_DT_UNSIGNED8", datatypes.UNSIGNED16: "CO_DT_UNSIGNED16",
+    datatypes.UNSIGNED32: "CO_DT_UNSIGNED32", datatypes.REAL32: "CO_DT_REAL32",
+    datatypes.VISIBLE_STRING: "CO_DT_VISIBLE_STRING", datatypes.DOMAIN: "CO_DT_DOMAIN",
+}
+
+
+class EdsError(ValueError):
+    pass
+
+
+def c_ident(name: str) -> str:
+    """EDS ParameterName -> C identifier (standard names lower-cased, manufacturer names kept)."""
+    s = re.sub(r"[^0-9A-Za-z]+", "_", name).strip("_")
+    if " " in name:
+        s = s.lower()
+    if not s or s[0].isdigit():
+        s = "_" + s
+    return s
+
+
+@dataclass
+class Entry:
+    var: ODVariable
+    field: str      # C member path inside the RAM struct (e.g. "comm.x1017_producer_heartbeat_time")
+    ctype: str
+    capacity: int   # strings: characters without NUL
+    low: float | int | None
+    high: float | int | None
+
+
+def _float_limit(raw: configparser.ConfigParser, section: str, key: str) -> float | None:
+    if raw.has_option(section, key):
+        return float(raw.get(section, key))
+    return None
+
+
+def _section(var: ODVariable) -> str:
+    if isinstance(var.parent, (ODRecord, ODArray)):
+        return f"{var.index:04X}sub{var.subindex:X}"
+    return f"{var.index:04X}"
+
+
+def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], list[str], list[str]]:
+    eds = EDS_DIR / f"{node}.eds"
+    handler = _Collect()
+    logging.getLogger("canopen").addHandler(handler)
+    try:
+        od = canopen.import_od(str(eds))
+    finally:
+        logging.getLogger("canopen").removeHandler(handler)
+    if handler.messages:
+        raise EdsError(f"{eds}: canopen warned: {handler.messages}")
+    raw = configparser.ConfigParser(strict=False)
+    raw.optionxform = str  # type: ignore[assignment,method-assign]
+    raw.read(eds)
+    entries: list[Entry] = []
+    comm_fields: list[str] = []
+    mfr_fields: list[str] = []
+    defines: list[str] = []
+    for index in sorted(od.indices):
+        obj = od.indices[index]
+        area = comm_fields if index < 0x2000 else mfr_fields
+        prefix = "comm" if index < 0x2000 else "mfr"
+        oname = f"x{index:04X}_{c_ident(obj.name)}"
+        macro_base = f"{node.upper()}_{c_ident(obj.name).upper()}"
+        defines.append(f"#define OD_{macro_base}_IDX 0x{index:04X}u")
+        subs = [obj] if isinstance(obj, ODVariable) else [obj.subindices[s] for s in sorted(obj.subindices)]
+        members: list[str] = []
+        for var in subs:
+            if var.data_type not in DT_NAMES:
+                raise EdsError(f"{eds} [{_section(var)}] {var.name}: data type 0x{var.data_type:X} not supported")
+            sec = _section(var)
+            if isinstance(obj, ODVariable):
+                field = f"{prefix}.{oname}"
+                member_name = oname
+            else:
+                member_name = c_ident(var.name)
+                field = f"{prefix}.{oname}.{member_name}"
+                defines.append(f"#define OD_{macro_base}_{member_name.upper()}_SUB 0x{var.subindex:02X}u")
+            capacity = 0
+            if var.data_type == datatypes.VISIBLE_STRING:
+                default = var.default or ""
+                capacity = len(default) if var.access_type == "const" else max(STRING_MIN_CAPACITY, len(default))
+                decl = f"char {member_name}[{capacity + 1}];"
+                ctype = "char"
+            elif var.data_type == datatypes.DOMAIN:
+                decl = f"co_domain_t {member_name};"
+                ctype = "co_domain_t"
+            else:
+                ctype = C_TYPES[var.data_type]
+                decl = f"{ctype} {member_name};"
+            members.append(decl)
+            if var.data_type == datatypes.REAL32:
+                low = _float_limit(raw, sec, "LowLimit")
+                high = _float_limit(raw, sec, "HighLimit")
+            else:
+                low, high = var.min, var.max
+            if (low is None) != (high is None):
+                raise EdsError(f"{eds} [{sec}] {var.name}: give both LowLimit and HighLimit or neither")
+            entries.append(Entry(var, field, ctype, capacity, low, high))
+        if isinstance(obj, ODVariable):
+            area.append(members[0])
+        else:
+            area.append("struct {\n        " + "\n        ".join(members) + f"\n    }} {oname};")
+    return od, entries, comm_fields, mfr_fields, defines
+
+
+class _Collect(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(level=logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+def _default_literal(e: Entry) -> str | None:
+    var = e.var
+    raw = getattr(var, "default_raw", None)
+    if var.data_type == datatypes.DOMAIN:
+        return None
+    if var.data_type == datatypes.VISIBLE_STRING:
+        s = var.default or ""
+        return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if var.data_type == datatypes.REAL32:
+        v = float(var.default or 0.0)
+        return _c_float(v)
+    if var.relative:
+        # Store the offset; co_od_reset adds the node-ID.
+        value = int(re.sub(r"\+?\$NODEID\+?", "", raw.replace(" ", "").upper()), 0)
+    else:
+        value = int(var.default or 0)
+    if var.data_type in (datatypes.INTEGER8, datatypes.INTEGER16, datatypes.INTEGER32):
+        return str(value)
+    return f"0x{value:X}u"
+
+
+def _c_float(v: float) -> str:
+    f32 = struct.unpack("<f", struct.pack("<f", v))[0]
+    text = repr(f32)
+    if "e" not in text and "." not in text and "inf" not in text:
+        text += ".0"
+    return text + "f"
+
+
+def render(node: str) -> tuple[str, str]:
+    od, entries, comm_fields, mfr_fields, defines = load(node)
+    up = node.upper()
+    src_note = f"Generated by protocols/gen_od.py from protocols/eds/{node}.eds - do not edit."
+    h: list[str] = [f"/* od_{node}.h - {src_note} */", f"#ifndef OD_{up}_H", f"#define OD_{up}_H", "",
+                    '#include <stdint.h>', '#include "co_od.h"', "",
+                    f"#define OD_{up}_DEFAULT_NODE_ID {od.node_id or 0}u", ""]
+    h.append("typedef struct {")
+    h += [f"    {f}" for f in comm_fields]
+    h.append(f"}} od_{node}_comm_t;\n")
+    h.append("typedef struct {")
+    h += [f"    {f}" for f in mfr_fields]
+    h.append(f"}} od_{node}_mfr_t;\n")
+    h.append("/* The communication part comes first: a communication reset restores it alone. */")
+    h.append(f"typedef struct {{\n    od_{node}_comm_t comm;\n    od_{node}_mfr_t mfr;\n}} od_{node}_ram_t;\n")
+    h.append(f"extern od_{node}_ram_t OD_{up};")
+    h.append(f"extern const co_od_t od_{node};\n")
+    h += defines
+    h += ["", f"#endif /* OD_{up}_H */", ""]
+
+    c: list[str] = [f"/* od_{node}.c - {src_note} */", f'#include "od_{node}.h"', "", f"od_{node}_ram_t OD_{up};", ""]
+    c.append(f"static const od_{node}_ram_t defaults = {{")
+    for e in entries:
+        lit = _default_literal(e)
+        if lit is not None:
+            c.append(f"    .{e.field} = {lit},")
+    c.append("};\n")
+    c.append(f"static const co_od_entry_t entries[] = {{")
+    for e in entries:
+        var = e.var
+        flags = []
+        if var.access_type in ("ro", "rw", "rwr", "rww", "const"):
+            flags.append("CO_ODF_READ")
+        if var.access_type in ("wo", "rw", "rwr", "rww"):
+            flags.append("CO_ODF_WRITE")
+        if var.pdo_mappable:
+            flags.append("CO_ODF_PDO")
+        if var.relative:
+            flags.append("CO_ODF_NODEID")
+        if e.low is not None:
+            flags.append("CO_ODF_LIMITS")
+        if var.data_type == datatypes.VISIBLE_STRING:
+            size = str(e.capacity)
+        elif var.data_type == datatypes.DOMAIN:
+            size = "0"
+        else:
+            size = f"sizeof(OD_{up}.{e.field})"
+        if e.low is None:
+            lim = "{.i = 0}, {.i = 0}"
+        elif var.data_type == datatypes.REAL32:
+            lim = f"{{.f = {_c_float(float(e.low))}}}, {{.f = {_c_float(float(e.high))}}}"  # type: ignore[arg-type]
+        else:
+            lim = f"{{.i = {int(e.low)}}}, {{.i = {int(e.high)}}}"  # type: ignore[arg-type]
+        ptr = f"OD_{up}.{e.field}" if var.data_type == datatypes.VISIBLE_STRING else f"&OD_{up}.{e.field}"
+        c.append(f"    {{0x{var.index:04X}u, 0x{var.subindex:02X}u, {DT_NAMES[var.data_type]}, "
+                 f"{' | '.join(flags) or '0'}, {size}, {ptr}, {lim}}}, /* {var.name} */")
+    c.append("};\n")
+    c.append(f"const co_od_t od_{node} = {{entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_{up}, "
+             f"&defaults, sizeof(od_{node}_comm_t), sizeof(od_{node}_ram_t)}};")
+    c.append("")
+    return "\n".join(h), "\n".join(c)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--check", action="store_true", help="exit 1 if a generated file differs from the EDS")
+    args = ap.parse_args(argv)
+    stale = []
+    for node in NODES:
+        try:
+            h, c = render(node)
+        except EdsError as exc:
+            print(f"gen_od: {exc}", file=sys.stderr)
+            return 2
+        for path, text in ((OUT_DIR / f"od_{node}.h", h), (OUT_DIR / f"od_{node}.c", c)):
+            if args.check:
+                if not path.exists() or path.read_text() != text:
+                    stale.append(str(path))
+            elif not path.exists() or path.read_text() != text:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_text(text)
+                print(f"gen_od: wrote {path.relative_to(HERE.parent)}")
+    if stale:
+        print("gen_od: stale generated files (run `python protocols/gen_od.py`): " + ", ".join(stale), file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
