@@ -40,7 +40,14 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node)
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup
+.PHONY: all clean demo test setup fuzz
+
+# libFuzzer harness of the CANopen slave (clang, ASan + UBSan).
+FUZZ_CFLAGS := -std=c11 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(WARN)
+fuzz: $(BUILD)/fuzz/fuzz_slave
+$(BUILD)/fuzz/fuzz_slave: protocols/fuzz/fuzz_slave.c $(CO_SRC) $(wildcard protocols/canopen/*.h)
+	@mkdir -p $(@D)
+	clang $(FUZZ_CFLAGS) $(INC) protocols/fuzz/fuzz_slave.c $(CO_SRC) -o $@
 all: $(LIBCO) $(LIBSCAN) $(PROTO_TOOLS) $(PROTO_TESTS) $(PLANT_TOOLS) $(PLANT_TESTS) \
      $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB)
 

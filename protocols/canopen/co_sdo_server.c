@@ -91,7 +91,9 @@ static void download_initiate(co_node_t *node, const uint8_t *req, uint16_t inde
     bool size_ind = (cs & 0x01u) != 0u;
     uint32_t fixed = co_dt_size(e->datatype);
     if (expedited) {
-        uint32_t len = size_ind ? 4u - ((cs >> 2) & 3u) : (fixed ? fixed : 4u);
+        /* Without a size indication the length is only known for fixed-size types. */
+        if (!size_ind && !fixed) { sdo_abort(node, index, sub, CO_ABORT_TYPE_MISMATCH); return; }
+        uint32_t len = size_ind ? 4u - ((cs >> 2) & 3u) : fixed;
         abort = co_node_sdo_write(node, e, &req[4], len);
         if (abort) { sdo_abort(node, index, sub, abort); return; }
         uint8_t d[8] = {0x60, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};

@@ -34,11 +34,11 @@ static const od_drive_ram_t defaults = {
     .comm.x1200_sdo_server_parameter.cob_id_client_to_server = 0x600u,
     .comm.x1200_sdo_server_parameter.cob_id_server_to_client = 0x580u,
     .comm.x1400_rpdo1_communication_parameter.highest_sub_index_supported = 0x5u,
-    .comm.x1400_rpdo1_communication_parameter.cob_id_used_by_rpdo = 0x200u,
+    .comm.x1400_rpdo1_communication_parameter.cob_id_used_by_rpdo = 0x190u,
     .comm.x1400_rpdo1_communication_parameter.transmission_type = 0xFEu,
     .comm.x1400_rpdo1_communication_parameter.event_timer = 0x0u,
     .comm.x1401_rpdo2_communication_parameter.highest_sub_index_supported = 0x5u,
-    .comm.x1401_rpdo2_communication_parameter.cob_id_used_by_rpdo = 0x300u,
+    .comm.x1401_rpdo2_communication_parameter.cob_id_used_by_rpdo = 0x290u,
     .comm.x1401_rpdo2_communication_parameter.transmission_type = 0xFEu,
     .comm.x1401_rpdo2_communication_parameter.event_timer = 0x0u,
     .comm.x1402_rpdo3_communication_parameter.highest_sub_index_supported = 0x5u,
@@ -86,7 +86,7 @@ static const od_drive_ram_t defaults = {
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_8 = 0x0u,
     .comm.x1800_tpdo1_communication_parameter.highest_sub_index_supported = 0x6u,
-    .comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo = 0x180u,
+    .comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo = 0x210u,
     .comm.x1800_tpdo1_communication_parameter.transmission_type = 0xFEu,
     .comm.x1800_tpdo1_communication_parameter.inhibit_time = 0x0u,
     .comm.x1800_tpdo1_communication_parameter.event_timer = 0x0u,
@@ -119,8 +119,8 @@ static const od_drive_ram_t defaults = {
     .comm.x1A00_tpdo1_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1A00_tpdo1_mapping_parameter.mapping_entry_8 = 0x0u,
     .comm.x1A01_tpdo2_mapping_parameter.number_of_mapped_objects = 0x2u,
-    .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_1 = 0x22010520u,
-    .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_2 = 0x22010A20u,
+    .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_1 = 0x23020120u,
+    .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_2 = 0x23020220u,
     .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_3 = 0x0u,
     .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_4 = 0x0u,
     .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_5 = 0x0u,
@@ -155,7 +155,7 @@ static const od_drive_ram_t defaults = {
     .mfr.x2102_voltage_command.highest_sub_index_supported = 0x2u,
     .mfr.x2102_voltage_command.v_alpha_V = 0.0f,
     .mfr.x2102_voltage_command.v_beta_V = 0.0f,
-    .mfr.x2200_Controller.highest_sub_index_supported = 0x10u,
+    .mfr.x2200_Controller.highest_sub_index_supported = 0x14u,
     .mfr.x2200_Controller.controller = 0x2u,
     .mfr.x2200_Controller.Ts_s = 5.500000042957254e-05f,
     .mfr.x2200_Controller.speed_loop_divider = 0x8u,
@@ -172,7 +172,11 @@ static const od_drive_ram_t defaults = {
     .mfr.x2200_Controller.deadtime_comp_I_sat_A = 1.0f,
     .mfr.x2200_Controller.estimator_bandwidth_Hz = 900.0f,
     .mfr.x2200_Controller.J_hat_kgm2 = 2.9999999242136255e-05f,
-    .mfr.x2201_online_tuning.highest_sub_index_supported = 0xBu,
+    .mfr.x2200_Controller.vlimit_radial = 0x0u,
+    .mfr.x2200_Controller.decoupling_enable = 0x1u,
+    .mfr.x2200_Controller.angle_advance_periods = 1.5f,
+    .mfr.x2200_Controller.estimator_enable = 0x1u,
+    .mfr.x2201_online_tuning.highest_sub_index_supported = 0xEu,
     .mfr.x2201_online_tuning.enable = 0x0u,
     .mfr.x2201_online_tuning.det_threshold_A2 = 0.20000000298023224f,
     .mfr.x2201_online_tuning.average_m = 0x8u,
@@ -184,27 +188,34 @@ static const od_drive_ram_t defaults = {
     .mfr.x2201_online_tuning.K2_avg = 0.0f,
     .mfr.x2201_online_tuning.L_hat_H = 0.0f,
     .mfr.x2201_online_tuning.identifications = 0x0u,
+    .mfr.x2201_online_tuning.K1_active_V_A = 0.0f,
+    .mfr.x2201_online_tuning.K2_active_V_A = 0.0f,
+    .mfr.x2201_online_tuning.gain_updates = 0x0u,
     .mfr.x2202_References.highest_sub_index_supported = 0x9u,
     .mfr.x2202_References.mode = 0x0u,
     .mfr.x2202_References.iq_ref_A = 0.0f,
     .mfr.x2202_References.id_ref_A = 0.0f,
     .mfr.x2202_References.speed_ref_rad_s = 0.0f,
     .mfr.x2202_References.position_ref_rad = 0.0f,
-    .mfr.x2202_References.profile_speed_rad_s = 314.15899658203125f,
-    .mfr.x2202_References.profile_accel_rad_s2 = 30000.0f,
+    .mfr.x2202_References.profile_speed_rad_s = 314.1592712402344f,
+    .mfr.x2202_References.profile_accel_rad_s2 = 2000.0f,
     .mfr.x2202_References.v_d_open_V = 0.0f,
     .mfr.x2202_References.v_q_open_V = 0.0f,
-    .mfr.x2203_outer_loops.highest_sub_index_supported = 0x3u,
+    .mfr.x2203_outer_loops.highest_sub_index_supported = 0x4u,
     .mfr.x2203_outer_loops.speed_bandwidth_Hz = 100.0f,
     .mfr.x2203_outer_loops.position_bandwidth_Hz = 10.0f,
     .mfr.x2203_outer_loops.iq_limit_A = 4.0f,
-    .mfr.x2204_drive_status.highest_sub_index_supported = 0x5u,
+    .mfr.x2203_outer_loops.speed_pi_zero_ratio = 0.25f,
+    .mfr.x2204_drive_status.highest_sub_index_supported = 0x8u,
     .mfr.x2204_drive_status.current_steps = 0x0u,
     .mfr.x2204_drive_status.lost_measurements = 0x0u,
     .mfr.x2204_drive_status.late_measurements = 0x0u,
     .mfr.x2204_drive_status.id_A = 0.0f,
     .mfr.x2204_drive_status.iq_A = 0.0f,
-    .mfr.x2300_Trace.highest_sub_index_supported = 0xFu,
+    .mfr.x2204_drive_status.speed_rad_s = 0.0f,
+    .mfr.x2204_drive_status.iq_ref_active_A = 0.0f,
+    .mfr.x2204_drive_status.last_sample_index = 0x0u,
+    .mfr.x2300_Trace.highest_sub_index_supported = 0x11u,
     .mfr.x2300_Trace.state = 0x0u,
     .mfr.x2300_Trace.trigger_signal = 0x0u,
     .mfr.x2300_Trace.trigger_level = 0.0f,
@@ -220,6 +231,14 @@ static const od_drive_ram_t defaults = {
     .mfr.x2300_Trace.signal_6 = 0x0u,
     .mfr.x2300_Trace.signal_7 = 0x0u,
     .mfr.x2300_Trace.signal_8 = 0x0u,
+    .mfr.x2300_Trace.captured_bytes = 0x0u,
+    .mfr.x2300_Trace.trigger_row = 0x0u,
+    .mfr.x2302_live_trace.highest_sub_index_supported = 0x5u,
+    .mfr.x2302_live_trace.value_1 = 0.0f,
+    .mfr.x2302_live_trace.value_2 = 0.0f,
+    .mfr.x2302_live_trace.live_signal_1 = 0x2u,
+    .mfr.x2302_live_trace.live_signal_2 = 0x1u,
+    .mfr.x2302_live_trace.decimation = 0x8u,
 };
 
 static const co_od_entry_t entries[] = {
@@ -253,11 +272,11 @@ static const co_od_entry_t entries[] = {
     {0x1200u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_NODEID, sizeof(OD_DRIVE.comm.x1200_sdo_server_parameter.cob_id_client_to_server), &OD_DRIVE.comm.x1200_sdo_server_parameter.cob_id_client_to_server, {.i = 0}, {.i = 0}}, /* COB-ID client to server */
     {0x1200u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_NODEID, sizeof(OD_DRIVE.comm.x1200_sdo_server_parameter.cob_id_server_to_client), &OD_DRIVE.comm.x1200_sdo_server_parameter.cob_id_server_to_client, {.i = 0}, {.i = 0}}, /* COB-ID server to client */
     {0x1400u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.comm.x1400_rpdo1_communication_parameter.highest_sub_index_supported), &OD_DRIVE.comm.x1400_rpdo1_communication_parameter.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x1400u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_NODEID, sizeof(OD_DRIVE.comm.x1400_rpdo1_communication_parameter.cob_id_used_by_rpdo), &OD_DRIVE.comm.x1400_rpdo1_communication_parameter.cob_id_used_by_rpdo, {.i = 0}, {.i = 0}}, /* COB-ID used by RPDO */
+    {0x1400u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1400_rpdo1_communication_parameter.cob_id_used_by_rpdo), &OD_DRIVE.comm.x1400_rpdo1_communication_parameter.cob_id_used_by_rpdo, {.i = 0}, {.i = 0}}, /* COB-ID used by RPDO */
     {0x1400u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1400_rpdo1_communication_parameter.transmission_type), &OD_DRIVE.comm.x1400_rpdo1_communication_parameter.transmission_type, {.i = 0}, {.i = 0}}, /* Transmission type */
     {0x1400u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1400_rpdo1_communication_parameter.event_timer), &OD_DRIVE.comm.x1400_rpdo1_communication_parameter.event_timer, {.i = 0}, {.i = 0}}, /* Event timer */
     {0x1401u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.comm.x1401_rpdo2_communication_parameter.highest_sub_index_supported), &OD_DRIVE.comm.x1401_rpdo2_communication_parameter.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x1401u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_NODEID, sizeof(OD_DRIVE.comm.x1401_rpdo2_communication_parameter.cob_id_used_by_rpdo), &OD_DRIVE.comm.x1401_rpdo2_communication_parameter.cob_id_used_by_rpdo, {.i = 0}, {.i = 0}}, /* COB-ID used by RPDO */
+    {0x1401u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1401_rpdo2_communication_parameter.cob_id_used_by_rpdo), &OD_DRIVE.comm.x1401_rpdo2_communication_parameter.cob_id_used_by_rpdo, {.i = 0}, {.i = 0}}, /* COB-ID used by RPDO */
     {0x1401u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1401_rpdo2_communication_parameter.transmission_type), &OD_DRIVE.comm.x1401_rpdo2_communication_parameter.transmission_type, {.i = 0}, {.i = 0}}, /* Transmission type */
     {0x1401u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1401_rpdo2_communication_parameter.event_timer), &OD_DRIVE.comm.x1401_rpdo2_communication_parameter.event_timer, {.i = 0}, {.i = 0}}, /* Event timer */
     {0x1402u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.comm.x1402_rpdo3_communication_parameter.highest_sub_index_supported), &OD_DRIVE.comm.x1402_rpdo3_communication_parameter.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
@@ -305,7 +324,7 @@ static const co_od_entry_t entries[] = {
     {0x1603u, 0x07u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1603_rpdo4_mapping_parameter.mapping_entry_7), &OD_DRIVE.comm.x1603_rpdo4_mapping_parameter.mapping_entry_7, {.i = 0}, {.i = 0}}, /* Mapping entry 7 */
     {0x1603u, 0x08u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1603_rpdo4_mapping_parameter.mapping_entry_8), &OD_DRIVE.comm.x1603_rpdo4_mapping_parameter.mapping_entry_8, {.i = 0}, {.i = 0}}, /* Mapping entry 8 */
     {0x1800u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.comm.x1800_tpdo1_communication_parameter.highest_sub_index_supported), &OD_DRIVE.comm.x1800_tpdo1_communication_parameter.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x1800u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_NODEID, sizeof(OD_DRIVE.comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo), &OD_DRIVE.comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo, {.i = 0}, {.i = 0}}, /* COB-ID used by TPDO */
+    {0x1800u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo), &OD_DRIVE.comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo, {.i = 0}, {.i = 0}}, /* COB-ID used by TPDO */
     {0x1800u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1800_tpdo1_communication_parameter.transmission_type), &OD_DRIVE.comm.x1800_tpdo1_communication_parameter.transmission_type, {.i = 0}, {.i = 0}}, /* Transmission type */
     {0x1800u, 0x03u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1800_tpdo1_communication_parameter.inhibit_time), &OD_DRIVE.comm.x1800_tpdo1_communication_parameter.inhibit_time, {.i = 0}, {.i = 0}}, /* Inhibit time */
     {0x1800u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.comm.x1800_tpdo1_communication_parameter.event_timer), &OD_DRIVE.comm.x1800_tpdo1_communication_parameter.event_timer, {.i = 0}, {.i = 0}}, /* Event timer */
@@ -391,10 +410,14 @@ static const co_od_entry_t entries[] = {
     {0x2200u, 0x0Eu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.deadtime_comp_I_sat_A), &OD_DRIVE.mfr.x2200_Controller.deadtime_comp_I_sat_A, {.f = 0.0010000000474974513f}, {.f = 100.0f}}, /* deadtime_comp_I_sat_A */
     {0x2200u, 0x0Fu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.estimator_bandwidth_Hz), &OD_DRIVE.mfr.x2200_Controller.estimator_bandwidth_Hz, {.f = 1.0f}, {.f = 20000.0f}}, /* estimator_bandwidth_Hz */
     {0x2200u, 0x10u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.J_hat_kgm2), &OD_DRIVE.mfr.x2200_Controller.J_hat_kgm2, {.f = 1.0000000116860974e-07f}, {.f = 100.0f}}, /* J_hat_kgm2 */
+    {0x2200u, 0x11u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.vlimit_radial), &OD_DRIVE.mfr.x2200_Controller.vlimit_radial, {.i = 0}, {.i = 1}}, /* vlimit_radial */
+    {0x2200u, 0x12u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.decoupling_enable), &OD_DRIVE.mfr.x2200_Controller.decoupling_enable, {.i = 0}, {.i = 1}}, /* decoupling_enable */
+    {0x2200u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.angle_advance_periods), &OD_DRIVE.mfr.x2200_Controller.angle_advance_periods, {.f = -4.0f}, {.f = 4.0f}}, /* angle_advance_periods */
+    {0x2200u, 0x14u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.estimator_enable), &OD_DRIVE.mfr.x2200_Controller.estimator_enable, {.i = 0}, {.i = 1}}, /* estimator_enable */
     {0x2201u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2201_online_tuning.highest_sub_index_supported), &OD_DRIVE.mfr.x2201_online_tuning.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2201u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.enable), &OD_DRIVE.mfr.x2201_online_tuning.enable, {.i = 0}, {.i = 1}}, /* enable */
     {0x2201u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.det_threshold_A2), &OD_DRIVE.mfr.x2201_online_tuning.det_threshold_A2, {.f = 0.0f}, {.f = 1000000.0f}}, /* det_threshold_A2 */
-    {0x2201u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.average_m), &OD_DRIVE.mfr.x2201_online_tuning.average_m, {.i = 1}, {.i = 64}}, /* average_m */
+    {0x2201u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.average_m), &OD_DRIVE.mfr.x2201_online_tuning.average_m, {.i = 1}, {.i = 16}}, /* average_m */
     {0x2201u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.separate_d_axis), &OD_DRIVE.mfr.x2201_online_tuning.separate_d_axis, {.i = 0}, {.i = 1}}, /* separate_d_axis */
     {0x2201u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.det_A2), &OD_DRIVE.mfr.x2201_online_tuning.det_A2, {.i = 0}, {.i = 0}}, /* det_A2 */
     {0x2201u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_hat), &OD_DRIVE.mfr.x2201_online_tuning.K1_hat, {.i = 0}, {.i = 0}}, /* K1_hat */
@@ -403,6 +426,9 @@ static const co_od_entry_t entries[] = {
     {0x2201u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_avg), &OD_DRIVE.mfr.x2201_online_tuning.K2_avg, {.i = 0}, {.i = 0}}, /* K2_avg */
     {0x2201u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.L_hat_H), &OD_DRIVE.mfr.x2201_online_tuning.L_hat_H, {.i = 0}, {.i = 0}}, /* L_hat_H */
     {0x2201u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.identifications), &OD_DRIVE.mfr.x2201_online_tuning.identifications, {.i = 0}, {.i = 0}}, /* identifications */
+    {0x2201u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_active_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_active_V_A, {.i = 0}, {.i = 0}}, /* K1_active_V_A */
+    {0x2201u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_active_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K2_active_V_A, {.i = 0}, {.i = 0}}, /* K2_active_V_A */
+    {0x2201u, 0x0Eu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.gain_updates), &OD_DRIVE.mfr.x2201_online_tuning.gain_updates, {.i = 0}, {.i = 0}}, /* gain_updates */
     {0x2202u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2202_References.highest_sub_index_supported), &OD_DRIVE.mfr.x2202_References.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2202u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2202_References.mode), &OD_DRIVE.mfr.x2202_References.mode, {.i = 0}, {.i = 3}}, /* mode */
     {0x2202u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2202_References.iq_ref_A), &OD_DRIVE.mfr.x2202_References.iq_ref_A, {.f = -1000.0f}, {.f = 1000.0f}}, /* iq_ref_A */
@@ -417,18 +443,22 @@ static const co_od_entry_t entries[] = {
     {0x2203u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2203_outer_loops.speed_bandwidth_Hz), &OD_DRIVE.mfr.x2203_outer_loops.speed_bandwidth_Hz, {.f = 0.10000000149011612f}, {.f = 5000.0f}}, /* speed_bandwidth_Hz */
     {0x2203u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2203_outer_loops.position_bandwidth_Hz), &OD_DRIVE.mfr.x2203_outer_loops.position_bandwidth_Hz, {.f = 0.009999999776482582f}, {.f = 1000.0f}}, /* position_bandwidth_Hz */
     {0x2203u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2203_outer_loops.iq_limit_A), &OD_DRIVE.mfr.x2203_outer_loops.iq_limit_A, {.f = 0.0f}, {.f = 1000.0f}}, /* iq_limit_A */
+    {0x2203u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2203_outer_loops.speed_pi_zero_ratio), &OD_DRIVE.mfr.x2203_outer_loops.speed_pi_zero_ratio, {.f = 0.0f}, {.f = 10.0f}}, /* speed_pi_zero_ratio */
     {0x2204u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.highest_sub_index_supported), &OD_DRIVE.mfr.x2204_drive_status.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2204u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.current_steps), &OD_DRIVE.mfr.x2204_drive_status.current_steps, {.i = 0}, {.i = 0}}, /* current_steps */
     {0x2204u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.lost_measurements), &OD_DRIVE.mfr.x2204_drive_status.lost_measurements, {.i = 0}, {.i = 0}}, /* lost_measurements */
     {0x2204u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.late_measurements), &OD_DRIVE.mfr.x2204_drive_status.late_measurements, {.i = 0}, {.i = 0}}, /* late_measurements */
     {0x2204u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.id_A), &OD_DRIVE.mfr.x2204_drive_status.id_A, {.i = 0}, {.i = 0}}, /* id_A */
     {0x2204u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.iq_A), &OD_DRIVE.mfr.x2204_drive_status.iq_A, {.i = 0}, {.i = 0}}, /* iq_A */
+    {0x2204u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.speed_rad_s), &OD_DRIVE.mfr.x2204_drive_status.speed_rad_s, {.i = 0}, {.i = 0}}, /* speed_rad_s */
+    {0x2204u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.iq_ref_active_A), &OD_DRIVE.mfr.x2204_drive_status.iq_ref_active_A, {.i = 0}, {.i = 0}}, /* iq_ref_active_A */
+    {0x2204u, 0x08u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.last_sample_index), &OD_DRIVE.mfr.x2204_drive_status.last_sample_index, {.i = 0}, {.i = 0}}, /* last_sample_index */
     {0x2300u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported), &OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2300u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.state), &OD_DRIVE.mfr.x2300_Trace.state, {.i = 0}, {.i = 3}}, /* state */
     {0x2300u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_signal), &OD_DRIVE.mfr.x2300_Trace.trigger_signal, {.i = 0}, {.i = 63}}, /* trigger_signal */
     {0x2300u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_level), &OD_DRIVE.mfr.x2300_Trace.trigger_level, {.i = 0}, {.i = 0}}, /* trigger_level */
-    {0x2300u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_edge), &OD_DRIVE.mfr.x2300_Trace.trigger_edge, {.i = 0}, {.i = 2}}, /* trigger_edge */
-    {0x2300u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.mfr.x2300_Trace.pretrigger_samples), &OD_DRIVE.mfr.x2300_Trace.pretrigger_samples, {.i = 0}, {.i = 0}}, /* pretrigger_samples */
+    {0x2300u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_edge), &OD_DRIVE.mfr.x2300_Trace.trigger_edge, {.i = 0}, {.i = 3}}, /* trigger_edge */
+    {0x2300u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.pretrigger_samples), &OD_DRIVE.mfr.x2300_Trace.pretrigger_samples, {.i = 0}, {.i = 8191}}, /* pretrigger_samples */
     {0x2300u, 0x06u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.decimation), &OD_DRIVE.mfr.x2300_Trace.decimation, {.i = 1}, {.i = 65535}}, /* decimation */
     {0x2300u, 0x07u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.signal_count), &OD_DRIVE.mfr.x2300_Trace.signal_count, {.i = 0}, {.i = 8}}, /* signal_count */
     {0x2300u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.signal_1), &OD_DRIVE.mfr.x2300_Trace.signal_1, {.i = 0}, {.i = 63}}, /* signal_1 */
@@ -439,7 +469,15 @@ static const co_od_entry_t entries[] = {
     {0x2300u, 0x0Du, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.signal_6), &OD_DRIVE.mfr.x2300_Trace.signal_6, {.i = 0}, {.i = 63}}, /* signal_6 */
     {0x2300u, 0x0Eu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.signal_7), &OD_DRIVE.mfr.x2300_Trace.signal_7, {.i = 0}, {.i = 63}}, /* signal_7 */
     {0x2300u, 0x0Fu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.signal_8), &OD_DRIVE.mfr.x2300_Trace.signal_8, {.i = 0}, {.i = 63}}, /* signal_8 */
+    {0x2300u, 0x10u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.captured_bytes), &OD_DRIVE.mfr.x2300_Trace.captured_bytes, {.i = 0}, {.i = 0}}, /* captured_bytes */
+    {0x2300u, 0x11u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_row), &OD_DRIVE.mfr.x2300_Trace.trigger_row, {.i = 0}, {.i = 0}}, /* trigger_row */
     {0x2301u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ, 0, &OD_DRIVE.mfr.x2301_trace_buffer, {.i = 0}, {.i = 0}}, /* Trace buffer */
+    {0x2302u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2302_live_trace.highest_sub_index_supported), &OD_DRIVE.mfr.x2302_live_trace.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2302u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2302_live_trace.value_1), &OD_DRIVE.mfr.x2302_live_trace.value_1, {.i = 0}, {.i = 0}}, /* value_1 */
+    {0x2302u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2302_live_trace.value_2), &OD_DRIVE.mfr.x2302_live_trace.value_2, {.i = 0}, {.i = 0}}, /* value_2 */
+    {0x2302u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.live_signal_1), &OD_DRIVE.mfr.x2302_live_trace.live_signal_1, {.i = 0}, {.i = 63}}, /* live_signal_1 */
+    {0x2302u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.live_signal_2), &OD_DRIVE.mfr.x2302_live_trace.live_signal_2, {.i = 0}, {.i = 63}}, /* live_signal_2 */
+    {0x2302u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.decimation), &OD_DRIVE.mfr.x2302_live_trace.decimation, {.i = 1}, {.i = 65535}}, /* decimation */
 };
 
 const co_od_t od_drive = {entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_DRIVE, &defaults, sizeof(od_drive_comm_t), sizeof(od_drive_ram_t)};

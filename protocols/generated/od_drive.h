@@ -224,6 +224,10 @@ typedef struct {
         float deadtime_comp_I_sat_A;
         float estimator_bandwidth_Hz;
         float J_hat_kgm2;
+        uint8_t vlimit_radial;
+        uint8_t decoupling_enable;
+        float angle_advance_periods;
+        uint8_t estimator_enable;
     } x2200_Controller;
     struct {
         uint8_t highest_sub_index_supported;
@@ -238,6 +242,9 @@ typedef struct {
         float K2_avg;
         float L_hat_H;
         uint32_t identifications;
+        float K1_active_V_A;
+        float K2_active_V_A;
+        uint32_t gain_updates;
     } x2201_online_tuning;
     struct {
         uint8_t highest_sub_index_supported;
@@ -256,6 +263,7 @@ typedef struct {
         float speed_bandwidth_Hz;
         float position_bandwidth_Hz;
         float iq_limit_A;
+        float speed_pi_zero_ratio;
     } x2203_outer_loops;
     struct {
         uint8_t highest_sub_index_supported;
@@ -264,6 +272,9 @@ typedef struct {
         uint32_t late_measurements;
         float id_A;
         float iq_A;
+        float speed_rad_s;
+        float iq_ref_active_A;
+        uint16_t last_sample_index;
     } x2204_drive_status;
     struct {
         uint8_t highest_sub_index_supported;
@@ -282,8 +293,18 @@ typedef struct {
         uint8_t signal_6;
         uint8_t signal_7;
         uint8_t signal_8;
+        uint32_t captured_bytes;
+        uint32_t trigger_row;
     } x2300_Trace;
     co_domain_t x2301_trace_buffer;
+    struct {
+        uint8_t highest_sub_index_supported;
+        float value_1;
+        float value_2;
+        uint8_t live_signal_1;
+        uint8_t live_signal_2;
+        uint16_t decimation;
+    } x2302_live_trace;
 } od_drive_mfr_t;
 
 /* The communication part comes first: a communication reset restores it alone. */
@@ -486,6 +507,10 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_CONTROLLER_DEADTIME_COMP_I_SAT_A_SUB 0x0Eu
 #define OD_DRIVE_CONTROLLER_ESTIMATOR_BANDWIDTH_HZ_SUB 0x0Fu
 #define OD_DRIVE_CONTROLLER_J_HAT_KGM2_SUB 0x10u
+#define OD_DRIVE_CONTROLLER_VLIMIT_RADIAL_SUB 0x11u
+#define OD_DRIVE_CONTROLLER_DECOUPLING_ENABLE_SUB 0x12u
+#define OD_DRIVE_CONTROLLER_ANGLE_ADVANCE_PERIODS_SUB 0x13u
+#define OD_DRIVE_CONTROLLER_ESTIMATOR_ENABLE_SUB 0x14u
 #define OD_DRIVE_ONLINE_TUNING_IDX 0x2201u
 #define OD_DRIVE_ONLINE_TUNING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_ONLINE_TUNING_ENABLE_SUB 0x01u
@@ -499,6 +524,9 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_ONLINE_TUNING_K2_AVG_SUB 0x09u
 #define OD_DRIVE_ONLINE_TUNING_L_HAT_H_SUB 0x0Au
 #define OD_DRIVE_ONLINE_TUNING_IDENTIFICATIONS_SUB 0x0Bu
+#define OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_SUB 0x0Cu
+#define OD_DRIVE_ONLINE_TUNING_K2_ACTIVE_V_A_SUB 0x0Du
+#define OD_DRIVE_ONLINE_TUNING_GAIN_UPDATES_SUB 0x0Eu
 #define OD_DRIVE_REFERENCES_IDX 0x2202u
 #define OD_DRIVE_REFERENCES_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_REFERENCES_MODE_SUB 0x01u
@@ -515,6 +543,7 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_OUTER_LOOPS_SPEED_BANDWIDTH_HZ_SUB 0x01u
 #define OD_DRIVE_OUTER_LOOPS_POSITION_BANDWIDTH_HZ_SUB 0x02u
 #define OD_DRIVE_OUTER_LOOPS_IQ_LIMIT_A_SUB 0x03u
+#define OD_DRIVE_OUTER_LOOPS_SPEED_PI_ZERO_RATIO_SUB 0x04u
 #define OD_DRIVE_DRIVE_STATUS_IDX 0x2204u
 #define OD_DRIVE_DRIVE_STATUS_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_DRIVE_STATUS_CURRENT_STEPS_SUB 0x01u
@@ -522,6 +551,9 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_DRIVE_STATUS_LATE_MEASUREMENTS_SUB 0x03u
 #define OD_DRIVE_DRIVE_STATUS_ID_A_SUB 0x04u
 #define OD_DRIVE_DRIVE_STATUS_IQ_A_SUB 0x05u
+#define OD_DRIVE_DRIVE_STATUS_SPEED_RAD_S_SUB 0x06u
+#define OD_DRIVE_DRIVE_STATUS_IQ_REF_ACTIVE_A_SUB 0x07u
+#define OD_DRIVE_DRIVE_STATUS_LAST_SAMPLE_INDEX_SUB 0x08u
 #define OD_DRIVE_TRACE_IDX 0x2300u
 #define OD_DRIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_TRACE_STATE_SUB 0x01u
@@ -539,6 +571,15 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_TRACE_SIGNAL_6_SUB 0x0Du
 #define OD_DRIVE_TRACE_SIGNAL_7_SUB 0x0Eu
 #define OD_DRIVE_TRACE_SIGNAL_8_SUB 0x0Fu
+#define OD_DRIVE_TRACE_CAPTURED_BYTES_SUB 0x10u
+#define OD_DRIVE_TRACE_TRIGGER_ROW_SUB 0x11u
 #define OD_DRIVE_TRACE_BUFFER_IDX 0x2301u
+#define OD_DRIVE_LIVE_TRACE_IDX 0x2302u
+#define OD_DRIVE_LIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_LIVE_TRACE_VALUE_1_SUB 0x01u
+#define OD_DRIVE_LIVE_TRACE_VALUE_2_SUB 0x02u
+#define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB 0x03u
+#define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB 0x04u
+#define OD_DRIVE_LIVE_TRACE_DECIMATION_SUB 0x05u
 
 #endif /* OD_DRIVE_H */

@@ -145,34 +145,40 @@ static const od_plant_ram_t defaults = {
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_6 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_8 = 0x0u,
-    .mfr.x2000_motor_model.highest_sub_index_supported = 0xDu,
+    .mfr.x2000_motor_model.highest_sub_index_supported = 0xFu,
     .mfr.x2000_motor_model.R_ohm = 1.399999976158142f,
     .mfr.x2000_motor_model.Ld_H = 0.004459999967366457f,
     .mfr.x2000_motor_model.Lq_H = 0.004540000110864639f,
     .mfr.x2000_motor_model.psi_Wb = 0.041999999433755875f,
     .mfr.x2000_motor_model.pole_pairs = 0x5u,
-    .mfr.x2000_motor_model.J_kgm2 = 2.9999999242136255e-05f,
-    .mfr.x2000_motor_model.B_Nms = 9.999999747378752e-06f,
+    .mfr.x2000_motor_model.J_kgm2 = 2.769999991869554e-05f,
+    .mfr.x2000_motor_model.B_Nm_per_rad_s = 0.0f,
     .mfr.x2000_motor_model.T_load_Nm = 0.0f,
     .mfr.x2000_motor_model.mech_mode = 0x1u,
-    .mfr.x2000_motor_model.omega_m_imposed_rad_s = 0.0f,
-    .mfr.x2000_motor_model.saturation_enable = 0x0u,
-    .mfr.x2000_motor_model.sat_current_A = 8.0f,
-    .mfr.x2000_motor_model.sat_Lq_min_ratio = 0.699999988079071f,
-    .mfr.x2001_Inverter.highest_sub_index_supported = 0x6u,
+    .mfr.x2000_motor_model.omega_imposed_rad_s = 0.0f,
+    .mfr.x2000_motor_model.sat_enable = 0x0u,
+    .mfr.x2000_motor_model.sat_I_A = 8.0f,
+    .mfr.x2000_motor_model.sat_Lq_inf_H = 0.0009079999872483313f,
+    .mfr.x2000_motor_model.rk4_h_rel = 0.019999999552965164f,
+    .mfr.x2000_motor_model.rk4_min_substeps = 0x1u,
+    .mfr.x2001_Inverter.highest_sub_index_supported = 0x8u,
     .mfr.x2001_Inverter.Ts_s = 5.500000042957254e-05f,
     .mfr.x2001_Inverter.Vdc_V = 300.0f,
-    .mfr.x2001_Inverter.modulation = 0x0u,
-    .mfr.x2001_Inverter.dead_time_s = 0.0f,
-    .mfr.x2001_Inverter.dead_time_I_sat_A = 1.0f,
-    .mfr.x2001_Inverter.trip_current_A = 0.0f,
-    .mfr.x2002_Sensors.highest_sub_index_supported = 0x5u,
-    .mfr.x2002_Sensors.adc_resolution_A = 0.0f,
-    .mfr.x2002_Sensors.adc_offset_A = 0.0f,
+    .mfr.x2001_Inverter.mod_limit = 0x0u,
+    .mfr.x2001_Inverter.t_dead_s = 1.9999999949504854e-06f,
+    .mfr.x2001_Inverter.deadtime_I_sat_A = 0.3333333432674408f,
+    .mfr.x2001_Inverter.I_trip_A = 0.0f,
+    .mfr.x2001_Inverter.Ts_pwm_s = 5.500000042957254e-05f,
+    .mfr.x2001_Inverter.hold_frame = 0x0u,
+    .mfr.x2002_Sensors.highest_sub_index_supported = 0x7u,
+    .mfr.x2002_Sensors.adc_lsb_A = 0.0f,
+    .mfr.x2002_Sensors.adc_offset_a_A = 0.0f,
     .mfr.x2002_Sensors.adc_noise_std_A = 0.0f,
-    .mfr.x2002_Sensors.noise_seed = 0x1u,
-    .mfr.x2002_Sensors.encoder_lines = 0x0u,
-    .mfr.x2003_run_control.highest_sub_index_supported = 0x9u,
+    .mfr.x2002_Sensors.rng_seed = 0x5EEDu,
+    .mfr.x2002_Sensors.encoder_lines = 0x9C4u,
+    .mfr.x2002_Sensors.adc_offset_b_A = 0.0f,
+    .mfr.x2002_Sensors.adc_full_scale_A = 0.0f,
+    .mfr.x2003_run_control.highest_sub_index_supported = 0xBu,
     .mfr.x2003_run_control.mode = 0x0u,
     .mfr.x2003_run_control.run_periods = 0x0u,
     .mfr.x2003_run_control.period_index = 0x0u,
@@ -182,6 +188,8 @@ static const od_plant_ram_t defaults = {
     .mfr.x2003_run_control.trip_clear = 0x0u,
     .mfr.x2003_run_control.trip_active = 0x0u,
     .mfr.x2003_run_control.state = 0x0u,
+    .mfr.x2003_run_control.sync_overruns = 0x0u,
+    .mfr.x2003_run_control.max_sync_lateness_us = 0x0u,
     .mfr.x2004_motor_preset = "you2019",
     .mfr.x2005_plant_state.highest_sub_index_supported = 0x6u,
     .mfr.x2005_plant_state.id_A = 0.0f,
@@ -345,42 +353,50 @@ static const co_od_entry_t entries[] = {
     {0x1A03u, 0x07u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.comm.x1A03_tpdo4_mapping_parameter.mapping_entry_7), &OD_PLANT.comm.x1A03_tpdo4_mapping_parameter.mapping_entry_7, {.i = 0}, {.i = 0}}, /* Mapping entry 7 */
     {0x1A03u, 0x08u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.comm.x1A03_tpdo4_mapping_parameter.mapping_entry_8), &OD_PLANT.comm.x1A03_tpdo4_mapping_parameter.mapping_entry_8, {.i = 0}, {.i = 0}}, /* Mapping entry 8 */
     {0x2000u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2000_motor_model.highest_sub_index_supported), &OD_PLANT.mfr.x2000_motor_model.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2000u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.R_ohm), &OD_PLANT.mfr.x2000_motor_model.R_ohm, {.f = 9.999999747378752e-05f}, {.f = 1000.0f}}, /* R_ohm */
+    {0x2000u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.R_ohm), &OD_PLANT.mfr.x2000_motor_model.R_ohm, {.f = 0.0f}, {.f = 1000.0f}}, /* R_ohm */
     {0x2000u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.Ld_H), &OD_PLANT.mfr.x2000_motor_model.Ld_H, {.f = 9.999999974752427e-07f}, {.f = 10.0f}}, /* Ld_H */
     {0x2000u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.Lq_H), &OD_PLANT.mfr.x2000_motor_model.Lq_H, {.f = 9.999999974752427e-07f}, {.f = 10.0f}}, /* Lq_H */
     {0x2000u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.psi_Wb), &OD_PLANT.mfr.x2000_motor_model.psi_Wb, {.f = 0.0f}, {.f = 10.0f}}, /* psi_Wb */
     {0x2000u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.pole_pairs), &OD_PLANT.mfr.x2000_motor_model.pole_pairs, {.i = 1}, {.i = 64}}, /* pole_pairs */
-    {0x2000u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.J_kgm2), &OD_PLANT.mfr.x2000_motor_model.J_kgm2, {.f = 1.0000000116860974e-07f}, {.f = 100.0f}}, /* J_kgm2 */
-    {0x2000u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.B_Nms), &OD_PLANT.mfr.x2000_motor_model.B_Nms, {.f = 0.0f}, {.f = 100.0f}}, /* B_Nms */
+    {0x2000u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.J_kgm2), &OD_PLANT.mfr.x2000_motor_model.J_kgm2, {.f = 0.0f}, {.f = 100.0f}}, /* J_kgm2 */
+    {0x2000u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.B_Nm_per_rad_s), &OD_PLANT.mfr.x2000_motor_model.B_Nm_per_rad_s, {.f = 0.0f}, {.f = 100.0f}}, /* B_Nm_per_rad_s */
     {0x2000u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_load_Nm), &OD_PLANT.mfr.x2000_motor_model.T_load_Nm, {.f = -1000.0f}, {.f = 1000.0f}}, /* T_load_Nm */
     {0x2000u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.mech_mode), &OD_PLANT.mfr.x2000_motor_model.mech_mode, {.i = 0}, {.i = 2}}, /* mech_mode */
-    {0x2000u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.omega_m_imposed_rad_s), &OD_PLANT.mfr.x2000_motor_model.omega_m_imposed_rad_s, {.f = -10000.0f}, {.f = 10000.0f}}, /* omega_m_imposed_rad_s */
-    {0x2000u, 0x0Bu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.saturation_enable), &OD_PLANT.mfr.x2000_motor_model.saturation_enable, {.i = 0}, {.i = 1}}, /* saturation_enable */
-    {0x2000u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_current_A), &OD_PLANT.mfr.x2000_motor_model.sat_current_A, {.f = 0.009999999776482582f}, {.f = 1000.0f}}, /* sat_current_A */
-    {0x2000u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_Lq_min_ratio), &OD_PLANT.mfr.x2000_motor_model.sat_Lq_min_ratio, {.f = 0.05000000074505806f}, {.f = 1.0f}}, /* sat_Lq_min_ratio */
+    {0x2000u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.omega_imposed_rad_s), &OD_PLANT.mfr.x2000_motor_model.omega_imposed_rad_s, {.f = -10000.0f}, {.f = 10000.0f}}, /* omega_imposed_rad_s */
+    {0x2000u, 0x0Bu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_enable), &OD_PLANT.mfr.x2000_motor_model.sat_enable, {.i = 0}, {.i = 1}}, /* sat_enable */
+    {0x2000u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_I_A), &OD_PLANT.mfr.x2000_motor_model.sat_I_A, {.f = 0.0010000000474974513f}, {.f = 1000.0f}}, /* sat_I_A */
+    {0x2000u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H), &OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H, {.f = 1.0000000116860974e-07f}, {.f = 10.0f}}, /* sat_Lq_inf_H */
+    {0x2000u, 0x0Eu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_h_rel), &OD_PLANT.mfr.x2000_motor_model.rk4_h_rel, {.f = 9.999999747378752e-05f}, {.f = 1.0f}}, /* rk4_h_rel */
+    {0x2000u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps), &OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps, {.i = 1}, {.i = 100000}}, /* rk4_min_substeps */
     {0x2001u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2001_Inverter.highest_sub_index_supported), &OD_PLANT.mfr.x2001_Inverter.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2001u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.Ts_s), &OD_PLANT.mfr.x2001_Inverter.Ts_s, {.f = 9.999999974752427e-07f}, {.f = 0.10000000149011612f}}, /* Ts_s */
     {0x2001u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.Vdc_V), &OD_PLANT.mfr.x2001_Inverter.Vdc_V, {.f = 0.0f}, {.f = 2000.0f}}, /* Vdc_V */
-    {0x2001u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.modulation), &OD_PLANT.mfr.x2001_Inverter.modulation, {.i = 0}, {.i = 2}}, /* modulation */
-    {0x2001u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.dead_time_s), &OD_PLANT.mfr.x2001_Inverter.dead_time_s, {.f = 0.0f}, {.f = 9.999999747378752e-05f}}, /* dead_time_s */
-    {0x2001u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.dead_time_I_sat_A), &OD_PLANT.mfr.x2001_Inverter.dead_time_I_sat_A, {.f = 0.0010000000474974513f}, {.f = 100.0f}}, /* dead_time_I_sat_A */
-    {0x2001u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.trip_current_A), &OD_PLANT.mfr.x2001_Inverter.trip_current_A, {.f = 0.0f}, {.f = 10000.0f}}, /* trip_current_A */
+    {0x2001u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.mod_limit), &OD_PLANT.mfr.x2001_Inverter.mod_limit, {.i = 0}, {.i = 2}}, /* mod_limit */
+    {0x2001u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.t_dead_s), &OD_PLANT.mfr.x2001_Inverter.t_dead_s, {.f = 0.0f}, {.f = 9.999999747378752e-05f}}, /* t_dead_s */
+    {0x2001u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.deadtime_I_sat_A), &OD_PLANT.mfr.x2001_Inverter.deadtime_I_sat_A, {.f = 0.0f}, {.f = 100.0f}}, /* deadtime_I_sat_A */
+    {0x2001u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.I_trip_A), &OD_PLANT.mfr.x2001_Inverter.I_trip_A, {.f = 0.0f}, {.f = 10000.0f}}, /* I_trip_A */
+    {0x2001u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.Ts_pwm_s), &OD_PLANT.mfr.x2001_Inverter.Ts_pwm_s, {.f = 0.0f}, {.f = 0.10000000149011612f}}, /* Ts_pwm_s */
+    {0x2001u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.hold_frame), &OD_PLANT.mfr.x2001_Inverter.hold_frame, {.i = 0}, {.i = 1}}, /* hold_frame */
     {0x2002u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2002_Sensors.highest_sub_index_supported), &OD_PLANT.mfr.x2002_Sensors.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2002u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_resolution_A), &OD_PLANT.mfr.x2002_Sensors.adc_resolution_A, {.f = 0.0f}, {.f = 10.0f}}, /* adc_resolution_A */
-    {0x2002u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_offset_A), &OD_PLANT.mfr.x2002_Sensors.adc_offset_A, {.f = -10.0f}, {.f = 10.0f}}, /* adc_offset_A */
+    {0x2002u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_lsb_A), &OD_PLANT.mfr.x2002_Sensors.adc_lsb_A, {.f = 0.0f}, {.f = 10.0f}}, /* adc_lsb_A */
+    {0x2002u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_offset_a_A), &OD_PLANT.mfr.x2002_Sensors.adc_offset_a_A, {.f = -10.0f}, {.f = 10.0f}}, /* adc_offset_a_A */
     {0x2002u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_noise_std_A), &OD_PLANT.mfr.x2002_Sensors.adc_noise_std_A, {.f = 0.0f}, {.f = 10.0f}}, /* adc_noise_std_A */
-    {0x2002u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.mfr.x2002_Sensors.noise_seed), &OD_PLANT.mfr.x2002_Sensors.noise_seed, {.i = 0}, {.i = 0}}, /* noise_seed */
+    {0x2002u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.mfr.x2002_Sensors.rng_seed), &OD_PLANT.mfr.x2002_Sensors.rng_seed, {.i = 0}, {.i = 0}}, /* rng_seed */
     {0x2002u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.encoder_lines), &OD_PLANT.mfr.x2002_Sensors.encoder_lines, {.i = 0}, {.i = 10000000}}, /* encoder_lines */
+    {0x2002u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_offset_b_A), &OD_PLANT.mfr.x2002_Sensors.adc_offset_b_A, {.f = -10.0f}, {.f = 10.0f}}, /* adc_offset_b_A */
+    {0x2002u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_full_scale_A), &OD_PLANT.mfr.x2002_Sensors.adc_full_scale_A, {.f = 0.0f}, {.f = 10000.0f}}, /* adc_full_scale_A */
     {0x2003u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.highest_sub_index_supported), &OD_PLANT.mfr.x2003_run_control.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2003u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.mode), &OD_PLANT.mfr.x2003_run_control.mode, {.i = 0}, {.i = 1}}, /* mode */
     {0x2003u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.mfr.x2003_run_control.run_periods), &OD_PLANT.mfr.x2003_run_control.run_periods, {.i = 0}, {.i = 0}}, /* run_periods */
     {0x2003u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.period_index), &OD_PLANT.mfr.x2003_run_control.period_index, {.i = 0}, {.i = 0}}, /* period_index */
-    {0x2003u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.mfr.x2003_run_control.command_timeout_us), &OD_PLANT.mfr.x2003_run_control.command_timeout_us, {.i = 0}, {.i = 0}}, /* command_timeout_us */
+    {0x2003u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.command_timeout_us), &OD_PLANT.mfr.x2003_run_control.command_timeout_us, {.i = 1}, {.i = 60000000}}, /* command_timeout_us */
     {0x2003u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.missed_commands), &OD_PLANT.mfr.x2003_run_control.missed_commands, {.i = 0}, {.i = 0}}, /* missed_commands */
     {0x2003u, 0x06u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.late_commands), &OD_PLANT.mfr.x2003_run_control.late_commands, {.i = 0}, {.i = 0}}, /* late_commands */
     {0x2003u, 0x07u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.trip_clear), &OD_PLANT.mfr.x2003_run_control.trip_clear, {.i = 0}, {.i = 1}}, /* trip_clear */
     {0x2003u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.trip_active), &OD_PLANT.mfr.x2003_run_control.trip_active, {.i = 0}, {.i = 0}}, /* trip_active */
     {0x2003u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.state), &OD_PLANT.mfr.x2003_run_control.state, {.i = 0}, {.i = 0}}, /* state */
+    {0x2003u, 0x0Au, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.sync_overruns), &OD_PLANT.mfr.x2003_run_control.sync_overruns, {.i = 0}, {.i = 0}}, /* sync_overruns */
+    {0x2003u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.max_sync_lateness_us), &OD_PLANT.mfr.x2003_run_control.max_sync_lateness_us, {.i = 0}, {.i = 0}}, /* max_sync_lateness_us */
     {0x2004u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_PLANT.mfr.x2004_motor_preset, {.i = 0}, {.i = 0}}, /* Motor preset */
     {0x2005u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported), &OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2005u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.id_A), &OD_PLANT.mfr.x2005_plant_state.id_A, {.i = 0}, {.i = 0}}, /* id_A */

@@ -200,30 +200,36 @@ typedef struct {
         float psi_Wb;
         uint8_t pole_pairs;
         float J_kgm2;
-        float B_Nms;
+        float B_Nm_per_rad_s;
         float T_load_Nm;
         uint8_t mech_mode;
-        float omega_m_imposed_rad_s;
-        uint8_t saturation_enable;
-        float sat_current_A;
-        float sat_Lq_min_ratio;
+        float omega_imposed_rad_s;
+        uint8_t sat_enable;
+        float sat_I_A;
+        float sat_Lq_inf_H;
+        float rk4_h_rel;
+        uint32_t rk4_min_substeps;
     } x2000_motor_model;
     struct {
         uint8_t highest_sub_index_supported;
         float Ts_s;
         float Vdc_V;
-        uint8_t modulation;
-        float dead_time_s;
-        float dead_time_I_sat_A;
-        float trip_current_A;
+        uint8_t mod_limit;
+        float t_dead_s;
+        float deadtime_I_sat_A;
+        float I_trip_A;
+        float Ts_pwm_s;
+        uint8_t hold_frame;
     } x2001_Inverter;
     struct {
         uint8_t highest_sub_index_supported;
-        float adc_resolution_A;
-        float adc_offset_A;
+        float adc_lsb_A;
+        float adc_offset_a_A;
         float adc_noise_std_A;
-        uint32_t noise_seed;
+        uint32_t rng_seed;
         uint32_t encoder_lines;
+        float adc_offset_b_A;
+        float adc_full_scale_A;
     } x2002_Sensors;
     struct {
         uint8_t highest_sub_index_supported;
@@ -236,6 +242,8 @@ typedef struct {
         uint8_t trip_clear;
         uint8_t trip_active;
         uint8_t state;
+        uint32_t sync_overruns;
+        uint32_t max_sync_lateness_us;
     } x2003_run_control;
     char x2004_motor_preset[33];
     struct {
@@ -442,28 +450,34 @@ extern const co_od_t od_plant;
 #define OD_PLANT_MOTOR_MODEL_PSI_WB_SUB 0x04u
 #define OD_PLANT_MOTOR_MODEL_POLE_PAIRS_SUB 0x05u
 #define OD_PLANT_MOTOR_MODEL_J_KGM2_SUB 0x06u
-#define OD_PLANT_MOTOR_MODEL_B_NMS_SUB 0x07u
+#define OD_PLANT_MOTOR_MODEL_B_NM_PER_RAD_S_SUB 0x07u
 #define OD_PLANT_MOTOR_MODEL_T_LOAD_NM_SUB 0x08u
 #define OD_PLANT_MOTOR_MODEL_MECH_MODE_SUB 0x09u
-#define OD_PLANT_MOTOR_MODEL_OMEGA_M_IMPOSED_RAD_S_SUB 0x0Au
-#define OD_PLANT_MOTOR_MODEL_SATURATION_ENABLE_SUB 0x0Bu
-#define OD_PLANT_MOTOR_MODEL_SAT_CURRENT_A_SUB 0x0Cu
-#define OD_PLANT_MOTOR_MODEL_SAT_LQ_MIN_RATIO_SUB 0x0Du
+#define OD_PLANT_MOTOR_MODEL_OMEGA_IMPOSED_RAD_S_SUB 0x0Au
+#define OD_PLANT_MOTOR_MODEL_SAT_ENABLE_SUB 0x0Bu
+#define OD_PLANT_MOTOR_MODEL_SAT_I_A_SUB 0x0Cu
+#define OD_PLANT_MOTOR_MODEL_SAT_LQ_INF_H_SUB 0x0Du
+#define OD_PLANT_MOTOR_MODEL_RK4_H_REL_SUB 0x0Eu
+#define OD_PLANT_MOTOR_MODEL_RK4_MIN_SUBSTEPS_SUB 0x0Fu
 #define OD_PLANT_INVERTER_IDX 0x2001u
 #define OD_PLANT_INVERTER_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_INVERTER_TS_S_SUB 0x01u
 #define OD_PLANT_INVERTER_VDC_V_SUB 0x02u
-#define OD_PLANT_INVERTER_MODULATION_SUB 0x03u
-#define OD_PLANT_INVERTER_DEAD_TIME_S_SUB 0x04u
-#define OD_PLANT_INVERTER_DEAD_TIME_I_SAT_A_SUB 0x05u
-#define OD_PLANT_INVERTER_TRIP_CURRENT_A_SUB 0x06u
+#define OD_PLANT_INVERTER_MOD_LIMIT_SUB 0x03u
+#define OD_PLANT_INVERTER_T_DEAD_S_SUB 0x04u
+#define OD_PLANT_INVERTER_DEADTIME_I_SAT_A_SUB 0x05u
+#define OD_PLANT_INVERTER_I_TRIP_A_SUB 0x06u
+#define OD_PLANT_INVERTER_TS_PWM_S_SUB 0x07u
+#define OD_PLANT_INVERTER_HOLD_FRAME_SUB 0x08u
 #define OD_PLANT_SENSORS_IDX 0x2002u
 #define OD_PLANT_SENSORS_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
-#define OD_PLANT_SENSORS_ADC_RESOLUTION_A_SUB 0x01u
-#define OD_PLANT_SENSORS_ADC_OFFSET_A_SUB 0x02u
+#define OD_PLANT_SENSORS_ADC_LSB_A_SUB 0x01u
+#define OD_PLANT_SENSORS_ADC_OFFSET_A_A_SUB 0x02u
 #define OD_PLANT_SENSORS_ADC_NOISE_STD_A_SUB 0x03u
-#define OD_PLANT_SENSORS_NOISE_SEED_SUB 0x04u
+#define OD_PLANT_SENSORS_RNG_SEED_SUB 0x04u
 #define OD_PLANT_SENSORS_ENCODER_LINES_SUB 0x05u
+#define OD_PLANT_SENSORS_ADC_OFFSET_B_A_SUB 0x06u
+#define OD_PLANT_SENSORS_ADC_FULL_SCALE_A_SUB 0x07u
 #define OD_PLANT_RUN_CONTROL_IDX 0x2003u
 #define OD_PLANT_RUN_CONTROL_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_RUN_CONTROL_MODE_SUB 0x01u
@@ -475,6 +489,8 @@ extern const co_od_t od_plant;
 #define OD_PLANT_RUN_CONTROL_TRIP_CLEAR_SUB 0x07u
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_SUB 0x08u
 #define OD_PLANT_RUN_CONTROL_STATE_SUB 0x09u
+#define OD_PLANT_RUN_CONTROL_SYNC_OVERRUNS_SUB 0x0Au
+#define OD_PLANT_RUN_CONTROL_MAX_SYNC_LATENESS_US_SUB 0x0Bu
 #define OD_PLANT_MOTOR_PRESET_IDX 0x2004u
 #define OD_PLANT_PLANT_STATE_IDX 0x2005u
 #define OD_PLANT_PLANT_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u

@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from bench.paths import BUILD
+from bench.paths import BUILD, REPO
 
 UNIT_TESTS = sorted((BUILD / "tests").glob("*"))
 
@@ -22,6 +22,6 @@ def test_unit_tests_were_built() -> None:
 
 @pytest.mark.parametrize("exe", UNIT_TESTS, ids=[p.name for p in UNIT_TESTS])
 def test_c_unit(exe) -> None:  # type: ignore[no-untyped-def]
-    res = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
+    res = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300, cwd=REPO)
     print(res.stdout[-4000:])
     assert res.returncode == 0, f"{exe.name} failed:\n{res.stdout[-3000:]}\n{res.stderr[-2000:]}"

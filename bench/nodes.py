@@ -1,0 +1,67 @@
+"""Start and stop the C node processes (plant_node, drive_node, co_testnode) cleanly."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+from types import TracebackType
+
+from .paths import binary
+
+
+class NodeProcess:
+    """A C CANopen node process; terminated (SIGTERM, then SIGKILL) on exit, whatever happens."""
+
+    def __init__(self, name: str, args: list[str], log: Path | None = None) -> None:
+        self.name = name
+        self.argv = [str(binary(name)), *args]
+        self.log = log
+        self.proc: subprocess.Popen[bytes] | None = None
+        self._log_fh = None
+
+    def start(self) -> "NodeProcess":
+        out = subprocess.DEVNULL
+        if self.log is not None:
+            self._log_fh = open(self.log, "wb")  # noqa: SIM115 - closed in stop()
+            out = self._log_fh  # type: ignore[assignment]
+        self.proc = subprocess.Popen(self.argv, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        return self
+
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def stop(self, timeout_s: float = 5.0) -> int | None:
+        if self.proc is None:
+            return None
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        if self._log_fh:
+            self._log_fh.close()
+        return self.proc.returncode
+
+    def __enter__(self) -> "NodeProcess":
+        return self.start()
+
+    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None) -> None:
+        self.stop()
+
+
+def wait_until(pred, timeout_s: float, step_s: float = 0.01) -> bool:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(step_s)
+    return bool(pred())
+
+
+def in_vm() -> bool:
+    return os.environ.get("BENCH_IN_VM") == "1"

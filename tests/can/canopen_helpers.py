@@ -1,0 +1,90 @@
+"""Shared pieces of the CANopen conformance tests over vcan."""
+
+from __future__ import annotations
+
+import struct
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import can
+import canopen
+
+from bench.nodes import NodeProcess
+from bench.paths import EDS_DIR
+
+
+class Capture(can.Listener):
+    """Every frame seen on the bus, with its arrival time."""
+
+    def __init__(self) -> None:
+        self.frames: list[tuple[float, int, bytes]] = []
+        self.lock = threading.Lock()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self.lock:
+            self.frames.append((time.monotonic(), msg.arbitration_id, bytes(msg.data)))
+
+    def clear(self) -> None:
+        with self.lock:
+            self.frames.clear()
+
+    def with_id(self, cob_id: int) -> list[bytes]:
+        with self.lock:
+            return [d for _, c, d in self.frames if c == cob_id]
+
+    def wait_for(self, cob_id: int, count: int = 1, timeout: float = 5.0) -> list[bytes]:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            got = self.with_id(cob_id)
+            if len(got) >= count:
+                return got
+            time.sleep(0.005)
+        return self.with_id(cob_id)
+
+
+@dataclass
+class Target:
+    """One C node process under test and the canopen master talking to it."""
+
+    kind: str           # 'plant' or 'drive' (which EDS)
+    node_id: int
+    net: canopen.Network
+    node: canopen.RemoteNode
+    capture: Capture
+    proc: NodeProcess
+
+    def raw_sdo(self, payload: bytes, timeout: float = 2.0) -> bytes | None:
+        """Send one raw SDO request frame, return the server's answer (or None)."""
+        before = len(self.capture.with_id(0x580 + self.node_id))
+        self.net.send_message(0x600 + self.node_id, payload)
+        got = self.capture.wait_for(0x580 + self.node_id, before + 1, timeout)
+        return got[before] if len(got) > before else None
+
+    def abort_code(self, answer: bytes | None) -> int | None:
+        if answer is None or answer[0] != 0x80:
+            return None
+        return struct.unpack_from("<I", answer, 4)[0]
+
+
+@contextmanager
+def node_target(binary: str, args: list[str], kind: str, node_id: int, iface: str) -> Iterator[Target]:
+    net = canopen.Network()
+    net.connect(interface="socketcan", channel=iface, receive_own_messages=False)
+    capture = Capture()
+    net.notifier.add_listener(capture)
+    node = canopen.RemoteNode(node_id, str(EDS_DIR / f"{kind}.eds"))
+    node.sdo.RESPONSE_TIMEOUT = 3.0
+    net.add_node(node)
+    proc = NodeProcess(binary, [*args, "--iface", iface, "--node-id", str(node_id)])
+    proc.start()
+    try:
+        boot = capture.wait_for(0x700 + node_id, 1, timeout=10.0)
+        assert boot and boot[0] == b"\x00", f"no boot-up message from {binary} (got {boot})"
+        yield Target(kind, node_id, net, node, capture, proc)
+    finally:
+        rc = proc.stop()
+        net.disconnect()
+        assert rc in (0, None, -15), f"{binary} exited with {rc}"
