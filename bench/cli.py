@@ -40,6 +40,19 @@ def _cmd_pingpong(args: argparse.Namespace) -> int:
     return 0 if res.bad == 0 and res.verified == res.frames else 1
 
 
+def _cmd_plan(args: argparse.Namespace) -> int:
+    from .plan import format_plan, make_plan
+
+    try:
+        plan = make_plan(args.bitrate, args.ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos,
+                         args.trace_decimation)
+    except ValueError as exc:
+        print(f"bench plan: {exc}", file=sys.stderr)
+        return 64
+    print(plan.to_json() if args.json else format_plan(plan))
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import main as demo_main
 
@@ -78,6 +91,21 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--iface", default="vcan0")
     pp.add_argument("--count", type=int, default=1000)
     pp.set_defaults(func=_cmd_pingpong)
+
+    pl = sub.add_parser("plan", help="will the PDO set fit a real-time period on this bus?",
+                        description="Bits per control period of the configured PDO set (from the EDS files) with "
+                                    "worst-case bit stuffing, bus load, whether Ts fits in real time, the fastest "
+                                    "period that does, and what to change. Example: bench plan --bitrate 1000000 "
+                                    "--ts 55e-6")
+    pl.add_argument("--bitrate", type=float, default=1e6, help="nominal bit rate, bit/s (default 1e6)")
+    pl.add_argument("--fd", action="store_true", help="CAN FD with bit-rate switch")
+    pl.add_argument("--data-bitrate", type=float, default=None, help="CAN FD data-phase bit rate, bit/s")
+    pl.add_argument("--ts", type=float, default=55e-6, help="control period Ts, s (default 55e-6, You 2019)")
+    pl.add_argument("--max-load", type=float, default=0.8, help="highest acceptable bus load (default 0.8)")
+    pl.add_argument("--trace-pdos", type=int, default=0, help="live-trace PDOs added per period (default 0)")
+    pl.add_argument("--trace-decimation", type=int, default=1, help="one trace PDO every N periods (default 1)")
+    pl.add_argument("--json", action="store_true", help="print one JSON object")
+    pl.set_defaults(func=_cmd_plan)
 
     dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
                         description="Bring up the bus (host vcan0 or the VM) and run the demo scenario.")

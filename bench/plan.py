@@ -1,0 +1,157 @@
+"""`bench plan`: does the configured PDO set fit a real-time period on a given bus?
+
+Frame lengths use the worst case of bit stuffing:
+
+* Classic CAN, 11-bit identifier, n data bytes:
+  ``47 + 8n`` bits on the wire plus at most ``floor((34 + 8n - 1) / 4)`` stuff bits
+  (stuffing covers SOF .. CRC, 34 + 8n bits). 8 bytes: 135 bits.
+* CAN FD, 11-bit identifier, bit-rate switch: the arbitration phase (SOF, ID, RRS, IDE,
+  FDF, res, BRS: 17 bits, up to 4 stuff bits) and the tail (CRC delimiter, ACK, ACK
+  delimiter, EOF, IFS: 13 bits) run at the nominal rate; ESI, DLC, data, stuff count (4),
+  CRC (17 bits up to 16 data bytes, else 21) and its fixed stuff bits run at the data rate,
+  with up to ``floor((5 + 8n - 1) / 4)`` dynamic stuff bits.
+
+The PDO set per control period is read from the EDS files with `canopen`: the SYNC
+(with counter when 0x1019 >= 2), every valid TPDO of the plant and the drive with its
+mapped length, plus the optional trace PDOs. The frames of one period are causally
+chained (SYNC -> measurement -> command), so the period must hold all of them; a
+period "fits" when the bus load stays at or below ``max_load`` (default 0.8), leaving
+room for the controller's computation and other traffic.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+
+import canopen
+
+from .paths import EDS_DIR
+
+FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
+
+
+def classic_frame_bits(n_bytes: int) -> int:
+    if not 0 <= n_bytes <= 8:
+        raise ValueError(f"classic CAN carries 0..8 data bytes, not {n_bytes}")
+    return 47 + 8 * n_bytes + (34 + 8 * n_bytes - 1) // 4
+
+
+def fd_frame_bits(n_bytes: int) -> tuple[int, int]:
+    """(bits at the nominal rate, bits at the data rate) of a CAN FD frame, worst case."""
+    length = next((n for n in FD_LENGTHS if n >= n_bytes), None)
+    if length is None:
+        raise ValueError(f"CAN FD carries at most 64 data bytes, not {n_bytes}")
+    nominal_bits = 17 + 4 + 13
+    crc = 17 if length <= 16 else 21
+    data_bits = 1 + 4 + 8 * length + (5 + 8 * length - 1) // 4 + 4 + crc + math.ceil((4 + crc) / 4)
+    return nominal_bits, data_bits
+
+
+@dataclass
+class FrameUse:
+    what: str
+    data_bytes: int
+    per_period: float  # frames per control period (trace PDOs may be decimated)
+    bits: int          # worst-case bits of one frame on the wire
+    time_s: float      # worst-case wire time of one frame
+
+
+@dataclass
+class Plan:
+    bitrate: float
+    data_bitrate: float | None
+    fd: bool
+    ts_s: float
+    max_load: float
+    frames: list[FrameUse] = field(default_factory=list)
+    bits_per_period: float = 0.0
+    time_per_period_s: float = 0.0
+    bus_load: float = 0.0
+    fits: bool = False
+    fastest_period_s: float = 0.0
+    advice: list[str] = field(default_factory=list)
+
+    def to_json(self) -> str:
+        d = asdict(self)
+        return json.dumps(d, indent=2)
+
+
+def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1) -> list[tuple[str, int, float]]:
+    """(what, data bytes, frames per period) of one control period, from the EDS files."""
+    out: list[tuple[str, int, float]] = []
+    plant = canopen.import_od(str(EDS_DIR / "plant.eds"), node_id=0x10)
+    drive = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=0x20)
+    ov = plant["Synchronous counter overflow value"].default or 0
+    out.append(("SYNC (plant)", 1 if ov >= 2 else 0, 1.0))
+    for name, od in (("plant", plant), ("drive", drive)):
+        for n in range(4):
+            comm, mapping = od[0x1800 + n], od[0x1A00 + n]
+            cob = comm[1].default
+            if cob & 0x80000000:
+                continue
+            count = mapping[0].default
+            bits = sum((mapping[i].default & 0xFF) for i in range(1, count + 1))
+            out.append((f"{name} TPDO{n + 1} (0x{cob & 0x7FF:03X})", bits // 8, 1.0))
+    for i in range(trace_pdos):
+        out.append((f"trace PDO {i + 1}", 8, 1.0 / trace_decimation))
+    return out
+
+
+def make_plan(bitrate: float, ts_s: float, fd: bool = False, data_bitrate: float | None = None,
+              max_load: float = 0.8, trace_pdos: int = 0, trace_decimation: int = 1) -> Plan:
+    if bitrate <= 0 or bitrate > 1e6 + 1e-9 and not fd:
+        raise ValueError(f"--bitrate must be in (0, 1e6] bit/s for classic CAN, got {bitrate:g}")
+    if fd and (data_bitrate is None or data_bitrate <= 0 or data_bitrate > 12e6):
+        raise ValueError("--data-bitrate must be in (0, 12e6] bit/s with --fd")
+    if ts_s <= 0:
+        raise ValueError(f"--ts must be > 0 s, got {ts_s:g}")
+    if not 0 < max_load <= 1:
+        raise ValueError(f"--max-load must be in (0, 1], got {max_load:g}")
+    plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load)
+    for what, n, per in pdo_set(trace_pdos, trace_decimation):
+        if fd:
+            nominal, data = fd_frame_bits(n)
+            plan.frames.append(FrameUse(what, n, per, nominal + data, nominal / bitrate + data / (data_bitrate or bitrate)))
+        else:
+            bits = classic_frame_bits(n)
+            plan.frames.append(FrameUse(what, n, per, bits, bits / bitrate))
+    plan.time_per_period_s = sum(f.time_s * f.per_period for f in plan.frames)
+    plan.bits_per_period = sum(f.bits * f.per_period for f in plan.frames)
+    plan.bus_load = plan.time_per_period_s / ts_s
+    plan.fits = plan.bus_load <= max_load
+    plan.fastest_period_s = plan.time_per_period_s / max_load
+    if not plan.fits:
+        plan.advice.append(f"the PDO set needs {plan.time_per_period_s * 1e6:.1f} us of bus time per period: "
+                           f"{plan.bus_load * 100:.0f}% of Ts = {ts_s * 1e6:.1f} us (limit {max_load * 100:.0f}%)")
+        plan.advice.append(f"real time on this bus needs Ts >= {plan.fastest_period_s * 1e6:.1f} us")
+        plan.advice.append("or run lockstep (the default): the plant waits for each command, so any period "
+                           "is emulated exactly, only slower than real time")
+        if not fd:
+            fd_plan = make_plan(bitrate, ts_s, True, 5e6, max_load, trace_pdos, trace_decimation)
+            plan.advice.append(f"or CAN FD at {bitrate / 1e6:g}/5 Mbit/s: {fd_plan.time_per_period_s * 1e6:.1f} us "
+                               f"per period ({'fits' if fd_plan.fits else 'still does not fit'}; fastest "
+                               f"{fd_plan.fastest_period_s * 1e6:.1f} us)")
+        if fd:
+            plan.advice.append("with CAN FD, per-frame overhead dominates: map the plant's two measurement "
+                               "PDOs into one 12-byte frame (PDO re-mapping by SDO)")
+        if trace_pdos:
+            plan.advice.append("or fewer / more decimated trace PDOs (--trace-pdos, --trace-decimation)")
+    return plan
+
+
+def format_plan(plan: Plan) -> str:
+    lines = [f"bus: {'CAN FD' if plan.fd else 'classic CAN'} {plan.bitrate / 1e6:g} Mbit/s"
+             + (f", data phase {plan.data_bitrate / 1e6:g} Mbit/s" if plan.fd and plan.data_bitrate else "")
+             + f"; control period Ts = {plan.ts_s * 1e6:.2f} us",
+             "frames per period (worst-case bit stuffing):"]
+    for f in plan.frames:
+        lines.append(f"  {f.what:<28} {f.data_bytes:2d} bytes x {f.per_period:g}  {f.bits:4d} bits  "
+                     f"{f.time_s * 1e6:7.2f} us")
+    lines.append(f"bits per period: {plan.bits_per_period:.0f}")
+    lines.append(f"bus time per period: {plan.time_per_period_s * 1e6:.2f} us; bus load {plan.bus_load * 100:.1f}%")
+    lines.append(f"fits in real time: {'yes' if plan.fits else 'NO'} (max load {plan.max_load * 100:.0f}%); "
+                 f"fastest period: {plan.fastest_period_s * 1e6:.2f} us")
+    lines += [f"  - {a}" for a in plan.advice]
+    return "\n".join(lines)

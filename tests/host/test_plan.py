@@ -1,0 +1,50 @@
+"""`bench plan`: frame lengths against hand-counted worst cases, and the CLI as a user runs it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from bench.plan import classic_frame_bits, fd_frame_bits, make_plan
+
+
+def test_classic_frame_bits_worst_case() -> None:
+    # 8 data bytes: 1 SOF + 11 ID + RTR + IDE + r0 + 4 DLC + 64 data + 15 CRC = 98 stuffable bits
+    # (34 + 64), at most one stuff bit per 4 after the first: 24; + CRC delim, ACK, ACK delim, 7 EOF, 3 IFS = 13.
+    assert classic_frame_bits(8) == 98 + 24 + 13
+    assert classic_frame_bits(0) == 34 + 8 + 13
+    with pytest.raises(ValueError):
+        classic_frame_bits(9)
+
+
+def test_fd_frame_is_shorter_in_time_at_5mbit() -> None:
+    nominal, data = fd_frame_bits(8)
+    assert nominal == 34
+    assert nominal / 1e6 + data / 5e6 < classic_frame_bits(8) / 1e6
+
+
+def test_classic_1mbit_cannot_carry_55us() -> None:
+    plan = make_plan(1e6, 55e-6)
+    assert not plan.fits
+    assert plan.bits_per_period == 65 + 3 * 135  # SYNC with counter + 3 eight-byte PDOs
+    assert plan.fastest_period_s == pytest.approx(470e-6 / 0.8)
+    assert plan.bus_load == pytest.approx(470e-6 / 55e-6)
+
+
+def test_slow_period_fits() -> None:
+    assert make_plan(1e6, 1e-3).fits
+
+
+def test_cli_json_and_errors() -> None:
+    run = [sys.executable, "-m", "bench.cli", "plan"]
+    res = subprocess.run([*run, "--bitrate", "1000000", "--ts", "55e-6", "--json"], capture_output=True, text=True)
+    assert res.returncode == 0
+    d = json.loads(res.stdout)
+    assert d["fits"] is False and d["bits_per_period"] == 470 and d["fastest_period_s"] > 55e-6
+    bad = subprocess.run([*run, "--ts", "-1"], capture_output=True, text=True)
+    assert bad.returncode == 64 and "--ts" in bad.stderr
+    text = subprocess.run([*run, "--bitrate", "1000000", "--ts", "55e-6"], capture_output=True, text=True).stdout
+    assert "fits in real time: NO" in text and "lockstep" in text
