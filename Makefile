@@ -100,6 +100,13 @@ $(BUILD)/bin/%: plant_rt/tools/%.c $(LIBPLANT)
 $(BUILD)/tests/plant_%: plant_rt/tests/%.c $(LIBPLANT)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBPLANT) -lm -o $@
+# Tests of the node apps need the CANopen core and the portable app glue too.
+$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c firmware_shim/shim/drive_app.c $(LIBFW) $(LIBCO)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< firmware_shim/shim/drive_app.c $(LIBFW) $(LIBCO) -lm -o $@
+$(BUILD)/tests/plant_test_node_%: plant_rt/tests/test_node_%.c plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $< plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO) -lm -o $@
 $(BUILD)/bin/%: firmware_shim/tools/%.c $(LIBFW)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
@@ -113,7 +120,9 @@ $(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $
 $(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
 	$(CC) $^ -lm -o $@
-$(BUILD)/libhil.so: $(call obj,$(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(wildcard bench/direct/*.c))
+HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(wildcard plant_rt/node/plant_app.c) \
+           $(wildcard firmware_shim/shim/drive_app.c) $(wildcard bench/direct/*.c)
+$(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
 	$(CC) -shared $^ -lm -o $@
 

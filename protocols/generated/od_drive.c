@@ -215,6 +215,7 @@ static const od_drive_ram_t defaults = {
     .mfr.x2204_drive_status.speed_rad_s = 0.0f,
     .mfr.x2204_drive_status.iq_ref_active_A = 0.0f,
     .mfr.x2204_drive_status.last_sample_index = 0x0u,
+    .mfr.x2205_drive_label = "pmsm-hil drive",
     .mfr.x2300_Trace.highest_sub_index_supported = 0x11u,
     .mfr.x2300_Trace.state = 0x0u,
     .mfr.x2300_Trace.trigger_signal = 0x0u,
@@ -453,6 +454,7 @@ static const co_od_entry_t entries[] = {
     {0x2204u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.speed_rad_s), &OD_DRIVE.mfr.x2204_drive_status.speed_rad_s, {.i = 0}, {.i = 0}}, /* speed_rad_s */
     {0x2204u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.iq_ref_active_A), &OD_DRIVE.mfr.x2204_drive_status.iq_ref_active_A, {.i = 0}, {.i = 0}}, /* iq_ref_active_A */
     {0x2204u, 0x08u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.last_sample_index), &OD_DRIVE.mfr.x2204_drive_status.last_sample_index, {.i = 0}, {.i = 0}}, /* last_sample_index */
+    {0x2205u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_DRIVE.mfr.x2205_drive_label, {.i = 0}, {.i = 0}}, /* Drive label */
     {0x2300u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported), &OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2300u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.state), &OD_DRIVE.mfr.x2300_Trace.state, {.i = 0}, {.i = 3}}, /* state */
     {0x2300u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_signal), &OD_DRIVE.mfr.x2300_Trace.trigger_signal, {.i = 0}, {.i = 63}}, /* trigger_signal */

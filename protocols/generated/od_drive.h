@@ -276,6 +276,7 @@ typedef struct {
         float iq_ref_active_A;
         uint16_t last_sample_index;
     } x2204_drive_status;
+    char x2205_drive_label[33];
     struct {
         uint8_t highest_sub_index_supported;
         uint8_t state;
@@ -554,6 +555,7 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_DRIVE_STATUS_SPEED_RAD_S_SUB 0x06u
 #define OD_DRIVE_DRIVE_STATUS_IQ_REF_ACTIVE_A_SUB 0x07u
 #define OD_DRIVE_DRIVE_STATUS_LAST_SAMPLE_INDEX_SUB 0x08u
+#define OD_DRIVE_DRIVE_LABEL_IDX 0x2205u
 #define OD_DRIVE_TRACE_IDX 0x2300u
 #define OD_DRIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_TRACE_STATE_SUB 0x01u

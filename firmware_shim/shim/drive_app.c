@@ -1,0 +1,607 @@
+/* drive_app.c - the drive firmware as a CANopen node (see drive_app.h).
+ * Portable: no OS headers, no allocation, float32. */
+#include "drive_app.h"
+
+#include <string.h>
+
+#include "dq_math.h"
+#include "od_drive.h"
+
+/* ------------------------------------------------------------------ OD access */
+
+static od_drive_mfr_t *mfr_of(const co_node_t *node)
+{
+    return &((od_drive_ram_t *)node->od->ram)->mfr;
+}
+
+static int is_finite_f(float x)
+{
+    return (x - x) == 0.0f; /* false for NaN and +-inf */
+}
+
+/* OD (0x2200-0x2203) -> drive_config_t.  core_ctrl: controller to keep when
+ * the OD selects the open loop (the core has no open-loop controller). */
+static void od_to_config(const od_drive_mfr_t *m, drive_config_t *c, uint8_t core_ctrl)
+{
+#define k (&m->x2200_Controller)
+    c->Ts_s = k->Ts_s;
+    c->pole_pairs = (float)k->pole_pairs;
+    c->speed_loop_divider = k->speed_loop_divider;
+    c->controller = k->controller == DRIVE_APP_CTRL_OPEN_LOOP ? core_ctrl : (uint8_t)(k->controller - 1u);
+    c->R_hat_ohm = k->R_hat_ohm;
+    c->Ld_hat_H = k->Ld_hat_H;
+    c->Lq_hat_H = k->Lq_hat_H;
+    c->psi_hat_Wb = k->psi_hat_Wb;
+    c->Vmax_V = k->Vmax_V;
+    c->vlimit_radial = k->vlimit_radial;
+    c->decoupling_enable = k->decoupling_enable;
+    c->angle_advance_periods = k->angle_advance_periods;
+    c->deadbeat.memory_mode = k->limited_memory;
+    c->pi.bandwidth_Hz = k->pi_bandwidth_Hz;
+    c->estimator.enable = k->estimator_enable;
+    c->estimator.bandwidth_Hz = k->estimator_bandwidth_Hz;
+    c->estimator.deadtime_enable = k->deadtime_comp_enable;
+    c->estimator.V_dt_V = k->deadtime_comp_V;
+    c->estimator.I_sat_A = k->deadtime_comp_I_sat_A;
+    c->ident.enable = m->x2201_online_tuning.enable;
+    c->ident.det_threshold_A2 = m->x2201_online_tuning.det_threshold_A2;
+    c->ident.window_m = m->x2201_online_tuning.average_m;
+    c->ident.identify_d_axis = m->x2201_online_tuning.separate_d_axis;
+    c->outer.J_kgm2 = k->J_hat_kgm2;
+    c->outer.speed_bw_Hz = m->x2203_outer_loops.speed_bandwidth_Hz;
+    c->outer.position_bw_Hz = m->x2203_outer_loops.position_bandwidth_Hz;
+    c->outer.speed_pi_zero_ratio = m->x2203_outer_loops.speed_pi_zero_ratio;
+    c->outer.iq_max_A = m->x2203_outer_loops.iq_limit_A;
+    c->outer.profile_max_speed_rad_s = m->x2202_References.profile_speed_rad_s;
+    c->outer.profile_accel_rad_s2 = m->x2202_References.profile_accel_rad_s2;
+#undef k
+}
+
+/* Cross-field rules of 0x2200-0x2203 (single-field ranges are in the EDS). */
+static uint32_t validate_config(const od_drive_mfr_t *m)
+{
+    const uint8_t ctrl = m->x2200_Controller.controller;
+    const float Ts = m->x2200_Controller.Ts_s;
+    if (ctrl != DRIVE_APP_CTRL_OPEN_LOOP && (uint32_t)(ctrl - 1u) >= (uint32_t)DRIVE_CTRL_COUNT)
+        return CO_ABORT_INVALID_VALUE; /* controller not implemented by the core */
+    if (m->x2200_Controller.deadtime_comp_enable != 0u && m->x2200_Controller.estimator_enable == 0u)
+        return CO_ABORT_PARAM_INCOMPAT; /* dead-time compensation uses the estimated currents */
+    if (m->x2201_online_tuning.enable != 0u &&
+        (ctrl != (uint8_t)(DRIVE_CTRL_DEADBEAT_YOU2019 + 1) ||
+         m->x2202_References.mode == DRIVE_APP_MODE_OPEN_LOOP))
+        return CO_ABORT_PARAM_INCOMPAT; /* You 2019 tuning identifies deadbeat gains in closed loop */
+    if (m->x2200_Controller.pi_bandwidth_Hz * 6.0f * Ts >= 1.0f)
+        return CO_ABORT_PARAM_INCOMPAT; /* PI phase margin 90 deg - 2 pi f 1.5 Ts <= 0 */
+    if (m->x2200_Controller.estimator_bandwidth_Hz * 2.0f * Ts >= 1.0f)
+        return CO_ABORT_PARAM_INCOMPAT; /* above Nyquist */
+    if (m->x2203_outer_loops.speed_bandwidth_Hz * 2.0f * Ts * (float)m->x2200_Controller.speed_loop_divider >= 1.0f)
+        return CO_ABORT_PARAM_INCOMPAT; /* above the speed loop's Nyquist */
+    if (m->x2203_outer_loops.position_bandwidth_Hz >= m->x2203_outer_loops.speed_bandwidth_Hz)
+        return CO_ABORT_PARAM_INCOMPAT; /* cascade: position loop inside the speed bandwidth */
+    return 0;
+}
+
+/* EDS trigger_edge (0 immediate, 1 rising, 2 falling, 3 either) -> trace_edge_t. */
+static uint8_t edge_from_od(uint8_t v)
+{
+    switch (v) {
+    case 1: return (uint8_t)TRACE_EDGE_RISING;
+    case 2: return (uint8_t)TRACE_EDGE_FALLING;
+    case 3: return (uint8_t)TRACE_EDGE_EITHER;
+    default: return (uint8_t)TRACE_EDGE_IMMEDIATE;
+    }
+}
+
+/* 0x2300 -> trace_config_t; returns 0 or an abort code for invalid combinations. */
+static uint32_t trace_config_from_od(const od_drive_mfr_t *m, trace_config_t *tc)
+{
+#define t (&m->x2300_Trace)
+    const uint8_t sig[TRACE_MAX_CHANNELS] = {t->signal_1, t->signal_2, t->signal_3, t->signal_4,
+                                             t->signal_5, t->signal_6, t->signal_7, t->signal_8};
+    uint8_t s[TRACE_MAX_CHANNELS] = {0, 0, 0, 0, 0, 0, 0, 0};
+    const uint8_t n = t->signal_count;
+    if (n == 0u || n > TRACE_MAX_CHANNELS) return CO_ABORT_PARAM_INCOMPAT;
+    for (uint8_t i = 0; i < n; ++i) {
+        if (sig[i] == (uint8_t)TRACE_SIG_NONE || sig[i] >= (uint8_t)TRACE_SIG_COUNT) return CO_ABORT_PARAM_INCOMPAT;
+        s[i] = sig[i];
+    }
+    if (t->trigger_signal >= (uint8_t)TRACE_SIG_COUNT) return CO_ABORT_PARAM_INCOMPAT;
+    if ((uint32_t)t->pretrigger_samples >= TRACE_BUFFER_SAMPLES / n) return CO_ABORT_PARAM_INCOMPAT;
+    memset(tc, 0, sizeof *tc);
+    tc->signal_0 = s[0]; tc->signal_1 = s[1]; tc->signal_2 = s[2]; tc->signal_3 = s[3];
+    tc->signal_4 = s[4]; tc->signal_5 = s[5]; tc->signal_6 = s[6]; tc->signal_7 = s[7];
+    tc->trigger_signal = t->trigger_signal;
+    tc->trigger_edge = edge_from_od(t->trigger_edge);
+    tc->trigger_level = t->trigger_level;
+    tc->pretrigger_samples = t->pretrigger_samples;
+    tc->decimation = t->decimation == 0u ? 1u : t->decimation;
+#undef t
+    return 0;
+}
+
+static int host_is_little(void)
+{
+    const uint16_t one = 1u;
+    return *(const uint8_t *)&one == 1u;
+}
+
+static void reverse_f(float *a, uint32_t lo, uint32_t hi) /* [lo, hi) */
+{
+    while (hi > lo + 1u) {
+        --hi;
+        const float t = a[lo];
+        a[lo] = a[hi];
+        a[hi] = t;
+        ++lo;
+    }
+}
+
+/* Make the captured ring contiguous (oldest row first) in place, so the DOMAIN
+ * can point straight at it: no second 32 KiB buffer. */
+static void trace_linearise(drive_app_t *app)
+{
+    trace_recorder_t *r = &app->trace;
+    if (app->trace_linear || r->status != (uint8_t)TRACE_DONE) return;
+    const uint32_t n = r->rows_captured * r->n_channels;
+    const uint32_t k = r->start_row * r->n_channels;
+    if (k != 0u && k < n) {
+        reverse_f(r->buffer, 0u, k);
+        reverse_f(r->buffer, k, n);
+        reverse_f(r->buffer, 0u, n);
+    }
+    r->start_row = 0u;
+    if (!host_is_little()) {
+        for (uint32_t i = 0; i < n; ++i) {
+            uint8_t b[4];
+            memcpy(b, &r->buffer[i], 4);
+            const uint8_t s0 = b[0], s1 = b[1];
+            b[0] = b[3]; b[1] = b[2]; b[2] = s1; b[3] = s0;
+            memcpy(&r->buffer[i], b, 4);
+        }
+    }
+    app->trace_linear = 1u;
+}
+
+/* ------------------------------------------------------------------ refresh (pre_read) */
+
+static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
+{
+    const drive_t *d = &app->drv;
+    switch (index) {
+    case OD_DRIVE_ONLINE_TUNING_IDX: {
+#define t (&m->x2201_online_tuning)
+        t->det_A2 = d->ident.q.det_A2;
+        t->K1_hat = d->ident.q.K1_hat_V_A;
+        t->K2_hat = d->ident.q.K2_hat_V_A;
+        t->K1_avg = d->ident.q.K1_bar_V_A;
+        t->K2_avg = d->ident.q.K2_bar_V_A;
+        t->L_hat_H = d->ident.q.L_hat_H;
+        t->identifications = d->ident.q.n_identified;
+        t->K1_active_V_A = d->db.K1q_V_A;
+        t->K2_active_V_A = d->db.K2q_V_A;
+        t->gain_updates = d->st.n_gain_updates;
+#undef t
+        break;
+    }
+    case OD_DRIVE_DRIVE_STATUS_IDX: {
+#define s (&m->x2204_drive_status)
+        s->current_steps = app->current_steps;
+        s->lost_measurements = app->lost;
+        s->late_measurements = app->late;
+        s->id_A = d->st.i_d_A;
+        s->iq_A = d->st.i_q_A;
+        s->speed_rad_s = d->outer.omega_m_rad_s;
+        s->iq_ref_active_A = d->st.iq_ref_A;
+        s->last_sample_index = app->last_sample_index;
+#undef s
+        break;
+    }
+    case OD_DRIVE_TRACE_IDX:
+        m->x2300_Trace.state = app->trace.status;
+        m->x2300_Trace.captured_bytes = trace_size_bytes(&app->trace);
+        m->x2300_Trace.trigger_row =
+            app->trace.status == (uint8_t)TRACE_DONE ? trace_trigger_index(&app->trace) : 0u;
+        break;
+    case OD_DRIVE_TRACE_BUFFER_IDX: {
+        co_domain_t *dm = &m->x2301_trace_buffer;
+        trace_linearise(app);
+        dm->data = (uint8_t *)app->trace.buffer;
+        dm->size = trace_size_bytes(&app->trace);
+        dm->capacity = 0u;
+        break;
+    }
+    case OD_DRIVE_LIVE_TRACE_IDX:
+        m->x2302_live_trace.value_1 = drive_signal(d, (trace_signal_t)m->x2302_live_trace.live_signal_1);
+        m->x2302_live_trace.value_2 = drive_signal(d, (trace_signal_t)m->x2302_live_trace.live_signal_2);
+        break;
+    default: break;
+    }
+}
+
+/* ------------------------------------------------------------------ measurement supervision */
+
+static void emcy_send(drive_app_t *app, uint16_t code, const uint8_t msef[5])
+{
+    if (app->node)
+        co_emcy_raise(app->node, code, (uint8_t)(CO_ERR_REG_COMMUNICATION | CO_ERR_REG_MANUFACTURER), msef);
+}
+
+/* While a measurement is being handled the EMCYs wait until the command
+ * (TPDO1) is out: supervision never delays the voltage command. */
+static void meas_error(drive_app_t *app, uint16_t code, const uint8_t msef[5])
+{
+    ++app->emcy_raised;
+    app->meas_error_active = 1u;
+    if (app->defer_emcy) {
+        if (app->n_pending < DRIVE_APP_PENDING_EMCY) {
+            app->pending_code[app->n_pending] = code;
+            memcpy(app->pending_msef[app->n_pending], msef, 5);
+            ++app->n_pending;
+        }
+        return;
+    }
+    emcy_send(app, code, msef);
+}
+
+static void flush_emcy(drive_app_t *app)
+{
+    app->defer_emcy = 0u;
+    for (uint8_t i = 0; i < app->n_pending; ++i) emcy_send(app, app->pending_code[i], app->pending_msef[i]);
+    app->n_pending = 0u;
+}
+
+static void count_late(drive_app_t *app, uint8_t reason, uint16_t sample_index, uint8_t sync_counter)
+{
+    ++app->late;
+    const uint8_t msef[5] = {(uint8_t)sample_index, (uint8_t)(sample_index >> 8), reason, sync_counter,
+                             app->last_sync_counter};
+    meas_error(app, DRIVE_EMCY_MEAS_LATE, msef);
+}
+
+static void count_lost(drive_app_t *app, uint32_t missing, uint16_t sample_index, uint8_t sync_counter)
+{
+    app->lost += missing;
+    const uint16_t m16 = missing > 0xFFFFu ? 0xFFFFu : (uint16_t)missing;
+    const uint8_t msef[5] = {(uint8_t)sample_index, (uint8_t)(sample_index >> 8), (uint8_t)m16,
+                             (uint8_t)(m16 >> 8), sync_counter};
+    meas_error(app, DRIVE_EMCY_MEAS_LOST, msef);
+}
+
+static void reset_sequencing(drive_app_t *app)
+{
+    app->rpdo1_fresh = 0u;
+    app->have_last = 0u;
+    app->sync_seen = 0u;
+}
+
+/* ------------------------------------------------------------------ current step */
+
+static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
+{
+    drive_t *d = &app->drv;
+    drive_state_t *s = &d->st;
+    /* The core runs for the angle, the dq currents, the speed estimate and its
+     * bookkeeping; its controller output is discarded and its memory cleared
+     * (no wind-up, clean restart when the loop is closed again). */
+    trace_recorder_t *rec = d->trace;
+    d->trace = NULL;
+    drive_current_step(d, &app->meas, &app->cmd);
+    d->trace = rec;
+    deadbeat_reset(&d->db);
+    pi_current_reset(&d->pi);
+
+    float vd = m->x2202_References.v_d_open_V;
+    float vq = m->x2202_References.v_q_open_V;
+    if (!is_finite_f(vd)) vd = 0.0f;
+    if (!is_finite_f(vq)) vq = 0.0f;
+    s->v_limited = dq_limit_voltage(&vd, &vq, d->cfg.Vmax_V, d->cfg.vlimit_radial);
+    const float cs = cosf(s->theta_e_rad);
+    const float sn = sinf(s->theta_e_rad);
+    s->v_d_V = s->v_d_star_V = vd;
+    s->v_q_V = s->v_q_star_V = vq;
+    s->v_d_ff_V = s->v_q_ff_V = 0.0f;
+    dq_inv_park(vd, vq, cs, sn, &s->v_alpha_V, &s->v_beta_V);
+    s->signals[TRACE_SIG_VQ] = vq;
+    s->signals[TRACE_SIG_VD] = vd;
+    s->signals[TRACE_SIG_VQ_STAR] = vq;
+    s->signals[TRACE_SIG_VD_STAR] = vd;
+    s->signals[TRACE_SIG_V_ALPHA] = s->v_alpha_V;
+    s->signals[TRACE_SIG_V_BETA] = s->v_beta_V;
+    s->signals[TRACE_SIG_V_LIMITED] = (float)s->v_limited;
+    if (rec != NULL) trace_sample(rec, s->signals);
+    app->cmd.v_alpha_V = s->v_alpha_V;
+    app->cmd.v_beta_V = s->v_beta_V;
+}
+
+void drive_app_current_step(drive_app_t *app)
+{
+    co_node_t *node = app->node;
+    if (node == NULL) return;
+    od_drive_mfr_t *m = mfr_of(node);
+    drive_t *d = &app->drv;
+
+    app->meas.i_a_A = m->x2100_Measurement.i_a_A;
+    app->meas.i_b_A = m->x2100_Measurement.i_b_A;
+    app->meas.theta_m_rad = m->x2100_Measurement.theta_m_rad;
+
+    /* references (SDO or RPDO3 wrote them; PDO writes bypass the EDS limits:
+     * non-finite values are ignored) */
+#define r (&m->x2202_References)
+    const uint8_t mode = r->mode;
+    d->sp.mode = mode <= (uint8_t)DRIVE_MODE_POSITION ? mode : (uint8_t)DRIVE_MODE_CURRENT;
+    if (is_finite_f(r->iq_ref_A)) d->sp.iq_ref_A = r->iq_ref_A;
+    if (is_finite_f(r->id_ref_A)) d->sp.id_ref_A = r->id_ref_A;
+    if (is_finite_f(r->speed_ref_rad_s)) d->sp.speed_ref_rad_s = r->speed_ref_rad_s;
+    if (is_finite_f(r->position_ref_rad)) d->sp.position_target_rad = r->position_ref_rad;
+
+#undef r
+    app->open_loop = (uint8_t)(m->x2200_Controller.controller == DRIVE_APP_CTRL_OPEN_LOOP ||
+                               mode == DRIVE_APP_MODE_OPEN_LOOP);
+    if (app->open_loop) {
+        open_loop_step(app, m);
+    } else {
+        drive_current_step(d, &app->meas, &app->cmd);
+    }
+    ++app->current_steps;
+
+    m->x2102_voltage_command.v_alpha_V = app->cmd.v_alpha_V;
+    m->x2102_voltage_command.v_beta_V = app->cmd.v_beta_V;
+    co_tpdo_request(node, 0); /* event-driven: goes out now */
+
+    if (node->tpdo[1].valid) {
+        uint16_t dec = m->x2302_live_trace.decimation;
+        if (dec == 0u) dec = 1u;
+        if (++app->live_count >= dec) {
+            app->live_count = 0u;
+            co_tpdo_request(node, 1); /* values refreshed by pre_read */
+        }
+    }
+}
+
+static void on_measurement(drive_app_t *app, co_node_t *node)
+{
+    od_drive_mfr_t *m = mfr_of(node);
+    const uint16_t si = m->x2100_Measurement.sample_index;
+    const uint8_t sc = m->x2100_Measurement.sync_counter;
+    const uint32_t late0 = app->late, lost0 = app->lost;
+    const uint8_t was_active = app->meas_error_active;
+    app->defer_emcy = 1u;
+    app->n_pending = 0u;
+
+    if (!app->rpdo1_fresh) count_late(app, DRIVE_LATE_RPDO2_WITHOUT_RPDO1, si, sc);
+    app->rpdo1_fresh = 0u;
+
+    if (app->have_last) {
+        const uint16_t delta = (uint16_t)(si - app->last_sample_index);
+        if (delta == 0u || delta >= 0x8000u) {
+            count_late(app, DRIVE_LATE_DUPLICATE_OR_OLD, si, sc);
+            /* stay on the newest index; a restarted plant is followed after
+             * three consecutive "old" samples */
+            if (++app->old_run >= 3u) {
+                app->last_sample_index = si;
+                app->old_run = 0u;
+            }
+        } else {
+            if (delta > 1u) count_lost(app, (uint32_t)delta - 1u, si, sc);
+            app->last_sample_index = si;
+            app->old_run = 0u;
+        }
+    } else {
+        app->have_last = 1u;
+        app->last_sample_index = si;
+        app->old_run = 0u;
+    }
+    const uint8_t sync_ov = (uint8_t)co_od_get_u32(node->od, OD_DRIVE_SYNCHRONOUS_COUNTER_OVERFLOW_VALUE_IDX, 0);
+    if (app->sync_seen && sync_ov >= 2u && sc != app->last_sync_counter)
+        count_late(app, DRIVE_LATE_SYNC_MISMATCH, si, sc);
+
+    const int clean = app->late == late0 && app->lost == lost0;
+    if (clean) app->meas_error_active = 0u;
+    drive_app_current_step(app); /* command out first */
+    flush_emcy(app);
+    if (clean && was_active) {
+        co_emcy_clear(node, DRIVE_EMCY_MEAS_LOST);
+        co_emcy_clear(node, DRIVE_EMCY_MEAS_LATE);
+    }
+}
+
+/* ------------------------------------------------------------------ hooks */
+
+static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e, const uint8_t *data,
+                             uint32_t len)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    (void)app;
+    const uint16_t idx = e->index;
+    if (idx < OD_DRIVE_CONTROLLER_IDX || idx > OD_DRIVE_LIVE_TRACE_IDX) return 0;
+    const uint32_t sz = co_dt_size(e->datatype);
+    if (sz == 0u || len != sz) return 0; /* lengths already checked by the core */
+
+    /* Candidate OD: the current one with the new value stored. */
+    od_drive_mfr_t *m = mfr_of(node);
+    od_drive_mfr_t cand;
+    memcpy(&cand, m, sizeof cand);
+    const size_t off = (size_t)((const uint8_t *)e->data - (const uint8_t *)m);
+    if (off + sz > sizeof cand) return 0;
+    co_od_entry_t tmp = *e;
+    tmp.data = (uint8_t *)&cand + off;
+    co_od_store(&tmp, data, len);
+
+    if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX) return validate_config(&cand);
+
+    if (idx == OD_DRIVE_TRACE_IDX) {
+        const uint8_t v = data[0];
+        switch (e->subindex) {
+        case OD_DRIVE_TRACE_STATE_SUB: {
+            if (v == (uint8_t)TRACE_IDLE) return 0;
+            if (v != (uint8_t)TRACE_ARMED) return CO_ABORT_INVALID_VALUE; /* 2, 3 are read-only states */
+            trace_config_t tc;
+            return trace_config_from_od(&cand, &tc);
+        }
+        case OD_DRIVE_TRACE_TRIGGER_SIGNAL_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_1_SUB: case OD_DRIVE_TRACE_SIGNAL_2_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_3_SUB: case OD_DRIVE_TRACE_SIGNAL_4_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_5_SUB: case OD_DRIVE_TRACE_SIGNAL_6_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_7_SUB: case OD_DRIVE_TRACE_SIGNAL_8_SUB:
+            return v >= (uint8_t)TRACE_SIG_COUNT ? CO_ABORT_VALUE_HIGH : 0u;
+        default: return 0;
+        }
+    }
+    if (idx == OD_DRIVE_LIVE_TRACE_IDX && (e->subindex == OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB ||
+                                           e->subindex == OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB))
+        return data[0] >= (uint8_t)TRACE_SIG_COUNT ? CO_ABORT_VALUE_HIGH : 0u;
+    return 0;
+}
+
+/* Fields the core watches by itself at every step (drive_core.h). */
+static int watched_by_core(const co_od_entry_t *e)
+{
+    if (e->index == OD_DRIVE_CONTROLLER_IDX) {
+        switch (e->subindex) {
+        case OD_DRIVE_CONTROLLER_CONTROLLER_SUB:
+        case OD_DRIVE_CONTROLLER_R_HAT_OHM_SUB:
+        case OD_DRIVE_CONTROLLER_LD_HAT_H_SUB:
+        case OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB:
+        case OD_DRIVE_CONTROLLER_PSI_HAT_WB_SUB: return 1;
+        default: return 0;
+        }
+    }
+    return e->index == OD_DRIVE_ONLINE_TUNING_IDX && e->subindex == OD_DRIVE_ONLINE_TUNING_ENABLE_SUB;
+}
+
+static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    od_drive_mfr_t *m = mfr_of(node);
+    const uint16_t idx = e->index;
+    const int is_config = idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_ONLINE_TUNING_IDX ||
+                          idx == OD_DRIVE_OUTER_LOOPS_IDX ||
+                          (idx == OD_DRIVE_REFERENCES_IDX &&
+                           (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
+                            e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));
+    if (is_config) {
+        od_to_config(m, &app->drv.cfg, app->drv.cfg.controller);
+        if (!watched_by_core(e)) drive_apply_config(&app->drv);
+        return;
+    }
+    if (idx == OD_DRIVE_TRACE_IDX && e->subindex == OD_DRIVE_TRACE_STATE_SUB) {
+        if (m->x2300_Trace.state == (uint8_t)TRACE_ARMED) {
+            trace_config_t tc;
+            if (trace_config_from_od(m, &tc) == 0u && trace_arm(&app->trace, &tc) == 0) {
+                app->trace_linear = 0u;
+            }
+        } else {
+            trace_stop(&app->trace);
+            app->trace_linear = 0u;
+        }
+        m->x2300_Trace.state = app->trace.status;
+        return;
+    }
+    if (idx == OD_DRIVE_LIVE_TRACE_IDX && e->subindex == OD_DRIVE_LIVE_TRACE_DECIMATION_SUB) app->live_count = 0u;
+}
+
+static void hk_pre_read(void *user, co_node_t *node, const co_od_entry_t *e)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    if (e->index < OD_DRIVE_ONLINE_TUNING_IDX) return; /* fast path: 0x2102 of TPDO1 */
+    refresh(app, mfr_of(node), e->index);
+}
+
+static void hk_on_sync(void *user, co_node_t *node, uint8_t counter)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    (void)node;
+    if (app->rpdo1_fresh) {
+        /* the currents of the previous sample never got their RPDO2 */
+        app->rpdo1_fresh = 0u;
+        count_late(app, DRIVE_LATE_RPDO1_WITHOUT_RPDO2, app->last_sample_index, counter);
+    }
+    app->sync_seen = 1u;
+    app->last_sync_counter = counter;
+}
+
+static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    app->node = node;
+    if (pdo == 0u) {
+        if (app->rpdo1_fresh) {
+            od_drive_mfr_t *m = mfr_of(node);
+            count_late(app, DRIVE_LATE_RPDO1_WITHOUT_RPDO2, m->x2100_Measurement.sample_index,
+                       m->x2100_Measurement.sync_counter);
+        }
+        app->rpdo1_fresh = 1u;
+    } else if (pdo == 1u) {
+        on_measurement(app, node);
+    }
+    /* pdo 2 (references): read by the next step */
+}
+
+static void hk_on_nmt(void *user, co_node_t *node, co_nmt_state_t state)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    (void)node;
+    (void)state;
+    reset_sequencing(app);
+}
+
+static void hk_on_reset(void *user, co_node_t *node, int communication_only)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    od_drive_mfr_t *m = mfr_of(node);
+    app->node = node;
+    if (!communication_only) {
+        /* reset application: OD defaults -> fresh firmware core */
+        drive_config_t cfg;
+        drive_default_config(&cfg);
+        od_to_config(m, &cfg, cfg.controller);
+        drive_init(&app->drv, &cfg);
+        trace_init(&app->trace);
+        drive_attach_trace(&app->drv, &app->trace);
+        app->current_steps = app->lost = app->late = app->emcy_raised = 0u;
+        app->meas_error_active = 0u;
+        app->open_loop = 0u;
+        app->trace_linear = 0u;
+        app->live_count = 0u;
+        memset(&app->meas, 0, sizeof app->meas);
+        memset(&app->cmd, 0, sizeof app->cmd);
+    }
+    reset_sequencing(app);
+    m->x2301_trace_buffer.data = (uint8_t *)app->trace.buffer;
+    m->x2301_trace_buffer.size = 0u;
+    m->x2301_trace_buffer.capacity = 0u;
+}
+
+static const co_hooks_t g_hooks = {
+    .pre_write = hk_pre_write,
+    .post_write = hk_post_write,
+    .pre_read = hk_pre_read,
+    .on_sync = hk_on_sync,
+    .on_rpdo = hk_on_rpdo,
+    .on_nmt = hk_on_nmt,
+    .on_reset = hk_on_reset,
+    .on_hb_timeout = NULL,
+};
+
+const co_hooks_t *drive_app_hooks(void) { return &g_hooks; }
+
+/* ------------------------------------------------------------------ API */
+
+void drive_app_init(drive_app_t *app)
+{
+    memset(app, 0, sizeof *app);
+    drive_config_t cfg;
+    drive_default_config(&cfg);
+    drive_init(&app->drv, &cfg);
+    trace_init(&app->trace);
+    drive_attach_trace(&app->drv, &app->trace);
+}
+
+void drive_app_bind(drive_app_t *app, co_node_t *node) { app->node = node; }
+
+void drive_app_load_config(drive_app_t *app)
+{
+    if (app->node == NULL) return;
+    od_to_config(mfr_of(app->node), &app->drv.cfg, app->drv.cfg.controller);
+    drive_apply_config(&app->drv);
+}
