@@ -1,0 +1,508 @@
+/* plant_app.c - the PMSM plant as a CANopen node (see plant_app.h). Portable: no OS headers. */
+#include "plant_app.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "od_plant.h"
+#include "presets.h"
+
+#define M (OD_PLANT.mfr)
+#define RUN_FOREVER 0xFFFFFFFFu
+
+/* ------------------------------------------------------------------ OD <-> config */
+
+void plant_app_config_from_od(plant_config_t *c)
+{
+    plant_config_defaults(c);
+    c->R_ohm = (double)M.x2000_motor_model.R_ohm;
+    c->Ld_H = (double)M.x2000_motor_model.Ld_H;
+    c->Lq_H = (double)M.x2000_motor_model.Lq_H;
+    c->psi_Wb = (double)M.x2000_motor_model.psi_Wb;
+    c->pole_pairs = (int32_t)M.x2000_motor_model.pole_pairs;
+    c->J_kgm2 = (double)M.x2000_motor_model.J_kgm2;
+    c->B_Nm_per_rad_s = (double)M.x2000_motor_model.B_Nm_per_rad_s;
+    c->T_load_Nm = (double)M.x2000_motor_model.T_load_Nm;
+    c->mech_mode = (plant_mech_mode_t)M.x2000_motor_model.mech_mode;
+    c->omega_imposed_rad_s = (double)M.x2000_motor_model.omega_imposed_rad_s;
+    c->sat_enable = M.x2000_motor_model.sat_enable != 0u;
+    c->sat_I_A = (double)M.x2000_motor_model.sat_I_A;
+    c->sat_Lq_inf_H = (double)M.x2000_motor_model.sat_Lq_inf_H;
+    c->rk4_h_rel = (double)M.x2000_motor_model.rk4_h_rel;
+    c->rk4_min_substeps = M.x2000_motor_model.rk4_min_substeps;
+
+    c->Ts_s = (double)M.x2001_Inverter.Ts_s;
+    c->Vdc_V = (double)M.x2001_Inverter.Vdc_V;
+    c->mod_limit = (plant_mod_limit_t)M.x2001_Inverter.mod_limit;
+    c->t_dead_s = (double)M.x2001_Inverter.t_dead_s;
+    c->deadtime_I_sat_A = (double)M.x2001_Inverter.deadtime_I_sat_A;
+    c->I_trip_A = (double)M.x2001_Inverter.I_trip_A;
+    c->Ts_pwm_s = (double)M.x2001_Inverter.Ts_pwm_s;
+    c->hold_frame = (plant_hold_frame_t)M.x2001_Inverter.hold_frame;
+
+    c->adc_lsb_A = (double)M.x2002_Sensors.adc_lsb_A;
+    c->adc_offset_a_A = (double)M.x2002_Sensors.adc_offset_a_A;
+    c->adc_noise_std_A = (double)M.x2002_Sensors.adc_noise_std_A;
+    c->rng_seed = (uint64_t)M.x2002_Sensors.rng_seed;
+    c->encoder_lines = M.x2002_Sensors.encoder_lines;
+    c->adc_offset_b_A = (double)M.x2002_Sensors.adc_offset_b_A;
+    c->adc_full_scale_A = (double)M.x2002_Sensors.adc_full_scale_A;
+}
+
+void plant_app_config_to_od(const plant_config_t *c)
+{
+    M.x2000_motor_model.R_ohm = (float)c->R_ohm;
+    M.x2000_motor_model.Ld_H = (float)c->Ld_H;
+    M.x2000_motor_model.Lq_H = (float)c->Lq_H;
+    M.x2000_motor_model.psi_Wb = (float)c->psi_Wb;
+    M.x2000_motor_model.pole_pairs = (uint8_t)c->pole_pairs;
+    M.x2000_motor_model.J_kgm2 = (float)c->J_kgm2;
+    M.x2000_motor_model.B_Nm_per_rad_s = (float)c->B_Nm_per_rad_s;
+    M.x2000_motor_model.T_load_Nm = (float)c->T_load_Nm;
+    M.x2000_motor_model.mech_mode = (uint8_t)c->mech_mode;
+    M.x2000_motor_model.omega_imposed_rad_s = (float)c->omega_imposed_rad_s;
+    M.x2000_motor_model.sat_enable = c->sat_enable ? 1u : 0u;
+    M.x2000_motor_model.sat_I_A = (float)c->sat_I_A;
+    M.x2000_motor_model.sat_Lq_inf_H = (float)c->sat_Lq_inf_H;
+    M.x2000_motor_model.rk4_h_rel = (float)c->rk4_h_rel;
+    M.x2000_motor_model.rk4_min_substeps = c->rk4_min_substeps;
+
+    M.x2001_Inverter.Ts_s = (float)c->Ts_s;
+    M.x2001_Inverter.Vdc_V = (float)c->Vdc_V;
+    M.x2001_Inverter.mod_limit = (uint8_t)c->mod_limit;
+    M.x2001_Inverter.t_dead_s = (float)c->t_dead_s;
+    M.x2001_Inverter.deadtime_I_sat_A = (float)c->deadtime_I_sat_A;
+    M.x2001_Inverter.I_trip_A = (float)c->I_trip_A;
+    M.x2001_Inverter.Ts_pwm_s = (float)c->Ts_pwm_s;
+    M.x2001_Inverter.hold_frame = (uint8_t)c->hold_frame;
+
+    M.x2002_Sensors.adc_lsb_A = (float)c->adc_lsb_A;
+    M.x2002_Sensors.adc_offset_a_A = (float)c->adc_offset_a_A;
+    M.x2002_Sensors.adc_noise_std_A = (float)c->adc_noise_std_A;
+    M.x2002_Sensors.rng_seed = (uint32_t)c->rng_seed;
+    M.x2002_Sensors.encoder_lines = c->encoder_lines;
+    M.x2002_Sensors.adc_offset_b_A = (float)c->adc_offset_b_A;
+    M.x2002_Sensors.adc_full_scale_A = (float)c->adc_full_scale_A;
+}
+
+/* ------------------------------------------------------------------ helpers */
+
+static bool is_model_entry(const co_od_entry_t *e)
+{
+    return e->index >= OD_PLANT_MOTOR_MODEL_IDX && e->index <= OD_PLANT_SENSORS_IDX && e->subindex != 0u;
+}
+
+static void attach_domain(plant_app_t *app)
+{
+    M.x2006_lateness_histogram.data = app->hist_bytes;
+    M.x2006_lateness_histogram.size = (uint32_t)sizeof app->hist_bytes;
+    M.x2006_lateness_histogram.capacity = 0u; /* read-only */
+}
+
+static void hist_clear(plant_app_t *app)
+{
+    memset(app->hist, 0, sizeof app->hist);
+    memset(app->hist_bytes, 0, sizeof app->hist_bytes);
+}
+
+static void hist_add(plant_app_t *app, int64_t lateness_us)
+{
+    int64_t b = (lateness_us - PLANT_APP_HIST_ORIGIN_US);
+    b = b < 0 ? 0 : b / PLANT_APP_HIST_BIN_US;
+    if (b >= (int64_t)PLANT_APP_HIST_BINS) b = PLANT_APP_HIST_BINS - 1;
+    uint32_t v = ++app->hist[b];
+    uint8_t *p = &app->hist_bytes[b * 4];
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
+}
+
+static void reset_tracking(plant_app_t *app)
+{
+    app->cmd_ready = false;
+    app->cmd_seen = false;
+    app->cmd_seen_rx_us = 0;
+    app->late_in_period = false;
+    app->owed = 0;
+    app->late_timeout_streak = 0;
+    app->miss_flag = false;
+}
+
+static void model_reset(plant_app_t *app)
+{
+    plant_app_config_from_od(&app->cfg);
+    plant_init(&app->state, &app->cfg);
+    memset(&app->meas, 0, sizeof app->meas);
+    app->cfg_dirty = false;
+    app->reseed = false;
+    app->started = false;
+    app->k = 0;
+    app->v_held_alpha_V = 0.0;
+    app->v_held_beta_V = 0.0;
+    app->paused = true;
+    reset_tracking(app);
+    hist_clear(app);
+    attach_domain(app);
+}
+
+void plant_app_init(plant_app_t *app)
+{
+    memset(app, 0, sizeof *app);
+    co_od_reset(&od_plant, OD_PLANT_DEFAULT_NODE_ID, 0);
+    model_reset(app);
+}
+
+void plant_app_bind(plant_app_t *app, co_node_t *node)
+{
+    app->node = node;
+}
+
+bool plant_app_running(const plant_app_t *app)
+{
+    return app->node && app->node->nmt == CO_NMT_OPERATIONAL && M.x2003_run_control.run_periods > 0u;
+}
+
+bool plant_app_realtime_mode(const plant_app_t *app)
+{
+    (void)app;
+    return M.x2003_run_control.mode == 1u;
+}
+
+int64_t plant_app_period_ns(const plant_app_t *app)
+{
+    return (int64_t)llround(app->cfg.Ts_s * 1e9);
+}
+
+static int64_t period_us(const plant_app_t *app)
+{
+    return (int64_t)llround(app->cfg.Ts_s * 1e6);
+}
+
+/* The RPDO that carries the voltage command (maps 0x2102). */
+static const co_pdo_t *cmd_rpdo(const plant_app_t *app)
+{
+    for (uint8_t n = 0; n < CO_NUM_PDO; ++n) {
+        const co_pdo_t *p = &app->node->rpdo[n];
+        if (!p->valid) continue;
+        for (uint8_t i = 0; i < p->count; ++i)
+            if (p->entry[i]->index == OD_PLANT_VOLTAGE_COMMAND_IDX) return p;
+    }
+    return NULL;
+}
+
+/* A command frame was received at t_us. The n-th command answers sample n:
+ * while commands of missed periods are owed, an arrival is one of them (late). */
+static void note_arrival(plant_app_t *app, int64_t t_us)
+{
+    ++app->commands;
+    int64_t deadline;
+    if (app->owed > 0u) {
+        uint64_t p = app->k >= app->owed ? app->k - app->owed : 0u; /* period it was meant for */
+        deadline = app->sched_us[(p + 1u) % PLANT_APP_SCHED_RING];
+        --app->owed;
+        ++M.x2003_run_control.late_commands;
+        app->late_in_period = true;
+    } else {
+        app->cmd_ready = true;
+        deadline = app->sched_us[app->k % PLANT_APP_SCHED_RING] + period_us(app);
+    }
+    if (app->started && M.x2003_run_control.mode == 1u) hist_add(app, t_us - deadline);
+}
+
+static void scan_arrivals(plant_app_t *app)
+{
+    const co_pdo_t *p = cmd_rpdo(app);
+    if (!p || !p->rx_buffered) return;
+    if (app->cmd_seen && p->last_rx_us == app->cmd_seen_rx_us) return;
+    app->cmd_seen = true;
+    app->cmd_seen_rx_us = p->last_rx_us;
+    note_arrival(app, p->last_rx_us);
+}
+
+/* The current period ends without its command. */
+static void handle_miss(plant_app_t *app)
+{
+    ++M.x2003_run_control.missed_commands;
+    app->miss_flag = true;
+    if (app->late_in_period) {
+        /* lockstep: tolerate a drive that is several periods behind; real time:
+         * the SYNCs do not wait, assume at once that a command was dropped */
+        uint32_t limit = M.x2003_run_control.mode == 1u ? 1u : PLANT_APP_RESYNC_PERIODS;
+        if (++app->late_timeout_streak >= limit) {
+            app->owed = 0; /* resynchronise: the drive dropped a command */
+            app->late_timeout_streak = 0;
+            return;
+        }
+    } else {
+        app->late_timeout_streak = 0;
+    }
+    if (app->owed < PLANT_APP_SCHED_RING - 1u) ++app->owed;
+}
+
+static void apply_pending_config(plant_app_t *app)
+{
+    plant_config_t *c = &app->scratch_cfg;
+    plant_app_config_from_od(c);
+    if (plant_prepare(&app->state, c) == PLANT_OK) {
+        app->cfg = *c;
+        if (app->reseed) plant_rng_seed(&app->state.rng, app->cfg.rng_seed);
+        ++app->config_applies;
+    } else {
+        ++app->config_errors;
+        (void)plant_prepare(&app->state, &app->cfg);
+    }
+    app->cfg_dirty = false;
+    app->reseed = false;
+}
+
+/* ------------------------------------------------------------------ hooks */
+
+static plant_app_t *user_app(void *user, co_node_t *node)
+{
+    plant_app_t *app = (plant_app_t *)user;
+    if (!app->node) app->node = node;
+    return app;
+}
+
+/* Validate a write to 0x2000-0x2002 against the whole configuration: store it
+ * temporarily, read the config back, restore, try plant_prepare on a copy. */
+static uint32_t validate_model_write(plant_app_t *app, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
+{
+    uint8_t saved[8];
+    uint32_t n = e->size <= sizeof saved ? e->size : (uint32_t)sizeof saved;
+    memcpy(saved, e->data, n);
+    co_od_store(e, data, len);
+    plant_app_config_from_od(&app->scratch_cfg);
+    memcpy(e->data, saved, n);
+    app->scratch_state = app->state;
+    return plant_prepare(&app->scratch_state, &app->scratch_cfg) == PLANT_OK ? 0u : CO_ABORT_PARAM_INCOMPAT;
+}
+
+static uint32_t hook_pre_write(void *user, co_node_t *node, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
+{
+    plant_app_t *app = user_app(user, node);
+    if (is_model_entry(e)) return validate_model_write(app, e, data, len);
+    if (e->index == OD_PLANT_MOTOR_PRESET_IDX) {
+        char name[40];
+        if (len >= sizeof name) return CO_ABORT_INVALID_VALUE;
+        memcpy(name, data, len);
+        name[len] = '\0';
+        if (plant_preset_load(name, &app->scratch_cfg) != 0) return CO_ABORT_INVALID_VALUE;
+        app->scratch_state = app->state;
+        if (plant_prepare(&app->scratch_state, &app->scratch_cfg) != PLANT_OK) return CO_ABORT_PARAM_INCOMPAT;
+        return 0;
+    }
+    return 0;
+}
+
+int plant_app_load_preset(plant_app_t *app, const char *name)
+{
+    if (plant_preset_load(name, &app->scratch_cfg) != 0) return PLANT_ERR_PRESET;
+    plant_app_config_to_od(&app->scratch_cfg);
+    app->cfg_dirty = true;
+    app->reseed = true;
+    return 0;
+}
+
+static void hook_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
+{
+    plant_app_t *app = user_app(user, node);
+    if (is_model_entry(e)) {
+        app->cfg_dirty = true;
+        if (e->index == OD_PLANT_SENSORS_IDX && e->subindex == OD_PLANT_SENSORS_RNG_SEED_SUB) app->reseed = true;
+        return;
+    }
+    if (e->index == OD_PLANT_MOTOR_PRESET_IDX) {
+        (void)plant_app_load_preset(app, M.x2004_motor_preset);
+        return;
+    }
+    if (e->index == OD_PLANT_RUN_CONTROL_IDX) {
+        switch (e->subindex) {
+        case OD_PLANT_RUN_CONTROL_TRIP_CLEAR_SUB:
+            if (M.x2003_run_control.trip_clear == 1u) {
+                plant_clear_trip(&app->state);
+                if (M.x2003_run_control.trip_active) {
+                    M.x2003_run_control.trip_active = 0u;
+                    co_emcy_clear(node, PLANT_EMCY_OVERCURRENT);
+                }
+            }
+            M.x2003_run_control.trip_clear = 0u;
+            break;
+        case OD_PLANT_RUN_CONTROL_MODE_SUB:
+            app->paused = true; /* restart the timing of the current period */
+            app->owed = 0;      /* start the command accounting afresh */
+            app->late_timeout_streak = 0;
+            break;
+        case OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB:
+            M.x2003_run_control.state = plant_app_running(app) ? 1u : 0u;
+            break;
+        default: break;
+        }
+    }
+}
+
+static void hook_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
+{
+    plant_app_t *app = user_app(user, node);
+    /* Synchronous RPDO actuated at this SYNC: account for it if poll did not see it yet. */
+    const co_pdo_t *p = cmd_rpdo(app);
+    if (p && p == &node->rpdo[pdo] && !(app->cmd_seen && p->last_rx_us == app->cmd_seen_rx_us))
+        note_arrival(app, p->last_rx_us);
+    app->cmd_seen = false;
+}
+
+static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
+{
+    plant_app_t *app = user_app(user, node);
+    if (node->nmt != CO_NMT_OPERATIONAL || M.x2003_run_control.run_periods == 0u) return;
+    int64_t now = node->now_us;
+
+    /* 1. integrate [k-1, k] with the command held over it */
+    if (app->started) {
+        plant_step(&app->state, &app->cfg, app->v_held_alpha_V, app->v_held_beta_V);
+        ++app->k;
+    } else {
+        app->started = true;
+        app->k = 0;
+    }
+    /* 2. parameter changes take effect at the period boundary */
+    if (app->cfg_dirty) apply_pending_config(app);
+    if (app->state.tripped && !M.x2003_run_control.trip_active) {
+        M.x2003_run_control.trip_active = 1u;
+        uint8_t msef[5] = {(uint8_t)app->k, (uint8_t)(app->k >> 8), 0, 0, 0};
+        co_emcy_raise(node, PLANT_EMCY_OVERCURRENT, CO_ERR_REG_CURRENT, msef);
+    }
+    /* 3. actuate the received command: held in the stator frame over [k, k+1] */
+    app->v_held_alpha_V = (double)M.x2102_voltage_command.v_alpha_V;
+    app->v_held_beta_V = (double)M.x2102_voltage_command.v_beta_V;
+
+    /* period bookkeeping */
+    uint32_t *rp = &M.x2003_run_control.run_periods;
+    if (*rp != RUN_FOREVER) --*rp;
+    ++app->syncs;
+    app->last_sync_us = now;
+    app->wait_start_us = now;
+    app->sched_us[app->k % PLANT_APP_SCHED_RING] = M.x2003_run_control.mode == 1u ? app->tick_sched_us : now;
+    app->cmd_ready = false;
+    app->cmd_seen = false;
+    app->late_in_period = false;
+
+    /* 4. sample */
+    plant_sample(&app->state, &app->cfg, &app->meas);
+    uint8_t status = 0;
+    if (M.x2003_run_control.trip_active) status |= PLANT_STATUS_TRIP;
+    if (*rp == 0u) status |= PLANT_STATUS_HOLDING;
+    if (app->miss_flag) status |= PLANT_STATUS_MISSED;
+    app->miss_flag = false;
+
+    M.x2100_Measurement.i_a_A = app->meas.i_a_A;
+    M.x2100_Measurement.i_b_A = app->meas.i_b_A;
+    M.x2100_Measurement.theta_m_rad = app->meas.theta_m_rad;
+    M.x2100_Measurement.sync_counter = counter;
+    M.x2100_Measurement.status = status;
+    M.x2100_Measurement.sample_index = (uint16_t)app->k;
+
+    M.x2005_plant_state.id_A = (float)app->meas.id_A;
+    M.x2005_plant_state.iq_A = (float)app->meas.iq_A;
+    M.x2005_plant_state.omega_m_rad_s = (float)app->meas.omega_m_rad_s;
+    M.x2005_plant_state.theta_m_rad = (float)app->meas.theta_m_true_rad;
+    M.x2005_plant_state.torque_Nm = (float)app->meas.torque_Nm;
+    M.x2005_plant_state.energy_in_J = (float)app->state.energy.in_J;
+
+    M.x2003_run_control.period_index = (uint32_t)app->k;
+    M.x2003_run_control.state = plant_app_running(app) ? 1u : 0u;
+}
+
+static void hook_on_nmt(void *user, co_node_t *node, co_nmt_state_t st)
+{
+    plant_app_t *app = user_app(user, node);
+    if (st != CO_NMT_OPERATIONAL) {
+        app->cmd_seen = false; /* the core dropped the buffered RPDOs */
+        app->cmd_ready = false;
+    }
+    app->paused = true;
+    M.x2003_run_control.state = plant_app_running(app) ? 1u : 0u;
+}
+
+static void hook_on_reset(void *user, co_node_t *node, int communication_only)
+{
+    plant_app_t *app = user_app(user, node);
+    if (communication_only) {
+        reset_tracking(app); /* PDO buffers are gone */
+        app->paused = true;
+        return;
+    }
+    model_reset(app);
+}
+
+static const co_hooks_t k_hooks = {
+    .pre_write = hook_pre_write,
+    .post_write = hook_post_write,
+    .pre_read = NULL,
+    .on_sync = hook_on_sync,
+    .on_rpdo = hook_on_rpdo,
+    .on_nmt = hook_on_nmt,
+    .on_reset = hook_on_reset,
+    .on_hb_timeout = NULL,
+};
+
+const co_hooks_t *plant_app_hooks(void)
+{
+    return &k_hooks;
+}
+
+/* ------------------------------------------------------------------ drivers */
+
+static int produce(plant_app_t *app, int64_t now_us)
+{
+    app->paused = false;
+    return co_sync_produce(app->node, now_us);
+}
+
+int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
+{
+    if (!app->node) return -1;
+    scan_arrivals(app);
+    bool run = plant_app_running(app);
+    M.x2003_run_control.state = run ? 1u : 0u;
+    if (!run) {
+        app->paused = true;
+        return -1;
+    }
+    if (M.x2003_run_control.mode == 1u) return -1; /* real time: the transport ticks */
+    if (app->paused) {
+        app->paused = false;
+        app->wait_start_us = now_us; /* the timeout counts from the resume */
+    }
+    int64_t timeout = (int64_t)M.x2003_run_control.command_timeout_us;
+    if (!app->started || app->cmd_ready) {
+        produce(app, now_us);
+        return timeout;
+    }
+    int64_t waited = now_us - app->wait_start_us;
+    if (waited >= timeout) {
+        handle_miss(app);
+        produce(app, now_us);
+        return timeout;
+    }
+    return timeout - waited;
+}
+
+int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_us)
+{
+    if (!app->node) return -1;
+    scan_arrivals(app);
+    if (!plant_app_running(app) || M.x2003_run_control.mode != 1u) {
+        app->paused = true;
+        return -1;
+    }
+    if (app->started && !app->paused && !app->cmd_ready) handle_miss(app);
+    if (lateness_us > 0) {
+        if (lateness_us > (int64_t)M.x2003_run_control.max_sync_lateness_us)
+            M.x2003_run_control.max_sync_lateness_us = lateness_us > 0xFFFFFFFF ? 0xFFFFFFFFu : (uint32_t)lateness_us;
+        if (lateness_us > period_us(app)) ++M.x2003_run_control.sync_overruns;
+    }
+    app->tick_sched_us = now_us - lateness_us;
+    return produce(app, now_us);
+}

@@ -1,0 +1,205 @@
+/* plant_node_main.c - the PMSM plant as a Linux CANopen node process.
+ *
+ *   plant_node [--iface vcan0] [--node-id N] [--realtime] [--help]
+ *
+ * Lockstep (0x2003:01 = 0): co_runtime_run() with plant_app_poll() as the app
+ * poll: a SYNC goes out as soon as the command for the current period arrived
+ * (or after 0x2003:04 command_timeout_us).
+ * Real time (0x2003:01 = 1): absolute-deadline loop, SYNC every Ts_s
+ * (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)), frames drained between
+ * deadlines. Tries SCHED_FIFO and mlockall (one line says if not permitted).
+ * SIGINT/SIGTERM: clean exit (status 0).
+ */
+#include <errno.h>
+#include <poll.h>
+#include <sched.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include "co_runtime.h"
+#include "od_plant.h"
+#include "plant_app.h"
+
+#define EXIT_USAGE 64
+#define RT_GUARD_US 30          /* stop waiting for frames this long before a deadline */
+#define RT_SERVE_MIN_US 200      /* wait on the socket between deadlines only if this much time is left */
+#define IDLE_WAIT_US 10000      /* real-time mode while holding: frame wait slice */
+
+int co_runtime_stop_requested(void); /* defined in co_runtime.c (SIGINT/SIGTERM seen) */
+
+static plant_app_t g_app;
+static co_runtime_t g_rt;
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: plant_node [--iface NAME] [--node-id N] [--realtime] [--help]\n"
+            "\n"
+            "PMSM plant emulator as a CANopen slave (OD: protocols/eds/plant.eds).\n"
+            "It is the SYNC producer: SYNC k -> TPDO1 {i_a_A, i_b_A}, TPDO2 {theta_m_rad,\n"
+            "sync_counter, status, sample_index}; the voltage command comes in the\n"
+            "synchronous RPDO1 (0x2102) and is actuated at the next SYNC.\n"
+            "\n"
+            "  --iface NAME   SocketCAN interface (default vcan0)\n"
+            "  --node-id N    CANopen node-ID, 1..127 (default %u)\n"
+            "  --realtime     start in real-time mode (same as SDO 0x2003:01 = 1)\n"
+            "  --help         this text\n"
+            "\n"
+            "Nothing runs until the master sends NMT start and writes 0x2003:02\n"
+            "run_periods (> 0; 0xFFFFFFFF = without end). Lockstep mode (default) waits\n"
+            "for each command (timeout 0x2003:04); real-time mode sends SYNC at absolute\n"
+            "deadlines every Ts_s (0x2001:01), with SCHED_FIFO when permitted.\n",
+            (unsigned)OD_PLANT_DEFAULT_NODE_ID);
+}
+
+static int64_t mono_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000LL + ts.tv_nsec;
+}
+
+static void sleep_until_ns(int64_t t_ns)
+{
+    struct timespec ts = {.tv_sec = (time_t)(t_ns / 1000000000LL), .tv_nsec = (long)(t_ns % 1000000000LL)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+        if (co_runtime_stop_requested()) return;
+    }
+}
+
+static void try_realtime_priority(void)
+{
+    static int done;
+    if (done) return;
+    done = 1;
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = 80;
+    int fifo = sched_setscheduler(0, SCHED_FIFO, &sp) == 0;
+    int fifo_err = fifo ? 0 : errno;
+    int locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+    int lock_err = locked ? 0 : errno;
+    if (fifo && locked)
+        printf("plant_node: real-time mode: SCHED_FIFO priority 80, memory locked\n");
+    else
+        printf("plant_node: real-time mode: %s%s%s%s (needs root or CAP_SYS_NICE/CAP_IPC_LOCK); timing may jitter\n",
+               fifo ? "SCHED_FIFO on" : "SCHED_FIFO not permitted: ", fifo ? "" : strerror(fifo_err),
+               locked ? ", memory locked" : ", mlockall not permitted: ", locked ? "" : strerror(lock_err));
+    fflush(stdout);
+}
+
+/* Lockstep app poll; leaves co_runtime_run when real-time mode is selected. */
+static int64_t lockstep_poll(void *user, co_runtime_t *rt, int64_t now_us)
+{
+    (void)rt;
+    plant_app_t *app = (plant_app_t *)user;
+    if (plant_app_realtime_mode(app)) return CO_RUNTIME_EXIT;
+    return plant_app_poll(app, now_us);
+}
+
+/* Serve frames until until_ns. co_runtime_wait_one() waits in whole
+ * milliseconds (poll()), far too coarse for a 55 us period, so wait on the
+ * socket with ppoll() (ns timeout) and drain what arrived. */
+static void serve_until_ns(co_runtime_t *rt, int64_t until_ns)
+{
+    for (;;) {
+        int64_t rem_ns = until_ns - mono_ns();
+        if (rem_ns <= 0 || co_runtime_stop_requested()) break;
+        struct pollfd p = {.fd = rt->fd, .events = POLLIN, .revents = 0};
+        struct timespec to = {.tv_sec = (time_t)(rem_ns / 1000000000LL), .tv_nsec = (long)(rem_ns % 1000000000LL)};
+        int r = ppoll(&p, 1, &to, NULL);
+        if (r < 0 && errno != EINTR) break;
+        if (r > 0) co_runtime_drain(rt);
+        int64_t now_us = mono_ns() / 1000;
+        co_node_tick(&rt->node, now_us);
+        (void)plant_app_poll(&g_app, now_us); /* arrival bookkeeping only in real-time mode */
+        if (!plant_app_realtime_mode(&g_app)) break;
+    }
+}
+
+/* Real-time mode: absolute deadlines every Ts. Returns when the mode changes or on a signal. */
+static void realtime_loop(co_runtime_t *rt)
+{
+    try_realtime_priority();
+    int64_t deadline_ns = 0;
+    while (!co_runtime_stop_requested() && plant_app_realtime_mode(&g_app)) {
+        if (!plant_app_running(&g_app)) {
+            /* holding: serve SDO/NMT, restart the deadline grid when running again */
+            serve_until_ns(rt, mono_ns() + (int64_t)IDLE_WAIT_US * 1000);
+            co_node_tick(&rt->node, mono_ns() / 1000);
+            deadline_ns = 0;
+            continue;
+        }
+        int64_t period_ns = plant_app_period_ns(&g_app);
+        if (deadline_ns == 0) deadline_ns = mono_ns() + period_ns;
+        /* short periods: one absolute sleep per period (each wake-up costs tens of us) */
+        if (deadline_ns - mono_ns() > (int64_t)RT_SERVE_MIN_US * 1000)
+            serve_until_ns(rt, deadline_ns - (int64_t)RT_GUARD_US * 1000);
+        sleep_until_ns(deadline_ns);
+        co_runtime_drain(rt);
+        int64_t now_ns = mono_ns();
+        int64_t now_us = now_ns / 1000;
+        plant_app_realtime_tick(&g_app, now_us, (now_ns - deadline_ns) / 1000);
+        co_node_tick(&rt->node, now_us);
+        deadline_ns += plant_app_period_ns(&g_app); /* Ts applied at this SYNC */
+        if (deadline_ns < now_ns - 100 * period_ns) deadline_ns = now_ns + period_ns; /* far behind: re-grid */
+    }
+}
+
+int main(int argc, char **argv)
+{
+    const char *iface = "vcan0";
+    uint8_t node_id = (uint8_t)OD_PLANT_DEFAULT_NODE_ID;
+    int realtime = 0;
+    for (int i = 1; i < argc; ++i) {
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            usage(stdout);
+            return 0;
+        }
+    }
+    int i = co_runtime_parse_args(argc, argv, &iface, &node_id);
+    if (i < 0) return EXIT_USAGE;
+    for (; i < argc; ++i) {
+        if (strcmp(argv[i], "--realtime") == 0) {
+            realtime = 1;
+        } else if (strcmp(argv[i], "--iface") == 0 || strcmp(argv[i], "--node-id") == 0) {
+            fprintf(stderr, "plant_node: %s needs a value (%s)\n", argv[i],
+                    strcmp(argv[i], "--iface") == 0 ? "a SocketCAN interface name, e.g. vcan0" : "1..127");
+            return EXIT_USAGE;
+        } else {
+            fprintf(stderr, "plant_node: unknown option '%s' (allowed: --iface NAME, --node-id 1..127, --realtime, --help)\n",
+                    argv[i]);
+            return EXIT_USAGE;
+        }
+    }
+
+    static const co_runtime_app_t app_poll = {.poll = lockstep_poll};
+    plant_app_init(&g_app);
+    if (co_runtime_open(&g_rt, iface, &od_plant, node_id, plant_app_hooks(), &app_poll, &g_app) != 0) {
+        fprintf(stderr, "plant_node: cannot open CAN interface '%s'\n", iface);
+        return 1;
+    }
+    plant_app_bind(&g_app, &g_rt.node);
+    if (realtime) OD_PLANT.mfr.x2003_run_control.mode = 1u;
+    printf("plant_node: node-ID %u on %s, %s mode, Ts = %.1f us\n", (unsigned)node_id, iface,
+           realtime ? "real-time" : "lockstep", (double)plant_app_period_ns(&g_app) / 1000.0);
+    fflush(stdout);
+
+    int rc = 0;
+    while (!co_runtime_stop_requested()) {
+        if (plant_app_realtime_mode(&g_app)) {
+            realtime_loop(&g_rt);
+        } else {
+            rc = co_runtime_run(&g_rt);
+            if (rc != 0) break;
+        }
+    }
+    co_runtime_close(&g_rt);
+    printf("plant_node: stopped after %u SYNCs (missed %u, late %u commands)\n", (unsigned)g_app.syncs,
+           (unsigned)OD_PLANT.mfr.x2003_run_control.missed_commands,
+           (unsigned)OD_PLANT.mfr.x2003_run_control.late_commands);
+    return rc;
+}

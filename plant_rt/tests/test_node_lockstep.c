@@ -1,0 +1,214 @@
+/* test_node_lockstep.c - lockstep SYNC production, missed and late commands,
+ * run_periods holding, and the real-time tick (time driven by hand). */
+#include <stdio.h>
+
+#include "plant_testbus.h"
+
+static tb_t g_tb;
+static int g_fail;
+
+#define CHECK(c, ...)                                              \
+    do {                                                           \
+        if (!(c)) {                                                \
+            printf("FAIL %s:%d: ", __FILE__, __LINE__);            \
+            printf(__VA_ARGS__);                                   \
+            printf("\n");                                          \
+            g_fail = 1;                                            \
+        }                                                          \
+    } while (0)
+
+#define RC (OD_PLANT.mfr.x2003_run_control)
+
+static const tb_sample_t *last(const tb_t *tb)
+{
+    return &tb->smp[tb->n_smp - 1u];
+}
+
+static void test_holds_and_timeout(void)
+{
+    tb_t *tb = &g_tb;
+    tb_init(tb);
+    const uint32_t timeout_us = 1000;
+    CHECK(tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_COMMAND_TIMEOUT_US_SUB, timeout_us) == 0, "timeout");
+    /* nothing before NMT start / run_periods */
+    tb_poll(tb);
+    CHECK(tb->n_sync == 0, "SYNC while pre-operational");
+    tb_nmt(tb, 0x01u);
+    tb->now_us = 5000;
+    tb_poll(tb);
+    CHECK(tb->n_sync == 0, "SYNC with run_periods = 0");
+    CHECK(RC.state == 0, "state %u", RC.state);
+    tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 0xFFFFFFFFu);
+    int64_t t0 = tb->now_us;
+    int64_t hint = tb_poll(tb);
+    CHECK(tb->n_sync == 1 && tb->n_smp == 1, "SYNC 0 (n_sync %u)", (unsigned)tb->n_sync);
+    CHECK(hint == timeout_us, "wait hint %lld", (long long)hint);
+
+    /* no command: the plant waits */
+    uint32_t polls = 0;
+    for (tb->now_us = t0 + 1; tb->now_us < t0 + timeout_us; tb->now_us += 37) {
+        hint = tb_poll(tb);
+        ++polls;
+        CHECK(tb->n_sync == 1, "SYNC 1 before the command / timeout at t+%lld", (long long)(tb->now_us - t0));
+        CHECK(hint == t0 + timeout_us - tb->now_us, "hint %lld at t+%lld", (long long)hint,
+              (long long)(tb->now_us - t0));
+    }
+    printf("no command: %u polls over %u us, SYNCs %u (held)\n", (unsigned)polls, (unsigned)timeout_us,
+           (unsigned)tb->n_sync);
+    tb->now_us = t0 + timeout_us;
+    tb_poll(tb);
+    CHECK(tb->n_sync == 2, "SYNC 1 at the timeout");
+    CHECK(RC.missed_commands == 1, "missed %u", (unsigned)RC.missed_commands);
+    CHECK(last(tb)->status & PLANT_STATUS_MISSED, "status bit2 after a miss");
+    printf("timeout after %u us: SYNC 1 sent, missed = %u, status = 0x%02x\n", (unsigned)timeout_us,
+           (unsigned)RC.missed_commands, last(tb)->status);
+
+    /* the late command for sample 0 arrives now: late, does not release SYNC 2 */
+    tb->now_us += 50;
+    tb_cmd(tb, 1.0f, 0.0f);
+    tb_poll(tb);
+    CHECK(tb->n_sync == 2, "a late command released a SYNC");
+    CHECK(RC.late_commands == 1, "late %u", (unsigned)RC.late_commands);
+    /* the command for sample 1: releases SYNC 2 at once */
+    tb->now_us += 50;
+    tb_cmd(tb, 2.0f, 0.0f);
+    tb_poll(tb);
+    CHECK(tb->n_sync == 3, "the on-time command did not release SYNC 2");
+    CHECK(!(last(tb)->status & PLANT_STATUS_MISSED), "status bit2 stuck");
+    CHECK(tb->app.v_held_alpha_V == 2.0, "actuated %g, expected the on-time command 2 V", tb->app.v_held_alpha_V);
+    printf("late command counted (late = %u), on-time one actuated (%.1f V)\n", (unsigned)RC.late_commands,
+           tb->app.v_held_alpha_V);
+
+    /* prompt commands: one SYNC per command, no timeouts */
+    for (int j = 0; j < 100; ++j) tb_period(tb, 0.5f, 0.0f);
+    CHECK(tb->n_sync == 103 && RC.missed_commands == 1 && RC.late_commands == 1, "steady run: %u %u %u",
+          (unsigned)tb->n_sync, (unsigned)RC.missed_commands, (unsigned)RC.late_commands);
+
+    /* a dropped command (never sent): lockstep resynchronises */
+    uint32_t miss0 = RC.missed_commands;
+    tb->now_us += timeout_us;
+    tb_poll(tb); /* timeout */
+    uint32_t syncs0 = tb->n_sync;
+    int extra_timeouts = 0;
+    for (int j = 0; j < 10; ++j) {
+        tb->now_us += 10;
+        tb_cmd(tb, 0.5f, 0.0f);
+        tb_poll(tb);
+        if (tb->n_sync == syncs0 + (uint32_t)j) { /* not released: wait for the timeout */
+            tb->now_us += timeout_us;
+            tb_poll(tb);
+            ++extra_timeouts;
+        }
+    }
+    printf("dropped command: %u timeouts until resync (limit %u), missed %u, late %u\n",
+           (unsigned)(RC.missed_commands - miss0), (unsigned)PLANT_APP_RESYNC_PERIODS,
+           (unsigned)RC.missed_commands, (unsigned)RC.late_commands);
+    CHECK(RC.missed_commands - miss0 == 1u + PLANT_APP_RESYNC_PERIODS, "resync took %u timeouts",
+          (unsigned)(RC.missed_commands - miss0));
+
+    /* a drive 3 periods behind (stall), then catching up: no permanent shift */
+    tb_t *t = tb;
+    uint32_t late0 = RC.late_commands;
+    for (int j = 0; j < 3; ++j) {
+        t->now_us += timeout_us;
+        tb_poll(t);
+    }
+    uint32_t s1 = t->n_sync;
+    for (int j = 0; j < 3; ++j) {
+        t->now_us += 5;
+        tb_cmd(t, 9.0f, 0.0f); /* the stale ones */
+        tb_poll(t);
+    }
+    CHECK(t->n_sync == s1, "stale commands released a SYNC");
+    CHECK(RC.late_commands - late0 == 3, "late %u", (unsigned)(RC.late_commands - late0));
+    tb_period(t, 3.0f, 0.0f);
+    CHECK(t->n_sync == s1 + 1 && t->app.v_held_alpha_V == 3.0, "catch-up command not actuated");
+    printf("stall of 3 periods: 3 late commands discarded by order, the current one actuated\n");
+}
+
+static void test_run_periods(void)
+{
+    tb_t *tb = &g_tb;
+    tb_init(tb);
+    tb_start(tb, 5);
+    for (int j = 0; j < 10; ++j) tb_period(tb, 0.0f, 0.0f);
+    CHECK(tb->n_sync == 5, "run_periods 5 gave %u SYNCs", (unsigned)tb->n_sync);
+    CHECK(last(tb)->status & PLANT_STATUS_HOLDING, "holding bit on the last sample");
+    CHECK(RC.state == 0 && RC.run_periods == 0, "state %u run_periods %u", RC.state, (unsigned)RC.run_periods);
+    /* the command for sample 4 arrived while holding: resume releases SYNC 5 at once */
+    tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 3);
+    tb_poll(tb);
+    CHECK(tb->n_sync == 6 && last(tb)->index == 5, "resume: n_sync %u", (unsigned)tb->n_sync);
+    for (int j = 0; j < 5; ++j) tb_period(tb, 0.0f, 0.0f);
+    CHECK(tb->n_sync == 8, "second run gave %u SYNCs in all", (unsigned)tb->n_sync);
+    CHECK(RC.period_index == 7, "period_index %u", (unsigned)RC.period_index);
+    CHECK(RC.missed_commands == 0, "missed %u", (unsigned)RC.missed_commands);
+    /* NMT stop: nothing more even with run_periods */
+    tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 0xFFFFFFFFu);
+    tb_nmt(tb, 0x02u);
+    tb->now_us += 1000000;
+    tb_poll(tb);
+    CHECK(tb->n_sync == 8, "SYNC while stopped");
+    printf("run_periods: 5 -> %u SYNCs then holding (status 0x%02x), +3 -> 8; stopped: no SYNC\n", 5u,
+           tb->smp[4].status);
+}
+
+static void test_realtime_tick(void)
+{
+    tb_t *tb = &g_tb;
+    tb_init(tb);
+    tb_w_u8(tb, 0x2003, OD_PLANT_RUN_CONTROL_MODE_SUB, 1);
+    tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 0xFFFFFFFFu);
+    tb_nmt(tb, 0x01u);
+    CHECK(tb_poll(tb) == -1 && tb->n_sync == 0, "poll produced a SYNC in real-time mode");
+    const int64_t Ts = 55;
+    int64_t deadline = 1000;
+    /* arrival offsets relative to the next deadline: -40 (early), -5, +12 (late), none (miss) */
+    const int64_t offs[] = {-40, -5, 12, 1000, -30, -30};
+    tb->now_us = deadline;
+    plant_app_realtime_tick(&tb->app, tb->now_us, 0);
+    tb_deliver(tb);
+    for (unsigned j = 0; j < sizeof offs / sizeof offs[0]; ++j) {
+        int64_t next = deadline + Ts;
+        if (offs[j] < 0) {
+            tb->now_us = next + offs[j];
+            tb_cmd(tb, 1.0f, 0.0f);
+            plant_app_poll(&tb->app, tb->now_us);
+        }
+        tb->now_us = next + 3; /* woke 3 us late */
+        plant_app_realtime_tick(&tb->app, tb->now_us, 3);
+        tb_deliver(tb);
+        if (offs[j] >= 0 && offs[j] < 1000) {
+            tb->now_us = next + offs[j];
+            tb_cmd(tb, 1.0f, 0.0f);
+            plant_app_poll(&tb->app, tb->now_us);
+        }
+        deadline = next;
+    }
+    uint32_t *h = tb->app.hist;
+    printf("real time: SYNCs %u, missed %u, late %u, max SYNC lateness %u us; histogram:", (unsigned)tb->n_sync,
+           (unsigned)RC.missed_commands, (unsigned)RC.late_commands, (unsigned)RC.max_sync_lateness_us);
+    for (unsigned b = 0; b < PLANT_APP_HIST_BINS; ++b)
+        if (h[b]) printf(" [%d us: %u]", (int)b * PLANT_APP_HIST_BIN_US + PLANT_APP_HIST_ORIGIN_US, (unsigned)h[b]);
+    printf("\n");
+    CHECK(tb->n_sync == 7, "n_sync %u", (unsigned)tb->n_sync);
+    /* -40, -5: on time; +12: a miss, then late (+12 after its deadline); none: a
+     * miss in a period where only a late command came -> the accounting
+     * resynchronises at once (real time), so both -30 are on time. */
+    CHECK(h[(160 - 40) / 10] == 1 && h[(160 - 5 - 5) / 10] == 1 && h[(160 + 12) / 10] == 1, "histogram bins");
+    CHECK(h[(160 - 30) / 10] == 2, "bin -30");
+    CHECK(RC.missed_commands == 2 && RC.late_commands == 1, "missed %u late %u", (unsigned)RC.missed_commands,
+          (unsigned)RC.late_commands);
+    CHECK(RC.max_sync_lateness_us == 3, "max lateness");
+    const co_domain_t *d = &OD_PLANT.mfr.x2006_lateness_histogram;
+    CHECK(d->data == tb->app.hist_bytes && d->size == 128 && d->data[4 * 13] == 2 && d->data[4 * 17] == 1, "DOMAIN 0x2006");
+}
+
+int main(void)
+{
+    test_holds_and_timeout();
+    test_run_periods();
+    test_realtime_tick();
+    printf("test_node_lockstep: %s\n", g_fail ? "FAILED" : "PASSED");
+    return g_fail;
+}
