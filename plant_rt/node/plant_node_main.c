@@ -28,7 +28,6 @@
 #define RT_SERVE_MIN_US 200      /* wait on the socket between deadlines only if this much time is left */
 #define IDLE_WAIT_US 10000      /* real-time mode while holding: frame wait slice */
 
-int co_runtime_stop_requested(void); /* defined in co_runtime.c (SIGINT/SIGTERM seen) */
 
 static plant_app_t g_app;
 static co_runtime_t g_rt;

@@ -101,5 +101,4 @@ void co_runtime_close(co_runtime_t *rt)
     rt->fd = -1;
 }
 
-int co_runtime_stop_requested(void);
 int co_runtime_stop_requested(void) { return g_stop; }

@@ -52,4 +52,7 @@ int co_runtime_wait_one(co_runtime_t *rt, int64_t timeout_us);
 
 void co_runtime_close(co_runtime_t *rt);
 
+/* True once SIGINT or SIGTERM was received. */
+int co_runtime_stop_requested(void);
+
 #endif /* CO_RUNTIME_H */

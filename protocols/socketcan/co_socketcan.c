@@ -77,8 +77,9 @@ int co_socketcan_send(void *user, const co_frame_t *frame)
 int co_socketcan_recv(int fd, co_frame_t *frame, int64_t timeout_us, int64_t *ts_ns)
 {
     struct pollfd p = {.fd = fd, .events = POLLIN, .revents = 0};
-    int to_ms = timeout_us < 0 ? -1 : (int)((timeout_us + 999) / 1000);
-    int r = poll(&p, 1, to_ms);
+    /* ppoll: microsecond timeouts (poll() would round up to whole milliseconds). */
+    struct timespec ts = {(time_t)(timeout_us / 1000000), (long)(timeout_us % 1000000) * 1000L};
+    int r = ppoll(&p, 1, timeout_us < 0 ? NULL : &ts, NULL);
     if (r == 0) return 0;
     if (r < 0) return errno == EINTR ? 0 : -1;
     struct can_frame cf;
