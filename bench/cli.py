@@ -53,6 +53,18 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .run_cmd import run
+
+    return run(args)
+
+
+def _cmd_capture(args: argparse.Namespace) -> int:
+    from .run_cmd import capture_only
+
+    return capture_only(args)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import main as demo_main
 
@@ -106,6 +118,24 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--trace-decimation", type=int, default=1, help="one trace PDO every N periods (default 1)")
     pl.add_argument("--json", action="store_true", help="print one JSON object")
     pl.set_defaults(func=_cmd_plan)
+
+    from .run_cmd import add_arguments
+
+    r = sub.add_parser("run", help="run a scenario: configure by SDO, run, record every frame, summarize",
+                       description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
+                                   "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
+                                   "every frame, and write summary.json, traces.npz, the CAN log, PNG plots and a "
+                                   "Rerun recording. Example: bench run scenarios/you2019_step.toml --bus direct")
+    add_arguments(r)
+    r.set_defaults(func=_cmd_run)
+    c = sub.add_parser("capture", help=argparse.SUPPRESS)
+    c.add_argument("scenario", type=Path)
+    c.add_argument("--set", dest="overrides", action="append", default=[])
+    c.add_argument("--bus", default="vcan0")
+    c.add_argument("--out", type=Path, required=True)
+    c.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10)
+    c.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20)
+    c.set_defaults(func=_cmd_capture)
 
     dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
                         description="Bring up the bus (host vcan0 or the VM) and run the demo scenario.")

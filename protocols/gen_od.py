@@ -18,7 +18,6 @@ read from the same EDS section with configparser.
 from __future__ import annotations
 
 import argparse
-import configparser
 import logging
 import re
 import struct
@@ -28,6 +27,9 @@ from pathlib import Path
 
 import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from bench.eds import float_limits  # noqa: E402  (the same reader the bench uses)
 
 HERE = Path(__file__).resolve().parent
 EDS_DIR = HERE / "eds"
@@ -78,12 +80,6 @@ class Entry:
     high: float | int | None
 
 
-def _float_limit(raw: configparser.ConfigParser, section: str, key: str) -> float | None:
-    if raw.has_option(section, key):
-        return float(raw.get(section, key))
-    return None
-
-
 def _section(var: ODVariable) -> str:
     if isinstance(var.parent, (ODRecord, ODArray)):
         return f"{var.index:04X}sub{var.subindex:X}"
@@ -100,9 +96,6 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
         logging.getLogger("canopen").removeHandler(handler)
     if handler.messages:
         raise EdsError(f"{eds}: canopen warned: {handler.messages}")
-    raw = configparser.ConfigParser(strict=False)
-    raw.optionxform = str  # type: ignore[assignment,method-assign]
-    raw.read(eds)
     entries: list[Entry] = []
     comm_fields: list[str] = []
     mfr_fields: list[str] = []
@@ -141,8 +134,7 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
                 decl = f"{ctype} {member_name};"
             members.append(decl)
             if var.data_type == datatypes.REAL32:
-                low = _float_limit(raw, sec, "LowLimit")
-                high = _float_limit(raw, sec, "HighLimit")
+                low, high = float_limits(eds, var)
             else:
                 low, high = var.min, var.max
             if (low is None) != (high is None):

@@ -1,0 +1,107 @@
+"""Direct mode: the C plant and drive node apps in-process (build/libhil.so), on an
+in-memory CAN bus, exposed to Python as a python-can bus so `canopen` configures them
+exactly as over vcan."""
+
+from __future__ import annotations
+
+import ctypes
+import queue
+import threading
+import time
+
+import can
+import numpy as np
+
+from .paths import BUILD
+
+FRAME_DTYPE = np.dtype([("t_us", "<u8"), ("seq", "<u4"), ("cob_id", "<u2"), ("dlc", "u1"), ("sender", "u1"),
+                        ("data", "u1", (8,))])
+
+
+class _Frame(ctypes.Structure):
+    _fields_ = [("t_us", ctypes.c_uint64), ("seq", ctypes.c_uint32), ("cob_id", ctypes.c_uint16),
+                ("dlc", ctypes.c_uint8), ("sender", ctypes.c_uint8), ("data", ctypes.c_uint8 * 8)]
+
+
+class Hil:
+    """The in-process plant + drive (one per process: the C side holds them in statics)."""
+
+    _lock = threading.RLock()
+
+    def __init__(self, plant_id: int = 0x10, drive_id: int = 0x20) -> None:
+        path = BUILD / "libhil.so"
+        if not path.exists():
+            raise FileNotFoundError(f"{path} is missing: run `make all`")
+        self.lib = ctypes.CDLL(str(path))
+        self.lib.hil_open.argtypes = [ctypes.c_uint8, ctypes.c_uint8]
+        self.lib.hil_send.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint8]
+        self.lib.hil_recv.argtypes = [ctypes.POINTER(_Frame)]
+        self.lib.hil_run.argtypes = [ctypes.c_uint32]
+        self.lib.hil_run.restype = ctypes.c_uint32
+        self.lib.hil_set_recorder.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+        self.lib.hil_recorded.restype = ctypes.c_uint32
+        self.lib.hil_record_dropped.restype = ctypes.c_uint64
+        self.lib.hil_now_us.restype = ctypes.c_int64
+        self.lib.hil_plant_period.restype = ctypes.c_uint64
+        assert self.lib.hil_frame_size() == FRAME_DTYPE.itemsize
+        self._rec: np.ndarray | None = None
+        with self._lock:
+            self.lib.hil_open(plant_id, drive_id)
+
+    def send(self, cob_id: int, data: bytes) -> None:
+        with self._lock:
+            if self.lib.hil_send(cob_id, bytes(data), len(data)) != 0:
+                raise can.CanOperationError("in-process bus queue full")
+
+    def recv(self) -> _Frame | None:
+        f = _Frame()
+        with self._lock:
+            return f if self.lib.hil_recv(ctypes.byref(f)) else None
+
+    def start_recorder(self, capacity: int) -> None:
+        self._rec = np.zeros(capacity, dtype=FRAME_DTYPE)
+        with self._lock:
+            self.lib.hil_set_recorder(self._rec.ctypes.data, capacity)
+
+    def recorded(self) -> np.ndarray:
+        assert self._rec is not None
+        with self._lock:
+            n = self.lib.hil_recorded()
+            if self.lib.hil_record_dropped():
+                raise RuntimeError(f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped")
+        return self._rec[:n].copy()
+
+    def run(self, max_periods: int) -> int:
+        with self._lock:
+            return int(self.lib.hil_run(max_periods))
+
+    def now_s(self) -> float:
+        return self.lib.hil_now_us() * 1e-6
+
+
+class DirectBus(can.BusABC):
+    """python-can bus over the in-process CAN bus of :class:`Hil`."""
+
+    def __init__(self, hil: Hil, **kwargs: object) -> None:
+        self.hil = hil
+        self._pending: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
+        super().__init__(channel="direct", **kwargs)  # type: ignore[arg-type]
+        self.channel_info = "in-process bus (direct mode)"
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.hil.send(msg.arbitration_id, bytes(msg.data))
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            f = self.hil.recv()
+            if f is not None:
+                msg = can.Message(timestamp=f.t_us * 1e-6, arbitration_id=f.cob_id, is_extended_id=False,
+                                  dlc=f.dlc, data=bytes(f.data[: f.dlc]), channel="direct")
+                return msg, False
+            if deadline is not None and time.monotonic() >= deadline:
+                return None, False
+            time.sleep(0.0005)
+
+    def shutdown(self) -> None:
+        super().shutdown()

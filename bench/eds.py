@@ -1,0 +1,88 @@
+"""The EDS files, read with `canopen` (the single source of truth of the CANopen contract).
+
+`canopen` parses integer LowLimit/HighLimit but not REAL32 ones; :func:`float_limits`
+reads those from the same EDS section. protocols/gen_od.py uses the same function.
+"""
+
+from __future__ import annotations
+
+import configparser
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
+
+from .paths import EDS_DIR
+
+
+def eds_path(node: str) -> Path:
+    return EDS_DIR / f"{node}.eds"
+
+
+def section_of(var: ODVariable) -> str:
+    if isinstance(var.parent, (ODRecord, ODArray)):
+        return f"{var.index:04X}sub{var.subindex:X}"
+    return f"{var.index:04X}"
+
+
+@lru_cache(maxsize=None)
+def _raw(path: str) -> configparser.ConfigParser:
+    raw = configparser.ConfigParser(strict=False)
+    raw.optionxform = str  # type: ignore[assignment,method-assign]
+    raw.read(path)
+    return raw
+
+
+def float_limits(path: Path, var: ODVariable) -> tuple[float | None, float | None]:
+    raw = _raw(str(path))
+    sec = section_of(var)
+
+    def get(key: str) -> float | None:
+        return float(raw.get(sec, key)) if raw.has_option(sec, key) else None
+
+    return get("LowLimit"), get("HighLimit")
+
+
+@lru_cache(maxsize=None)
+def load(node: str, node_id: int | None = None) -> canopen.ObjectDictionary:
+    return canopen.import_od(str(eds_path(node)), node_id=node_id)
+
+
+@dataclass(frozen=True)
+class Param:
+    """One writable parameter of a node, with its range from the EDS."""
+
+    node: str
+    obj: str
+    name: str
+    index: int
+    subindex: int
+    data_type: int
+    low: float | None
+    high: float | None
+    description: str
+
+    @property
+    def is_float(self) -> bool:
+        return self.data_type == datatypes.REAL32
+
+
+def params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
+    """Writable sub-entries of the named objects, by sub-entry name."""
+    od = load(node)
+    out: dict[str, Param] = {}
+    for oname in objects:
+        obj = od[oname]
+        subs = [obj] if isinstance(obj, ODVariable) else [obj.subindices[s] for s in sorted(obj.subindices)]
+        for var in subs:
+            if not var.writable or var.subindex == 0 and not isinstance(obj, ODVariable):
+                continue
+            if var.data_type == datatypes.REAL32:
+                lo, hi = float_limits(eds_path(node), var)
+            else:
+                lo, hi = var.min, var.max
+            out[var.name] = Param(node, oname, var.name, var.index, var.subindex, var.data_type, lo, hi,
+                                  var.description or "")
+    return out

@@ -1,0 +1,255 @@
+"""Scenario files (TOML): what to run, checked against the EDS before anything starts.
+
+Layout (every key optional except where noted)::
+
+    [scenario]
+    name = "you2019-step"        # required
+    description = "..."
+    periods = 400                # run length in control periods (required)
+    seed = 1                     # ADC-noise seed
+    timing = "lockstep"          # lockstep | realtime
+
+    [motor]                      # plant.eds "Motor model", after the preset
+    preset = "you2019"           # you2019 | yao2020_low | yao2020_high | zhao2022
+    Lq_H = 4.54e-3
+
+    [drive]                      # plant.eds "Inverter" and "Sensors", and the lockstep timeout
+    Vdc_V = 300
+    adc_noise_std_A = 0.0
+
+    [controller]                 # drive.eds "Controller", "Online tuning", "Outer loops"
+    controller = "deadbeat_you2019"
+    L_hat_ratio = 0.5            # ratios to the plant's own values (R_hat_ratio, Ld_hat_ratio,
+                                 # Lq_hat_ratio, L_hat_ratio = both, psi_hat_ratio)
+    Vmax_V = 139
+
+    [references]                 # drive.eds "References" at period 0
+    iq_ref_A = 0.0
+
+    [[events]]                   # applied before the current step of period `at_period`
+    at_period = 100
+    references = { iq_ref_A = 1.0 }
+    controller = { enable = 1 }  # any key of the sections above (motor/drive changes hit the plant)
+
+Every value is checked against the EDS: an unknown key names the allowed keys, a value
+out of range names the range; nothing starts on a bad scenario.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from canopen.objectdictionary import datatypes
+
+from .eds import Param, params
+
+SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "motor": ("plant", ("Motor model",)),
+    "drive": ("plant", ("Inverter", "Sensors", "Run control")),
+    "controller": ("drive", ("Controller", "Online tuning", "Outer loops")),
+    "references": ("drive", ("References",)),
+}
+# Run-control entries the bench drives itself.
+RESERVED = {"run_periods", "trip_clear", "mode"}
+ENUMS: dict[str, dict[str, int]] = {
+    "controller": {"open_loop": 0, "pi": 1, "deadbeat_you2019": 2, "dpcc_yao2020": 3,
+                   "incremental_zhao2022": 4, "predictive_zhao2022": 5},
+    "mech_mode": {"free": 0, "locked": 1, "imposed_speed": 2},
+    "mod_limit": {"none": 0, "hexagon": 1, "circle": 2},
+    "hold_frame": {"stator": 0, "rotor": 1},
+}
+RATIOS = {"R_hat_ratio": (("R_hat_ohm", "R_ohm"),), "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),
+          "Lq_hat_ratio": (("Lq_hat_H", "Lq_H"),), "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
+          "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),)}
+PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
+TIMINGS = ("lockstep", "realtime")
+
+
+class ScenarioError(ValueError):
+    """A bad scenario: the message names the file, the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One OD write, or a ratio resolved against the plant's value at configuration time."""
+
+    key: str                  # "section.name" as in the file
+    param: Param | None       # None for ratio keys
+    value: float | int
+    ratio_of: tuple[tuple[str, str], ...] = ()  # ((drive param, plant param), ...)
+
+
+@dataclass
+class Event:
+    at_period: int
+    settings: list[Setting]
+
+
+@dataclass
+class Scenario:
+    name: str
+    periods: int
+    source: str
+    description: str = ""
+    seed: int = 1
+    timing: str = "lockstep"
+    preset: str | None = "you2019"
+    settings: list[Setting] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    def event_periods(self) -> list[int]:
+        return sorted({e.at_period for e in self.events})
+
+
+def _param_tables() -> dict[str, dict[str, Param]]:
+    return {sec: params(node, objs) for sec, (node, objs) in SECTION_OBJECTS.items()}
+
+
+def _fmt_range(p: Param) -> str:
+    if p.low is None and p.high is None:
+        return "any value"
+    return f"{p.low:g} .. {p.high:g}"
+
+
+def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, dict[str, Param]]) -> Setting:
+    full = f"{section}.{key}"
+    if section == "controller" and key in RATIOS:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0.01 <= float(value) <= 100):
+            raise ScenarioError(f"{where}: {full} = {value!r}: a ratio must be a number in 0.01 .. 100")
+        return Setting(full, None, float(value), RATIOS[key])
+    table = tables[section]
+    if key not in table or key in RESERVED:
+        allowed = sorted(k for k in table if k not in RESERVED)
+        if section == "controller":
+            allowed += sorted(RATIOS)
+        raise ScenarioError(f"{where}: unknown key {full!r}; allowed in [{section}]: {', '.join(allowed)}")
+    p = table[key]
+    if isinstance(value, str):
+        names = ENUMS.get(key)
+        if names is None or value not in names:
+            choices = f"one of {', '.join(names)}" if names else f"a number ({_fmt_range(p)})"
+            raise ScenarioError(f"{where}: {full} = {value!r}: expected {choices}")
+        value = names[value]
+    if isinstance(value, bool):
+        value = int(value)
+    if not isinstance(value, (int, float)) or (isinstance(value, float) and not math.isfinite(value)):
+        raise ScenarioError(f"{where}: {full} = {value!r}: expected a number ({_fmt_range(p)})")
+    if not p.is_float:
+        if float(value) != int(value):
+            raise ScenarioError(f"{where}: {full} = {value!r}: expected an integer ({_fmt_range(p)})")
+        value = int(value)
+    if (p.low is not None and value < p.low) or (p.high is not None and value > p.high):
+        raise ScenarioError(f"{where}: {full} = {value!r} is out of range: allowed {_fmt_range(p)} "
+                            f"(from {p.node}.eds {p.obj})")
+    return Setting(full, p, value)
+
+
+def apply_overrides(raw: dict[str, Any], overrides: list[str], where: str) -> dict[str, Any]:
+    """`--set a.b=value`: dotted keys following the TOML layout; values parsed as TOML."""
+    out = copy.deepcopy(raw)
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError(f"--set {item!r}: expected KEY=VALUE, e.g. controller.L_hat_ratio=0.5")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()  # bare words are strings (controller=pi)
+        parts = key.strip().split(".")
+        node = out
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(f"--set {item!r}: {part!r} is not a table in {where}")
+        node[parts[-1]] = value
+    return out
+
+
+def parse(raw: dict[str, Any], where: str) -> Scenario:
+    allowed_top = {"scenario", "events", *SECTION_OBJECTS}
+    for key in raw:
+        if key not in allowed_top:
+            raise ScenarioError(f"{where}: unknown table [{key}]; allowed: {', '.join(sorted(allowed_top))}")
+    head = raw.get("scenario")
+    if not isinstance(head, dict):
+        raise ScenarioError(f"{where}: missing [scenario] table with at least name and periods")
+    for key in head:
+        if key not in {"name", "description", "periods", "seed", "timing"}:
+            raise ScenarioError(f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, timing")
+    name = head.get("name")
+    if not isinstance(name, str) or not name:
+        raise ScenarioError(f"{where}: scenario.name must be a non-empty string")
+    periods = head.get("periods")
+    if isinstance(periods, bool) or not isinstance(periods, int) or not 1 <= periods <= 100_000_000:
+        raise ScenarioError(f"{where}: scenario.periods = {periods!r}: expected an integer in 1 .. 100000000")
+    seed = head.get("seed", 1)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= 0xFFFFFFFF:
+        raise ScenarioError(f"{where}: scenario.seed = {seed!r}: expected an integer in 0 .. 4294967295")
+    timing = head.get("timing", "lockstep")
+    if timing not in TIMINGS:
+        raise ScenarioError(f"{where}: scenario.timing = {timing!r}: expected one of {', '.join(TIMINGS)}")
+    tables = _param_tables()
+    sc = Scenario(name=name, periods=periods, source=where, description=str(head.get("description", "")),
+                  seed=seed, timing=timing, raw=raw)
+    motor = dict(raw.get("motor", {}))
+    preset = motor.pop("preset", "you2019")
+    if preset is not None and preset not in PRESETS:
+        raise ScenarioError(f"{where}: motor.preset = {preset!r}: expected one of {', '.join(PRESETS)}")
+    sc.preset = preset
+    for section in SECTION_OBJECTS:
+        values = motor if section == "motor" else raw.get(section, {})
+        if not isinstance(values, dict):
+            raise ScenarioError(f"{where}: [{section}] must be a table")
+        for key, value in values.items():
+            sc.settings.append(_setting(where, section, key, value, tables))
+    events = raw.get("events", [])
+    if not isinstance(events, list):
+        raise ScenarioError(f"{where}: events must be an array of tables ([[events]])")
+    for i, ev in enumerate(events):
+        w = f"{where}: events[{i}]"
+        if not isinstance(ev, dict):
+            raise ScenarioError(f"{w}: must be a table")
+        at = ev.get("at_period")
+        if isinstance(at, bool) or not isinstance(at, int) or not 0 <= at < periods:
+            raise ScenarioError(f"{w}.at_period = {at!r}: expected an integer in 0 .. {periods - 1}")
+        settings = []
+        for section, values in ev.items():
+            if section == "at_period":
+                continue
+            if section not in SECTION_OBJECTS or not isinstance(values, dict):
+                raise ScenarioError(f"{w}: unknown key {section!r}; an event holds at_period and tables "
+                                    f"{', '.join(SECTION_OBJECTS)}")
+            for key, value in values.items():
+                if section == "motor" and key == "preset":
+                    raise ScenarioError(f"{w}: motor.preset cannot change during a run")
+                settings.append(_setting(w, section, key, value, tables))
+        if not settings:
+            raise ScenarioError(f"{w}: an event must change something")
+        sc.events.append(Event(at, settings))
+    sc.events.sort(key=lambda e: e.at_period)
+    return sc
+
+
+def load(path: Path, overrides: list[str] | None = None) -> Scenario:
+    where = str(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ScenarioError(f"{where}: cannot read: {exc.strerror}") from exc
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{where}: not valid TOML: {exc}") from exc
+    if overrides:
+        raw = apply_overrides(raw, overrides, where)
+    return parse(raw, where)
+
+
+def is_integer_type(p: Param) -> bool:
+    return p.data_type != datatypes.REAL32
