@@ -1,0 +1,63 @@
+"""The papers' quantitative claims, each run on the bench and judged.
+
+A claim module runs scenarios through the same capture path as `bench run` (over vcan
+or in direct mode) and returns :class:`ClaimResult` records: what the paper states, what
+the bench measured, the tolerance, the verdict and why they differ where they do.
+Tests assert on them; `bench reproduce` reports them.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..layout import BusLayout
+from ..runner import Capture, RunOptions, capture
+from ..scenario import parse
+from ..traces import decode
+
+
+@dataclass
+class ClaimResult:
+    paper: str               # "You 2019"
+    claim_id: str            # "you2019-1a"
+    figure: str              # "Fig. 8 / Eq. 20-21"
+    statement: str           # what the paper says
+    paper_value: Any
+    bench_value: Any
+    tolerance: str
+    reproduced: bool
+    why_differs: str = ""
+    details: dict[str, Any] = field(default_factory=dict)
+    plots: list[str] = field(default_factory=list)
+
+    @property
+    def verdict(self) -> str:
+        return "reproduced" if self.reproduced else "differs"
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["verdict"] = self.verdict
+        return d
+
+
+@dataclass
+class Run:
+    cap: Capture
+    tr: dict[str, np.ndarray]
+    out: Path
+
+
+def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None) -> Run:
+    """Run a scenario given as a TOML-shaped dict on `bus` ('direct' or a CAN channel)."""
+    sc = parse(raw, f"<{raw['scenario']['name']}>")
+    out = out or Path(tempfile.mkdtemp(prefix=f"claim-{sc.name}-"))
+    cap = capture(sc, RunOptions(bus=bus, out=out))
+    frames = np.load(out / "frames.npy")
+    tr = decode(frames, BusLayout.load(out / "layout.json"), int(cap.plant["pole_pairs"]), cap.plant["Ts_s"],
+                cap.references)
+    return Run(cap, tr, out)
