@@ -65,6 +65,18 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     return capture_only(args)
 
 
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from .replay import main as replay_main
+
+    return replay_main(args)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import main as sweep_main
+
+    return sweep_main(args)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import main as demo_main
 
@@ -137,9 +149,31 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20)
     c.set_defaults(func=_cmd_capture)
 
+    from .replay import add_arguments as replay_args
+
+    rp = sub.add_parser("replay", help="decode a CAN log (candump/ASC/BLF, any bus) into traces and views",
+                        description="Decode any log python-can reads into traces.npz, summary.json, PNG plots and a "
+                                    "Rerun recording, with the run's layout.json (or the EDS defaults).")
+    replay_args(rp)
+    rp.set_defaults(func=_cmd_replay)
+
+    from .sweep import add_arguments as sweep_args
+
+    sw = sub.add_parser("sweep", help="run a grid of scenario variants in direct mode on every core",
+                        description="Example: bench sweep scenarios/you2019_step.toml "
+                                    "--grid controller.L_hat_ratio=0.5,1.0,1.2 --grid controller.R_hat_ratio=0.5,1.5")
+    sweep_args(sw)
+    sw.set_defaults(func=_cmd_sweep)
+
     dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
-                        description="Bring up the bus (host vcan0 or the VM) and run the demo scenario.")
-    dm.add_argument("--count", type=int, default=2000, help="frames to exchange")
+                        description="You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched "
+                                    "on halfway, over vcan0 (VM if needed), recorded and shown in Rerun; ends with a "
+                                    "before/after table and the paths of the results.")
+    dm.add_argument("--bus", default="vcan0", help="vcan0 (default) or direct")
+    dm.add_argument("--out", type=Path, default=None, help="output folder (default runs/demo-TIMESTAMP)")
+    dm.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    dm.add_argument("--serve", action="store_true", help="serve the Rerun web viewer")
+    dm.add_argument("--no-viewer", action="store_true", help="do not spawn the Rerun viewer")
     dm.set_defaults(func=_cmd_demo)
     return p
 

@@ -254,7 +254,9 @@ def _callgrind(steps: int, tmp: Path) -> dict[str, Any]:
     ann = _run(["callgrind_annotate", "--inclusive=yes", "--auto=yes", str(cg)], timeout=120)
     total = int(re.search(r"^([\d,]+) \(100\.0%\)\s+PROGRAM TOTALS", ann, re.M)[1].replace(",", ""))  # type: ignore[index]
     sections = re.split(r"^-- Auto-annotated source: ", ann, flags=re.M)
-    src = next((s for s in sections if s.splitlines()[0].strip().endswith("drive_perf.c")), "")
+    # A file can appear twice (absolute and relative debug path); take the one with the call sites.
+    cands = [s for s in sections[1:] if s.splitlines() and s.splitlines()[0].strip().endswith("drive_perf.c")]
+    src = max(cands, key=lambda s: len(re.findall(r"=> \S+:bench \(1x\)", s)), default="")
     bench_calls = [int(m[1].replace(",", "")) for m in re.finditer(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:bench \(1x\)",
                                                                    src, re.M)]
     avg = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:gain_id_average \(", src, re.M)

@@ -12,7 +12,8 @@ import numpy as np
 from .layout import BusLayout
 from .metrics import step_metrics
 from .plan import classic_frame_bits
-from .traces import check_continuity, decode, save
+from .eds import load as load_od
+from .traces import check_continuity, decode, references_from_sdo, save
 
 SUMMARY_VERSION = 1
 
@@ -27,19 +28,31 @@ def write_log(frames: np.ndarray, path: Path, channel: str) -> None:
                                                 channel=channel))
 
 
+def recorded_references(frames: np.ndarray, layout: BusLayout) -> list[tuple[int, str, float]]:
+    """Reference steps as they were sent on the bus (SDO writes to the drive's References)."""
+    od = load_od("drive")
+    refs = od["References"]
+    subs = {refs[name].subindex: name for name in ("iq_ref_A", "id_ref_A")}
+    return references_from_sdo(frames, layout.drive_id, refs.index, subs, layout.sync_cob_id)
+
+
 def summarize(out: Path, log_ext: str = ".log") -> dict[str, object]:
     cap = json.loads((out / "capture.json").read_text())
     layout = BusLayout.load(out / "layout.json")
     frames = np.load(out / "frames.npy")
     pp = int(cap["plant"].get("pole_pairs", 1))
     ts = float(cap["plant"].get("Ts_s", 1.0))
-    refs = [tuple(r) for r in cap["references"]]
-    tr = decode(frames, layout, pp, ts, refs)  # type: ignore[arg-type]
+    refs = recorded_references(frames, layout)
+    tr = decode(frames, layout, pp, ts, refs)
     save(out / "traces.npz", tr)
     log_path = out / f"bus{log_ext}"
     write_log(frames, log_path, cap["bus"])
     steps = [m.to_dict() for sig, ref in (("iq", "iq_ref_A"), ("id", "id_ref_A"))
              for m in step_metrics(tr[f"{sig}_A"], tr[ref], sig)]
+    tuning = sorted((p, v) for p, k, v in cap.get("applied", []) if k == "controller.enable")
+    for s in steps:
+        on = [v for p, v in tuning if p <= s["at_period"]]
+        s["tuning_on"] = bool(on and on[-1])
     cont = check_continuity(tr)
     bits = sum(classic_frame_bits(int(d)) for d in frames["dlc"])
     n = max(1, len(tr["period"]))
@@ -76,9 +89,10 @@ def summarize(out: Path, log_ext: str = ".log") -> dict[str, object]:
 
 
 def format_table(summary: dict[str, object]) -> str:
-    lines = [f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}"]
+    lines = [f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}{'tuning':>8}"]
     for s in summary["steps"]:  # type: ignore[union-attr]
         settle = "-" if s["periods_to_settle"] is None else str(s["periods_to_settle"])
         lines.append(f"{s['signal']:<8}{s['at_period']:>7}{s['from_A']:>7.2f}->{s['to_A']:<6.2f}{settle:>8}"
-                     f"{s['overshoot_A']:>9.3f} A {s['overshoot_pct']:>4.1f}%{s['steady_state_error_A']:>11.2e}")
+                     f"{s['overshoot_A']:>9.3f} A {s['overshoot_pct']:>4.1f}%{s['steady_state_error_A']:>11.2e}"
+                     f"{('on' if s.get('tuning_on') else 'off'):>8}")
     return "\n".join(lines)

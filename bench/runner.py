@@ -61,6 +61,7 @@ class Capture:
     plant: dict[str, float] = field(default_factory=dict)
     controller: dict[str, float] = field(default_factory=dict)
     references: list[tuple[int, str, float]] = field(default_factory=list)  # (period, name, value)
+    applied: list[tuple[int, str, float]] = field(default_factory=list)     # (period, scenario key, value)
 
 
 class Recorder:
@@ -126,6 +127,7 @@ class Session:
         self.drive = canopen.RemoteNode(opts.drive_id, str(eds_path("drive")))
         self.plant_values: dict[str, float] = {}
         self.references: list[tuple[int, str, float]] = []
+        self.applied: list[tuple[int, str, float]] = []  # every setting with the period it took effect
 
     # ---------------------------------------------------------------- bus
     def open(self) -> None:
@@ -142,7 +144,15 @@ class Session:
             if self.opts.start_drive:
                 self.procs.append(NodeProcess("drive_node", ["--iface", self.opts.bus, "--node-id",
                                                              str(self.opts.drive_id)], out / "drive_node.out").start())
-            kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus}
+            # The master only needs SDO answers, NMT error control and EMCY: filtering in the kernel keeps
+            # the PDO stream (thousands of frames per second) out of this process's socket, which a slow
+            # Python (the VM) could not drain, and which the recorder records anyway.
+            ids = (self.opts.plant_id, self.opts.drive_id)
+            filters = [{"can_id": 0x580 + i, "can_mask": 0x7FF} for i in ids]
+            filters += [{"can_id": 0x080 + i, "can_mask": 0x7FF} for i in ids]
+            filters.append({"can_id": 0x700, "can_mask": 0x780})
+            kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus,
+                                         "can_filters": filters}
             if self.opts.bitrate:
                 kwargs["bitrate"] = self.opts.bitrate
             self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
@@ -197,6 +207,7 @@ class Session:
 
     # ---------------------------------------------------------------- configuration
     def _apply(self, s: Setting) -> None:
+        self.applied.append((self._period, s.key, float(s.value)))
         if s.param is None:  # ratio of a plant value
             for drive_name, plant_name in s.ratio_of:
                 value = self.plant_values[plant_name] * float(s.value)
@@ -276,11 +287,13 @@ class Session:
                 raise RuntimeError(f"direct run stopped after {ran} of {n} periods")
             return
         deadline = time.monotonic() + 30 + n * 0.01
+        index = -1
         while time.monotonic() < deadline:
-            if rc["period_index"].raw >= target_index and rc["state"].raw == 0:
+            index = rc["period_index"].raw
+            if index >= target_index and rc["state"].raw == 0:
                 return
             time.sleep(0.02)
-        raise RuntimeError(f"the plant did not reach period {target_index} in time")
+        raise RuntimeError(f"the plant did not reach period {target_index} in time (at {index})")
 
     def run(self, progress: PROGRESS | None = None) -> float:
         sc = self.sc
@@ -335,6 +348,6 @@ def capture(sc: Scenario, opts: RunOptions, progress: PROGRESS | None = None) ->
         frames = sess.close()
     np.save(opts.out / "frames.npy", frames)
     cap = Capture(sc.name, opts.bus, sc.periods, sc.event_periods(), time.monotonic() - t0, run_wall, len(frames),
-                  counters, identified, sess.plant_values, controller, sess.references)
+                  counters, identified, sess.plant_values, controller, sess.references, sess.applied)
     (opts.out / "capture.json").write_text(json.dumps(asdict(cap), indent=2))
     return cap

@@ -96,3 +96,25 @@ def save(path: Path, tr: dict[str, np.ndarray]) -> None:
 def load(path: Path) -> dict[str, np.ndarray]:
     with np.load(path) as z:
         return {k: z[k] for k in z.files}
+
+
+def references_from_sdo(frames: np.ndarray, drive_id: int, refs_index: int, subs: dict[int, str],
+                        sync_cob_id: int) -> list[tuple[int, str, float]]:
+    """Reference changes recovered from the SDO downloads to the drive seen on the bus
+    (expedited, REAL32): the bench sets references between periods in lockstep, so the
+    number of SYNCs before the request is the period it takes effect."""
+    sdo = frames["cob_id"] == 0x600 + drive_id
+    if not sdo.any():
+        return []
+    sync_count = np.cumsum(frames["cob_id"] == sync_cob_id)
+    out = []
+    for i in np.nonzero(sdo)[0]:
+        d = bytes(frames["data"][i][: frames["dlc"][i]])
+        if len(d) != 8 or d[0] != 0x23:
+            continue
+        index = d[1] | (d[2] << 8)
+        if index != refs_index or d[3] not in subs:
+            continue
+        value = float(np.frombuffer(d[4:8], dtype="<f4")[0])
+        out.append((int(sync_count[i]), subs[d[3]], value))
+    return out

@@ -1,0 +1,209 @@
+/* dpcc_yao2020.h - improved deadbeat predictive current control (DPCC) with
+ * sliding-mode disturbance observer and online R/L identification for
+ * surface-mounted PMSMs, after Yao, Huang, Peng, Dong, Zhang, "An Improved
+ * Deadbeat Predictive Current Control With Online Parameter Identification
+ * for Surface-Mounted PMSMs", IEEE TIE 67(12), 2020 ("Yao 2020").
+ *
+ * Blocks (equation numbers of Yao 2020):
+ *   - fully discretised (zero-order hold) model with the rotation over one
+ *     period, Eq. 4-7: x, y, d1, d2, G = x Tr, H = y Tr, F = Tr G2;
+ *   - deadbeat law with one-period delay compensation, Eq. 9-12;
+ *   - sliding-mode disturbance observer, Eq. 13-18 (switchable; when off the
+ *     disturbance is the conventional back-EMF term F [0, w psi_hat]);
+ *   - reconstructed characteristic vector M = F^-1 p_hat, Eq. 22-29, and the
+ *     R/L identification by negative d-axis current injection with integral
+ *     estimators and dead zones, Eq. 30-45, Table III; L first, then R.
+ *
+ * Timing (same as drive_core.h): the command returned by yao_dpcc_step() at
+ * sample k is applied by the PWM over [k+1, k+2], held constant in the
+ * STATOR frame, and first shows in the current sampled at k+2.  The
+ * reference passed at sample k is therefore the target of i(k+2)
+ * (i_ref(k+2) of Eq. 12); the previous one is i_ref(k+1).
+ *
+ * Output frames.  v_star_{d,q} is v*(k) of Eq. 9: the command expressed in
+ * the dq frame of theta(k+1) = theta(k) + w T (the frame at the start of the
+ * interval over which it acts).  v_ref_{d,q} = Tr^-1 v*(k) is the same
+ * vector in the frame of theta(k) (v_dq_ref of Eq. 9).  v_alpha/v_beta is
+ * the stator-frame vector: the caller must NOT add any angle advance.
+ *
+ * Units: SI throughout (A, V, ohm, H, Wb, s, rad/s electrical).  M and dM
+ * have the unit of a voltage (M = G2_hat^-1 Tr^-1 p_hat, p in A, G2 in A/V).
+ * Integral estimator gains: k_L in H/(V s), k_R in ohm/(V s)
+ * (dL_hat/dt = -k_L dM_q, dR_hat/dt = -k_R dM_d for a negative injection,
+ * Eq. 44, discretised with forward Euler at the current period). */
+#ifndef DPCC_YAO2020_H
+#define DPCC_YAO2020_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+/* Motor class of Yao 2020 Definitions 1 and 2 (Eq. 30-31). */
+typedef enum {
+  YAO_MOTOR_LOW_FREQ = 0,  /* Eq. 30 holds */
+  YAO_MOTOR_HIGH_FREQ = 1, /* Eq. 31 holds */
+  YAO_MOTOR_NEITHER = 2,   /* neither definition holds */
+} yao_motor_class_t;
+
+/* Gain-set selection of the identification. */
+typedef enum {
+  YAO_GAINS_AUTO = 0, /* cos(wT) >= 0.98 -> low-frequency gains, else high */
+  YAO_GAINS_LOW = 1,
+  YAO_GAINS_HIGH = 2,
+} yao_gain_select_t;
+
+/* Identification sequence. */
+typedef enum {
+  YAO_ID_IDLE = 0,
+  YAO_ID_PRE_L = 1,    /* base id, wait then capture M(t0) (Eq. 24) */
+  YAO_ID_INJECT_L = 2, /* id = base + inj, integrate L_hat on dM_q (Fig. 9a) */
+  YAO_ID_PRE_R = 3,    /* back to base id, wait then capture M(t0) */
+  YAO_ID_INJECT_R = 4, /* id = base + inj, integrate R_hat on dM_d (Fig. 9b) */
+  YAO_ID_POST = 5,     /* back to base id, wait */
+  YAO_ID_DONE = 6,
+  YAO_ID_ABORTED = 7,
+} yao_id_state_t;
+
+typedef enum {
+  YAO_ABORT_NONE = 0,
+  YAO_ABORT_SPEED_CHANGED = 1, /* |w - w_start| > steady_tol_w_rad_s */
+  YAO_ABORT_IQ_CHANGED = 2,    /* |iq_ref - iq_ref_start| > steady_tol_iq_A */
+  YAO_ABORT_LOW_SPEED = 3,     /* |w| < min_speed_rad_s (dM_q ~ w dL) */
+  YAO_ABORT_USER = 4,
+} yao_abort_reason_t;
+
+typedef struct {
+  float Ts_s;            /* current period T, default 100e-6 (Table III) */
+  /* controller's motor model; R_hat/L_hat are the initial values, copied to
+   * the state by init/reset; the identification updates the state copies */
+  float R_hat_ohm;       /* default 2.2 (Table I) */
+  float L_hat_H;         /* default 5.5e-3 (Table I) */
+  float psi_hat_Wb;      /* only for observer_enable = 0 and the first step */
+  float Vmax_V;          /* radial voltage limit, 0 = off (default 0) */
+  uint8_t observer_enable; /* 1 (default): SMO Eq. 13-18; 0: p = F e(psi_hat) */
+  float Q_d, Q_q;        /* Eq. 16 reaching-law matrix, default 0.4, 0.4 */
+  /* identification (Sec. IV-E, Table III) */
+  float inj_id_A;        /* d-axis injection step, default -2 (low-freq test) */
+  uint8_t gain_select;   /* yao_gain_select_t, default AUTO */
+  float kL_low_H_Vs;     /* default 0.005 */
+  float kR_low_ohm_Vs;   /* default 4 */
+  float kL_high_H_Vs;    /* default 2e-5 */
+  float kR_high_ohm_Vs;  /* default 0.04 */
+  float th_L_V;          /* dead zone on dM_q, default 0.1 (TH_L) */
+  float th_R_V;          /* dead zone on dM_d, default 0.03 (TH_R) */
+  uint32_t n_settle;     /* periods to wait after each id change, default 200 */
+  uint32_t n_avg;        /* periods averaged for M(t0), default 50 */
+  uint32_t n_hold;       /* periods inside the dead zone = converged, default 200 */
+  uint32_t n_timeout;    /* max integrating periods per injection, default 300000 */
+  uint8_t n_rounds;      /* L then R repeated n times, default 1 (paper) */
+  uint8_t rereference;   /* 1 (default): re-evaluate M(t0) with the current
+                          * R_hat/L_hat; 0: stale M(t0) (literal reading) */
+  float steady_tol_w_rad_s; /* default 5 */
+  float steady_tol_iq_A;    /* default 0.05 */
+  float min_speed_rad_s;    /* default 50 */
+  float R_min_ohm, R_max_ohm; /* estimate clamps, default 1e-4, 1e3 */
+  float L_min_H, L_max_H;     /* default 1e-7, 1 */
+} yao_dpcc_config_t;
+
+/* Estimated-parameter model of one period (Eq. 5-6). */
+typedef struct {
+  float x, y;   /* x = exp(-R T / L), y = (1 - x) / R (A/V) */
+  float c, s;   /* cos(w T), sin(w T) */
+  float d1, d2; /* G2 = [d1 -d2; d2 d1] (A/V) */
+} yao_dpcc_model_t;
+
+typedef struct {
+  float v_star_d_V, v_star_q_V; /* v*(k), frame theta(k) + w T (Eq. 9) */
+  float v_ref_d_V, v_ref_q_V;   /* Tr^-1 v*(k), frame theta(k) */
+  float v_alpha_V, v_beta_V;    /* stator frame, held over [k+1, k+2] */
+  float id_ref_eff_A;           /* d reference incl. injection */
+  uint8_t limited;              /* Vmax_V limit active */
+} yao_dpcc_cmd_t;
+
+typedef struct {
+  /* active estimated parameters (controller model) */
+  float R_hat_ohm, L_hat_H;
+  yao_dpcc_model_t m;           /* model of this step */
+  float Gp_x, Gp_c, Gp_s;       /* G_hat of the previous step (x, cos, sin) */
+  /* observer (Eq. 13-18) */
+  float i_pred_d_A, i_pred_q_A; /* i_hat(k+1) predicted at k */
+  float i_err_d_A, i_err_q_A;   /* i_tilde(k) = i_hat(k) - i(k) */
+  float p_prev_d_A, p_prev_q_A; /* p(k-1), Eq. 18 */
+  float p_hat_d_A, p_hat_q_A;   /* p_hat(k), Eq. 17 */
+  /* reconstructed characteristic vector (Eq. 22) */
+  float M_d_V, M_q_V;
+  float dM_d_V, dM_q_V;         /* M(k) - M(t0) (identification phases) */
+  /* voltages */
+  float v_app_d_V, v_app_q_V;   /* v(k) = v*(k-1): acts over [k, k+1] */
+  float v_star_d_V, v_star_q_V; /* last command v*(k) */
+  float r_prev_d_A, r_prev_q_A; /* i_ref(k+1) for the next step */
+  float w_rad_s, iq_ref_A;     /* speed and iq reference of the last step */
+  uint8_t primed;
+  uint32_t step_count;
+  /* identification */
+  uint8_t id_state;        /* yao_id_state_t */
+  uint8_t abort_reason;    /* yao_abort_reason_t */
+  uint8_t motor_class;     /* yao_motor_class_t (Eq. 30-31, from R_hat/L_hat) */
+  uint8_t gains_high;      /* 1: high-frequency gain set in use */
+  uint8_t round;           /* current round (0-based) */
+  uint8_t L_converged, R_converged; /* last injection ended in the dead zone */
+  uint32_t phase_count;    /* periods spent in the current phase */
+  uint32_t hold_count;     /* consecutive periods inside the dead zone */
+  uint32_t phases_done;
+  float id_inj_A;          /* injection currently added to id_ref */
+  float w_start_rad_s, iq_ref_start_A;
+  float R_start_ohm, L_start_H;      /* restored on abort */
+  float N0_d, N0_q, i0_d, i0_q, v0_d, v0_q, M0_d, M0_q; /* M(t0) reference */
+  float acc[8];
+  float kL_H_Vs, kR_ohm_Vs;          /* gains in use */
+  float tau_L_pred_s, tau_R_pred_s;  /* Eq. 44 with the k of Eq. 35/36 or 42/43 */
+  uint32_t t_L_conv_periods, t_R_conv_periods; /* integrating periods to converge */
+  float L_id_H, R_id_ohm;            /* converged values */
+} yao_dpcc_state_t;
+
+void yao_dpcc_default_config(yao_dpcc_config_t *cfg);
+/* init = reset (takes R_hat/L_hat from the config). */
+void yao_dpcc_init(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st);
+void yao_dpcc_reset(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st);
+
+/* Yao 2020 Eq. 5-6 for (R, L, w, T). */
+void yao_dpcc_model(float R_ohm, float L_H, float w_rad_s, float Ts_s,
+                    yao_dpcc_model_t *m);
+
+/* Yao 2020 Definitions 1-2 (Eq. 30-31). */
+yao_motor_class_t yao_dpcc_classify(float R_ohm, float L_H, float w_rad_s,
+                                    float Ts_s);
+
+/* One current period.  id/iq: measured currents at sample k (frame of
+ * theta_e); w: electrical speed; theta_e: electrical angle at sample k;
+ * id_ref/iq_ref: targets of i(k+2). */
+void yao_dpcc_step(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
+                   float id_A, float iq_A, float w_rad_s, float theta_e_rad,
+                   float id_ref_A, float iq_ref_A, yao_dpcc_cmd_t *cmd);
+
+/* If the drive limits/alters the command after yao_dpcc_step(), report the
+ * v* (frame theta(k) + wT) actually applied so the observer uses it. */
+void yao_dpcc_set_applied(yao_dpcc_state_t *st, float v_star_d_V,
+                          float v_star_q_V);
+
+/* Identification commands.  start: from IDLE/DONE/ABORTED, requires steady
+ * speed and iq reference (checked every period while running; a change
+ * aborts and restores the R_hat/L_hat held at the start). */
+bool yao_dpcc_ident_start(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st);
+void yao_dpcc_ident_abort(yao_dpcc_state_t *st);
+bool yao_dpcc_ident_running(const yao_dpcc_state_t *st);
+/* 0..1: completed phases / total phases of the sequence. */
+float yao_dpcc_ident_progress(const yao_dpcc_config_t *cfg,
+                              const yao_dpcc_state_t *st);
+/* Converged values (true when the sequence is DONE). */
+bool yao_dpcc_ident_result(const yao_dpcc_state_t *st, float *R_ohm,
+                           float *L_H);
+
+/* Identification update of one period (state machine + Eq. 22-45 estimator),
+ * called by yao_dpcc_step() after the observer; public for the perf tool.
+ * Uses st->p_hat, st->m, st->v_app and the measured current; updates
+ * R_hat/L_hat (effective from the next step) and st->id_inj_A. */
+void yao_dpcc_ident_update(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
+                           float id_A, float iq_A, float w_rad_s,
+                           float iq_ref_A);
+
+#endif

@@ -1,0 +1,63 @@
+/* predictive_euler.c - Zhao 2022 conventional forward-Euler predictive
+ * current controller (Sec. 2.2, Eq. 3-6), the baseline of the comparison. */
+#include "predictive_euler.h"
+
+#include <math.h>
+#include <string.h>
+
+int predictive_euler_init(const predictive_euler_config_t *cfg,
+                          predictive_euler_state_t *st) {
+  memset(st, 0, sizeof(*st));
+  if (!(cfg->L_hat_H > 0.0f) || !(cfg->Ts_s > 0.0f)) {
+    return -1;
+  }
+  st->R_hat_ohm = cfg->R_hat_ohm;
+  st->L_hat_H = cfg->L_hat_H;
+  st->psi_hat_Wb = cfg->psi_hat_Wb;
+  st->Vmax_V = cfg->Vmax_V;
+  /* Zhao 2022 Eq. 3: B = diag(Ts/Ls) -> B^-1 = Ls/Ts (Eq. 4) */
+  st->G_V_A = cfg->L_hat_H / cfg->Ts_s;
+  return 0;
+}
+
+void predictive_euler_reset(predictive_euler_state_t *st) {
+  st->v_d_ff_V = st->v_q_ff_V = 0.0f;
+  st->v_d_raw_V = st->v_q_raw_V = 0.0f;
+  st->v_d_V = st->v_q_V = 0.0f;
+  st->limited = 0u;
+  st->n_steps = 0u;
+}
+
+void predictive_euler_step(predictive_euler_state_t *st, float id_A,
+                           float iq_A, float omega_e_rad_s, float id_ref_A,
+                           float iq_ref_A, float *v_d_V, float *v_q_V) {
+  const float wL = omega_e_rad_s * st->L_hat_H;
+  /* Zhao 2022 Eq. 4 = B^-1 (X_ref(k+1) - A(k) X(k) - d(k)) with Eq. 3's
+   * A = [1 - Ts R/L, Ts w; -Ts w, 1 - Ts R/L], d = [0; -Ts psi w / L]:
+   * speed-dependent part first (Eq. 5: -w L iq; Eq. 6: +w L id + w psi) */
+  st->v_d_ff_V = -wL * iq_A;
+  st->v_q_ff_V = wL * id_A + omega_e_rad_s * st->psi_hat_Wb;
+  /* Zhao 2022 Eq. 5: ud(k) = R id(k) + L/Ts (id*(k+1) - id(k)) - w L iq(k) */
+  float vd = st->R_hat_ohm * id_A + st->G_V_A * (id_ref_A - id_A) + st->v_d_ff_V;
+  /* Zhao 2022 Eq. 6: uq(k) = R iq(k) + L/Ts (iq*(k+1) - iq(k)) + w L id(k)
+   *                          + w psi */
+  float vq = st->R_hat_ohm * iq_A + st->G_V_A * (iq_ref_A - iq_A) + st->v_q_ff_V;
+  st->v_d_raw_V = vd;
+  st->v_q_raw_V = vq;
+  /* Zhao 2022 Sec. 5.1: command restricted to the voltage circle */
+  st->limited = 0u;
+  if (st->Vmax_V > 0.0f) {
+    const float mag2 = vd * vd + vq * vq;
+    if (mag2 > st->Vmax_V * st->Vmax_V) {
+      const float s = st->Vmax_V / sqrtf(mag2);
+      vd *= s;
+      vq *= s;
+      st->limited = 1u;
+    }
+  }
+  st->v_d_V = vd;
+  st->v_q_V = vq;
+  st->n_steps++;
+  *v_d_V = vd;
+  *v_q_V = vq;
+}
