@@ -33,6 +33,7 @@ from .scenario import Scenario, Setting
 TRACE_PDOS = {3: ("Online tuning.det_A2", "Online tuning.K1_hat"),
               4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
 PROGRESS = Callable[[int, int], None]
+DIRECT_CHUNK = 50_000
 
 
 @dataclass
@@ -282,7 +283,12 @@ class Session:
         rc = self.plant.sdo["Run control"]
         rc["run_periods"].raw = n
         if self.hil is not None:
-            ran = self.hil.run(n)
+            ran = 0
+            while ran < n:  # in chunks, so that Ctrl-C is seen promptly
+                got = self.hil.run(min(DIRECT_CHUNK, n - ran))
+                if got == 0:
+                    break
+                ran += got
             if ran != n:
                 raise RuntimeError(f"direct run stopped after {ran} of {n} periods")
             return

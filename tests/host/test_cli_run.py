@@ -1,0 +1,119 @@
+"""`bench run`, `bench replay` and `bench sweep` as a user runs them (subprocess), in direct mode."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.paths import REPO
+
+BENCH = [sys.executable, "-m", "bench.cli"]
+STEP = REPO / "scenarios" / "you2019_step.toml"
+
+
+def bench(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO)
+
+
+def test_run_direct_writes_every_result(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer")
+    assert res.returncode == 0, res.stderr
+    for name in ("summary.json", "traces.npz", "bus.log", "run.rrd", "layout.json", "capture.json"):
+        assert (out / name).stat().st_size > 0, name
+    assert list(out.glob("step_*.png"))
+    summary = json.loads((out / "summary.json").read_text())
+    step = summary["steps"][0]
+    assert step["periods_to_settle"] == 2 and step["overshoot_A"] < 1e-4
+    assert summary["bus_stats"]["lost_frames"] == 0
+    assert "iq" in res.stdout and "results in" in res.stdout
+    # the log is a real candump log python-can reads back with every frame
+    import can
+
+    assert len(list(can.LogReader(str(out / "bus.log")))) == summary["bus_stats"]["frames"]
+
+
+def test_set_overrides_change_the_run(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer",
+                "--set", "controller.L_hat_ratio=1.2")
+    assert res.returncode == 0, res.stderr
+    step = json.loads((out / "summary.json").read_text())["steps"][0]
+    assert step["overshoot_pct"] > 10.0  # L_hat = 1.2 L overshoots (You 2019 Fig. 14)
+
+
+@pytest.mark.parametrize("content, needle", [
+    ("[scenario]\nname='x'\nperiods=10\n[controller]\nfoo=1\n", "unknown key 'controller.foo'"),
+    ("[scenario]\nname='x'\nperiods=10\n[motor]\nR_ohm=5000\n", "motor.R_ohm = 5000 is out of range: allowed"),
+    ("[scenario]\nname='x'\nperiods=10\n[drive]\nmod_limit='square'\n", "expected one of none, hexagon, circle"),
+    ("[scenario]\nname='x'\nperiods=0\n", "scenario.periods = 0"),
+    ("[scenario\nname='x'\n", "not valid TOML"),
+    ("[scenario]\nname='x'\nperiods=10\n[[events]]\nat_period=50\nreferences={iq_ref_A=1.0}\n",
+     "events[0].at_period = 50: expected an integer in 0 .. 9"),
+])
+def test_bad_scenario_is_refused_before_anything_starts(tmp_path: Path, content: str, needle: str) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(content)
+    out = tmp_path / "out"
+    res = bench("run", str(path), "--bus", "direct", "--out", str(out))
+    assert res.returncode == 2
+    assert str(path) in res.stderr and needle in res.stderr, res.stderr
+    assert not out.exists() and not list(tmp_path.glob("out.*"))
+
+
+def test_bad_override_names_the_key(tmp_path: Path) -> None:
+    res = bench("run", str(STEP), "--bus", "direct", "--out", str(tmp_path / "o"),
+                "--set", "controller.L_hat_ratio=500")
+    assert res.returncode == 2 and "controller.L_hat_ratio" in res.stderr and "0.01 .. 100" in res.stderr
+
+
+def test_replay_of_an_asc_log_gives_the_same_traces(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    assert bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer",
+                 "--log-format", "asc").returncode == 0
+    res = bench("replay", str(out / "bus.asc"), "--no-viewer")
+    assert res.returncode == 0, res.stderr
+    a, b = np.load(out / "traces.npz"), np.load(out / "replay" / "traces.npz")
+    for key in ("i_a_A", "i_b_A", "v_alpha_V", "v_beta_V", "iq_ref_A", "K1_hat"):
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_replay_refuses_a_file_that_is_not_a_log(tmp_path: Path) -> None:
+    bogus = tmp_path / "x.log"
+    bogus.write_text("hello\n")
+    res = bench("replay", str(bogus), "--no-viewer")
+    assert res.returncode == 2 and "x.log" in res.stderr
+
+
+def test_sweep_grid_table_and_heatmap(tmp_path: Path) -> None:
+    out = tmp_path / "sweep"
+    res = bench("sweep", str(STEP), "--grid", "controller.L_hat_ratio=0.5,1.0", "--grid",
+                "controller.R_hat_ratio=1.0,1.5", "--jobs", "2", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    rows = (out / "sweep.csv").read_text().strip().splitlines()
+    assert len(rows) == 5
+    table = {tuple(r.split(",")[:2]): r.split(",")[2] for r in rows[1:]}
+    assert table[("1.0", "1.0")] == "2"            # matched: deadbeat
+    assert int(table[("0.5", "1.0")]) > 5          # L_hat = 0.5 L: slow
+    assert (out / "heatmap_periods_to_settle.png").stat().st_size > 0
+
+
+def test_sigint_mid_run_stops_cleanly(tmp_path: Path) -> None:
+    """Ctrl-C during a long direct run: exit 130, no result folder pretending to be complete."""
+    out = tmp_path / "long"
+    proc = subprocess.Popen([*BENCH, "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer",
+                             "--set", "scenario.periods=20000000"], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(4.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert not out.exists()
+    assert (tmp_path / "long.failed").exists()
