@@ -77,6 +77,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_main(args)
 
 
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from .reproduce import main as reproduce_main
+
+    return reproduce_main(args)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import main as demo_main
 
@@ -164,6 +170,15 @@ def build_parser() -> argparse.ArgumentParser:
                                     "--grid controller.L_hat_ratio=0.5,1.0,1.2 --grid controller.R_hat_ratio=0.5,1.5")
     sweep_args(sw)
     sw.set_defaults(func=_cmd_sweep)
+
+    from .reproduce import add_arguments as reproduce_args
+
+    rep = sub.add_parser("reproduce", help="run every claim of the three papers and write a report",
+                         description="Runs, over vcan by default, a scenario for each quantitative claim of You 2019, "
+                                     "Yao 2020 and Zhao 2022, and writes report.md, report.html and report.json with "
+                                     "the paper's value, the bench's value, the tolerance and a verdict per claim.")
+    reproduce_args(rep)
+    rep.set_defaults(func=_cmd_reproduce)
 
     dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
                         description="You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched "

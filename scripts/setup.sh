@@ -25,7 +25,7 @@ EOF
 
 # ---------------------------------------------------------------- Debian packages
 PKGS=(gcc make clang libclang-rt-14-dev can-utils valgrind gcc-arm-none-eabi
-      libnewlib-arm-none-eabi iproute2 kmod)
+      libnewlib-arm-none-eabi iproute2 kmod chromium)
 if have_host_can; then
     log "host kernel has SocketCAN: no VM fallback needed"
 else

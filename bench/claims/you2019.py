@@ -63,8 +63,10 @@ def claim_matched_step(bus: str) -> list[ClaimResult]:
         PAPER, "you2019-1b", "Eq. 20-21",
         "the first two voltage commands after the step are about 84.14 V and 2.1 V",
         {"v_k_V": 84.14, "v_k1_V": 2.1}, {"v_k_V": v0, "v_k1_V": v1, "K1_V_A": 1.0 / B, "R_ohm": R},
-        "v(k) = K1 * 1 A and v(k+1) = (K1 - K2) * 1 A = R * 1 A within 0.1 %",
-        abs(v0 - 1.0 / B) < 1e-3 * (1.0 / B) and abs(v1 - R) < 1e-3 * max(R, 1.0) + 2e-3,
+        "paper's values within 1 %; bench check: v(k) = K1 * 1 A and v(k+1) = (K1 - K2) * 1 A = R * 1 A "
+        "within 0.1 %",
+        abs(v0 - 84.14) < 0.8414 and abs(v1 - 2.1) < 0.021,
+        bench_ok=abs(v0 - 1.0 / B) < 1e-3 * (1.0 / B) and abs(v1 - R) < 1e-3 * max(R, 1.0) + 2e-3,
         why_differs="The bench reproduces the exact-gain law: v(k) = K1 = 1/B = 83.25 V and v(k+1) = K1 - K2 = R = "
                     "1.4 V. The paper's Eq. 20 approximates L di/dt over one period (its 84.14 V implies a larger "
                     "L), and Eq. 21's own formula r_s * 1 A gives 1.4 V with Table A2's 1.4 ohm, not 2.1 V."))
@@ -127,9 +129,12 @@ def claim_inductance_mismatch(bus: str) -> list[ClaimResult]:
         poles = np.roots([1.0, -A, beta - 1.0, A - beta * A_hat])
         m = step_metrics(tr["iq_A"], tr["iq_ref_A"], "iq")[0]
         reach = int(np.argmax(tr["iq_A"][STEP_AT:] >= 0.98))
+        bench_ok = None
         if ratio < 1:
-            ok = reach >= 5 and np.all(np.isreal(poles)) and dev < 1e-4
-            tol = "all closed-loop poles real, >= 5 periods to 98 %, simulation = analytic response within 1e-4 A"
+            ok = 5 <= reach <= 9 and m.overshoot_pct < 0.5 and dev < 1e-4
+            bench_ok = bool(reach >= 5 and np.all(np.isreal(poles)) and dev < 1e-4)
+            tol = ("overdamped: 5-9 periods to 98 % and no overshoot (< 0.5 %); bench check: all closed-loop poles "
+                   "real, >= 5 periods, simulation = analytic response within 1e-4 A")
         else:
             ok = m.overshoot_pct > 5.0 and np.any(np.abs(np.imag(poles)) > 1e-3) and dev < 1e-4
             tol = "complex pole pair, overshoot > 5 %, simulation = analytic response within 1e-4 A"
@@ -138,9 +143,10 @@ def claim_inductance_mismatch(bus: str) -> list[ClaimResult]:
             {"periods": 7} if ratio < 1 else {"overshoot": "visible"},
             {"periods_to_98pct": reach, "periods_to_settle_2pct": m.periods_to_settle,
              "overshoot_pct": m.overshoot_pct, "poles": [complex(p) for p in poles],
-             "max_dev_from_analytic_A": dev}, tol, bool(ok),
-            why_differs="" if ratio > 1 else "With L_hat = 0.5 L the pole left near A (0.96) makes a slow tail: "
-            "98 % is reached in the periods shown, the 2 % band later; the paper's '7 periods' is the fast part.",
+             "max_dev_from_analytic_A": dev}, tol, bool(ok), bench_ok=bench_ok,
+            why_differs="" if ratio > 1 else "With L_hat = 0.5 L the controller's zero no longer cancels the plant "
+            "pole: the poles are real (0.96, 0.73, -0.71) but the slow one at 0.96 leaves a small overshoot (about "
+            "4.6 %) that decays over ~40 periods. 98 % is reached in 8 periods (paper: about 7).",
             details={"poles_str": ", ".join(f"{p.real:.4f}{p.imag:+.4f}j" for p in poles)}))
     return out
 
@@ -288,3 +294,7 @@ def claim_frequency_response(bus: str, freqs_Hz: tuple[float, ...] = (200.0, 100
         "|gain| < 0.05 dB and phase within 1 deg of -2 w Ts at every frequency (=> -180 deg at fs/4 = 4545 Hz)",
         worst_mag < 0.05 and worst_phase < 1.0,
         why_differs="fs/4 with Ts = 55 us is 4545 Hz; the paper's 4.575 kHz is the same point read off a plot.")
+
+
+ALL = [claim_matched_step, claim_saturated_step, claim_inductance_mismatch, claim_resistance_mismatch,
+       claim_identification_accuracy, claim_tuning, claim_frequency_response]
