@@ -23,7 +23,7 @@ def main(args: argparse.Namespace) -> int:
 
     out = args.out or Path("runs") / f"demo-{time.strftime('%Y%m%d-%H%M%S')}"
     run_args = argparse.Namespace(scenario=SCENARIO, overrides=list(args.overrides), bus=args.bus,
-                                  interface="socketcan", bitrate=None, no_plant=False, no_drive=False, plant_id=0x10,
+                                  interface="socketcan", bitrate=None, fd=False, data_bitrate=None, no_plant=False, no_drive=False, plant_id=0x10,
                                   drive_id=0x20, out=out, log_format="log", serve=args.serve,
                                   no_viewer=args.no_viewer, live_decimate=1)
     rc = run(run_args)

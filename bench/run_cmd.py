@@ -28,7 +28,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "hosts without CAN), can0, ...")
     p.add_argument("--interface", default="socketcan", help="python-can interface for the bench's master "
                    "(default socketcan; the C nodes always use SocketCAN)")
+    p.add_argument("--channel", dest="bus", default=argparse.SUPPRESS, help="alias of --bus for python-can users")
     p.add_argument("--bitrate", type=int, default=None, help="bit rate for interfaces that need one")
+    p.add_argument("--fd", action="store_true", help="open the bus as CAN FD (python-can fd=True)")
+    p.add_argument("--data-bitrate", type=int, default=None, help="CAN FD data-phase bit rate")
     p.add_argument("--no-plant", action="store_true", help="do not start the C plant (a physical plant is on the bus)")
     p.add_argument("--no-drive", action="store_true",
                    help="do not start the C drive (a physical drive implementing drive.eds is on the bus)")
@@ -107,7 +110,8 @@ def _capture_here(args: argparse.Namespace, sc: Scenario, out: Path) -> None:
 
     from .runner import RunOptions, capture
 
-    opts = RunOptions(bus=args.bus, interface=args.interface, bitrate=args.bitrate, plant_id=args.plant_id,
+    opts = RunOptions(bus=args.bus, interface=args.interface, bitrate=args.bitrate, fd=args.fd,
+                      data_bitrate=args.data_bitrate, plant_id=args.plant_id,
                       drive_id=args.drive_id, start_plant=not args.no_plant, start_drive=not args.no_drive, out=out)
     with tqdm(total=sc.periods, unit="period", desc=sc.name, disable=not sys.stderr.isatty()) as bar:
         def progress(done: int, total: int) -> None:

@@ -41,6 +41,8 @@ class RunOptions:
     bus: str = "direct"            # "direct" or a CAN channel (vcan0, can0, ...)
     interface: str = "socketcan"   # python-can interface for non-direct buses
     bitrate: int | None = None
+    fd: bool = False
+    data_bitrate: int | None = None
     plant_id: int = 0x10
     drive_id: int = 0x20
     start_plant: bool = True       # start the C plant process (False: a physical plant/drive is on the bus)
@@ -93,9 +95,20 @@ class Recorder:
         return frames_from_log(self.path)
 
 
+class _ListRecorder(can.Listener):
+    def __init__(self, sink: list[can.Message]) -> None:
+        self.sink = sink
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.sink.append(msg)
+
+
 def frames_from_log(path: Path) -> np.ndarray:
     """Any log python-can reads (candump .log, .asc, .blf, ...) as the bench's frame array."""
-    msgs = list(can.LogReader(str(path)))
+    return frames_from_messages(list(can.LogReader(str(path))))
+
+
+def frames_from_messages(msgs: list[can.Message]) -> np.ndarray:
     arr = np.zeros(len(msgs), dtype=FRAME_DTYPE)
     t0 = msgs[0].timestamp if msgs else 0.0
     for i, m in enumerate(msgs):
@@ -156,8 +169,16 @@ class Session:
                                          "can_filters": filters}
             if self.opts.bitrate:
                 kwargs["bitrate"] = self.opts.bitrate
+            if self.opts.fd:
+                kwargs["fd"] = True
+                if self.opts.data_bitrate:
+                    kwargs["data_bitrate"] = self.opts.data_bitrate
             self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
         self.net.connect()
+        if self.hil is None and self.recorder is None:
+            # Not SocketCAN (a USB adapter, a log replay interface ...): record in this process.
+            self.py_recorder: list[can.Message] = []
+            self.net.notifier.add_listener(_ListRecorder(self.py_recorder))
         self.net.add_node(self.plant)
         self.net.add_node(self.drive)
         for n in (self.plant, self.drive):
@@ -182,6 +203,8 @@ class Session:
                 frames = self.hil.recorded()
             elif self.recorder is not None:
                 frames = self.recorder.stop()
+            elif hasattr(self, "py_recorder"):
+                frames = frames_from_messages(self.py_recorder)
         return frames
 
     # ---------------------------------------------------------------- NMT

@@ -298,3 +298,7 @@ def claim_frequency_response(bus: str, freqs_Hz: tuple[float, ...] = (200.0, 100
 
 ALL = [claim_matched_step, claim_saturated_step, claim_inductance_mismatch, claim_resistance_mismatch,
        claim_identification_accuracy, claim_tuning, claim_frequency_response]
+
+
+ALL = [claim_matched_step, claim_saturated_step, claim_inductance_mismatch, claim_resistance_mismatch,
+       claim_identification_accuracy, claim_tuning, claim_frequency_response]
