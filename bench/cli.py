@@ -83,6 +83,12 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return reproduce_main(args)
 
 
+def _cmd_perf(args: argparse.Namespace) -> int:
+    from .perf import main as perf_main
+
+    return perf_main(args)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import main as demo_main
 
@@ -179,6 +185,17 @@ def build_parser() -> argparse.ArgumentParser:
                                      "the paper's value, the bench's value, the tolerance and a verdict per claim.")
     reproduce_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
+
+    from .perf import add_arguments as perf_args
+
+    pf = sub.add_parser("perf", help="benchmarks: cores, firmware instruction counts, Cortex-M4F size, CANopen, "
+                                     "lockstep over vcan vs the ping-pong floor",
+                        description="Prints measured figures (never asserted): plant and controller cost per period "
+                                    "in-process, instruction counts under callgrind, Cortex-M4F code size, CANopen "
+                                    "frame cost, and (unless --quick) lockstep periods/s over vcan beside the C "
+                                    "ping-pong floor of the same frames, in one VM run.")
+    perf_args(pf)
+    pf.set_defaults(func=_cmd_perf)
 
     dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
                         description="You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched "

@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             if not args.bus.startswith("vcan"):
                 raise RuntimeError(f"bus {args.bus}: this host has no SocketCAN; only vcan buses can be "
                                    "supplied by the VM fallback")
-            rc = _capture_in_vm(args, partial)
+            rc = _capture_in_vm_with_live_view(args, sc, partial)
             if rc != 0:
                 raise RuntimeError(f"the capture inside the VM failed with status {rc}")
         else:
@@ -118,6 +118,29 @@ def _capture_here(args: argparse.Namespace, sc: Scenario, out: Path) -> None:
             bar.update(done - bar.n)
 
         capture(sc, opts, progress)
+
+
+def _live_wanted(args: argparse.Namespace) -> bool:
+    import os
+
+    return bool(args.serve or (not args.no_viewer and (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))))
+
+
+def _capture_in_vm_with_live_view(args: argparse.Namespace, sc: Scenario, partial: Path) -> int:
+    """The capture runs in the VM; the host follows its recording file and streams it live."""
+    if not _live_wanted(args):
+        return _capture_in_vm(args, partial)
+    from .live import LiveTail
+    from .viewer import Viewer
+
+    viewer = Viewer(sc.name + "-live", partial / "live.rrd", serve=args.serve, spawn=not args.serve)
+    tail = LiveTail(partial, lambda tr, a, b: viewer.log(tr, a, b, live_decimate=args.live_decimate))
+    tail.start()
+    try:
+        return _capture_in_vm(args, partial)
+    finally:
+        tail.stop()
+        viewer.close()
 
 
 def _capture_in_vm(args: argparse.Namespace, partial: Path) -> int:
