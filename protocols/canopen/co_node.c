@@ -38,6 +38,14 @@ static void configure_hb_consumers(co_node_t *node)
     }
 }
 
+static void refresh_cache(co_node_t *node)
+{
+    node->c_sync_cob = co_od_get_u32(node->od, IDX_SYNC_COBID, 0);
+    node->c_sync_overflow = (uint8_t)co_od_get_u32(node->od, IDX_SYNC_OVERFLOW, 0);
+    node->c_hb_ms = (uint16_t)co_od_get_u32(node->od, IDX_HB_PRODUCER, 0);
+    node->c_cycle_us = co_od_get_u32(node->od, IDX_CYCLE_PERIOD, 0);
+}
+
 static void set_state(co_node_t *node, co_nmt_state_t s)
 {
     if (node->nmt == s) return;
@@ -59,14 +67,14 @@ static void reset(co_node_t *node, int communication_only)
     node->sync_counter = 0;
     node->n_active_errors = 0;
     if (node->hooks.on_reset) node->hooks.on_reset(node->user, node, communication_only);
+    refresh_cache(node);
     co_pdo_configure_all(node);
     configure_hb_consumers(node);
     node->nmt = CO_NMT_INITIALIZING;
     /* Boot-up message: COB-ID 0x700 + node-ID, one byte 0x00. */
     uint8_t zero = 0;
     co_node_send(node, (uint16_t)(0x700u + node->node_id), &zero, 1);
-    uint16_t hb_ms = (uint16_t)co_od_get_u32(node->od, IDX_HB_PRODUCER, 0);
-    node->hb_next_us = node->now_us + (int64_t)hb_ms * 1000;
+    node->hb_next_us = node->now_us + (int64_t)node->c_hb_ms * 1000;
     node->sync_next_us = node->now_us;
     set_state(node, CO_NMT_PRE_OPERATIONAL);
 }
@@ -156,10 +164,10 @@ static void sync_event(co_node_t *node, uint8_t counter)
 int co_sync_produce(co_node_t *node, int64_t now_us)
 {
     node->now_us = now_us;
-    uint32_t cob = co_od_get_u32(node->od, IDX_SYNC_COBID, 0);
+    uint32_t cob = node->c_sync_cob;
     if (!(cob & 0x40000000u)) return -1;
     if (node->nmt != CO_NMT_OPERATIONAL && node->nmt != CO_NMT_PRE_OPERATIONAL) return -1;
-    uint8_t ov = (uint8_t)co_od_get_u32(node->od, IDX_SYNC_OVERFLOW, 0);
+    uint8_t ov = node->c_sync_overflow;
     uint8_t counter = 0;
     if (ov >= 2u) {
         counter = (uint8_t)(node->sync_counter >= ov ? 1u : node->sync_counter + 1u);
@@ -201,11 +209,9 @@ uint32_t co_node_sdo_write(co_node_t *node, const co_od_entry_t *e, const uint8_
         for (uint8_t s = 1; s <= 8u; ++s) co_od_set_u32(node->od, IDX_ERROR_FIELD, s, 0);
     }
     co_od_store(e, data, len);
+    if (e->index < 0x2000u) refresh_cache(node);
     if (e->index == IDX_HB_CONSUMER) configure_hb_consumers(node);
-    if (e->index == IDX_HB_PRODUCER) {
-        uint16_t ms = (uint16_t)co_od_get_u32(node->od, IDX_HB_PRODUCER, 0);
-        node->hb_next_us = node->now_us + (int64_t)ms * 1000;
-    }
+    if (e->index == IDX_HB_PRODUCER) node->hb_next_us = node->now_us + (int64_t)node->c_hb_ms * 1000;
     if (e->index == IDX_CYCLE_PERIOD) node->sync_next_us = node->now_us;
     co_pdo_after_write(node, e);
     if (node->hooks.post_write) node->hooks.post_write(node->user, node, e);
@@ -247,9 +253,9 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
     }
     if (node->nmt == CO_NMT_STOPPED) return;
 
-    uint32_t sync_cob = co_od_get_u32(node->od, IDX_SYNC_COBID, 0);
+    uint32_t sync_cob = node->c_sync_cob;
     if (id == (sync_cob & 0x7FFu) && !(sync_cob & 0x40000000u)) { /* SYNC consumer */
-        uint8_t ov = (uint8_t)co_od_get_u32(node->od, IDX_SYNC_OVERFLOW, 0);
+        uint8_t ov = node->c_sync_overflow;
         uint8_t expect = ov >= 2u ? 1u : 0u;
         if (frame->dlc != expect) {
             uint8_t msef[5] = {frame->dlc, 0, 0, 0, 0};
@@ -270,7 +276,7 @@ void co_node_tick(co_node_t *node, int64_t now_us)
 {
     node->now_us = now_us;
     if (node->nmt == CO_NMT_INITIALIZING) return;
-    uint16_t hb_ms = (uint16_t)co_od_get_u32(node->od, IDX_HB_PRODUCER, 0);
+    uint16_t hb_ms = node->c_hb_ms;
     if (hb_ms && now_us >= node->hb_next_us) {
         uint8_t st = (uint8_t)node->nmt;
         co_node_send(node, (uint16_t)(0x700u + node->node_id), &st, 1);
@@ -288,7 +294,7 @@ void co_node_tick(co_node_t *node, int64_t now_us)
         }
     }
     if (node->sync_timer_enabled) {
-        uint32_t period = co_od_get_u32(node->od, IDX_CYCLE_PERIOD, 0);
+        uint32_t period = node->c_cycle_us;
         if (period && now_us >= node->sync_next_us) {
             co_sync_produce(node, now_us);
             node->sync_next_us += period;
@@ -302,9 +308,8 @@ void co_node_tick(co_node_t *node, int64_t now_us)
 int64_t co_node_next_event_us(const co_node_t *node, int64_t now_us, int64_t max_us)
 {
     int64_t next = now_us + max_us;
-    uint16_t hb_ms = (uint16_t)co_od_get_u32(node->od, IDX_HB_PRODUCER, 0);
-    if (hb_ms && node->hb_next_us < next) next = node->hb_next_us;
-    if (node->sync_timer_enabled && co_od_get_u32(node->od, IDX_CYCLE_PERIOD, 0) && node->sync_next_us < next)
+    if (node->c_hb_ms && node->hb_next_us < next) next = node->hb_next_us;
+    if (node->sync_timer_enabled && node->c_cycle_us && node->sync_next_us < next)
         next = node->sync_next_us;
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
         const co_pdo_t *t = &node->tpdo[i];

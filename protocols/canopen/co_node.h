@@ -81,6 +81,9 @@ typedef struct {
     bool valid;            /* COB-ID valid and mapping resolved */
     uint16_t cob_id;
     uint8_t trans_type;
+    uint8_t sync_start;    /* cached from the communication parameter (sub 6) */
+    uint16_t event_ms;     /* cached sub 5 */
+    uint16_t inhibit_100us;/* cached sub 3 */
     /* TPDO */
     uint8_t sync_count;
     bool pending;          /* event requested (or type 0 waiting for SYNC) */
@@ -134,6 +137,13 @@ struct co_node {
     co_hooks_t hooks;
     void *user;
     int64_t now_us;
+
+    /* Communication parameters read on every frame, cached from the OD after a reset and
+     * after every SDO write (the OD stays the single place they are stored). */
+    uint32_t c_sync_cob;       /* 0x1005 */
+    uint8_t c_sync_overflow;   /* 0x1019 */
+    uint16_t c_hb_ms;          /* 0x1017 */
+    uint32_t c_cycle_us;       /* 0x1006 */
 
     /* Heartbeat producer */
     int64_t hb_next_us;

@@ -62,7 +62,10 @@ static void configure(co_node_t *node, uint8_t n, bool is_tpdo)
     p->count = (uint8_t)count;
     p->bytes = (uint8_t)bytes;
     p->valid = !(cob & COB_INVALID) && !(cob & COB_EXTENDED) && count > 0u;
-    p->started = co_od_get_u32(node->od, comm, 6) == 0u;
+    p->sync_start = (uint8_t)co_od_get_u32(node->od, comm, 6);
+    p->event_ms = (uint16_t)co_od_get_u32(node->od, comm, 5);
+    p->inhibit_100us = (uint16_t)co_od_get_u32(node->od, comm, 3);
+    p->started = p->sync_start == 0u;
 }
 
 void co_pdo_configure_all(co_node_t *node)
@@ -165,8 +168,7 @@ static int tpdo_send(co_node_t *node, uint8_t n)
     }
     p->pending = false;
     p->last_tx_us = node->now_us;
-    uint16_t ev_ms = (uint16_t)co_od_get_u32(node->od, (uint16_t)(TPDO_COMM + n), 5);
-    p->next_event_us = (p->trans_type >= 254u && ev_ms) ? node->now_us + (int64_t)ev_ms * 1000 : 0;
+    p->next_event_us = (p->trans_type >= 254u && p->event_ms) ? node->now_us + (int64_t)p->event_ms * 1000 : 0;
     return co_node_send(node, p->cob_id, d, p->bytes);
 }
 
@@ -179,8 +181,7 @@ int co_tpdo_send_now(co_node_t *node, uint8_t pdo)
 static bool inhibit_elapsed(co_node_t *node, uint8_t n)
 {
     co_pdo_t *p = &node->tpdo[n];
-    uint16_t inh_100us = (uint16_t)co_od_get_u32(node->od, (uint16_t)(TPDO_COMM + n), 3);
-    return p->last_tx_us == 0 || node->now_us - p->last_tx_us >= (int64_t)inh_100us * 100;
+    return p->last_tx_us == 0 || node->now_us - p->last_tx_us >= (int64_t)p->inhibit_100us * 100;
 }
 
 void co_tpdo_request(co_node_t *node, uint8_t pdo)
@@ -264,8 +265,7 @@ void co_pdo_sync_tx(co_node_t *node, uint8_t counter)
         }
         if (p->trans_type > 240u) continue;
         if (!p->started) {
-            uint8_t start = (uint8_t)co_od_get_u32(node->od, (uint16_t)(TPDO_COMM + n), 6);
-            if (counter != start) continue;
+            if (counter != p->sync_start) continue;
             p->started = true;
             p->sync_count = 0;
         }
@@ -283,15 +283,13 @@ void co_pdo_tick(co_node_t *node)
         if (t->valid && t->trans_type >= 254u) {
             if (t->pending && inhibit_elapsed(node, n)) tpdo_send(node, n);
             else if (t->next_event_us && node->now_us >= t->next_event_us) tpdo_send(node, n);
-            else if (!t->next_event_us) {
-                uint16_t ev_ms = (uint16_t)co_od_get_u32(node->od, (uint16_t)(TPDO_COMM + n), 5);
-                if (ev_ms) t->next_event_us = node->now_us + (int64_t)ev_ms * 1000;
+            else if (!t->next_event_us && t->event_ms) {
+                t->next_event_us = node->now_us + (int64_t)t->event_ms * 1000;
             }
         }
         co_pdo_t *r = &node->rpdo[n];
         if (r->valid && r->deadline_armed && !r->deadline_reported) {
-            uint16_t ev_ms = (uint16_t)co_od_get_u32(node->od, (uint16_t)(RPDO_COMM + n), 5);
-            if (ev_ms && node->now_us - r->last_rx_us > (int64_t)ev_ms * 1000) {
+            if (r->event_ms && node->now_us - r->last_rx_us > (int64_t)r->event_ms * 1000) {
                 uint8_t msef[5] = {(uint8_t)(n + 1u), 0, 0, 0, 0};
                 co_emcy_raise(node, CO_EMCY_RPDO_TIMEOUT, CO_ERR_REG_COMMUNICATION, msef);
                 r->deadline_reported = true;
