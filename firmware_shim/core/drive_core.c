@@ -1,5 +1,6 @@
 /* drive_core.c - glue: transforms, controller switch, Eq. 4 decoupling,
- * Eq. 33-35 limiting, dead-time compensation, Fig. 16 tuning pipeline. */
+ * Eq. 33-35 limiting, dead-time compensation, Fig. 16 tuning pipeline;
+ * the surface-mounted controllers of Yao 2020 and Zhao 2022 (drive_step_spm). */
 #include "drive_core.h"
 
 #include <math.h>
@@ -39,6 +40,67 @@ void drive_default_config(drive_config_t *cfg) {
   cfg->outer.iq_max_A = 4.0f;           /* rated current */
   cfg->outer.profile_max_speed_rad_s = 314.159265f; /* 3000 rpm */
   cfg->outer.profile_accel_rad_s2 = 2000.0f;
+  yao_dpcc_default_config(&cfg->yao);   /* Yao 2020 Table III */
+  cfg->yao_rls_enable = 0u;
+  cfg->yao_rls_lambda = 0.995f;
+}
+
+int drive_controller_is_spm(uint8_t controller) {
+  return controller == (uint8_t)DRIVE_CTRL_DPCC_YAO2020 ||
+         controller == (uint8_t)DRIVE_CTRL_INCREMENTAL_ZHAO2022 ||
+         controller == (uint8_t)DRIVE_CTRL_PREDICTIVE_ZHAO2022;
+}
+
+/* Derived configs of the surface-mounted controllers from the drive's model
+ * (L = Lq_hat) and their memories on a switch / a model change. */
+static void drive_recompute_spm(drive_t *drv, int switched) {
+  const drive_config_t *c = &drv->cfg;
+  drive_state_t *s = &drv->st;
+  const int model_changed = c->R_hat_ohm != s->R_hat_cache || c->Lq_hat_H != s->Lq_hat_cache;
+  drv->yao_cfg = c->yao;
+  drv->yao_cfg.Ts_s = c->Ts_s;
+  drv->yao_cfg.R_hat_ohm = c->R_hat_ohm;
+  drv->yao_cfg.L_hat_H = c->Lq_hat_H;
+  drv->yao_cfg.psi_hat_Wb = c->psi_hat_Wb;
+  drv->yao_cfg.Vmax_V = c->Vmax_V;
+  yao_rls_default_config(&drv->rls_cfg);
+  drv->rls_cfg.Ts_s = c->Ts_s;
+  drv->rls_cfg.psi_hat_Wb = c->psi_hat_Wb;
+  drv->rls_cfg.lambda = c->yao_rls_lambda;
+  bilinear_incremental_config_t ic;
+  ic.R_hat_ohm = c->R_hat_ohm;
+  ic.L_hat_H = c->Lq_hat_H;
+  ic.Ts_s = c->Ts_s;
+  ic.Vmax_V = c->Vmax_V;
+  predictive_euler_config_t ec;
+  ec.R_hat_ohm = c->R_hat_ohm;
+  ec.L_hat_H = c->Lq_hat_H;
+  ec.psi_hat_Wb = c->psi_hat_Wb;
+  ec.Ts_s = c->Ts_s;
+  ec.Vmax_V = c->Vmax_V;
+  (void)predictive_euler_init(&ec, &drv->eul); /* memory-less law */
+  if (switched) {
+    yao_dpcc_reset(&drv->yao_cfg, &drv->yao);
+    (void)bilinear_incremental_init(&ic, &drv->inc);
+  } else {
+    if (model_changed) {
+      /* a write of the mismatch knobs replaces the Yao 2020 estimates */
+      yao_dpcc_ident_abort(&drv->yao);
+      drv->yao.R_hat_ohm = c->R_hat_ohm;
+      drv->yao.L_hat_H = c->Lq_hat_H;
+    }
+    /* new gains, history kept (bumpless) */
+    bilinear_incremental_state_t g;
+    (void)bilinear_incremental_init(&ic, &g);
+    drv->inc.K1_V_A = g.K1_V_A;
+    drv->inc.K2_V_A = g.K2_V_A;
+    drv->inc.L_hat_H = g.L_hat_H;
+    drv->inc.Vmax_V = g.Vmax_V;
+  }
+  if (c->yao_rls_enable != 0u && (s->rls_cache == 0u || switched)) {
+    yao_rls_init(&drv->rls_cfg, &drv->rls, c->R_hat_ohm, c->Lq_hat_H);
+  }
+  s->rls_cache = c->yao_rls_enable;
 }
 
 static void drive_recompute(drive_t *drv) {
@@ -57,6 +119,7 @@ static void drive_recompute(drive_t *drv) {
   outer_loops_design(&c->outer, &drv->outer, c->pole_pairs, c->psi_hat_Wb);
   s->Lq_active_H = c->Lq_hat_H;
   s->Ld_active_H = c->Ld_hat_H;
+  drive_recompute_spm(drv, s->controller_cache != c->controller);
   if (s->controller_cache != c->controller) {
     deadbeat_reset(&drv->db);
     pi_current_reset(&drv->pi);
@@ -80,7 +143,7 @@ void drive_init(drive_t *drv, const drive_config_t *cfg) {
   current_estimator_reset(&drv->est);
   gain_id_reset(&drv->ident);
   outer_loops_reset(&drv->outer);
-  drv->st.controller_cache = cfg->controller;
+  drv->st.controller_cache = 0xFFu; /* every controller starts from reset */
   drive_recompute(drv);
 }
 
@@ -212,6 +275,78 @@ static void drive_fill_signals(drive_t *drv, const drive_meas_t *m) {
   g[TRACE_SIG_V_LIMITED] = (float)s->v_limited;
 }
 
+static void drive_step_you2019(drive_t *drv);
+
+void drive_reset_controller_memory(drive_t *drv) {
+  deadbeat_reset(&drv->db);
+  pi_current_reset(&drv->pi);
+  yao_dpcc_ident_abort(&drv->yao);
+  drv->yao.primed = 0u; /* observer restarts from F e(psi_hat); R_hat/L_hat kept */
+  drv->yao.v_star_d_V = drv->yao.v_star_q_V = 0.0f;
+  bilinear_incremental_reset(&drv->inc);
+  predictive_euler_reset(&drv->eul);
+}
+
+bool drive_yao_ident_start(drive_t *drv) {
+  if (drv->cfg.controller != (uint8_t)DRIVE_CTRL_DPCC_YAO2020 ||
+      drv->cfg.yao.observer_enable == 0u) {
+    return false;
+  }
+  return yao_dpcc_ident_start(&drv->yao_cfg, &drv->yao);
+}
+
+void drive_yao_ident_abort(drive_t *drv) { yao_dpcc_ident_abort(&drv->yao); }
+
+/* Surface-mounted controllers (Yao 2020, Zhao 2022): the paper's law on the
+ * measured dq currents with the drive's electrical speed; the law limits its
+ * own command to Vmax_V (radially) and keeps the applied voltage in its
+ * memory.  No Eq. 4 feed-forward (each law has its own speed terms). */
+static void drive_step_spm(drive_t *drv) {
+  const drive_config_t *c = &drv->cfg;
+  drive_state_t *s = &drv->st;
+  const float w = s->omega_e_rad_s;
+  s->v_q_ff_V = 0.0f;
+  s->v_d_ff_V = 0.0f;
+  if (c->controller == (uint8_t)DRIVE_CTRL_DPCC_YAO2020) {
+    /* Yao 2020 Eq. 12-18 (+ identification); the returned stator-frame
+     * vector already includes the one-period rotation (Eq. 9): no angle
+     * advance here */
+    yao_dpcc_step(&drv->yao_cfg, &drv->yao, s->i_d_A, s->i_q_A, w, s->theta_e_rad,
+                  s->id_ref_A, s->iq_ref_A, &drv->yao_cmd);
+    if (c->yao_rls_enable != 0u) {
+      /* Yao 2020 Eq. 46-48: i(k) and v(k) = v*(k-1) (frame theta(k)) */
+      yao_rls_update(&drv->rls_cfg, &drv->rls, s->i_d_A, s->i_q_A, drv->yao.v_app_d_V,
+                     drv->yao.v_app_q_V, w);
+    }
+    s->v_d_V = drv->yao_cmd.v_ref_d_V; /* frame theta(k), like the other laws */
+    s->v_q_V = drv->yao_cmd.v_ref_q_V;
+    s->v_limited = drv->yao_cmd.limited;
+    s->v_alpha_V = drv->yao_cmd.v_alpha_V;
+    s->v_beta_V = drv->yao_cmd.v_beta_V;
+  } else {
+    float vd, vq;
+    if (c->controller == (uint8_t)DRIVE_CTRL_INCREMENTAL_ZHAO2022) {
+      /* Zhao 2022 Eq. 22/23 */
+      bilinear_incremental_step(&drv->inc, s->i_d_A, s->i_q_A, w, s->id_ref_A, s->iq_ref_A,
+                                &vd, &vq);
+      s->v_limited = drv->inc.limited;
+    } else {
+      /* Zhao 2022 Eq. 5/6 */
+      predictive_euler_step(&drv->eul, s->i_d_A, s->i_q_A, w, s->id_ref_A, s->iq_ref_A,
+                            &vd, &vq);
+      s->v_limited = drv->eul.limited;
+    }
+    s->v_d_V = vd;
+    s->v_q_V = vq;
+    /* dq command held in the stator frame: rotated to the middle of its
+     * application interval [k+1, k+2] (as for You 2019) */
+    const float th_cmd = s->theta_e_rad + c->angle_advance_periods * w * c->Ts_s;
+    dq_inv_park(vd, vq, cosf(th_cmd), sinf(th_cmd), &s->v_alpha_V, &s->v_beta_V);
+  }
+  s->v_d_star_V = s->v_d_V;
+  s->v_q_star_V = s->v_q_V;
+}
+
 void drive_current_step(drive_t *drv, const drive_meas_t *m, drive_cmd_t *cmd) {
   drive_check_config(drv);
   drive_apply_pending_gains(drv);
@@ -231,6 +366,35 @@ void drive_current_step(drive_t *drv, const drive_meas_t *m, drive_cmd_t *cmd) {
   s->id_ref_A = drv->sp.id_ref_A;
   s->iq_ref_A = drv->sp.mode == (uint8_t)DRIVE_MODE_CURRENT ? drv->sp.iq_ref_A
                                                            : drv->outer.iq_ref_A;
+
+  if (drive_controller_is_spm(c->controller)) {
+    drive_step_spm(drv);
+  } else {
+    drive_step_you2019(drv);
+  }
+
+  cmd->v_alpha_V = s->v_alpha_V;
+  cmd->v_beta_V = s->v_beta_V;
+
+  /* outer loops every speed_loop_divider current periods */
+  s->speed_div_count++;
+  if (s->speed_div_count >= c->speed_loop_divider) {
+    s->speed_div_count = 0u;
+    drive_speed_step(drv, m->theta_m_rad);
+  }
+
+  drive_fill_signals(drv, m);
+  if (drv->trace != NULL) {
+    trace_sample(drv->trace, s->signals);
+  }
+  s->step_count++;
+}
+
+/* PI and You 2019 deadbeat: Eq. 4 decoupling, Eq. 33-35 limiting, angle
+ * advance, Eq. 5-9 estimator, Eq. 22-27 identification. */
+static void drive_step_you2019(drive_t *drv) {
+  const drive_config_t *c = &drv->cfg;
+  drive_state_t *s = &drv->st;
 
   /* You 2019 Eq. 4: decoupling voltages with estimated parameters */
   const float w = s->omega_e_rad_s;
@@ -300,22 +464,6 @@ void drive_current_step(drive_t *drv, const drive_meas_t *m, drive_cmd_t *cmd) {
       gain_id_sample(&c->ident, &drv->ident.d, s->i_d_A, s->v_d_star_V);
     }
   }
-
-  cmd->v_alpha_V = s->v_alpha_V;
-  cmd->v_beta_V = s->v_beta_V;
-
-  /* outer loops every speed_loop_divider current periods */
-  s->speed_div_count++;
-  if (s->speed_div_count >= c->speed_loop_divider) {
-    s->speed_div_count = 0u;
-    drive_speed_step(drv, m->theta_m_rad);
-  }
-
-  drive_fill_signals(drv, m);
-  if (drv->trace != NULL) {
-    trace_sample(drv->trace, s->signals);
-  }
-  s->step_count++;
 }
 
 float drive_signal(const drive_t *drv, trace_signal_t id) {

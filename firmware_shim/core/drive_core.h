@@ -16,16 +16,27 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "bilinear_incremental.h"
 #include "current_estimator.h"
 #include "deadbeat_z.h"
+#include "dpcc_yao2020.h"
 #include "gain_identification.h"
 #include "outer_loops.h"
 #include "pi_current.h"
+#include "predictive_euler.h"
+#include "rls_yao2020.h"
 #include "trace_recorder.h"
 
 typedef enum {
   DRIVE_CTRL_PI = 0,
   DRIVE_CTRL_DEADBEAT_YOU2019 = 1,
+  /* surface-mounted (single-inductance) controllers: L_hat = Lq_hat_H,
+   * no Eq. 4 decoupling / You 2019 estimator / dead-time compensation /
+   * Eq. 33 limiter of the drive (each limits its own command radially to
+   * Vmax_V); see drive_step_spm() in drive_core.c */
+  DRIVE_CTRL_DPCC_YAO2020 = 2,         /* Yao 2020 DPCC + SMO + R/L ident */
+  DRIVE_CTRL_INCREMENTAL_ZHAO2022 = 3, /* Zhao 2022 Eq. 22/23 */
+  DRIVE_CTRL_PREDICTIVE_ZHAO2022 = 4,  /* Zhao 2022 Eq. 5/6 (baseline) */
   /* further current controllers are added here (switch in drive_core.c) */
   DRIVE_CTRL_COUNT
 } drive_controller_t;
@@ -55,6 +66,14 @@ typedef struct {
   current_estimator_config_t estimator;
   gain_identification_config_t ident; /* ident.enable = tuning switch */
   outer_loops_config_t outer;
+  /* Yao 2020 DPCC (controller DRIVE_CTRL_DPCC_YAO2020).  Its Ts_s,
+   * R_hat_ohm, L_hat_H, psi_hat_Wb and Vmax_V are NOT read: the drive's
+   * Ts_s, R_hat_ohm, Lq_hat_H, psi_hat_Wb and Vmax_V above are used (the
+   * identification then moves the controller's own R_hat/L_hat, readable
+   * in drive_t.yao). */
+  yao_dpcc_config_t yao;
+  uint8_t yao_rls_enable;     /* Yao 2020 Sec. VI-B RLS baseline beside the DPCC */
+  float yao_rls_lambda;       /* RLS forgetting factor, default 0.995 */
 } drive_config_t;
 
 typedef struct {
@@ -94,6 +113,7 @@ typedef struct {
   /* cached watched config values */
   float R_hat_cache, Ld_hat_cache, Lq_hat_cache, psi_hat_cache;
   uint8_t controller_cache, tuning_cache;
+  uint8_t rls_cache;          /* yao_rls_enable of the last recompute */
   uint8_t dirty;
   float signals[TRACE_SIG_COUNT];
 } drive_state_t;
@@ -107,6 +127,14 @@ typedef struct {
   current_estimator_state_t est;
   gain_identification_state_t ident;
   outer_loops_state_t outer;
+  /* surface-mounted controllers (derived configs rebuilt by the recompute) */
+  yao_dpcc_config_t yao_cfg;
+  yao_dpcc_state_t yao;
+  yao_dpcc_cmd_t yao_cmd;     /* last Yao 2020 command */
+  yao_rls_config_t rls_cfg;
+  yao_rls_state_t rls;
+  bilinear_incremental_state_t inc;
+  predictive_euler_state_t eul;
   trace_recorder_t *trace;    /* optional, NULL = no tracing */
 } drive_t;
 
@@ -125,5 +153,19 @@ void drive_current_step(drive_t *drv, const drive_meas_t *meas, drive_cmd_t *cmd
 void drive_speed_step(drive_t *drv, float theta_m_rad);
 
 float drive_signal(const drive_t *drv, trace_signal_t id);
+
+/* 1 for the surface-mounted controllers (Yao 2020, Zhao 2022). */
+int drive_controller_is_spm(uint8_t controller);
+
+/* Clear the controllers' memories (open loop: the command is not theirs).
+ * The Yao 2020 estimates R_hat/L_hat are kept; its observer restarts. */
+void drive_reset_controller_memory(drive_t *drv);
+
+/* Yao 2020 R/L identification (Sec. IV-E): start requires the Yao 2020
+ * controller, the observer on and at least one step run with it (the speed
+ * and iq reference of the last step are latched as the steady state).
+ * Returns false when refused. */
+bool drive_yao_ident_start(drive_t *drv);
+void drive_yao_ident_abort(drive_t *drv);
 
 #endif

@@ -55,6 +55,46 @@ static void od_to_config(const od_drive_mfr_t *m, drive_config_t *c, uint8_t cor
     c->outer.profile_max_speed_rad_s = m->x2202_References.profile_speed_rad_s;
     c->outer.profile_accel_rad_s2 = m->x2202_References.profile_accel_rad_s2;
 #undef k
+#define y (&m->x2206_yao_2020_dpcc)
+    c->yao.observer_enable = y->observer_enable;
+    c->yao.Q_d = y->Q_d;
+    c->yao.Q_q = y->Q_q;
+    c->yao.inj_id_A = y->inj_id_A;
+    c->yao.gain_select = y->gain_select;
+    c->yao.kL_low_H_Vs = y->kL_low_H_Vs;
+    c->yao.kR_low_ohm_Vs = y->kR_low_ohm_Vs;
+    c->yao.kL_high_H_Vs = y->kL_high_H_Vs;
+    c->yao.kR_high_ohm_Vs = y->kR_high_ohm_Vs;
+    c->yao.th_L_V = y->th_L_V;
+    c->yao.th_R_V = y->th_R_V;
+    c->yao.n_settle = y->n_settle;
+    c->yao.n_avg = y->n_avg;
+    c->yao.n_hold = y->n_hold;
+    c->yao.n_timeout = y->n_timeout;
+    c->yao.n_rounds = y->n_rounds;
+    c->yao.rereference = y->rereference;
+    c->yao.steady_tol_w_rad_s = y->steady_tol_w_rad_s;
+    c->yao.steady_tol_iq_A = y->steady_tol_iq_A;
+    c->yao.min_speed_rad_s = y->min_speed_rad_s;
+    c->yao_rls_enable = y->rls_enable;
+    c->yao_rls_lambda = y->rls_lambda;
+#undef y
+}
+
+/* OD controller value of a surface-mounted law (Yao 2020, Zhao 2022). */
+static int od_ctrl_is_spm(uint8_t od_ctrl)
+{
+    return od_ctrl != DRIVE_APP_CTRL_OPEN_LOOP && drive_controller_is_spm((uint8_t)(od_ctrl - 1u));
+}
+
+/* The surface-mounted laws have one inductance (Lq_hat_H): selecting them
+ * with a salient model is refused rather than silently dropping Ld_hat. */
+static uint32_t validate_spm_selection(const od_drive_mfr_t *m)
+{
+    const float Ld = m->x2200_Controller.Ld_hat_H, Lq = m->x2200_Controller.Lq_hat_H;
+    if (od_ctrl_is_spm(m->x2200_Controller.controller) && !(fabsf(Ld - Lq) <= 0.05f * Lq))
+        return CO_ABORT_INVALID_VALUE;
+    return 0;
 }
 
 /* Cross-field rules of 0x2200-0x2203 (single-field ranges are in the EDS). */
@@ -183,6 +223,36 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
 #undef t
         break;
     }
+    case OD_DRIVE_YAO_2020_DPCC_IDX: {
+#define y (&m->x2206_yao_2020_dpcc)
+        const yao_dpcc_state_t *st = &d->yao;
+        y->ident_state = st->id_state;
+        y->abort_reason = st->abort_reason;
+        y->progress = yao_dpcc_ident_progress(&d->yao_cfg, st);
+        y->R_hat_ohm = st->R_hat_ohm;
+        y->L_hat_H = st->L_hat_H;
+        y->R_id_ohm = st->R_id_ohm;
+        y->L_id_H = st->L_id_H;
+        y->L_converged = st->L_converged;
+        y->R_converged = st->R_converged;
+        y->t_L_conv_s = (float)st->t_L_conv_periods * d->cfg.Ts_s;
+        y->t_R_conv_s = (float)st->t_R_conv_periods * d->cfg.Ts_s;
+        y->dM_d_V = st->dM_d_V;
+        y->dM_q_V = st->dM_q_V;
+        y->motor_class = st->motor_class;
+        y->gains_high = st->gains_high;
+        y->rls_R_hat_ohm = d->rls.R_hat_ohm;
+        y->rls_L_hat_H = d->rls.L_hat_H;
+#undef y
+        break;
+    }
+    case OD_DRIVE_ZHAO_2022_IDX:
+        m->x2207_zhao_2022.K1_V_A = d->inc.K1_V_A;
+        m->x2207_zhao_2022.K2_V_A = d->inc.K2_V_A;
+        m->x2207_zhao_2022.G_V_A = d->eul.G_V_A;
+        m->x2207_zhao_2022.limited =
+            d->cfg.controller == (uint8_t)DRIVE_CTRL_INCREMENTAL_ZHAO2022 ? d->inc.limited : d->eul.limited;
+        break;
     case OD_DRIVE_DRIVE_STATUS_IDX: {
 #define s (&m->x2204_drive_status)
         s->current_steps = app->current_steps;
@@ -287,8 +357,7 @@ static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
     d->trace = NULL;
     drive_current_step(d, &app->meas, &app->cmd);
     d->trace = rec;
-    deadbeat_reset(&d->db);
-    pi_current_reset(&d->pi);
+    drive_reset_controller_memory(d);
 
     float vd = m->x2202_References.v_d_open_V;
     float vq = m->x2202_References.v_q_open_V;
@@ -411,7 +480,6 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
                              uint32_t len)
 {
     drive_app_t *app = (drive_app_t *)user;
-    (void)app;
     const uint16_t idx = e->index;
     if (idx < OD_DRIVE_CONTROLLER_IDX || idx > OD_DRIVE_LIVE_TRACE_IDX) return 0;
     const uint32_t sz = co_dt_size(e->datatype);
@@ -427,7 +495,23 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
     tmp.data = (uint8_t *)&cand + off;
     co_od_store(&tmp, data, len);
 
+    if (idx == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB) {
+        const uint32_t r = validate_spm_selection(&cand);
+        if (r != 0u) return r;
+    }
     if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX) return validate_config(&cand);
+
+    if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
+        const drive_t *d = &app->drv;
+        if (data[0] == 1u) {
+            if (d->cfg.controller != (uint8_t)DRIVE_CTRL_DPCC_YAO2020 ||
+                m->x2200_Controller.controller == DRIVE_APP_CTRL_OPEN_LOOP || d->cfg.yao.observer_enable == 0u)
+                return CO_ABORT_PARAM_INCOMPAT; /* the identification needs the DPCC with its observer */
+            if (d->yao.primed == 0u || yao_dpcc_ident_running(&d->yao))
+                return CO_ABORT_DATA_STATE; /* not run yet / already running */
+        }
+        return 0;
+    }
 
     if (idx == OD_DRIVE_TRACE_IDX) {
         const uint8_t v = data[0];
@@ -474,8 +558,15 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
     drive_app_t *app = (drive_app_t *)user;
     od_drive_mfr_t *m = mfr_of(node);
     const uint16_t idx = e->index;
+    if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
+        const uint8_t cmd = m->x2206_yao_2020_dpcc.ident_command;
+        m->x2206_yao_2020_dpcc.ident_command = 0u; /* a command, not a state */
+        if (cmd == 1u) (void)drive_yao_ident_start(&app->drv);
+        else if (cmd == 2u) drive_yao_ident_abort(&app->drv);
+        return;
+    }
     const int is_config = idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_ONLINE_TUNING_IDX ||
-                          idx == OD_DRIVE_OUTER_LOOPS_IDX ||
+                          idx == OD_DRIVE_OUTER_LOOPS_IDX || idx == OD_DRIVE_YAO_2020_DPCC_IDX ||
                           (idx == OD_DRIVE_REFERENCES_IDX &&
                            (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
                             e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));

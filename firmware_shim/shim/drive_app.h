@@ -23,9 +23,19 @@
  * combinations are refused in pre_write with SDO abort 0x06040043.
  *
  * OD controller numbering (0x2200:01) vs the core's drive_controller_t:
- *   0 open loop (shim), n >= 1 -> core controller n - 1 (1 PI, 2 deadbeat);
- *   values whose core controller does not exist (>= DRIVE_CTRL_COUNT) abort
- *   with 0x06090030.
+ *   0 open loop (shim), n >= 1 -> core controller n - 1 (1 PI, 2 deadbeat
+ *   You 2019, 3 DPCC Yao 2020, 4 incremental deadbeat Zhao 2022, 5
+ *   forward-Euler predictive Zhao 2022); values whose core controller does
+ *   not exist (>= DRIVE_CTRL_COUNT) abort with 0x06090030.  3-5 are
+ *   surface-mounted laws (L = Lq_hat_H): selecting one while |Ld_hat_H -
+ *   Lq_hat_H| > 5 % of Lq_hat_H aborts with 0x06090030 too.
+ *
+ * Yao 2020 (0x2206): its settings reach the core like the others (next
+ * step); 0x2206:15 ident_command = 1 starts the R/L identification at once
+ * (abort 0x06040043 without controller 3 and its observer, 0x08000022
+ * before the first step or while running), 2 aborts it; it reads back 0.
+ * The read-only entries (state, progress, R_hat/L_hat, RLS estimates) are
+ * refreshed on every read (SDO or TPDO).
  *
  * Measurement supervision (counted in 0x2204, never silently skipped):
  *   lost (0x2204:02)  gap in sample_index (modulo 65536): every missing sample

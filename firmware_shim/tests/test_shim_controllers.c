@@ -1,0 +1,360 @@
+/* test_shim_controllers.c - controller selection of the drive node app
+ * (firmware_shim/shim/drive_app.c) by real SDO frames on co_membus.
+ *
+ * For each OD controller value 3 (Yao 2020 DPCC), 4 (Zhao 2022 incremental)
+ * and 5 (Zhao 2022 forward Euler), selected by an expedited SDO download of
+ * 0x2200:01, every command frame of the drive is bit-identical to
+ *   (1) drive_current_step() on a drive_t configured the same way, and
+ *   (2) the controller's own core called directly with the drive's dq
+ *       currents and speed (Yao 2020: its stator-frame output, no angle
+ *       advance; Zhao 2022: its dq output, rotated by the drive's advance).
+ * Also: the Yao 2020 identification started by SDO (0x2206:15 = 1) follows
+ * yao_dpcc_ident_start() on the direct core; the RLS baseline (0x2206:25)
+ * equals yao_rls_update() on the same data; refusals (salient model,
+ * identification without the DPCC); switching back to 2 keeps You 2019.
+ *
+ * Link: test + drive_app.c + libfw.a + libco.a (-lm). */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "co_membus.h"
+#include "co_node.h"
+#include "dq_math.h"
+#include "drive_app.h"
+#include "drive_core.h"
+#include "od_drive.h"
+
+static int g_fail;
+#define EXPECT(c)                                                                  \
+    do {                                                                          \
+        if (!(c)) {                                                               \
+            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #c); \
+            ++g_fail;                                                             \
+        }                                                                         \
+    } while (0)
+
+#define DRIVE_ID 0x20u
+#define COB_CMD 0x210u
+#define COB_MEAS1 0x190u
+#define COB_MEAS2 0x290u
+#define COB_SDO_RX (0x600u + DRIVE_ID)
+#define COB_SDO_TX (0x580u + DRIVE_ID)
+#define CAP_MAX 64
+
+static co_frame_t g_cap[CAP_MAX];
+static int g_ncap;
+static co_membus_t g_bus;
+static co_node_t g_node;
+static drive_app_t g_app;
+static int64_t g_now;
+static uint8_t g_sync;
+
+static void sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us)
+{
+    (void)user;
+    (void)now_us;
+    if (sender == CO_MEMBUS_EXTERNAL) return;
+    if (g_ncap < CAP_MAX) g_cap[g_ncap++] = *f;
+}
+
+static void put_f32(uint8_t *p, float v)
+{
+    uint32_t u;
+    memcpy(&u, &v, 4);
+    p[0] = (uint8_t)u; p[1] = (uint8_t)(u >> 8); p[2] = (uint8_t)(u >> 16); p[3] = (uint8_t)(u >> 24);
+}
+
+static float get_f32(const uint8_t *p)
+{
+    uint32_t u = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+    float v;
+    memcpy(&v, &u, 4);
+    return v;
+}
+
+static int same_bits(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+static void inject(uint16_t cob, uint8_t dlc, const uint8_t *d)
+{
+    co_frame_t f;
+    memset(&f, 0, sizeof f);
+    f.cob_id = cob;
+    f.dlc = dlc;
+    if (dlc) memcpy(f.data, d, dlc);
+    EXPECT(co_membus_inject(&g_bus, &f) == 0);
+}
+
+static void deliver(void)
+{
+    g_now += 100;
+    co_membus_deliver(&g_bus, g_now);
+}
+
+static const co_frame_t *find(uint16_t cob)
+{
+    for (int i = 0; i < g_ncap; ++i)
+        if ((g_cap[i].cob_id & 0x7FFu) == cob) return &g_cap[i];
+    return NULL;
+}
+
+static void setup(void)
+{
+    co_membus_init(&g_bus, sink, NULL);
+    int port = co_membus_port(&g_bus);
+    drive_app_init(&g_app);
+    g_now = 1000;
+    g_sync = 0;
+    co_node_init(&g_node, &od_drive, DRIVE_ID, co_membus_tx, &g_bus.ports[port], drive_app_hooks(), &g_app, g_now);
+    co_membus_attach(&g_bus, port, &g_node);
+    drive_app_bind(&g_app, &g_node);
+    deliver();
+    const uint8_t start[2] = {0x01, 0x00};
+    inject(0x000, 2, start);
+    deliver();
+    EXPECT(g_node.nmt == CO_NMT_OPERATIONAL);
+}
+
+static const co_frame_t *sample(const drive_meas_t *m, uint16_t k)
+{
+    g_sync = (uint8_t)(g_sync >= 240u ? 1u : g_sync + 1u);
+    uint8_t d[8];
+    g_ncap = 0;
+    inject(0x080, 1, &g_sync);
+    put_f32(&d[0], m->i_a_A);
+    put_f32(&d[4], m->i_b_A);
+    inject(COB_MEAS1, 8, d);
+    put_f32(&d[0], m->theta_m_rad);
+    d[4] = g_sync;
+    d[5] = 0;
+    d[6] = (uint8_t)k;
+    d[7] = (uint8_t)(k >> 8);
+    inject(COB_MEAS2, 8, d);
+    deliver();
+    return find(COB_CMD);
+}
+
+static uint32_t sdo_download(uint16_t idx, uint8_t sub, const uint8_t *v, uint8_t n)
+{
+    uint8_t d[8] = {(uint8_t)(0x23u | ((4u - n) << 2)), (uint8_t)idx, (uint8_t)(idx >> 8), sub, 0, 0, 0, 0};
+    memcpy(&d[4], v, n);
+    g_ncap = 0;
+    inject(COB_SDO_RX, 8, d);
+    deliver();
+    const co_frame_t *r = find(COB_SDO_TX);
+    if (!r) return 0xFFFFFFFFu;
+    if (r->data[0] == 0x60) return 0;
+    if (r->data[0] == 0x80)
+        return (uint32_t)r->data[4] | (uint32_t)r->data[5] << 8 | (uint32_t)r->data[6] << 16 |
+               (uint32_t)r->data[7] << 24;
+    return 0xFFFFFFFEu;
+}
+
+static uint32_t wr_f32(uint16_t idx, uint8_t sub, float v)
+{
+    uint8_t b[4];
+    put_f32(b, v);
+    return sdo_download(idx, sub, b, 4);
+}
+
+static uint32_t wr_u8(uint16_t idx, uint8_t sub, uint8_t v) { return sdo_download(idx, sub, &v, 1); }
+
+static float rd_f32(uint16_t idx, uint8_t sub)
+{
+    uint8_t d[8] = {0x40, (uint8_t)idx, (uint8_t)(idx >> 8), sub, 0, 0, 0, 0};
+    g_ncap = 0;
+    inject(COB_SDO_RX, 8, d);
+    deliver();
+    const co_frame_t *r = find(COB_SDO_TX);
+    EXPECT(r && (r->data[0] & 0xE3u) == 0x43u);
+    return r ? get_f32(&r->data[4]) : NAN;
+}
+
+/* ------------------------------------------------------------------ model */
+
+#define C_IDX OD_DRIVE_CONTROLLER_IDX
+#define Y_IDX OD_DRIVE_YAO_2020_DPCC_IDX
+static const float kTs = 100e-6f, kR = 2.2f, kL = 5.5e-3f, kPsi = 0.12f, kVmax = 173.2f;
+static const uint8_t kPp = 4u;
+
+static void configure_by_sdo(void)
+{
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_TS_S_SUB, kTs) == 0);
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_POLE_PAIRS_SUB, kPp) == 0);
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_R_HAT_OHM_SUB, kR) == 0);
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LD_HAT_H_SUB, kL) == 0);
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, kL) == 0);
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_PSI_HAT_WB_SUB, kPsi) == 0);
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_VMAX_V_SUB, kVmax) == 0);
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_SPEED_LOOP_DIVIDER_SUB, 1u) == 0);
+    EXPECT(wr_f32(OD_DRIVE_REFERENCES_IDX, OD_DRIVE_REFERENCES_IQ_REF_A_SUB, 2.0f) == 0);
+}
+
+static void configure_ref(drive_t *ref, uint8_t core_ctrl)
+{
+    drive_config_t cfg;
+    drive_default_config(&cfg);
+    cfg.Ts_s = kTs;
+    cfg.pole_pairs = (float)kPp;
+    cfg.R_hat_ohm = kR;
+    cfg.Ld_hat_H = kL;
+    cfg.Lq_hat_H = kL;
+    cfg.psi_hat_Wb = kPsi;
+    cfg.Vmax_V = kVmax;
+    cfg.speed_loop_divider = 1u;
+    cfg.controller = core_ctrl;
+    drive_init(ref, &cfg);
+    ref->sp.iq_ref_A = 2.0f;
+}
+
+/* measurement of step k: rotor at 150 rad/s mechanical (600 rad/s electrical) */
+static drive_meas_t meas_of(uint16_t k)
+{
+    drive_meas_t m;
+    const float th = 0.015f * (float)k;
+    m.theta_m_rad = dq_wrap_pi(th);
+    m.i_a_A = 2.0f * sinf(4.0f * th) + 0.1f * sinf(0.37f * (float)k);
+    m.i_b_A = 2.0f * sinf(4.0f * th - 2.0943951f) + 0.05f * cosf(0.23f * (float)k);
+    return m;
+}
+
+static void run_controller(uint8_t od_ctrl)
+{
+    setup();
+    configure_by_sdo();
+    const uint8_t core_ctrl = (uint8_t)(od_ctrl - 1u);
+    if (od_ctrl == 3u) EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_ENABLE_SUB, 1u) == 0);
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, od_ctrl) == 0);
+    if (od_ctrl != 3u)
+        EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
+    else /* not run yet: the observer has no steady state to latch */
+        EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == CO_ABORT_DATA_STATE);
+
+    static drive_t ref;
+    configure_ref(&ref, core_ctrl);
+    ref.cfg.yao_rls_enable = od_ctrl == 3u ? 1u : 0u;
+    drive_apply_config(&ref);
+
+    /* direct cores, configured from the same values */
+    yao_dpcc_config_t ycfg;
+    yao_dpcc_default_config(&ycfg);
+    ycfg.Ts_s = kTs; ycfg.R_hat_ohm = kR; ycfg.L_hat_H = kL; ycfg.psi_hat_Wb = kPsi; ycfg.Vmax_V = kVmax;
+    static yao_dpcc_state_t yst;
+    yao_dpcc_init(&ycfg, &yst);
+    yao_rls_config_t rcfg;
+    yao_rls_default_config(&rcfg);
+    rcfg.Ts_s = kTs; rcfg.psi_hat_Wb = kPsi; rcfg.lambda = 0.995f;
+    yao_rls_state_t rls;
+    yao_rls_init(&rcfg, &rls, kR, kL);
+    bilinear_incremental_config_t icfg = {kR, kL, kTs, kVmax};
+    bilinear_incremental_state_t ist;
+    EXPECT(bilinear_incremental_init(&icfg, &ist) == 0);
+    predictive_euler_config_t ecfg = {kR, kL, kPsi, kTs, kVmax};
+    predictive_euler_state_t est;
+    EXPECT(predictive_euler_init(&ecfg, &est) == 0);
+
+    int n_same_drive = 0, n_same_core = 0, n = 0;
+    const int N = 400, K_ID = 120;
+    for (uint16_t k = 0; k < (uint16_t)N; ++k) {
+        if (od_ctrl == 3u && k == K_ID) {
+            EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == 0);
+            EXPECT(drive_yao_ident_start(&ref));
+            EXPECT(yao_dpcc_ident_start(&ycfg, &yst));
+            EXPECT(yao_dpcc_ident_running(&g_app.drv.yao));
+        }
+        const drive_meas_t m = meas_of(k);
+        const co_frame_t *f = sample(&m, k);
+        /* (1) the same drive core driven directly */
+        const float w = ref.st.omega_e_rad_s; /* speed used by this step */
+        drive_cmd_t c;
+        drive_current_step(&ref, &m, &c);
+        ++n;
+        if (f && same_bits(get_f32(&f->data[0]), c.v_alpha_V) && same_bits(get_f32(&f->data[4]), c.v_beta_V))
+            ++n_same_drive;
+        /* (2) the controller's own core */
+        const float th = dq_wrap_pi((float)kPp * m.theta_m_rad);
+        const float cs = cosf(th), sn = sinf(th);
+        float ial, ibe, id, iq;
+        dq_clarke(m.i_a_A, m.i_b_A, &ial, &ibe);
+        dq_park(ial, ibe, cs, sn, &id, &iq);
+        float va, vb;
+        if (od_ctrl == 3u) {
+            yao_dpcc_cmd_t yc;
+            yao_dpcc_step(&ycfg, &yst, id, iq, w, th, 0.0f, 2.0f, &yc);
+            yao_rls_update(&rcfg, &rls, id, iq, yst.v_app_d_V, yst.v_app_q_V, w);
+            va = yc.v_alpha_V;
+            vb = yc.v_beta_V;
+        } else {
+            float vd, vq;
+            if (od_ctrl == 4u) bilinear_incremental_step(&ist, id, iq, w, 0.0f, 2.0f, &vd, &vq);
+            else predictive_euler_step(&est, id, iq, w, 0.0f, 2.0f, &vd, &vq);
+            const float thc = th + 1.5f * w * kTs;
+            dq_inv_park(vd, vq, cosf(thc), sinf(thc), &va, &vb);
+        }
+        if (f && same_bits(get_f32(&f->data[0]), va) && same_bits(get_f32(&f->data[4]), vb)) ++n_same_core;
+    }
+    EXPECT(n_same_drive == N);
+    EXPECT(n_same_core == N);
+    if (od_ctrl == 3u) {
+        EXPECT(g_app.drv.yao.id_state == yst.id_state && yst.id_state != (uint8_t)YAO_ID_IDLE);
+        EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
+        EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
+        EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
+        EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
+        EXPECT(g_app.drv.yao.id_state == (uint8_t)YAO_ID_ABORTED);
+        EXPECT(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
+    }
+    if (od_ctrl == 4u) {
+        EXPECT(same_bits(rd_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K1_V_A_SUB), ist.K1_V_A));
+        EXPECT(same_bits(rd_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K2_V_A_SUB), ist.K2_V_A));
+    }
+    printf("controller %u: %d/%d commands = drive_current_step, %d/%d = the core called directly%s\n",
+           (unsigned)od_ctrl, n_same_drive, N, n_same_core, N,
+           od_ctrl == 3u ? " (identification started by SDO at step 120, RLS beside)" : "");
+}
+
+/* Refusals and the switch back to You 2019. */
+static void test_selection_rules(void)
+{
+    setup();
+    /* default You 2019 model is nearly round (4.46 / 4.54 mH): accepted */
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 4u) == 0);
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
+    /* salient model: the single-inductance laws are refused */
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 2.27e-3f) == 0);
+    for (uint8_t c = 3u; c <= 5u; ++c) EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, c) == CO_ABORT_INVALID_VALUE);
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 6u) == CO_ABORT_VALUE_HIGH);
+    /* online tuning (You 2019) stays reserved to controller 2 */
+    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 4.46e-3f) == 0);
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 5u) == 0);
+    EXPECT(wr_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
+
+    /* back to You 2019: commands bit-identical to a fresh You 2019 drive */
+    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
+    static drive_t ref;
+    drive_config_t cfg;
+    drive_default_config(&cfg);
+    cfg.Lq_hat_H = 4.46e-3f;
+    drive_init(&ref, &cfg);
+    int same = 0;
+    for (uint16_t k = 0; k < 50u; ++k) {
+        const drive_meas_t m = meas_of(k);
+        const co_frame_t *f = sample(&m, k);
+        drive_cmd_t c;
+        drive_current_step(&ref, &m, &c);
+        if (f && same_bits(get_f32(&f->data[0]), c.v_alpha_V) && same_bits(get_f32(&f->data[4]), c.v_beta_V)) ++same;
+    }
+    EXPECT(same == 50);
+    printf("selection rules: salient model refused (0x06090030) for 3-5, 6 above range; back to You 2019: %d/50 "
+           "bit-identical\n", same);
+}
+
+int main(void)
+{
+    run_controller(3u);
+    run_controller(4u);
+    run_controller(5u);
+    test_selection_rules();
+    printf("%s\n", g_fail ? "test_shim_controllers: FAIL" : "test_shim_controllers: OK");
+    return g_fail ? 1 : 0;
+}
