@@ -40,6 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="000 = You 2019, 001 = Yao 2020, 003 = Zhao 2022, all (default)")
     p.add_argument("--bus", default="vcan0", help="vcan0 (default; the VM supplies it if needed) or direct")
     p.add_argument("--out", type=Path, default=None, help="report folder (default reports/TIMESTAMP)")
+    p.add_argument("--publish", type=Path, default=None,
+                   help="also write a light copy (reports + plots, no recordings) to this folder, e.g. docs/reproduce")
     p.add_argument("--collect-only", action="store_true", help=argparse.SUPPRESS)
 
 
@@ -99,6 +101,8 @@ def _overview_plot(run: Path, title: str) -> Path | None:
     n = len(tr["period"])
     if n == 0:
         return None
+    if "drive_iq_ref_active_A" in tr and not np.any(tr["iq_ref_A"]):
+        tr["iq_ref_A"] = np.nan_to_num(tr["drive_iq_ref_active_A"])  # speed/position mode: the loop's own iq*
     changes = np.nonzero(np.abs(np.diff(tr["iq_ref_A"])) + np.abs(np.diff(tr["id_ref_A"])) > 1e-9)[0]
     lo = max(0, int(changes[0]) - 5) if len(changes) else 0
     hi = min(n, lo + (100 if len(changes) <= 8 else 400))
@@ -152,7 +156,7 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def write_reports(out: Path, results: list[dict[str, Any]], bus: str, wall_s: float) -> None:
+def write_reports(out: Path, results: list[dict[str, Any]], bus: str, wall_s: float, links: bool = True) -> None:
     records = [{k: r.get(k) for k in ("paper", "claim_id", "figure", "statement", "paper_value", "bench_value",
                                       "tolerance", "verdict", "bench_check", "why_differs", "runs")} for r in results]
     (out / "report.json").write_text(json.dumps({"bus": bus, "wall_s": wall_s, "claims": records}, indent=2,
@@ -181,16 +185,33 @@ def write_reports(out: Path, results: list[dict[str, Any]], bus: str, wall_s: fl
                 md.append(f"- why it differs / note: {r['why_differs']}")
             for run in r.get("runs") or []:
                 if (out / "runs" / run / "overview.png").exists():
-                    md += ["", f"![{run}](runs/{run}/overview.png)",
-                           f"Run `{run}`: [Rerun recording](runs/{run}/run.rrd), [CAN log](runs/{run}/bus.log), "
-                           f"[summary](runs/{run}/summary.json)"]
+                    md += ["", f"![{run}](runs/{run}/overview.png)"]
+                    md.append(f"Run `{run}`: [Rerun recording](runs/{run}/run.rrd), [CAN log](runs/{run}/bus.log), "
+                              f"[summary](runs/{run}/summary.json)" if links else
+                              f"Run `{run}` (its Rerun recording and CAN log are written by `bench reproduce`)")
                     break
             md.append("")
     (out / "report.md").write_text("\n".join(md) + "\n")
-    _write_html(out, results, bus, wall_s, n_ok)
+    _write_html(out, results, bus, wall_s, n_ok, links)
 
 
-def _write_html(out: Path, results: list[dict[str, Any]], bus: str, wall_s: float, n_ok: int) -> None:
+def publish(out: Path, dest: Path) -> None:
+    """A light copy of a report for the repository: the reports and the plots, without the
+    recordings and logs (which `bench reproduce` regenerates)."""
+    data = json.loads((out / "report.json").read_text())
+    results = json.loads((out / "claims.json").read_text())
+    shutil.rmtree(dest, ignore_errors=True)
+    for png in (out / "runs").glob("*/overview.png"):
+        target = dest / "runs" / png.parent.name / "overview.png"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(png, target)
+    dest.mkdir(parents=True, exist_ok=True)
+    shutil.copy(out / "claims.json", dest / "claims.json")
+    write_reports(dest, results, data["bus"], data["wall_s"], links=False)
+
+
+def _write_html(out: Path, results: list[dict[str, Any]], bus: str, wall_s: float, n_ok: int,
+                links: bool = True) -> None:
     e = html.escape
     rows = "".join(
         f"<tr class='{e(r['verdict'])}'><td>{e(r['paper'])}</td><td><a href='#{e(r['claim_id'])}'>"
@@ -207,10 +228,11 @@ def _write_html(out: Path, results: list[dict[str, Any]], bus: str, wall_s: floa
             img = ""
             for run in r.get("runs") or []:
                 if (out / "runs" / run / "overview.png").exists():
+                    rec = (f": <a href='runs/{e(run)}/run.rrd'>Rerun recording</a>, "
+                           f"<a href='runs/{e(run)}/bus.log'>CAN log</a>") if links else ""
                     img = (f"<figure><img src='runs/{e(run)}/overview.png' alt='{e(run)}'>"
-                           f"<figcaption>bench run <code>{e(run)}</code> for {e(str(r['figure']))}: "
-                           f"<a href='runs/{e(run)}/run.rrd'>Rerun recording</a>, "
-                           f"<a href='runs/{e(run)}/bus.log'>CAN log</a></figcaption></figure>")
+                           f"<figcaption>bench run <code>{e(run)}</code> for {e(str(r['figure']))}{rec}"
+                           f"</figcaption></figure>")
                     break
             why = f"<p><b>Why it differs / note:</b> {e(r['why_differs'])}</p>" if r.get("why_differs") else ""
             parts.append(
@@ -277,4 +299,7 @@ def main(args: argparse.Namespace) -> int:
     for r in results:
         print(f"  {r['verdict']:<11} bench {r.get('bench_check', '?'):<5} {r['claim_id']:<28} {r['figure']}")
     print(f"report: {out / 'report.md'}, {out / 'report.html'}, {out / 'report.json'}")
+    if args.publish:
+        publish(out, args.publish)
+        print(f"published: {args.publish / 'report.md'}")
     return 0

@@ -54,8 +54,8 @@ SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "controller": ("drive", ("Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC")),
     "references": ("drive", ("References",)),
 }
-# Run-control entries the bench drives itself.
-RESERVED = {"run_periods", "trip_clear", "mode"}
+# Run-control entries the bench drives itself (scenario.timing sets the mode).
+RESERVED = {("Run control", "run_periods"), ("Run control", "trip_clear"), ("Run control", "mode")}
 ENUMS: dict[str, dict[str, int]] = {
     "controller": {"open_loop": 0, "pi": 1, "deadbeat_you2019": 2, "dpcc_yao2020": 3,
                    "incremental_zhao2022": 4, "predictive_zhao2022": 5},
@@ -124,8 +124,8 @@ def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, d
             raise ScenarioError(f"{where}: {full} = {value!r}: a ratio must be a number in 0.01 .. 100")
         return Setting(full, None, float(value), RATIOS[key])
     table = tables[section]
-    if key not in table or key in RESERVED:
-        allowed = sorted(k for k in table if k not in RESERVED)
+    if key not in table or (table[key].obj, key) in RESERVED:
+        allowed = sorted(k for k, p in table.items() if (p.obj, k) not in RESERVED)
         if section == "controller":
             allowed += sorted(RATIOS)
         raise ScenarioError(f"{where}: unknown key {full!r}; allowed in [{section}]: {', '.join(allowed)}")

@@ -36,7 +36,7 @@ def decode(frames: np.ndarray, layout: BusLayout, pole_pairs: int, ts_s: float,
     out: dict[str, np.ndarray] = {"period": np.arange(n, dtype=np.int64), "t_s": np.arange(n) * ts_s}
     sync_data = frames["data"][sync_mask][:, 0].astype(np.int64)
     out["sync_counter"] = np.where(frames["dlc"][sync_mask] > 0, sync_data, -1)
-    short = {"Measurement": "", "Voltage command": "", "Online tuning": "", "Plant state": "true_",
+    short = {"Measurement": "", "Voltage command": "", "Online tuning": "", "Plant state": "true_", "Drive status": "drive_",
              "Live trace": "live_"}
     for pdo in layout.pdos:
         pos, vals = _pdo_values(frames, pdo.cob_id, pdo.numpy_dtype())

@@ -296,9 +296,80 @@ def claim_frequency_response(bus: str, freqs_Hz: tuple[float, ...] = (200.0, 100
         why_differs="fs/4 with Ts = 55 us is 4545 Hz; the paper's 4.575 kHz is the same point read off a plot.")
 
 
-ALL = [claim_matched_step, claim_saturated_step, claim_inductance_mismatch, claim_resistance_mismatch,
-       claim_identification_accuracy, claim_tuning, claim_frequency_response]
+
+
+def _profile(ratio: float, tuning: int, name: str) -> dict[str, Any]:
+    """Fig. 22: positioning move to 11 pi at up to 3000 rpm, accelerating near rated current."""
+    return {
+        "scenario": {"name": name, "periods": 2600},
+        "motor": {"preset": "you2019", "mech_mode": "free"},
+        "drive": {"t_dead_s": 0.0, "encoder_lines": 2500, "adc_noise_std_A": 0.0, "adc_lsb_A": 0.0},
+        "controller": {"controller": "deadbeat_you2019", "Vmax_V": 139.0, "Lq_hat_ratio": ratio,
+                       "Ld_hat_ratio": ratio, "enable": tuning, "iq_limit_A": 4.0},
+        "references": {"mode": 2, "profile_speed_rad_s": 314.159, "profile_accel_rad_s2": 30000.0},
+        "events": [{"at_period": 20, "references": {"position_ref_rad": 11 * math.pi}}],
+    }
+
+
+PROFILE_PDOS = {3: ("Drive status.iq_ref_active_A", "Drive status.speed_rad_s"),
+                4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
+
+
+def _stair_fractions(tr: dict[str, np.ndarray], start: int, stop: int) -> list[float]:
+    """Fraction of each reference stair (speed-loop update) made 2 periods later, net of the prior slope."""
+    ref, iq = tr["drive_iq_ref_active_A"], tr["iq_A"]
+    out = []
+    for p in range(max(start, 2), min(stop, len(ref) - 3)):
+        d = float(ref[p] - ref[p - 1])
+        if not np.isfinite(d) or abs(d) < 0.05:
+            continue
+        slope = float(iq[p] - iq[p - 1])
+        out.append(float(iq[p + 2] - iq[p] - 2 * slope) / d)
+    return out
+
+
+def claim_tuning_position_profile(bus: str) -> list[ClaimResult]:
+    """Fig. 22-25: online tuning during the positioning move, accelerating with high current."""
+    from .. import runner
+
+    old = runner.TRACE_PDOS
+    runner.TRACE_PDOS = PROFILE_PDOS
+    try:
+        matched = run_raw(_profile(1.0, 0, "you2019-profile-matched"), bus)
+        runs = {r: (run_raw(_profile(r, 0, f"you2019-profile-off-{r}"), bus),
+                    run_raw(_profile(r, 1, f"you2019-profile-on-{r}"), bus)) for r in (0.5, 1.2)}
+    finally:
+        runner.TRACE_PDOS = old
+    f_ref = _stair_fractions(matched.tr, 20, 600)
+    err_ref = float(np.median(np.abs(np.array(f_ref) - 1)))
+    out = []
+    for ratio, (off, on) in runs.items():
+        upd = np.nonzero(np.diff(on.tr["K1_active_V_A"]) != 0)[0]
+        first = int(upd[0]) + 1 if len(upd) else None
+        f_off = _stair_fractions(off.tr, 20, 600)
+        f_on = _stair_fractions(on.tr, (first or 10**9) + 8, 600)
+        err_off = float(np.median(np.abs(np.array(f_off) - 1))) if f_off else None
+        err_on = float(np.median(np.abs(np.array(f_on) - 1))) if f_on else None
+        peak_speed = float(np.nanmax(on.tr["drive_speed_rad_s"]))
+        ok = (first is not None and first - 20 <= 8 * 4 and err_on is not None and err_off is not None
+              and err_on <= err_ref + 0.02 and err_off > 2 * err_ref and peak_speed > 250.0)
+        out.append(ClaimResult(
+            PAPER, f"you2019-5p-L{ratio}", "Fig. 22, Fig. 24, Fig. 25",
+            f"positioning move (11 pi, 3000 rpm) with L_hat = {ratio} L: with tuning on, the current follows its "
+            "command in two periods again within a speed-loop period after the acceleration starts",
+            {"periods_before": 9, "periods_after": 2},
+            {"first_gain_update_period": first, "move_start_period": 20, "peak_speed_rad_s": peak_speed,
+             "median_stair_error_matched": err_ref, "median_stair_error_untuned": err_off,
+             "median_stair_error_tuned": err_on, "stairs_tuned": len(f_on)},
+            "gains updated within 4 speed-loop periods of the start; afterwards the median deviation of the 2-period "
+            "response to each speed-loop reference stair is within 2 % of the matched controller's (untuned: more "
+            "than twice it)", bool(ok),
+            why_differs="The bench measures the response to each speed-loop reference stair during the acceleration "
+                        "(iq* changes every 8 periods) against the same move with a matched controller, not the "
+                        "paper's oscilloscope traces; the matched controller's own deviation (a few %) comes from "
+                        "the speed changing within the two periods and the 2500-line encoder; saturation is off."))
+    return out
 
 
 ALL = [claim_matched_step, claim_saturated_step, claim_inductance_mismatch, claim_resistance_mismatch,
-       claim_identification_accuracy, claim_tuning, claim_frequency_response]
+       claim_identification_accuracy, claim_tuning, claim_tuning_position_profile, claim_frequency_response]

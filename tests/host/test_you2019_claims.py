@@ -18,6 +18,7 @@ CLAIMS = {
     "resistance_mismatch": y.claim_resistance_mismatch,
     "identification_accuracy": y.claim_identification_accuracy,
     "tuning": y.claim_tuning,
+    "tuning_position_profile": y.claim_tuning_position_profile,
     "frequency_response": y.claim_frequency_response,
 }
 
