@@ -31,9 +31,6 @@ from .layout import BusLayout, read_layout
 from .nodes import NodeProcess, in_vm
 from .scenario import Scenario, Setting
 
-# Signals the bench maps into the drive's synchronous trace PDOs (by EDS name).
-TRACE_PDOS = {3: ("Online tuning.det_A2", "Online tuning.K1_hat"),
-              4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
 PROGRESS = Callable[[int, int], None]
 DIRECT_CHUNK = 50_000
 
@@ -338,7 +335,7 @@ class Session:
         m.cob_id = drive.tpdo[1].cob_id
         m.enabled = True
         m.save()
-        for num, signals in TRACE_PDOS.items():
+        for num, signals in self.sc.trace.items():
             m = drive.tpdo[num]
             m.clear()
             for sig in signals:

@@ -26,6 +26,10 @@ Layout (every key optional except where noted)::
     [references]                 # drive.eds "References" at period 0
     iq_ref_A = 0.0
 
+    [trace]                      # the drive's synchronous trace TPDOs (drive.eds names, REAL32/integers,
+    pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat"]    # at most 8 bytes each); default below
+    pdo4 = ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]
+
     [[events]]                   # applied before the current step of period `at_period`
     at_period = 100
     references = { iq_ref_A = 1.0 }
@@ -66,6 +70,8 @@ ENUMS: dict[str, dict[str, int]] = {
 RATIOS = {"R_hat_ratio": (("R_hat_ohm", "R_ohm"),), "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),
           "Lq_hat_ratio": (("Lq_hat_H", "Lq_H"),), "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
           "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),)}
+DEFAULT_TRACE: dict[int, tuple[str, ...]] = {3: ("Online tuning.det_A2", "Online tuning.K1_hat"),
+                                             4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
 
@@ -101,6 +107,7 @@ class Scenario:
     preset: str | None = "you2019"
     settings: list[Setting] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
+    trace: dict[int, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_TRACE))
     raw: dict[str, Any] = field(default_factory=dict)
 
     def event_periods(self) -> list[int]:
@@ -172,7 +179,7 @@ def apply_overrides(raw: dict[str, Any], overrides: list[str], where: str) -> di
 
 
 def parse(raw: dict[str, Any], where: str) -> Scenario:
-    allowed_top = {"scenario", "events", *SECTION_OBJECTS}
+    allowed_top = {"scenario", "events", "trace", *SECTION_OBJECTS}
     for key in raw:
         if key not in allowed_top:
             raise ScenarioError(f"{where}: unknown table [{key}]; allowed: {', '.join(sorted(allowed_top))}")
@@ -233,7 +240,40 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
             raise ScenarioError(f"{w}: an event must change something")
         sc.events.append(Event(at, settings))
     sc.events.sort(key=lambda e: e.at_period)
+    if "trace" in raw:
+        sc.trace = _trace(where, raw["trace"])
     return sc
+
+
+def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
+    """[trace] pdo3/pdo4: drive.eds entries (by "Object.sub-entry" name) mapped into TPDO3/TPDO4."""
+    from canopen.objectdictionary import ODVariable
+
+    from .eds import load as load_od
+
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{where}: [trace] must be a table with pdo3 / pdo4 lists")
+    od = load_od("drive")
+    out: dict[int, tuple[str, ...]] = {}
+    for key, names in table.items():
+        if key not in ("pdo3", "pdo4"):
+            raise ScenarioError(f"{where}: unknown key trace.{key}; allowed: pdo3, pdo4")
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names) or not names:
+            raise ScenarioError(f"{where}: trace.{key} must be a non-empty list of \"Object.entry\" names")
+        size = 0
+        for name in names:
+            obj, _, sub = name.partition(".")
+            try:
+                var = od[obj][sub] if sub else od[obj]
+            except KeyError:
+                raise ScenarioError(f"{where}: trace.{key}: {name!r} is not an entry of drive.eds") from None
+            if not isinstance(var, ODVariable) or not var.pdo_mappable or not var.readable:
+                raise ScenarioError(f"{where}: trace.{key}: {name!r} cannot be mapped into a TPDO")
+            size += len(var.encode_raw(0)) if var.data_type != datatypes.REAL32 else 4
+        if size > 8:
+            raise ScenarioError(f"{where}: trace.{key} needs {size} bytes; a PDO carries at most 8")
+        out[int(key[3:])] = tuple(names)
+    return out
 
 
 def load(path: Path, overrides: list[str] | None = None) -> Scenario:

@@ -9,6 +9,8 @@ Tests assert on them; `bench reproduce` reports them.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,10 +67,26 @@ class Run:
 # name is appended to RUNS_USED, so that the report can link its plots and recording.
 RUN_ROOT: Path | None = None
 RUNS_USED: list[str] = []
+# The drive signals traced per period by the runs inside `traced(...)` (scenario [trace]).
+_TRACE: dict[int, tuple[str, ...]] | None = None
+
+
+@contextmanager
+def traced(pdos: dict[int, tuple[str, ...]]) -> Iterator[None]:
+    """Map the drive's synchronous trace TPDOs to other EDS entries for the runs inside."""
+    global _TRACE
+    old = _TRACE
+    _TRACE = pdos
+    try:
+        yield
+    finally:
+        _TRACE = old
 
 
 def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None) -> Run:
     """Run a scenario given as a TOML-shaped dict on `bus` ('direct' or a CAN channel)."""
+    if _TRACE is not None and "trace" not in raw:
+        raw = {**raw, "trace": {f"pdo{n}": list(names) for n, names in _TRACE.items()}}
     sc = parse(raw, f"<{raw['scenario']['name']}>")
     if out is None and RUN_ROOT is not None:
         out = RUN_ROOT / sc.name

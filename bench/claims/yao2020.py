@@ -15,14 +15,11 @@ from __future__ import annotations
 
 import cmath
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 
-from .. import runner
-from . import ClaimResult, Run, run_raw
+from . import ClaimResult, Run, run_raw, traced
 
 PAPER = "Yao 2020"
 OBJ = "Yao 2020 DPCC"
@@ -38,17 +35,6 @@ IDENT_PDOS = {3: (f"{OBJ}.R_hat_ohm", f"{OBJ}.L_hat_H"),
                   f"{OBJ}.abort_reason")}
 TIME_PDOS = {3: (f"{OBJ}.R_hat_ohm", f"{OBJ}.L_hat_H"), 4: (f"{OBJ}.t_L_conv_s", f"{OBJ}.t_R_conv_s")}
 RLS_PDOS = {3: (f"{OBJ}.R_hat_ohm", f"{OBJ}.L_hat_H"), 4: (f"{OBJ}.rls_R_hat_ohm", f"{OBJ}.rls_L_hat_H")}
-
-
-@contextmanager
-def traced(pdos: dict[int, tuple[str, ...]]) -> Iterator[None]:
-    """Map the drive's synchronous trace TPDOs to other EDS entries for the runs inside."""
-    old = runner.TRACE_PDOS
-    runner.TRACE_PDOS = pdos
-    try:
-        yield
-    finally:
-        runner.TRACE_PDOS = old
 
 
 def base(name: str, preset: str, periods: int, **sections: dict[str, Any]) -> dict[str, Any]:

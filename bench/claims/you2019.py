@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..metrics import step_metrics
-from . import ClaimResult, Run, run_raw
+from . import ClaimResult, Run, run_raw, traced
 
 PAPER = "You 2019"
 STEP_AT = 20
@@ -330,16 +330,10 @@ def _stair_fractions(tr: dict[str, np.ndarray], start: int, stop: int) -> list[f
 
 def claim_tuning_position_profile(bus: str) -> list[ClaimResult]:
     """Fig. 22-25: online tuning during the positioning move, accelerating with high current."""
-    from .. import runner
-
-    old = runner.TRACE_PDOS
-    runner.TRACE_PDOS = PROFILE_PDOS
-    try:
+    with traced(PROFILE_PDOS):
         matched = run_raw(_profile(1.0, 0, "you2019-profile-matched"), bus)
         runs = {r: (run_raw(_profile(r, 0, f"you2019-profile-off-{r}"), bus),
                     run_raw(_profile(r, 1, f"you2019-profile-on-{r}"), bus)) for r in (0.5, 1.2)}
-    finally:
-        runner.TRACE_PDOS = old
     f_ref = _stair_fractions(matched.tr, 20, 600)
     err_ref = float(np.median(np.abs(np.array(f_ref) - 1)))
     out = []

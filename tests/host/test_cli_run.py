@@ -117,3 +117,17 @@ def test_sigint_mid_run_stops_cleanly(tmp_path: Path) -> None:
     assert proc.returncode == 130, err
     assert not out.exists()
     assert (tmp_path / "long.failed").exists()
+
+
+def test_trace_table_selects_the_traced_signals(tmp_path: Path) -> None:
+    path = tmp_path / "trace.toml"
+    path.write_text(STEP.read_text() + '\n[trace]\npdo3 = ["Drive status.iq_ref_active_A", "Drive status.speed_rad_s"]\n')
+    out = tmp_path / "run"
+    res = bench("run", str(path), "--bus", "direct", "--out", str(out), "--no-viewer")
+    assert res.returncode == 0, res.stderr
+    tr = np.load(out / "traces.npz")
+    assert tr["drive_iq_ref_active_A"][-2] == 1.0 and "det_A2" not in tr.files  # last: sent at the next SYNC
+    bad = tmp_path / "bad.toml"
+    bad.write_text(STEP.read_text() + '\n[trace]\npdo3 = ["Controller.Ts_s", "Drive status.iq_A", "Drive status.id_A"]\n')
+    res = bench("run", str(bad), "--bus", "direct", "--out", str(tmp_path / "b"))
+    assert res.returncode == 2 and "trace.pdo3" in res.stderr
