@@ -24,6 +24,7 @@ from pathlib import Path
 import can
 import canopen
 import numpy as np
+from canopen.sdo.exceptions import SdoAbortedError
 
 from .direct import FRAME_DTYPE, DirectBus, Hil
 from .eds import eds_path
@@ -162,10 +163,6 @@ def frames_from_messages(msgs: list[can.Message]) -> np.ndarray:
     return arr
 
 
-def _write(sdo_var: canopen.sdo.base.Variable, value: float | int) -> None:
-    sdo_var.raw = value
-
-
 def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
     return node.sdo[obj] if sub is None else node.sdo[obj][sub]
 
@@ -274,15 +271,23 @@ class Session:
                                    f"(is it on bus {self.opts.bus}?)")
 
     # ---------------------------------------------------------------- configuration
+    def _write(self, var, value: float | int, what: str) -> None:  # type: ignore[no-untyped-def]
+        """One SDO write; a refusal names the scenario key, the value and the node's reason."""
+        try:
+            var.raw = value
+        except SdoAbortedError as exc:
+            raise RuntimeError(f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
+                               f"{var.od.qualname!r}) at period {self._period}: {exc}") from None
+
     def _apply(self, s: Setting) -> None:
         self.applied.append((self._period, s.key, float(s.value)))
         if s.param is None:  # ratio of a plant value
             for drive_name, plant_name in s.ratio_of:
                 value = self.plant_values[plant_name] * float(s.value)
-                _write(_entry(self.drive, "Controller", drive_name), value)
+                self._write(_entry(self.drive, "Controller", drive_name), value, f"{s.key} -> {drive_name}")
             return
         node = self.plant if s.param.node == "plant" else self.drive
-        _write(_entry(node, s.param.obj, s.param.name), s.value)
+        self._write(_entry(node, s.param.obj, s.param.name), s.value, s.key)
         if s.param.obj == "References":
             self.references.append((self._period, s.param.name, float(s.value)))
 
@@ -303,14 +308,18 @@ class Session:
         self.plant_values["Vdc_V"] = plant.sdo["Inverter"]["Vdc_V"].raw
         # The controller starts from the plant's true values; the scenario's mismatch follows.
         ctl = drive.sdo["Controller"]
-        ctl["Ts_s"].raw = self.plant_values["Ts_s"]
-        ctl["pole_pairs"].raw = self.plant_values["pole_pairs"]
         for hat, true in (("R_hat_ohm", "R_ohm"), ("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H"), ("psi_hat_Wb", "psi_Wb"),
                           ("J_hat_kgm2", "J_kgm2")):
-            ctl[hat].raw = self.plant_values[true]
+            self._write(ctl[hat], self.plant_values[true], f"controller.{hat}")
+        explicit = {s.key for s in sc.settings}
         for s in sc.settings:
             if s.param is None or s.param.node == "drive":
                 self._apply(s)
+        # The controller runs at the plant's period with its pole pairs, unless the scenario says otherwise;
+        # written after the scenario's bandwidths, which the drive checks against Ts.
+        for name in ("Ts_s", "pole_pairs"):
+            if f"controller.{name}" not in explicit:
+                self._write(ctl[name], self.plant_values[name], f"controller.{name} (= the plant's {name})")
         for e in sc.events:
             if e.at_period == 0:
                 for s in e.settings:

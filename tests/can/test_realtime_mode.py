@@ -18,7 +18,10 @@ def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
     raw = {"scenario": {"name": "realtime-slow", "periods": PERIODS, "timing": "realtime"},
            "motor": {"preset": "you2019", "mech_mode": "locked"},
            "drive": {"Ts_s": TS_S, "t_dead_s": 0.0, "encoder_lines": 0},
-           "controller": {"controller": "deadbeat_you2019"},
+           # bandwidths the drive accepts at a 4 ms period (it refuses those beyond its sampling limits)
+           # (position before speed: the drive keeps position bandwidth < speed bandwidth at every write)
+           "controller": {"controller": "deadbeat_you2019", "estimator_bandwidth_Hz": 50.0, "pi_bandwidth_Hz": 20.0,
+                          "position_bandwidth_Hz": 0.5, "speed_bandwidth_Hz": 3.0},
            "events": [{"at_period": 50, "references": {"iq_ref_A": 1.0}}]}
     run = run_raw(raw, vcan0)
     frames = np.load(run.out / "frames.npy")
