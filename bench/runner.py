@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import shutil
 import signal
+import struct
 import subprocess
 import tempfile
 import threading
@@ -33,6 +34,7 @@ from .nodes import NodeProcess, in_vm
 from .scenario import Scenario, Setting
 
 PROGRESS = Callable[[int, int], None]
+HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 DIRECT_CHUNK = 50_000
 
 
@@ -178,11 +180,12 @@ class Session:
         self.plant = canopen.RemoteNode(opts.plant_id, str(eds_path("plant")))
         self.drive = canopen.RemoteNode(opts.drive_id, str(eds_path("drive")))
         self.plant_values: dict[str, float] = {}
+        self.kernel_filters: list[dict[str, int]] | None = None
         self.references: list[tuple[int, str, float]] = []
         self.applied: list[tuple[int, str, float]] = []  # every setting with the period it took effect
-        self._rate = 0.0    # lockstep periods per second seen so far (bus runs)
-        self._done = 0
-        self._busy_s = 0.0
+        self._hold = threading.Event()
+        self._hold_index = -1
+        self._hold_cob = 0
 
     # ---------------------------------------------------------------- bus
     def open(self) -> None:
@@ -206,8 +209,10 @@ class Session:
             filters = [{"can_id": 0x580 + i, "can_mask": 0x7FF} for i in ids]
             filters += [{"can_id": 0x080 + i, "can_mask": 0x7FF} for i in ids]
             filters.append({"can_id": 0x700, "can_mask": 0x780})
-            kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus,
-                                         "can_filters": filters}
+            self.kernel_filters = filters if self.opts.interface == "socketcan" else None
+            kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus}
+            if self.kernel_filters is not None:
+                kwargs["can_filters"] = filters
             if self.opts.bitrate:
                 kwargs["bitrate"] = self.opts.bitrate
             if self.opts.fd:
@@ -344,6 +349,16 @@ class Session:
         m.cob_id = drive.tpdo[1].cob_id
         m.enabled = True
         m.save()
+        # The plant's hold announcement: an event-driven TPDO carrying the run state, sent once when the
+        # plant holds with the last command in (plant_app.c). The master waits for it instead of polling.
+        m = plant.tpdo[HOLD_TPDO]
+        m.clear()
+        m.add_variable("Run control", "period_index")
+        m.add_variable("Run control", "state")
+        m.trans_type = 254
+        m.enabled = True
+        m.save()
+        self._hold_cob = m.cob_id
         for num, signals in self.sc.trace.items():
             m = drive.tpdo[num]
             m.clear()
@@ -355,8 +370,15 @@ class Session:
             m.save()
 
     # ---------------------------------------------------------------- run
+    def _on_hold(self, cob_id: int, data: bytearray, ts: float) -> None:
+        index, state = struct.unpack_from("<IB", bytes(data))
+        if state == 0:
+            self._hold_index = index
+            self._hold.set()
+
     def _run_segment(self, n: int, target_index: int) -> None:
         rc = self.plant.sdo["Run control"]
+        self._hold.clear()
         rc["run_periods"].raw = n
         if self.hil is not None:
             ran = 0
@@ -371,22 +393,25 @@ class Session:
         t0 = time.monotonic()
         deadline = t0 + 30 + n * 0.01
         index = -1
-        # Do not load the bus and the CPUs with SDO polls while the loop runs: wait for most of the
-        # expected duration first (rate measured on the previous segments).
-        if self._rate > 0:
-            time.sleep(min(0.9 * n / self._rate, 60.0))
         while time.monotonic() < deadline:
+            # the hold announcement (no bus load, no CPU while the loop runs) ...
+            if self._hold.wait(timeout=min(2.0, max(0.05, deadline - time.monotonic()))) \
+                    and self._hold_index >= target_index:
+                self._hold.clear()
+                return
+            self._hold.clear()
+            # ... and, should it be missed, the same information by SDO
             index = rc["period_index"].raw
             if index >= target_index and rc["state"].raw == 0:
-                self._done += n
-                self._busy_s += time.monotonic() - t0
-                self._rate = self._done / self._busy_s
                 return
-            time.sleep(0.02)
         raise RuntimeError(f"the plant did not reach period {target_index} in time (at {index})")
 
     def run(self, progress: PROGRESS | None = None) -> float:
         sc = self.sc
+        if self.hil is None:
+            self.net.subscribe(self._hold_cob, self._on_hold)
+            if self.kernel_filters is not None:
+                self.net.bus.set_filters([*self.kernel_filters, {"can_id": self._hold_cob, "can_mask": 0x7FF}])
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x01)
         bounds = [p for p in sc.event_periods() if p > 0] + [sc.periods]

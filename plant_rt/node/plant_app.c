@@ -411,7 +411,8 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     M.x2005_plant_state.energy_in_J = (float)app->state.energy.in_J;
 
     M.x2003_run_control.period_index = (uint32_t)app->k;
-    M.x2003_run_control.state = plant_app_running(app) ? 1u : 0u;
+    /* Still running until the command for this sample is in (see plant_app_poll). */
+    M.x2003_run_control.state = 1u;
 }
 
 static void hook_on_nmt(void *user, co_node_t *node, co_nmt_state_t st)
@@ -465,9 +466,21 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
     if (!app->node) return -1;
     scan_arrivals(app);
     bool run = plant_app_running(app);
-    M.x2003_run_control.state = run ? 1u : 0u;
     if (!run) {
-        app->paused = true;
+        /* Holding (run_periods exhausted) or not operational. The hold is announced only once the
+         * command for the last sample is in (or timed out): a master that changes parameters on the
+         * hold then changes them exactly between two periods. The announcement: 0x2003:09 = 0 and
+         * every event-driven TPDO is sent once (map 0x2003 period_index/state into one to be told). */
+        int64_t timeout = (int64_t)M.x2003_run_control.command_timeout_us;
+        int64_t waited = now_us - app->wait_start_us;
+        bool settled = app->node->nmt != CO_NMT_OPERATIONAL || !app->started || app->cmd_ready ||
+                       app->paused || waited >= timeout;
+        app->paused = settled;
+        if (!settled) return timeout - waited;
+        if (M.x2003_run_control.state != 0u) {
+            M.x2003_run_control.state = 0u;
+            for (uint8_t n = 0; n < CO_NUM_PDO; ++n) co_tpdo_request(app->node, n);
+        }
         return -1;
     }
     if (M.x2003_run_control.mode == 1u) return -1; /* real time: the transport ticks */

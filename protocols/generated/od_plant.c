@@ -388,13 +388,13 @@ static const co_od_entry_t entries[] = {
     {0x2003u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.highest_sub_index_supported), &OD_PLANT.mfr.x2003_run_control.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2003u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.mode), &OD_PLANT.mfr.x2003_run_control.mode, {.i = 0}, {.i = 1}}, /* mode */
     {0x2003u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.mfr.x2003_run_control.run_periods), &OD_PLANT.mfr.x2003_run_control.run_periods, {.i = 0}, {.i = 0}}, /* run_periods */
-    {0x2003u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.period_index), &OD_PLANT.mfr.x2003_run_control.period_index, {.i = 0}, {.i = 0}}, /* period_index */
+    {0x2003u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2003_run_control.period_index), &OD_PLANT.mfr.x2003_run_control.period_index, {.i = 0}, {.i = 0}}, /* period_index */
     {0x2003u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.command_timeout_us), &OD_PLANT.mfr.x2003_run_control.command_timeout_us, {.i = 1}, {.i = 60000000}}, /* command_timeout_us */
     {0x2003u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.missed_commands), &OD_PLANT.mfr.x2003_run_control.missed_commands, {.i = 0}, {.i = 0}}, /* missed_commands */
     {0x2003u, 0x06u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.late_commands), &OD_PLANT.mfr.x2003_run_control.late_commands, {.i = 0}, {.i = 0}}, /* late_commands */
     {0x2003u, 0x07u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.trip_clear), &OD_PLANT.mfr.x2003_run_control.trip_clear, {.i = 0}, {.i = 1}}, /* trip_clear */
     {0x2003u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.trip_active), &OD_PLANT.mfr.x2003_run_control.trip_active, {.i = 0}, {.i = 0}}, /* trip_active */
-    {0x2003u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.state), &OD_PLANT.mfr.x2003_run_control.state, {.i = 0}, {.i = 0}}, /* state */
+    {0x2003u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2003_run_control.state), &OD_PLANT.mfr.x2003_run_control.state, {.i = 0}, {.i = 0}}, /* state */
     {0x2003u, 0x0Au, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.sync_overruns), &OD_PLANT.mfr.x2003_run_control.sync_overruns, {.i = 0}, {.i = 0}}, /* sync_overruns */
     {0x2003u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.max_sync_lateness_us), &OD_PLANT.mfr.x2003_run_control.max_sync_lateness_us, {.i = 0}, {.i = 0}}, /* max_sync_lateness_us */
     {0x2004u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_PLANT.mfr.x2004_motor_preset, {.i = 0}, {.i = 0}}, /* Motor preset */

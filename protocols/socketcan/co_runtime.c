@@ -85,6 +85,7 @@ int co_runtime_run(co_runtime_t *rt)
             fprintf(stderr, "CAN receive failed\n");
             return 1;
         }
+        if (r == 1) co_runtime_drain(rt); /* the rest of the burst, without waiting */
         now = co_socketcan_now_us();
         co_node_tick(&rt->node, now);
         if (rt->app && rt->app->poll) {

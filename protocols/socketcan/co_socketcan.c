@@ -76,12 +76,6 @@ int co_socketcan_send(void *user, const co_frame_t *frame)
 
 int co_socketcan_recv(int fd, co_frame_t *frame, int64_t timeout_us, int64_t *ts_ns)
 {
-    struct pollfd p = {.fd = fd, .events = POLLIN, .revents = 0};
-    /* ppoll: microsecond timeouts (poll() would round up to whole milliseconds). */
-    struct timespec ts = {(time_t)(timeout_us / 1000000), (long)(timeout_us % 1000000) * 1000L};
-    int r = ppoll(&p, 1, timeout_us < 0 ? NULL : &ts, NULL);
-    if (r == 0) return 0;
-    if (r < 0) return errno == EINTR ? 0 : -1;
     struct can_frame cf;
     char ctrl[CMSG_SPACE(sizeof(struct timeval))];
     struct iovec iov = {.iov_base = &cf, .iov_len = sizeof cf};
@@ -91,7 +85,21 @@ int co_socketcan_recv(int fd, co_frame_t *frame, int64_t timeout_us, int64_t *ts
     msg.msg_iovlen = 1;
     msg.msg_control = ctrl;
     msg.msg_controllen = sizeof ctrl;
-    ssize_t n = recvmsg(fd, &msg, 0);
+    /* Frames come in bursts (SYNC + measurements): try a non-blocking read first and only
+     * wait (ppoll, microsecond timeout) when nothing is queued. Each system call counts
+     * under emulation. */
+    ssize_t n = recvmsg(fd, &msg, MSG_DONTWAIT);
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+        if (timeout_us == 0) return 0;
+        struct pollfd p = {.fd = fd, .events = POLLIN, .revents = 0};
+        struct timespec ts = {(time_t)(timeout_us / 1000000), (long)(timeout_us % 1000000) * 1000L};
+        int r = ppoll(&p, 1, timeout_us < 0 ? NULL : &ts, NULL);
+        if (r == 0) return 0;
+        if (r < 0) return errno == EINTR ? 0 : -1;
+        msg.msg_controllen = sizeof ctrl;
+        n = recvmsg(fd, &msg, MSG_DONTWAIT);
+        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) return 0;
+    }
     if (n < (ssize_t)sizeof cf) return n < 0 && errno == EINTR ? 0 : -1;
     if (cf.can_id & (CAN_ERR_FLAG | CAN_EFF_FLAG)) return 0; /* only 11-bit CANopen frames */
     frame->cob_id = cf.can_id & CAN_SFF_MASK;
