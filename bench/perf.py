@@ -380,29 +380,25 @@ def _floor(iface: str, periods: int, extra: int, record: Path | None) -> dict[st
     return res
 
 
-def _vm_capture(sc: Any, iface: str, tmp: Path, keep: Path) -> dict[str, Any]:
-    """bench.runner.capture over vcan; candump's log is kept raw (decoded on the host)."""
-    import numpy as np
-
+def _vm_capture(sc: Any, iface: str, tmp: Path, keep: Path | None, record: bool = True) -> dict[str, Any]:
+    """bench.runner.capture over vcan; candump's log is kept raw (decoded on the host: decoding it
+    with python-can inside the VM would take minutes). record=False: no recorder at all."""
     from . import runner
-    from .direct import FRAME_DTYPE
 
-    # Decoding the candump log with python-can inside the VM would take minutes:
-    # leave it to the host (the log and layout are copied to `keep`).
-    runner.frames_from_log = lambda path: np.zeros(0, dtype=FRAME_DTYPE)  # type: ignore[assignment]
     out = tmp / sc.name
     if out.exists():
         shutil.rmtree(out)
     t0 = time.monotonic()
-    cap = runner.capture(sc, runner.RunOptions(bus=iface, out=out))
+    cap = runner.capture(sc, runner.RunOptions(bus=iface, out=out, record=record, decode_log=False))
     wall = time.monotonic() - t0
-    keep.mkdir(parents=True, exist_ok=True)
-    for name in ("candump.log", "layout.json", "capture.json"):
-        shutil.copyfile(out / name, keep / name)
+    if keep is not None:
+        keep.mkdir(parents=True, exist_ok=True)
+        for name in ("candump.log", "layout.json", "capture.json"):
+            shutil.copyfile(out / name, keep / name)
     shutil.rmtree(out, ignore_errors=True)
     return {"periods": cap.periods, "run_wall_s": cap.run_wall_s, "wall_s": wall,
             "periods_per_s": cap.periods / cap.run_wall_s if cap.run_wall_s > 0 else None,
-            "counters": cap.counters, "dir": str(keep.relative_to(REPO))}
+            "counters": cap.counters, "dir": str(keep.relative_to(REPO)) if keep else None}
 
 
 def inside_vm(args: argparse.Namespace) -> int:
@@ -430,6 +426,7 @@ def inside_vm(args: argparse.Namespace) -> int:
     base = scn.load(REPO / "scenarios" / "you2019_step.toml")
     base.periods = n
     step("lockstep", lambda: _vm_capture(base, iface, tmp, PERF_DIR / "vm_lockstep"))
+    step("lockstep_unrecorded", lambda: _vm_capture(base, iface, tmp, None, record=False))
     rate = (res["lockstep"].get("periods_per_s") or 0) if isinstance(res.get("lockstep"), dict) else 0
     long_n = int(min(TARGET_LONG_PERIODS, max(n, rate * args.long_budget_s)) // 1000 * 1000)
     res["long_choice"] = {"periods": long_n, "budget_s": args.long_budget_s, "measured_rate": rate,
@@ -654,6 +651,12 @@ def format_report(r: dict[str, Any]) -> str:
             L.append(f"  real loop (bench.runner.capture, {lock['periods']} periods): {lock['periods_per_s']:.0f} periods/s "
                      f"(run_wall_s {lock['run_wall_s']:.2f}; missed commands "
                      f"{lock['counters'].get('plant_missed_commands')})")
+        unrec = v.get("lockstep_unrecorded", {})
+        if unrec and "error" not in unrec:
+            fl6 = v.get("floor_6", {}).get("periods_per_s")
+            ratio_u = unrec["periods_per_s"] / fl6 if fl6 else None
+            L.append(f"  real loop without the recorder:            {unrec['periods_per_s']:8.0f} periods/s"
+                     + (f"; / floor of the same 6 frames {ratio_u:.2f}" if ratio_u else ""))
         for key, label in (("floor_4", "floor, 4 frames (SYNC, 2 meas, cmd)"),
                            ("floor_6", "floor, 6 frames (+2 drive trace PDOs)"),
                            ("floor_6_recorded", "floor, 6 frames + candump recorder")):

@@ -50,6 +50,8 @@ class RunOptions:
     start_plant: bool = True       # start the C plant process (False: a physical plant/drive is on the bus)
     start_drive: bool = True       # start the C drive process (False: a physical drive implements drive.eds)
     out: Path = Path("runs/latest")
+    record: bool = True            # record every frame (candump / in-process); off only for benchmarks
+    decode_log: bool = True        # decode the recorder's log into frames.npy at the end (the VM leaves it to the host)
 
 
 @dataclass
@@ -77,8 +79,9 @@ class Recorder:
     slow for a frame per line) and copied in blocks to `path` every half second, so that a
     live view on the host can follow it; elsewhere candump writes `path` directly."""
 
-    def __init__(self, iface: str, path: Path) -> None:
+    def __init__(self, iface: str, path: Path, decode: bool = True) -> None:
         self.path = path
+        self.decode = decode
         exe = shutil.which("candump")
         if exe is None:
             raise RuntimeError("candump not found: apt-get install can-utils")
@@ -126,7 +129,7 @@ class Recorder:
         except subprocess.TimeoutExpired:
             self.proc.kill()
         self._fh.close()
-        frames = frames_from_log(self.local)
+        frames = frames_from_log(self.local) if self.decode else np.zeros(0, dtype=FRAME_DTYPE)
         if self._copier is not None:
             self._stop.set()
             self._copier.join(timeout=60)
@@ -195,7 +198,8 @@ class Session:
             self.hil.start_recorder(self.sc.periods * 8 + 20000)
             self.net.bus = DirectBus(self.hil)
         else:
-            self.recorder = Recorder(self.opts.bus, out / "candump.log") if self.opts.interface == "socketcan" else None
+            self.recorder = (Recorder(self.opts.bus, out / "candump.log", self.opts.decode_log)
+                             if self.opts.interface == "socketcan" and self.opts.record else None)
             if self.opts.start_plant:
                 self.procs.append(NodeProcess("plant_node", ["--iface", self.opts.bus, "--node-id",
                                                              str(self.opts.plant_id)], out / "plant_node.out").start())
@@ -221,7 +225,7 @@ class Session:
                     kwargs["data_bitrate"] = self.opts.data_bitrate
             self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
         self.net.connect()
-        if self.hil is None and self.recorder is None:
+        if self.hil is None and self.recorder is None and self.opts.record:
             # Not SocketCAN (a USB adapter, a log replay interface ...): record in this process.
             self.py_recorder: list[can.Message] = []
             self.net.notifier.add_listener(_ListRecorder(self.py_recorder))
