@@ -25,3 +25,12 @@ def test_inductance_mismatch_over_vcan(vcan0: str) -> None:
 
 def test_tuning_over_vcan(vcan0: str) -> None:
     _check(y.claim_tuning(vcan0))
+
+
+def test_identification_accuracy_over_vcan(vcan0: str) -> None:
+    _check(y.claim_identification_accuracy(vcan0))
+
+
+def test_frequency_response_over_vcan(vcan0: str) -> None:
+    """A sine reference written every period (lockstep events), through the real loop."""
+    _check(y.claim_frequency_response(vcan0, freqs_Hz=(1000.0, 4545.45), periods_per_freq=100))
