@@ -19,6 +19,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -120,6 +121,9 @@ def _guest_script(cmd: list[str], cwd: Path, status_file: Path, interfaces: tupl
         f"cd {shlex.quote(str(cwd))} || exit 92",
         " ".join(shlex.quote(c) for c in cmd),
         f"echo $? > {shlex.quote(str(status_file))}",
+        # Whatever the command left running in the background must not keep the VM alive.
+        "sync",
+        "(poweroff -f || echo o > /proc/sysrq-trigger) >/dev/null 2>&1",
         "",
     ])
 
@@ -160,32 +164,44 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     env = dict(os.environ)
     env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])
     out = stdout if stdout is not None else sys.stdout
-    timed_out = False
     # QEMU reopens its stdout: give it a pipe (never a file) and an open stdin.
     with subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                           stderr=subprocess.STDOUT, env=env, start_new_session=True) as proc:
         assert proc.stdout is not None
         deadline = time.monotonic() + opts.timeout_s
+        expired = threading.Event()
+
+        def _expire() -> None:  # enforced even when the guest prints nothing
+            expired.set()
+            try:
+                os.killpg(proc.pid, 15)
+            except ProcessLookupError:
+                pass
+
+        watchdog = threading.Timer(opts.timeout_s, _expire)
+        watchdog.daemon = True
+        watchdog.start()
         try:
             for raw in iter(proc.stdout.readline, b""):
                 out.write(raw.decode(errors="replace"))  # type: ignore[attr-defined]
                 out.flush()  # type: ignore[attr-defined]
-                if time.monotonic() > deadline:
-                    timed_out = True
-                    break
-            if timed_out:
+            if expired.is_set():
                 raise subprocess.TimeoutExpired(argv, opts.timeout_s)
             proc.wait(timeout=max(1.0, deadline - time.monotonic()))
         except (subprocess.TimeoutExpired, KeyboardInterrupt) as exc:
-            os.killpg(proc.pid, 15)
+            watchdog.cancel()
             try:
+                os.killpg(proc.pid, 15)
                 proc.wait(timeout=10)
+            except ProcessLookupError:
+                pass
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, 9)
             if isinstance(exc, KeyboardInterrupt):
                 raise
             sys.stderr.write(f"bench vm: timed out after {opts.timeout_s:.0f} s\n")
             return 124
+    watchdog.cancel()
     if not status_file.exists():
         sys.stderr.write("bench vm: the guest ended without reporting the command's status "
                          "(killed by a signal, or the guest kernel failed); see the output above\n")

@@ -44,3 +44,15 @@ def test_vm_returns_the_command_status() -> None:
     assert ok.returncode == 0, ok.stdout + ok.stderr
     bad = run("vm", "--", "sh", "-c", "exit 3", timeout=600)
     assert bad.returncode == 3, bad.stdout + bad.stderr
+
+
+def test_vm_does_not_wait_for_background_processes() -> None:
+    """A command that leaves a process running in the guest still returns (the VM powers off)."""
+    res = run("vm", "--", "sh", "-c", "sleep 100000 & exit 4", timeout=600)
+    assert res.returncode == 4, res.stdout + res.stderr
+
+
+def test_vm_timeout_is_enforced_without_output() -> None:
+    res = run("vm", "--timeout", "40", "--", "sleep", "100000", timeout=600)
+    assert res.returncode == 124, res.stdout + res.stderr
+    assert "timed out" in res.stderr
