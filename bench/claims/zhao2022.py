@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from . import ClaimResult, run_raw
+from . import ClaimResult, traced, run_raw
 
 PAPER = "Zhao 2022"
 R, L, TS, PP = 48.9, 14e-3, 100e-6, 5
@@ -224,4 +224,77 @@ def claim_phase_lag(bus: str, f_Hz: float = 95.5, amplitude_A: float = 0.05, cyc
         bench_ok=bool(ok_model), details={"model_ok": bool(ok_model)})
 
 
-ALL = [claim_stability_boundary, claim_flux_independence, claim_phase_lag]
+SPEED_PDOS = {3: ("Drive status.speed_rad_s", "Drive status.iq_ref_active_A")}
+DEG = math.pi / 180.0
+
+
+def _speed_raw(name: str, law: str, events: list[dict[str, Any]], periods: int) -> dict[str, Any]:
+    """Free rotor, speed mode, the same speed PI for both laws (Sec. 5: 'the parameters of the PI
+    controller in all experiments are the same')."""
+    return base(name, periods, law, locked=False,
+                motor={"mech_mode": "free"},
+                controller={"speed_loop_divider": 1, "position_bandwidth_Hz": 5.0, "speed_bandwidth_Hz": 300.0,
+                            "iq_limit_A": 0.3},
+                references={"mode": 1}, events=events)
+
+
+def _speed_lag(tr: dict[str, np.ndarray], ref: np.ndarray, f_Hz: float, start: int) -> tuple[float, float]:
+    """(phase lag deg, gain) of the drive's speed estimate against the reference at f, least squares."""
+    n = np.arange(len(ref))[start:]
+    w = 2 * math.pi * f_Hz * TS
+    basis = np.column_stack([np.sin(w * n), np.cos(w * n)])
+    y = tr["drive_speed_rad_s"][start:]
+    ok = np.isfinite(y)
+    cy = np.linalg.lstsq(basis[ok], y[ok], rcond=None)[0]
+    cr = np.linalg.lstsq(basis, ref[start:], rcond=None)[0]
+    lag = -math.degrees(math.atan2(cy[1], cy[0]) - math.atan2(cr[1], cr[0]))
+    return (lag + 180.0) % 360.0 - 180.0, float(np.hypot(*cy) / np.hypot(*cr))
+
+
+def claim_speed_tracking(bus: str, f_Hz: float = 95.5, amplitude_deg_s: float = 197.72, cycles: int = 4) -> ClaimResult:
+    """Fig. 4-11: speed PI + each current law; sine speed reference 95.5 Hz, 197.72 deg/s; then a speed step to
+    367.72 deg/s at 0.01 s and the rated load (0.0296 N m) at 0.03 s."""
+    per_cycle = 1.0 / (f_Hz * TS)
+    start = 50
+    periods = start + int(cycles * per_cycle) + 2
+    amp = amplitude_deg_s * DEG
+    ref = np.zeros(periods)
+    events = []
+    for k in range(start, periods):
+        ref[k] = amp * math.sin(2 * math.pi * f_Hz * (k - start) * TS)
+        events.append({"at_period": k, "references": {"speed_ref_rad_s": float(ref[k])}})
+    step_events = [{"at_period": 100, "references": {"speed_ref_rad_s": 367.72 * DEG}},
+                   {"at_period": 300, "motor": {"T_load_Nm": 0.0296}}]
+    rows = {}
+    with traced(SPEED_PDOS):
+        for law in ("incremental_zhao2022", "predictive_zhao2022"):
+            sine = run_raw(_speed_raw(f"zhao2022-speed-sine-{law}", law, events, periods), bus)
+            lag, gain = _speed_lag(sine.tr, ref, f_Hz, start + int(per_cycle))
+            step = run_raw(_speed_raw(f"zhao2022-speed-step-{law}", law, step_events, 500), bus)
+            w = step.tr["drive_speed_rad_s"]
+            target = 367.72 * DEG
+            before_load = float(np.nanmean(w[280:300]))
+            dip = float(target - np.nanmin(w[300:400]))
+            after = float(np.nanmean(w[460:499]))
+            rows[law] = {"sine_lag_deg": lag, "sine_gain": gain, "speed_before_load_rad_s": before_load,
+                         "load_dip_rad_s": dip, "speed_after_load_rad_s": after, "target_rad_s": target}
+    inc, eul = rows["incremental_zhao2022"], rows["predictive_zhao2022"]
+    tracks = all(abs(r["speed_after_load_rad_s"] - r["target_rad_s"]) < 0.05 * r["target_rad_s"] for r in rows.values())
+    return ClaimResult(
+        PAPER, "zhao2022-8s", "Fig. 4-11, Sec. 5.1",
+        "with the same speed PI, both current laws track a 95.5 Hz, 197.72 deg/s sine speed reference and reject the "
+        "rated load step; the system with the improved (incremental) law tracks better",
+        {"incremental": "better tracking", "conventional": "phase deviation"}, rows,
+        "reproduced if both recover the speed after the load (within 5 %) and the incremental law's sine phase lag "
+        "is visibly smaller (by 1 deg or more) than the conventional law's; bench check: both track and recover",
+        bool(tracks and inc["sine_lag_deg"] <= eul["sine_lag_deg"] - 1.0),
+        bench_ok=bool(tracks),
+        why_differs=f"Both laws track the sine and reject the load; their speed phase lags differ by "
+                    f"{abs(inc['sine_lag_deg'] - eul['sine_lag_deg']):.2f} deg only "
+                    f"({inc['sine_lag_deg']:.2f} vs {eul['sine_lag_deg']:.2f} deg): the speed loop (a 300 Hz PI at "
+                    "the current rate, the bench's design: the paper gives no gains) hides the difference between "
+                    "the current loops, whose own lags at 95.5 Hz are 6.88 and 5.28 deg (zhao2022-8). The speed is "
+                    "the drive's own estimate (angle difference per period).")
+
+
+ALL = [claim_stability_boundary, claim_flux_independence, claim_phase_lag, claim_speed_tracking]

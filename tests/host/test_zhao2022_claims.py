@@ -45,3 +45,17 @@ def test_polynomials_reduce_to_the_paper() -> None:
     assert abs(z.poly_boundary(z.q_paper) - 0.75) < 1e-9
     assert z.radius(z.q_incremental(z.R, z.L, z.R, z.L)) < 1
     assert z.radius(z.q_incremental(z.R, z.L, z.R, z.L / 0.69)) > 1
+
+
+def test_speed_tracking_with_both_laws() -> None:
+    """Fig. 4-11: speed PI + each current law track the sine and reject the rated load."""
+    r = z.claim_speed_tracking("direct")
+    print(r.bench_value)
+    assert r.ok, r.bench_value
+    for law in ("incremental_zhao2022", "predictive_zhao2022"):
+        v = r.bench_value[law]
+        assert 0.8 < v["sine_gain"] < 1.5 and 0 < v["sine_lag_deg"] < 45
+        assert v["load_dip_rad_s"] > 0  # the load shows ...
+        assert abs(v["speed_after_load_rad_s"] - v["target_rad_s"]) < 0.05 * v["target_rad_s"]  # ... and is rejected
+    if r.verdict == "differs":
+        assert "hides the difference" in r.why_differs
