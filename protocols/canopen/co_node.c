@@ -191,13 +191,12 @@ uint32_t co_node_sdo_write(co_node_t *node, const co_od_entry_t *e, const uint8_
         if (co_od_get_u32(node->od, IDX_CYCLE_PERIOD, 0) != 0u) return CO_ABORT_DATA_STATE;
         if (data[0] == 1u) return CO_ABORT_INVALID_VALUE;
     }
-    if (e->index == IDX_SYNC_COBID) {
+    if (e->index == IDX_SYNC_COBID || e->index == IDX_EMCY_COBID) {
         uint32_t v = (uint32_t)data[0] | (uint32_t)data[1] << 8 | (uint32_t)data[2] << 16 | (uint32_t)data[3] << 24;
         if (v & 0x20000000u) return CO_ABORT_INVALID_VALUE; /* 29-bit identifiers not supported */
-    }
-    if (e->index == IDX_EMCY_COBID) {
-        uint32_t v = (uint32_t)data[0] | (uint32_t)data[1] << 8 | (uint32_t)data[2] << 16 | (uint32_t)data[3] << 24;
-        if (v & 0x20000000u) return CO_ABORT_INVALID_VALUE;
+        /* EMCY: bit 31 = not valid; SYNC: bit 30 = producer. A used identifier must not be restricted. */
+        int used = e->index == IDX_SYNC_COBID ? 1 : !(v & 0x80000000u);
+        if (used && co_cob_restricted(v)) return CO_ABORT_INVALID_VALUE;
     }
     abort = co_pdo_check_write(node, e, data, len);
     if (abort) return abort;

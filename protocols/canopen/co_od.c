@@ -3,6 +3,14 @@
 
 #include <string.h>
 
+int co_cob_restricted(uint32_t cob_id)
+{
+    uint32_t id = cob_id & 0x7FFu;
+    return id == 0u || (id >= 0x001u && id <= 0x07Fu) || (id >= 0x101u && id <= 0x180u) ||
+           (id >= 0x581u && id <= 0x5FFu) || (id >= 0x601u && id <= 0x67Fu) || (id >= 0x6E0u && id <= 0x6FFu) ||
+           (id >= 0x701u && id <= 0x77Fu) || (id >= 0x780u && id <= 0x7FFu);
+}
+
 uint32_t co_dt_size(uint8_t datatype)
 {
     switch (datatype) {

@@ -112,6 +112,10 @@ void co_od_set_u32(const co_od_t *od, uint16_t index, uint8_t sub, uint32_t valu
  * relative defaults get `node_id` added. */
 void co_od_reset(const co_od_t *od, uint8_t node_id, int communication_only);
 
+/* CiA 301 restricted CAN-IDs (NMT, SDO, NMT error control, LSS ...): never usable as a
+ * SYNC, EMCY or PDO identifier. */
+int co_cob_restricted(uint32_t cob_id);
+
 /* Size in bytes of a fixed-size data type (0 for strings and domains). */
 uint32_t co_dt_size(uint8_t datatype);
 

@@ -104,10 +104,8 @@ uint32_t co_pdo_check_write(co_node_t *node, const co_od_entry_t *e, const uint8
             /* While the PDO exists only the valid bit may change (CiA 301 7.5.2.35). */
             if (pdo_valid && !(v & COB_INVALID) && ((v ^ cob) & 0x7FFu)) return CO_ABORT_INVALID_VALUE;
             if (!(v & COB_INVALID)) {
-                uint16_t id = (uint16_t)(v & 0x7FFu);
-                /* Reserved identifiers (NMT, SYNC/EMCY range 0x80, SDO, NMT error control). */
-                if (id == 0u || (id >= 0x581u && id <= 0x5FFu) || (id >= 0x601u && id <= 0x67Fu) ||
-                    (id >= 0x701u && id <= 0x77Fu) || id == 0x80u)
+                /* Restricted identifiers (CiA 301) and the SYNC identifier. */
+                if (co_cob_restricted(v) || (v & 0x7FFu) == (node->c_sync_cob & 0x7FFu))
                     return CO_ABORT_INVALID_VALUE;
                 if (co_od_get_u32(node->od, mapi, 0) == 0u) return 0; /* valid but empty: allowed, sends nothing */
             }

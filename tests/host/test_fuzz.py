@@ -29,6 +29,17 @@ def _seed_corpus() -> list[bytes]:
     return seeds
 
 
+def test_past_findings_stay_fixed() -> None:
+    """Each input the fuzzer once found is run alone: it must pass now."""
+    build = subprocess.run(["make", "-s", "-C", str(REPO), "fuzz"], capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stderr
+    regs = sorted((REPO / "protocols" / "fuzz" / "regressions").glob("*"))
+    assert regs
+    res = subprocess.run([str(BUILD / "fuzz" / "fuzz_slave"), *map(str, regs)], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+
+
 def test_fuzz_slave_bounded_run_is_clean() -> None:
     build = subprocess.run(["make", "-s", "-C", str(REPO), "fuzz"], capture_output=True, text=True, timeout=600)
     assert build.returncode == 0, build.stderr
@@ -37,6 +48,9 @@ def test_fuzz_slave_bounded_run_is_clean() -> None:
     corpus.mkdir(parents=True)
     for i, seed in enumerate(_seed_corpus()):
         (corpus / f"seed{i:02d}").write_bytes(seed)
+    # Inputs of past findings stay in the corpus (and are re-run first).
+    for reg in sorted((REPO / "protocols" / "fuzz" / "regressions").glob("*")):
+        shutil.copy(reg, corpus / f"regression-{reg.name}")
     artifacts = BUILD / "fuzz" / "artifacts"
     shutil.rmtree(artifacts, ignore_errors=True)
     artifacts.mkdir()

@@ -113,6 +113,10 @@ def drive_vector(name: str, net: canopen.Network, node: canopen.RemoteNode) -> N
             == 0x06070012
     elif name == "sdo_segmented_upload_string":
         assert node.sdo["Manufacturer device name"].raw == od["Manufacturer device name"].default
+    elif name == "sdo_abort_restricted_sync_cobid":
+        def write() -> None:
+            node.sdo["COB-ID SYNC message"].raw = node.sdo.rx_cobid  # 0x600 + node-ID
+        assert _abort(node, write) == 0x06090030
     elif name == "nmt_start_and_rpdo_references":
         node.nmt.send_command(0x01)
         node.rpdo.read(from_od=True)
