@@ -11,15 +11,7 @@
 #include "dpcc_yao2020.h"
 #include "yao2020_plant.h"
 
-static int g_fail = 0;
-#define CHECK(cond, ...)            \
-  do {                              \
-    if (!(cond)) {                  \
-      printf("FAIL: " __VA_ARGS__); \
-      printf("\n");                 \
-      g_fail = 1;                   \
-    }                               \
-  } while (0)
+#include "test_check.h"
 
 #define IQ0 10.0
 static const double T = 100e-6;

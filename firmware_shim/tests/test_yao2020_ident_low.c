@@ -16,15 +16,7 @@
 #include "dpcc_yao2020.h"
 #include "yao2020_plant.h"
 
-static int g_fail = 0;
-#define CHECK(cond, ...)            \
-  do {                              \
-    if (!(cond)) {                  \
-      printf("FAIL: " __VA_ARGS__); \
-      printf("\n");                 \
-      g_fail = 1;                   \
-    }                               \
-  } while (0)
+#include "test_check.h"
 
 #define IQ0 4.0
 /* step sizes small enough that Vmax = 300/sqrt(3) V is never reached (the

@@ -8,15 +8,7 @@
 #include "dpcc_yao2020.h"
 #include "yao2020_plant.h"
 
-static int g_fail = 0;
-#define CHECK(cond, ...)                 \
-  do {                                   \
-    if (!(cond)) {                       \
-      printf("FAIL: " __VA_ARGS__);      \
-      printf("\n");                      \
-      g_fail = 1;                        \
-    }                                    \
-  } while (0)
+#include "test_check.h"
 
 /* (a) one period of Eq. 7 vs RK4 */
 static void check_model(const char *name, yplant_t *pl, double w, double iscale,

@@ -3,21 +3,11 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "plant_test_util.h"
 #include "plant_testbus.h"
 #include "presets.h"
 
 static tb_t g_tb;
-static int g_fail;
-
-#define CHECK(c, ...)                                              \
-    do {                                                           \
-        if (!(c)) {                                                \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);            \
-            printf(__VA_ARGS__);                                   \
-            printf("\n");                                          \
-            g_fail = 1;                                            \
-        }                                                          \
-    } while (0)
 
 #define MM (OD_PLANT.mfr.x2000_motor_model)
 #define INV (OD_PLANT.mfr.x2001_Inverter)

@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "plant_test_util.h"
 #include "plant_testbus.h"
 
 #define N_PER 40
@@ -17,17 +18,6 @@
 
 static tb_t g_tb;
 static tb_sample_t run_a[N_PER + 1], run_b[N_PER + 1];
-static int g_fail;
-
-#define CHECK(c, ...)                                              \
-    do {                                                           \
-        if (!(c)) {                                                \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);            \
-            printf(__VA_ARGS__);                                   \
-            printf("\n");                                          \
-            g_fail = 1;                                            \
-        }                                                          \
-    } while (0)
 
 static float cmd_of(int j, int step)
 {

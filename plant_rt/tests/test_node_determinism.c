@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "plant_test_util.h"
 #include "plant_testbus.h"
 
 #define N_PER 400
@@ -15,17 +16,6 @@
 static tb_t g_tb;
 static tb_rec_t g_rec[2][TB_MAX_REC];
 static uint32_t g_n[2];
-static int g_fail;
-
-#define CHECK(c, ...)                                              \
-    do {                                                           \
-        if (!(c)) {                                                \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);            \
-            printf(__VA_ARGS__);                                   \
-            printf("\n");                                          \
-            g_fail = 1;                                            \
-        }                                                          \
-    } while (0)
 
 static uint64_t fnv(const tb_rec_t *r, uint32_t n)
 {

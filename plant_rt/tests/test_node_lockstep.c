@@ -2,20 +2,10 @@
  * run_periods holding, and the real-time tick (time driven by hand). */
 #include <stdio.h>
 
+#include "plant_test_util.h"
 #include "plant_testbus.h"
 
 static tb_t g_tb;
-static int g_fail;
-
-#define CHECK(c, ...)                                              \
-    do {                                                           \
-        if (!(c)) {                                                \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);            \
-            printf(__VA_ARGS__);                                   \
-            printf("\n");                                          \
-            g_fail = 1;                                            \
-        }                                                          \
-    } while (0)
 
 #define RC (OD_PLANT.mfr.x2003_run_control)
 
