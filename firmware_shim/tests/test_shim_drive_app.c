@@ -49,44 +49,12 @@ static int g_fail;
 
 /* ------------------------------------------------------------------ bus + capture */
 
-#define CAP_MAX 64
-static co_frame_t g_cap[CAP_MAX];
-static int g_ncap;
-
-static co_membus_t g_bus;
-static co_node_t g_node;
-static drive_app_t g_app;
-static int64_t g_now;
-
-static void sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us)
-{
-    (void)user;
-    (void)now_us;
-    if (sender == CO_MEMBUS_EXTERNAL) return; /* only the drive's frames */
-    if (g_ncap < CAP_MAX) g_cap[g_ncap++] = *f;
-}
-
-static void put_f32(uint8_t *p, float v)
-{
-    uint32_t u;
-    memcpy(&u, &v, 4);
-    p[0] = (uint8_t)u; p[1] = (uint8_t)(u >> 8); p[2] = (uint8_t)(u >> 16); p[3] = (uint8_t)(u >> 24);
-}
-
-static float get_f32(const uint8_t *p)
-{
-    uint32_t u = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-    float v;
-    memcpy(&v, &u, 4);
-    return v;
-}
+#include "shim_testbus.h"
 
 static uint32_t get_u32(const uint8_t *p)
 {
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
-
-static int same_bits(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
 
 static void inject(uint16_t cob, uint8_t dlc, const uint8_t *d)
 {
