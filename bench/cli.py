@@ -54,13 +54,13 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .run_cmd import run
+    from .run.command import run
 
     return run(args)
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
-    from .run_cmd import capture_only
+    from .run.command import capture_only
 
     return capture_only(args)
 
@@ -143,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--json", action="store_true", help="print one JSON object")
     pl.set_defaults(func=_cmd_plan)
 
-    from .run_cmd import add_arguments
+    from .run.command import add_arguments
 
     r = sub.add_parser("run", help="run a scenario: configure by SDO, run, record every frame, summarize",
                        description="Bring the bus up (host or VM), start the plant and drive processes, reset them "

@@ -3,13 +3,13 @@
 You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched on halfway
 (scenarios/demo_you2019_tuning.toml), run over vcan0 (the VM supplies it when the host has
 no CAN), recorded, summarized; prints the before/after table, the identified gains and the
-paths of the recording, traces and plots.
+paths of the recording, traces and plots. It is `bench run` of that scenario (the same
+parser, so the same defaults) plus a table made from the run's result in memory.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -19,17 +19,18 @@ SCENARIO = REPO / "scenarios" / "demo_you2019_tuning.toml"
 
 
 def main(args: argparse.Namespace) -> int:
-    from .run_cmd import run
+    from .cli import build_parser
+    from .run.command import execute
 
     out = args.out or Path("runs") / f"demo-{time.strftime('%Y%m%d-%H%M%S')}"
-    run_args = argparse.Namespace(scenario=SCENARIO, overrides=list(args.overrides), bus=args.bus,
-                                  interface="socketcan", bitrate=None, fd=False, data_bitrate=None, no_plant=False, no_drive=False, plant_id=0x10,
-                                  drive_id=0x20, out=out, log_format="log", serve=args.serve,
-                                  no_viewer=args.no_viewer, live_decimate=1)
-    rc = run(run_args)
-    if rc != 0:
+    argv = ["run", str(SCENARIO), "--bus", args.bus, "--out", str(out)]
+    argv += [a for o in args.overrides for a in ("--set", o)]
+    argv += ["--serve"] if args.serve else []
+    argv += ["--no-viewer"] if args.no_viewer else []
+    rc, result, out_dir = execute(build_parser().parse_args(argv))
+    if result is None:
         return rc
-    summary = json.loads((out / "summary.json").read_text())
+    summary = result.summary
     before = [s for s in summary["steps"] if not s["tuning_on"]]
     after = [s for s in summary["steps"] if s["tuning_on"]]
 
@@ -37,8 +38,7 @@ def main(args: argparse.Namespace) -> int:
         return sum(xs) / len(xs) if xs else float("nan")
 
     def settle(steps: list[dict[str, object]]) -> str:
-        vals = [s["periods_to_settle"] for s in steps]
-        return ", ".join("-" if v is None else str(v) for v in vals)
+        return ", ".join("-" if s["periods_to_settle"] is None else str(s["periods_to_settle"]) for s in steps)
 
     ident = summary["identified"]
     print()
@@ -48,9 +48,11 @@ def main(args: argparse.Namespace) -> int:
     print(f"  {'tuning on':<16}{settle(after):<28}{mean([s['overshoot_A'] for s in after]):>13.3f} A")
     print("  (the first steps after the switch still carry the error left by the gain change: a mode at the plant "
           "pole, cancelled by the deadbeat zero, decaying with L/R)")
-    print(f"  identified gains: K1 {ident['K1_avg_V_A']:.3f} V/A, K2 {ident['K2_avg_V_A']:.3f} V/A, "
-          f"L_hat {ident['L_hat_H'] * 1e3:.4f} mH (plant Lq {summary['plant']['Lq_H'] * 1e3:.4f} mH)")
-    print(f"  recording: {out / 'run.rrd'} (rerun {out / 'run.rrd'})")
-    print(f"  CAN log:   {out / summary['files']['log']}")
-    print(f"  traces:    {out / 'traces.npz'}; summary: {out / 'summary.json'}; plots: {out}/*.png")
-    return 0
+    if ident.get("K1_avg_V_A") is not None:
+        print(f"  identified gains: K1 {ident['K1_avg_V_A']:.3f} V/A, K2 {ident['K2_avg_V_A']:.3f} V/A, "
+              f"L_hat {ident['L_hat_H'] * 1e3:.4f} mH (plant Lq {summary['plant']['Lq_H'] * 1e3:.4f} mH)")
+    print(f"  recording: {out_dir / 'run.rrd'} (rerun {out_dir / 'run.rrd'})")
+    print(f"  CAN log:   {out_dir / summary['files']['log']}")
+    print(f"  traces:    {out_dir / summary['files']['traces']}; summary: {out_dir / 'summary.json'}; "
+          f"plots: {out_dir}/*.png")
+    return rc

@@ -7,14 +7,21 @@ reads those from the same EDS section. protocols/gen_od.py uses the same functio
 from __future__ import annotations
 
 import configparser
+import hashlib
+import os
+import pickle
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TypeVar
 
 import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
-from .paths import EDS_DIR
+from .paths import BUILD, EDS_DIR
+
+T = TypeVar("T")
 
 
 def eds_path(node: str) -> Path:
@@ -45,9 +52,30 @@ def float_limits(path: Path, var: ODVariable) -> tuple[float | None, float | Non
     return get("LowLimit"), get("HighLimit")
 
 
+def _cached(what: str, node: str, build: Callable[[], T]) -> T:
+    """`build()` memoized on disk, keyed by the EDS file's content and the canopen version: parsing
+    an EDS costs ~0.1 s of every command's start; unpickling it a few ms."""
+    path = eds_path(node)
+    key = hashlib.sha256(path.read_bytes() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
+    cache = BUILD / "eds-cache" / f"{node}-{key}.pickle"
+    try:
+        return pickle.loads(cache.read_bytes())  # type: ignore[no-any-return]
+    except (OSError, pickle.PickleError, EOFError, AttributeError):
+        pass
+    value = build()
+    try:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        tmp = cache.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_bytes(pickle.dumps(value))
+        tmp.replace(cache)
+    except OSError:  # a read-only checkout still works, only slower
+        pass
+    return value
+
+
 @lru_cache(maxsize=None)
 def load(node: str, node_id: int | None = None) -> canopen.ObjectDictionary:
-    return canopen.import_od(str(eds_path(node)), node_id=node_id)
+    return _cached(f"od|{node_id}", node, lambda: canopen.import_od(str(eds_path(node)), node_id=node_id))
 
 
 @dataclass(frozen=True)
@@ -69,8 +97,13 @@ class Param:
         return self.data_type == datatypes.REAL32
 
 
+@lru_cache(maxsize=None)
 def params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
     """Writable sub-entries of the named objects, by sub-entry name."""
+    return _cached(f"params|{'|'.join(objects)}", node, lambda: _params(node, objects))
+
+
+def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
     od = load(node)
     out: dict[str, Param] = {}
     for oname in objects:

@@ -20,6 +20,9 @@ class StepMetrics:
     overshoot_pct: float
     steady_state_error_A: float
     window_periods: int
+    # peak-to-peak of the error over the last fifth of the window (streamed runs only; None elsewhere):
+    # a loop that never settles and still swings by half its step there is oscillating, not slow
+    tail_peak_to_peak_A: float | None = None
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)

@@ -1,97 +1,80 @@
 """`bench replay LOG`: decode any CAN log python-can reads (candump .log, .asc, .blf; from
 vcan or a physical bus) into the same traces, summary, plots and Rerun view as a run.
 
-The PDO layout comes from `layout.json` beside the log (written by every `bench run`), or
-`--layout`, or else the EDS defaults (both nodes at their default node-IDs). Reference
-steps are recovered from the SDO writes to the drive seen in the log."""
+Nothing is assumed silently: the PDO layout, the plant's parameters (pole pairs, Ts), the
+settings with their periods and the statuses read at the end are all SDO transfers in the
+log (bench/run/sdo_log.py). A log without that traffic (recorded after the configuration,
+or of another master) is decoded with the EDS defaults, and replay says so.
+"""
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
-
-import canopen
-import numpy as np
-
-from .eds import eds_path
-from .layout import FMT, BusLayout, PdoLayout
-
-
-def default_layout() -> BusLayout:
-    """The TPDOs that are valid by default in the EDS files (no node needed)."""
-    plant = canopen.import_od(str(eds_path("plant")), node_id=0x10)
-    drive = canopen.import_od(str(eds_path("drive")), node_id=0x20)
-    layout = BusLayout(0x10, 0x20, plant["COB-ID SYNC message"].default & 0x7FF)
-    for name, od in (("plant", plant), ("drive", drive)):
-        for n in range(4):
-            cob = od[0x1800 + n][1].default
-            if cob & 0x80000000:
-                continue
-            m = od[0x1A00 + n]
-            sigs = []
-            for i in range(1, m[0].default + 1):
-                v = m[i].default
-                var = od[v >> 16][(v >> 8) & 0xFF]
-                sigs.append((f"{var.parent.name}.{var.name}", FMT[var.data_type]))
-            layout.pdos.append(PdoLayout(name, f"TPDO{n + 1}", cob & 0x7FF, od[0x1800 + n][2].default, sigs))
-    return layout
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", type=Path, help="CAN log (.log candump, .asc, .blf, ...)")
-    p.add_argument("--layout", type=Path, default=None, help="layout.json of the run (default: beside the log, "
-                   "else the EDS defaults)")
-    p.add_argument("--pole-pairs", type=int, default=None, help="for id/iq (default: from capture.json or 5)")
-    p.add_argument("--ts", type=float, default=None, help="control period, s (default: from capture.json or 55e-6)")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: LOG's folder/replay)")
-    p.add_argument("--no-viewer", action="store_true")
-    p.add_argument("--serve", action="store_true")
+    p.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10, help="plant node-ID (default 0x10)")
+    p.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20, help="drive node-ID (default 0x20)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: LOG's folder/replay); "
+                   "must not exist or be empty")
+    p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer")
+    p.add_argument("--serve", action="store_true", help="serve the Rerun web viewer (until Ctrl-C or --serve-for)")
+    p.add_argument("--serve-for", type=float, default=None, metavar="SECONDS")
+    p.add_argument("--web-port", type=int, default=9090)
+    p.add_argument("--grpc-port", type=int, default=9876)
 
 
 def main(args: argparse.Namespace) -> int:
-    from .plots import identification_plot, step_plots
-    from .results import format_table, recorded_references
-    from .runner import frames_from_log
-    from .metrics import step_metrics
-    from .traces import check_continuity, decode, save
-    from .viewer import Viewer
+    import json
+    import os
 
-    if not args.log.exists():
+    from .run.outputs import Progress, print_result
+    from .run.pipeline import replay_log
+    from .run.sinks import TRACES_FILE, TraceFileSink
+    from .view.plots import overview_plot, step_plots
+    from .view.rerun_sink import RerunSink
+
+    if not args.log.is_file():
         print(f"bench replay: {args.log}: no such file", file=sys.stderr)
         return 2
-    try:
-        frames = frames_from_log(args.log)
-    except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
-        print(f"bench replay: {args.log}: cannot read as a CAN log: {exc}", file=sys.stderr)
+    out: Path = args.out or args.log.parent / "replay"
+    if out.exists() and any(out.iterdir()):
+        print(f"bench replay: {out} exists and is not empty; choose another --out", file=sys.stderr)
         return 2
-    if len(frames) == 0:
-        print(f"bench replay: {args.log}: no frames", file=sys.stderr)
-        return 2
-    here = args.log.parent
-    layout_path = args.layout or (here / "layout.json")
-    layout = BusLayout.load(layout_path) if layout_path.exists() else default_layout()
-    cap_path = here / "capture.json"
-    cap = json.loads(cap_path.read_text()) if cap_path.exists() else {}
-    pp = args.pole_pairs or int(cap.get("plant", {}).get("pole_pairs", 5))
-    ts = args.ts or float(cap.get("plant", {}).get("Ts_s", 55e-6))
-    out = args.out or here / "replay"
     out.mkdir(parents=True, exist_ok=True)
-    tr = decode(frames, layout, pp, ts, recorded_references(frames, layout))
-    save(out / "traces.npz", tr)
-    steps = [m.to_dict() for sig in ("iq", "id") for m in step_metrics(tr[f"{sig}_A"], tr[f"{sig}_ref_A"], sig)]
-    summary = {"log": str(args.log), "periods": int(len(tr["period"])), "frames": int(len(frames)),
-               "layout": str(layout_path) if layout_path.exists() else "EDS defaults", "steps": steps,
-               "bus_stats": check_continuity(tr)}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    step_plots(out, tr, steps, args.log.name)
-    identification_plot(out, tr, args.log.name)
-    viewer = Viewer(args.log.stem, out / "replay.rrd", serve=args.serve, spawn=False if args.no_viewer else None)
-    viewer.log(tr)
-    viewer.close()
-    print(f"bench replay: {len(frames)} frames, {summary['periods']} periods decoded with {summary['layout']}")
-    print(format_table({"steps": steps}))
-    print(f"results in {out}/: summary.json, traces.npz, replay.rrd, *.png")
-    _ = np
-    return 0
+    live = "serve" if args.serve else ("spawn" if not args.no_viewer and os.environ.get("DISPLAY") else "none")
+    rerun = RerunSink(args.log.stem, out / "run.rrd", live=live,  # type: ignore[arg-type]
+                      web_port=args.web_port, grpc_port=args.grpc_port)
+    est_frames = max(1, args.log.stat().st_size // 33)  # a candump line is ~33 bytes: an estimate for the bar
+    bar = Progress(est_frames, f"replay {args.log.name}", unit="frames")
+    try:
+        res = replay_log(args.log, args.plant_id, args.drive_id, sinks=[TraceFileSink(out / TRACES_FILE), rerun],
+                         progress=bar.update)
+    except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
+        bar.close()
+        print(f"bench replay: {args.log}: cannot decode: {exc}", file=sys.stderr)
+        return 2
+    bar.close()
+    s = res.summary
+    if s["periods"] == 0:
+        print(f"bench replay: {args.log}: no SYNC found among {s['bus_stats']['frames']} frames: nothing to decode",
+              file=sys.stderr)
+        return 2
+    if not any(w for w in s["settings"]) and s["plant"].get("pole_pairs") is None:
+        print("bench replay: the log holds no configuration traffic: decoded with the EDS defaults "
+              "(default PDO layout, pole pairs and Ts unknown)", file=sys.stderr)
+    plots = step_plots(out, res.step_windows, s["steps"], args.log.name)
+    ov = overview_plot(out, res.envelopes, args.log.name, s["Ts_s"])
+    s["files"] = {"traces": TRACES_FILE, "recording": "run.rrd", "plots": [p.name for p in plots] + ([ov.name]
+                                                                                                   if ov else [])}
+    (out / "summary.json").write_text(json.dumps(s, indent=2, default=str))
+    print(f"bench replay: {s['bus_stats']['frames']} frames, {s['periods']} periods decoded; "
+          f"{s['log']['frames_skipped']} frames skipped (not 11-bit data frames)")
+    print_result(out, res)
+    if args.serve:
+        rerun.serve_until(args.serve_for)
+    rerun.close()
+    return res.exit_code

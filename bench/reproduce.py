@@ -49,6 +49,46 @@ def _papers(sel: str) -> list[str]:
     return list(PAPERS) if sel == "all" else [sel]
 
 
+def _load_functions(papers: list[str]) -> list[tuple[str, str, Any]]:
+    """(paper code, paper name, claim function or the import error) for every claim function of the papers."""
+    fns: list[tuple[str, str, Any]] = []
+    for code in papers:
+        name, modname, _ = PAPERS[code]
+        try:
+            fns += [(code, name, fn) for fn in getattr(importlib.import_module(modname), "ALL")]
+        except (ImportError, AttributeError) as exc:
+            fns.append((code, name, exc))
+    return fns
+
+
+def run_claim_function(fn: Any, bus: str, code: str, paper: str) -> list[dict[str, Any]]:
+    """Run one claim function; its records, each with the runs whose figure shows it: the result's own
+    `runs`, else the function's runs when it made one result only (several results without `runs`:
+    no figure rather than another claim's)."""
+    from . import claims
+    from .claims import ClaimResult
+
+    claims.RUNS_USED.clear()
+    t0 = time.monotonic()
+    try:
+        res = fn(bus)
+        recs = [r.to_dict() for r in (res if isinstance(res, list) else [res])]
+    except Exception as exc:  # noqa: BLE001 - a claim that crashes is reported, not hidden
+        traceback.print_exc()
+        recs = [ClaimResult(paper, f"{code}-{fn.__name__}", "-", (fn.__doc__ or fn.__name__).strip(), None,
+                            f"error: {exc}", "-", False, why_differs="the bench failed to run this claim").to_dict()]
+    for r in recs:
+        if r.get("runs") is None:
+            r["runs"] = list(claims.RUNS_USED) if len(recs) == 1 else []
+        r["wall_s"] = time.monotonic() - t0
+        r["paper_code"] = code
+    return recs
+
+
+def _dur(s: float) -> str:
+    return f"{s:.0f} s" if s < 90 else f"{s / 60:.0f} min"
+
+
 def collect(papers: list[str], bus: str, out: Path) -> list[dict[str, Any]]:
     """Run every claim of the papers on `bus`; write claims.json; keep the runs under out/runs."""
     from . import claims
@@ -57,57 +97,42 @@ def collect(papers: list[str], bus: str, out: Path) -> list[dict[str, Any]]:
     claims.RUN_ROOT = out / "runs"
     claims.RUN_ROOT.mkdir(parents=True, exist_ok=True)
     results: list[dict[str, Any]] = []
-    for code in papers:
-        name, modname, _ = PAPERS[code]
-        try:
-            mod = importlib.import_module(modname)
-            fns = list(getattr(mod, "ALL"))
-        except (ImportError, AttributeError) as exc:
+    fns = _load_functions(papers)
+    t0 = time.monotonic()
+    for i, (code, name, fn) in enumerate(fns):
+        if isinstance(fn, Exception):
             results.append(ClaimResult(name, f"{code}-missing", "-", "the bench has no claims module for this paper",
-                                       None, f"{exc}", "-", False, why_differs="not implemented").to_dict())
+                                       None, f"{fn}", "-", False, why_differs="not implemented").to_dict())
             continue
-        for fn in fns:
-            claims.RUNS_USED.clear()
-            t0 = time.monotonic()
-            print(f"reproduce: {name}: {fn.__name__} ...", flush=True)
-            try:
-                res = fn(bus)
-                items = res if isinstance(res, list) else [res]
-                recs = [r.to_dict() for r in items]
-            except Exception as exc:  # noqa: BLE001 - a claim that crashes is reported, not hidden
-                traceback.print_exc()
-                recs = [ClaimResult(name, f"{code}-{fn.__name__}", "-", (fn.__doc__ or fn.__name__).strip(), None,
-                                    f"error: {exc}", "-", False,
-                                    why_differs="the bench failed to run this claim").to_dict()]
-            for r in recs:
-                r["runs"] = list(claims.RUNS_USED)
-                r["wall_s"] = time.monotonic() - t0
-                r["paper_code"] = code
-            results.extend(recs)
+        el = time.monotonic() - t0
+        eta = f", ~{_dur(el / i * (len(fns) - i))} left" if i else ""
+        print(f"reproduce [{i + 1}/{len(fns)}] {name}: {fn.__name__} ... ({_dur(el)} elapsed{eta})", flush=True)
+        results.extend(run_claim_function(fn, bus, code, name))
+    print(f"reproduce: {len(fns)} claim functions, {len(results)} claims in {_dur(time.monotonic() - t0)}",
+          flush=True)
     (out / "claims.json").write_text(json.dumps(results, indent=2, default=str))
     return results
 
 
-def _overview_plot(run: Path, title: str) -> Path | None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def _overview_plot(run: Path, tr: dict[str, Any], title: str) -> Path | None:
+    """The currents against their references around the first reference steps, and the voltage commands."""
     import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    from .traces import load as load_traces
-
-    tr = load_traces(run / "traces.npz")
-    n = len(tr["period"])
-    if n == 0:
+    n = len(tr.get("period", ()))
+    if n == 0 or not all(c in tr for c in ("iq_A", "iq_ref_A", "id_A", "id_ref_A", "vd_V", "vq_V")):
         return None
+    tr = dict(tr)
     if "drive_iq_ref_active_A" in tr and not np.any(tr["iq_ref_A"]):
         tr["iq_ref_A"] = np.nan_to_num(tr["drive_iq_ref_active_A"])  # speed/position mode: the loop's own iq*
     changes = np.nonzero(np.abs(np.diff(tr["iq_ref_A"])) + np.abs(np.diff(tr["id_ref_A"])) > 1e-9)[0]
     lo = max(0, int(changes[0]) - 5) if len(changes) else 0
     hi = min(n, lo + (100 if len(changes) <= 8 else 400))
     k = tr["period"][lo:hi]
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 4.2), sharex=True)
+    fig = Figure(figsize=(7, 4.2))
+    fig.subplots_adjust(left=0.1, right=0.97, top=0.92, bottom=0.11, hspace=0.12)
+    a1, a2 = fig.subplots(2, 1, sharex=True)
     a1.plot(k, tr["iq_ref_A"][lo:hi], "k", lw=1, drawstyle="steps-post", label="iq*")
     a1.plot(k, tr["iq_A"][lo:hi], ".-", ms=2, lw=0.8, label="iq")
     if np.nanmax(np.abs(tr["id_ref_A"][lo:hi])) > 0 or np.nanmax(np.abs(tr["id_A"][lo:hi])) > 0.05:
@@ -123,27 +148,37 @@ def _overview_plot(run: Path, title: str) -> Path | None:
     a2.set_xlabel("control period")
     a2.legend(loc="best", fontsize=7)
     a2.grid(alpha=0.3)
-    fig.tight_layout()
+    FigureCanvasAgg(fig)
     path = run / "overview.png"
     fig.savefig(path, dpi=80)
-    plt.close(fig)
     return path
 
 
-def postprocess_runs(out: Path) -> None:
-    from .results import summarize
-    from .traces import load as load_traces
-    from .viewer import Viewer
+def postprocess_runs(out: Path) -> int:
+    """Every kept run's CAN log (out/runs/NAME/bus.log, from this host or the VM) through the run pipeline:
+    its Rerun recording (run.rrd) and overview figure. Runs that already have run.rrd are left as they are.
+    Returns the number of runs that could not be post-processed (each reported)."""
+    from .run.pipeline import replay_log
+    from .view.rerun_sink import RerunSink
 
-    for run in sorted((out / "runs").iterdir()) if (out / "runs").exists() else []:
-        if not (run / "frames.npy").exists():
-            continue
-        summarize(run)
-        _overview_plot(run, run.name)
-        v = Viewer(run.name, run / "run.rrd", spawn=False)
-        v.log(load_traces(run / "traces.npz"))
-        v.close()
-        (run / "frames.npy").unlink()  # the CAN log (bus.log) holds every frame
+    root = out / "runs"
+    todo = [r for r in sorted(root.iterdir()) if (r / "bus.log").exists() and not (r / "run.rrd").exists()] \
+        if root.exists() else []
+    failed = 0
+    for i, run in enumerate(todo):
+        t0 = time.monotonic()
+        sink = RerunSink(run.name, run / "run.rrd")
+        try:
+            res = replay_log(run / "bus.log", sinks=[sink], keep_trace=True)
+            fig = _overview_plot(run, res.trace or {}, run.name)
+            note = "" if fig is not None else ", no figure (no current trace)"
+        except Exception as exc:  # noqa: BLE001 - one bad log costs its figure, not the report
+            failed += 1
+            note = f", FAILED: {type(exc).__name__}: {exc}"
+        finally:
+            sink.close()
+        print(f"postprocess [{i + 1}/{len(todo)}] {run.name} ({time.monotonic() - t0:.1f} s{note})", flush=True)
+    return failed
 
 
 def _fmt(v: Any) -> str:
@@ -183,21 +218,46 @@ def write_reports(out: Path, results: list[dict[str, Any]], bus: str, wall_s: fl
                    f"- tolerance: {r['tolerance']}"]
             if r.get("why_differs"):
                 md.append(f"- why it differs / note: {r['why_differs']}")
-            for run in r.get("runs") or []:
-                if (out / "runs" / run / "overview.png").exists():
-                    md += ["", f"![{run}](runs/{run}/overview.png)"]
-                    md.append(f"Run `{run}`: [Rerun recording](runs/{run}/run.rrd), [CAN log](runs/{run}/bus.log), "
-                              f"[summary](runs/{run}/summary.json)" if links else
-                              f"Run `{run}` (its Rerun recording and CAN log are written by `bench reproduce`)")
-                    break
+            shown, others = _figure_runs(out, r)
+            if shown:
+                md += ["", f"![{shown}](runs/{shown}/overview.png)"]
+                md.append(f"Run `{shown}`: [Rerun recording](runs/{shown}/run.rrd), [CAN log](runs/{shown}/bus.log), "
+                          f"[summary](runs/{shown}/summary.json)" if links else
+                          f"Run `{shown}` (its Rerun recording and CAN log are written by `bench reproduce`)")
+            if others:
+                md += ["", "Other runs of this claim: " + ", ".join(
+                    f"[`{o}`](runs/{o}/overview.png)" if (out / "runs" / o / "overview.png").exists() else f"`{o}`"
+                    for o in others)]
             md.append("")
     (out / "report.md").write_text("\n".join(md) + "\n")
     _write_html(out, results, bus, wall_s, n_ok, links)
 
 
+def _figure_runs(out: Path, r: dict[str, Any]) -> tuple[str | None, list[str]]:
+    """The run whose figure a claim's section shows (its first run with one) and its other runs."""
+    runs = list(r.get("runs") or [])
+    shown = next((run for run in runs if (out / "runs" / run / "overview.png").exists()), None)
+    return shown, [run for run in runs if run != shown]
+
+
+def _refusal(path: Path, replaceable_report: bool = False) -> str | None:
+    """Why `path` may not be written to: an existing non-empty folder (or a file). A previous report
+    folder (report.json in it) may be replaced when `replaceable_report`."""
+    if not path.exists():
+        return None
+    if not path.is_dir():
+        return f"{path} exists and is not a folder"
+    if not any(path.iterdir()) or (replaceable_report and (path / "report.json").exists()):
+        return None
+    return f"{path} exists and is not empty" + ("" if not replaceable_report else " (and holds no report.json)")
+
+
 def publish(out: Path, dest: Path) -> None:
     """A light copy of a report for the repository: the reports and the plots, without the
-    recordings and logs (which `bench reproduce` regenerates)."""
+    recordings and logs (which `bench reproduce` regenerates). Replaces `dest` only when it is
+    empty or a previous report."""
+    if (why := _refusal(dest, replaceable_report=True)) is not None:
+        raise FileExistsError(f"not publishing: {why}")
     data = json.loads((out / "report.json").read_text())
     results = json.loads((out / "claims.json").read_text())
     shutil.rmtree(dest, ignore_errors=True)
@@ -226,14 +286,18 @@ def _write_html(out: Path, results: list[dict[str, Any]], bus: str, wall_s: floa
         parts = [f"<h2>{e(name)}</h2><p>{e(full)}</p>"]
         for r in rs:
             img = ""
-            for run in r.get("runs") or []:
-                if (out / "runs" / run / "overview.png").exists():
-                    rec = (f": <a href='runs/{e(run)}/run.rrd'>Rerun recording</a>, "
-                           f"<a href='runs/{e(run)}/bus.log'>CAN log</a>") if links else ""
-                    img = (f"<figure><img src='runs/{e(run)}/overview.png' alt='{e(run)}'>"
-                           f"<figcaption>bench run <code>{e(run)}</code> for {e(str(r['figure']))}{rec}"
-                           f"</figcaption></figure>")
-                    break
+            shown, others = _figure_runs(out, r)
+            if shown:
+                rec = (f": <a href='runs/{e(shown)}/run.rrd'>Rerun recording</a>, "
+                       f"<a href='runs/{e(shown)}/bus.log'>CAN log</a>") if links else ""
+                img = (f"<figure><img src='runs/{e(shown)}/overview.png' alt='{e(shown)}'>"
+                       f"<figcaption>bench run <code>{e(shown)}</code> for {e(str(r['figure']))}{rec}"
+                       f"</figcaption></figure>")
+            if others:
+                img += "<p>Other runs of this claim: " + ", ".join(
+                    f"<a href='runs/{e(o)}/overview.png'><code>{e(o)}</code></a>"
+                    if (out / "runs" / o / "overview.png").exists() else f"<code>{e(o)}</code>"
+                    for o in others) + "</p>"
             why = f"<p><b>Why it differs / note:</b> {e(r['why_differs'])}</p>" if r.get("why_differs") else ""
             parts.append(
                 f"<section id='{e(r['claim_id'])}' class='{e(r['verdict'])}'><h3>{e(r['claim_id'])}: "
@@ -270,12 +334,22 @@ def main(args: argparse.Namespace) -> int:
 
     out: Path = args.out or Path("reports") / time.strftime("%Y%m%d-%H%M%S")
     papers = _papers(args.paper)
-    if args.collect_only:
+    if args.collect_only:  # inside the VM, into the folder the host made
         collect(papers, args.bus, out)
         return 0
-    if out.exists():
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
+    if args.out is None:  # the default folder is always a new one
+        n, base = 2, out
+        while out.exists():
+            out, n = base.with_name(f"{base.name}-{n}"), n + 1
+    if (why := _refusal(out)) is not None:
+        print(f"bench reproduce: {why}; nothing was changed. Give --out a new or empty folder "
+              "(or remove this one yourself).", file=sys.stderr)
+        return 2
+    if args.publish and (why := _refusal(args.publish, replaceable_report=True)) is not None:
+        print(f"bench reproduce: --publish {why}; nothing was changed. Give a new or empty folder or a previous "
+              "published report.", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     if args.bus != "direct" and not host_has_vcan(args.bus):
         from .vm import VmOptions, run_in_vm
@@ -290,7 +364,7 @@ def main(args: argparse.Namespace) -> int:
         results = json.loads((out / "claims.json").read_text())
     else:
         results = collect(papers, args.bus, out)
-    postprocess_runs(out)
+    failed = postprocess_runs(out)
     wall = time.monotonic() - t0
     write_reports(out, results, args.bus, wall)
     n_ok = sum(r["verdict"] == "reproduced" for r in results)
@@ -298,6 +372,9 @@ def main(args: argparse.Namespace) -> int:
           f"({wall:.0f} s)")
     for r in results:
         print(f"  {r['verdict']:<11} bench {r.get('bench_check', '?'):<5} {r['claim_id']:<28} {r['figure']}")
+    if failed:
+        print(f"bench reproduce: {failed} run(s) could not be post-processed (see above): their claims have "
+              "no figure", file=sys.stderr)
     print(f"report: {out / 'report.md'}, {out / 'report.html'}, {out / 'report.json'}")
     if args.publish:
         publish(out, args.publish)

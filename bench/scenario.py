@@ -8,6 +8,9 @@ Layout (every key optional except where noted)::
     periods = 400                # run length in control periods (required)
     seed = 1                     # ADC-noise seed
     timing = "lockstep"          # lockstep | realtime
+    expect = "ok"                # the run status this scenario is meant to end with (or a list):
+                                 # ok | tripped | diverged | non_finite | frames_lost; a
+                                 # stability-boundary study says expect = ["diverged", "tripped"]
 
     [motor]                      # plant.eds "Motor model", after the preset
     preset = "you2019"           # you2019 | yao2020_low | yao2020_high | zhao2022
@@ -74,6 +77,8 @@ DEFAULT_TRACE: dict[int, tuple[str, ...]] = {3: ("Online tuning.det_A2", "Online
                                              4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
+# Run statuses (bench/run/status.py gives each its exit code).
+STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost")
 
 
 class ScenarioError(ValueError):
@@ -108,6 +113,7 @@ class Scenario:
     settings: list[Setting] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
     trace: dict[int, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_TRACE))
+    expect: tuple[str, ...] = ("ok",)
     raw: dict[str, Any] = field(default_factory=dict)
 
     def event_periods(self) -> list[int]:
@@ -187,8 +193,9 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     if not isinstance(head, dict):
         raise ScenarioError(f"{where}: missing [scenario] table with at least name and periods")
     for key in head:
-        if key not in {"name", "description", "periods", "seed", "timing"}:
-            raise ScenarioError(f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, timing")
+        if key not in {"name", "description", "periods", "seed", "timing", "expect"}:
+            raise ScenarioError(f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, "
+                                "timing, expect")
     name = head.get("name")
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"{where}: scenario.name must be a non-empty string")
@@ -201,9 +208,14 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     timing = head.get("timing", "lockstep")
     if timing not in TIMINGS:
         raise ScenarioError(f"{where}: scenario.timing = {timing!r}: expected one of {', '.join(TIMINGS)}")
+    expect = head.get("expect", "ok")
+    expect_list = [expect] if isinstance(expect, str) else expect
+    if not isinstance(expect_list, list) or not expect_list or any(e not in STATUSES for e in expect_list):
+        raise ScenarioError(f"{where}: scenario.expect = {expect!r}: expected one of {', '.join(STATUSES)} "
+                            "or a list of them")
     tables = _param_tables()
     sc = Scenario(name=name, periods=periods, source=where, description=str(head.get("description", "")),
-                  seed=seed, timing=timing, raw=raw)
+                  seed=seed, timing=timing, raw=raw, expect=tuple(expect_list))
     motor = dict(raw.get("motor", {}))
     preset = motor.pop("preset", "you2019")
     if preset is not None and preset not in PRESETS:

@@ -16,9 +16,7 @@ import itertools
 import json
 import multiprocessing as mp
 import os
-import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -49,30 +47,17 @@ def _parse_grid(items: list[str]) -> list[tuple[str, list[str]]]:
 
 
 def _point(task: tuple[str, list[str]]) -> dict[str, Any]:
-    """Run one grid point (in a worker process)."""
-    from .metrics import step_metrics
-    from .results import recorded_references
-    from .runner import RunOptions, capture
+    """Run one grid point in memory (in a worker process): no file is written or read."""
+    from .run import RunOptions, run_scenario
     from .scenario import load
-    from .layout import BusLayout
-    from .traces import decode
-    import numpy as np
 
     path, overrides = task
-    sc = load(Path(path), overrides)
-    out = Path(tempfile.mkdtemp(prefix="sweep-"))
-    try:
-        cap = capture(sc, RunOptions(bus="direct", out=out))
-        frames = np.load(out / "frames.npy")
-        layout = BusLayout.load(out / "layout.json")
-        tr = decode(frames, layout, int(cap.plant["pole_pairs"]), cap.plant["Ts_s"],
-                    recorded_references(frames, layout))
-        steps = step_metrics(tr["iq_A"], tr["iq_ref_A"], "iq")
-        first = steps[0].to_dict() if steps else {}
-        return {"overrides": overrides, **{m: first.get(m) for m in METRICS},
-                "K1_active_V_A": cap.identified.get("K1_active_V_A"), "L_hat_H": cap.identified.get("L_hat_H")}
-    finally:
-        shutil.rmtree(out, ignore_errors=True)
+    res = run_scenario(load(Path(path), overrides), RunOptions(bus="direct"))
+    steps = [s for s in res.summary["steps"] if s["signal"] == "iq"]
+    first = steps[0] if steps else {}
+    ident = res.summary["identified"]
+    return {"overrides": overrides, **{m: first.get(m) for m in METRICS}, "status": res.status,
+            "K1_active_V_A": ident.get("K1_active_V_A"), "L_hat_H": ident.get("L_hat_H")}
 
 
 def run_grid(path: Path, grid: list[tuple[str, list[str]]], fixed: list[str], jobs: int,
@@ -118,10 +103,10 @@ def main(args: argparse.Namespace) -> int:
     keys = [k for k, _ in grid]
     with open(out / "sweep.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow([*keys, *METRICS, "K1_active_V_A", "L_hat_H"])
+        w.writerow([*keys, *METRICS, "status", "K1_active_V_A", "L_hat_H"])
         for r in results:
             vals = [o.split("=", 1)[1] for o in r["overrides"][len(args.overrides):]]
-            w.writerow([*vals, *[r.get(m) for m in METRICS], r.get("K1_active_V_A"), r.get("L_hat_H")])
+            w.writerow([*vals, *[r.get(m) for m in METRICS], r["status"], r.get("K1_active_V_A"), r.get("L_hat_H")])
     (out / "sweep.json").write_text(json.dumps({"scenario": sc.name, "grid": grid, "jobs": args.jobs,
                                                 "wall_s": wall, "results": results}, indent=2))
     if len(grid) == 2:

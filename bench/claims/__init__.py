@@ -8,7 +8,9 @@ Tests assert on them; `bench reproduce` reports them.
 
 from __future__ import annotations
 
+import shutil
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
@@ -17,10 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from ..layout import BusLayout
-from ..runner import Capture, RunOptions, capture
+from ..run import RunOptions, RunResult, run_scenario
 from ..scenario import parse
-from ..traces import decode
 
 
 @dataclass
@@ -36,6 +36,9 @@ class ClaimResult:
     why_differs: str = ""
     details: dict[str, Any] = field(default_factory=dict)
     plots: list[str] = field(default_factory=list)
+    # The runs (folder names under RUN_ROOT, Run.name) whose figure shows this claim; None: the claim
+    # function's runs (bench reproduce then shows the figure only when the function made one result).
+    runs: list[str] | None = None
     # Where the bench differs from the paper for a known reason (a typo, an approximation), the bench's
     # own derived expectation is checked instead; None = same as `reproduced`.
     bench_ok: bool | None = None
@@ -58,9 +61,18 @@ class ClaimResult:
 
 @dataclass
 class Run:
-    cap: Capture
+    result: RunResult
     tr: dict[str, np.ndarray]
-    out: Path
+    out: Path | None                 # the run's folder (bus.log, summary.json) when kept
+    frames: np.ndarray | None = None  # every frame, when asked for
+
+    @property
+    def name(self) -> str:
+        return self.out.name if self.out is not None else self.result.scenario
+
+    @property
+    def cap(self) -> RunResult:  # the claims' name for the run's own values (plant, counters, ...)
+        return self.result
 
 
 # When set (by `bench reproduce`), every run of a claim is kept under this folder and its
@@ -83,8 +95,15 @@ def traced(pdos: dict[int, tuple[str, ...]]) -> Iterator[None]:
         _TRACE = old
 
 
-def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None) -> Run:
-    """Run a scenario given as a TOML-shaped dict on `bus` ('direct' or a CAN channel)."""
+def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames: bool = False) -> Run:
+    """Run a scenario given as a TOML-shaped dict on `bus` ('direct' or a CAN channel), in memory.
+    Under `bench reproduce` (RUN_ROOT set) the run's CAN log and summary are kept in RUN_ROOT/NAME;
+    `bench reproduce` makes its plots and Rerun recording from that log (bench/reproduce.py)."""
+    import json
+
+    from ..run.canlog import CandumpWriter
+    from ..run.sinks import FrameCollector
+
     if _TRACE is not None and "trace" not in raw:
         raw = {**raw, "trace": {f"pdo{n}": list(names) for n, names in _TRACE.items()}}
     sc = parse(raw, f"<{raw['scenario']['name']}>")
@@ -95,9 +114,27 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None) -> Run:
             out = RUN_ROOT / f"{sc.name}-{n}"
             n += 1
         RUNS_USED.append(out.name)
-    out = out or Path(tempfile.mkdtemp(prefix=f"claim-{sc.name}-"))
-    cap = capture(sc, RunOptions(bus=bus, out=out))
-    frames = np.load(out / "frames.npy")
-    tr = decode(frames, BusLayout.load(out / "layout.json"), int(cap.plant["pole_pairs"]), cap.plant["Ts_s"],
-                cap.references)
-    return Run(cap, tr, out)
+    frame_sinks: list[Any] = []
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        if bus == "direct":
+            frame_sinks.append(CandumpWriter(out / "bus.log", "direct", int(time.time() * 1e6)))
+    collector = FrameCollector() if keep_frames else None
+    if collector is not None:
+        frame_sinks.append(collector)
+    tmp = None
+    if out is None and bus != "direct":
+        tmp = Path(tempfile.mkdtemp(prefix=f"claim-{sc.name}-"))
+    try:
+        res = run_scenario(sc, RunOptions(bus=bus, out=out or tmp), frame_sinks=frame_sinks, keep_trace=True)
+    finally:
+        for fs in frame_sinks:
+            fs.close()
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    if out is not None:
+        if (out / "candump.log").exists():
+            (out / "candump.log").rename(out / "bus.log")
+        (out / "summary.json").write_text(json.dumps(res.summary, indent=2, default=str))
+    assert res.trace is not None
+    return Run(res, res.trace, out, collector.frames if collector is not None else None)

@@ -180,7 +180,7 @@ def claim_low_frequency(bus: str) -> list[ClaimResult]:
         why_differs="The estimates stop where |dM| enters the dead zone TH_L = 0.1 V / TH_R = 0.03 V (Table III), "
                     "i.e. about 1 % from the true values, not exactly on them; gains x10 of Table III shorten the "
                     "run (the end point does not depend on the gain).",
-        details={"first_done_period": int(done_at[0]) if len(done_at) else None}))
+        details={"first_done_period": int(done_at[0]) if len(done_at) else None}, runs=[run.name]))
     before = step_error(tr, "iq", s1, 0.5)
     after_q = step_error(tr, "iq", s2, 0.5)
     after_d = step_error(tr, "id", s3, -1.0)
@@ -198,7 +198,7 @@ def claim_low_frequency(bus: str) -> list[ClaimResult]:
         "before: e(k0+2)/dr = y/y_hat - 1 (+-0.005) and > 2 periods to 2 %; after: e(k0+2)/dr = y/y_hat - 1 "
         "(+-0.005) and within 2 % from k0+2 for iq and id", bool(ok),
         why_differs="'Deadbeat' within the residual model error of the dead zone: e(k0+2)/dr = y/y_hat - 1 "
-                    "(about 1 %), not exactly zero."))
+                    "(about 1 %), not exactly zero.", runs=[run.name]))
     return res
 
 
@@ -310,7 +310,8 @@ def claim_rls_flux(bus: str) -> list[ClaimResult]:
                                **kx},
                    events=[{"at_period": 700, "controller": {"ident_command": 1}}])
         with traced(RLS_PDOS):
-            tr = run_raw(raw, bus).tr
+            run = run_raw(raw, bus)
+        tr = run.tr
         k = -2
         rls_R, rls_L = float(tr[COL + "rls_R_hat_ohm"][k]), float(tr[COL + "rls_L_hat_H"][k])
         pr_R, pr_L = float(tr[COL + "R_hat_ohm"][k]), float(tr[COL + "L_hat_H"][k])
@@ -338,7 +339,7 @@ def claim_rls_flux(bus: str) -> list[ClaimResult]:
             why_differs="" if physical else
             "The fixed point of Eq. 46-47 has R < 0 here: Eq. 48 rejects it and the RLS keeps its last physical "
             "estimate, which is far from R (the bias the paper shows).",
-            details={"operating_point": {"i_A": str(i_op), "v_V": str(v_op)}}))
+            details={"operating_point": {"i_A": str(i_op), "v_V": str(v_op)}}, runs=[run.name]))
     return out
 
 

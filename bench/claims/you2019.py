@@ -58,7 +58,8 @@ def claim_matched_step(bus: str) -> list[ClaimResult]:
         "without overshoot or steady-state error",
         {"periods": 2, "overshoot_A": 0.0}, {"periods": m.periods_to_settle, "overshoot_A": m.overshoot_A,
                                              "max_error_after_A": float(err_after.max())},
-        "periods == 2, |i - i*| < 1e-5 A from k+2 on", m.periods_to_settle == 2 and float(err_after.max()) < 1e-5)]
+        "periods == 2, |i - i*| < 1e-5 A from k+2 on", m.periods_to_settle == 2 and float(err_after.max()) < 1e-5,
+        runs=[run.name])]
     res.append(ClaimResult(
         PAPER, "you2019-1b", "Eq. 20-21",
         "the first two voltage commands after the step are about 84.14 V and 2.1 V",
@@ -69,7 +70,8 @@ def claim_matched_step(bus: str) -> list[ClaimResult]:
         bench_ok=abs(v0 - 1.0 / B) < 1e-3 * (1.0 / B) and abs(v1 - R) < 1e-3 * max(R, 1.0) + 2e-3,
         why_differs="The bench reproduces the exact-gain law: v(k) = K1 = 1/B = 83.25 V and v(k+1) = K1 - K2 = R = "
                     "1.4 V. The paper's Eq. 20 approximates L di/dt over one period (its 84.14 V implies a larger "
-                    "L), and Eq. 21's own formula r_s * 1 A gives 1.4 V with Table A2's 1.4 ohm, not 2.1 V."))
+                    "L), and Eq. 21's own formula r_s * 1 A gives 1.4 V with Table A2's 1.4 ohm, not 2.1 V.",
+        runs=[run.name]))
     return res
 
 
@@ -147,7 +149,7 @@ def claim_inductance_mismatch(bus: str) -> list[ClaimResult]:
             why_differs="" if ratio > 1 else "With L_hat = 0.5 L the controller's zero no longer cancels the plant "
             "pole: the poles are real (0.96, 0.73, -0.71) but the slow one at 0.96 leaves a small overshoot (about "
             "4.6 %) that decays over ~40 periods. 98 % is reached in 8 periods (paper: about 7).",
-            details={"poles_str": ", ".join(f"{p.real:.4f}{p.imag:+.4f}j" for p in poles)}))
+            details={"poles_str": ", ".join(f"{p.real:.4f}{p.imag:+.4f}j" for p in poles)}, runs=[run.name]))
     return out
 
 
@@ -200,14 +202,14 @@ def claim_identification_accuracy(bus: str) -> list[ClaimResult]:
                     "exact in one period", {"identifications": int(len(e_clean)),
                                             "max_rel_error_K1": float(e_clean.max()) if len(e_clean) else None},
                     "noise-free: every K1 with |det| > 0.2 A^2 within 1 %",
-                    bool(len(e_clean) > 0 and e_clean.max() < 0.01)),
+                    bool(len(e_clean) > 0 and e_clean.max() < 0.01), runs=[clean.name]),
         ClaimResult(PAPER, "you2019-4b", "Section 7, Fig. 20c/21c",
                     "on hardware the identified gains were within 16 % of their nominal values",
                     {"max_rel_error": 0.16}, {"identifications": int(len(e_noisy)), **pct},
                     "with ADC noise (10 mA rms, 2 mA LSB) and a 2500-line encoder: median error below 16 %",
                     bool(len(e_noisy) > 0 and pct.get("p50", 1.0) < 0.16),
                     why_differs="The bench's noise is white and the dead time is off; the paper's 16 % includes "
-                                "inverter non-linearity and saturation."),
+                                "inverter non-linearity and saturation.", runs=[noisy.name]),
     ]
 
 
@@ -250,7 +252,7 @@ def claim_tuning(bus: str) -> list[ClaimResult]:
                         "the middle of a transient leaves the error it had as a mode at the plant pole A, which the "
                         "deadbeat zero cancels, so it decays with L/R (~60 periods) while every new step is deadbeat; "
                         "the paper updates when the current has settled. Its 0.09 A residual overshoot comes from "
-                        "magnetic saturation, off here."))
+                        "magnetic saturation, off here.", runs=[on.name, off.name]))
     return out
 
 
@@ -294,8 +296,6 @@ def claim_frequency_response(bus: str, freqs_Hz: tuple[float, ...] = (200.0, 100
         "|gain| < 0.05 dB and phase within 1 deg of -2 w Ts at every frequency (=> -180 deg at fs/4 = 4545 Hz)",
         worst_mag < 0.05 and worst_phase < 1.0,
         why_differs="fs/4 with Ts = 55 us is 4545 Hz; the paper's 4.575 kHz is the same point read off a plot.")
-
-
 
 
 def _profile(ratio: float, tuning: int, name: str) -> dict[str, Any]:
@@ -361,7 +361,8 @@ def claim_tuning_position_profile(bus: str) -> list[ClaimResult]:
             why_differs="The bench measures the response to each speed-loop reference stair during the acceleration "
                         "(iq* changes every 8 periods) against the same move with a matched controller, not the "
                         "paper's oscilloscope traces; the matched controller's own deviation (a few %) comes from "
-                        "the speed changing within the two periods and the 2500-line encoder; saturation is off."))
+                        "the speed changing within the two periods and the 2500-line encoder; saturation is off.",
+            runs=[on.name, off.name, matched.name]))
     return out
 
 

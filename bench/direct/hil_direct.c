@@ -18,14 +18,7 @@
 #include "od_plant.h"
 #include "plant_app.h"
 
-typedef struct {
-    uint64_t t_us;    /* simulated time of the frame */
-    uint32_t seq;     /* bus order */
-    uint16_t cob_id;
-    uint8_t dlc;
-    uint8_t sender;   /* 0 plant, 1 drive, 255 master */
-    uint8_t data[8];
-} hil_frame_t;        /* 24 bytes; numpy dtype in bench/direct.py */
+#include "hil_frame.h" /* hil_frame_t, 24 bytes; numpy dtype FRAME_DTYPE */
 
 #define MASTER_Q 1024u
 

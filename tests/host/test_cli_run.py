@@ -26,13 +26,16 @@ def test_run_direct_writes_every_result(tmp_path: Path) -> None:
     out = tmp_path / "run"
     res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer")
     assert res.returncode == 0, res.stderr
-    for name in ("summary.json", "traces.npz", "bus.log", "run.rrd", "layout.json", "capture.json"):
+    for name in ("summary.json", "traces.npy", "bus.log", "run.rrd", "overview.png"):
         assert (out / name).stat().st_size > 0, name
     assert list(out.glob("step_*.png"))
+    assert not list(out.glob("*.json"))[1:], "one JSON file: summary.json (the log carries the rest)"
     summary = json.loads((out / "summary.json").read_text())
     step = summary["steps"][0]
     assert step["periods_to_settle"] == 2 and step["overshoot_A"] < 1e-4
-    assert summary["bus_stats"]["lost_frames"] == 0
+    assert summary["bus_stats"]["lost_frames"] == 0 and summary["status"] == "ok"
+    tr = np.load(out / "traces.npy")
+    assert len(tr) == summary["periods"] == 200 and abs(tr["iq_A"][-1] - 1.0) < 1e-3
     assert "iq" in res.stdout and "results in" in res.stdout
     # the log is a real candump log python-can reads back with every frame
     import can
@@ -80,7 +83,7 @@ def test_replay_of_an_asc_log_gives_the_same_traces(tmp_path: Path) -> None:
                  "--log-format", "asc").returncode == 0
     res = bench("replay", str(out / "bus.asc"), "--no-viewer")
     assert res.returncode == 0, res.stderr
-    a, b = np.load(out / "traces.npz"), np.load(out / "replay" / "traces.npz")
+    a, b = np.load(out / "traces.npy"), np.load(out / "replay" / "traces.npy")
     for key in ("i_a_A", "i_b_A", "v_alpha_V", "v_beta_V", "iq_ref_A", "K1_hat"):
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
 
@@ -125,8 +128,8 @@ def test_trace_table_selects_the_traced_signals(tmp_path: Path) -> None:
     out = tmp_path / "run"
     res = bench("run", str(path), "--bus", "direct", "--out", str(out), "--no-viewer")
     assert res.returncode == 0, res.stderr
-    tr = np.load(out / "traces.npz")
-    assert tr["drive_iq_ref_active_A"][-2] == 1.0 and "det_A2" not in tr.files  # last: sent at the next SYNC
+    tr = np.load(out / "traces.npy")
+    assert tr["drive_iq_ref_active_A"][-2] == 1.0 and "det_A2" not in tr.dtype.names  # last: sent at the next SYNC
     bad = tmp_path / "bad.toml"
     bad.write_text(STEP.read_text() + '\n[trace]\npdo3 = ["Controller.Ts_s", "Drive status.iq_A", "Drive status.id_A"]\n')
     res = bench("run", str(bad), "--bus", "direct", "--out", str(tmp_path / "b"))

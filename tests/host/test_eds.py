@@ -44,3 +44,16 @@ def test_generator_detects_a_stale_file(tmp_path) -> None:  # type: ignore[no-un
         assert res.returncode == 1 and "stale" in res.stderr
     finally:
         shutil.copy(backup, gen)
+
+
+def test_controller_status_values_are_pdo_mappable() -> None:
+    """Every read-only status/estimate value of the controller objects can be traced per period (a scenario's
+    [trace] maps it into TPDO3/4); parameters (rw) stay SDO-only where the EDS says so."""
+    od = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=0x20)
+    for obj in ("Online tuning", "Yao 2020 DPCC", "Zhao 2022", "Drive status"):
+        for var in od[obj].values():
+            if var.subindex > 0 and var.access_type == "ro":
+                assert var.pdo_mappable and var.readable, f"{obj}.{var.name} is read-only but not PDO-mappable"
+    for sub in ("K1_V_A", "K2_V_A", "G_V_A", "limited"):
+        assert od["Zhao 2022"][sub].pdo_mappable, sub
+    assert not od["Controller"]["Ts_s"].pdo_mappable  # a parameter, refused by the node (0x06040041)

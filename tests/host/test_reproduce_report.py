@@ -27,6 +27,7 @@ def report() -> Path:
                           "--out", str(OUT)], cwd=REPO, capture_output=True, text=True, timeout=3600)
     print(res.stdout[-6000:])
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    (OUT / "reproduce.log").write_text(res.stdout)
     return OUT
 
 
@@ -44,6 +45,26 @@ def test_every_claim_has_a_verdict(report: Path) -> None:
     assert data["bus"] == "vcan0"
     md = (report / "report.md").read_text()
     assert all(c["claim_id"] in md for c in claims)
+
+
+def test_each_claim_shows_its_own_runs_made_from_their_logs(report: Path) -> None:
+    """The runs' recordings and figures are made on the host from their CAN logs (wherever the
+    claims ran), and each claim's section links its own runs only."""
+    import re
+
+    log = (report / "reproduce.log").read_text()
+    assert "reproduce [1/" in log or "in the VM" in log, log[-2000:]
+    assert re.search(r"postprocess \[\d+/\d+\]", log), log[-2000:]
+    claims = json.loads((report / "report.json").read_text())["claims"]
+    page = (report / "report.html").read_text()
+    for c in claims:
+        assert c["runs"], f"{c['claim_id']} has no run"
+        for run in c["runs"]:
+            for f in ("bus.log", "summary.json", "run.rrd", "overview.png"):
+                assert (report / "runs" / run / f).exists(), (c["claim_id"], run, f)
+        section = page.split(f"<section id='{c['claim_id']}'")[1].split("</section>")[0]
+        linked = set(re.findall(r"runs/([^/']+)/", section))
+        assert linked and linked <= set(c["runs"]), (c["claim_id"], linked, c["runs"])
 
 
 def _chromium() -> str:

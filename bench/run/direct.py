@@ -5,17 +5,14 @@ exactly as over vcan."""
 from __future__ import annotations
 
 import ctypes
-import queue
 import threading
 import time
 
 import can
 import numpy as np
 
-from .paths import BUILD
-
-FRAME_DTYPE = np.dtype([("t_us", "<u8"), ("seq", "<u4"), ("cob_id", "<u2"), ("dlc", "u1"), ("sender", "u1"),
-                        ("data", "u1", (8,))])
+from ..paths import BUILD
+from .frames import FRAME_DTYPE
 
 
 class _Frame(ctypes.Structure):
@@ -59,17 +56,22 @@ class Hil:
             return f if self.lib.hil_recv(ctypes.byref(f)) else None
 
     def start_recorder(self, capacity: int) -> None:
+        """Every frame on the in-process bus goes into a buffer of `capacity` frames, emptied by `take`."""
         self._rec = np.zeros(capacity, dtype=FRAME_DTYPE)
         with self._lock:
             self.lib.hil_set_recorder(self._rec.ctypes.data, capacity)
 
-    def recorded(self) -> np.ndarray:
+    def take(self) -> np.ndarray:
+        """The frames recorded since the last call (a copy; the buffer is reused)."""
         assert self._rec is not None
         with self._lock:
             n = self.lib.hil_recorded()
             if self.lib.hil_record_dropped():
-                raise RuntimeError(f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped")
-        return self._rec[:n].copy()
+                raise RuntimeError(f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped "
+                                   f"(buffer of {len(self._rec)} frames)")
+            out = self._rec[:n].copy()
+            self.lib.hil_set_recorder(self._rec.ctypes.data, len(self._rec))
+        return out
 
     def run(self, max_periods: int) -> int:
         with self._lock:
@@ -84,7 +86,7 @@ class DirectBus(can.BusABC):
 
     def __init__(self, hil: Hil, **kwargs: object) -> None:
         self.hil = hil
-        self._pending: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
+        self.closing = False
         super().__init__(channel="direct", **kwargs)  # type: ignore[arg-type]
         self.channel_info = "in-process bus (direct mode)"
 
@@ -99,9 +101,17 @@ class DirectBus(can.BusABC):
                 msg = can.Message(timestamp=f.t_us * 1e-6, arbitration_id=f.cob_id, is_extended_id=False,
                                   dlc=f.dlc, data=bytes(f.data[: f.dlc]), channel="direct")
                 return msg, False
-            if deadline is not None and time.monotonic() >= deadline:
+            if self.closing or (deadline is not None and time.monotonic() >= deadline):
                 return None, False
             time.sleep(0.0005)
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        """As BusABC.recv, but returns at once when the bus is closing (BusABC would keep polling
+        `_recv_internal` until its timeout ends: a second at every disconnect)."""
+        if self.closing:
+            return None
+        msg, _ = self._recv_internal(timeout)
+        return msg
 
     def shutdown(self) -> None:
         super().shutdown()

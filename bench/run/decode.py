@@ -1,0 +1,244 @@
+"""Frames -> per-period trace columns, once, chunk by chunk, vectorized.
+
+Alignment (CiA 301 synchronous semantics, docs/ARCHITECTURE.md): the k-th SYNC starts
+period k; the plant's measurement TPDOs after it carry the sample i(k); the drive's command
+TPDO that follows is v*(k); the drive's synchronous trace TPDOs sent at SYNC k carry its
+state after step k-1. So the row of period k is complete only when SYNC k+1 has been seen:
+the decoder keeps the frames of the last period of a chunk and decodes them again with the
+next one (rows already emitted are not emitted twice; SDO frames are followed once).
+
+Columns are float64 (NaN where no frame carried the value) except `period` (int64); names
+carry SI units (bench/run/signals.py). Which frames were missing and which carried a
+non-finite value are counted separately, per PDO: a NaN sent on the bus is never a lost frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .layout import FMT, BusLayout, PdoLayout
+from .frames import FRAME_DTYPE
+from .sdo_log import SdoLog
+from .signals import SignalInfo, column_name
+
+SQRT3 = math.sqrt(3.0)
+REFERENCES = ("iq_ref_A", "id_ref_A")
+TPDOS = 4
+
+
+def layout_from_sdo(sdo: SdoLog) -> BusLayout:
+    """The valid TPDOs of both nodes at this point of the bus traffic (EDS defaults + SDO seen)."""
+    layout = BusLayout(sdo.plant.node_id, sdo.drive.node_id, sdo.sync_cob_id)
+    for node in (sdo.plant, sdo.drive):
+        v = node.values
+        for n in range(TPDOS):
+            cob = v.get((0x1800 + n, 1))
+            count = int(v.get((0x1A00 + n, 0)) or 0)
+            if cob is None or int(cob) & 0x80000000 or count == 0:
+                continue
+            sigs = []
+            for i in range(1, count + 1):
+                entry = int(v.get((0x1A00 + n, i)) or 0)
+                var = node.vars.get((entry >> 16, (entry >> 8) & 0xFF))
+                if var is None or var.data_type not in FMT:
+                    break
+                sigs.append((node.qualname(var.index, var.subindex) or var.name, FMT[var.data_type]))
+            else:
+                layout.pdos.append(PdoLayout(node.name, f"TPDO{n + 1}", int(cob) & 0x7FF,
+                                             int(v.get((0x1800 + n, 2)) or 0), sigs))
+    return layout
+
+
+@dataclass
+class PdoStats:
+    pdo: PdoLayout
+    present: int = 0          # periods that got this PDO
+    non_finite: int = 0       # periods whose frame carried a NaN or an infinity
+
+
+@dataclass
+class DecodeStats:
+    periods: int = 0
+    frames: int = 0
+    sync_counter_gaps: int = 0
+    sample_index_mismatches: int = 0
+    pdos: dict[int, PdoStats] = field(default_factory=dict)
+    non_finite: dict[str, int] = field(default_factory=dict)   # column -> periods with a non-finite value
+
+
+class Decoder:
+    """Feed frames in bus order (any chunk size); get back the rows completed so far."""
+
+    def __init__(self, plant_id: int = 0x10, drive_id: int = 0x20) -> None:
+        self.sdo = SdoLog(plant_id, drive_id)
+        self.layout: BusLayout | None = None
+        self.stats = DecodeStats()
+        self.signals: list[SignalInfo] = []
+        self.pole_pairs = 1
+        self.ts_s = 1.0
+        self._carry = np.zeros(0, dtype=FRAME_DTYPE)
+        self._base = 0           # period of the carry's first SYNC
+        self._emitted = 0        # rows emitted so far
+        self._last_sync = -1
+
+    # ------------------------------------------------------------------ layout
+    def _freeze(self) -> None:
+        self.layout = layout_from_sdo(self.sdo)
+        self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
+        self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
+        names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC")]
+        for pdo in self.layout.pdos:
+            self.stats.pdos[pdo.cob_id] = PdoStats(pdo)
+            for q, _ in pdo.signals:
+                names.append(SignalInfo.of(column_name(q), f"{pdo.node} {pdo.pdo} {q}"))
+        cols = {s.name for s in names}
+        if {"i_a_A", "i_b_A", "theta_m_rad"} <= cols:
+            names += [SignalInfo.of(n, "derived (Park transform)") for n in ("id_A", "iq_A")]
+            if {"v_alpha_V", "v_beta_V"} <= cols:
+                names += [SignalInfo.of(n, "derived (Park transform)") for n in ("vd_V", "vq_V")]
+        names += [SignalInfo.of(n, "SDO writes to drive References") for n in REFERENCES]
+        self.signals = list({s.name: s for s in names}.values())  # a PDO's sync_counter replaces the SYNC's
+
+    # ------------------------------------------------------------------ feeding
+    def feed(self, frames: np.ndarray) -> dict[str, np.ndarray] | None:
+        if len(frames) == 0:
+            return None
+        self.stats.frames += len(frames)
+        buf = np.concatenate([self._carry, frames]) if len(self._carry) else frames
+        new_from = len(self._carry)
+        if self.layout is None:
+            start = 0
+            while True:  # configuration traffic until the first SYNC (whose COB-ID that traffic may set)
+                hits = np.nonzero(buf["cob_id"][start:] == self.sdo.sync_cob_id)[0]
+                first = start + int(hits[0]) if len(hits) else len(buf)
+                self._follow_sdo(buf[start:first], np.zeros(first - start, dtype=np.int64))
+                if first == len(buf):
+                    self._carry = np.zeros(0, dtype=FRAME_DTYPE)
+                    return None
+                if buf["cob_id"][first] == self.sdo.sync_cob_id:
+                    break
+                start = first
+            self._freeze()
+            buf, new_from = buf[first:], 0
+        assert self.layout is not None
+        sync = buf["cob_id"] == self.layout.sync_cob_id
+        period_of = self._base + np.cumsum(sync) - 1  # frames before the carry's SYNC: none (it starts with one)
+        sdo = self.sdo.mask(buf)
+        sdo[:new_from] = False
+        if sdo.any():
+            idx = np.nonzero(sdo)[0]
+            self._follow_sdo(buf[idx], period_of[idx] + 1)  # a setting takes effect at the next period
+        sync_pos = np.nonzero(sync)[0]
+        if len(sync_pos) < 2:  # nothing complete yet
+            self._carry = buf
+            return None
+        # Row k is complete once period k+1 is (the drive's trace of step k comes at SYNC k+1):
+        # with SYNC P the last seen, rows below P-1 are; keep the frames from SYNC P-1 on.
+        keep_from = int(sync_pos[-2])
+        stop = int(period_of[keep_from])
+        rows = self._rows(buf, period_of, self._emitted, stop) if stop > self._emitted else None
+        self._carry = buf[keep_from:]
+        self._base = stop
+        return rows
+
+    def finish(self) -> dict[str, np.ndarray] | None:
+        """The rows left: the last period's drive trace TPDOs never come (NaN)."""
+        if self.layout is None or len(self._carry) == 0:
+            return None
+        buf = self._carry
+        sync = buf["cob_id"] == self.layout.sync_cob_id
+        period_of = self._base + np.cumsum(sync) - 1
+        stop = int(period_of[-1]) + 1
+        self._carry = np.zeros(0, dtype=FRAME_DTYPE)
+        return self._rows(buf, period_of, self._emitted, stop) if stop > self._emitted else None
+
+    def _follow_sdo(self, frames: np.ndarray, periods: np.ndarray) -> None:
+        m = self.sdo.mask(frames)
+        if m.any():
+            self.sdo.feed(frames[m], periods[m])
+
+    # ------------------------------------------------------------------ rows
+    def _rows(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> dict[str, np.ndarray]:
+        assert self.layout is not None
+        n = r1 - r0
+        st = self.stats
+        out: dict[str, np.ndarray] = {"period": np.arange(r0, r1, dtype=np.int64)}
+        out["t_s"] = out["period"] * self.ts_s
+        sync = np.nonzero(buf["cob_id"] == self.layout.sync_cob_id)[0]
+        sp = period_of[sync]
+        keep = (sp >= r0) & (sp < r1)
+        sc = np.full(n, np.nan)
+        dlc = buf["dlc"][sync[keep]]
+        sc[sp[keep] - r0] = np.where(dlc > 0, buf["data"][sync[keep], 0], -1)
+        out["sync_counter"] = sc
+        for cob, ps in st.pdos.items():
+            pdo = ps.pdo
+            pos = np.nonzero(buf["cob_id"] == cob)[0]
+            per = period_of[pos]
+            if pdo.node == "drive" and pdo.trans_type <= 240:
+                per = per - 1  # synchronous drive TPDO at SYNC k: state after step k-1
+            ok = (per >= r0) & (per < r1)
+            pos, per = pos[ok], per[ok] - r0
+            dt = pdo.numpy_dtype()
+            vals = np.ascontiguousarray(buf["data"][pos][:, : dt.itemsize]).view(dt).reshape(-1)
+            got = np.zeros(n, dtype=bool)
+            got[per] = True
+            ps.present += int(got.sum())
+            bad = np.zeros(n, dtype=bool)
+            for name, fmt in pdo.signals:
+                col = np.full(n, np.nan)
+                col[per] = vals[name].astype(np.float64)
+                if fmt == "f":
+                    nf = got & ~np.isfinite(col)
+                    if nf.any():
+                        cname = column_name(name)
+                        st.non_finite[cname] = st.non_finite.get(cname, 0) + int(nf.sum())
+                        bad |= nf
+                out[column_name(name)] = col
+            ps.non_finite += int(bad.sum())
+        self._derive(out)
+        self._references(out, r0, r1)
+        self._continuity(out)
+        st.periods = r1
+        self._emitted = r1
+        return out
+
+    def _derive(self, out: dict[str, np.ndarray]) -> None:
+        if "i_a_A" in out and "theta_m_rad" in out:
+            ia, ib = out["i_a_A"], out["i_b_A"]
+            i_alpha, i_beta = ia, (ia + 2.0 * ib) / SQRT3
+            th = self.pole_pairs * out["theta_m_rad"]
+            c, s = np.cos(th), np.sin(th)
+            out["id_A"] = c * i_alpha + s * i_beta
+            out["iq_A"] = -s * i_alpha + c * i_beta
+            if "v_alpha_V" in out:
+                va, vb = out["v_alpha_V"], out["v_beta_V"]
+                out["vd_V"] = c * va + s * vb
+                out["vq_V"] = -s * va + c * vb
+
+    def _references(self, out: dict[str, np.ndarray], r0: int, r1: int) -> None:
+        """Reference columns from the SDO writes to the drive's References (their period is exact in lockstep)."""
+        for name in REFERENCES:
+            changes = self.sdo.changes(f"References.{name}")
+            before = [v for p, v in changes if p <= r0]
+            col = np.full(r1 - r0, before[-1] if before else 0.0)
+            for period, value in changes:
+                if r0 < period < r1:
+                    col[period - r0:] = value
+            out[name] = col
+
+    def _continuity(self, out: dict[str, np.ndarray]) -> None:
+        sc = out["sync_counter"]
+        if len(sc) and np.isfinite(sc).all() and (sc >= 0).all():
+            prev = np.concatenate([[self._last_sync], sc[:-1]]) if self._last_sync >= 0 else sc[:-1]
+            cur = sc if self._last_sync >= 0 else sc[1:]
+            expect = np.where(prev >= 240, 1, prev + 1)
+            self.stats.sync_counter_gaps += int((cur != expect).sum())
+            self._last_sync = int(sc[-1])
+        if "sample_index" in out:
+            si = out["sample_index"]
+            good = np.isfinite(si)
+            self.stats.sample_index_mismatches += int((si[good] != (out["period"][good] % 65536)).sum())

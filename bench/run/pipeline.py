@@ -1,0 +1,317 @@
+"""One run, data flowing one way, once: scenario -> SDO configuration -> PDO loop -> frames
+(numpy chunks) -> decode once -> trace chunks -> sinks (files, viewers, the caller's memory).
+
+    from bench.run import RunOptions, run_scenario
+    result = run_scenario(load(Path("scenarios/you2019_step.toml")), RunOptions(bus="direct"), keep_trace=True)
+    result.status, result.summary["steps"], result.trace["iq_A"]
+
+`bench run`, the claims, sweeps, perf and the demo all call `run_scenario`; `bench replay`
+feeds a log's frames through the same `Pipeline`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..scenario import Scenario
+from .decode import Decoder
+from .session import RunOptions, Session
+from .signals import SignalInfo
+from .sinks import Sink, TraceCollector
+from .stats import STEP_SIGNALS, Envelope, StepTracker
+from .summary import (SCHEMA_VERSION, bus_stats, divergence_bound_A, frame_bits, identified, plant_values,
+                      verdict)
+
+FrameSink = Any  # has write(frames) and close()
+Progress = Callable[[int, int], None]
+
+
+@dataclass
+class RunResult:
+    scenario: str
+    bus: str
+    status: str                      # ok | tripped | diverged | non_finite | frames_lost
+    exit_code: int                   # 0, or the status's code (bench/run/summary.py)
+    expected: bool                   # the status is what the scenario declared
+    summary: dict[str, Any]
+    signals: list[SignalInfo] = field(default_factory=list)
+    trace: dict[str, np.ndarray] | None = None   # when asked for (keep_trace)
+    envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    step_windows: list[dict[str, np.ndarray]] = field(default_factory=list)
+
+    # what the claims and tests read, by the names they had
+    @property
+    def identified(self) -> dict[str, Any]:
+        return self.summary["identified"]
+
+    @property
+    def plant(self) -> dict[str, Any]:
+        return self.summary["plant"]
+
+    @property
+    def controller(self) -> dict[str, Any]:
+        return self.summary["controller"]
+
+    @property
+    def counters(self) -> dict[str, Any]:
+        return self.summary["counters"]
+
+
+class Pipeline:
+    """Frames in (any chunk size, bus order), trace chunks out to the sinks, a summary at the end."""
+
+    WINDOW = (4, 24)  # periods before and after a reference step kept for its plot
+
+    def __init__(self, plant_id: int, drive_id: int, sinks: list[Sink] | None = None,
+                 frame_sinks: list[FrameSink] | None = None, expect: tuple[str, ...] = ("ok",)) -> None:
+        self.dec = Decoder(plant_id, drive_id)
+        self.sinks = list(sinks or [])
+        self.frame_sinks = list(frame_sinks or [])
+        self.expect = expect
+        self.steps = {sig: StepTracker(sig) for sig, _, _ in STEP_SIGNALS}
+        self.envelopes: dict[str, Envelope] = {}
+        self.bits = 0
+        self.max_phase_A = 0.0
+        self.first_trip_period: int | None = None
+        self._begun = False
+        self._tail: dict[str, np.ndarray] = {}       # the last rows, for step windows that start in a chunk
+        self._windows: list[dict[str, Any]] = []
+
+    @property
+    def periods(self) -> int:
+        return self.dec.stats.periods
+
+    def feed(self, frames: np.ndarray) -> None:
+        if len(frames) == 0:
+            return
+        for fs in self.frame_sinks:
+            fs.write(frames)
+        self.bits += frame_bits(frames)
+        self._rows(self.dec.feed(frames))
+
+    def _rows(self, chunk: dict[str, np.ndarray] | None) -> None:
+        if chunk is None or len(chunk["period"]) == 0:
+            return
+        if not self._begun:
+            self._begun = True
+            for s in self.sinks:
+                s.begin(self.dec.signals, self.dec)
+            self.envelopes = {s.name: Envelope() for s in self.dec.signals if s.name in chunk}
+        for sig, x, ref in STEP_SIGNALS:
+            if x in chunk:
+                self.steps[sig].add(chunk["period"], chunk[x], chunk[ref])
+        for n, env in self.envelopes.items():
+            env.add(chunk[n])
+        for col in ("i_a_A", "i_b_A"):
+            if col in chunk:
+                a = np.abs(chunk[col])
+                a = a[np.isfinite(a)]
+                if len(a):
+                    self.max_phase_A = max(self.max_phase_A, float(a.max()))
+        if self.first_trip_period is None and "status" in chunk:
+            st = chunk["status"]
+            hit = np.nonzero(np.isfinite(st) & (np.nan_to_num(st).astype(np.int64) & 1 == 1))[0]
+            if len(hit):
+                self.first_trip_period = int(chunk["period"][hit[0]])
+        self._step_windows(chunk)
+        for s in self.sinks:
+            s.write(chunk)
+
+    def _step_windows(self, chunk: dict[str, np.ndarray]) -> None:
+        """Keep the rows around each reference step (a few dozen per step) for the step plots."""
+        before, after = self.WINDOW
+        names = [n for n in ("period", "iq_A", "iq_ref_A", "id_A", "id_ref_A", "vd_V", "vq_V") if n in chunk]
+        joined = {n: np.concatenate([self._tail.get(n, chunk[n][:0]), chunk[n]]) for n in names}
+        p = joined["period"]
+        for w in self._windows:  # windows still filling
+            lo, hi = w["lo"], w["hi"]
+            m = (p >= lo) & (p < hi) & (p > w["have"])
+            if m.any():
+                for n in names:
+                    w["rows"][n] = np.concatenate([w["rows"][n], joined[n][m]])
+                w["have"] = int(p[m][-1])
+        for ref in ("iq_ref_A", "id_ref_A"):
+            if ref not in joined or len(joined[ref]) < 2:
+                continue
+            r = joined[ref]
+            for j in np.nonzero(np.abs(np.diff(r)) > 1e-6)[0] + 1:
+                at = int(p[j])
+                if any(w["at"] == at and w["ref"] == ref for w in self._windows):
+                    continue
+                lo, hi = at - before, at + after
+                m = (p >= lo) & (p < hi)
+                self._windows.append({"at": at, "ref": ref, "lo": lo, "hi": hi, "have": int(p[m][-1]),
+                                      "rows": {n: joined[n][m].copy() for n in names}})
+        self._tail = {n: joined[n][-before:] for n in names}
+
+    def finish(self, scenario: str, bus: str, wall: dict[str, float] | None = None) -> RunResult:
+        self._rows(self.dec.finish())
+        dec = self.dec
+        steps = [m.to_dict() for sig, _, _ in STEP_SIGNALS for m in self.steps[sig].finish()]
+        tuning = dec.sdo.changes("Online tuning.enable")
+        for s in steps:
+            on = [v for p, v in tuning if p <= s["at_period"]]
+            s["tuning_on"] = bool(on and on[-1])
+        steps.sort(key=lambda s: (s["signal"] != "iq", s["at_period"]))
+        plant = plant_values(dec)
+        bound = divergence_bound_A(plant)
+        bstats = bus_stats(dec, self.bits)
+        trip_active = dec.sdo.plant.get("Run control", "trip_active")
+        # A loop that never settles and still swings over half its step at the end of the window
+        # oscillates (an unstable loop held by the voltage limit): diverged, though bounded.
+        oscillating = [s["at_period"] for s in steps if s["periods_to_settle"] is None
+                       and (s["tail_peak_to_peak_A"] or 0.0) > 0.5 * abs(s["to_A"] - s["from_A"])]
+        flags = {
+            "non_finite": bool(bstats["non_finite_values"]),
+            "diverged": (bound is not None and self.max_phase_A > bound) or bool(oscillating),
+            "tripped": self.first_trip_period is not None or bool(trip_active),
+            "frames_lost": bstats["lost_frames"] > 0,
+        }
+        status, code, expected = verdict(flags, self.expect)
+        timing = dict(wall or {})
+        if timing.get("run_wall_s"):
+            timing["periods_per_s"] = dec.stats.periods / timing["run_wall_s"]
+        ctl = dec.sdo.drive
+        summary: dict[str, Any] = {
+            "schema_version": SCHEMA_VERSION,
+            "scenario": scenario,
+            "bus": bus,
+            "status": status,
+            "status_expected": expected,
+            "expect": list(self.expect),
+            "status_flags": flags,
+            "first_trip_period": self.first_trip_period,
+            "oscillating_steps": oscillating,
+            "max_phase_current_A": self.max_phase_A,
+            "divergence_bound_A": bound,
+            "periods": dec.stats.periods,
+            "Ts_s": dec.ts_s,
+            "steps": steps,
+            "identified": identified(dec),
+            "plant": plant,
+            "controller": {n: ctl.get("Controller", n) for n in ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H",
+                                                                 "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs")},
+            "counters": {"plant_missed_commands": dec.sdo.plant.get("Run control", "missed_commands"),
+                         "plant_late_commands": dec.sdo.plant.get("Run control", "late_commands"),
+                         "plant_period_index": dec.sdo.plant.get("Run control", "period_index"),
+                         "drive_current_steps": ctl.get("Drive status", "current_steps"),
+                         "drive_lost_measurements": ctl.get("Drive status", "lost_measurements"),
+                         "drive_late_measurements": ctl.get("Drive status", "late_measurements")},
+            "settings": [{"period": w.period, "node": w.node, "name": w.name, "value": w.value}
+                         for w in dec.sdo.writes if w.period > 0],
+            "bus_stats": bstats,
+            "timing": timing,
+        }
+        for s in self.sinks:
+            s.end(summary)
+        windows = [{**w["rows"], "at_period": np.int64(w["at"])} for w in sorted(self._windows,
+                                                                                  key=lambda w: w["at"])]
+        return RunResult(scenario, bus, status, code, expected, summary, list(dec.signals),
+                         envelopes={n: e.arrays() for n, e in self.envelopes.items()}, step_windows=windows)
+
+
+def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink] | None = None,
+                 frame_sinks: list[FrameSink] | None = None, keep_trace: bool = False,
+                 progress: Progress | None = None) -> RunResult:
+    """Run a scenario on a bus ('direct' or a SocketCAN/python-can channel) and return its result.
+
+    `sinks` take the trace chunks (files, viewers); `frame_sinks` the raw frames (a log writer);
+    `keep_trace` also returns the whole trace in memory (O(periods): for short runs and tests).
+    Over SocketCAN the frames come from candump's log in `opts.out` (which must be set)."""
+    from .sources import CandumpSource, DirectSource, ListenerSource
+
+    opts = opts or RunOptions()
+    sinks = list(sinks or [])
+    collector = TraceCollector() if keep_trace else None
+    if collector is not None:
+        sinks.append(collector)
+    pipe = Pipeline(opts.plant_id, opts.drive_id, sinks, frame_sinks, sc.expect)
+    t0 = time.monotonic()
+    sess = Session(sc, opts)
+    source: Any = None
+    run_wall = 0.0
+    try:
+        if opts.bus != "direct" and opts.interface == "socketcan" and opts.record:
+            if opts.out is None:
+                raise ValueError("a run over SocketCAN needs opts.out for candump's log")
+            source = CandumpSource(opts.bus, opts.out / "candump.log")
+        sess.open()
+        if sess.hil is not None:
+            source = DirectSource(sess.hil, opts.chunk_periods)
+        elif source is None and opts.record:
+            source = ListenerSource()
+            sess.net.notifier.add_listener(source)
+
+        def tick() -> None:
+            if source is not None:
+                pipe.feed(source.drain())
+
+        sess.reset_nodes()
+        sess.configure()
+        run_wall = sess.run(progress, tick)
+        sess.statuses()
+    finally:
+        sess.close()
+        if source is not None:
+            source.stop()
+    if source is not None:
+        pipe.feed(source.drain(final=True) if not isinstance(source, DirectSource) else source.drain())
+        if hasattr(source, "cleanup"):
+            source.cleanup()
+    res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall})
+    if collector is not None:
+        res.trace = collector.trace
+    return res
+
+
+def capture_to_log(sc: Scenario, opts: RunOptions) -> float:
+    """The bus half of a run only: nodes, master and candump's log in `opts.out`; no decoding
+    (inside the VM, where Python is slow, the host decodes the log). Returns the loop's wall time."""
+    from .sources import CandumpSource
+
+    assert opts.out is not None
+    source = CandumpSource(opts.bus, opts.out / "candump.log", follow=False)
+    sess = Session(sc, opts)
+    try:
+        sess.open()
+        sess.reset_nodes()
+        sess.configure()
+        run_wall = sess.run()
+        sess.statuses()
+    finally:
+        sess.close()
+        source.stop()
+        source.cleanup()
+    return run_wall
+
+
+def replay_log(path: Path, plant_id: int = 0x10, drive_id: int = 0x20, sinks: list[Sink] | None = None,
+               keep_trace: bool = False, expect: tuple[str, ...] = ("ok",), progress: Callable[[int], None] | None
+               = None) -> RunResult:
+    """A CAN log (candump .log, .asc, .blf, ...) through the same pipeline as a run: the same trace and
+    summary, since the log carries the layout, the settings and the statuses (bench/run/sdo_log.py)."""
+    from .canlog import read_frames
+    from .sources import sorted_chunks
+
+    sinks = list(sinks or [])
+    collector = TraceCollector() if keep_trace else None
+    if collector is not None:
+        sinks.append(collector)
+    pipe = Pipeline(plant_id, drive_id, sinks, None, expect)
+    t0 = time.monotonic()
+    frames = read_frames(path)
+    for chunk in sorted_chunks(frames):
+        pipe.feed(chunk)
+        if progress:
+            progress(len(chunk))
+    res = pipe.finish(path.stem, f"log {path.name}", {"wall_s": time.monotonic() - t0})
+    res.summary["log"] = {"path": str(path), "frames_skipped": frames.skipped}
+    if collector is not None:
+        res.trace = collector.trace
+    return res

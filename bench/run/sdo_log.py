@@ -1,0 +1,146 @@
+"""What the master said to the nodes, read back from the frames: every expedited SDO
+transfer on the bus, decoded with the EDS into the nodes' object-dictionary state.
+
+A run's log is self-describing this way: the PDO layout (the master reads and writes
+0x1800/0x1A00), the plant's parameters (read by SDO at configuration), every setting and
+reference step with the period it took effect, and the statuses read at the end are all
+SDO transfers on the bus. `bench run` and `bench replay` of its log derive the same
+summary from the same frames.
+
+Hand-written because python `canopen` decodes SDO only as a client of a live node; it has
+no passive decoder for recorded traffic. Only expedited transfers are decoded (every
+numeric entry is one; segmented ones carry strings: skipped).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+
+import numpy as np
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
+
+from ..eds import load as load_od
+
+STRUCT = {datatypes.BOOLEAN: "?", datatypes.INTEGER8: "b", datatypes.INTEGER16: "h", datatypes.INTEGER32: "i",
+          datatypes.UNSIGNED8: "B", datatypes.UNSIGNED16: "H", datatypes.UNSIGNED32: "I", datatypes.REAL32: "f",
+          datatypes.INTEGER64: "q", datatypes.UNSIGNED64: "Q", datatypes.REAL64: "d"}
+
+
+@dataclass
+class SdoWrite:
+    period: int      # the period it took effect (SYNCs seen before the request)
+    node: str        # 'plant' | 'drive'
+    name: str        # 'Object.sub' as in the EDS
+    value: float
+
+
+@dataclass
+class NodeState:
+    """One node's object dictionary as the bus shows it: EDS defaults, then every confirmed
+    expedited download and upload, in bus order."""
+
+    name: str
+    node_id: int
+    values: dict[tuple[int, int], float] = field(default_factory=dict)
+    pending: tuple[int, int, int, int, bytes] | None = None  # (ccs, index, sub, command, data) of the open request
+
+    def __post_init__(self) -> None:
+        self.od = load_od(self.name, self.node_id)
+        self.vars: dict[tuple[int, int], ODVariable] = {}
+        for obj in self.od.values():
+            subs = [obj] if isinstance(obj, ODVariable) else list(obj.subindices.values()) \
+                if isinstance(obj, (ODRecord, ODArray)) else []
+            for v in subs:
+                self.vars[(v.index, v.subindex)] = v
+                if v.data_type in STRUCT and v.default is not None and not isinstance(v.default, (bytes, str)):
+                    self.values[(v.index, v.subindex)] = v.default
+
+    def qualname(self, index: int, sub: int) -> str | None:
+        v = self.vars.get((index, sub))
+        if v is None:
+            return None
+        return f"{v.parent.name}.{v.name}" if isinstance(v.parent, (ODRecord, ODArray)) else v.name
+
+    def get(self, name: str, sub: str | None = None) -> float | None:
+        obj = self.od[name]
+        v = obj if sub is None else obj[sub]
+        return self.values.get((v.index, v.subindex))
+
+    def _decode(self, index: int, sub: int, data: bytes) -> float | None:
+        v = self.vars.get((index, sub))
+        if v is None or v.data_type not in STRUCT:
+            return None
+        fmt = "<" + STRUCT[v.data_type]
+        if struct.calcsize(fmt) > len(data):
+            return None
+        return struct.unpack_from(fmt, data)[0]
+
+    def request(self, d: bytes) -> None:
+        """A client frame: an initiate request (download ccs 1, upload ccs 2) opens a transfer."""
+        ccs = d[0] >> 5
+        self.pending = (ccs, d[1] | d[2] << 8, d[3], d[0], d[4:8]) if ccs in (1, 2) else None
+
+    def response(self, d: bytes) -> tuple[str, int, int, float] | None:
+        """A server frame: ('w' | 'r', index, sub, value) of a completed expedited transfer."""
+        p, self.pending = self.pending, None
+        if p is None:
+            return None
+        ccs, index, sub, cmd, data = p
+        if (d[1] | d[2] << 8, d[3]) != (index, sub):
+            return None
+        scs = d[0] >> 5
+        if ccs == 1 and scs == 3 and cmd & 0x02:  # expedited download, confirmed
+            kind, payload, flags = "w", data, cmd
+        elif ccs == 2 and scs == 2 and d[0] & 0x02:  # expedited upload response
+            kind, payload, flags = "r", bytes(d[4:8]), d[0]
+        else:  # abort (scs 4), segmented transfer: nothing stored
+            return None
+        n = 4 - ((flags >> 2) & 3) if flags & 0x01 else 4
+        value = self._decode(index, sub, bytes(payload[:n]) + bytes(4))
+        if value is None:
+            return None
+        self.values[(index, sub)] = value
+        return kind, index, sub, value
+
+
+class SdoLog:
+    """The SDO traffic of a run, followed frame by frame (only SDO frames reach Python)."""
+
+    def __init__(self, plant_id: int, drive_id: int) -> None:
+        self.nodes = {plant_id: NodeState("plant", plant_id), drive_id: NodeState("drive", drive_id)}
+        self.plant = self.nodes[plant_id]
+        self.drive = self.nodes[drive_id]
+        self.writes: list[SdoWrite] = []
+        self._req_ids = np.array([0x600 + i for i in self.nodes], dtype=np.uint16)
+        self._resp_ids = np.array([0x580 + i for i in self.nodes], dtype=np.uint16)
+
+    def mask(self, frames: np.ndarray) -> np.ndarray:
+        cob = frames["cob_id"]
+        return np.isin(cob, self._req_ids) | np.isin(cob, self._resp_ids)
+
+    def feed(self, frames: np.ndarray, periods: np.ndarray) -> None:
+        """SDO frames (see `mask`) in bus order, with the number of SYNCs seen before each."""
+        for f, period in zip(frames, periods):
+            if int(f["dlc"]) != 8:
+                continue
+            cob, d = int(f["cob_id"]), bytes(f["data"])
+            if cob >= 0x600:
+                self.nodes[cob - 0x600].request(d)
+                continue
+            node = self.nodes[cob - 0x580]
+            done = node.response(d)
+            if done is not None and done[0] == "w":
+                name = node.qualname(done[1], done[2])
+                if name is not None:
+                    self.writes.append(SdoWrite(int(period), node.name, name, float(done[3])))
+
+    # ------------------------------------------------------------------ what the state tells
+    @property
+    def sync_cob_id(self) -> int:
+        v = self.plant.get("COB-ID SYNC message")
+        return int(v or 0x80) & 0x7FF
+
+    def changes(self, name: str, node: str = "drive") -> list[tuple[int, float]]:
+        """(period, value) of every confirmed write of `name` ('Object.sub'), in bus order."""
+        return [(w.period, w.value) for w in self.writes if w.node == node and w.name == name]

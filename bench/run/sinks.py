@@ -1,0 +1,124 @@
+"""Consumers of a run's trace chunks. Each takes every chunk once, in memory; files are
+written once, as the chunks come (nothing is read back).
+
+A sink has `begin(signals, ctx)`, `write(chunk)` and `end(summary)`; `ctx` is the Decoder
+(layout, Ts, pole pairs, the nodes' state as the bus showed it).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from .frames import FRAME_DTYPE
+from .signals import SignalInfo
+
+TRACES_FILE = "traces.npy"
+
+
+class Sink(Protocol):
+    def begin(self, signals: list[SignalInfo], ctx: Any) -> None: ...
+    def write(self, chunk: dict[str, np.ndarray]) -> None: ...
+    def end(self, summary: dict[str, Any]) -> None: ...
+
+
+def columns(signals: list[SignalInfo]) -> list[str]:
+    return ["period", "t_s", *[s.name for s in signals]]
+
+
+class TraceFileSink:
+    """traces.npy: one numpy structured array, a row per period and a field per signal (NaN where
+    no frame carried it), appended chunk by chunk. Its header is written first with room for any
+    row count and rewritten at the end, so the file is a standard .npy that np.load reads
+    (mmap_mode="r" reads one column of a long run without loading the rest)."""
+
+    HEADER_BYTES = 64 * 64  # room for a few hundred field names; checked
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.rows = 0
+        self._fh: Any = None
+        self.dtype: np.dtype | None = None
+
+    def begin(self, signals: list[SignalInfo], ctx: Any) -> None:
+        self.dtype = np.dtype([("period", "<i8"), ("t_s", "<f8"), *[(s.name, "<f8") for s in signals]])
+        self._fh = open(self.path, "wb")  # noqa: SIM115 - closed in end()
+        self._fh.write(self._header(0))
+
+    def _header(self, rows: int) -> bytes:
+        assert self.dtype is not None
+        d = {"descr": np.lib.format.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (rows,)}
+        text = repr(d).encode("latin1")
+        room = self.HEADER_BYTES - 12 - 1
+        if len(text) > room:
+            raise ValueError(f"too many trace signals for the .npy header ({len(text)} > {room} bytes)")
+        # magic, version 2.0, 4-byte header length, header padded with spaces, newline
+        return b"\x93NUMPY\x02\x00" + (room + 1).to_bytes(4, "little") + text.ljust(room) + b"\n"
+
+    def write(self, chunk: dict[str, np.ndarray]) -> None:
+        assert self.dtype is not None
+        rows = np.empty(len(chunk["period"]), dtype=self.dtype)
+        for name in self.dtype.names or ():
+            rows[name] = chunk[name] if name in chunk else np.nan
+        self._fh.write(rows.tobytes())
+        self.rows += len(rows)
+
+    def end(self, summary: dict[str, Any]) -> None:
+        if self._fh is None:
+            return
+        self._fh.seek(0)
+        self._fh.write(self._header(self.rows))
+        self._fh.close()
+        self._fh = None
+
+
+def load_traces(path: Path, mmap: bool = True) -> dict[str, np.ndarray]:
+    """traces.npy as columns (memory-mapped: a column is read when used)."""
+    arr = np.load(path, mmap_mode="r" if mmap else None)
+    return {name: arr[name] for name in arr.dtype.names}
+
+
+def trace_header(path: Path) -> dict[str, Any]:
+    with open(path, "rb") as fh:
+        np.lib.format.read_magic(fh)
+        fh.seek(8)
+        n = int.from_bytes(fh.read(4), "little")
+        return ast.literal_eval(fh.read(n).decode("latin1"))
+
+
+class TraceCollector:
+    """The whole trace in memory, as columns (what the claims and the API's callers take)."""
+
+    def __init__(self) -> None:
+        self._parts: list[dict[str, np.ndarray]] = []
+        self.trace: dict[str, np.ndarray] = {}
+
+    def begin(self, signals: list[SignalInfo], ctx: Any) -> None:
+        self._names = columns(signals)
+
+    def write(self, chunk: dict[str, np.ndarray]) -> None:
+        self._parts.append(chunk)
+
+    def end(self, summary: dict[str, Any]) -> None:
+        if self._parts:
+            self.trace = {k: np.concatenate([p[k] for p in self._parts]) for k in self._parts[0]}
+        self._parts = []
+
+
+class FrameCollector:
+    """Every frame in memory (a frame sink: for tests and short runs)."""
+
+    def __init__(self) -> None:
+        self._parts: list[np.ndarray] = []
+        self.frames = np.zeros(0, dtype=FRAME_DTYPE)
+
+    def write(self, frames: np.ndarray) -> None:
+        self._parts.append(frames)
+
+    def close(self) -> None:
+        if self._parts:
+            self.frames = np.concatenate([self.frames, *self._parts])
+            self._parts = []

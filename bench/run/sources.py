@@ -1,0 +1,189 @@
+"""Where a run's frames come from, as numpy chunks in bus order (never a Python object per frame):
+
+- direct mode: the C recorder of the in-process bus (bench/direct/hil_direct.c), emptied
+  after every chunk of periods;
+- SocketCAN: can-utils' candump (C, 8 MiB socket buffer: no frame lost at the lockstep rate
+  even where Python is slow) writing the candump log, followed as it grows;
+- any other python-can interface: a listener on the master's own bus.
+"""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import can
+import numpy as np
+
+from ..nodes import in_vm
+from .canlog import _to_frames, parse_candump
+from .direct import Hil
+from .frames import empty
+
+
+class DirectSource:
+    def __init__(self, hil: Hil, chunk_periods: int) -> None:
+        self.hil = hil
+        # Frames per period: SYNC, 2 measurement TPDOs, the command, up to 3 trace TPDOs, and margin.
+        hil.start_recorder(chunk_periods * 12 + 65_536)
+
+    def drain(self) -> np.ndarray:
+        return self.hil.take()
+
+    def stop(self) -> None:
+        pass
+
+
+class LogFollower:
+    """Reads what was appended to a candump log since the last call: complete lines only,
+    sorted by kernel time stamp (candump on a loaded machine may write a frame a little late).
+    Frames within `hold_us` of the newest are kept for the next call, so that a late frame
+    still finds its place; `drain(final=True)` returns everything."""
+
+    def __init__(self, path: Path, hold_us: int = 200_000) -> None:
+        self.path = path
+        self.hold_us = hold_us
+        self._pos = 0
+        self._rest = b""
+        self._held = empty()
+        self.skipped = 0
+
+    def drain(self, final: bool = False) -> np.ndarray:
+        if not self.path.exists():
+            return empty()
+        with open(self.path, "rb") as fh:
+            fh.seek(self._pos)
+            block = fh.read()
+        self._pos += len(block)
+        data = self._rest + block
+        frames, used, skipped = parse_candump(data)
+        self._rest = data[used:]
+        self.skipped += skipped
+        frames = np.concatenate([self._held, frames]) if len(self._held) else frames
+        if len(frames) == 0:
+            return frames
+        frames = frames[np.argsort(frames["t_us"], kind="stable")]
+        if final:
+            self._held = empty()
+            return frames
+        cut = int(np.searchsorted(frames["t_us"], int(frames["t_us"][-1]) - self.hold_us, side="right"))
+        self._held = frames[cut:]
+        return frames[:cut]
+
+
+def sorted_chunks(chunks: Iterable[np.ndarray], hold_us: int = 200_000) -> Iterator[np.ndarray]:
+    """Chunks in kernel time-stamp order (stable): the frames of the last `hold_us` of a chunk wait
+    for the next one, so that a frame a recorder wrote a little late still finds its place."""
+    held = empty()
+    for chunk in chunks:
+        frames = np.concatenate([held, chunk]) if len(held) else chunk
+        if len(frames) == 0:
+            continue
+        frames = frames[np.argsort(frames["t_us"], kind="stable")]
+        cut = int(np.searchsorted(frames["t_us"], int(frames["t_us"][-1]) - hold_us, side="right"))
+        held = frames[cut:]
+        if cut:
+            yield frames[:cut]
+    if len(held):
+        yield held
+
+
+class CandumpSource:
+    """candump records the bus into `path`. Inside the VM it writes the guest's own /tmp (a shared
+    9p folder is far too slow for a line per frame) and a thread copies the file in blocks to
+    `path` every half second, so that the host can follow it."""
+
+    def __init__(self, iface: str, path: Path, follow: bool = True) -> None:
+        exe = shutil.which("candump")
+        if exe is None:
+            raise RuntimeError("candump not found: apt-get install can-utils")
+        self.path = path
+        self.local = path
+        self._tmpdir: str | None = None
+        if in_vm():
+            self._tmpdir = tempfile.mkdtemp(prefix="bench-rec-")
+            self.local = Path(self._tmpdir) / path.name
+        self._fh = open(self.local, "wb")  # noqa: SIM115 - closed in stop()
+        # -L: log-file format (absolute kernel time stamps); -r: 8 MiB receive buffer; line-buffered
+        # (stdbuf) so that the file can be followed while the run goes on.
+        argv = [exe, "-L", "-r", str(8 << 20), iface]
+        if shutil.which("stdbuf"):
+            argv = ["stdbuf", "-oL", *argv]
+        self.proc = subprocess.Popen(argv, stdout=self._fh, stderr=subprocess.PIPE)
+        time.sleep(0.2)
+        if self.proc.poll() is not None:
+            err = self.proc.stderr.read().decode() if self.proc.stderr else ""
+            raise RuntimeError(f"candump on {iface} failed: {err.strip()}")
+        self._stop = threading.Event()
+        self._copier: threading.Thread | None = None
+        if self.local != path:
+            self._copier = threading.Thread(target=self._copy_loop, daemon=True)
+            self._copier.start()
+        self.follower = LogFollower(self.local) if follow else None
+
+    def _copy_loop(self) -> None:
+        pos = 0
+        with open(self.path, "wb") as dst:
+            while True:
+                stopping = self._stop.wait(0.5)
+                with open(self.local, "rb") as src:
+                    src.seek(pos)
+                    block = src.read()
+                if block:
+                    dst.write(block)
+                    dst.flush()
+                    pos += len(block)
+                if stopping:
+                    return
+
+    def drain(self, final: bool = False) -> np.ndarray:
+        return self.follower.drain(final) if self.follower is not None else empty()
+
+    def stop(self) -> None:
+        time.sleep(0.2)
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+        self._fh.close()
+        if self._copier is not None:
+            self._stop.set()
+            self._copier.join(timeout=60)
+
+    def cleanup(self) -> None:
+        if self._tmpdir:
+            shutil.rmtree(self._tmpdir, ignore_errors=True)
+
+
+class ListenerSource(can.Listener):
+    """Frames seen by the master's own bus (interfaces other than SocketCAN)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._msgs: list[can.Message] = []
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._lock:
+            self._msgs.append(msg)
+
+    def drain(self, final: bool = False) -> np.ndarray:
+        with self._lock:
+            msgs, self._msgs = self._msgs, []
+        return frames_from_messages(msgs)
+
+    def stop(self) -> None:
+        pass
+
+
+def frames_from_messages(msgs: list[can.Message]) -> np.ndarray:
+    """python-can messages (11-bit data frames of up to 8 bytes) as frames, by time stamp."""
+    keep = sorted((m for m in msgs if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame)
+                   and len(m.data) <= 8), key=lambda m: m.timestamp)
+    return _to_frames(keep) if keep else empty()

@@ -1,0 +1,161 @@
+"""summary.json of a run, and its verdict: built from what the decoder and the statistics
+saw on the bus (the same for `bench run` and `bench replay` of its log).
+
+Status (one word, and a distinct exit code for each bad one):
+  ok           nothing below
+  non_finite   a NaN or an infinity arrived in a PDO (a frame that arrived is never "lost")
+  diverged     a phase current beyond what the inverter can drive through the winding
+               (2 x (2/3 Vdc + back-EMF) / R): the loop ran away with the plant's trip off
+  tripped      the plant's over-current trip latched (Measurement.status bit 0, or trip_active)
+  frames_lost  a SYNC counter gap, a period without its measurement or command, a wrong sample index
+A scenario may expect a bad status (scenario.expect); the run then passes when it gets it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..plan import classic_frame_bits
+from ..scenario import ENUMS, STATUSES
+from .decode import Decoder
+
+SCHEMA_VERSION = 2
+EXIT_CODES = {"ok": 0, "tripped": 3, "diverged": 4, "non_finite": 5, "frames_lost": 6}
+EXIT_EXPECTATION_NOT_MET = 7
+assert set(EXIT_CODES) == set(STATUSES)
+PRIORITY = ("non_finite", "diverged", "tripped", "frames_lost")  # the root cause first
+
+# What each controller identifies or applies, read by SDO at the end of every run (and so in the log).
+CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "deadbeat_you2019": ("You 2019", "Online tuning", ("K1_avg", "K2_avg", "L_hat_H", "K1_active_V_A",
+                                                       "K2_active_V_A", "identifications", "gain_updates")),
+    "dpcc_yao2020": ("Yao 2020", "Yao 2020 DPCC", ("R_hat_ohm", "L_hat_H", "dM_d_V", "dM_q_V", "ident_state",
+                                                   "R_converged", "L_converged", "rls_R_hat_ohm", "rls_L_hat_H")),
+    "incremental_zhao2022": ("Zhao 2022", "Zhao 2022", ("K1_V_A", "K2_V_A", "limited")),
+    "predictive_zhao2022": ("Zhao 2022", "Zhao 2022", ("G_V_A", "limited")),
+}
+# Statuses read at the end: (node, object, entries).
+END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
+    ("plant", "Run control", ("missed_commands", "late_commands", "period_index", "trip_active")),
+    ("drive", "Drive status", ("current_steps", "lost_measurements", "late_measurements")),
+    ("drive", "Controller", ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s",
+                             "pole_pairs")),
+    *{(("drive", obj, subs)) for _, obj, subs in CONTROLLER_RESULTS.values()},
+)
+PLANT_VALUES = (("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode",
+                                 "omega_imposed_rad_s")),
+                ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")))
+CONTROLLER_NAMES = {v: k for k, v in ENUMS["controller"].items()}
+
+
+def _num(v: float | None) -> float | int | None:
+    if v is None:
+        return None
+    return int(v) if float(v).is_integer() and abs(v) < 2**53 else float(v)
+
+
+def identified(dec: Decoder) -> dict[str, Any]:
+    """Per-controller results; what does not apply says so instead of showing zeros."""
+    kind = CONTROLLER_NAMES.get(int(dec.sdo.drive.get("Controller", "controller") or -1), "unknown")
+    out: dict[str, Any] = {"controller": kind}
+    spec = CONTROLLER_RESULTS.get(kind)
+    if spec is None:
+        out["paper"] = None
+        out["note"] = f"not applicable: the {kind} controller identifies nothing"
+        return out
+    paper, obj, subs = spec
+    out["paper"] = paper
+    vals = {s: _num(dec.sdo.drive.get(obj, s)) for s in subs}
+    if kind == "deadbeat_you2019":
+        vals["K1_avg_V_A"], vals["K2_avg_V_A"] = vals.pop("K1_avg"), vals.pop("K2_avg")
+        if not vals.get("identifications"):
+            for k in ("K1_avg_V_A", "K2_avg_V_A", "L_hat_H"):
+                vals[k] = None
+            out["note"] = "no identification ran (online tuning off or never excited): K1/K2 averages and " \
+                          "L_hat not applicable; K1_active_V_A is the gain in use"
+    if kind == "dpcc_yao2020":
+        rls = _num(dec.sdo.drive.get("Yao 2020 DPCC", "rls_enable"))
+        if not rls:
+            vals["rls_R_hat_ohm"] = vals["rls_L_hat_H"] = None
+    out.update(vals)
+    return out
+
+
+def plant_values(dec: Decoder) -> dict[str, float | int | None]:
+    return {s: _num(dec.sdo.plant.get(obj, s)) for obj, subs in PLANT_VALUES for s in subs}
+
+
+def divergence_bound_A(plant: dict[str, Any]) -> float | None:
+    R, vdc = plant.get("R_ohm"), plant.get("Vdc_V")
+    if not R or not vdc:
+        return None
+    emf = 0.0
+    if plant.get("mech_mode") == ENUMS["mech_mode"]["imposed_speed"]:
+        emf = abs(plant.get("omega_imposed_rad_s") or 0.0) * (plant.get("pole_pairs") or 1) * (plant.get("psi_Wb")
+                                                                                              or 0.0)
+    return 2.0 * (2.0 / 3.0 * vdc + emf) / R
+
+
+def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
+    st = dec.stats
+    n = max(1, st.periods)
+
+    def missing(signal: str) -> int:
+        for ps in st.pdos.values():
+            if any(q.endswith("." + signal) for q, _ in ps.pdo.signals):
+                return st.periods - ps.present
+        return 0
+
+    cont = {"sync_counter_gaps": st.sync_counter_gaps, "missing_measurements": missing("sample_index"),
+            "missing_commands": missing("v_alpha_V"), "sample_index_mismatches": st.sample_index_mismatches}
+    ts = dec.ts_s
+    return {"frames": st.frames, "frames_per_period": st.frames / n, "lost_frames": sum(cont.values()), **cont,
+            "non_finite_values": dict(st.non_finite),
+            "plant_missed_commands": _num(dec.sdo.plant.get("Run control", "missed_commands")),
+            "plant_late_commands": _num(dec.sdo.plant.get("Run control", "late_commands")),
+            "drive_lost_measurements": _num(dec.sdo.drive.get("Drive status", "lost_measurements")),
+            "drive_late_measurements": _num(dec.sdo.drive.get("Drive status", "late_measurements")),
+            "bits_per_period_worst_case": bits_total / n, "bus_load_1Mbit_at_Ts": bits_total / n / 1e6 / ts}
+
+
+def frame_bits(frames: np.ndarray) -> int:
+    """Worst-case bits of these frames on a classic CAN bus (by DLC)."""
+    counts = np.bincount(frames["dlc"], minlength=9)[:9]
+    return int(sum(int(c) * classic_frame_bits(d) for d, c in enumerate(counts)))
+
+
+def verdict(flags: dict[str, Any], expect: tuple[str, ...]) -> tuple[str, int, bool]:
+    """(status, exit code, expected) from the flags a run raised."""
+    status = next((s for s in PRIORITY if flags.get(s)), "ok")
+    if status in expect:
+        return status, 0, True
+    return status, EXIT_CODES[status] if status != "ok" else EXIT_EXPECTATION_NOT_MET, False
+
+
+def format_table(summary: dict[str, Any]) -> str:
+    lines = [f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}{'tuning':>8}"]
+    for s in summary["steps"]:
+        settle = "-" if s["periods_to_settle"] is None else str(s["periods_to_settle"])
+        lines.append(f"{s['signal']:<8}{s['at_period']:>7}{s['from_A']:>7.2f}->{s['to_A']:<6.2f}{settle:>8}"
+                     f"{s['overshoot_A']:>9.3f} A {s['overshoot_pct']:>4.1f}%{s['steady_state_error_A']:>11.2e}"
+                     f"{('on' if s.get('tuning_on') else 'off'):>8}")
+    return "\n".join(lines)
+
+
+def format_identified(ident: dict[str, Any]) -> str:
+    if ident.get("paper") is None:
+        return f"identified: {ident.get('note', 'not applicable')}"
+    parts = []
+    for k, v in ident.items():
+        if k in ("controller", "paper", "note"):
+            continue
+        if v is None:
+            parts.append(f"{k} n/a")
+        elif isinstance(v, float):
+            parts.append(f"{k} {v:.6g}")
+        else:
+            parts.append(f"{k} {v}")
+    line = f"identified ({ident['paper']}, {ident['controller']}): " + ", ".join(parts)
+    return line + (f"\n  ({ident['note']})" if ident.get("note") else "")

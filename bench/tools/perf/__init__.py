@@ -1,0 +1,124 @@
+"""`bench perf`: every performance figure of the bench in one run, with the machine.
+
+Sections (each labelled in the output; timings are reported, never asserted), by module:
+
+* common        machine: CPU model, cores, kernel, compilers
+* cores         plant core (plant_perf, target >= 10 M periods/s); plant + controller in-process: bare
+                cores (libhil.so hil_core_loop_ns) and the direct mode (both node apps and the CANopen
+                slaves on the in-process bus, target >= 5 M periods/s) with its resident memory over
+                10^6 periods; firmware (drive_perf ns per step, instructions per step under callgrind);
+                Yao 2020 identification vs RLS (callgrind); Cortex-M4F sizes (arm-none-eabi-gcc)
+* canopen_cost  co_perf ns per frame
+* sweep         `bench sweep` on 1 process vs all cores
+* live          Rerun's served live buffer for 10^6 periods x 16 signals; the VM live view's cost per update
+* pipeline      what the user waits for, side by side: whole `bench run` processes (1 s scenario, 10^6
+                periods with every output), run_scenario with a sweep's outputs at 10^6 / 10^7 periods
+                against the loop's own rate, peak RSS of each, and the peer (peers: gym-electric-motor on
+                the same 1 s scenario); a table of the targets
+* vcan          ONE VM boot (or the host's vcan0): the real lockstep loop beside lockstep_floor (same frames,
+                no stack), and a longer run whose every frame is checked from the SYNC counters
+* report        format_report
+
+`bench perf --json` prints the same as JSON; `--quick` skips the vcan part and shrinks the pipeline
+section (10^5 periods, one repetition, no 10^7, no peers). Inside the VM the helper
+`python -m bench.tools.perf --inside-vm --out FILE` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from .common import PERF_DIR, VM_LOCKSTEP_PERIODS, VM_LONG_BUDGET_S, machine, section
+
+SECTIONS = ("plant_core", "closed_loop", "firmware", "yao2020_identification", "cortex_m4", "canopen",
+            "sweep_scaling", "rerun_live", "pipeline", "vcan")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    from .common import TARGET_LONG_PERIODS
+
+    p.add_argument("--json", action="store_true", help="print the results as JSON")
+    p.add_argument("--quick", action="store_true",
+                   help="skip the vcan part (no VM boot); pipeline section at 10^5 periods, once, no 10^7, no peers")
+    p.add_argument("--only", default=None, metavar="SECTION[,SECTION...]",
+                   help=f"run only these sections ({', '.join(SECTIONS)})")
+    p.add_argument("--repetitions", type=int, default=None,
+                   help="whole-process runs of the 1 s scenario in the pipeline section (default 5; --quick 1)")
+    p.add_argument("--no-peers", action="store_true", help="pipeline section without the peer simulator")
+    p.add_argument("--lockstep-periods", type=int, default=VM_LOCKSTEP_PERIODS,
+                   help=f"periods of the real lockstep loop and of the floor over vcan (default {VM_LOCKSTEP_PERIODS})")
+    p.add_argument("--long-budget-s", type=float, default=VM_LONG_BUDGET_S,
+                   help="wall-time budget of the long frame-continuity run in the VM "
+                        f"(periods = measured rate x budget, at most {TARGET_LONG_PERIODS}; default {VM_LONG_BUDGET_S:.0f})")
+    p.add_argument("--save", type=Path, default=PERF_DIR / "perf.json", help="also write the JSON here")
+    p.add_argument("--inside-vm", action="store_true", help=argparse.SUPPRESS)
+    p.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
+
+
+def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
+    from .canopen_cost import canopen_cost
+    from .cores import closed_loop, cortex_m4, firmware, plant_core, yao2020_identification_cost
+    from .live import rerun_live
+    from .pipeline import Sizes, pipeline
+    from .sweep import sweep_scaling
+    from .vcan import vcan
+
+    sizes = Sizes.quick() if args.quick else Sizes()
+    if args.repetitions is not None:
+        sizes.repetitions = max(1, args.repetitions)
+    if args.no_peers:
+        sizes.peers = False
+    return {"plant_core": plant_core, "closed_loop": closed_loop, "firmware": firmware,
+            "yao2020_identification": yao2020_identification_cost, "cortex_m4": cortex_m4,
+            "canopen": canopen_cost, "sweep_scaling": sweep_scaling, "rerun_live": rerun_live,
+            "pipeline": lambda: pipeline(sizes, note=note), "vcan": lambda: vcan(args)}
+
+
+def main(args: argparse.Namespace) -> int:
+    from .report import format_report
+
+    if getattr(args, "inside_vm", False):
+        from .vcan import inside_vm
+
+        if args.out is None:
+            print("bench perf: --inside-vm needs --out FILE", file=sys.stderr)
+            return 64
+        return inside_vm(args)
+    only = [s.strip() for s in args.only.split(",")] if getattr(args, "only", None) else list(SECTIONS)
+    unknown = [s for s in only if s not in SECTIONS]
+    if unknown:
+        print(f"bench perf: unknown section(s) {', '.join(unknown)}; known: {', '.join(SECTIONS)}", file=sys.stderr)
+        return 64
+    t0 = time.monotonic()
+    quiet = args.json
+
+    def note(msg: str) -> None:
+        if not quiet:
+            print(f"bench perf: {msg}", file=sys.stderr, flush=True)
+
+    argv = " ".join(a for a in sys.argv[1:] if a != "perf")
+    res: dict[str, Any] = {"command": f"bench perf {argv}".strip()}
+    note("machine")
+    res["machine"] = machine()
+    fns = _functions(args, note)
+    for name in SECTIONS:
+        if name not in only:
+            continue
+        if name == "vcan" and args.quick:
+            res["vcan"] = None
+            continue
+        note("vcan (one VM boot, ~2 min)" if name == "vcan" else name)
+        res[name] = section(fns[name])
+    res["wall_s"] = time.monotonic() - t0
+    if args.save:
+        args.save.parent.mkdir(parents=True, exist_ok=True)
+        res["saved"] = str(args.save)
+        args.save.write_text(json.dumps(res, indent=2))
+    print(json.dumps(res, indent=2) if args.json else format_report(res))
+    errors = [k for k, s in res.items() if isinstance(s, dict) and "error" in s]
+    return 1 if errors else 0

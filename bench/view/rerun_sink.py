@@ -1,0 +1,395 @@
+"""Rerun sink of a run: traces decoded chunk by chunk go to an .rrd file (full rate) and,
+when asked, to a live viewer (every Nth period): a spawned native viewer, or a web viewer
+served from this process.
+
+Entities are grouped by SI unit, `/{unit_slug}/{column}` (`/A/iq_A`, `/V_per_A/K1_active_V_A`,
+`/H/L_hat_H`, `/count_or_ratio/sync_counter`), and the blueprint has one time-series view per
+unit, so quantities of different units never share an axis. Timelines: `period` (sequence,
+the control-period index) and `sim_time` (duration, simulated seconds). Each chunk is logged
+with one `send_columns` call per signal.
+
+Serving happens once per process: the first serve-mode sink starts the gRPC server and the
+web viewer, and they stay up until the process exits (`serve_until` keeps the process alive
+after a run); later serve-mode sinks in the same process stream to the same server when they
+ask for the same ports, and are refused with a clear error when they ask for others.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import socket
+import sys
+import time
+import urllib.parse
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from bench.run.signals import SignalInfo
+
+APPLICATION_ID = "pmsm-hil-bench"
+TIMELINES = ("period", "t_s")  # chunk columns that are timelines, not signals
+
+# The command-line options that set the ports, named in the port-in-use error. The CLI that
+# builds a RerunSink may override these to match its own option names.
+PORT_OPTIONS = {"web": "--web-port", "grpc": "--grpc-port"}
+
+# A readable view name per unit (the quantity plotted); any other unit is named by itself.
+QUANTITY_OF_UNIT: dict[str, str] = {
+    "A": "currents", "V": "voltages", "V/A": "gains", "H": "inductances", "Ω": "resistances",
+    "A²": "squared currents", "Wb": "flux linkages", "rad": "angles", "rad/s": "speeds",
+    "rad/s²": "accelerations", "N·m": "torques", "kg·m²": "inertias", "Hz": "frequencies",
+    "J": "energies", "s": "times", "Ω/(V·s)": "adaptation gains", "H/(V·s)": "adaptation gains",
+}
+# Order of the views: currents and voltages on top (large), the others in a grid below in this
+# order, then any unit not listed here alphabetically.
+TOP_UNITS = ("A", "V")
+GRID_ORDER = ("V/A", "H", "Ω", "A²", "Wb", "rad", "rad/s", "rad/s²", "N·m", "kg·m²", "Hz", "J", "s",
+              "Ω/(V·s)", "H/(V·s)", "1")
+
+
+class ServeError(RuntimeError):
+    """The web viewer cannot be served as asked (a port in use, or this process already serves elsewhere)."""
+
+
+def unit_slug(unit: str) -> str:
+    """An entity-path-safe name of a unit: 'V/A' -> 'V_per_A', 'Ω' -> 'ohm', 'A²' -> 'A2', '1' -> 'count_or_ratio'."""
+    if unit in ("1", ""):
+        return "count_or_ratio"
+    s = unit.replace("Ω", "ohm").replace("µ", "u").replace("°", "deg").replace("²", "2").replace("³", "3")
+    s = s.replace("/", "_per_").replace("·", "_").replace("*", "_").replace(" ", "_")
+    s = re.sub(r"[^A-Za-z0-9_]", "_", s)
+    s = re.sub(r"_+", "_", s).strip("_")
+    return s or "unitless"
+
+
+def view_name(unit: str) -> str:
+    """'A' -> 'currents (A)', '1' -> 'counts and ratios', an unknown unit -> the unit itself."""
+    if unit in ("1", ""):
+        return "counts and ratios"
+    quantity = QUANTITY_OF_UNIT.get(unit)
+    return f"{quantity} ({unit})" if quantity else unit
+
+
+def entity_path(signal: SignalInfo) -> str:
+    return f"/{unit_slug(signal.unit)}/{signal.name}"
+
+
+def _unit_order(unit: str) -> tuple[int, str]:
+    order = TOP_UNITS + GRID_ORDER
+    return (order.index(unit), "") if unit in order else (len(order), unit)
+
+
+def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
+    """One TimeSeriesView per unit present (origin `/{unit_slug}`): currents and voltages large on
+    top, the other units in a grid below."""
+    units = sorted({s.unit for s in signals}, key=_unit_order)
+    views = {u: rrb.TimeSeriesView(origin=f"/{unit_slug(u)}", contents="$origin/**", name=view_name(u)) for u in units}
+    top = [views[u] for u in TOP_UNITS if u in views]
+    rest = [views[u] for u in units if u not in TOP_UNITS]
+    parts: list[rrb.Container | rrb.View] = list(top)
+    shares = [3.0] * len(top)
+    if rest:
+        columns = min(len(rest), 3)
+        parts.append(rrb.Grid(*rest, grid_columns=columns))
+        shares.append(2.0 * math.ceil(len(rest) / columns))
+    if not parts:
+        root: rrb.Container = rrb.Vertical()
+    elif len(parts) == 1 and isinstance(parts[0], rrb.Container):
+        root = parts[0]
+    else:
+        root = rrb.Vertical(*parts, row_shares=shares)
+    return rrb.Blueprint(
+        root,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="sim_time"),
+        auto_views=False,
+    )
+
+
+# --- serving (once per process) ------------------------------------------------------------------
+
+def _web_url(web_port: int, grpc_port: int) -> str:
+    proxy = f"rerun+http://localhost:{grpc_port}/proxy"
+    return f"http://localhost:{web_port}/?url={urllib.parse.quote(proxy, safe=':/')}"
+
+
+def _port_free(port: int) -> bool:
+    """Whether a listener can bind 0.0.0.0:port (what rerun binds), as rerun would (SO_REUSEADDR)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("0.0.0.0", port))  # noqa: S104 - probing the address rerun binds
+        except OSError:
+            return False
+    return True
+
+
+def _listening(port: int, within_s: float) -> bool:
+    deadline = time.monotonic() + within_s
+    while True:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
+                return True
+        except OSError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+
+
+def _port_in_use(what: str, port: int) -> ServeError:
+    label = {"web": "web viewer (HTTP)", "grpc": "gRPC"}[what]
+    return ServeError(f"rerun: {label} port {port} is already in use (another bench or viewer still serving?); "
+                      f"choose another with {PORT_OPTIONS[what]} (RerunSink {what}_port=)")
+
+
+@dataclass
+class _Served:
+    web_port: int
+    grpc_port: int
+    url: str
+    owner: rr.RecordingStream  # the live stream that hosts the gRPC server; kept for the process lifetime
+
+
+_SERVED: _Served | None = None
+_SAID_NO_DISPLAY = False
+
+
+def _serve(name: str, web_port: int, grpc_port: int, memory_limit: str) -> tuple[rr.RecordingStream, str]:
+    """A live recording stream connected to this process's gRPC server (started, with the web
+    viewer, on first use), and the browser URL."""
+    global _SERVED
+    if _SERVED is not None:
+        if (_SERVED.web_port, _SERVED.grpc_port) != (web_port, grpc_port):
+            raise ServeError(f"rerun: this process already serves the web viewer at {_SERVED.url} "
+                             f"(web port {_SERVED.web_port}, gRPC port {_SERVED.grpc_port}); it serves once per "
+                             f"process, so it cannot also serve on web port {web_port}, gRPC port {grpc_port}")
+        live = rr.RecordingStream(APPLICATION_ID, recording_id=name)
+        live.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
+        return live, _SERVED.url
+    if web_port == grpc_port:
+        raise ServeError(f"rerun: the web viewer and the gRPC server need two ports, both were given {web_port}; "
+                         f"change {PORT_OPTIONS['web']} or {PORT_OPTIONS['grpc']}")
+    # rerun only logs (does not raise) when the gRPC port is taken: check both ports first.
+    for what, port in (("grpc", grpc_port), ("web", web_port)):
+        if not _port_free(port):
+            raise _port_in_use(what, port)
+    owner = rr.RecordingStream(APPLICATION_ID, recording_id=name)
+    owner.set_sinks(rr.GrpcServerSink(port=grpc_port, server_memory_limit=memory_limit))
+    if not _listening(grpc_port, within_s=5.0):
+        owner.set_sinks()  # drop the failed server sink
+        raise _port_in_use("grpc", grpc_port)
+    try:
+        rr.serve_web_viewer(web_port=web_port, open_browser=False)
+    except RuntimeError as exc:
+        owner.set_sinks()
+        if "in use" in str(exc):
+            raise _port_in_use("web", web_port) from None
+        raise ServeError(f"rerun: cannot serve the web viewer on port {web_port}: {exc}") from None
+    _SERVED = _Served(web_port, grpc_port, _web_url(web_port, grpc_port), owner)
+    return owner, _SERVED.url
+
+
+def _viewer_executable() -> str | None:
+    """The `rerun` viewer: on PATH, else the one the rerun-sdk wheel installed next to this
+    interpreter (a venv's bin/, not on PATH when .venv/bin/python is run directly)."""
+    if shutil.which("rerun"):
+        return None  # rerun finds it itself
+    beside = Path(sys.executable).with_name("rerun.exe" if sys.platform == "win32" else "rerun")
+    return str(beside) if beside.exists() else None
+
+
+def _display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or sys.platform in ("darwin", "win32")
+
+
+# --- the sink ------------------------------------------------------------------------------------
+
+class RerunSink:
+    """Chunks of a run to an .rrd file (full rate) and optionally a live viewer (every
+    `live_decimate`-th period): `live="spawn"` a native viewer (when a display exists),
+    `live="serve"` the web viewer served from this process at `url`."""
+
+    def __init__(self, name: str, rrd: Path | None, live: Literal["none", "spawn", "serve"] = "none",
+                 live_decimate: int = 1, web_port: int = 9090, grpc_port: int = 9876,
+                 memory_limit: str = "1GiB") -> None:
+        global _SAID_NO_DISPLAY
+        if live not in ("none", "spawn", "serve"):
+            raise ValueError(f"live must be 'none', 'spawn' or 'serve', not {live!r}")
+        self.name = name
+        self.rrd = Path(rrd) if rrd is not None else None
+        self.live_mode = live
+        self.live_decimate = max(1, int(live_decimate))
+        self._url: str | None = None
+        self._signals: list[SignalInfo] = []
+        self._paths: dict[str, str] = {}
+        self._warned: set[str] = set()
+        self._rows_seen = 0
+        self._begun = self._ended = self._closed = False
+        self._owns_server = False
+
+        self.live: rr.RecordingStream | None = None
+        if live == "serve":
+            self.live, self._url = _serve(name, web_port, grpc_port, memory_limit)
+            self._owns_server = _SERVED is not None and _SERVED.owner is self.live
+            print(f"rerun: web viewer at {self._url}", flush=True)
+        elif live == "spawn":
+            if not _display():
+                if not _SAID_NO_DISPLAY:
+                    print("rerun: no display (DISPLAY/WAYLAND_DISPLAY unset): no viewer spawned"
+                          + (f"; the recording is saved to {self.rrd}" if self.rrd else ""), flush=True)
+                    _SAID_NO_DISPLAY = True
+            else:
+                saved = f"; the recording is saved to {self.rrd}" if self.rrd else ""
+                live_rec = rr.RecordingStream(APPLICATION_ID, recording_id=name)
+                try:
+                    # Not connect=True: a viewer that died at start (no usable display) would leave the
+                    # stream buffering the whole run for a connection that never comes.
+                    rr.spawn(port=grpc_port, connect=False, memory_limit=memory_limit, server_memory_limit=memory_limit,
+                             hide_welcome_screen=True, executable_path=_viewer_executable(), recording=live_rec)
+                except Exception as exc:  # noqa: BLE001 - the .rrd still gets everything
+                    first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+                    print(f"rerun: no viewer spawned ({first_line}){saved}", flush=True)
+                else:
+                    if _listening(grpc_port, within_s=1.0):
+                        live_rec.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
+                        self.live = live_rec
+                    else:
+                        print(f"rerun: the spawned viewer is not listening on port {grpc_port} "
+                              f"(it failed to start, see above){saved}", flush=True)
+
+        # The file last: a refused serve leaves no empty .rrd behind.
+        self.file: rr.RecordingStream | None = None
+        if self.rrd is not None:
+            self.rrd.parent.mkdir(parents=True, exist_ok=True)
+            self.file = rr.RecordingStream(APPLICATION_ID, recording_id=name)
+            self.file.set_sinks(rr.FileSink(str(self.rrd)))
+
+    @property
+    def url(self) -> str | None:
+        """The address a browser opens (serve mode), else None."""
+        return self._url
+
+    def begin(self, signals: list[SignalInfo], ctx: Any = None) -> None:
+        """Declare the signals (before the first chunk): builds and sends the blueprint. `ctx`
+        (the decoder, as bench.run.sinks.Sink passes it) is not used."""
+        seen: set[str] = set()
+        self._signals = [s for s in signals if s.name not in TIMELINES and not (s.name in seen or seen.add(s.name))]
+        self._paths = {s.name: entity_path(s) for s in self._signals}
+        bp = blueprint_for(self._signals)
+        if self.file is not None:
+            self.file.send_blueprint(bp, make_active=False, make_default=True)
+        if self.live is not None:
+            self.live.send_blueprint(bp, make_active=True, make_default=True)
+        self._begun = True
+
+    def _warn_once(self, key: str, message: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            print(f"rerun: {message}", file=sys.stderr, flush=True)
+
+    @staticmethod
+    def _send(rec: rr.RecordingStream, columns: list[tuple[str, np.ndarray]], period: np.ndarray, t_s: np.ndarray) -> None:
+        times = [rr.TimeColumn("period", sequence=period), rr.TimeColumn("sim_time", duration=t_s)]
+        for path, values in columns:
+            rec.send_columns(path, indexes=times, columns=rr.Scalars.columns(scalars=values))
+
+    def write(self, chunk: dict[str, np.ndarray]) -> None:
+        """Log the periods of one chunk: all of them to the file, every Nth to the live viewer."""
+        if self._ended:
+            raise RuntimeError("RerunSink.write() after end()")
+        if not self._begun:
+            raise RuntimeError("RerunSink.write() before begin()")
+        period = np.asarray(chunk["period"], dtype=np.int64)
+        n = len(period)
+        if n == 0:
+            return
+        t_s = np.asarray(chunk["t_s"], dtype=np.float64)
+        columns: list[tuple[str, np.ndarray]] = []
+        for sig in self._signals:
+            col = chunk.get(sig.name)
+            if col is None:
+                self._warn_once("missing:" + sig.name, f"signal {sig.name} is missing from a chunk; not logged there")
+                continue
+            col = np.asarray(col)
+            if col.shape != (n,) or not (np.issubdtype(col.dtype, np.number) or col.dtype == np.bool_):
+                self._warn_once("shape:" + sig.name, f"signal {sig.name} ({col.dtype}, shape {col.shape}) is not "
+                                f"{n} numbers; not logged")
+                continue
+            columns.append((self._paths[sig.name], col.astype(np.float64, copy=False)))
+        for name in chunk.keys() - self._paths.keys() - set(TIMELINES):
+            self._warn_once("undeclared:" + name, f"column {name} was not declared in begin(); not logged")
+
+        if self.file is not None:
+            self._send(self.file, columns, period, t_s)
+            # Block until this chunk is encoded to the file: the stream's queue would otherwise
+            # grow with the run when logging outpaces the file writer.
+            self.file.flush()
+        if self.live is not None:
+            first = (-self._rows_seen) % self.live_decimate
+            sl = slice(first, None, self.live_decimate)
+            if first < n:
+                self._send(self.live, [(p, np.ascontiguousarray(v[sl])) for p, v in columns],
+                           np.ascontiguousarray(period[sl]), np.ascontiguousarray(t_s[sl]))
+        self._rows_seen += n
+
+    def end(self, summary: dict[str, Any] | None = None) -> None:
+        """Flush everything; the .rrd is complete and readable afterwards. Serving goes on.
+        `summary` (as bench.run.sinks.Sink passes it) is not used."""
+        if self._ended:
+            return
+        self._ended = True
+        if self.file is not None:
+            self.file.flush()
+            self.file.disconnect()  # writes the footer and closes the file
+        if self.live is not None:
+            try:
+                self.live.flush(timeout_sec=10.0)
+            except Exception as exc:  # noqa: BLE001 - a slow viewer must not fail the run
+                print(f"rerun: live viewer did not take all data ({exc})", file=sys.stderr, flush=True)
+
+    def serve_until(self, seconds: float | None) -> None:
+        """Keep the web viewer up after the run: until Ctrl-C (None) or for `seconds`."""
+        if self._url is None:
+            print("rerun: no web viewer is served (live mode is not 'serve')", flush=True)
+            return
+        if seconds is None:
+            print(f"rerun: serving the web viewer at {self._url} until Ctrl-C", flush=True)
+        else:
+            print(f"rerun: serving the web viewer at {self._url} for {seconds:g} s (Ctrl-C stops)", flush=True)
+        try:
+            if seconds is None:
+                while True:
+                    time.sleep(3600)
+            else:
+                deadline = time.monotonic() + seconds
+                while (left := deadline - time.monotonic()) > 0:
+                    time.sleep(min(left, 1.0))
+        except KeyboardInterrupt:
+            print("rerun: stopped serving", flush=True)
+
+    def close(self) -> None:
+        """end(), then release the streams. The web viewer and gRPC server of this process stay up
+        until it exits (the stream hosting the server is kept)."""
+        if self._closed:
+            return
+        self.end()
+        self._closed = True
+        self.file = None
+        if self.live is not None and not self._owns_server:
+            self.live.disconnect()
+        self.live = None
+
+    def __enter__(self) -> "RerunSink":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

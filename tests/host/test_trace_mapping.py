@@ -1,0 +1,185 @@
+"""Per-period tracing of the controllers' own objects through the C drive node (direct mode).
+
+python `canopen` is the master of the in-process plant + drive (Hil + DirectBus: the same C node
+apps and frames as over vcan). It maps "Zhao 2022" entries into the drive's synchronous TPDO3 by
+SDO exactly as a scenario's [trace] does, runs the lockstep loop and decodes TPDO3 per period.
+The node must accept every EDS entry marked PDOMapping=1 and refuse the others (0x06040041).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Iterator
+
+import canopen
+import numpy as np
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+
+from bench.paths import EDS_DIR
+
+from bench.run.direct import DirectBus, Hil
+
+PLANT_ID, DRIVE_ID = 0x10, 0x20
+SYNC_COB = 0x080
+R, L, TS, PP = 48.9, 14e-3, 100e-6, 5  # zhao2022 preset (presets.c)
+VMAX = 28.0 / math.sqrt(3.0)
+INCREMENTAL_ZHAO2022 = 4
+ABORT_NO_MAP = 0x06040041
+
+
+@pytest.fixture
+def nodes() -> Iterator[tuple[Hil, canopen.RemoteNode, canopen.RemoteNode]]:
+    hil = Hil(PLANT_ID, DRIVE_ID)
+    net = canopen.Network()
+    net.bus = DirectBus(hil)
+    net.connect()
+    plant = canopen.RemoteNode(PLANT_ID, str(EDS_DIR / "plant.eds"))
+    drive = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
+    for n in (plant, drive):
+        net.add_node(n)
+        n.sdo.RESPONSE_TIMEOUT = 5.0
+    try:
+        yield hil, plant, drive
+    finally:
+        net.disconnect()
+
+
+def _configure_zhao(plant: canopen.RemoteNode, drive: canopen.RemoteNode, iq_ref_A: float) -> None:
+    """zhao2022 plant (locked rotor, ideal sensors), incremental law with the true model, lockstep wiring."""
+    plant.sdo["Motor preset"].raw = "zhao2022"
+    ctl = drive.sdo["Controller"]
+    ctl["controller"].raw = INCREMENTAL_ZHAO2022
+    for name, value in (("R_hat_ohm", R), ("Ld_hat_H", L), ("Lq_hat_H", L), ("psi_hat_Wb", 1.4213 / 7.5),
+                        ("Vmax_V", VMAX), ("Ts_s", TS), ("pole_pairs", PP)):
+        ctl[name].raw = value
+    drive.sdo["References"]["iq_ref_A"].raw = iq_ref_A
+    for n in (plant, drive):
+        n.tpdo.read()
+        n.rpdo.read()
+    for num in (1, 2):  # measurement: plant TPDO1/2 -> drive RPDO1/2
+        m = drive.rpdo[num]
+        m.cob_id = plant.tpdo[num].cob_id
+        m.enabled = True
+        m.save()
+    m = plant.rpdo[1]  # voltage command: drive TPDO1 -> plant RPDO1
+    m.cob_id = drive.tpdo[1].cob_id
+    m.enabled = True
+    m.save()
+
+
+def _map_tpdo3(drive: canopen.RemoteNode, entries: list[tuple[str, str]]) -> int:
+    m = drive.tpdo[3]
+    m.clear()
+    for obj, sub in entries:
+        m.add_variable(obj, sub)
+    m.trans_type = 1  # synchronous: the values after step k-1, sent at SYNC k
+    m.enabled = True
+    m.save()
+    return int(m.cob_id)
+
+
+def test_node_refuses_an_unmappable_entry_and_accepts_zhao2022(nodes) -> None:  # type: ignore[no-untyped-def]
+    hil, plant, drive = nodes
+    drive.tpdo.read()
+    with pytest.raises(SdoAbortedError) as exc:
+        _map_tpdo3(drive, [("Controller", "Ts_s")])  # PDOMapping=0: a parameter, not a per-period value
+    assert exc.value.code == ABORT_NO_MAP
+    _map_tpdo3(drive, [("Zhao 2022", "K1_V_A"), ("Zhao 2022", "K2_V_A")])
+    mapping = drive.sdo[0x1A02]
+    assert mapping[0].raw == 2
+    assert mapping[1].raw == 0x2207_01_20 and mapping[2].raw == 0x2207_02_20
+
+
+def test_zhao2022_limited_traced_per_period(nodes) -> None:  # type: ignore[no-untyped-def]
+    """A 0.2 A step asks for K1 * 0.2 = 38 V > Vmax = 16.2 V: `limited` is 1 for the first periods, then 0;
+    TPDO3 carries it (and K1) once per period, in step with the voltage command."""
+    hil, plant, drive = nodes
+    _configure_zhao(plant, drive, iq_ref_A=0.2)
+    cob3 = _map_tpdo3(drive, [("Zhao 2022", "limited"), ("Zhao 2022", "K1_V_A")])
+    n = 60
+    hil.start_recorder(n * 10 + 1000)
+    for node in (plant, drive):
+        node.nmt.send_command(0x01)
+    plant.sdo["Run control"]["run_periods"].raw = n
+    assert hil.run(n) == n
+    frames = hil.take() if hasattr(hil, "take") else hil.recorded()  # `take` since the bench/run/ refactor
+    sync_pos = np.nonzero(frames["cob_id"] == SYNC_COB)[0]
+    assert len(sync_pos) == n
+    period_of = np.cumsum(frames["cob_id"] == SYNC_COB) - 1  # SYNC index of every frame
+    tp3 = np.nonzero(frames["cob_id"] == cob3)[0]
+    cmd = np.nonzero(frames["cob_id"] == drive.tpdo[1].cob_id)[0]
+    # one TPDO3 per SYNC: sent at SYNC j with the values after current step j-1 ...
+    assert np.array_equal(period_of[tp3], np.arange(n))
+    # ... and one voltage command per period: v*(k) of step k, after SYNC k
+    assert np.array_equal(period_of[cmd], np.arange(n))
+    vals = [struct.unpack_from("<Bf", bytes(frames["data"][p][:5])) for p in tp3[1:]]  # steps 0 .. n-2
+    limited = np.array([v[0] for v in vals])
+    k1 = np.array([v[1] for v in vals])
+    v = np.array([struct.unpack_from("<ff", bytes(frames["data"][p][:8])) for p in cmd[: n - 1]])
+    v_mag = np.hypot(v[:, 0], v[:, 1])
+    print("limited after each step:", "".join(str(x) for x in limited))
+    print("|v*| of the first steps:", np.round(v_mag[:6], 3))
+    assert set(limited.tolist()) == {0, 1}, limited
+    assert limited[0] == 1 and not limited[-20:].any(), limited  # limited by the step, then released
+    # the traced flag is that of the same step as the command: |v*| = Vmax exactly where it is set
+    assert np.allclose(v_mag[limited == 1], VMAX, rtol=1e-5), v_mag
+    assert (v_mag[limited == 0] < VMAX * (1 - 1e-5)).all(), v_mag
+    assert np.allclose(k1, R + L / TS, rtol=1e-6), k1  # Eq. 22/23: K1 = R0 + L0/Ts, constant
+    # and the drive's own view agrees: the last value by SDO is the last one traced
+    assert drive.sdo["Zhao 2022"]["limited"].raw == limited[-1]
+    # the plant did not trip (the step is normal operation at the preset's level)
+    assert plant.sdo["Run control"]["trip_active"].raw == 0
+
+
+def _run_diverging(hil, plant, drive, n: int, trip_level_A: float | None):  # type: ignore[no-untyped-def]
+    """Zhao 2022 incremental law at L/L0 = 0.68 (< the 0.7015 boundary), voltage limiter OFF (Vmax_V = 0), iq step:
+    the loop diverges. Returns (sample index, i_a, i_b, status) per period, the drive's |v*| and trip_active."""
+    _configure_zhao(plant, drive, iq_ref_A=0.1)
+    ctl = drive.sdo["Controller"]
+    for name in ("Ld_hat_H", "Lq_hat_H"):
+        ctl[name].raw = L / 0.68
+    ctl["Vmax_V"].raw = 0.0
+    if trip_level_A is not None:
+        plant.sdo["Inverter"]["I_trip_A"].raw = trip_level_A
+    hil.start_recorder(n * 10 + 1000)
+    for node in (plant, drive):
+        node.nmt.send_command(0x01)
+    plant.sdo["Run control"]["run_periods"].raw = n
+    assert hil.run(n) == n
+    frames = hil.take() if hasattr(hil, "take") else hil.recorded()
+    m1 = frames[frames["cob_id"] == plant.tpdo[1].cob_id]
+    m2 = frames[frames["cob_id"] == plant.tpdo[2].cob_id]
+    cmd = frames[frames["cob_id"] == drive.tpdo[1].cob_id]
+    ia, ib = (np.array([struct.unpack_from("<ff", bytes(d[:8]))[j] for d in m1["data"]]) for j in (0, 1))
+    status = np.array([struct.unpack_from("<fBBH", bytes(d[:8]))[2] for d in m2["data"]])
+    v = np.array([struct.unpack_from("<ff", bytes(d[:8])) for d in cmd["data"]])
+    return ia, ib, status, np.hypot(v[:, 0], v[:, 1]), plant.sdo["Run control"]["trip_active"].raw
+
+
+def test_diverging_zhao2022_loop_trips_at_the_preset_level(nodes) -> None:  # type: ignore[no-untyped-def]
+    """The zhao2022 preset's default trip (Vdc/R = 0.573 A) stops the runaway early: latched, currents finite
+    and back to zero, the drive's command still finite when the plant tripped."""
+    hil, plant, drive = nodes
+    ia, ib, status, v_mag, trip_active = _run_diverging(hil, plant, drive, 600, None)
+    assert abs(plant.sdo["Inverter"]["I_trip_A"].raw - 28.0 / 48.9) < 1e-6  # the preset's level (presets.c)
+    k = int(np.argmax(status & 1))
+    print(f"trip bit from sample {k}; max |i| before {np.max(np.abs(np.r_[ia[:k], ib[:k]])):.3f} A; "
+          f"|v*| up to {np.max(v_mag[:k]):.1f} V; i_a at the end {ia[-1]:.2e} A")
+    assert trip_active == 1 and 0 < k < 200 and (status[k:] & 1).all()
+    assert np.isfinite(ia).all() and np.isfinite(ib).all() and np.isfinite(v_mag[: k + 1]).all()
+    assert abs(ia[-1]) < 1e-3 and abs(ib[-1]) < 1e-3  # the bridge is off: the current decays
+
+
+def test_diverging_zhao2022_loop_trips_on_the_non_finite_command(nodes) -> None:  # type: ignore[no-untyped-def]
+    """With the level off (I_trip_A = 0) the drive's float32 law overflows (inf, then NaN from 0 * inf in its
+    inverse Park transform); the plant trips on that command instead of integrating it: currents stay finite."""
+    hil, plant, drive = nodes
+    ia, ib, status, v_mag, trip_active = _run_diverging(hil, plant, drive, 2400, 0.0)
+    bad = int(np.argmax(~np.isfinite(v_mag)))
+    k = int(np.argmax(status & 1))
+    print(f"first non-finite command at period {bad}, trip bit from sample {k}, max |i_b| {np.max(np.abs(ib)):.2e} A")
+    assert bad > 0 and not np.isfinite(v_mag[bad]) and np.isfinite(v_mag[:bad]).all()
+    assert trip_active == 1 and k == bad + 2 and (status[k:] & 1).all() and not (status[:k] & 1).any()
+    assert np.isfinite(ia).all() and np.isfinite(ib).all()
