@@ -2,7 +2,7 @@
 
 The bench never fakes a bus: either the host kernel has AF_CAN (and a vcan
 interface exists or can be created), or the CAN parts run inside the virtme-ng
-micro-VM of :mod:`bench.vm`.
+micro-VM of :mod:`bench.tools.vm`.
 """
 
 from __future__ import annotations

@@ -8,13 +8,13 @@ from pathlib import Path
 
 
 def _cmd_doctor(args: argparse.Namespace) -> int:
-    from .doctor import report
+    from .tools.doctor import report
 
     return report()
 
 
 def _cmd_vm(args: argparse.Namespace) -> int:
-    from .vm import VmError, VmOptions, run_in_vm
+    from .tools.vm import VmError, VmOptions, run_in_vm
 
     cmd = list(args.cmd)
     if cmd and cmd[0] == "--":
@@ -32,7 +32,7 @@ def _cmd_vm(args: argparse.Namespace) -> int:
 
 
 def _cmd_pingpong(args: argparse.Namespace) -> int:
-    from .pingpong import run_pingpong
+    from .tools.pingpong import run_pingpong
 
     res = run_pingpong(args.iface, args.count)
     print(res.echo_output.strip())
@@ -41,7 +41,7 @@ def _cmd_pingpong(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .plan import format_plan, make_plan
+    from .tools.plan import format_plan, make_plan
 
     try:
         plan = make_plan(args.bitrate, args.ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos,
@@ -71,6 +71,24 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return replay_main(args)
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    from .run.canlog import LOG_FORMATS, export
+
+    ext = args.dest.suffix.lstrip(".")
+    if ext not in LOG_FORMATS:
+        print(f"bench export: {args.dest}: the extension must be one of {', '.join(LOG_FORMATS)}", file=sys.stderr)
+        return 2
+    if not args.log.is_file():
+        print(f"bench export: {args.log}: no such file", file=sys.stderr)
+        return 2
+    if args.dest.exists():
+        print(f"bench export: {args.dest} exists; choose another name", file=sys.stderr)
+        return 2
+    n = export(args.log, args.dest)
+    print(f"bench export: {n} frames written to {args.dest}")
+    return 0
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep import main as sweep_main
 
@@ -84,7 +102,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def _cmd_perf(args: argparse.Namespace) -> int:
-    from .perf import main as perf_main
+    from .tools.perf import main as perf_main
 
     return perf_main(args)
 
@@ -148,8 +166,10 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run a scenario: configure by SDO, run, record every frame, summarize",
                        description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
                                    "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
-                                   "every frame, and write summary.json, traces.npz, the CAN log, PNG plots and a "
-                                   "Rerun recording. Example: bench run scenarios/you2019_step.toml --bus direct")
+                                   "every frame, and write summary.json, traces.npy, the CAN log, PNG plots and a "
+                                   "Rerun recording. The exit status is the run's verdict: 0 ok, 3 tripped, "
+                                   "4 diverged, 5 non-finite values, 6 frames lost, 7 expected status not reached "
+                                   "(1 failure, 2 bad input, 130 interrupted). Example: bench run scenarios/you2019_step.toml --bus direct")
     add_arguments(r)
     r.set_defaults(func=_cmd_run)
     c = sub.add_parser("capture", help=argparse.SUPPRESS)
@@ -169,6 +189,14 @@ def build_parser() -> argparse.ArgumentParser:
     replay_args(rp)
     rp.set_defaults(func=_cmd_replay)
 
+    ex = sub.add_parser("export", help="convert a CAN log (candump .log, .asc, .blf) to another format",
+                        description="Convert a CAN log with python-can's writer for the destination's extension "
+                                    "(.log candump, .asc Vector ASCII, .blf Vector binary). Example: "
+                                    "bench export runs/x/bus.log runs/x/bus.blf")
+    ex.add_argument("log", type=Path, help="the log to read")
+    ex.add_argument("dest", type=Path, help="the file to write (.log, .asc or .blf)")
+    ex.set_defaults(func=_cmd_export)
+
     from .sweep import add_arguments as sweep_args
 
     sw = sub.add_parser("sweep", help="run a grid of scenario variants in direct mode on every core",
@@ -186,14 +214,17 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
-    from .perf import add_arguments as perf_args
+    from .tools.perf import add_arguments as perf_args
 
-    pf = sub.add_parser("perf", help="benchmarks: cores, firmware instruction counts, Cortex-M4F size, CANopen, "
-                                     "lockstep over vcan vs the ping-pong floor",
-                        description="Prints measured figures (never asserted): plant and controller cost per period "
-                                    "in-process, instruction counts under callgrind, Cortex-M4F code size, CANopen "
-                                    "frame cost, and (unless --quick) lockstep periods/s over vcan beside the C "
-                                    "ping-pong floor of the same frames, in one VM run.")
+    pf = sub.add_parser("perf", help="benchmarks: what a user waits for (whole commands beside the loop and a peer "
+                                     "simulator), cores, instruction counts, Cortex-M4F size, CANopen, vcan",
+                        description="Prints measured figures (never asserted), side by side in one run: the whole "
+                                    "`bench run` process beside the loop's own rate, the Python API and "
+                                    "gym-electric-motor on the same scenario (pipeline section, with its targets); "
+                                    "plant and controller cost per period in-process, instruction counts under "
+                                    "callgrind, Cortex-M4F code size, CANopen frame cost, and (unless --quick) "
+                                    "lockstep periods/s over vcan beside the C ping-pong floor of the same frames, "
+                                    "in one VM run. --only SECTION,... runs some sections.")
     perf_args(pf)
     pf.set_defaults(func=_cmd_perf)
 

@@ -28,7 +28,7 @@ else
     can_rc=$?
 fi
 
-$PY -m bench.testsummary "$RES/host.xml" "$RES/can.xml"
+$PY -m bench.tools.testsummary "$RES/host.xml" "$RES/can.xml"
 sum_rc=$?
 if [ $host_rc -ne 0 ] || [ $can_rc -ne 0 ] || [ $sum_rc -ne 0 ]; then
     echo "test suite FAILED (host phase rc=$host_rc, CAN phase rc=$can_rc, summary rc=$sum_rc)"

@@ -181,7 +181,7 @@ def _run_here(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Ou
 def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
     """The bus half runs in the VM (`bench capture`: nodes, master, candump); the host follows
     candump's log on the shared folder and feeds the same pipeline as it grows (live view included)."""
-    from ..vm import VmOptions, run_in_vm
+    from ..tools.vm import VmOptions, run_in_vm
     from .pipeline import Pipeline
     from .sources import LogFollower
 

@@ -87,6 +87,9 @@ class Decoder:
     # ------------------------------------------------------------------ layout
     def _freeze(self) -> None:
         self.layout = layout_from_sdo(self.sdo)
+        # The plant's hold announcement (Run control, event-driven, once per lockstep segment) is the
+        # bench's own plumbing, not a signal of the loop: not a trace column.
+        self.layout.pdos = [p for p in self.layout.pdos if not all(q.startswith("Run control.") for q, _ in p.signals)]
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
         names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC")]

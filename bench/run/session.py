@@ -23,7 +23,7 @@ import canopen
 from canopen.sdo.exceptions import SdoAbortedError
 
 from ..eds import load as load_od
-from ..nodes import NodeProcess
+from .nodes import NodeProcess
 from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
 from .summary import END_READS, PLANT_VALUES

@@ -21,7 +21,7 @@ from pathlib import Path
 import can
 import numpy as np
 
-from ..nodes import in_vm
+from .nodes import in_vm
 from .canlog import _to_frames, parse_candump
 from .direct import Hil
 from .frames import empty

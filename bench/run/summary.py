@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..plan import classic_frame_bits
+from ..tools.plan import classic_frame_bits
 from ..scenario import ENUMS, STATUSES
 from .decode import Decoder
 

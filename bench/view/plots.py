@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 
 
 # Bus bookkeeping, not signals of the loop: in the summary, not in the overview.
-BOOKKEEPING = {"sync_counter", "sample_index", "Run_control_period_index", "Run_control_state"}
+BOOKKEEPING = {"sync_counter", "sample_index"}
 
 
 def _save(fig: Figure, path: Path) -> Path:

@@ -473,14 +473,22 @@ static inline void phase_currents(const plant_state_t *s, double *ia, double *ib
     *ic = -0.5 * ial - 0.5 * PLANT_SQRT3 * ibe;
 }
 
+/* Over-current trip on any phase above c->I_trip_A (0 = level off), and,
+ * whatever the level, on a non-finite phase current: a broken model state is
+ * a trip (every comparison with NaN is false, so a level alone would never
+ * see it). */
 static inline void check_trip(plant_state_t *s, const plant_config_t *c)
 {
-    if (c->I_trip_A > 0.0 && !s->tripped) {
-        double ia, ib, ic;
-        phase_currents(s, &ia, &ib, &ic);
-        if (fabs(ia) > c->I_trip_A || fabs(ib) > c->I_trip_A || fabs(ic) > c->I_trip_A) {
-            s->tripped = true;
-        }
+    if (s->tripped) {
+        return;
+    }
+    double ia, ib, ic;
+    phase_currents(s, &ia, &ib, &ic);
+    if (!isfinite(ia) || !isfinite(ib) || !isfinite(ic)) {
+        s->tripped = true;
+    } else if (c->I_trip_A > 0.0 &&
+               (fabs(ia) > c->I_trip_A || fabs(ib) > c->I_trip_A || fabs(ic) > c->I_trip_A)) {
+        s->tripped = true;
     }
 }
 
@@ -627,6 +635,13 @@ void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V,
         return;
     }
     check_trip(s, c);
+    /* An inverter cannot output a non-finite voltage: such a command (a
+     * diverged controller whose float state overflowed) trips the bridge
+     * before it reaches the model, so the state stays finite and the trip is
+     * latched from this period on. */
+    if (!isfinite(v_alpha_V) || !isfinite(v_beta_V)) {
+        s->tripped = true;
+    }
 
     double va = v_alpha_V, vb = v_beta_V;
     if (c->mod_limit != PLANT_MOD_NONE) {

@@ -138,8 +138,12 @@ typedef struct {
     uint32_t encoder_lines;       /* 0 = ideal angle; else 4*lines counts/rev */
     uint64_t rng_seed;
 
-    /* protection */
-    double I_trip_A;              /* 0 = off */
+    /* protection: the trip latches (applied voltage 0 from then on, until
+     * plant_clear_trip) when |i| of any phase exceeds I_trip_A, and - even
+     * with the level off - on a non-finite voltage command or phase current
+     * (a broken model state cannot be integrated further).  The presets set
+     * a level derived from the motor (presets.c). */
+    double I_trip_A;              /* over-current level, peak phase A; 0 = off */
 
     /* numerics of the RK4 path (FREE mechanics or saturation) */
     double rk4_h_rel;             /* max h*lambda per sub-step (default 0.02) */

@@ -8,6 +8,34 @@
 
 typedef void (*preset_fill_fn)(plant_config_t *c);
 
+/* Over-current trip level (I_trip_A, peak phase current) of every preset.
+ * ASSUMED: none of the papers states a trip level, so it is derived the way a
+ * drive engineer sets a hardware over-current trip, well above anything the
+ * paper's (and the bench's) operation reaches, low enough to stop a runaway
+ * loop long before its numbers overflow:
+ *  - where the paper states the motor's rated current: 3 x I_rated, the usual
+ *    short-time peak (300 %) of a servo drive;
+ *  - otherwise: Vdc / R = 1.5 x (2/3 Vdc) / R, i.e. a 1.5 margin on the
+ *    largest steady-state phase current the bridge can drive through the
+ *    locked winding (the hexagon vertex puts 2/3 Vdc across one phase); the
+ *    margin also covers a reversal at the rated back-EMF of the presets.
+ * A scenario can still set another level, or 0 (off); plant_config_ideal()
+ * switches it off.  plant_rt/tests/test_plant_trip.c pins the levels; the
+ * host claims tests (tests/host/test_*_claims.py) run the reproduction with
+ * them and must not trip. */
+#define PRESET_TRIP_RATED_FACTOR 3.0
+#define PRESET_TRIP_BUS_MARGIN 1.5
+
+static double trip_from_rated(double I_rated_A)
+{
+    return PRESET_TRIP_RATED_FACTOR * I_rated_A;
+}
+
+static double trip_from_bus(const plant_config_t *c)
+{
+    return PRESET_TRIP_BUS_MARGIN * (2.0 * c->Vdc_V / 3.0) / c->R_ohm;
+}
+
 /* You, Huang, Yang, Energies 2019 (file 000).
  * Table A1 (drive): Vdc 300 V, Ts 55 us (current loop), dead time 2 us.
  * Table A2 (motor): 3000 rpm rated / 5 pole pairs, 4 A rated, lambda_m 0.042
@@ -38,6 +66,11 @@ static void fill_you2019(plant_config_t *c)
      * Lq_inf = 0.2 Lq. */
     c->sat_I_A = 8.0;
     c->sat_Lq_inf_H = 0.2 * 4.54e-3;
+    /* ASSUMED trip (see trip_from_rated): Table A2 rated current 4 A, read
+     * as the peak phase current (= |i_dq|, amplitude-invariant) since the
+     * paper runs its rated-current tests at iq = +-4 A (Fig. 18b, 19, 22)
+     * -> 12 A.  The bench's You 2019 runs peak at ~3.6 A. */
+    c->I_trip_A = trip_from_rated(4.0);
 }
 
 /* Yao, Huang, Peng, Dong, Zhang, IEEE TIE 2020 (file 001).
@@ -59,6 +92,10 @@ static void fill_yao2020_low(plant_config_t *c)
     c->J_kgm2 = 1e-4;
     c->sat_I_A = 5.0;
     c->sat_Lq_inf_H = 0.2 * 5.5e-3;
+    /* ASSUMED trip (see trip_from_bus): Table I gives no rated current ->
+     * 300 V / 2.2 ohm = 136.4 A.  The bench's runs of this motor peak at
+     * ~9 A (d-axis injection of -2 A on top of the q current). */
+    c->I_trip_A = trip_from_bus(c);
 }
 
 /* Yao 2020 Table II high-frequency SPMSM: R 0.045 ohm, Ls 24 uH, U_DC 48 V,
@@ -79,6 +116,10 @@ static void fill_yao2020_high(plant_config_t *c)
     c->J_kgm2 = 1e-5;
     c->sat_I_A = 50.0;
     c->sat_Lq_inf_H = 0.2 * 24e-6;
+    /* ASSUMED trip (see trip_from_bus): Table II gives no rated current ->
+     * 48 V / 0.045 ohm = 1067 A.  The bench's runs of this motor peak at
+     * ~125 A (acceleration to 1.33 kHz with the mismatched start). */
+    c->I_trip_A = trip_from_bus(c);
 }
 
 /* Zhao et al., Machines 2022 (file 003), CMG gimbal motor.
@@ -108,6 +149,19 @@ static void fill_zhao2022(plant_config_t *c)
     c->omega_imposed_rad_s = 367.72 * PRESET_PI / 180.0;
     c->sat_I_A = 1.0;
     c->sat_Lq_inf_H = 0.2 * 14e-3;
+    /* ASSUMED trip (see trip_from_bus): Tables 1/2 give no rated current ->
+     * 28 V / 48.9 ohm = 0.573 A.  The "rated load of 0.0296 N" of Sec. 5
+     * (read as N m) would mean 0.0296 / 1.4213 = 0.021 A, but it is the
+     * load of the simulation, not the drive's current rating: the paper's
+     * own speed step accelerates with far more (the bench's speed-step
+     * claim peaks at 0.245 A), so 3 x 0.021 A would trip normal operation.
+     * Reversing at the rated back-EMF (6.1 V) with the full hexagon voltage
+     * needs (18.7 + 6.1) / 48.9 = 0.51 A, still below the level.  The
+     * unstable incremental law (L/L0 < 0.70) with the paper's voltage limit
+     * (28/sqrt(3) V) is a bounded limit cycle (<= 0.16 A here) and does not
+     * trip; without the limit it runs away and trips ~55 periods after the
+     * step (tests/host/test_trace_mapping.py). */
+    c->I_trip_A = trip_from_bus(c);
 }
 
 typedef struct {

@@ -4,7 +4,9 @@
  * from plant_config_defaults() (all non-idealities off), then sets the
  * paper's motor, timing and inverter values; the hardware non-idealities the
  * paper states (You 2019: 2 us dead time, 2500-line encoder) are filled in,
- * call plant_config_ideal() afterwards to switch them off.
+ * and every preset sets an over-current trip level derived from the motor
+ * (I_trip_A, ASSUMED, see presets.c); call plant_config_ideal() afterwards
+ * to switch them off.
  * Fields the paper does not give are documented assumptions in presets.c.
  */
 #ifndef PLANT_PRESETS_H

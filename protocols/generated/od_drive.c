@@ -492,9 +492,9 @@ static const co_od_entry_t entries[] = {
     {0x2203u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2203_outer_loops.iq_limit_A), &OD_DRIVE.mfr.x2203_outer_loops.iq_limit_A, {.f = 0.0f}, {.f = 1000.0f}}, /* iq_limit_A */
     {0x2203u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2203_outer_loops.speed_pi_zero_ratio), &OD_DRIVE.mfr.x2203_outer_loops.speed_pi_zero_ratio, {.f = 0.0f}, {.f = 10.0f}}, /* speed_pi_zero_ratio */
     {0x2204u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.highest_sub_index_supported), &OD_DRIVE.mfr.x2204_drive_status.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2204u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.current_steps), &OD_DRIVE.mfr.x2204_drive_status.current_steps, {.i = 0}, {.i = 0}}, /* current_steps */
-    {0x2204u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.lost_measurements), &OD_DRIVE.mfr.x2204_drive_status.lost_measurements, {.i = 0}, {.i = 0}}, /* lost_measurements */
-    {0x2204u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2204_drive_status.late_measurements), &OD_DRIVE.mfr.x2204_drive_status.late_measurements, {.i = 0}, {.i = 0}}, /* late_measurements */
+    {0x2204u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.current_steps), &OD_DRIVE.mfr.x2204_drive_status.current_steps, {.i = 0}, {.i = 0}}, /* current_steps */
+    {0x2204u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.lost_measurements), &OD_DRIVE.mfr.x2204_drive_status.lost_measurements, {.i = 0}, {.i = 0}}, /* lost_measurements */
+    {0x2204u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.late_measurements), &OD_DRIVE.mfr.x2204_drive_status.late_measurements, {.i = 0}, {.i = 0}}, /* late_measurements */
     {0x2204u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.id_A), &OD_DRIVE.mfr.x2204_drive_status.id_A, {.i = 0}, {.i = 0}}, /* id_A */
     {0x2204u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.iq_A), &OD_DRIVE.mfr.x2204_drive_status.iq_A, {.i = 0}, {.i = 0}}, /* iq_A */
     {0x2204u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.speed_rad_s), &OD_DRIVE.mfr.x2204_drive_status.speed_rad_s, {.i = 0}, {.i = 0}}, /* speed_rad_s */
@@ -543,10 +543,10 @@ static const co_od_entry_t entries[] = {
     {0x2206u, 0x27u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm, {.i = 0}, {.i = 0}}, /* rls_R_hat_ohm */
     {0x2206u, 0x28u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_L_hat_H), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_L_hat_H, {.i = 0}, {.i = 0}}, /* rls_L_hat_H */
     {0x2207u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.highest_sub_index_supported), &OD_DRIVE.mfr.x2207_zhao_2022.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2207u, 0x01u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A, {.i = 0}, {.i = 0}}, /* K1_V_A */
-    {0x2207u, 0x02u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A, {.i = 0}, {.i = 0}}, /* K2_V_A */
-    {0x2207u, 0x03u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.G_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.G_V_A, {.i = 0}, {.i = 0}}, /* G_V_A */
-    {0x2207u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.limited), &OD_DRIVE.mfr.x2207_zhao_2022.limited, {.i = 0}, {.i = 0}}, /* limited */
+    {0x2207u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A, {.i = 0}, {.i = 0}}, /* K1_V_A */
+    {0x2207u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A, {.i = 0}, {.i = 0}}, /* K2_V_A */
+    {0x2207u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.G_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.G_V_A, {.i = 0}, {.i = 0}}, /* G_V_A */
+    {0x2207u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.limited), &OD_DRIVE.mfr.x2207_zhao_2022.limited, {.i = 0}, {.i = 0}}, /* limited */
     {0x2300u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported), &OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2300u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.state), &OD_DRIVE.mfr.x2300_Trace.state, {.i = 0}, {.i = 3}}, /* state */
     {0x2300u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_signal), &OD_DRIVE.mfr.x2300_Trace.trigger_signal, {.i = 0}, {.i = 63}}, /* trigger_signal */

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import can
 import canopen
 
-from bench.nodes import NodeProcess
+from bench.run.nodes import NodeProcess
 from bench.paths import EDS_DIR
 
 

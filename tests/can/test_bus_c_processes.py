@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from bench.pingpong import run_pingpong
+from bench.tools.pingpong import run_pingpong
 
 
 def test_c_pingpong_exchanges_verified_frames(vcan0: str) -> None:

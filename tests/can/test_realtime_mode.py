@@ -23,8 +23,9 @@ def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
            "controller": {"controller": "deadbeat_you2019", "estimator_bandwidth_Hz": 50.0, "pi_bandwidth_Hz": 20.0,
                           "position_bandwidth_Hz": 0.5, "speed_bandwidth_Hz": 3.0},
            "events": [{"at_period": 50, "references": {"iq_ref_A": 1.0}}]}
-    run = run_raw(raw, vcan0)
-    frames = np.load(run.out / "frames.npy")
+    run = run_raw(raw, vcan0, keep_frames=True)
+    frames = run.frames
+    assert frames is not None
     sync_t = frames["t_us"][frames["cob_id"] == 0x080].astype(float) * 1e-6
     assert len(sync_t) == PERIODS
     # SYNC k+1 - SYNC k: paced by clock_nanosleep(TIMER_ABSTIME), not by the loop's speed

@@ -9,18 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.layout import BusLayout
-from bench.runner import RunOptions, capture
+from bench.run import RunOptions, run_scenario
 from bench.scenario import load
-from bench.traces import check_continuity, decode
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "parity.toml"
-
-
-def _traces(out: Path, cap) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
-    frames = np.load(out / "frames.npy")
-    layout = BusLayout.load(out / "layout.json")
-    return decode(frames, layout, int(cap.plant["pole_pairs"]), cap.plant["Ts_s"], cap.references)
 
 
 @pytest.fixture(scope="module")
@@ -29,8 +21,8 @@ def runs(tmp_path_factory: pytest.TempPathFactory, vcan0: str) -> dict[str, tupl
     out = {}
     for name, bus in (("direct", "direct"), ("vcan_a", vcan0), ("vcan_b", vcan0)):
         d = tmp_path_factory.mktemp(name)
-        cap = capture(sc, RunOptions(bus=bus, out=d))
-        out[name] = (cap, _traces(d, cap))
+        res = run_scenario(sc, RunOptions(bus=bus, out=d), keep_trace=True)
+        out[name] = (res, res.trace)
     return out
 
 
@@ -59,12 +51,20 @@ def test_two_lockstep_runs_over_vcan_are_identical(runs) -> None:  # type: ignor
 def test_no_frame_lost_and_commands_counted(runs) -> None:  # type: ignore[no-untyped-def]
     for name in ("vcan_a", "vcan_b"):
         cap, tr = runs[name]
-        cont = check_continuity(tr)
+        cont = cap.summary["bus_stats"]
         assert cont["sync_counter_gaps"] == 0 and cont["missing_measurements"] == 0
         assert cont["missing_commands"] == 0 and cont["sample_index_mismatches"] == 0
+        assert cap.status == "ok" and cont["non_finite_values"] == {}
         assert cap.counters["plant_missed_commands"] == 0
         assert cap.counters["drive_lost_measurements"] == 0
         assert cap.counters["drive_current_steps"] == 240
+
+
+def test_vcan_summary_equals_direct(runs) -> None:  # type: ignore[no-untyped-def]
+    """The verdict, steps and identified values of a vcan run are those of the direct run."""
+    d, v = runs["direct"][0].summary, runs["vcan_a"][0].summary
+    for key in ("status", "steps", "identified", "plant", "controller", "counters", "periods"):
+        assert v[key] == d[key], key
 
 
 def test_two_period_delay_end_to_end_over_vcan(runs) -> None:  # type: ignore[no-untyped-def]

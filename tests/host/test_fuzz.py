@@ -13,7 +13,7 @@ import struct
 import subprocess
 
 from bench.paths import BUILD, REPO
-from bench.vectors import load_vectors
+from bench.tools.vectors import load_vectors
 
 FUZZ_SECONDS = 25
 

@@ -84,7 +84,7 @@ def test_target_rows_judge_each_target_by_its_direction() -> None:
            "api": {"1000000": {"over_loop": 0.6, "periods_per_s": 600_000.0, "peak_rss_kB": 100_000},
                    "10000000": {"over_loop": 0.6, "periods_per_s": 600_000.0, "peak_rss_kB": 100_500}},
            "api_rss_growth": {"ratio": 1.005},
-           "gem": {"sim_periods_per_s": 4000.0},
+           "gem": {"sim_periods_per_s": 4000.0}, "api_over_gem": 150.0,
            "live_follow": {"late_over_early": 1.1}}
     rows = {r["key"]: r for r in target_rows(res)}
     assert rows["one_second_wall_s"]["met"] is True
@@ -94,6 +94,18 @@ def test_target_rows_judge_each_target_by_its_direction() -> None:
     assert rows["api_over_gem"]["measured"] == pytest.approx(150.0) and rows["api_over_gem"]["met"] is True
     assert rows["api_rss_1e7_over_1e6"]["met"] is True
     assert rows["live_update_growth"]["met"] is True
+
+
+def test_target_rows_leave_failed_parts_unjudged() -> None:
+    res = {"sizes": {"one_second_periods": 18_182, "whole_periods": 1_000_000, "api_periods": [1_000_000]},
+           "one_second": {"error": "RuntimeError: x"}, "whole": {"error": "RuntimeError: y"},
+           "api": {"error": "RuntimeError: z"}, "api_rss_growth": None, "gem": {"unavailable": "no Python 3.12"},
+           "live_follow": {"error": "FileNotFoundError"}}
+    rows = target_rows(res)
+    assert all(r["met"] is None and r["measured"] is None for r in rows)
+    assert {r["key"]: r for r in rows}["api_over_gem"]["note"] == "no Python 3.12"
+    text = format_report({"pipeline": {**res, "targets": rows}, "wall_s": 1.0})
+    assert "one_second: ERROR RuntimeError: x" in text and "no Python 3.12" in text
 
 
 def test_measure_reports_the_childs_own_peak_rss() -> None:
@@ -113,11 +125,9 @@ def test_measure_reports_the_childs_own_peak_rss() -> None:
     assert positive(big.wall_s) and positive(small.wall_s)
 
 
-def test_perf_shim_keeps_the_cli_entry_points() -> None:
-    from bench.perf import add_arguments, main
-    from bench.tools import perf
+def test_perf_cli_options() -> None:
+    from bench.tools.perf import add_arguments
 
-    assert add_arguments is perf.add_arguments and main is perf.main
     p = argparse.ArgumentParser()
     add_arguments(p)
     a = p.parse_args(["--quick", "--only", "pipeline", "--no-peers"])

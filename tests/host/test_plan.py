@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from bench.plan import classic_frame_bits, fd_frame_bits, make_plan
+from bench.tools.plan import classic_frame_bits, fd_frame_bits, make_plan
 
 
 def test_classic_frame_bits_worst_case() -> None:

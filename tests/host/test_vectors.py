@@ -21,7 +21,7 @@ import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.paths import EDS_DIR
-from bench.vectors import Frame, Vector, load_vectors
+from bench.tools.vectors import Frame, Vector, load_vectors
 
 VECTORS = load_vectors()
 

@@ -54,7 +54,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"periods of the real lockstep loop and of the floor over vcan (default {VM_LOCKSTEP_PERIODS})")
     p.add_argument("--long-budget-s", type=float, default=VM_LONG_BUDGET_S,
                    help="wall-time budget of the long frame-continuity run in the VM "
-                        f"(periods = measured rate x budget, at most {TARGET_LONG_PERIODS}; default {VM_LONG_BUDGET_S:.0f})")
+                        f"(periods = measured rate x budget, at most {TARGET_LONG_PERIODS}; "
+                        f"default {VM_LONG_BUDGET_S:.0f})")
     p.add_argument("--save", type=Path, default=PERF_DIR / "perf.json", help="also write the JSON here")
     p.add_argument("--inside-vm", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -120,5 +121,5 @@ def main(args: argparse.Namespace) -> int:
         res["saved"] = str(args.save)
         args.save.write_text(json.dumps(res, indent=2))
     print(json.dumps(res, indent=2) if args.json else format_report(res))
-    errors = [k for k, s in res.items() if isinstance(s, dict) and "error" in s]
+    errors = [k for k, s in res.items() if isinstance(s, dict) and ("error" in s or s.get("errors"))]
     return 1 if errors else 0

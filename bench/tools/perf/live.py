@@ -104,7 +104,8 @@ def live_follow(log: Path, periods_per_update: int = 1000, periods: int | None =
     early = sorted(times[tenth:2 * tenth] or times[:1])
     late = sorted(times[-tenth:])
     e, l_ = early[len(early) // 2], late[len(late) // 2]
-    return {"log_bytes": size, "early_updates": [tenth, 2 * tenth], "late_updates": [max(0, n - tenth), n], "periods": int(res.summary["periods"]), "updates": n, "block_bytes": block,
+    return {"log_bytes": size, "periods": int(res.summary["periods"]), "updates": n, "block_bytes": block,
+            "early_updates": [tenth, 2 * tenth], "late_updates": [max(0, n - tenth), n],
             "periods_per_update": periods_per_update, "update_ms_early_median": e * 1e3,
             "update_ms_late_median": l_ * 1e3, "update_ms_max": max(times) * 1e3 if times else None,
             "late_over_early": l_ / e if e > 0 else None,

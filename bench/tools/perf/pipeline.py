@@ -144,32 +144,47 @@ def pipeline(sizes: Sizes | None = None, work: Path | None = None,
     tmp = Path(tempfile.mkdtemp(prefix="bench-perf-pipeline-", dir=work))
     res: dict[str, Any] = {"sizes": {**asdict(sizes), "api_periods": list(sizes.api_periods)},
                            "scenario": str(SCENARIO.relative_to(REPO))}
+    errors: dict[str, str] = {}
+
+    def part(name: str, what: str, fn: Callable[[], Any]) -> Any:
+        """One measurement; a failure is kept in its place and the others still run."""
+        say(f"pipeline: {what}")
+        try:
+            res[name] = fn()
+        except Exception as exc:  # noqa: BLE001 - reported in the section
+            res[name] = {"error": f"{type(exc).__name__}: {exc}"}
+            errors[name] = res[name]["error"]
+        return res[name]
+
     try:
-        say(f"pipeline: 1 s scenario, whole process x{sizes.repetitions}")
-        res["one_second"] = whole_runs(sizes.one_second_periods, sizes.repetitions, tmp)
-        say(f"pipeline: {sizes.whole_periods} periods, whole process, every output")
-        res["whole"] = whole_runs(sizes.whole_periods, 1, tmp, keep_last=True)
+        part("one_second", f"1 s scenario, whole process x{sizes.repetitions}",
+             lambda: whole_runs(sizes.one_second_periods, sizes.repetitions, tmp))
+        part("whole", f"{sizes.whole_periods:,} periods, whole process, every output",
+             lambda: whole_runs(sizes.whole_periods, 1, tmp, keep_last=True))
         log = tmp / f"run-{sizes.whole_periods}-0" / "bus.log"
-        say("pipeline: VM live view cost per update (following that run's log)")
-        res["live_follow"] = live_follow(log, sizes.live_periods_per_update, sizes.whole_periods)
+        part("live_follow", "VM live view cost per update (following that run's log)",
+             lambda: live_follow(log, sizes.live_periods_per_update, sizes.whole_periods))
         shutil.rmtree(log.parent, ignore_errors=True)
-        say(f"pipeline: the loop alone, {sizes.loop_periods} periods")
-        res["loop"] = _child("loop", sizes.loop_periods)
-        loop_rate = res["loop"]["loop"]["periods_per_s"]
-        say(f"pipeline: run_scenario with summary + traces, {', '.join(map(str, sizes.api_periods))} periods")
-        res["api"] = api_runs(sizes, tmp, loop_rate)
-        res["api_rss_growth"] = _rss_ratio(res["api"])
+        loop = part("loop", f"the loop alone, {sizes.loop_periods:,} periods",
+                    lambda: _child("loop", sizes.loop_periods))
+        loop_rate = loop["loop"]["periods_per_s"] if "loop" in loop else None
+        api = part("api", f"run_scenario with summary + traces, {', '.join(f'{n:,}' for n in sizes.api_periods)} "
+                   "periods", lambda: api_runs(sizes, tmp, loop_rate))
+        res["api_rss_growth"] = _rss_ratio(api)
         if sizes.peers:
-            say("pipeline: gym-electric-motor on the 1 s scenario")
-            res["gem"] = gem(min(sizes.repetitions, 3), say)
+            part("gem", "gym-electric-motor on the 1 s scenario", lambda: gem(min(sizes.repetitions, 3), say))
         else:
             res["gem"] = {"skipped": "no peers (--quick)"}
-        g = res["gem"]
-        if "wall_s" in g:
-            res["one_second_gem_over_bench"] = g["wall_s"]["median"] / res["one_second"]["wall_s"]["median"]
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    g, one = res["gem"], res.get("one_second", {})
+    if "wall_s" in g and "wall_s" in one:
+        res["one_second_gem_over_bench"] = g["wall_s"]["median"] / one["wall_s"]["median"]
+    a6 = (api.get("1000000") or next(iter(api.values()), None)) if "error" not in api else None
+    res["api_over_gem"] = a6["periods_per_s"] / g["sim_periods_per_s"] if a6 and g.get("sim_periods_per_s") else None
     res["targets"] = target_rows(res)
+    if errors:
+        res["errors"] = errors
     return res
 
 
@@ -178,7 +193,8 @@ def _row(key: str, measured: float | None, note: str = "") -> dict[str, Any]:
     met = None
     if measured is not None:
         met = measured <= t["target"] if t["le"] else measured >= t["target"]
-    return {"key": key, "label": t["label"], "unit": t["unit"], "what": t["what"], "target": t["target"], "op": "<=" if t["le"] else ">=",
+    return {"key": key, "label": t["label"], "unit": t["unit"], "what": t["what"], "target": t["target"],
+            "op": "<=" if t["le"] else ">=",
             "measured": measured, "ratio": None if measured is None else measured / t["target"],
             "was": t["was"], "met": met, "note": note}
 
@@ -187,7 +203,7 @@ def target_rows(res: dict[str, Any]) -> list[dict[str, Any]]:
     """One row per target: measured, measured/target, met (None when not measured in this run)."""
     sizes = res["sizes"]
     full = sizes["whole_periods"] == 1_000_000
-    size_note = "" if full else f"measured at {sizes['whole_periods']:,} periods, not 10^6: not judged"
+    size_note = "" if full else f"measured at {sizes['whole_periods']:,} periods, not 10^6"
     rows = []
     one = res.get("one_second", {})
     one_ok = sizes["one_second_periods"] == ONE_SECOND_PERIODS
@@ -195,21 +211,19 @@ def target_rows(res: dict[str, Any]) -> list[dict[str, Any]]:
                      "" if one_ok else f"{sizes['one_second_periods']} periods, not 18,182"))
     whole = res.get("whole", {})
     rows.append(_row("whole_1e6_wall_s", whole.get("wall_s", {}).get("median") if full else None, size_note))
-    rows.append(_row("whole_1e6_peak_rss_MB", whole.get("peak_rss_kB", 0) / 1024 if full and whole else None,
-                     size_note))
+    rss = whole.get("peak_rss_kB")
+    rows.append(_row("whole_1e6_peak_rss_MB", rss / 1024 if full and rss else None, size_note))
     api = res.get("api", {})
-    first = api.get(str(sizes["api_periods"][0])) if sizes["api_periods"] else None
     api_full = "1000000" in api
-    a6 = api.get("1000000") or first
+    a6 = api.get("1000000") or (next((v for k, v in api.items() if k != "error"), None))
+    off = f"at {a6['periods']:,} periods" if a6 and not api_full else ""
     rows.append(_row("api_over_loop", a6.get("over_loop") if a6 and api_full else None,
-                     "" if api_full else (f"at {sizes['api_periods'][0]:,} periods: "
-                                          f"{a6['over_loop']:.3f}" if a6 and a6.get("over_loop") else "")))
-    gem_rate = (res.get("gem") or {}).get("sim_periods_per_s")
-    ratio = a6["periods_per_s"] / gem_rate if a6 and gem_rate else None
-    res["api_over_gem"] = ratio
+                     f"{off}: {a6['over_loop']:.3f}" if off and a6 and a6.get("over_loop") else ""))
+    gem = res.get("gem") or {}
+    ratio = res.get("api_over_gem")
+    why = gem.get("skipped") or gem.get("unavailable") or gem.get("error") or ""
     rows.append(_row("api_over_gem", ratio if api_full else None,
-                     "" if gem_rate else (res.get("gem") or {}).get("skipped")
-                     or (res.get("gem") or {}).get("unavailable") or ""))
+                     why or (f"{off}: {ratio:.3g}x" if off and ratio else "")))
     g = res.get("api_rss_growth")
     rows.append(_row("api_rss_1e7_over_1e6", g["ratio"] if g else None, "" if g else "10^7 not run"))
     lf = res.get("live_follow") or {}

@@ -33,11 +33,12 @@ class _Lines(list):  # type: ignore[type-arg]
 
 
 def _cores(r: dict[str, Any], L: _Lines) -> None:
-    m = L.sec(r, "machine", "machine") or {}
-    for k in ("cpu_model", "logical_cpus", "cores", "kernel", "gcc", "arm_none_eabi_gcc", "clang", "valgrind",
-              "python"):
-        L.append(f"  {k:<20} {m.get(k)}")
-    L.append(f"  {'command':<20} {r.get('command')}")
+    m = L.sec(r, "machine", "machine")
+    if m:
+        for k in ("cpu_model", "logical_cpus", "cores", "kernel", "gcc", "arm_none_eabi_gcc", "clang", "valgrind",
+                  "python"):
+            L.append(f"  {k:<20} {m.get(k)}")
+        L.append(f"  {'command':<20} {r.get('command')}")
 
     p = L.sec(r, "plant_core", f"plant core (plant_perf; target >= {TARGET_PLANT_MPS:.0f} M periods/s)")
     if p:
@@ -193,7 +194,8 @@ def _vcan(r: dict[str, Any], L: _Lines) -> None:
                 cl = rec["continuity_in_log_order"]
                 L.append(f"            decoded by kernel time stamp; in candump's log order "
                          f"{rec['frames_out_of_time_order_in_log']} frames are out of time order -> "
-                         f"{cl['missing_commands']} commands would look missing, {cl['missing_measurements']} measurements")
+                         f"{cl['missing_commands']} commands would look missing, "
+                         f"{cl['missing_measurements']} measurements")
 
 
 def _mb(kB: float | None) -> str:
@@ -212,13 +214,21 @@ def _pipeline(r: dict[str, Any], L: _Lines) -> None:
     p = L.sec(r, "pipeline", "pipeline: what the user waits for, side by side (bench run, run_scenario, peer)")
     if p is None:
         return
-    one = p.get("one_second", {})
+
+    def part(key: str) -> dict[str, Any]:
+        s = p.get(key) or {}
+        if "error" in s:
+            L.append(f"  {key}: ERROR {s['error']}")
+            return {}
+        return s
+
+    one = part("one_second")
     if one:
         w = one["wall_s"]
         L.append(f"  1 s scenario ({one['periods']:,} periods), whole `bench run --bus direct --no-viewer` process: "
                  f"min {w['min']:.2f} / median {w['median']:.2f} / max {w['max']:.2f} s over {w['n']} run(s), "
                  f"peak RSS {_mb(one['peak_rss_kB'])}")
-    wh = p.get("whole", {})
+    wh = part("whole")
     if wh:
         files = ", ".join(f"{k} {v / 1e6:.1f} MB" for k, v in sorted(wh["bytes"].items(), key=lambda kv: -kv[1])
                           if v >= 1e5)
@@ -226,31 +236,31 @@ def _pipeline(r: dict[str, Any], L: _Lines) -> None:
                  f"({wh['periods_per_s_whole_process']:,.0f} periods/s), peak RSS {_mb(wh['peak_rss_kB'])}, "
                  f"{wh['total_bytes'] / 1e6:.0f} MB written")
         L.append(f"    files: {files} (and the small ones)")
-    lp = p.get("loop", {})
+    lp = part("loop")
     if lp:
         a, b = lp["loop"], lp["loop_recorded"]
         L.append(f"  the loop alone (configured Session, direct, no recorder), {a['periods']:,} periods: "
                  f"{a['periods_per_s']:,.0f} periods/s; with the frame recorder: {b['periods_per_s']:,.0f} "
                  f"periods/s; peak RSS {_mb(lp['peak_rss_kB'])}")
-    for n, a in (p.get("api") or {}).items():
+    for n, a in part("api").items():
         over = f" = {a['over_loop']:.3f} x the loop" if a.get("over_loop") else ""
         L.append(f"  run_scenario + summary + traces.npy, {int(n):,} periods: {a['api_wall_s']:.2f} s in the call "
                  f"({a['periods_per_s']:,.0f} periods/s{over}), process {a['process_wall_s']:.2f} s, "
                  f"peak RSS {_mb(a['peak_rss_kB'])}")
-    lf = p.get("live_follow")
-    if lf and "error" not in lf:
+    lf = part("live_follow")
+    if lf:
         L.append(f"  VM live view, an update of ~{lf['periods_per_update']:,} periods (follow log -> decode -> "
                  f"traces + .rrd): early {lf['update_ms_early_median']:.2f} ms, late {lf['update_ms_late_median']:.2f} "
                  f"ms over {lf['updates']} updates ({lf['us_per_period_late']:.2f} us/period)")
-    g = p.get("gem", {})
+    g = part("gem")
     if "wall_s" in g:
         L.append(f"  peer {g['simulator']} ({g['solver']}, {g['speed']}), same 1 s scenario: whole process median "
                  f"{g['wall_s']['median']:.2f} s over {g['repetitions']}, {g['sim_periods_per_s']:,.0f} periods/s "
                  f"in its loop, peak RSS {_mb(g['peak_rss_kB'])}")
         if p.get("one_second_gem_over_bench"):
             L.append(f"    1 s scenario, whole process: the bench is {p['one_second_gem_over_bench']:.1f}x faster")
-    else:
-        L.append(f"  peer gym-electric-motor: {g.get('unavailable') or g.get('skipped') or g.get('error')}")
+    elif g:
+        L.append(f"  peer gym-electric-motor: {g.get('unavailable') or g.get('skipped')}")
     rows = p.get("targets") or []
     if rows:
         L.append("")

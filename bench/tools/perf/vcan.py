@@ -183,6 +183,7 @@ def recorder_check(d: Path) -> dict[str, Any]:
     measurements and commands, per COB-ID counts against what the periods should have sent."""
     from ...run.canlog import read_frames
     from ...run.pipeline import Pipeline, replay_log
+    from ...run.session import HOLD_TPDO
 
     meta = json.loads((d / "perf_capture.json").read_text())
     periods = int(meta["periods"])
@@ -197,7 +198,9 @@ def recorder_check(d: Path) -> dict[str, Any]:
     layout = pipe.dec.layout
     if layout is None:
         raise RuntimeError(f"{log}: no SYNC recorded")
-    per_period = [p.cob_id for p in layout.pdos if p.trans_type <= 240]  # synchronous: one per SYNC
+    # One frame per period each: the SYNC and every PDO but the plant's hold announcement (sent once
+    # per run segment, bench/run/session.py).
+    per_period = [p.cob_id for p in layout.pdos if not (p.node == "plant" and p.pdo == f"TPDO{HOLD_TPDO}")]
     cobs = [layout.sync_cob_id, *per_period]
     keys = ("sync_counter_gaps", "missing_measurements", "missing_commands", "sample_index_mismatches")
     return {"periods_expected": periods, "syncs_recorded": int(res.summary["periods"]),
@@ -215,7 +218,7 @@ def recorder_check(d: Path) -> dict[str, Any]:
 
 def vcan(args: argparse.Namespace) -> dict[str, Any]:
     from ...canbus import host_has_vcan
-    from ...vm import VmOptions, run_in_vm
+    from ..vm import VmOptions, run_in_vm
 
     out = PERF_DIR / "vm.json"
     out.unlink(missing_ok=True)

@@ -7,7 +7,7 @@ import subprocess
 import time
 from dataclasses import dataclass
 
-from .paths import binary
+from ..paths import binary
 
 
 @dataclass

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from types import TracebackType
 
-from .paths import binary
+from ..paths import binary
 
 
 class NodeProcess:

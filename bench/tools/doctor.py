@@ -7,8 +7,9 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 
-from . import canbus, vm
-from .paths import BIN, REPO
+from .. import canbus
+from . import vm
+from ..paths import BIN, REPO
 
 
 @dataclass

@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass, field
 
 import canopen
 
-from .paths import EDS_DIR
+from ..paths import EDS_DIR
 
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 

@@ -1,0 +1,112 @@
+"""A run's verdict tells the truth: a diverging loop, a trip, non-finite values and lost frames
+each give their own status and exit code; a scenario that expects one passes with it; a NaN
+that arrived is never counted as a lost frame."""
+
+from __future__ import annotations
+
+import struct
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bench.paths import REPO
+from bench.run import RunOptions, run_scenario
+from bench.run.pipeline import Pipeline
+from bench.run.sinks import FrameCollector
+from bench.run.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+from bench.scenario import ScenarioError, load, parse
+
+STEP = REPO / "scenarios" / "you2019_step.toml"
+
+
+def zhao(ratio: float, **head: Any) -> dict[str, Any]:
+    """Zhao 2022 incremental deadbeat at L/L0 = ratio, 10 kHz, locked rotor, an iq step of 0.1 A."""
+    return {"scenario": {"name": f"zhao-{ratio}", "periods": 1500, **head},
+            "motor": {"preset": "zhao2022", "mech_mode": "locked"},
+            "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "adc_noise_std_A": 0.0, "adc_lsb_A": 0.0},
+            "controller": {"controller": "incremental_zhao2022", "Vmax_V": 28.0 / 3 ** 0.5, "L_hat_ratio": 1 / ratio},
+            "events": [{"at_period": 20, "references": {"iq_ref_A": 0.1}}]}
+
+
+def test_unstable_loop_is_diverged_and_a_stable_one_is_ok() -> None:
+    bad = run_scenario(parse(zhao(0.68), "<zhao>"), RunOptions(bus="direct"))
+    assert bad.status == "diverged" and bad.exit_code == EXIT_CODES["diverged"] == 4
+    assert bad.summary["oscillating_steps"] == [20]
+    assert bad.summary["steps"][0]["periods_to_settle"] is None
+    good = run_scenario(parse(zhao(0.8), "<zhao>"), RunOptions(bus="direct"))
+    assert good.status == "ok" and good.exit_code == 0, good.summary["steps"]
+
+
+def test_expected_divergence_passes_and_an_unmet_expectation_fails() -> None:
+    raw = zhao(0.68, expect=["diverged", "tripped"])
+    res = run_scenario(parse(raw, "<zhao>"), RunOptions(bus="direct"))
+    assert res.status == "diverged" and res.expected and res.exit_code == 0
+    res = run_scenario(parse(zhao(0.8, expect="diverged"), "<zhao>"), RunOptions(bus="direct"))
+    assert res.status == "ok" and not res.expected and res.exit_code == EXIT_EXPECTATION_NOT_MET
+
+
+def test_trip_is_reported_with_its_period() -> None:
+    sc = load(STEP, ["drive.I_trip_A=0.5"])  # a 1 A step through a 0.5 A trip
+    res = run_scenario(sc, RunOptions(bus="direct"), keep_trace=True)
+    assert res.status == "tripped" and res.exit_code == 3
+    p = res.summary["first_trip_period"]
+    assert 20 < p < 30  # the step is at period 20
+    assert res.trace is not None and int(res.trace["status"][p]) & 1 and not int(res.trace["status"][p - 1]) & 1
+
+
+def test_bad_expect_is_refused() -> None:
+    with pytest.raises(ScenarioError, match="scenario.expect = 'broken'"):
+        load(STEP, ["scenario.expect=broken"])
+
+
+@pytest.fixture(scope="module")
+def frames() -> np.ndarray:
+    fc = FrameCollector()
+    run_scenario(load(STEP), RunOptions(bus="direct"), frame_sinks=[fc])
+    fc.close()
+    return fc.frames
+
+
+def _pipe(frames: np.ndarray) -> Any:
+    p = Pipeline(0x10, 0x20)
+    for i in range(0, len(frames), 333):
+        p.feed(frames[i:i + 333])
+    return p.finish("t", "direct")
+
+
+def test_nan_in_a_pdo_is_non_finite_not_lost(frames: np.ndarray) -> None:
+    f = frames.copy()
+    cmd = np.nonzero(f["cob_id"] == 0x210)[0]  # the drive's command TPDO, on the plant's RPDO1 COB-ID
+    assert len(cmd) >= 200
+    for i in cmd[100:103]:
+        f["data"][i, :4] = np.frombuffer(struct.pack("<f", float("nan")), np.uint8)
+    res = _pipe(f)
+    bs = res.summary["bus_stats"]
+    assert res.status == "non_finite" and res.exit_code == 5
+    assert bs["non_finite_values"] == {"v_alpha_V": 3}
+    assert bs["lost_frames"] == 0 and bs["missing_commands"] == 0
+
+
+def test_missing_frames_are_lost(frames: np.ndarray) -> None:
+    cmd = np.nonzero(frames["cob_id"] == 0x210)[0]
+    meas = np.nonzero(frames["cob_id"] == 0x190)[0]
+    keep = np.ones(len(frames), bool)
+    keep[cmd[50]] = keep[meas[60]] = False
+    res = _pipe(frames[keep])
+    bs = res.summary["bus_stats"]
+    assert res.status == "frames_lost" and res.exit_code == 6
+    assert bs["missing_commands"] == 1 and bs["non_finite_values"] == {}
+    ref = _pipe(frames)
+    assert ref.status == "ok" and ref.summary["bus_stats"]["lost_frames"] == 0
+
+
+def test_cli_exit_code_is_the_status(tmp_path: Path) -> None:
+    res = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "direct", "--no-viewer",
+                          "--out", str(tmp_path / "r"), "--set", "drive.I_trip_A=0.5"], capture_output=True, text=True,
+                         cwd=REPO, timeout=300)
+    assert res.returncode == 3, res.stderr
+    assert "TRIPPED" in res.stdout and (tmp_path / "r" / "summary.json").exists()
