@@ -166,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run a scenario: configure by SDO, run, record every frame, summarize",
                        description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
                                    "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
-                                   "every frame, and write summary.json, traces.npy, the CAN log, PNG plots and a "
+                                   "every frame, and write summary.json, traces.npy, the CAN log, SVG plots and a "
                                    "Rerun recording. The exit status is the run's verdict: 0 ok, 3 tripped, "
                                    "4 diverged, 5 non-finite values, 6 frames lost, 7 expected status not reached "
                                    "(1 failure, 2 bad input, 130 interrupted). Example: bench run scenarios/you2019_step.toml --bus direct")
@@ -242,6 +242,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] in (["run"], ["demo"]) and not {"-h", "--help"} & set(argv):
+        from .view.worker import prestart
+
+        prestart()  # the viewer and plot processes import rerun and matplotlib while we import the rest
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

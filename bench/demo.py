@@ -54,5 +54,5 @@ def main(args: argparse.Namespace) -> int:
     print(f"  recording: {out_dir / 'run.rrd'} (rerun {out_dir / 'run.rrd'})")
     print(f"  CAN log:   {out_dir / summary['files']['log']}")
     print(f"  traces:    {out_dir / summary['files']['traces']}; summary: {out_dir / 'summary.json'}; "
-          f"plots: {out_dir}/*.png")
+          f"plots: {out_dir}/*.svg")
     return rc

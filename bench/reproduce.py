@@ -352,7 +352,7 @@ def main(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     if args.bus != "direct" and not host_has_vcan(args.bus):
-        from .vm import VmOptions, run_in_vm
+        from .tools.vm import VmOptions, run_in_vm
 
         print(f"bench reproduce: host kernel has no SocketCAN; running the claims over {args.bus} inside the VM")
         rc = run_in_vm([sys.executable, "-m", "bench.cli", "reproduce", "--paper", args.paper, "--bus", args.bus,

@@ -1,7 +1,27 @@
 """A run, end to end: scenario -> SDO configuration -> PDO loop -> frames -> decode once ->
-trace chunks -> sinks. `run_scenario` is the public entry point (bench/run/pipeline.py)."""
+trace chunks -> sinks. `run_scenario` is the public entry point (bench/run/pipeline.py).
 
-from .pipeline import Pipeline, RunResult, run_scenario
-from .session import RunOptions
+The names below are imported on first use, so that `bench.run.signals` (what the view worker
+needs) does not pull in canopen and the C library."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .pipeline import Pipeline, RunResult, run_scenario
+    from .session import RunOptions
 
 __all__ = ["Pipeline", "RunOptions", "RunResult", "run_scenario"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("Pipeline", "RunResult", "run_scenario"):
+        from . import pipeline
+
+        return getattr(pipeline, name)
+    if name == "RunOptions":
+        from .session import RunOptions
+
+        return RunOptions
+    raise AttributeError(name)

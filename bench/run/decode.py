@@ -67,6 +67,7 @@ class DecodeStats:
     sample_index_mismatches: int = 0
     pdos: dict[int, PdoStats] = field(default_factory=dict)
     non_finite: dict[str, int] = field(default_factory=dict)   # column -> periods with a non-finite value
+    first_non_finite_period: int | None = None
 
 
 class Decoder:
@@ -92,17 +93,19 @@ class Decoder:
         self.layout.pdos = [p for p in self.layout.pdos if not all(q.startswith("Run control.") for q, _ in p.signals)]
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
-        names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC")]
+        names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC", "<f4")]
         for pdo in self.layout.pdos:
             self.stats.pdos[pdo.cob_id] = PdoStats(pdo)
-            for q, _ in pdo.signals:
-                names.append(SignalInfo.of(column_name(q), f"{pdo.node} {pdo.pdo} {q}"))
+            for q, fmt in pdo.signals:
+                # float32 holds a REAL32 and an integer of up to 16 bits exactly (and NaN for a missing frame)
+                names.append(SignalInfo.of(column_name(q), f"{pdo.node} {pdo.pdo} {q}",
+                                           "<f4" if fmt in "fbBhH?" else "<f8"))
         cols = {s.name for s in names}
         if {"i_a_A", "i_b_A", "theta_m_rad"} <= cols:
             names += [SignalInfo.of(n, "derived (Park transform)") for n in ("id_A", "iq_A")]
             if {"v_alpha_V", "v_beta_V"} <= cols:
                 names += [SignalInfo.of(n, "derived (Park transform)") for n in ("vd_V", "vq_V")]
-        names += [SignalInfo.of(n, "SDO writes to drive References") for n in REFERENCES]
+        names += [SignalInfo.of(n, "SDO writes to drive References", "<f4") for n in REFERENCES]
         self.signals = list({s.name: s for s in names}.values())  # a PDO's sync_counter replaces the SYNC's
 
     # ------------------------------------------------------------------ feeding
@@ -170,23 +173,25 @@ class Decoder:
         st = self.stats
         out: dict[str, np.ndarray] = {"period": np.arange(r0, r1, dtype=np.int64)}
         out["t_s"] = out["period"] * self.ts_s
-        sync = np.nonzero(buf["cob_id"] == self.layout.sync_cob_id)[0]
+        cob = np.ascontiguousarray(buf["cob_id"])
+        data = buf["data"]
+        sync = np.flatnonzero(cob == self.layout.sync_cob_id)
         sp = period_of[sync]
         keep = (sp >= r0) & (sp < r1)
         sc = np.full(n, np.nan)
         dlc = buf["dlc"][sync[keep]]
-        sc[sp[keep] - r0] = np.where(dlc > 0, buf["data"][sync[keep], 0], -1)
+        sc[sp[keep] - r0] = np.where(dlc > 0, data[sync[keep], 0], -1)
         out["sync_counter"] = sc
-        for cob, ps in st.pdos.items():
+        for cob_id, ps in st.pdos.items():
             pdo = ps.pdo
-            pos = np.nonzero(buf["cob_id"] == cob)[0]
+            pos = np.flatnonzero(cob == cob_id)
             per = period_of[pos]
             if pdo.node == "drive" and pdo.trans_type <= 240:
                 per = per - 1  # synchronous drive TPDO at SYNC k: state after step k-1
             ok = (per >= r0) & (per < r1)
             pos, per = pos[ok], per[ok] - r0
             dt = pdo.numpy_dtype()
-            vals = np.ascontiguousarray(buf["data"][pos][:, : dt.itemsize]).view(dt).reshape(-1)
+            vals = np.ascontiguousarray(data[pos, : dt.itemsize]).view(dt).reshape(-1)
             got = np.zeros(n, dtype=bool)
             got[per] = True
             ps.present += int(got.sum())
@@ -197,6 +202,9 @@ class Decoder:
                 if fmt == "f":
                     nf = got & ~np.isfinite(col)
                     if nf.any():
+                        first = r0 + int(np.argmax(nf))
+                        if st.first_non_finite_period is None or first < st.first_non_finite_period:
+                            st.first_non_finite_period = first
                         cname = column_name(name)
                         st.non_finite[cname] = st.non_finite.get(cname, 0) + int(nf.sum())
                         bad |= nf
@@ -210,6 +218,10 @@ class Decoder:
         return out
 
     def _derive(self, out: dict[str, np.ndarray]) -> None:
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite values stay so (and are counted)
+            self._park(out)
+
+    def _park(self, out: dict[str, np.ndarray]) -> None:
         if "i_a_A" in out and "theta_m_rad" in out:
             ia, ib = out["i_a_A"], out["i_b_A"]
             i_alpha, i_beta = ia, (ia + 2.0 * ib) / SQRT3

@@ -62,14 +62,15 @@ class Hil:
             self.lib.hil_set_recorder(self._rec.ctypes.data, capacity)
 
     def take(self) -> np.ndarray:
-        """The frames recorded since the last call (a copy; the buffer is reused)."""
+        """The frames recorded since the last call. The recorder moves on to a fresh buffer (no copy)."""
         assert self._rec is not None
         with self._lock:
             n = self.lib.hil_recorded()
             if self.lib.hil_record_dropped():
                 raise RuntimeError(f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped "
                                    f"(buffer of {len(self._rec)} frames)")
-            out = self._rec[:n].copy()
+            out = self._rec[:n]
+            self._rec = np.empty(len(self._rec), dtype=FRAME_DTYPE)
             self.lib.hil_set_recorder(self._rec.ctypes.data, len(self._rec))
         return out
 
@@ -87,11 +88,13 @@ class DirectBus(can.BusABC):
     def __init__(self, hil: Hil, **kwargs: object) -> None:
         self.hil = hil
         self.closing = False
+        self._sent = threading.Event()  # a frame went in: answers may be waiting (no polling delay)
         super().__init__(channel="direct", **kwargs)  # type: ignore[arg-type]
         self.channel_info = "in-process bus (direct mode)"
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.hil.send(msg.arbitration_id, bytes(msg.data))
+        self._sent.set()
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout
@@ -103,7 +106,10 @@ class DirectBus(can.BusABC):
                 return msg, False
             if self.closing or (deadline is not None and time.monotonic() >= deadline):
                 return None, False
-            time.sleep(0.0005)
+            # The nodes answer only to what is sent (in direct mode nothing else happens while the master
+            # waits): sleep until the next send, or briefly (the lockstep loop's frames are not for the master).
+            self._sent.wait(0.002 if deadline is None else max(0.0, min(0.002, deadline - time.monotonic())))
+            self._sent.clear()
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
         """As BusABC.recv, but returns at once when the bus is closing (BusABC would keep polling

@@ -95,8 +95,7 @@ class Outputs:
     def finish(self, result: Any) -> None:
         """Everything after the last frame: the viewer process draws the plots and closes the recording
         while this one closes the log (or renames candump's), exports and writes the summary."""
-        self.view._send("finish", {"summary": result.summary, "windows": result.step_windows,
-                                   "envelopes": result.envelopes, "title": self.sc.name})
+        self.view.finish(result, self.sc.name)
         for fs in self.frame_sinks:
             fs.close()
         cand = self.folder / "candump.log"
@@ -112,7 +111,7 @@ class Outputs:
         summary = result.summary
         summary["files"] = {"log": self.log_path.name, "traces": TRACES_FILE,
                             "exports": [f"bus.{f}" for f in self.log_formats],
-                            "recording": "run.rrd", "plots": [f for f in shown if f.endswith(".png")]}
+                            "recording": "run.rrd", "plots": [f for f in shown if f.endswith(".svg")]}
         (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
 
     def abort(self) -> None:
@@ -175,4 +174,4 @@ def print_result(out: Path, result: Any) -> None:
         print(f"status: {status.upper()}: {why} (exit {result.exit_code})")
     if status == "ok" and not result.expected:
         print(f"status: the scenario expected {', '.join(s['expect'])} (exit {result.exit_code})")
-    print(f"results in {out}/: summary.json, {TRACES_FILE}, bus.log, run.rrd, *.png")
+    print(f"results in {out}/: summary.json, {TRACES_FILE}, bus.log, run.rrd, *.svg")

@@ -78,7 +78,9 @@ class Pipeline:
         self.envelopes: dict[str, Envelope] = {}
         self.bits = 0
         self.max_phase_A = 0.0
+        self.bound_A: float | None = None
         self.first_trip_period: int | None = None
+        self.first_beyond_bound_period: int | None = None
         self._begun = False
         self._tail: dict[str, np.ndarray] = {}       # the last rows, for step windows that start in a chunk
         self._windows: list[dict[str, Any]] = []
@@ -103,6 +105,7 @@ class Pipeline:
             for s in self.sinks:
                 s.begin(self.dec.signals, self.dec)
             self.envelopes = {s.name: Envelope() for s in self.dec.signals if s.name in chunk}
+            self.bound_A = divergence_bound_A(plant_values(self.dec))  # the plant as configured
         for sig, x, ref in STEP_SIGNALS:
             if x in chunk:
                 self.steps[sig].add(chunk["period"], chunk[x], chunk[ref])
@@ -110,10 +113,10 @@ class Pipeline:
             env.add(chunk[n])
         for col in ("i_a_A", "i_b_A"):
             if col in chunk:
-                a = np.abs(chunk[col])
-                a = a[np.isfinite(a)]
-                if len(a):
-                    self.max_phase_A = max(self.max_phase_A, float(a.max()))
+                a = np.abs(np.nan_to_num(chunk[col], nan=0.0, posinf=0.0, neginf=0.0))
+                self.max_phase_A = max(self.max_phase_A, float(a.max()))
+                if self.bound_A is not None and self.first_beyond_bound_period is None and a.max() > self.bound_A:
+                    self.first_beyond_bound_period = int(chunk["period"][int(np.argmax(a > self.bound_A))])
         if self.first_trip_period is None and "status" in chunk:
             st = chunk["status"]
             hit = np.nonzero(np.isfinite(st) & (np.nan_to_num(st).astype(np.int64) & 1 == 1))[0]
@@ -160,7 +163,7 @@ class Pipeline:
             s["tuning_on"] = bool(on and on[-1])
         steps.sort(key=lambda s: (s["signal"] != "iq", s["at_period"]))
         plant = plant_values(dec)
-        bound = divergence_bound_A(plant)
+        bound = self.bound_A
         bstats = bus_stats(dec, self.bits)
         trip_active = dec.sdo.plant.get("Run control", "trip_active")
         # A loop that never settles and still swings over half its step at the end of the window
@@ -173,7 +176,10 @@ class Pipeline:
             "tripped": self.first_trip_period is not None or bool(trip_active),
             "frames_lost": bstats["lost_frames"] > 0,
         }
-        status, code, expected = verdict(flags, self.expect)
+        first = {"non_finite": dec.stats.first_non_finite_period, "tripped": self.first_trip_period,
+                 "diverged": self.first_beyond_bound_period if self.first_beyond_bound_period is not None
+                 else (oscillating[0] if oscillating else None)}
+        status, code, expected = verdict(flags, self.expect, first)
         timing = dict(wall or {})
         if timing.get("run_wall_s"):
             timing["periods_per_s"] = dec.stats.periods / timing["run_wall_s"]
@@ -187,6 +193,7 @@ class Pipeline:
             "expect": list(self.expect),
             "status_flags": flags,
             "first_trip_period": self.first_trip_period,
+            "first_non_finite_period": dec.stats.first_non_finite_period,
             "oscillating_steps": oscillating,
             "max_phase_current_A": self.max_phase_A,
             "divergence_bound_A": bound,

@@ -117,7 +117,12 @@ class SdoLog:
 
     def mask(self, frames: np.ndarray) -> np.ndarray:
         cob = frames["cob_id"]
-        return np.isin(cob, self._req_ids) | np.isin(cob, self._resp_ids)
+        m = (cob > 0x580) & (cob < 0x680)  # the SDO ranges first: the PDO stream is most of the frames
+        idx = np.flatnonzero(m)
+        if len(idx):
+            c = cob[idx]
+            m[idx] = np.isin(c, self._req_ids) | np.isin(c, self._resp_ids)
+        return m
 
     def feed(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """SDO frames (see `mask`) in bus order, with the number of SYNCs seen before each."""

@@ -41,7 +41,8 @@ class SignalInfo:
     name: str      # trace column, e.g. "Yao_2020_DPCC_R_hat_ohm"
     unit: str      # "Ω"
     source: str    # where it comes from: "plant TPDO1 Measurement.i_a_A", "derived", "scenario"
+    storage: str = "<f8"  # dtype in traces.npy: "<f4" holds a REAL32 or a small integer exactly
 
     @classmethod
-    def of(cls, name: str, source: str) -> "SignalInfo":
-        return cls(name, unit_of(name), source)
+    def of(cls, name: str, source: str, storage: str = "<f8") -> "SignalInfo":
+        return cls(name, unit_of(name), source, storage)

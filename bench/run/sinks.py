@@ -44,7 +44,7 @@ class TraceFileSink:
         self.dtype: np.dtype | None = None
 
     def begin(self, signals: list[SignalInfo], ctx: Any) -> None:
-        self.dtype = np.dtype([("period", "<i8"), ("t_s", "<f8"), *[(s.name, "<f8") for s in signals]])
+        self.dtype = np.dtype([("period", "<i8"), ("t_s", "<f8"), *[(s.name, s.storage) for s in signals]])
         self._fh = open(self.path, "wb")  # noqa: SIM115 - closed in end()
         self._fh.write(self._header(0))
 

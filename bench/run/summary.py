@@ -25,7 +25,7 @@ SCHEMA_VERSION = 2
 EXIT_CODES = {"ok": 0, "tripped": 3, "diverged": 4, "non_finite": 5, "frames_lost": 6}
 EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
-PRIORITY = ("non_finite", "diverged", "tripped", "frames_lost")  # the root cause first
+PRIORITY = ("non_finite", "diverged", "tripped", "frames_lost")  # at the same period, the root cause first
 
 # What each controller identifies or applies, read by SDO at the end of every run (and so in the log).
 CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
@@ -126,21 +126,31 @@ def frame_bits(frames: np.ndarray) -> int:
     return int(sum(int(c) * classic_frame_bits(d) for d, c in enumerate(counts)))
 
 
-def verdict(flags: dict[str, Any], expect: tuple[str, ...]) -> tuple[str, int, bool]:
-    """(status, exit code, expected) from the flags a run raised."""
-    status = next((s for s in PRIORITY if flags.get(s)), "ok")
+def verdict(flags: dict[str, Any], expect: tuple[str, ...],
+            first: dict[str, int | None] | None = None) -> tuple[str, int, bool]:
+    """(status, exit code, expected) from the flags a run raised: the one that happened first (a
+    divergence that trips, then sends NaN, is "diverged"); at the same period, PRIORITY's order."""
+    first = first or {}
+    raised = [s for s in PRIORITY if flags.get(s)]
+    raised.sort(key=lambda s: (first.get(s) if first.get(s) is not None else float("inf"), PRIORITY.index(s)))
+    status = raised[0] if raised else "ok"
     if status in expect:
         return status, 0, True
     return status, EXIT_CODES[status] if status != "ok" else EXIT_EXPECTATION_NOT_MET, False
 
 
 def format_table(summary: dict[str, Any]) -> str:
-    lines = [f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}{'tuning':>8}"]
+    """The step table; the tuning column (You 2019's online tuning) only for that controller."""
+    tuned = summary.get("identified", {}).get("controller") == "deadbeat_you2019"
+    lines = [f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}"
+             + (f"{'tuning':>8}" if tuned else "")]
     for s in summary["steps"]:
         settle = "-" if s["periods_to_settle"] is None else str(s["periods_to_settle"])
         lines.append(f"{s['signal']:<8}{s['at_period']:>7}{s['from_A']:>7.2f}->{s['to_A']:<6.2f}{settle:>8}"
                      f"{s['overshoot_A']:>9.3f} A {s['overshoot_pct']:>4.1f}%{s['steady_state_error_A']:>11.2e}"
-                     f"{('on' if s.get('tuning_on') else 'off'):>8}")
+                     + (f"{('on' if s.get('tuning_on') else 'off'):>8}" if tuned else ""))
+    if not summary["steps"]:
+        lines.append("(no reference step in this run)")
     return "\n".join(lines)
 
 

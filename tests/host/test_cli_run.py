@@ -26,9 +26,9 @@ def test_run_direct_writes_every_result(tmp_path: Path) -> None:
     out = tmp_path / "run"
     res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer")
     assert res.returncode == 0, res.stderr
-    for name in ("summary.json", "traces.npy", "bus.log", "run.rrd", "overview.png"):
+    for name in ("summary.json", "traces.npy", "bus.log", "run.rrd", "overview.svg"):
         assert (out / name).stat().st_size > 0, name
-    assert list(out.glob("step_*.png"))
+    assert list(out.glob("step_*.svg"))
     assert not list(out.glob("*.json"))[1:], "one JSON file: summary.json (the log carries the rest)"
     summary = json.loads((out / "summary.json").read_text())
     step = summary["steps"][0]

@@ -110,3 +110,23 @@ def test_cli_exit_code_is_the_status(tmp_path: Path) -> None:
                          cwd=REPO, timeout=300)
     assert res.returncode == 3, res.stderr
     assert "TRIPPED" in res.stdout and (tmp_path / "r" / "summary.json").exists()
+
+
+def test_runaway_without_voltage_limit_trips_by_default_and_diverges_without_trip() -> None:
+    """Zhao 2022 at L/L0 = 0.68 with the voltage limiter off runs away: the plant's default trip
+    (from the preset) stops it; with the trip level off the current passes the inverter's bound
+    first, and the verdict names that, not what followed (a NaN command, the non-finite trip)."""
+    raw = zhao(0.68)
+    raw["scenario"]["periods"] = 3000
+    raw["controller"]["Vmax_V"] = 0.0
+    tripped = run_scenario(parse(raw, "<zhao>"), RunOptions(bus="direct"))
+    assert tripped.status == "tripped" and tripped.summary["first_trip_period"] < 200
+    assert tripped.summary["bus_stats"]["non_finite_values"] == {}
+    raw["drive"]["I_trip_A"] = 0.0
+    runaway = run_scenario(parse(raw, "<zhao>"), RunOptions(bus="direct"))
+    s = runaway.summary
+    assert runaway.status == "diverged" and runaway.exit_code == 4
+    assert s["max_phase_current_A"] > s["divergence_bound_A"]
+    # later events are still reported: the command overflowed to NaN, which the plant refused (trip)
+    assert s["status_flags"]["non_finite"] and s["status_flags"]["tripped"]
+    assert s["first_non_finite_period"] <= s["first_trip_period"]
