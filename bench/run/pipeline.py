@@ -251,6 +251,8 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
         sess.open()
         if sess.hil is not None:
             source = DirectSource(sess.hil, opts.chunk_periods)
+            sess.on_direct_chunk = source.collect
+            sess.on_direct_stop = source.release
         elif source is None and opts.record:
             source = ListenerSource()
             sess.net.notifier.add_listener(source)
@@ -268,7 +270,7 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
         if source is not None:
             source.stop()
     if source is not None:
-        pipe.feed(source.drain(final=True) if not isinstance(source, DirectSource) else source.drain())
+        pipe.feed(source.drain(final=True))
         if hasattr(source, "cleanup"):
             source.cleanup()
     res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall})

@@ -67,6 +67,10 @@ class Session:
         self.references: list[tuple[int, str, float]] = []
         self.applied: list[tuple[int, str, float]] = []  # every setting with the period it took effect
         self._hold = threading.Event()
+        # direct mode: called on the loop's thread after each chunk (the frame source takes the frames),
+        # and when a segment ends or is interrupted (so that a waiting loop thread is released)
+        self.on_direct_chunk: Callable[[], None] | None = None
+        self.on_direct_stop: Callable[[], None] | None = None
         self._hold_index = -1
         self._hold_cob = 0
 
@@ -248,21 +252,60 @@ class Session:
             self._hold_index = index
             self._hold.set()
 
+    def _run_direct(self, n: int, tick: Callable[[], None] | None) -> None:
+        """The C loop in chunks on a thread of its own (ctypes releases the GIL), so that this thread
+        decodes chunk k (`tick`) while the loop runs chunk k+1: the two cores work at once. After each
+        chunk `on_direct_chunk` (the frame source) takes the recorded frames; it blocks while two chunks
+        wait, so memory stays bounded when decoding is the slower side."""
+        ready = threading.Event()
+        done = threading.Event()
+        stop = threading.Event()
+        errors: list[BaseException] = []
+        ran = [0]
+
+        def produce() -> None:
+            try:
+                while ran[0] < n and not stop.is_set():  # in chunks: bounded memory, Ctrl-C seen promptly
+                    assert self.hil is not None
+                    got = self.hil.run(min(self.opts.chunk_periods, n - ran[0]))
+                    if got == 0:
+                        break
+                    ran[0] += got
+                    if self.on_direct_chunk is not None:
+                        self.on_direct_chunk()
+                    ready.set()
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
+                errors.append(exc)
+            finally:
+                done.set()
+                ready.set()
+
+        th = threading.Thread(target=produce, daemon=True, name="bench-direct-loop")
+        th.start()
+        try:
+            while not done.is_set():
+                ready.wait(0.5)
+                ready.clear()
+                if tick:
+                    tick()
+        finally:
+            stop.set()
+            if self.on_direct_stop is not None:
+                self.on_direct_stop()
+            th.join()
+        if errors:
+            raise errors[0]
+        if tick:
+            tick()
+        if ran[0] != n:
+            raise RuntimeError(f"direct run stopped after {ran[0]} of {n} periods")
+
     def _run_segment(self, n: int, target_index: int, tick: Callable[[], None] | None) -> None:
         rc = self.plant.sdo["Run control"]
         self._hold.clear()
         rc["run_periods"].raw = n
         if self.hil is not None:
-            ran = 0
-            while ran < n:  # in chunks: bounded memory, and Ctrl-C is seen promptly
-                got = self.hil.run(min(self.opts.chunk_periods, n - ran))
-                if got == 0:
-                    break
-                ran += got
-                if tick:
-                    tick()
-            if ran != n:
-                raise RuntimeError(f"direct run stopped after {ran} of {n} periods")
+            self._run_direct(n, tick)
             return
         t0 = time.monotonic()
         deadline = t0 + 30 + n * 0.01

@@ -28,16 +28,44 @@ from .frames import empty
 
 
 class DirectSource:
-    def __init__(self, hil: Hil, chunk_periods: int) -> None:
+    """The in-process bus's recorder. `collect` runs on the loop's thread after each chunk (it waits
+    while `max_waiting` chunks are not yet drained: bounded memory); `drain` on the decoding thread."""
+
+    def __init__(self, hil: Hil, chunk_periods: int, max_waiting: int = 2) -> None:
         self.hil = hil
         # Frames per period: SYNC, 2 measurement TPDOs, the command, up to 3 trace TPDOs, and margin.
         hil.start_recorder(chunk_periods * 12 + 65_536)
+        self._chunks: list[np.ndarray] = []
+        self._cond = threading.Condition()
+        self._max = max_waiting
+        self._released = False
 
-    def drain(self) -> np.ndarray:
-        return self.hil.take()
+    def collect(self) -> None:
+        frames = self.hil.take()
+        with self._cond:
+            self._chunks.append(frames)
+            self._cond.wait_for(lambda: len(self._chunks) < self._max or self._released)
+
+    def release(self) -> None:
+        """Let a waiting loop thread go on (end of a segment, Ctrl-C)."""
+        with self._cond:
+            self._released = True
+            self._cond.notify_all()
+
+    def drain(self, final: bool = False) -> np.ndarray:
+        with self._cond:
+            chunks, self._chunks = self._chunks, []
+            self._released = False
+            self._cond.notify_all()
+        if final:  # what the master's SDO traffic left after the last chunk (between chunks the next
+            chunks.append(self.hil.take())  # collect takes it, in bus order, with that chunk's frames)
+        chunks = [c for c in chunks if len(c)]
+        if not chunks:
+            return empty()
+        return chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
 
     def stop(self) -> None:
-        pass
+        self.release()
 
 
 class LogFollower:
