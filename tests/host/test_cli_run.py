@@ -134,3 +134,26 @@ def test_trace_table_selects_the_traced_signals(tmp_path: Path) -> None:
     bad.write_text(STEP.read_text() + '\n[trace]\npdo3 = ["Controller.Ts_s", "Drive status.iq_A", "Drive status.id_A"]\n')
     res = bench("run", str(bad), "--bus", "direct", "--out", str(tmp_path / "b"))
     assert res.returncode == 2 and "trace.pdo3" in res.stderr
+
+
+def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None:
+    """The log carries the layout, the settings and the statuses: replay = run, with no file beside it."""
+    demo = REPO / "scenarios" / "demo_you2019_tuning.toml"  # tuning switched on mid-run, identification
+    out = tmp_path / "run"
+    assert bench("run", str(demo), "--bus", "direct", "--out", str(out), "--no-viewer").returncode == 0
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    (alone / "bus.log").write_bytes((out / "bus.log").read_bytes())  # nothing else beside it
+    res = bench("replay", str(alone / "bus.log"), "--no-viewer")
+    assert res.returncode == 0, res.stderr
+    a = json.loads((out / "summary.json").read_text())
+    b = json.loads((alone / "replay" / "summary.json").read_text())
+    for key in ("status", "periods", "Ts_s", "steps", "identified", "plant", "controller", "counters", "settings",
+                "bus_stats"):
+        assert a[key] == b[key], key
+    assert any(s["tuning_on"] for s in a["steps"]) and not all(s["tuning_on"] for s in a["steps"])
+    assert a["identified"]["K1_avg_V_A"] is not None
+    ta, tb = np.load(out / "traces.npy"), np.load(alone / "replay" / "traces.npy")
+    assert ta.dtype == tb.dtype
+    for name in ta.dtype.names:
+        np.testing.assert_array_equal(ta[name], tb[name], err_msg=name)
