@@ -107,6 +107,8 @@ class Outputs:
             dst = self.log_path.with_suffix("." + fmt)
             print(f"  writing {dst.name} with python-can's writer ...", file=sys.stderr, flush=True)
             export(self.log_path, dst)
+        if result.summary["periods"] > 200_000:  # long runs: say what the wait is for
+            print("  writing run.rrd and the plots ...", file=sys.stderr, flush=True)
         shown = self.view.finish_wait()
         summary = result.summary
         summary["files"] = {"log": self.log_path.name, "traces": TRACES_FILE,
