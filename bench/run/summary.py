@@ -31,7 +31,8 @@ PRIORITY = ("non_finite", "diverged", "tripped", "frames_lost")  # at the same p
 CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "deadbeat_you2019": ("You 2019", "Online tuning", ("K1_avg", "K2_avg", "L_hat_H", "K1_active_V_A",
                                                        "K2_active_V_A", "identifications", "gain_updates")),
-    "dpcc_yao2020": ("Yao 2020", "Yao 2020 DPCC", ("R_hat_ohm", "L_hat_H", "dM_d_V", "dM_q_V", "ident_state",
+    "dpcc_yao2020": ("Yao 2020", "Yao 2020 DPCC", ("R_hat_ohm", "L_hat_H", "p_hat_d_A", "p_hat_q_A", "dM_d_V",
+                                                   "dM_q_V", "ident_state",
                                                    "R_converged", "L_converged", "rls_R_hat_ohm", "rls_L_hat_H")),
     "incremental_zhao2022": ("Zhao 2022", "Zhao 2022", ("K1_V_A", "K2_V_A", "limited")),
     "predictive_zhao2022": ("Zhao 2022", "Zhao 2022", ("G_V_A", "limited")),

@@ -243,6 +243,8 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
         y->gains_high = st->gains_high;
         y->rls_R_hat_ohm = d->rls.R_hat_ohm;
         y->rls_L_hat_H = d->rls.L_hat_H;
+        y->p_hat_d_A = st->p_hat_d_A;
+        y->p_hat_q_A = st->p_hat_q_A;
 #undef y
         break;
     }

@@ -216,7 +216,7 @@ static const od_drive_ram_t defaults = {
     .mfr.x2204_drive_status.iq_ref_active_A = 0.0f,
     .mfr.x2204_drive_status.last_sample_index = 0x0u,
     .mfr.x2205_drive_label = "pmsm-hil drive",
-    .mfr.x2206_yao_2020_dpcc.highest_sub_index_supported = 0x28u,
+    .mfr.x2206_yao_2020_dpcc.highest_sub_index_supported = 0x2Au,
     .mfr.x2206_yao_2020_dpcc.observer_enable = 0x1u,
     .mfr.x2206_yao_2020_dpcc.Q_d = 0.4000000059604645f,
     .mfr.x2206_yao_2020_dpcc.Q_q = 0.4000000059604645f,
@@ -257,6 +257,8 @@ static const od_drive_ram_t defaults = {
     .mfr.x2206_yao_2020_dpcc.rls_lambda = 0.9950000047683716f,
     .mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm = 0.0f,
     .mfr.x2206_yao_2020_dpcc.rls_L_hat_H = 0.0f,
+    .mfr.x2206_yao_2020_dpcc.p_hat_d_A = 0.0f,
+    .mfr.x2206_yao_2020_dpcc.p_hat_q_A = 0.0f,
     .mfr.x2207_zhao_2022.highest_sub_index_supported = 0x4u,
     .mfr.x2207_zhao_2022.K1_V_A = 0.0f,
     .mfr.x2207_zhao_2022.K2_V_A = 0.0f,
@@ -542,6 +544,8 @@ static const co_od_entry_t entries[] = {
     {0x2206u, 0x26u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_lambda), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_lambda, {.f = 0.8999999761581421f}, {.f = 1.0f}}, /* rls_lambda */
     {0x2206u, 0x27u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm, {.i = 0}, {.i = 0}}, /* rls_R_hat_ohm */
     {0x2206u, 0x28u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_L_hat_H), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_L_hat_H, {.i = 0}, {.i = 0}}, /* rls_L_hat_H */
+    {0x2206u, 0x29u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_d_A), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_d_A, {.i = 0}, {.i = 0}}, /* p_hat_d_A */
+    {0x2206u, 0x2Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_q_A), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_q_A, {.i = 0}, {.i = 0}}, /* p_hat_q_A */
     {0x2207u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.highest_sub_index_supported), &OD_DRIVE.mfr.x2207_zhao_2022.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2207u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A, {.i = 0}, {.i = 0}}, /* K1_V_A */
     {0x2207u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A, {.i = 0}, {.i = 0}}, /* K2_V_A */

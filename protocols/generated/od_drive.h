@@ -319,6 +319,8 @@ typedef struct {
         float rls_lambda;
         float rls_R_hat_ohm;
         float rls_L_hat_H;
+        float p_hat_d_A;
+        float p_hat_q_A;
     } x2206_yao_2020_dpcc;
     struct {
         uint8_t highest_sub_index_supported;
@@ -648,6 +650,8 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_YAO_2020_DPCC_RLS_LAMBDA_SUB 0x26u
 #define OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB 0x27u
 #define OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB 0x28u
+#define OD_DRIVE_YAO_2020_DPCC_P_HAT_D_A_SUB 0x29u
+#define OD_DRIVE_YAO_2020_DPCC_P_HAT_Q_A_SUB 0x2Au
 #define OD_DRIVE_ZHAO_2022_IDX 0x2207u
 #define OD_DRIVE_ZHAO_2022_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_ZHAO_2022_K1_V_A_SUB 0x01u
