@@ -30,9 +30,15 @@ class BlockSums:
     def __init__(self, cap: int = 1 << 20) -> None:
         self.cap = cap
         self.block = 1
-        self.sums = np.zeros(cap)
-        self.counts = np.zeros(cap, dtype=np.int64)
+        self.sums = np.zeros(min(cap, 1024))  # grown on demand: a short window costs a short array
+        self.counts = np.zeros(len(self.sums), dtype=np.int64)
         self.n = 0  # samples
+
+    def _room(self, blocks: int) -> None:
+        if blocks > len(self.sums):
+            size = min(self.cap, max(blocks, 2 * len(self.sums)))
+            self.sums = np.concatenate([self.sums, np.zeros(size - len(self.sums))])
+            self.counts = np.concatenate([self.counts, np.zeros(size - len(self.counts), dtype=np.int64)])
 
     def add(self, x: np.ndarray) -> None:
         i = 0
@@ -43,12 +49,14 @@ class BlockSums:
             seg = x[i:i + room]
             good = ~np.isnan(seg)
             blk, starts = _blocks(self.n, len(seg), self.block)
+            self._room(int(blk[-1]) + 1)
             self.sums[blk] += np.add.reduceat(np.where(good, seg, 0.0), starts)
             self.counts[blk] += np.add.reduceat(good.astype(np.int64), starts)
             self.n += len(seg)
             i += room
 
     def _merge(self) -> None:
+        self._room(self.cap)
         half = self.cap // 2
         self.sums[:half] = self.sums[0::2] + self.sums[1::2]
         self.counts[:half] = self.counts[0::2] + self.counts[1::2]
