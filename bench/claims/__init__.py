@@ -137,4 +137,9 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
             (out / "candump.log").rename(out / "bus.log")
         (out / "summary.json").write_text(json.dumps(res.summary, indent=2, default=str))
     assert res.trace is not None
+    if not res.expected:  # a claim never rests on a run that went wrong (lost frames, a trip, ...)
+        s = res.summary
+        raise RuntimeError(f"run {sc.name} on {bus} ended {res.status} (expected {', '.join(sc.expect)}): "
+                           f"flags {s['status_flags']}, lost frames {s['bus_stats']['lost_frames']}, "
+                           f"periods {s['periods']} of {sc.periods}")
     return Run(res, res.trace, out, collector.frames if collector is not None else None)

@@ -103,14 +103,17 @@ def _growth(lam: float, bus: str) -> dict[str, float]:
     """Run the incremental law with L0 = L/lam (locked rotor, 0.05 A step) and measure the error envelope."""
     raw = base(f"zhao2022-stab-{lam:.4f}", 700, "incremental_zhao2022", controller={"L_hat_ratio": 1.0 / lam},
                events=[{"at_period": 20, "references": {"iq_ref_A": STEP}}])
-    tr = run_raw(raw, bus).tr
+    raw["scenario"]["expect"] = ["ok", "diverged"]  # a boundary search runs unstable loops on purpose
+    run = run_raw(raw, bus)
+    tr = run.tr
     e = np.abs(tr["iq_A"] - tr["iq_ref_A"])
     m1, m2 = float(np.max(e[200:400])), float(np.max(e[500:698]))
     rate = (m2 / m1) ** (1.0 / 300) if m1 > 0 and m2 > 0 else 0.0
     # decayed (or down at the float32 noise floor of the loop) and not a saturated limit cycle
     stable = m2 < 0.5 * STEP and (m2 < m1 or m2 < 1e-5 * STEP)
     return {"lam": lam, "L_hat_ratio": 1.0 / lam, "env_early_A": m1, "env_late_A": m2, "rate_per_period": rate,
-            "stable": bool(stable), "poly_radius": radius(q_incremental(R, L, R, L / lam))}
+            "stable": bool(stable), "poly_radius": radius(q_incremental(R, L, R, L / lam)),
+            "run_status": run.result.status}
 
 
 def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
