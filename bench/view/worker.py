@@ -182,6 +182,9 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
             sink.end(payload[0]["summary"])
     reply(files=["run.rrd"] if spec["rrd"] else [])
     if spec["live"] == "serve":
+        import signal
+
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C ends serving
         try:
             sink.serve_until(spec.get("serve_for"))
         except KeyboardInterrupt:
@@ -209,6 +212,10 @@ def _plots_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
 
 
 def main(role: str, reply_fd: int) -> int:
+    import signal
+
+    # Ctrl-C is the bench's to handle (it stops these processes); only serving listens to it (see below).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     replies = os.fdopen(reply_fd, "w")
     timing = os.environ.get("BENCH_TIMING") == "1"
     import time
