@@ -249,7 +249,7 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
                 raise ValueError("a run over SocketCAN needs opts.out for candump's log")
             source = CandumpSource(opts.bus, opts.out / "candump.log")
         sess.open()
-        if sess.hil is not None:
+        if sess.hil is not None and opts.record:
             source = DirectSource(sess.hil, opts.chunk_periods)
             sess.on_direct_chunk = source.collect
             sess.on_direct_stop = source.release

@@ -44,7 +44,8 @@ class RunOptions:
     start_plant: bool = True       # start the C plant process (False: a physical plant/drive is on the bus)
     start_drive: bool = True       # start the C drive process (False: a physical drive implements drive.eds)
     out: Path | None = None        # where the node processes' output goes (None: nowhere)
-    record: bool = True            # record every frame (candump / in-process); off only for benchmarks
+    record: bool = True            # record every frame (candump / in-process); off only to time the loop alone
+                                   # (then nothing is decoded: the result has no periods)
     chunk_periods: int = 65_536    # periods per chunk of the pipeline (direct mode: per C call)
 
 
