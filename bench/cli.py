@@ -184,14 +184,17 @@ def build_parser() -> argparse.ArgumentParser:
     from .replay import add_arguments as replay_args
 
     rp = sub.add_parser("replay", help="decode a CAN log (candump/ASC/BLF, any bus) into traces and views",
-                        description="Decode any log python-can reads into traces.npz, summary.json, PNG plots and a "
-                                    "Rerun recording, with the run's layout.json (or the EDS defaults).")
+                        description="Decode any log python-can reads (candump .log, .asc, .blf) into traces.npy, "
+                                    "summary.json, SVG plots and a Rerun recording, as the run did: the PDO layout, "
+                                    "the plant's parameters and every setting come from the SDO traffic in the log "
+                                    "(the EDS defaults when it has none, said so). The exit status is the verdict, "
+                                    "as for bench run.")
     replay_args(rp)
     rp.set_defaults(func=_cmd_replay)
 
     ex = sub.add_parser("export", help="convert a CAN log (candump .log, .asc, .blf) to another format",
-                        description="Convert a CAN log with python-can's writer for the destination's extension "
-                                    "(.log candump, .asc Vector ASCII, .blf Vector binary). Example: "
+                        description="Convert a CAN log: .asc (Vector ASCII) and .blf (Vector binary) with "
+                                    "python-can's writers, .log (candump) with the bench's C writer. Example: "
                                     "bench export runs/x/bus.log runs/x/bus.blf")
     ex.add_argument("log", type=Path, help="the log to read")
     ex.add_argument("dest", type=Path, help="the file to write (.log, .asc or .blf)")

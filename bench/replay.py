@@ -20,6 +20,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20, help="drive node-ID (default 0x20)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default: LOG's folder/replay); "
                    "must not exist or be empty")
+    p.add_argument("--expect", action="append", default=None, metavar="STATUS",
+                   help="the status the recorded run was meant to end with (as the scenario's expect; repeatable); "
+                        "default: the expect of summary.json beside the log, else ok")
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer")
     p.add_argument("--serve", action="store_true", help="serve the Rerun web viewer (until Ctrl-C or --serve-for)")
     p.add_argument("--serve-for", type=float, default=None, metavar="SECONDS")
@@ -30,6 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     import json
     import os
+    import shutil
 
     from .run.outputs import Progress, print_result
     from .run.pipeline import replay_log
@@ -40,11 +44,34 @@ def main(args: argparse.Namespace) -> int:
     if not args.log.is_file():
         print(f"bench replay: {args.log}: no such file", file=sys.stderr)
         return 2
+    from .scenario import STATUSES
+
+    expect = args.expect
+    beside = args.log.parent / "summary.json"
+    if expect is None and beside.is_file():
+        expect = json.loads(beside.read_text()).get("expect")
+    expect = tuple(expect or ("ok",))
+    bad = [e for e in expect if e not in STATUSES]
+    if bad:
+        print(f"bench replay: --expect {bad[0]}: expected one of {', '.join(STATUSES)}", file=sys.stderr)
+        return 2
     out: Path = args.out or args.log.parent / "replay"
     if out.exists() and any(out.iterdir()):
         print(f"bench replay: {out} exists and is not empty; choose another --out", file=sys.stderr)
         return 2
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+
+    def refuse(message: str) -> int:  # bad input: nothing is left behind
+        rerun.close()
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        else:
+            for f in out.iterdir():
+                f.unlink()
+        print(f"bench replay: {message}", file=sys.stderr)
+        return 2
+
     live = "serve" if args.serve else ("spawn" if not args.no_viewer and os.environ.get("DISPLAY") else "none")
     rerun = RerunSink(args.log.stem, out / "run.rrd", live=live,  # type: ignore[arg-type]
                       web_port=args.web_port, grpc_port=args.grpc_port)
@@ -52,20 +79,18 @@ def main(args: argparse.Namespace) -> int:
     bar = Progress(est_frames, f"replay {args.log.name}", unit="frames")
     try:
         res = replay_log(args.log, args.plant_id, args.drive_id, sinks=[TraceFileSink(out / TRACES_FILE), rerun],
-                         progress=bar.update)
+                         expect=expect, progress=bar.update)
     except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
         bar.close()
-        print(f"bench replay: {args.log}: cannot decode: {exc}", file=sys.stderr)
-        return 2
+        return refuse(f"{args.log}: cannot decode: {exc}")
     bar.close()
     s = res.summary
     if s["periods"] == 0:
-        print(f"bench replay: {args.log}: no SYNC found among {s['bus_stats']['frames']} frames: nothing to decode",
-              file=sys.stderr)
-        return 2
-    if not any(w for w in s["settings"]) and s["plant"].get("pole_pairs") is None:
-        print("bench replay: the log holds no configuration traffic: decoded with the EDS defaults "
-              "(default PDO layout, pole pairs and Ts unknown)", file=sys.stderr)
+        return refuse(f"{args.log}: no SYNC found among {s['bus_stats']['frames']} frames: nothing to decode")
+    if s["log"]["sdo_transfers"] == 0:
+        print("bench replay: the log holds no SDO traffic (recorded after the configuration, or of another "
+              f"master): decoded with the EDS defaults: the default PDO layout, pole pairs "
+              f"{s['plant'].get('pole_pairs')}, Ts {s['Ts_s']:g} s", file=sys.stderr)
     plots = step_plots(out, res.step_windows, s["steps"], args.log.name)
     ov = overview_plot(out, res.envelopes, args.log.name, s["Ts_s"])
     s["files"] = {"traces": TRACES_FILE, "recording": "run.rrd", "plots": [p.name for p in plots] + ([ov.name]

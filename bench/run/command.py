@@ -125,26 +125,30 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         return 2, None, None
     partial.mkdir(parents=True)
     print(f"bench run: {sc.name}: {sc.periods} periods on bus {args.bus} ({sc.timing})", flush=True)
-    outputs = Outputs(partial, sc, args)
+    outputs: Outputs | None = None
     try:
+        outputs = Outputs(partial, sc, args)
         if in_vm:
             result = _run_in_vm(args, sc, partial, outputs)
         else:
             result = _run_here(args, sc, partial, outputs)
         outputs.finish(result)
     except KeyboardInterrupt:
-        outputs.abort()
+        if outputs is not None:
+            outputs.abort()
         print("bench run: interrupted; nodes and recorder stopped", file=sys.stderr)
         _discard(partial, out)
         return 130, None, None
     except Exception as exc:  # noqa: BLE001 - report every failure the same way
-        outputs.abort()
+        if outputs is not None:
+            outputs.abort()
         print(f"bench run: FAILED: {exc}", file=sys.stderr)
         _discard(partial, out)
         return 1, None, None
     if out.exists():
         out.rmdir()
     partial.rename(out)
+    assert outputs is not None
     print_result(out, result)
     outputs.serve(args)
     return result.exit_code, result, out
@@ -212,25 +216,27 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
     print("bench run: host kernel has no SocketCAN; the bus runs inside the virtme-ng VM (boot ~20 s); "
           "the host decodes candump's log as it grows", flush=True)
     t0 = time.monotonic()
-    with outputs.progress(sc.periods, "run (VM)") as bar:
-        th = threading.Thread(target=follow, daemon=True, name="bench-follow")
-        th.start()
-        try:
-            rc = run_in_vm(cmd, VmOptions(timeout_s=3600), stdout=_Quiet())
-        finally:
-            stop.set()
-            th.join()
-        if errors:
-            raise errors[0]
-        if rc != 0:
-            raise RuntimeError(f"the capture inside the VM failed with status {rc}")
-        pipe.feed(follower.drain(final=True))
-        bar.update(pipe.periods - bar.n)
-    cap = json.loads((stage / "capture.json").read_text()) if (stage / "capture.json").exists() else {}
-    (stage / "capture.json").unlink(missing_ok=True)
-    for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
-        shutil.move(str(f), partial / f.name)
-    stage.rmdir()
+    try:
+        with outputs.progress(sc.periods, "run (VM)") as bar:
+            th = threading.Thread(target=follow, daemon=True, name="bench-follow")
+            th.start()
+            try:
+                rc = run_in_vm(cmd, VmOptions(timeout_s=3600), stdout=_Quiet())
+            finally:
+                stop.set()
+                th.join()
+            if errors:
+                raise errors[0]
+            if rc != 0:
+                raise RuntimeError(f"the capture inside the VM failed with status {rc}")
+            pipe.feed(follower.drain(final=True))
+            bar.update(pipe.periods - bar.n)
+        cap = json.loads((stage / "capture.json").read_text()) if (stage / "capture.json").exists() else {}
+        (stage / "capture.json").unlink(missing_ok=True)
+    finally:  # what was recorded goes with the run (NAME.failed when it failed)
+        for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
+            shutil.move(str(f), partial / f.name)
+        stage.rmdir()
     return pipe.finish(sc.name, args.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)})
 
 
@@ -259,7 +265,11 @@ def capture_only(args: argparse.Namespace) -> int:
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     opts = RunOptions(bus=args.bus, plant_id=args.plant_id, drive_id=args.drive_id, out=args.out)
-    run_wall = capture_to_log(sc, opts)
+    try:
+        run_wall = capture_to_log(sc, opts)
+    except Exception as exc:  # noqa: BLE001 - one line the host shows (the VM's console is filtered)
+        print(f"bench capture: FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
     (args.out / "capture.json").write_text(json.dumps({"run_wall_s": run_wall, "pid": os.getpid()}))
     print(f"bench capture: {sc.periods} periods in {run_wall:.2f} s")
     return 0

@@ -68,6 +68,8 @@ class DecodeStats:
     pdos: dict[int, PdoStats] = field(default_factory=dict)
     non_finite: dict[str, int] = field(default_factory=dict)   # column -> periods with a non-finite value
     first_non_finite_period: int | None = None
+    missing_measurements: int = 0   # periods without one of the plant's synchronous measurement PDOs
+    missing_commands: int = 0       # periods without the drive's command PDO
 
 
 class Decoder:
@@ -84,6 +86,7 @@ class Decoder:
         self._base = 0           # period of the carry's first SYNC
         self._emitted = 0        # rows emitted so far
         self._last_sync = -1
+        self._last_sync_period = -1
 
     # ------------------------------------------------------------------ layout
     def _freeze(self) -> None:
@@ -182,6 +185,8 @@ class Decoder:
         dlc = buf["dlc"][sync[keep]]
         sc[sp[keep] - r0] = np.where(dlc > 0, data[sync[keep], 0], -1)
         out["sync_counter"] = sc
+        miss_meas = np.zeros(n, dtype=bool)
+        miss_cmd = np.zeros(n, dtype=bool)
         for cob_id, ps in st.pdos.items():
             pdo = ps.pdo
             pos = np.flatnonzero(cob == cob_id)
@@ -195,6 +200,10 @@ class Decoder:
             got = np.zeros(n, dtype=bool)
             got[per] = True
             ps.present += int(got.sum())
+            if pdo.node == "plant" and pdo.trans_type <= 240:
+                miss_meas |= ~got
+            elif pdo.node == "drive" and any(q.startswith("Voltage command.") for q, _ in pdo.signals):
+                miss_cmd |= ~got
             bad = np.zeros(n, dtype=bool)
             for name, fmt in pdo.signals:
                 col = np.full(n, np.nan)
@@ -210,6 +219,8 @@ class Decoder:
                         bad |= nf
                 out[column_name(name)] = col
             ps.non_finite += int(bad.sum())
+        st.missing_measurements += int(miss_meas.sum())
+        st.missing_commands += int(miss_cmd.sum())
         self._derive(out)
         self._references(out, r0, r1)
         self._continuity(out)
@@ -246,13 +257,22 @@ class Decoder:
             out[name] = col
 
     def _continuity(self, out: dict[str, np.ndarray]) -> None:
+        """SYNC counter gaps (CiA 301: 1 .. the overflow value of 0x1019, then 1 again) between the
+        periods that carry a counter, and sample indices that are not the period's."""
         sc = out["sync_counter"]
-        if len(sc) and np.isfinite(sc).all() and (sc >= 0).all():
-            prev = np.concatenate([[self._last_sync], sc[:-1]]) if self._last_sync >= 0 else sc[:-1]
-            cur = sc if self._last_sync >= 0 else sc[1:]
-            expect = np.where(prev >= 240, 1, prev + 1)
-            self.stats.sync_counter_gaps += int((cur != expect).sum())
-            self._last_sync = int(sc[-1])
+        overflow = int(self.sdo.plant.get("Synchronous counter overflow value") or 240)
+        per = out["period"]
+        ok = np.isfinite(sc) & (sc >= 0)
+        vals, pers = sc[ok], per[ok]
+        if self._last_sync >= 0:
+            vals = np.concatenate([[self._last_sync], vals])
+            pers = np.concatenate([[self._last_sync_period], pers])
+        if len(vals) > 1:
+            consecutive = np.diff(pers) == 1  # a gap is judged between neighbouring periods only
+            expect = np.where(vals[:-1] >= overflow, 1, vals[:-1] + 1)
+            self.stats.sync_counter_gaps += int(((vals[1:] != expect) & consecutive).sum())
+        if len(vals):
+            self._last_sync, self._last_sync_period = int(vals[-1]), int(pers[-1])
         if "sample_index" in out:
             si = out["sample_index"]
             good = np.isfinite(si)

@@ -109,7 +109,11 @@ class Outputs:
             export(self.log_path, dst)
         if result.summary["periods"] > 200_000:  # long runs: say what the wait is for
             print("  writing run.rrd and the plots ...", file=sys.stderr, flush=True)
-        shown = self.view.finish_wait()
+        try:
+            shown = self.view.finish_wait()
+        except RuntimeError as exc:  # the run and its data are fine: a view that failed is a warning
+            print(f"bench run: warning: the recording or the plots were not written: {exc}", file=sys.stderr)
+            shown = []
         summary = result.summary
         summary["files"] = {"log": self.log_path.name, "traces": TRACES_FILE,
                             "exports": [f"bus.{f}" for f in self.log_formats],

@@ -67,6 +67,7 @@ class Pipeline:
     """Frames in (any chunk size, bus order), trace chunks out to the sinks, a summary at the end."""
 
     WINDOW = (4, 24)  # periods before and after a reference step kept for its plot
+    MAX_WINDOWS = 64  # steps whose rows are kept (the plots show the first dozen)
 
     def __init__(self, plant_id: int, drive_id: int, sinks: list[Sink] | None = None,
                  frame_sinks: list[FrameSink] | None = None, expect: tuple[str, ...] = ("ok",)) -> None:
@@ -84,6 +85,8 @@ class Pipeline:
         self._begun = False
         self._tail: dict[str, np.ndarray] = {}       # the last rows, for step windows that start in a chunk
         self._windows: list[dict[str, Any]] = []
+        self._open_windows: list[dict[str, Any]] = []
+        self._seen: set[tuple[int, str]] = set()
 
     @property
     def periods(self) -> int:
@@ -111,12 +114,13 @@ class Pipeline:
                 self.steps[sig].add(chunk["period"], chunk[x], chunk[ref])
         for n, env in self.envelopes.items():
             env.add(chunk[n])
-        for col in ("i_a_A", "i_b_A"):
-            if col in chunk:
-                a = np.abs(np.nan_to_num(chunk[col], nan=0.0, posinf=0.0, neginf=0.0))
-                self.max_phase_A = max(self.max_phase_A, float(a.max()))
-                if self.bound_A is not None and self.first_beyond_bound_period is None and a.max() > self.bound_A:
-                    self.first_beyond_bound_period = int(chunk["period"][int(np.argmax(a > self.bound_A))])
+        phase = [np.abs(np.nan_to_num(chunk[c], nan=0.0, posinf=0.0, neginf=0.0)) for c in ("i_a_A", "i_b_A")
+                 if c in chunk]
+        if phase:
+            a = np.maximum.reduce(phase)  # the larger phase current of each period
+            self.max_phase_A = max(self.max_phase_A, float(a.max()))
+            if self.bound_A is not None and self.first_beyond_bound_period is None and a.max() > self.bound_A:
+                self.first_beyond_bound_period = int(chunk["period"][int(np.argmax(a > self.bound_A))])
         if self.first_trip_period is None and "status" in chunk:
             st = chunk["status"]
             hit = np.nonzero(np.isfinite(st) & (np.nan_to_num(st).astype(np.int64) & 1 == 1))[0]
@@ -127,30 +131,34 @@ class Pipeline:
             s.write(chunk)
 
     def _step_windows(self, chunk: dict[str, np.ndarray]) -> None:
-        """Keep the rows around each reference step (a few dozen per step) for the step plots."""
+        """Keep the rows around each reference step (a few dozen per step, the first MAX_WINDOWS steps)
+        for the step plots."""
         before, after = self.WINDOW
         names = [n for n in ("period", "iq_A", "iq_ref_A", "id_A", "id_ref_A", "vd_V", "vq_V") if n in chunk]
         joined = {n: np.concatenate([self._tail.get(n, chunk[n][:0]), chunk[n]]) for n in names}
         p = joined["period"]
-        for w in self._windows:  # windows still filling
-            lo, hi = w["lo"], w["hi"]
-            m = (p >= lo) & (p < hi) & (p > w["have"])
+        for w in self._open_windows:  # windows still filling
+            m = (p >= w["lo"]) & (p < w["hi"]) & (p > w["have"])
             if m.any():
                 for n in names:
                     w["rows"][n] = np.concatenate([w["rows"][n], joined[n][m]])
                 w["have"] = int(p[m][-1])
+        self._open_windows = [w for w in self._open_windows if w["have"] < w["hi"] - 1]
         for ref in ("iq_ref_A", "id_ref_A"):
-            if ref not in joined or len(joined[ref]) < 2:
+            if ref not in joined or len(joined[ref]) < 2 or len(self._windows) >= self.MAX_WINDOWS:
                 continue
             r = joined[ref]
             for j in np.nonzero(np.abs(np.diff(r)) > 1e-6)[0] + 1:
                 at = int(p[j])
-                if any(w["at"] == at and w["ref"] == ref for w in self._windows):
+                if (at, ref) in self._seen or len(self._windows) >= self.MAX_WINDOWS:
                     continue
+                self._seen.add((at, ref))
                 lo, hi = at - before, at + after
                 m = (p >= lo) & (p < hi)
-                self._windows.append({"at": at, "ref": ref, "lo": lo, "hi": hi, "have": int(p[m][-1]),
-                                      "rows": {n: joined[n][m].copy() for n in names}})
+                w = {"at": at, "ref": ref, "lo": lo, "hi": hi, "have": int(p[m][-1]),
+                     "rows": {n: joined[n][m].copy() for n in names}}
+                self._windows.append(w)
+                self._open_windows.append(w)
         self._tail = {n: joined[n][-before:] for n in names}
 
     def finish(self, scenario: str, bus: str, wall: dict[str, float] | None = None) -> RunResult:
@@ -320,7 +328,8 @@ def replay_log(path: Path, plant_id: int = 0x10, drive_id: int = 0x20, sinks: li
         if progress:
             progress(len(chunk))
     res = pipe.finish(path.stem, f"log {path.name}", {"wall_s": time.monotonic() - t0})
-    res.summary["log"] = {"path": str(path), "frames_skipped": frames.skipped}
+    res.summary["log"] = {"path": str(path), "frames_skipped": frames.skipped,
+                          "sdo_transfers": pipe.dec.sdo.transfers}
     if collector is not None:
         res.trace = collector.trace
     return res

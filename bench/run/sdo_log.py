@@ -112,6 +112,7 @@ class SdoLog:
         self.plant = self.nodes[plant_id]
         self.drive = self.nodes[drive_id]
         self.writes: list[SdoWrite] = []
+        self.transfers = 0  # completed expedited transfers seen (0: a log without configuration traffic)
         self._req_ids = np.array([0x600 + i for i in self.nodes], dtype=np.uint16)
         self._resp_ids = np.array([0x580 + i for i in self.nodes], dtype=np.uint16)
 
@@ -135,6 +136,8 @@ class SdoLog:
                 continue
             node = self.nodes[cob - 0x580]
             done = node.response(d)
+            if done is not None:
+                self.transfers += 1
             if done is not None and done[0] == "w":
                 name = node.qualname(done[1], done[2])
                 if name is not None:

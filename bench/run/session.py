@@ -342,6 +342,8 @@ class Session:
         for stop in bounds:
             if stop > start:
                 self._run_segment(stop - start, stop - 1, tick)
+                if tick and self.hil is None:
+                    tick()  # over a bus: decode what the segment recorded (short segments never wait)
             self._period = stop
             if stop in events:
                 for s in events[stop].settings:

@@ -74,8 +74,9 @@ class LogFollower:
     Frames within `hold_us` of the newest are kept for the next call, so that a late frame
     still finds its place; `drain(final=True)` returns everything."""
 
-    def __init__(self, path: Path, hold_us: int = 200_000) -> None:
+    def __init__(self, path: Path, hold_us: int = 200_000, max_bytes: int = 64 << 20) -> None:
         self.path = path
+        self.max_bytes = max_bytes
         self.hold_us = hold_us
         self._pos = 0
         self._rest = b""
@@ -87,7 +88,7 @@ class LogFollower:
             return empty()
         with open(self.path, "rb") as fh:
             fh.seek(self._pos)
-            block = fh.read()
+            block = fh.read(-1 if final else self.max_bytes)  # bounded per call while the run goes on
         self._pos += len(block)
         data = self._rest + block
         frames, used, skipped = parse_candump(data)

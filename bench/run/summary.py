@@ -59,7 +59,8 @@ def _num(v: float | None) -> float | int | None:
 
 def identified(dec: Decoder) -> dict[str, Any]:
     """Per-controller results; what does not apply says so instead of showing zeros."""
-    kind = CONTROLLER_NAMES.get(int(dec.sdo.drive.get("Controller", "controller") or -1), "unknown")
+    value = dec.sdo.drive.get("Controller", "controller")
+    kind = CONTROLLER_NAMES.get(int(value), "unknown") if value is not None else "unknown"
     out: dict[str, Any] = {"controller": kind}
     spec = CONTROLLER_RESULTS.get(kind)
     if spec is None:
@@ -103,14 +104,8 @@ def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
     st = dec.stats
     n = max(1, st.periods)
 
-    def missing(signal: str) -> int:
-        for ps in st.pdos.values():
-            if any(q.endswith("." + signal) for q, _ in ps.pdo.signals):
-                return st.periods - ps.present
-        return 0
-
-    cont = {"sync_counter_gaps": st.sync_counter_gaps, "missing_measurements": missing("sample_index"),
-            "missing_commands": missing("v_alpha_V"), "sample_index_mismatches": st.sample_index_mismatches}
+    cont = {"sync_counter_gaps": st.sync_counter_gaps, "missing_measurements": st.missing_measurements,
+            "missing_commands": st.missing_commands, "sample_index_mismatches": st.sample_index_mismatches}
     ts = dec.ts_s
     return {"frames": st.frames, "frames_per_period": st.frames / n, "lost_frames": sum(cont.values()), **cont,
             "non_finite_values": dict(st.non_finite),

@@ -93,6 +93,7 @@ def test_replay_refuses_a_file_that_is_not_a_log(tmp_path: Path) -> None:
     bogus.write_text("hello\n")
     res = bench("replay", str(bogus), "--no-viewer")
     assert res.returncode == 2 and "x.log" in res.stderr
+    assert not (tmp_path / "replay").exists()  # bad input: nothing written
 
 
 def test_sweep_grid_table_and_heatmap(tmp_path: Path) -> None:

@@ -99,7 +99,8 @@ def test_missing_frames_are_lost(frames: np.ndarray) -> None:
     res = _pipe(frames[keep])
     bs = res.summary["bus_stats"]
     assert res.status == "frames_lost" and res.exit_code == 6
-    assert bs["missing_commands"] == 1 and bs["non_finite_values"] == {}
+    assert bs["missing_commands"] == 1 and bs["missing_measurements"] == 1  # TPDO1 (i_a, i_b) counts too
+    assert bs["non_finite_values"] == {} and bs["lost_frames"] == 2
     ref = _pipe(frames)
     assert ref.status == "ok" and ref.summary["bus_stats"]["lost_frames"] == 0
 
