@@ -67,10 +67,13 @@ def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
         sess.open()
         assert sess.hil is not None
         source = DirectSource(sess.hil, opts.chunk_periods) if recorded else None
+        if source is not None:  # as run_scenario wires it: the loop's thread hands each chunk over
+            sess.on_direct_chunk = source.collect
+            sess.on_direct_stop = source.release
         sess.reset_nodes()
         sess.configure()
         if source is not None:
-            source.drain()  # the configuration's frames
+            source.drain(final=True)  # the configuration's frames
 
         def tick() -> None:
             nonlocal frames
