@@ -15,7 +15,10 @@ PERIODS = 150
 
 
 def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
-    raw = {"scenario": {"name": "realtime-slow", "periods": PERIODS, "timing": "realtime"},
+    # In real time a command that misses its period is late or lost (counted below): the run may end
+    # frames_lost in a VM, which cannot pace sub-ms work reliably.
+    raw = {"scenario": {"name": "realtime-slow", "periods": PERIODS, "timing": "realtime",
+                        "expect": ["ok", "frames_lost"]},
            "motor": {"preset": "you2019", "mech_mode": "locked"},
            "drive": {"Ts_s": TS_S, "t_dead_s": 0.0, "encoder_lines": 0},
            # bandwidths the drive accepts at a 4 ms period (it refuses those beyond its sampling limits)
