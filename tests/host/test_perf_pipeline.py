@@ -13,12 +13,10 @@ from typing import Any
 
 import pytest
 
-from bench.paths import BUILD
 from bench.tools.perf.common import measure
 from bench.tools.perf.pipeline import TARGETS, Sizes, pipeline, target_rows
 from bench.tools.perf.report import format_report
 
-pytestmark = pytest.mark.skipif(not (BUILD / "libhil.so").exists(), reason="run `make all` first")
 
 TINY = Sizes(one_second_periods=2000, repetitions=1, whole_periods=2000, api_periods=(2000,), loop_periods=2000,
              live_periods_per_update=200, peers=False)

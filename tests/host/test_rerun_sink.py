@@ -18,15 +18,14 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-pytest.importorskip("rerun")
 
-import rerun as rr  # noqa: E402
-from rerun.chunk import RrdReader  # noqa: E402
+import rerun as rr
+from rerun.chunk import RrdReader
 
-from bench.run.signals import SignalInfo  # noqa: E402
-from rrd_util import read_recording  # noqa: E402
-from bench.view import rerun_sink  # noqa: E402
-from bench.view.rerun_sink import RerunSink, ServeError, entity_path, unit_slug, view_name  # noqa: E402
+from bench.run.signals import SignalInfo
+from rrd_util import read_recording
+from bench.view import rerun_sink
+from bench.view.rerun_sink import RerunSink, ServeError, entity_path, unit_slug, view_name
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -243,8 +242,7 @@ def test_served_grpc_stream_holds_the_decimated_run(served, tmp_path):
     """What a browser would receive: download the gRPC server's content with the rerun CLI."""
     sink, web, grpc = served
     rerun_cli = Path(sys.executable).with_name("rerun")
-    if not rerun_cli.exists():
-        pytest.skip("no rerun CLI next to the interpreter")
+    assert rerun_cli.exists(), "rerun-sdk installs its CLI next to the interpreter"
     if not sink._ended:  # noqa: SLF001 - the previous test did not run (e.g. -k)
         sink.begin(SIGNALS)
         for chunk in chunks_of(make_run(2000, first_period=0), [1000, 555, 445]):
@@ -284,8 +282,7 @@ def test_second_serving_sink_reuses_same_ports_and_refuses_others(served, tmp_pa
         RerunSink("elsewhere", None, live="serve", web_port=free_port(), grpc_port=free_port())
 
 
-@pytest.mark.skipif(not Path("/usr/bin/chromium").exists(), reason="no /usr/bin/chromium")
-def test_headless_chromium_loads_the_served_page(served):
+def test_headless_chromium_loads_the_served_page(served):  # chromium: installed by scripts/setup.sh
     sink, _, _ = served
     with tempfile.TemporaryDirectory() as profile:
         r = subprocess.run(["/usr/bin/chromium", "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
