@@ -46,6 +46,18 @@ def interface_state(name: str) -> str | None:
     return "up" if flags & 0x1 else "down"
 
 
+def can_interfaces() -> list[tuple[str, str]]:
+    """(name, 'up'/'down') of every CAN network interface (ARPHRD_CAN = 280) of this machine."""
+    out = []
+    for d in sorted(Path("/sys/class/net").iterdir()) if Path("/sys/class/net").exists() else []:
+        try:
+            if (d / "type").read_text().strip() == "280":
+                out.append((d.name, interface_state(d.name) or "unknown"))
+        except OSError:
+            continue
+    return out
+
+
 def ensure_vcan(name: str = "vcan0") -> str:
     """Make sure the vcan interface `name` exists and is up (needs root the first time)."""
     state = interface_state(name)

@@ -9,7 +9,8 @@ Layout (every key optional except where noted)::
     seed = 1                     # ADC-noise seed
     timing = "lockstep"          # lockstep | realtime
     expect = "ok"                # the run status this scenario is meant to end with (or a list):
-                                 # ok | tripped | diverged | non_finite | frames_lost; a
+                                 # ok | tripped | diverged | non_finite | frames_lost |
+                                 # node_lost | interference; a
                                  # stability-boundary study says expect = ["diverged", "tripped"]
 
     [motor]                      # plant.eds "Motor model", after the preset
@@ -78,7 +79,7 @@ DEFAULT_TRACE: dict[int, tuple[str, ...]] = {3: ("Online tuning.det_A2", "Online
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
 # Run statuses (bench/run/status.py gives each its exit code).
-STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost")
+STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference")
 
 
 class ScenarioError(ValueError):

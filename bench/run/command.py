@@ -81,20 +81,25 @@ def _check_args(args: argparse.Namespace) -> None:
 
 def _bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     """(what is wrong with --bus, whether the VM supplies it)."""
-    from ..canbus import host_has_vcan, interface_state, probe_af_can
+    import re
+
+    from ..canbus import can_interfaces, host_has_vcan, interface_state, probe_af_can
 
     if args.bus == "direct" or args.interface != "socketcan":
         return None, False
+    virtual = re.fullmatch(r"vcan\d{1,3}", args.bus) is not None
+    if not probe_af_can().af_can:
+        if virtual:
+            return None, True  # the VM creates it
+        return (f"--bus {args.bus}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
+                "only (--bus vcan0, vcan1, ...), or use --bus direct"), False
     if host_has_vcan(args.bus):
         return None, False
-    if not probe_af_can().af_can:
-        if args.bus == "vcan0":
-            return None, True
-        return (f"--bus {args.bus}: this host's kernel has no SocketCAN; the VM fallback supplies vcan0 only "
-                "(use --bus vcan0 or --bus direct)"), False
     state = interface_state(args.bus)
+    buses = ", ".join(f"{n} ({s})" for n, s in can_interfaces()) or "none"
     if state is None:
-        return f"--bus {args.bus}: no such network interface (see `ip link`)", False
+        return (f"--bus {args.bus}: no such CAN interface; this machine has: {buses}"
+                + ("" if virtual else "; or use --bus direct or a vcan name")), False
     return f"--bus {args.bus}: the interface is {state} (bring it up: ip link set {args.bus} up)", False
 
 
@@ -132,7 +137,6 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
             result = _run_in_vm(args, sc, partial, outputs)
         else:
             result = _run_here(args, sc, partial, outputs)
-        outputs.finish(result)
     except KeyboardInterrupt:
         if outputs is not None:
             outputs.abort()
@@ -142,16 +146,60 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     except Exception as exc:  # noqa: BLE001 - report every failure the same way
         if outputs is not None:
             outputs.abort()
+        from .session import SettingRefused
+
+        if isinstance(exc, SettingRefused):  # bad input: said, and nothing left behind
+            print(f"bench run: {exc}", file=sys.stderr)
+            shutil.rmtree(partial, ignore_errors=True)
+            return 2, None, None
         print(f"bench run: FAILED: {exc}", file=sys.stderr)
         _discard(partial, out)
         return 1, None, None
+    # The loop is complete and decoded: from here on its results are kept, whatever comes.
+    assert outputs is not None
+    cut = _finish_keeping(outputs, result, partial)
     if out.exists():
         out.rmdir()
     partial.rename(out)
-    assert outputs is not None
     print_result(out, result)
+    if cut:
+        print(f"bench run: interrupted while writing the results; the run is complete and kept in {out} "
+              f"({cut})", file=sys.stderr)
+        return 130, result, out
     outputs.serve(args)
     return result.exit_code, result, out
+
+
+def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
+    """Write the results of a complete run. A first Ctrl-C waits for them (said on the terminal); a
+    second stops the writing, and what it did not get to is said (the summary is always written).
+    Returns None, or what the second Ctrl-C left out."""
+    import signal
+
+    presses = [0]
+
+    def on_sigint(signum: int, frame: Any) -> None:
+        presses[0] += 1
+        if presses[0] == 1:
+            print("\nbench run: the loop is complete; finishing its results (a few seconds). Ctrl-C again "
+                  "stops now, keeping what is written.", file=sys.stderr, flush=True)
+            return
+        raise KeyboardInterrupt
+
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGINT, on_sigint) if main else None
+    try:
+        outputs.finish(result)
+        return None
+    except KeyboardInterrupt:
+        outputs.abort()
+        outputs.write_summary(result)
+        missing = [f for f in ("bus.log", "run.rrd") if not (partial / f).exists()]
+        return "the plots and the recording may be incomplete" + (f"; missing: {', '.join(missing)}"
+                                                                  if missing else "")
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, old)
 
 
 def _discard(partial: Path, out: Path) -> None:
@@ -221,12 +269,16 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
             th = threading.Thread(target=follow, daemon=True, name="bench-follow")
             th.start()
             try:
-                rc = run_in_vm(cmd, VmOptions(timeout_s=3600), stdout=_Quiet())
+                rc = run_in_vm(cmd, VmOptions(timeout_s=3600, interfaces=(args.bus,)), stdout=_Quiet())
             finally:
                 stop.set()
                 th.join()
             if errors:
                 raise errors[0]
+            if rc == 2:
+                from .session import SettingRefused
+
+                raise SettingRefused("a node refused a value of the scenario (the line above says which)")
             if rc != 0:
                 raise RuntimeError(f"the capture inside the VM failed with status {rc}")
             pipe.feed(follower.drain(final=True))
@@ -237,7 +289,8 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
         for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
             shutil.move(str(f), partial / f.name)
         stage.rmdir()
-    return pipe.finish(sc.name, args.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)})
+    return pipe.finish(sc.name, args.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)},
+                       cap.get("stopped"))
 
 
 class _Quiet:
@@ -265,11 +318,20 @@ def capture_only(args: argparse.Namespace) -> int:
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     opts = RunOptions(bus=args.bus, plant_id=args.plant_id, drive_id=args.drive_id, out=args.out)
+    from .session import SettingRefused
+
     try:
-        run_wall = capture_to_log(sc, opts)
+        run_wall, stopped = capture_to_log(sc, opts)
+    except SettingRefused as exc:  # bad input: the host exits 2 too
+        print(f"bench capture: {exc}", file=sys.stderr)
+        return 2
     except Exception as exc:  # noqa: BLE001 - one line the host shows (the VM's console is filtered)
         print(f"bench capture: FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
-    (args.out / "capture.json").write_text(json.dumps({"run_wall_s": run_wall, "pid": os.getpid()}))
-    print(f"bench capture: {sc.periods} periods in {run_wall:.2f} s")
+    (args.out / "capture.json").write_text(json.dumps({"run_wall_s": run_wall, "pid": os.getpid(),
+                                                       "stopped": stopped}))
+    if stopped:
+        print(f"bench capture: stopped: {stopped['message']}")
+    else:
+        print(f"bench capture: {sc.periods} periods in {run_wall:.2f} s")
     return 0

@@ -10,6 +10,14 @@ next one (rows already emitted are not emitted twice; SDO frames are followed on
 Columns are float64 (NaN where no frame carried the value) except `period` (int64); names
 carry SI units (bench/run/signals.py). Which frames were missing and which carried a
 non-finite value are counted separately, per PDO: a NaN sent on the bus is never a lost frame.
+
+Foreign frames never crash the decoder and never make periods. A SYNC starts a period only when
+it is the plant's: its counter is the one the plant's next measurement PDO carries (Measurement.
+sync_counter); any other frame on the SYNC identifier is foreign. Frames on identifiers the loop
+does not use are counted by COB-ID; a second frame on one of the loop's own identifiers in a
+period, or a foreign SYNC inside the loop, is interference (the nodes may have acted on it: the
+run's status says so). What comes after the plant's final hold announcement is after the loop:
+counted, never judged.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ from .sdo_log import SdoLog
 from .signals import SignalInfo, column_name
 
 SQRT3 = math.sqrt(3.0)
+SYNC_LOOKBACK = 4  # foreign SYNCs tolerated between the plant's SYNC and its measurement
 REFERENCES = ("iq_ref_A", "id_ref_A")
 TPDOS = 4
 
@@ -63,6 +72,11 @@ class PdoStats:
 class DecodeStats:
     periods: int = 0
     frames: int = 0
+    foreign: dict[int, int] = field(default_factory=dict)       # COB-ID -> frames on identifiers the run
+                                                                # does not use (and foreign SYNCs)
+    interference: dict[int, int] = field(default_factory=dict)  # COB-ID -> extra frames on the loop's own
+    first_interference_period: int | None = None
+    after_loop_frames: int = 0
     sync_counter_gaps: int = 0
     sample_index_mismatches: int = 0
     pdos: dict[int, PdoStats] = field(default_factory=dict)
@@ -87,13 +101,43 @@ class Decoder:
         self._emitted = 0        # rows emitted so far
         self._last_sync = -1
         self._last_sync_period = -1
+        self.hold_cob_id: int | None = None
+        self._cmd_cob: int | None = None
+        self._meas: tuple[int, int] | None = None   # (COB-ID, byte offset) of Measurement.sync_counter
+        self._known: np.ndarray = self._base_known()
+        self.emcy: list[dict[str, object]] = []
+
+    def _base_known(self) -> np.ndarray:
+        """Identifiers a run uses outside its PDOs: NMT, SYNC, EMCY, SDO, heartbeats of both nodes."""
+        known = np.zeros(2048, dtype=bool)
+        known[0] = True
+        for nid in (self.sdo.plant.node_id, self.sdo.drive.node_id):
+            for base in (0x080, 0x580, 0x600, 0x700):
+                known[base + nid] = True
+        self._service = known.copy()
+        known[self.sdo.sync_cob_id & 0x7FF] = True
+        return known
 
     # ------------------------------------------------------------------ layout
     def _freeze(self) -> None:
         self.layout = layout_from_sdo(self.sdo)
         # The plant's hold announcement (Run control, event-driven, once per lockstep segment) is the
         # bench's own plumbing, not a signal of the loop: not a trace column.
-        self.layout.pdos = [p for p in self.layout.pdos if not all(q.startswith("Run control.") for q, _ in p.signals)]
+        hold = [p for p in self.layout.pdos if all(q.startswith("Run control.") for q, _ in p.signals)]
+        self.hold_cob_id = hold[0].cob_id if hold else None
+        cmd = [p for p in self.layout.pdos if p.node == "drive" and any(q.startswith("Voltage command.")
+                                                                        for q, _ in p.signals)]
+        self._cmd_cob = cmd[0].cob_id if cmd else None
+        self.layout.pdos = [p for p in self.layout.pdos if p not in hold]
+        self._known = self._base_known()
+        for p in [*self.layout.pdos, *hold]:
+            self._known[p.cob_id & 0x7FF] = True
+        for p in self.layout.pdos:
+            off = 0
+            for q, fmt in p.signals:
+                if p.node == "plant" and q == "Measurement.sync_counter" and fmt == "B":
+                    self._meas = (p.cob_id, off)
+                off += np.dtype(fmt).itemsize
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
         names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC", "<f4")]
@@ -125,6 +169,7 @@ class Decoder:
                 first = start + int(hits[0]) if len(hits) else len(buf)
                 self._follow_sdo(buf[start:first], np.zeros(first - start, dtype=np.int64))
                 if first == len(buf):
+                    self._count_new(buf)
                     self._carry = np.zeros(0, dtype=FRAME_DTYPE)
                     return None
                 if buf["cob_id"][first] == self.sdo.sync_cob_id:
@@ -133,8 +178,10 @@ class Decoder:
             self._freeze()
             buf, new_from = buf[first:], 0
         assert self.layout is not None
-        sync = buf["cob_id"] == self.layout.sync_cob_id
+        self._count_new(frames)
+        sync = self._genuine_syncs(buf)
         period_of = self._base + np.cumsum(sync) - 1  # frames before the carry's SYNC: none (it starts with one)
+        self._emcy(buf[new_from:], period_of[new_from:])
         sdo = self.sdo.mask(buf)
         sdo[:new_from] = False
         if sdo.any():
@@ -158,11 +205,79 @@ class Decoder:
         if self.layout is None or len(self._carry) == 0:
             return None
         buf = self._carry
-        sync = buf["cob_id"] == self.layout.sync_cob_id
+        sync = self._genuine_syncs(buf)
+        if self._cmd_cob is not None and sync.any():
+            # the loop ends with the command of its last period (what the plant waits for before it holds):
+            # what follows is after the loop (a flood there is counted, and cannot change the verdict)
+            last = int(np.flatnonzero(sync)[-1])
+            cmd = np.flatnonzero(buf["cob_id"] == self._cmd_cob)
+            cmd = cmd[cmd > last]
+            if len(cmd):
+                end = int(cmd[0]) + 1
+                tail = buf["cob_id"][end:].astype(np.int64) & 0x7FF
+                after = ~self._service[tail]  # not SDO, NMT, EMCY, heartbeat, nor the hold announcement
+                if self.hold_cob_id is not None:
+                    after &= tail != self.hold_cob_id
+                self.stats.after_loop_frames += int(after.sum())
+                buf, sync = buf[:end], sync[:end]
         period_of = self._base + np.cumsum(sync) - 1
         stop = int(period_of[-1]) + 1
         self._carry = np.zeros(0, dtype=FRAME_DTYPE)
         return self._rows(buf, period_of, self._emitted, stop) if stop > self._emitted else None
+
+    def _genuine_syncs(self, buf: np.ndarray) -> np.ndarray:
+        """Mask of the plant's own SYNCs in buf: the SYNC's counter is the sync_counter of the plant's
+        next measurement PDO. A SYNC with no measurement after it yet is undecided (not a period until
+        it is; at the end of the log, foreign). Without a counter (0x1019 = 0), every SYNC of length 0."""
+        assert self.layout is not None
+        cob = buf["cob_id"]
+        cand = np.flatnonzero(cob == self.layout.sync_cob_id)
+        sync = np.zeros(len(buf), dtype=bool)
+        if len(cand) == 0:
+            return sync
+        dlc = buf["dlc"][cand]
+        overflow = int(self.sdo.plant.get("Synchronous counter overflow value") or 0)
+        if overflow < 2 or self._meas is None:
+            sync[cand[dlc == (1 if overflow >= 2 else 0)]] = True
+            return sync
+        meas_cob, off = self._meas
+        m_pos = np.flatnonzero((cob == meas_cob) & (buf["dlc"] > off))
+        counter = np.where(dlc == 1, buf["data"][cand, 0].astype(np.int64), -1)
+        meas_counter = buf["data"][m_pos, off].astype(np.int64)
+        before = np.searchsorted(cand, m_pos) - 1  # the SYNC candidate just before each measurement
+        # The plant sends its measurement right after its SYNC; foreign SYNCs may fall in between: look a
+        # few candidates back. Counters repeat only every 240 SYNCs, so an old SYNC never matches.
+        done = np.zeros(len(m_pos), dtype=bool)  # each measurement marks one SYNC: the nearest one with its counter
+        for back in range(SYNC_LOOKBACK):
+            c = before - back
+            hit = (c >= 0) & ~done
+            hit[hit] = counter[c[hit]] == meas_counter[hit]
+            sync[cand[c[hit]]] = True
+            done |= hit
+        return sync  # an undecided tail (no measurement yet) is decided with the next chunk: the carry keeps it
+
+    def _count_new(self, frames: np.ndarray) -> None:
+        """Frames on identifiers the run does not use, by COB-ID (each frame counted once, when new)."""
+        cob = frames["cob_id"].astype(np.int64) & 0x7FF
+        foreign = ~self._known[cob]
+        if foreign.any():
+            ids, n = np.unique(cob[foreign], return_counts=True)
+            for i, c in zip(ids.tolist(), n.tolist()):
+                self.stats.foreign[i] = self.stats.foreign.get(i, 0) + c
+
+    def _emcy(self, frames: np.ndarray, periods: np.ndarray) -> None:
+        """EMCY frames of both nodes (CiA 301: code, error register, 5 bytes manufacturer-specific)."""
+        if len(self.emcy) >= 1000:
+            return
+        names = {0x080 + self.sdo.plant.node_id: "plant", 0x080 + self.sdo.drive.node_id: "drive"}
+        cob = frames["cob_id"]
+        hit = np.flatnonzero(((cob == 0x080 + self.sdo.plant.node_id) | (cob == 0x080 + self.sdo.drive.node_id))
+                             & (frames["dlc"] == 8))
+        for i in hit[: 1000 - len(self.emcy)].tolist():
+            d = bytes(frames["data"][i])
+            self.emcy.append({"period": max(0, int(periods[i])), "node": names[int(cob[i])],
+                              "code": f"0x{int.from_bytes(d[:2], 'little'):04X}", "error_register": d[2],
+                              "data": d[3:8].hex()})
 
     def _follow_sdo(self, frames: np.ndarray, periods: np.ndarray) -> None:
         m = self.sdo.mask(frames)
@@ -178,7 +293,11 @@ class Decoder:
         out["t_s"] = out["period"] * self.ts_s
         cob = np.ascontiguousarray(buf["cob_id"])
         data = buf["data"]
-        sync = np.flatnonzero(cob == self.layout.sync_cob_id)
+        is_sync = np.r_[True, np.diff(period_of) != 0] & (cob == self.layout.sync_cob_id)  # a period's first frame
+        sync = np.flatnonzero(is_sync)
+        foreign_sync = np.flatnonzero((cob == self.layout.sync_cob_id) & ~is_sync)
+        fs_per = period_of[foreign_sync]
+        self._interfere(self.layout.sync_cob_id, fs_per[(fs_per >= r0) & (fs_per < r1)])
         sp = period_of[sync]
         keep = (sp >= r0) & (sp < r1)
         sc = np.full(n, np.nan)
@@ -194,7 +313,13 @@ class Decoder:
             if pdo.node == "drive" and pdo.trans_type <= 240:
                 per = per - 1  # synchronous drive TPDO at SYNC k: state after step k-1
             ok = (per >= r0) & (per < r1)
-            pos, per = pos[ok], per[ok] - r0
+            pos, per = pos[ok], per[ok]
+            if len(per) > 1:  # one frame per period: a second one is interference (the first is the loop's)
+                dup = np.r_[False, per[1:] == per[:-1]]
+                if dup.any():
+                    self._interfere(cob_id, per[dup])
+                    pos, per = pos[~dup], per[~dup]
+            per = per - r0
             dt = pdo.numpy_dtype()
             vals = np.ascontiguousarray(data[pos, : dt.itemsize]).view(dt).reshape(-1)
             got = np.zeros(n, dtype=bool)
@@ -227,6 +352,15 @@ class Decoder:
         st.periods = r1
         self._emitted = r1
         return out
+
+    def _interfere(self, cob_id: int, periods: np.ndarray) -> None:
+        if len(periods) == 0:
+            return
+        st = self.stats
+        st.interference[cob_id] = st.interference.get(cob_id, 0) + len(periods)
+        first = int(periods.min())
+        if st.first_interference_period is None or first < st.first_interference_period:
+            st.first_interference_period = first
 
     def _derive(self, out: dict[str, np.ndarray]) -> None:
         with np.errstate(invalid="ignore", over="ignore"):  # non-finite values stay so (and are counted)

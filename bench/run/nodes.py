@@ -38,6 +38,7 @@ class NodeProcess:
             return None
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGTERM)
+            self.proc.send_signal(signal.SIGCONT)  # a frozen (SIGSTOP) node gets its SIGTERM at once
             try:
                 self.proc.wait(timeout=timeout_s)
             except subprocess.TimeoutExpired:

@@ -114,10 +114,16 @@ class Outputs:
         except RuntimeError as exc:  # the run and its data are fine: a view that failed is a warning
             print(f"bench run: warning: the recording or the plots were not written: {exc}", file=sys.stderr)
             shown = []
+        self.write_summary(result, [f for f in shown if f.endswith(".svg")])
+
+    def write_summary(self, result: Any, plots: list[str] | None = None) -> None:
+        cand = self.folder / "candump.log"
+        if cand.exists() and not self.log_path.exists():
+            cand.rename(self.log_path)
         summary = result.summary
         summary["files"] = {"log": self.log_path.name, "traces": TRACES_FILE,
                             "exports": [f"bus.{f}" for f in self.log_formats],
-                            "recording": "run.rrd", "plots": [f for f in shown if f.endswith(".svg")]}
+                            "recording": "run.rrd", "plots": plots or []}
         (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
 
     def abort(self) -> None:
@@ -146,6 +152,10 @@ def _json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serializable: {type(o)}")
 
 
+def _ids(by_id: dict[str, int]) -> str:
+    return ", ".join(f"{k} x{v}" for k, v in list(by_id.items())[:6]) or "none"
+
+
 def print_result(out: Path, result: Any) -> None:
     from .summary import format_identified, format_table
 
@@ -158,6 +168,15 @@ def print_result(out: Path, result: Any) -> None:
           f"missing measurements {bs['missing_measurements']}, missing commands {bs['missing_commands']}), "
           f"plant missed {bs['plant_missed_commands']}, late {bs['plant_late_commands']}"
           + (f"; non-finite values: {', '.join(f'{k} x{v}' for k, v in nf.items())}" if nf else ""))
+    ff, itf = bs.get("foreign_frames", {}), bs.get("interference", {})
+    if ff.get("frames") or itf.get("frames") or bs.get("after_loop_frames"):
+        print(f"bus: foreign frames {ff.get('frames', 0)} ({_ids(ff.get('by_cob_id', {}))}); interference "
+              f"{itf.get('frames', 0)} ({_ids(itf.get('by_cob_id', {}))}); after the loop "
+              f"{bs.get('after_loop_frames', 0)}")
+    emcy = s.get("emcy") or []
+    if emcy:
+        shown = ", ".join(f"{e['node']} {e['code']} at period {e['period']}" for e in emcy[:6])
+        print(f"EMCY: {len(emcy)}{'+' if len(emcy) >= 100 else ''}: {shown}{' ...' if len(emcy) > 6 else ''}")
     t = s.get("timing", {})
     if t.get("periods_per_s"):
         print(f"run: {s['periods']} periods in {t['run_wall_s']:.3f} s ({t['periods_per_s']:,.0f} periods/s, "
@@ -171,7 +190,11 @@ def print_result(out: Path, result: Any) -> None:
                         f"a phase current of {s['max_phase_current_A']:.3g} A, beyond "
                         f"{s['divergence_bound_A']:.3g} A that the inverter can drive through the winding"),
            "non_finite": f"non-finite values arrived in PDOs: {', '.join(nf)}",
-           "frames_lost": f"{bs['lost_frames']} frames lost"}.get(status, "")
+           "frames_lost": (s["stopped"]["message"] if s.get("stopped") else f"{bs['lost_frames']} frames lost"),
+           "node_lost": (s.get("stopped") or {}).get("message", ""),
+           "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
+                           f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
+                           f"first in period {bs.get('interference', {}).get('first_period')}"}.get(status, "")
     if status == "ok":
         print("status: ok")
     elif result.expected:

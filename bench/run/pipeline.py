@@ -21,6 +21,7 @@ import numpy as np
 
 from ..scenario import Scenario
 from .decode import Decoder
+from .liveness import LoopStopped
 from .session import RunOptions, Session
 from .signals import SignalInfo
 from .sinks import Sink, TraceCollector
@@ -36,7 +37,7 @@ Progress = Callable[[int, int], None]
 class RunResult:
     scenario: str
     bus: str
-    status: str                      # ok | tripped | diverged | non_finite | frames_lost
+    status: str                      # ok | tripped | diverged | non_finite | frames_lost | node_lost | interference
     exit_code: int                   # 0, or the status's code (bench/run/summary.py)
     expected: bool                   # the status is what the scenario declared
     summary: dict[str, Any]
@@ -161,7 +162,9 @@ class Pipeline:
                 self._open_windows.append(w)
         self._tail = {n: joined[n][-before:] for n in names}
 
-    def finish(self, scenario: str, bus: str, wall: dict[str, float] | None = None) -> RunResult:
+    def finish(self, scenario: str, bus: str, wall: dict[str, float] | None = None,
+               stopped: dict[str, Any] | None = None) -> RunResult:
+        """`stopped`: the run ended before its last period (LoopStopped.to_dict(): a node lost, a stall)."""
         self._rows(self.dec.finish())
         dec = self.dec
         steps = [m.to_dict() for sig, _, _ in STEP_SIGNALS for m in self.steps[sig].finish()]
@@ -182,11 +185,17 @@ class Pipeline:
             "non_finite": bool(bstats["non_finite_values"]),
             "diverged": (bound is not None and self.max_phase_A > bound) or bool(oscillating),
             "tripped": self.first_trip_period is not None or bool(trip_active),
-            "frames_lost": bstats["lost_frames"] > 0,
+            "frames_lost": bstats["lost_frames"] > 0 or bool(stopped and stopped["status"] == "frames_lost"),
+            "node_lost": bool(stopped and stopped["status"] == "node_lost"),
+            "interference": bstats["interference"]["frames"] > 0,
         }
         first = {"non_finite": dec.stats.first_non_finite_period, "tripped": self.first_trip_period,
                  "diverged": self.first_beyond_bound_period if self.first_beyond_bound_period is not None
-                 else (oscillating[0] if oscillating else None)}
+                 else (oscillating[0] if oscillating else None),
+                 "interference": bstats["interference"]["first_period"]}
+        if stopped:
+            at = stopped.get("at_period")
+            first[stopped["status"]] = at if at is not None else dec.stats.periods
         status, code, expected = verdict(flags, self.expect, first)
         timing = dict(wall or {})
         if timing.get("run_wall_s"):
@@ -200,6 +209,8 @@ class Pipeline:
             "status_expected": expected,
             "expect": list(self.expect),
             "status_flags": flags,
+            "stopped": stopped,
+            "emcy": dec.emcy[:100],
             "first_trip_period": self.first_trip_period,
             "first_non_finite_period": dec.stats.first_non_finite_period,
             "oscillating_steps": oscillating,
@@ -251,6 +262,7 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
     sess = Session(sc, opts)
     source: Any = None
     run_wall = 0.0
+    stopped: dict[str, Any] | None = None
     try:
         if opts.bus != "direct" and opts.interface == "socketcan" and opts.record:
             if opts.out is None:
@@ -271,8 +283,13 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
 
         sess.reset_nodes()
         sess.configure()
-        run_wall = sess.run(progress, tick)
-        sess.statuses()
+        t_run = time.monotonic()
+        try:
+            run_wall = sess.run(progress, tick)
+            sess.statuses()
+        except LoopStopped as exc:  # a verdict, not a failure: the frames so far are decoded and kept
+            stopped = exc.to_dict()
+            run_wall = time.monotonic() - t_run
     finally:
         sess.close()
         if source is not None:
@@ -281,31 +298,38 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
         pipe.feed(source.drain(final=True))
         if hasattr(source, "cleanup"):
             source.cleanup()
-    res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall})
+    res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped)
     if collector is not None:
         res.trace = collector.trace
     return res
 
 
-def capture_to_log(sc: Scenario, opts: RunOptions) -> float:
+def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any] | None]:
     """The bus half of a run only: nodes, master and candump's log in `opts.out`; no decoding
-    (inside the VM, where Python is slow, the host decodes the log). Returns the loop's wall time."""
+    (inside the VM, where Python is slow, the host decodes the log). Returns the loop's wall time
+    and, when the loop ended early, why (LoopStopped.to_dict())."""
     from .sources import CandumpSource
 
     assert opts.out is not None
     source = CandumpSource(opts.bus, opts.out / "candump.log", follow=False)
     sess = Session(sc, opts)
+    stopped: dict[str, Any] | None = None
     try:
         sess.open()
         sess.reset_nodes()
         sess.configure()
-        run_wall = sess.run()
-        sess.statuses()
+        t_run = time.monotonic()
+        try:
+            run_wall = sess.run()
+            sess.statuses()
+        except LoopStopped as exc:
+            stopped = exc.to_dict()
+            run_wall = time.monotonic() - t_run
     finally:
         sess.close()
         source.stop()
         source.cleanup()
-    return run_wall
+    return run_wall, stopped
 
 
 def replay_log(path: Path, plant_id: int = 0x10, drive_id: int = 0x20, sinks: list[Sink] | None = None,

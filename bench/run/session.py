@@ -20,15 +20,20 @@ from pathlib import Path
 
 import can
 import canopen
-from canopen.sdo.exceptions import SdoAbortedError
+from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoError
 
 from ..eds import load as load_od
 from .nodes import NodeProcess
 from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
+from .liveness import Liveness, LoopStopped
 from .summary import END_READS, PLANT_VALUES
 
 PROGRESS = Callable[[int, int], None]
+
+
+class SettingRefused(RuntimeError):
+    """A node refused a value of the scenario (SDO abort): bad input, named with the EDS's limits."""
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 
 
@@ -47,6 +52,10 @@ class RunOptions:
     record: bool = True            # record every frame (candump / in-process); off only to time the loop alone
                                    # (then nothing is decoded: the result has no periods)
     chunk_periods: int = 65_536    # periods per chunk of the pipeline (direct mode: per C call)
+    heartbeat_ms: int = 100        # both nodes' heartbeat producer time (0x1017)
+    heartbeat_timeout_ms: int = 500  # consumer time (0x1016 of each node, and the bench's): a node silent this
+                                     # long is named and the run stops
+    stall_s: float = 10.0          # both nodes alive, the period index still for this long: a frame was lost
 
 
 def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
@@ -74,6 +83,9 @@ class Session:
         self.on_direct_stop: Callable[[], None] | None = None
         self._hold_index = -1
         self._hold_cob = 0
+        self._period = 0
+        self.liveness: Liveness | None = None
+        self.stopped: LoopStopped | None = None
 
     # ---------------------------------------------------------------- bus
     def open(self) -> None:
@@ -85,12 +97,15 @@ class Session:
             def log(name: str) -> Path | None:
                 return None if out is None else out / f"{name}.out"
 
+            self.node_procs: dict[str, NodeProcess] = {}
             if self.opts.start_plant:
-                self.procs.append(NodeProcess("plant_node", ["--iface", self.opts.bus, "--node-id",
-                                                             str(self.opts.plant_id)], log("plant_node")).start())
+                self.node_procs["plant"] = NodeProcess("plant_node", ["--iface", self.opts.bus, "--node-id",
+                                                                      str(self.opts.plant_id)], log("plant_node"))
             if self.opts.start_drive:
-                self.procs.append(NodeProcess("drive_node", ["--iface", self.opts.bus, "--node-id",
-                                                             str(self.opts.drive_id)], log("drive_node")).start())
+                self.node_procs["drive"] = NodeProcess("drive_node", ["--iface", self.opts.bus, "--node-id",
+                                                                      str(self.opts.drive_id)], log("drive_node"))
+            for proc in self.node_procs.values():
+                self.procs.append(proc.start())
             # The master only needs SDO answers, NMT error control and EMCY: filtering in the kernel keeps
             # the PDO stream (thousands of frames per second) out of this process's socket, which a slow
             # Python (the VM) could not drain, and which the recorder records anyway.
@@ -114,8 +129,14 @@ class Session:
         self.net.add_node(self.drive)
         for n in (self.plant, self.drive):
             n.sdo.RESPONSE_TIMEOUT = 5.0
+        if self.hil is None:  # in direct mode the loop is in this process, on simulated time
+            self.liveness = Liveness(self.net, {"plant": self.opts.plant_id, "drive": self.opts.drive_id},
+                                     getattr(self, "node_procs", {}), self.opts.heartbeat_timeout_ms)
 
     def close(self) -> None:
+        if self.liveness is not None:
+            self.liveness.disarm()
+            self.liveness.close()
         try:
             for n in (self.plant, self.drive):
                 try:
@@ -160,8 +181,29 @@ class Session:
         try:
             var.raw = value
         except SdoAbortedError as exc:
-            raise RuntimeError(f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
-                               f"{var.od.qualname!r}) at period {self._period}: {exc}") from None
+            raise SettingRefused(f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
+                               f"{var.od.qualname!r}) at period {self._period}: {exc}{self._limits(var)}") from None
+
+    def _limits(self, var) -> str:  # type: ignore[no-untyped-def]
+        """What the EDS says the value must be: its range, its description, and a limit in Ts worked out."""
+        import re
+
+        od = var.od
+        parts = []
+        if od.min is not None or od.max is not None:
+            parts.append(f"range {od.min if od.min is not None else '-inf'} .. {od.max if od.max is not None else 'inf'}")
+        if od.description:
+            parts.append(od.description)
+        m = re.search(r"1/\((\d+) Ts\)", od.description or "")
+        if m:
+            try:
+                node = self.drive if var.sdo_node is self.drive.sdo else self.plant
+                ts = float(node.sdo["Controller"]["Ts_s"].raw if node is self.drive else node.sdo["Inverter"]["Ts_s"].raw)
+                parts.append(f"with the node's Ts_s = {ts:g} s now, 1/({m.group(1)} Ts) = "
+                             f"{1.0 / (int(m.group(1)) * ts):.6g}")
+            except Exception:  # noqa: BLE001 - the message is still useful without it
+                pass
+        return ("; the EDS says: " + "; ".join(parts)) if parts else ""
 
     def _apply(self, s: Setting) -> None:
         self.applied.append((self._period, s.key, float(s.value)))
@@ -178,6 +220,7 @@ class Session:
     def configure(self) -> None:
         self._period = 0
         sc, plant, drive = self.sc, self.plant, self.drive
+        self.configure_heartbeats()
         if sc.preset:
             plant.sdo["Motor preset"].raw = sc.preset
         plant.sdo["Sensors"]["rng_seed"].raw = sc.seed
@@ -208,6 +251,17 @@ class Session:
                 for s in e.settings:
                     self._apply(s)
         self.wire_pdos()
+
+    def configure_heartbeats(self) -> None:
+        """CiA 301 error control: each node produces a heartbeat (0x1017) and consumes the other's
+        (0x1016: a lost drive stops the plant, EMCY 0x8130 from either tells the bench)."""
+        hb, to = self.opts.heartbeat_ms, self.opts.heartbeat_timeout_ms
+        if not 0 < hb < to <= 0xFFFF:
+            raise ValueError(f"heartbeat {hb} ms, consumer time {to} ms: need 0 < heartbeat < consumer time <= 65535")
+        for node, other in ((self.plant, self.drive), (self.drive, self.plant)):
+            self._write(node.sdo["Consumer heartbeat time"][1], (other.id << 16) | to,
+                        f"consumer heartbeat time of node 0x{other.id:02X}")
+            self._write(node.sdo["Producer heartbeat time"], hb, "producer heartbeat time")
 
     def wire_pdos(self) -> None:
         """Link the plant's measurement TPDOs to the drive's RPDOs and the drive's command
@@ -248,6 +302,8 @@ class Session:
 
     # ---------------------------------------------------------------- run
     def _on_hold(self, cob_id: int, data: bytearray, ts: float) -> None:
+        if len(data) != 5:  # a foreign frame on the announcement's identifier (the decoder counts it)
+            return
         index, state = struct.unpack_from("<IB", bytes(data))
         if state == 0:
             self._hold_index = index
@@ -308,23 +364,47 @@ class Session:
         if self.hil is not None:
             self._run_direct(n, tick)
             return
-        t0 = time.monotonic()
-        deadline = t0 + 30 + n * 0.01
-        index = -1
-        while time.monotonic() < deadline:
+        # No time limit: load may slow the loop as much as it likes. What ends a wait early is a lost
+        # node (heartbeats, processes: bench/run/liveness.py) or a stall with both nodes alive.
+        index, moved = -1, time.monotonic()
+        last_poll = 0.0
+        while True:
             # the hold announcement (no bus load, no CPU while the loop runs) ...
-            if self._hold.wait(timeout=min(0.5, max(0.05, deadline - time.monotonic()))) \
-                    and self._hold_index >= target_index:
+            if self._hold.wait(timeout=0.1) and self._hold_index >= target_index:
                 self._hold.clear()
                 return
             self._hold.clear()
+            self._check_alive(index)
+            now = time.monotonic()
+            if now - last_poll < 0.5:
+                continue
+            last_poll = now
             if tick:
                 tick()
-            # ... and, should it be missed, the same information by SDO
-            index = rc["period_index"].raw
-            if index >= target_index and rc["state"].raw == 0:
-                return
-        raise RuntimeError(f"the plant did not reach period {target_index} in time (at {index})")
+            # ... and, should it be missed, the same information by SDO (a foreign frame may spoil one answer)
+            try:
+                was, index = index, rc["period_index"].raw
+                if index >= target_index and rc["state"].raw == 0:
+                    return
+            except SdoError:
+                self._check_alive(index)
+                continue
+            if index != was:
+                moved = time.monotonic()
+            elif time.monotonic() - moved > self.opts.stall_s:
+                self._check_alive(index)
+                raise LoopStopped("frames_lost", f"the loop stalled at period {index}: both nodes alive, no "
+                                  f"period for {self.opts.stall_s:g} s (a frame of the loop was lost on the bus)",
+                                  at_period=index)
+
+    def _check_alive(self, index: int) -> None:
+        if self.liveness is None:
+            return
+        lost = self.liveness.check()
+        if lost is not None:
+            lost.at_period = index if index >= 0 else None
+            self.stopped = lost
+            raise lost
 
     def run(self, progress: PROGRESS | None = None, tick: Callable[[], None] | None = None) -> float:
         """Run every period; `tick` is called between chunks (direct) or while waiting (bus)."""
@@ -335,6 +415,8 @@ class Session:
                 self.net.bus.set_filters([*self.kernel_filters, {"can_id": self._hold_cob, "can_mask": 0x7FF}])
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x01)
+        if self.liveness is not None:
+            self.liveness.arm()
         bounds = [p for p in sc.event_periods() if p > 0] + [sc.periods]
         start = 0
         t0 = time.monotonic()
@@ -355,9 +437,24 @@ class Session:
 
     def statuses(self) -> dict[str, float]:
         """Counters and identified values, read by SDO (so they are in the log too)."""
+        if self.liveness is not None:
+            self.liveness.disarm()
         out: dict[str, float] = {}
         for node_name, obj, names in END_READS:
             node = self.plant if node_name == "plant" else self.drive
             for name in names:
-                out[f"{node_name}.{obj}.{name}"] = node.sdo[obj][name].raw
+                out[f"{node_name}.{obj}.{name}"] = _read(node.sdo[obj][name])
         return out
+
+
+def _read(var, attempts: int = 3):  # type: ignore[no-untyped-def]
+    """An SDO read that survives a foreign frame on the SDO identifiers (a stray response taken for the
+    answer): asked again, up to `attempts` times."""
+    for i in range(attempts):
+        try:
+            return var.raw
+        except (SdoCommunicationError, SdoAbortedError):
+            if i == attempts - 1:
+                raise
+            time.sleep(0.05)
+    return None

@@ -7,7 +7,12 @@ Status (one word, and a distinct exit code for each bad one):
   diverged     a phase current beyond what the inverter can drive through the winding
                (2 x (2/3 Vdc + back-EMF) / R): the loop ran away with the plant's trip off
   tripped      the plant's over-current trip latched (Measurement.status bit 0, or trip_active)
-  frames_lost  a SYNC counter gap, a period without its measurement or command, a wrong sample index
+  frames_lost  a SYNC counter gap, a period without its measurement or command, a wrong sample index,
+               or a lockstep loop that stalled with both nodes alive
+  node_lost    a node died or went silent mid-run (process exit, heartbeat timeout, left OPERATIONAL,
+               EMCY 0x8130 from the other): the run stopped there, named the node, kept what it had
+  interference a frame the loop did not send on one of its own identifiers (a second SYNC producer, a
+               duplicate measurement or command): the nodes may have acted on it
 A scenario may expect a bad status (scenario.expect); the run then passes when it gets it.
 """
 
@@ -22,10 +27,12 @@ from ..scenario import ENUMS, STATUSES
 from .decode import Decoder
 
 SCHEMA_VERSION = 2
-EXIT_CODES = {"ok": 0, "tripped": 3, "diverged": 4, "non_finite": 5, "frames_lost": 6}
+EXIT_CODES = {"ok": 0, "tripped": 3, "diverged": 4, "non_finite": 5, "frames_lost": 6, "node_lost": 8,
+              "interference": 9}
 EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
-PRIORITY = ("non_finite", "diverged", "tripped", "frames_lost")  # at the same period, the root cause first
+# at the same period, the root cause first
+PRIORITY = ("node_lost", "interference", "non_finite", "diverged", "tripped", "frames_lost")
 
 # What each controller identifies or applies, read by SDO at the end of every run (and so in the log).
 CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
@@ -107,7 +114,18 @@ def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
     cont = {"sync_counter_gaps": st.sync_counter_gaps, "missing_measurements": st.missing_measurements,
             "missing_commands": st.missing_commands, "sample_index_mismatches": st.sample_index_mismatches}
     ts = dec.ts_s
+    def by_id(d: dict[int, int]) -> dict[str, int]:
+        top = sorted(d.items(), key=lambda kv: -kv[1])
+        out = {f"0x{k:03X}": v for k, v in top[:32]}
+        if len(top) > 32:
+            out["others"] = sum(v for _, v in top[32:])
+        return out
+
     return {"frames": st.frames, "frames_per_period": st.frames / n, "lost_frames": sum(cont.values()), **cont,
+            "foreign_frames": {"frames": sum(st.foreign.values()), "by_cob_id": by_id(st.foreign)},
+            "interference": {"frames": sum(st.interference.values()), "by_cob_id": by_id(st.interference),
+                             "first_period": st.first_interference_period},
+            "after_loop_frames": st.after_loop_frames,
             "non_finite_values": dict(st.non_finite),
             "plant_missed_commands": _num(dec.sdo.plant.get("Run control", "missed_commands")),
             "plant_late_commands": _num(dec.sdo.plant.get("Run control", "late_commands")),

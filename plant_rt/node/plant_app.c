@@ -437,6 +437,18 @@ static void hook_on_reset(void *user, co_node_t *node, int communication_only)
     model_reset(app);
 }
 
+/* The drive's heartbeat (0x1016) timed out: the drive is dead or silent. The plant stops the loop
+ * (run_periods = 0, holding) instead of applying the last command for ever; the stack has sent
+ * EMCY 0x8130 with the drive's node-ID, which tells the master. */
+static void hook_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
+{
+    plant_app_t *app = user_app(user, node);
+    (void)node_id;
+    M.x2003_run_control.run_periods = 0u;
+    M.x2003_run_control.state = 0u;
+    app->paused = true;
+}
+
 static const co_hooks_t k_hooks = {
     .pre_write = hook_pre_write,
     .post_write = hook_post_write,
@@ -445,7 +457,7 @@ static const co_hooks_t k_hooks = {
     .on_rpdo = hook_on_rpdo,
     .on_nmt = hook_on_nmt,
     .on_reset = hook_on_reset,
-    .on_hb_timeout = NULL,
+    .on_hb_timeout = hook_on_hb_timeout,
 };
 
 const co_hooks_t *plant_app_hooks(void)
@@ -454,6 +466,17 @@ const co_hooks_t *plant_app_hooks(void)
 }
 
 /* ------------------------------------------------------------------ drivers */
+
+/* Lockstep: how long the command of the current period may still be waited for (us); 0 when the
+ * wait is over; -1 (no wish) when command_timeout_us = 0, which waits for the command as long as
+ * the drive is alive (its heartbeat, hook_on_hb_timeout): load then never turns into a held command. */
+static int64_t command_wait_left_us(const plant_app_t *app, int64_t now_us)
+{
+    int64_t timeout = (int64_t)M.x2003_run_control.command_timeout_us;
+    if (timeout == 0) return -1;
+    int64_t left = timeout - (now_us - app->wait_start_us);
+    return left > 0 ? left : 0;
+}
 
 static int produce(plant_app_t *app, int64_t now_us)
 {
@@ -471,12 +494,11 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
          * command for the last sample is in (or timed out): a master that changes parameters on the
          * hold then changes them exactly between two periods. The announcement: 0x2003:09 = 0 and
          * every event-driven TPDO is sent once (map 0x2003 period_index/state into one to be told). */
-        int64_t timeout = (int64_t)M.x2003_run_control.command_timeout_us;
-        int64_t waited = now_us - app->wait_start_us;
+        int64_t left = command_wait_left_us(app, now_us);
         bool settled = app->node->nmt != CO_NMT_OPERATIONAL || !app->started || app->cmd_ready ||
-                       app->paused || waited >= timeout;
+                       app->paused || left == 0;
         app->paused = settled;
-        if (!settled) return timeout - waited;
+        if (!settled) return left;
         if (M.x2003_run_control.state != 0u) {
             M.x2003_run_control.state = 0u;
             for (uint8_t n = 0; n < CO_NUM_PDO; ++n) co_tpdo_request(app->node, n);
@@ -488,18 +510,17 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
         app->paused = false;
         app->wait_start_us = now_us; /* the timeout counts from the resume */
     }
-    int64_t timeout = (int64_t)M.x2003_run_control.command_timeout_us;
     if (!app->started || app->cmd_ready) {
         produce(app, now_us);
-        return timeout;
+        return command_wait_left_us(app, now_us);
     }
-    int64_t waited = now_us - app->wait_start_us;
-    if (waited >= timeout) {
+    int64_t left = command_wait_left_us(app, now_us);
+    if (left == 0) {
         handle_miss(app);
         produce(app, now_us);
-        return timeout;
+        return command_wait_left_us(app, now_us);
     }
-    return timeout - waited;
+    return left;
 }
 
 int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_us)

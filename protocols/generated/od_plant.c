@@ -86,13 +86,13 @@ static const od_plant_ram_t defaults = {
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_8 = 0x0u,
     .comm.x1800_tpdo1_communication_parameter.highest_sub_index_supported = 0x6u,
-    .comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo = 0x180u,
+    .comm.x1800_tpdo1_communication_parameter.cob_id_used_by_tpdo = 0x40000180u,
     .comm.x1800_tpdo1_communication_parameter.transmission_type = 0x1u,
     .comm.x1800_tpdo1_communication_parameter.inhibit_time = 0x0u,
     .comm.x1800_tpdo1_communication_parameter.event_timer = 0x0u,
     .comm.x1800_tpdo1_communication_parameter.sync_start_value = 0x0u,
     .comm.x1801_tpdo2_communication_parameter.highest_sub_index_supported = 0x6u,
-    .comm.x1801_tpdo2_communication_parameter.cob_id_used_by_tpdo = 0x280u,
+    .comm.x1801_tpdo2_communication_parameter.cob_id_used_by_tpdo = 0x40000280u,
     .comm.x1801_tpdo2_communication_parameter.transmission_type = 0x1u,
     .comm.x1801_tpdo2_communication_parameter.inhibit_time = 0x0u,
     .comm.x1801_tpdo2_communication_parameter.event_timer = 0x0u,
@@ -182,7 +182,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2003_run_control.mode = 0x0u,
     .mfr.x2003_run_control.run_periods = 0x0u,
     .mfr.x2003_run_control.period_index = 0x0u,
-    .mfr.x2003_run_control.command_timeout_us = 0x30D40u,
+    .mfr.x2003_run_control.command_timeout_us = 0x0u,
     .mfr.x2003_run_control.missed_commands = 0x0u,
     .mfr.x2003_run_control.late_commands = 0x0u,
     .mfr.x2003_run_control.trip_clear = 0x0u,
@@ -389,7 +389,7 @@ static const co_od_entry_t entries[] = {
     {0x2003u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.mode), &OD_PLANT.mfr.x2003_run_control.mode, {.i = 0}, {.i = 1}}, /* mode */
     {0x2003u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_PLANT.mfr.x2003_run_control.run_periods), &OD_PLANT.mfr.x2003_run_control.run_periods, {.i = 0}, {.i = 0}}, /* run_periods */
     {0x2003u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2003_run_control.period_index), &OD_PLANT.mfr.x2003_run_control.period_index, {.i = 0}, {.i = 0}}, /* period_index */
-    {0x2003u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.command_timeout_us), &OD_PLANT.mfr.x2003_run_control.command_timeout_us, {.i = 1}, {.i = 60000000}}, /* command_timeout_us */
+    {0x2003u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.command_timeout_us), &OD_PLANT.mfr.x2003_run_control.command_timeout_us, {.i = 0}, {.i = 60000000}}, /* command_timeout_us */
     {0x2003u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.missed_commands), &OD_PLANT.mfr.x2003_run_control.missed_commands, {.i = 0}, {.i = 0}}, /* missed_commands */
     {0x2003u, 0x06u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.late_commands), &OD_PLANT.mfr.x2003_run_control.late_commands, {.i = 0}, {.i = 0}}, /* late_commands */
     {0x2003u, 0x07u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.trip_clear), &OD_PLANT.mfr.x2003_run_control.trip_clear, {.i = 0}, {.i = 1}}, /* trip_clear */

@@ -86,7 +86,9 @@ def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
         shutil.rmtree(keep)
     keep.mkdir(parents=True)
     t0 = time.monotonic()
-    run_wall = capture_to_log(sc, RunOptions(bus=iface, out=keep))
+    run_wall, stopped = capture_to_log(sc, RunOptions(bus=iface, out=keep))
+    if stopped:
+        raise RuntimeError(f"the perf run stopped early: {stopped['message']}")
     wall = time.monotonic() - t0
     meta = {"periods": sc.periods, "run_wall_s": run_wall}
     (keep / "perf_capture.json").write_text(json.dumps(meta))

@@ -1,0 +1,164 @@
+"""Is the loop alive? The bench's judgement while a run goes on a bus, from CiA 301 error control.
+
+Both nodes produce a heartbeat (0x1017) and consume each other's (0x1016); the bench consumes
+both too (python `canopen` delivers the frames; the judgement is ours because canopen's
+`NmtMaster` has no consumer timeout). A node is named as soon as:
+
+- its process (when the bench started it) has exited: at once, with its exit status;
+- its heartbeat has not been seen for the consumer time (`heartbeat_timeout_ms`): dead or silent
+  (frozen, unplugged, bus-off);
+- its heartbeat says it left OPERATIONAL (an NMT command from elsewhere, a reset);
+- the other node reports losing it (EMCY 0x8130 with its node-ID).
+
+In lockstep the plant waits for each command without a time limit (plant.eds 0x2003:04 = 0):
+load slows the loop, it never changes it. A loop whose nodes are both alive but whose period
+index stops moving has lost a frame on the bus; `Stall` says so after `stall_s`.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import canopen
+
+from .nodes import NodeProcess
+
+NMT_STATES = {0x00: "INITIALISING (boot-up)", 0x04: "STOPPED", 0x05: "OPERATIONAL", 0x7F: "PRE-OPERATIONAL"}
+EMCY_HEARTBEAT = 0x8130
+
+
+@dataclass
+class LoopStopped(Exception):
+    """The run ended before its last period: a node died or went silent (`node_lost`), or the loop
+    stalled with both nodes alive (`frames_lost`)."""
+
+    status: str                     # node_lost | frames_lost
+    message: str
+    node: str | None = None         # plant | drive
+    node_id: int | None = None
+    at_period: int | None = None    # the plant's last period, when known
+    detected_after_s: float | None = None  # since the node's last sign of life
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def __str__(self) -> str:
+        return self.message
+
+    detected_at_unix: float = field(default_factory=time.time)  # when the bench noticed (wall clock)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"status": self.status, "message": self.message, "node": self.node, "node_id": self.node_id,
+                "at_period": self.at_period, "detected_after_s": self.detected_after_s,
+                "detected_at_unix": self.detected_at_unix, **self.details}
+
+
+def _exit_text(rc: int) -> str:
+    if rc < 0:
+        try:
+            return f"was killed by {signal.Signals(-rc).name}"
+        except ValueError:
+            return f"was killed by signal {-rc}"
+    return f"exited with status {rc}"
+
+
+class Liveness:
+    """Heartbeats, EMCYs and node processes, watched from the master's network."""
+
+    def __init__(self, net: canopen.Network, nodes: dict[str, int], procs: dict[str, NodeProcess],
+                 timeout_ms: int) -> None:
+        self.nodes = nodes                  # name -> node-ID
+        self.procs = procs                  # name -> process the bench started
+        self.timeout_s = timeout_ms / 1000.0
+        self.last: dict[str, float] = {}    # name -> monotonic time of the last heartbeat
+        self.state: dict[str, int] = {}
+        self.emcy: list[tuple[str, int, bytes, float]] = []
+        self.armed = False
+        self._lock = threading.Lock()
+        self._net = net
+        self._subs: list[tuple[int, Any]] = []
+        for name, nid in nodes.items():
+            self._sub(net, 0x700 + nid, self._hb(name))
+            self._sub(net, 0x080 + nid, self._em(name))
+
+    def _sub(self, net: canopen.Network, cob: int, cb: Any) -> None:
+        net.subscribe(cob, cb)
+        self._subs.append((cob, cb))
+
+    def close(self) -> None:
+        for cob, cb in self._subs:
+            try:
+                self._net.unsubscribe(cob, cb)
+            except (KeyError, ValueError):
+                pass
+        self._subs.clear()
+
+    def _hb(self, name: str):  # type: ignore[no-untyped-def]
+        def cb(cob_id: int, data: bytearray, ts: float) -> None:
+            if len(data) != 1:  # not a heartbeat (a foreign frame on its identifier)
+                return
+            with self._lock:
+                self.last[name] = time.monotonic()
+                self.state[name] = data[0] & 0x7F
+        return cb
+
+    def _em(self, name: str):  # type: ignore[no-untyped-def]
+        def cb(cob_id: int, data: bytearray, ts: float) -> None:
+            if len(data) == 8:
+                with self._lock:
+                    self.emcy.append((name, int.from_bytes(data[:2], "little"), bytes(data), time.monotonic()))
+        return cb
+
+    def arm(self) -> None:
+        """Start judging (the nodes are OPERATIONAL): silence counts from now for a node not yet heard."""
+        now = time.monotonic()
+        with self._lock:
+            for name in self.nodes:
+                self.last.setdefault(name, now)
+            self.emcy_seen = len(self.emcy)
+        self.armed = True
+
+    def disarm(self) -> None:
+        self.armed = False
+
+    def _who(self, name: str) -> str:
+        return f"the {name} (node 0x{self.nodes[name]:02X})"
+
+    def check(self) -> LoopStopped | None:
+        """The first sign of a lost node, or None."""
+        if not self.armed:
+            return None
+        now = time.monotonic()
+        for name, proc in self.procs.items():
+            rc = proc.proc.poll() if proc.proc is not None else None
+            if rc is not None:
+                return LoopStopped("node_lost", f"{self._who(name)}: its process {proc.name} {_exit_text(rc)}",
+                                   name, self.nodes[name], details={"cause": "process_exited", "exit_status": rc})
+        with self._lock:
+            last, state, emcy = dict(self.last), dict(self.state), list(self.emcy[self.emcy_seen:])
+        for name in self.nodes:
+            silent = now - last[name]
+            if silent > self.timeout_s:
+                return LoopStopped("node_lost", f"{self._who(name)} sent no heartbeat for {silent:.2f} s (consumer "
+                                   f"time {self.timeout_s * 1000:.0f} ms): dead or silent", name, self.nodes[name],
+                                   detected_after_s=silent, details={"cause": "heartbeat_timeout"})
+            st = state.get(name)
+            if st is not None and st != 0x05:
+                return LoopStopped("node_lost", f"{self._who(name)} left OPERATIONAL: its heartbeat says "
+                                   f"{NMT_STATES.get(st, hex(st))}", name, self.nodes[name],
+                                   details={"cause": "nmt_state", "nmt_state": NMT_STATES.get(st, hex(st))})
+        for reporter, code, data, t in emcy:
+            if code == EMCY_HEARTBEAT:
+                lost = next((n for n, i in self.nodes.items() if i == data[3]), None)
+                if lost is not None and lost != reporter:
+                    return LoopStopped("node_lost", f"{self._who(reporter)} lost the heartbeat of "
+                                       f"{self._who(lost)} (EMCY 0x8130)", lost, self.nodes[lost],
+                                       detected_after_s=now - last[lost], details={"cause": "emcy_8130",
+                                                                                   "reported_by": reporter})
+        return None
+
+    def emcy_list(self) -> list[dict[str, Any]]:
+        with self._lock:
+            return [{"node": n, "code": f"0x{c:04X}", "data": d.hex()} for n, c, d, _ in self.emcy]

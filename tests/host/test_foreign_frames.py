@@ -1,0 +1,133 @@
+"""Foreign frames in a run's stream never crash the decoder, never make periods, and never turn a
+run into a success it was not: a real run's frames (direct mode) with frames spliced in, decoded
+through the same pipeline as `bench replay`. The same frames on vcan: tests/can/test_liveness.py."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.run import RunOptions, run_scenario
+from bench.run.frames import FRAME_DTYPE
+from bench.run.pipeline import Pipeline, RunResult
+from bench.run.sinks import FrameCollector, TraceCollector
+from bench.scenario import load
+
+REPO = Path(__file__).resolve().parents[2]
+PLANT, DRIVE = 0x10, 0x20
+
+
+@pytest.fixture(scope="module")
+def clean() -> tuple[RunResult, np.ndarray]:
+    fc = FrameCollector()
+    res = run_scenario(load(REPO / "scenarios/you2019_step.toml"), RunOptions(bus="direct"), frame_sinks=[fc],
+                       keep_trace=True)
+    fc.close()
+    assert res.status == "ok"
+    return res, fc.frames
+
+
+def _decode(frames: np.ndarray, chunk: int = 337) -> RunResult:
+    tc = TraceCollector()
+    pipe = Pipeline(PLANT, DRIVE, [tc])
+    for i in range(0, len(frames), chunk):  # chunk edges fall anywhere, also between a SYNC and its PDOs
+        pipe.feed(frames[i:i + chunk])
+    res = pipe.finish("spliced", "test")
+    res.trace = tc.trace
+    return res
+
+
+def _random(rng: np.random.Generator, n: int, cob: np.ndarray | int | None = None) -> np.ndarray:
+    f = np.zeros(n, dtype=FRAME_DTYPE)
+    f["cob_id"] = rng.integers(0, 0x800, n) if cob is None else cob
+    f["dlc"] = rng.integers(0, 9, n)
+    f["data"] = rng.integers(0, 256, (n, 8))
+    f["sender"] = 255
+    return f
+
+
+def _splice(frames: np.ndarray, extra: np.ndarray, lo: int, hi: int, rng: np.random.Generator) -> np.ndarray:
+    at = np.sort(rng.integers(lo, hi, len(extra)))
+    return np.insert(frames, at, extra)
+
+
+def _loop_span(frames: np.ndarray) -> tuple[int, int]:
+    """Positions of the loop's first SYNC and of the frame after its last command (the loop's end)."""
+    sync = np.flatnonzero(frames["cob_id"] == 0x080)
+    cmd = np.flatnonzero(frames["cob_id"] == 0x210)
+    return int(sync[0]), int(cmd[cmd > sync[-1]][0]) + 1
+
+
+def _same_traces(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
+def test_unrelated_identifiers_are_counted_and_harmless(clean: tuple[RunResult, np.ndarray]) -> None:
+    ref, frames = clean
+    rng = np.random.default_rng(1)
+    used = {0x000, 0x080} | {b + n for b in (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x600, 0x700)
+                             for n in (PLANT, DRIVE)} | {0x210}
+    ids = np.array([i for i in range(0x800) if i not in used])
+    extra = _random(rng, 3000, rng.choice(ids, 3000))
+    lo, hi = _loop_span(frames)
+    res = _decode(_splice(frames, extra, lo, len(frames), rng))
+    assert res.status == "ok"
+    assert res.summary["periods"] == ref.summary["periods"]
+    assert res.summary["bus_stats"]["foreign_frames"]["frames"] == 3000
+    _same_traces(res.trace, ref.trace)
+
+
+def test_fake_syncs_in_the_loop_make_no_period_and_are_interference(clean: tuple[RunResult, np.ndarray]) -> None:
+    ref, frames = clean
+    rng = np.random.default_rng(2)
+    extra = _random(rng, 500, 0x080)
+    extra["dlc"] = rng.integers(0, 2, 500)  # what the nodes would take for a SYNC: length 0, or 1 with a counter
+    lo, hi = _loop_span(frames)
+    res = _decode(_splice(frames, extra, lo + 1, hi - 1, rng))
+    assert res.summary["periods"] == ref.summary["periods"]
+    assert res.status == "interference" and res.exit_code == 9
+    assert res.summary["bus_stats"]["interference"]["by_cob_id"]["0x080"] == 500
+    assert res.summary["bus_stats"]["lost_frames"] == 0
+    _same_traces(res.trace, ref.trace)  # a foreign SYNC never starts a period
+
+
+def test_random_frames_in_the_loop_never_pass_as_a_clean_run(clean: tuple[RunResult, np.ndarray]) -> None:
+    ref, frames = clean
+    for seed in range(3):
+        rng = np.random.default_rng(10 + seed)
+        extra = _random(rng, 20_000)
+        lo, hi = _loop_span(frames)
+        res = _decode(_splice(frames, extra, lo + 1, hi - 1, rng))
+        assert res.summary["periods"] == ref.summary["periods"]
+        hits = res.summary["bus_stats"]["interference"]["frames"]
+        # 20,000 random identifiers hit the loop's own ones: the run says so
+        assert hits > 0 and res.status == "interference", (seed, res.status, hits)
+
+
+def test_a_flood_after_the_loop_changes_nothing(clean: tuple[RunResult, np.ndarray]) -> None:
+    ref, frames = clean
+    rng = np.random.default_rng(3)
+    extra = np.concatenate([_random(rng, 20_000), _random(rng, 2000, 0x080)])
+    rng.shuffle(extra)
+    lo, hi = _loop_span(frames)
+    flooded = np.concatenate([frames[:hi], extra, frames[hi:]])  # right after the plant's final hold
+    res = _decode(flooded)
+    assert res.status == "ok", res.summary["bus_stats"]
+    assert res.summary["periods"] == ref.summary["periods"]
+    assert res.summary["bus_stats"]["lost_frames"] == 0
+    assert res.summary["bus_stats"]["after_loop_frames"] > 0
+    _same_traces(res.trace, ref.trace)
+
+
+def test_a_short_frame_on_a_pdo_identifier_does_not_crash(clean: tuple[RunResult, np.ndarray]) -> None:
+    _, frames = clean
+    rng = np.random.default_rng(4)
+    lo, hi = _loop_span(frames)
+    extra = _random(rng, 200, rng.choice([0x190, 0x290, 0x210, 0x4A0, 0x490, 0x5A0, 0x590, 0x720], 200))
+    extra["dlc"] = rng.integers(0, 3, 200)
+    res = _decode(_splice(frames, extra, lo, len(frames), rng))
+    assert res.status != "ok" or res.summary["bus_stats"]["interference"]["frames"] == 0
