@@ -68,14 +68,18 @@ class Liveness:
     """Heartbeats, EMCYs and node processes, watched from the master's network."""
 
     def __init__(self, net: canopen.Network, nodes: dict[str, int], procs: dict[str, NodeProcess],
-                 timeout_ms: int) -> None:
+                 timeout_ms: int, heartbeat_ms: int) -> None:
         self.nodes = nodes                  # name -> node-ID
         self.procs = procs                  # name -> process the bench started
         self.timeout_s = timeout_ms / 1000.0
         self.last: dict[str, float] = {}    # name -> monotonic time of the last heartbeat
         self.state: dict[str, int] = {}
         self.emcy: list[tuple[str, int, bytes, float]] = []
+        self.emcy_seen = 0
         self.armed = False
+        # heartbeats sent before the nodes took the NMT start may still be on their way when judging starts
+        self.grace_s = 2 * heartbeat_ms / 1000.0 + 0.2
+        self._armed_at = 0.0
         self._lock = threading.Lock()
         self._net = net
         self._subs: list[tuple[int, Any]] = []
@@ -99,9 +103,11 @@ class Liveness:
         def cb(cob_id: int, data: bytearray, ts: float) -> None:
             if len(data) != 1:  # not a heartbeat (a foreign frame on its identifier)
                 return
+            now = time.monotonic()
             with self._lock:
-                self.last[name] = time.monotonic()
-                self.state[name] = data[0] & 0x7F
+                self.last[name] = now
+                if now - self._armed_at > self.grace_s:
+                    self.state[name] = data[0] & 0x7F
         return cb
 
     def _em(self, name: str):  # type: ignore[no-untyped-def]
@@ -115,8 +121,10 @@ class Liveness:
         """Start judging (the nodes are OPERATIONAL): silence counts from now for a node not yet heard."""
         now = time.monotonic()
         with self._lock:
+            self._armed_at = now
+            self.state.clear()
             for name in self.nodes:
-                self.last.setdefault(name, now)
+                self.last[name] = max(self.last.get(name, now), now)
             self.emcy_seen = len(self.emcy)
         self.armed = True
 

@@ -264,6 +264,8 @@ def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink]
     run_wall = 0.0
     stopped: dict[str, Any] | None = None
     try:
+        if opts.out is not None:
+            opts.out.mkdir(parents=True, exist_ok=True)
         if opts.bus != "direct" and opts.interface == "socketcan" and opts.record:
             if opts.out is None:
                 raise ValueError("a run over SocketCAN needs opts.out for candump's log")

@@ -131,7 +131,8 @@ class Session:
             n.sdo.RESPONSE_TIMEOUT = 5.0
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
             self.liveness = Liveness(self.net, {"plant": self.opts.plant_id, "drive": self.opts.drive_id},
-                                     getattr(self, "node_procs", {}), self.opts.heartbeat_timeout_ms)
+                                     getattr(self, "node_procs", {}), self.opts.heartbeat_timeout_ms,
+                                     self.opts.heartbeat_ms)
 
     def close(self) -> None:
         if self.liveness is not None:

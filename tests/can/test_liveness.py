@@ -170,3 +170,15 @@ def test_a_flood_after_the_loop_changes_nothing(vcan0: str, tmp_path: Path) -> N
     assert ref.trace is not None and res.trace is not None
     _same(res.trace, ref.trace)
     _no_process_left()
+
+
+# ---------------------------------------------------------------------------------------- bad buses
+
+def test_a_bus_that_does_not_exist_is_named_before_anything_starts(vcan0: str, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "nonexistent0", "--out",
+                          str(out), "--no-viewer"], capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert res.returncode == 2, res.stderr
+    assert "nonexistent0" in res.stderr and f"{vcan0} (up)" in res.stderr  # the buses that exist
+    assert list(tmp_path.iterdir()) == []
+    _no_process_left()

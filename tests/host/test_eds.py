@@ -57,3 +57,17 @@ def test_controller_status_values_are_pdo_mappable() -> None:
     for sub in ("K1_V_A", "K2_V_A", "G_V_A", "limited"):
         assert od["Zhao 2022"][sub].pdo_mappable, sub
     assert not od["Controller"]["Ts_s"].pdo_mappable  # a parameter, refused by the node (0x06040041)
+
+
+@pytest.mark.parametrize("node", ["plant", "drive"])
+def test_cia301_details(node: str) -> None:
+    """Found by canopend and canopen-monitor: the nodes answer no RTR, so every TPDO's default COB-ID
+    says so (bit 30 set, CiA 301 7.5.2.35); and no Description carries '=', which INI readers split on."""
+    od = canopen.import_od(str(EDS_DIR / f"{node}.eds"), node_id=0x10)
+    tpdos = [od[0x1800 + n][1] for n in range(512) if 0x1800 + n in od]
+    assert tpdos
+    for var in tpdos:
+        assert var.default & 0x40000000, f"{node}.eds {var.index:04X}sub1 = {var.default:#x}: RTR allowed"
+    text = (EDS_DIR / f"{node}.eds").read_text()
+    bad = [ln for ln in text.splitlines() if ln.startswith("Description=") and "=" in ln[len("Description="):]]
+    assert not bad, bad[:3]

@@ -93,3 +93,16 @@ def test_a_refused_value_names_the_limit_and_leaves_nothing(tmp_path: Path) -> N
     assert res.returncode == 2, res.stderr
     assert "pi_bandwidth_Hz = 50000" in res.stderr and "1/(6 Ts) = 3030.3" in res.stderr, res.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bus_the_host_cannot_have_is_refused_before_anything_starts(tmp_path: Path) -> None:
+    from bench.canbus import probe_af_can
+
+    out = tmp_path / "run"
+    res = subprocess.run([*BENCH, "run", str(STEP), "--bus", "nonexistent0", "--no-viewer", "--out", str(out)],
+                         capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert res.returncode == 2, res.stderr
+    assert "nonexistent0" in res.stderr
+    if not probe_af_can().af_can:  # this host: the VM supplies virtual buses only, and says so
+        assert "vcan0, vcan1" in res.stderr
+    assert list(tmp_path.iterdir()) == []
