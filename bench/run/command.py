@@ -93,10 +93,15 @@ def _bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
             return None, True  # the VM creates it
         return (f"--bus {args.bus}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
                 "only (--bus vcan0, vcan1, ...), or use --bus direct"), False
-    if host_has_vcan(args.bus):
+    if virtual and host_has_vcan(args.bus):  # a vcan is made when missing (as root); a real bus never is
         return None, False
     state = interface_state(args.bus)
-    buses = ", ".join(f"{n} ({s})" for n, s in can_interfaces()) or "none"
+    cans = can_interfaces()
+    buses = ", ".join(f"{n} ({s})" for n, s in cans) or "none"
+    if state is not None and args.bus not in {n for n, _ in cans}:
+        return f"--bus {args.bus}: a network interface, but not a CAN one; the CAN interfaces here: {buses}", False
+    if not virtual and state == "up":
+        return None, False
     if state is None:
         return (f"--bus {args.bus}: no such CAN interface; this machine has: {buses}"
                 + ("" if virtual else "; or use --bus direct or a vcan name")), False

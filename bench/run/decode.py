@@ -254,6 +254,8 @@ class Decoder:
             hit[hit] = counter[c[hit]] == meas_counter[hit]
             sync[cand[c[hit]]] = True
             done |= hit
+            if done.all():  # a clean stream: every measurement found its SYNC right before it
+                break
         return sync  # an undecided tail (no measurement yet) is decided with the next chunk: the carry keeps it
 
     def _count_new(self, frames: np.ndarray) -> None:
