@@ -35,6 +35,7 @@ PROGRESS = Callable[[int, int], None]
 class SettingRefused(RuntimeError):
     """A node refused a value of the scenario (SDO abort): bad input, named with the EDS's limits."""
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
+POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
 
 
 @dataclass
@@ -383,6 +384,9 @@ class Session:
             if tick:
                 tick()
             # ... and, should it be missed, the same information by SDO (a foreign frame may spoil one answer)
+            # A short answer time: a dead plant must not hold up the liveness checks for the usual 5 s.
+            sdo, wait = self.plant.sdo, self.plant.sdo.RESPONSE_TIMEOUT
+            sdo.RESPONSE_TIMEOUT = POLL_ANSWER_S
             try:
                 was, index = index, rc["period_index"].raw
                 if index >= target_index and rc["state"].raw == 0:
@@ -390,6 +394,8 @@ class Session:
             except SdoError:
                 self._check_alive(index)
                 continue
+            finally:
+                sdo.RESPONSE_TIMEOUT = wait
             if index != was:
                 moved = time.monotonic()
             elif time.monotonic() - moved > self.opts.stall_s:

@@ -102,8 +102,10 @@ def test_a_lost_node_is_named_at_once(vcan0: str, tmp_path: Path, node: str, how
     summary = json.loads((out / "summary.json").read_text())
     stopped = summary["stopped"]
     assert summary["status"] == "node_lost" and stopped["node"] == node
-    cause = "process_exited" if how == signal.SIGKILL else "heartbeat_timeout"
-    assert stopped["cause"] == cause, stopped
+    # a killed node's process is seen to exit; a frozen one falls silent, which the bench and the other
+    # node (EMCY 0x8130) notice at about the same time
+    causes = {"process_exited"} if how == signal.SIGKILL else {"heartbeat_timeout", "emcy_8130"}
+    assert stopped["cause"] in causes, stopped
     # named within the heartbeat consumer time plus a second
     assert stopped["detected_at_unix"] - t_kill < HEARTBEAT_TIMEOUT_S + 1.0, stopped
     assert f"the {node} (node 0x" in stdout and "NODE_LOST" in stdout, stdout
