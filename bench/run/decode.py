@@ -33,6 +33,7 @@ from .sdo_log import SdoLog
 from .signals import SignalInfo, column_name
 
 SQRT3 = math.sqrt(3.0)
+KIND_FOREIGN, KIND_KNOWN, KIND_EMCY = 0, 1, 2  # what an identifier is to the run
 SYNC_LOOKBACK = 4  # foreign SYNCs tolerated between the plant's SYNC and its measurement
 REFERENCES = ("iq_ref_A", "id_ref_A")
 TPDOS = 4
@@ -105,6 +106,7 @@ class Decoder:
         self._cmd_cob: int | None = None
         self._meas: tuple[int, int] | None = None   # (COB-ID, byte offset) of Measurement.sync_counter
         self._known: np.ndarray = self._base_known()
+        self._kind = self._kinds()
         self.emcy: list[dict[str, object]] = []
 
     def _base_known(self) -> np.ndarray:
@@ -115,6 +117,7 @@ class Decoder:
             for base in (0x080, 0x580, 0x600, 0x700):
                 known[base + nid] = True
         self._service = known.copy()
+
         known[self.sdo.sync_cob_id & 0x7FF] = True
         return known
 
@@ -132,6 +135,7 @@ class Decoder:
         self._known = self._base_known()
         for p in [*self.layout.pdos, *hold]:
             self._known[p.cob_id & 0x7FF] = True
+        self._kind = self._kinds()
         for p in self.layout.pdos:
             off = 0
             for q, fmt in p.signals:
@@ -168,8 +172,8 @@ class Decoder:
                 hits = np.nonzero(buf["cob_id"][start:] == self.sdo.sync_cob_id)[0]
                 first = start + int(hits[0]) if len(hits) else len(buf)
                 self._follow_sdo(buf[start:first], np.zeros(first - start, dtype=np.int64))
+                self._count_new(buf[start:first], np.zeros(first - start, dtype=np.int64))
                 if first == len(buf):
-                    self._count_new(buf)
                     self._carry = np.zeros(0, dtype=FRAME_DTYPE)
                     return None
                 if buf["cob_id"][first] == self.sdo.sync_cob_id:
@@ -178,10 +182,9 @@ class Decoder:
             self._freeze()
             buf, new_from = buf[first:], 0
         assert self.layout is not None
-        self._count_new(frames)
         sync = self._genuine_syncs(buf)
         period_of = self._base + np.cumsum(sync) - 1  # frames before the carry's SYNC: none (it starts with one)
-        self._emcy(buf[new_from:], period_of[new_from:])
+        self._count_new(buf[new_from:], period_of[new_from:])
         sdo = self.sdo.mask(buf)
         sdo[:new_from] = False
         if sdo.any():
@@ -195,7 +198,7 @@ class Decoder:
         # with SYNC P the last seen, rows below P-1 are; keep the frames from SYNC P-1 on.
         keep_from = int(sync_pos[-2])
         stop = int(period_of[keep_from])
-        rows = self._rows(buf, period_of, self._emitted, stop) if stop > self._emitted else None
+        rows = self._rows(buf, period_of, sync, self._emitted, stop) if stop > self._emitted else None
         self._carry = buf[keep_from:]
         self._base = stop
         return rows
@@ -223,7 +226,13 @@ class Decoder:
         period_of = self._base + np.cumsum(sync) - 1
         stop = int(period_of[-1]) + 1
         self._carry = np.zeros(0, dtype=FRAME_DTYPE)
-        return self._rows(buf, period_of, self._emitted, stop) if stop > self._emitted else None
+        return self._rows(buf, period_of, sync, self._emitted, stop) if stop > self._emitted else None
+
+    def _kinds(self) -> np.ndarray:
+        kind = np.where(self._known, KIND_KNOWN, KIND_FOREIGN).astype(np.uint8)
+        for nid in (self.sdo.plant.node_id, self.sdo.drive.node_id):
+            kind[0x080 + nid] = KIND_EMCY
+        return kind
 
     def _genuine_syncs(self, buf: np.ndarray) -> np.ndarray:
         """Mask of the plant's own SYNCs in buf: the SYNC's counter is the sync_counter of the plant's
@@ -258,23 +267,25 @@ class Decoder:
                 break
         return sync  # an undecided tail (no measurement yet) is decided with the next chunk: the carry keeps it
 
-    def _count_new(self, frames: np.ndarray) -> None:
-        """Frames on identifiers the run does not use, by COB-ID (each frame counted once, when new)."""
-        cob = frames["cob_id"].astype(np.int64) & 0x7FF
-        foreign = ~self._known[cob]
+    def _count_new(self, frames: np.ndarray, periods: np.ndarray) -> None:
+        """Frames on identifiers the run does not use, by COB-ID, and the EMCYs (each frame once, when new)."""
+        cob = frames["cob_id"] & 0x7FF
+        kind = self._kind[cob]  # one lookup for both
+        if (kind == KIND_EMCY).any():
+            self._emcy(frames, periods, np.flatnonzero(kind == KIND_EMCY))
+        foreign = kind == KIND_FOREIGN
         if foreign.any():
             ids, n = np.unique(cob[foreign], return_counts=True)
             for i, c in zip(ids.tolist(), n.tolist()):
                 self.stats.foreign[i] = self.stats.foreign.get(i, 0) + c
 
-    def _emcy(self, frames: np.ndarray, periods: np.ndarray) -> None:
+    def _emcy(self, frames: np.ndarray, periods: np.ndarray, hit: np.ndarray) -> None:
         """EMCY frames of both nodes (CiA 301: code, error register, 5 bytes manufacturer-specific)."""
         if len(self.emcy) >= 1000:
             return
         names = {0x080 + self.sdo.plant.node_id: "plant", 0x080 + self.sdo.drive.node_id: "drive"}
         cob = frames["cob_id"]
-        hit = np.flatnonzero(((cob == 0x080 + self.sdo.plant.node_id) | (cob == 0x080 + self.sdo.drive.node_id))
-                             & (frames["dlc"] == 8))
+        hit = hit[frames["dlc"][hit] == 8]
         for i in hit[: 1000 - len(self.emcy)].tolist():
             d = bytes(frames["data"][i])
             self.emcy.append({"period": max(0, int(periods[i])), "node": names[int(cob[i])],
@@ -287,7 +298,8 @@ class Decoder:
             self.sdo.feed(frames[m], periods[m])
 
     # ------------------------------------------------------------------ rows
-    def _rows(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> dict[str, np.ndarray]:
+    def _rows(self, buf: np.ndarray, period_of: np.ndarray, is_sync: np.ndarray, r0: int, r1: int
+              ) -> dict[str, np.ndarray]:
         assert self.layout is not None
         n = r1 - r0
         st = self.stats
@@ -295,8 +307,7 @@ class Decoder:
         out["t_s"] = out["period"] * self.ts_s
         cob = np.ascontiguousarray(buf["cob_id"])
         data = buf["data"]
-        is_sync = np.r_[True, np.diff(period_of) != 0] & (cob == self.layout.sync_cob_id)  # a period's first frame
-        sync = np.flatnonzero(is_sync)
+        sync = np.flatnonzero(is_sync)  # the plant's SYNCs (_genuine_syncs): each starts its period
         foreign_sync = np.flatnonzero((cob == self.layout.sync_cob_id) & ~is_sync)
         fs_per = period_of[foreign_sync]
         self._interfere(self.layout.sync_cob_id, fs_per[(fs_per >= r0) & (fs_per < r1)])

@@ -429,14 +429,18 @@ class Session:
         t0 = time.monotonic()
         events = {e.at_period: e for e in sc.events}
         for stop in bounds:
-            if stop > start:
-                self._run_segment(stop - start, stop - 1, tick)
-                if tick and self.hil is None:
-                    tick()  # over a bus: decode what the segment recorded (short segments never wait)
-            self._period = stop
-            if stop in events:
-                for s in events[stop].settings:
-                    self._apply(s)
+            try:
+                if stop > start:
+                    self._run_segment(stop - start, stop - 1, tick)
+                    if tick and self.hil is None:
+                        tick()  # over a bus: decode what the segment recorded (short segments never wait)
+                self._period = stop
+                if stop in events:
+                    for s in events[stop].settings:
+                        self._apply(s)
+            except SdoCommunicationError:  # a node that stopped answering: named if it is lost
+                self._check_alive(self._period - 1)
+                raise
             start = stop
             if progress:
                 progress(start, sc.periods)
