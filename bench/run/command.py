@@ -24,6 +24,9 @@ from .canlog import LOG_FORMATS
 from .outputs import Outputs, print_result
 
 
+CAPTURE_REFUSED = 65  # `bench capture` in the VM: a node refused a value of the scenario (EX_DATAERR)
+
+
 def default_out(sc: Scenario) -> Path:
     return Path("runs") / f"{sc.name}-{time.strftime('%Y%m%d-%H%M%S')}"
 
@@ -168,9 +171,9 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     partial.rename(out)
     print_result(out, result)
     if cut:
-        print(f"bench run: interrupted while writing the results; the run is complete and kept in {out} "
-              f"({cut})", file=sys.stderr)
-        return 130, result, out
+        print(f"bench run: the results were not all written; the run is complete and kept in {out} ({cut})",
+              file=sys.stderr)
+        return (130 if cut.startswith("interrupted") else 1), result, out
     outputs.serve(args)
     return result.exit_code, result, out
 
@@ -185,10 +188,11 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
 
     def on_sigint(signum: int, frame: Any) -> None:
         presses[0] += 1
-        if presses[0] == 1:
-            print("\nbench run: the loop is complete; finishing its results (a few seconds). Ctrl-C again "
-                  "stops now, keeping what is written.", file=sys.stderr, flush=True)
+        if presses[0] == 1:  # os.write: print() may be in use by the interrupted code
+            os.write(2, b"\nbench run: the loop is complete; finishing its results (a few seconds). Ctrl-C "
+                        b"again stops now, keeping what is written.\n")
             return
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a third press must not cut the saving below
         raise KeyboardInterrupt
 
     main = threading.current_thread() is threading.main_thread()
@@ -196,12 +200,17 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
     try:
         outputs.finish(result)
         return None
-    except KeyboardInterrupt:
-        outputs.abort()
-        outputs.write_summary(result)
+    except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - the run's data is kept whatever failed
+        if main:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        why = "interrupted" if isinstance(exc, KeyboardInterrupt) else f"writing failed: {exc}"
+        try:
+            outputs.abort()
+        finally:
+            outputs.write_summary(result, complete=False)
         missing = [f for f in ("bus.log", "run.rrd") if not (partial / f).exists()]
-        return "the plots and the recording may be incomplete" + (f"; missing: {', '.join(missing)}"
-                                                                  if missing else "")
+        return f"{why}; the plots and the recording may be incomplete" + (f"; missing: {', '.join(missing)}"
+                                                                         if missing else "")
     finally:
         if main:
             signal.signal(signal.SIGINT, old)
@@ -280,7 +289,7 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
                 th.join()
             if errors:
                 raise errors[0]
-            if rc == 2:
+            if rc == CAPTURE_REFUSED:
                 from .session import SettingRefused
 
                 raise SettingRefused("a node refused a value of the scenario (the line above says which)")
@@ -288,7 +297,9 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
                 raise RuntimeError(f"the capture inside the VM failed with status {rc}")
             pipe.feed(follower.drain(final=True))
             bar.update(pipe.periods - bar.n)
-        cap = json.loads((stage / "capture.json").read_text()) if (stage / "capture.json").exists() else {}
+        if not (stage / "capture.json").exists():
+            raise RuntimeError("the capture inside the VM ended without saying how (no capture.json)")
+        cap = json.loads((stage / "capture.json").read_text())
         (stage / "capture.json").unlink(missing_ok=True)
     finally:  # what was recorded goes with the run (NAME.failed when it failed)
         for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
@@ -327,9 +338,9 @@ def capture_only(args: argparse.Namespace) -> int:
 
     try:
         run_wall, stopped = capture_to_log(sc, opts)
-    except SettingRefused as exc:  # bad input: the host exits 2 too
+    except SettingRefused as exc:  # bad input: the host exits 2
         print(f"bench capture: {exc}", file=sys.stderr)
-        return 2
+        return CAPTURE_REFUSED
     except Exception as exc:  # noqa: BLE001 - one line the host shows (the VM's console is filtered)
         print(f"bench capture: FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1

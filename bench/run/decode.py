@@ -77,6 +77,7 @@ class DecodeStats:
                                                                 # does not use (and foreign SYNCs)
     interference: dict[int, int] = field(default_factory=dict)  # COB-ID -> extra frames on the loop's own
     first_interference_period: int | None = None
+    first_lost_period: int | None = None     # the first period with a missing frame, a gap or a misaligned sample
     after_loop_frames: int = 0
     sync_counter_gaps: int = 0
     sample_index_mismatches: int = 0
@@ -104,6 +105,10 @@ class Decoder:
         self._last_sync_period = -1
         self.hold_cob_id: int | None = None
         self._cmd_cob: int | None = None
+        self._carry_genuine = False  # the carry starts at a SYNC already judged the plant's
+        self._nmt_seen = False       # an NMT command went by (a master configuring the nodes) ...
+        self._nmt_started = False    # ... and NMT start: the loop's SYNCs come after it
+        self._index: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sample_index
         self._meas: tuple[int, int] | None = None   # (COB-ID, byte offset) of Measurement.sync_counter
         self._known: np.ndarray = self._base_known()
         self._kind = self._kinds()
@@ -141,6 +146,8 @@ class Decoder:
             for q, fmt in p.signals:
                 if p.node == "plant" and q == "Measurement.sync_counter" and fmt == "B":
                     self._meas = (p.cob_id, off)
+                if p.node == "plant" and q == "Measurement.sample_index" and fmt == "H":
+                    self._index = (p.cob_id, off)
                 off += np.dtype(fmt).itemsize
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
@@ -173,16 +180,27 @@ class Decoder:
                 first = start + int(hits[0]) if len(hits) else len(buf)
                 self._follow_sdo(buf[start:first], np.zeros(first - start, dtype=np.int64))
                 self._count_new(buf[start:first], np.zeros(first - start, dtype=np.int64))
+                seg = buf[start:first]
+                nmt = seg[(seg["cob_id"] == 0) & (seg["dlc"] == 2)]
+                if len(nmt):
+                    self._nmt_seen = True
+                    self._nmt_started |= bool((nmt["data"][:, 0] == 0x01).any())
                 if first == len(buf):
                     self._carry = np.zeros(0, dtype=FRAME_DTYPE)
                     return None
                 if buf["cob_id"][first] == self.sdo.sync_cob_id:
-                    break
+                    if not self._nmt_seen or self._nmt_started:
+                        break
+                    # a SYNC while the master configures (NMT reset seen, no start yet) is not the loop's
+                    self.stats.foreign[self.sdo.sync_cob_id] = self.stats.foreign.get(self.sdo.sync_cob_id, 0) + 1
+                    first += 1
                 start = first
             self._freeze()
             buf, new_from = buf[first:], 0
         assert self.layout is not None
         sync = self._genuine_syncs(buf)
+        if new_from > 0 and self._carry_genuine:
+            sync[0] = True  # the carry starts at a plant SYNC (decided with the chunk before)
         period_of = self._base + np.cumsum(sync) - 1  # frames before the carry's SYNC: none (it starts with one)
         self._count_new(buf[new_from:], period_of[new_from:])
         sdo = self.sdo.mask(buf)
@@ -200,6 +218,7 @@ class Decoder:
         stop = int(period_of[keep_from])
         rows = self._rows(buf, period_of, sync, self._emitted, stop) if stop > self._emitted else None
         self._carry = buf[keep_from:]
+        self._carry_genuine = True
         self._base = stop
         return rows
 
@@ -209,6 +228,7 @@ class Decoder:
             return None
         buf = self._carry
         sync = self._genuine_syncs(buf)
+        sync[0] |= self._carry_genuine  # the carry starts at a plant SYNC
         if self._cmd_cob is not None and sync.any():
             # the loop ends with the command of its last period (what the plant waits for before it holds):
             # what follows is after the loop (a flood there is counted, and cannot change the verdict)
@@ -265,6 +285,18 @@ class Decoder:
             done |= hit
             if done.all():  # a clean stream: every measurement found its SYNC right before it
                 break
+        # A SYNC whose measurement was lost: length 1, its counter right after the previous plant SYNC's and
+        # right before the next one's (a period then counted as missing its measurement, not as foreign).
+        g = sync[cand]
+        gi = np.flatnonzero(g)
+        rest = np.flatnonzero(~g & (dlc == 1))
+        if len(gi) >= 2 and len(rest):
+            k = np.searchsorted(gi, rest)
+            ok = (k > 0) & (k < len(gi))
+            rest, k = rest[ok], k[ok]
+            c, prev, nxt = counter[rest], counter[gi[k - 1]], counter[gi[k]]
+            fit = (np.where(prev >= overflow, 1, prev + 1) == c) & (np.where(c >= overflow, 1, c + 1) == nxt)
+            sync[cand[rest[fit]]] = True
         return sync  # an undecided tail (no measurement yet) is decided with the next chunk: the carry keeps it
 
     def _count_new(self, frames: np.ndarray, periods: np.ndarray) -> None:
@@ -319,6 +351,8 @@ class Decoder:
         out["sync_counter"] = sc
         miss_meas = np.zeros(n, dtype=bool)
         miss_cmd = np.zeros(n, dtype=bool)
+        misaligned = self._misaligned(buf, period_of, r0, r1)
+        realtime = self.sdo.plant.get("Run control", "mode") == 1
         for cob_id, ps in st.pdos.items():
             pdo = ps.pdo
             pos = np.flatnonzero(cob == cob_id)
@@ -330,8 +364,20 @@ class Decoder:
             if len(per) > 1:  # one frame per period: a second one is interference (the first is the loop's)
                 dup = np.r_[False, per[1:] == per[:-1]]
                 if dup.any():
-                    self._interfere(cob_id, per[dup])
-                    pos, per = pos[~dup], per[~dup]
+                    is_cmd = pdo.node == "drive" and pdo.trans_type > 240
+                    if is_cmd and realtime:
+                        # real time: a late command lands in the next period (the plant counts it late);
+                        # the period's own command is the last one
+                        last = np.r_[per[1:] != per[:-1], True]
+                        pos, per = pos[last], per[last]
+                    else:
+                        # a PDO twice in a period that holds the next period's sample: the SYNC between them
+                        # was lost (frames_lost), not a foreign frame (a synchronous drive TPDO is one behind)
+                        shift = 1 if pdo.node == "drive" and pdo.trans_type <= 240 else 0
+                        lost = dup & np.isin(per + shift, misaligned)
+                        self._interfere(cob_id, per[dup & ~lost])
+                        self._lost(per[lost])
+                        pos, per = pos[~dup], per[~dup]
             per = per - r0
             dt = pdo.numpy_dtype()
             vals = np.ascontiguousarray(data[pos, : dt.itemsize]).view(dt).reshape(-1)
@@ -359,12 +405,33 @@ class Decoder:
             ps.non_finite += int(bad.sum())
         st.missing_measurements += int(miss_meas.sum())
         st.missing_commands += int(miss_cmd.sum())
+        self._lost(out["period"][miss_meas | miss_cmd])
         self._derive(out)
         self._references(out, r0, r1)
         self._continuity(out)
         st.periods = r1
         self._emitted = r1
         return out
+
+    def _misaligned(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> np.ndarray:
+        """Periods in [r0, r1) holding a measurement whose sample index is not theirs (a lost SYNC)."""
+        if self._index is None:
+            return np.zeros(0, dtype=np.int64)
+        cob_id, off = self._index
+        pos = np.flatnonzero(buf["cob_id"] == cob_id)
+        per = period_of[pos]
+        ok = (per >= r0) & (per < r1)
+        pos, per = pos[ok], per[ok]
+        d = buf["data"][pos]
+        si = d[:, off].astype(np.int64) | (d[:, off + 1].astype(np.int64) << 8)
+        return np.unique(per[si != per % 65536])
+
+    def _lost(self, periods: np.ndarray) -> None:
+        if len(periods):
+            first = int(periods.min())
+            st = self.stats
+            if st.first_lost_period is None or first < st.first_lost_period:
+                st.first_lost_period = first
 
     def _interfere(self, cob_id: int, periods: np.ndarray) -> None:
         if len(periods) == 0:
@@ -417,10 +484,14 @@ class Decoder:
         if len(vals) > 1:
             consecutive = np.diff(pers) == 1  # a gap is judged between neighbouring periods only
             expect = np.where(vals[:-1] >= overflow, 1, vals[:-1] + 1)
-            self.stats.sync_counter_gaps += int(((vals[1:] != expect) & consecutive).sum())
+            gap = (vals[1:] != expect) & consecutive
+            self.stats.sync_counter_gaps += int(gap.sum())
+            self._lost(pers[1:][gap] - 1)
         if len(vals):
             self._last_sync, self._last_sync_period = int(vals[-1]), int(pers[-1])
         if "sample_index" in out:
             si = out["sample_index"]
             good = np.isfinite(si)
-            self.stats.sample_index_mismatches += int((si[good] != (out["period"][good] % 65536)).sum())
+            wrong = si[good] != (out["period"][good] % 65536)
+            self.stats.sample_index_mismatches += int(wrong.sum())
+            self._lost(out["period"][good][wrong])

@@ -104,17 +104,20 @@ class Liveness:
             if len(data) != 1:  # not a heartbeat (a foreign frame on its identifier)
                 return
             now = time.monotonic()
+            st = data[0] & 0x7F
             with self._lock:
                 self.last[name] = now
-                if now - self._armed_at > self.grace_s:
-                    self.state[name] = data[0] & 0x7F
+                # judged from the first OPERATIONAL heartbeat after the start (an older one may be late)
+                if st == 0x05 or (name in self.state and now - self._armed_at > self.grace_s):
+                    self.state[name] = st
         return cb
 
     def _em(self, name: str):  # type: ignore[no-untyped-def]
         def cb(cob_id: int, data: bytearray, ts: float) -> None:
-            if len(data) == 8:
+            # only the heartbeat-loss EMCY matters here (the decoder lists every EMCY from the log); bounded
+            if len(data) == 8 and int.from_bytes(data[:2], "little") == EMCY_HEARTBEAT and len(self.emcy) < 1000:
                 with self._lock:
-                    self.emcy.append((name, int.from_bytes(data[:2], "little"), bytes(data), time.monotonic()))
+                    self.emcy.append((name, EMCY_HEARTBEAT, bytes(data), time.monotonic()))
         return cb
 
     def arm(self) -> None:
@@ -146,6 +149,12 @@ class Liveness:
                                    name, self.nodes[name], details={"cause": "process_exited", "exit_status": rc})
         with self._lock:
             last, state, emcy = dict(self.last), dict(self.state), list(self.emcy[self.emcy_seen:])
+        if any(now - last[n] > self.timeout_s for n in self.nodes):
+            # a heartbeat may wait in the socket while this process was busy: let the notifier run, look again
+            time.sleep(self.grace_s / 2)
+            now = time.monotonic()
+            with self._lock:
+                last = dict(self.last)
         for name in self.nodes:
             silent = now - last[name]
             if silent > self.timeout_s:

@@ -116,14 +116,15 @@ class Outputs:
             shown = []
         self.write_summary(result, [f for f in shown if f.endswith(".svg")])
 
-    def write_summary(self, result: Any, plots: list[str] | None = None) -> None:
+    def write_summary(self, result: Any, plots: list[str] | None = None, complete: bool = True) -> None:
+        """summary.json; `complete` False: the writing was cut, only the files the run's data is in are listed."""
         cand = self.folder / "candump.log"
         if cand.exists() and not self.log_path.exists():
             cand.rename(self.log_path)
         summary = result.summary
         summary["files"] = {"log": self.log_path.name, "traces": TRACES_FILE,
-                            "exports": [f"bus.{f}" for f in self.log_formats],
-                            "recording": "run.rrd", "plots": plots or []}
+                            "exports": [f"bus.{f}" for f in self.log_formats] if complete else [],
+                            "recording": "run.rrd" if complete else None, "plots": plots or []}
         (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
 
     def abort(self) -> None:

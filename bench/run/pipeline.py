@@ -181,18 +181,25 @@ class Pipeline:
         # oscillates (an unstable loop held by the voltage limit): diverged, though bounded.
         oscillating = [s["at_period"] for s in steps if s["periods_to_settle"] is None
                        and (s["tail_peak_to_peak_A"] or 0.0) > 0.5 * abs(s["to_A"] - s["from_A"])]
+        # The periods the master ran (its run_periods writes, in the log): a log with fewer (cut short, a
+        # recorder that lost the end) or more is not the run, unless the run stopped early.
+        planned = sum(int(v) for _, v in dec.sdo.changes("Run control.run_periods", node="plant")
+                      if 0 < v < 0xFFFFFFFF)
+        bstats["planned_periods"] = planned or None
+        short = bool(planned) and dec.stats.periods != planned and not stopped
         flags = {
             "non_finite": bool(bstats["non_finite_values"]),
             "diverged": (bound is not None and self.max_phase_A > bound) or bool(oscillating),
             "tripped": self.first_trip_period is not None or bool(trip_active),
-            "frames_lost": bstats["lost_frames"] > 0 or bool(stopped and stopped["status"] == "frames_lost"),
+            "frames_lost": bstats["lost_frames"] > 0 or short or bool(stopped and stopped["status"] == "frames_lost"),
             "node_lost": bool(stopped and stopped["status"] == "node_lost"),
             "interference": bstats["interference"]["frames"] > 0,
         }
         first = {"non_finite": dec.stats.first_non_finite_period, "tripped": self.first_trip_period,
                  "diverged": self.first_beyond_bound_period if self.first_beyond_bound_period is not None
                  else (oscillating[0] if oscillating else None),
-                 "interference": bstats["interference"]["first_period"]}
+                 "interference": bstats["interference"]["first_period"],
+                 "frames_lost": dec.stats.first_lost_period}
         if stopped:
             at = stopped.get("at_period")
             first[stopped["status"]] = at if at is not None else dec.stats.periods

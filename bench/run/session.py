@@ -11,6 +11,7 @@ returns nothing the frames do not also say (bench/run/sdo_log.py reads it back f
 
 from __future__ import annotations
 
+import queue
 import struct
 import threading
 import time
@@ -54,8 +55,9 @@ class RunOptions:
                                    # (then nothing is decoded: the result has no periods)
     chunk_periods: int = 65_536    # periods per chunk of the pipeline (direct mode: per C call)
     heartbeat_ms: int = 100        # both nodes' heartbeat producer time (0x1017)
-    heartbeat_timeout_ms: int = 500  # consumer time (0x1016 of each node, and the bench's): a node silent this
-                                     # long is named and the run stops
+    heartbeat_timeout_ms: int = 1000  # consumer time (0x1016 of each node, and the bench's): a node silent
+                                      # this long is named and the run stops (10 heartbeats: load in a VM
+                                      # must not look like a dead node)
     stall_s: float = 10.0          # both nodes alive, the period index still for this long: a frame was lost
 
 
@@ -371,10 +373,12 @@ class Session:
         index, moved = -1, time.monotonic()
         last_poll = 0.0
         while True:
-            # the hold announcement (no bus load, no CPU while the loop runs) ...
+            # the hold announcement (no bus load, no CPU while the loop runs), confirmed by SDO (a frame of
+            # the same identifier and length from elsewhere must not end a segment early) ...
             if self._hold.wait(timeout=0.1) and self._hold_index >= target_index:
                 self._hold.clear()
-                return
+                if self._poll(rc, target_index) is True:
+                    return
             self._hold.clear()
             self._check_alive(index)
             now = time.monotonic()
@@ -383,26 +387,37 @@ class Session:
             last_poll = now
             if tick:
                 tick()
-            # ... and, should it be missed, the same information by SDO (a foreign frame may spoil one answer)
-            # A short answer time: a dead plant must not hold up the liveness checks for the usual 5 s.
-            sdo, wait = self.plant.sdo, self.plant.sdo.RESPONSE_TIMEOUT
-            sdo.RESPONSE_TIMEOUT = POLL_ANSWER_S
-            try:
-                was, index = index, rc["period_index"].raw
-                if index >= target_index and rc["state"].raw == 0:
-                    return
-            except SdoError:
-                self._check_alive(index)
-                continue
-            finally:
-                sdo.RESPONSE_TIMEOUT = wait
+            # ... and, should it be missed, the same information by SDO
+            got = self._poll(rc, target_index)
+            if got is True:
+                return
+            was, index = index, (got if got is not None else index)
             if index != was:
                 moved = time.monotonic()
-            elif time.monotonic() - moved > self.opts.stall_s:
+            elif time.monotonic() - moved > self.opts.stall_s:  # also when the plant stops answering SDO
                 self._check_alive(index)
                 raise LoopStopped("frames_lost", f"the loop stalled at period {index}: both nodes alive, no "
-                                  f"period for {self.opts.stall_s:g} s (a frame of the loop was lost on the bus)",
-                                  at_period=index)
+                                  f"progress for {self.opts.stall_s:g} s (a frame of the loop was lost on the "
+                                  "bus, or the plant no longer answers SDO)", at_period=index)
+
+    def _poll(self, rc, target_index: int) -> bool | int | None:  # type: ignore[no-untyped-def]
+        """The plant's period index by SDO: True when it holds at or after target_index, else the index
+        (None: no answer). A short answer time, so that a dead plant does not hold up the liveness checks
+        for the usual 5 s; after a miss, a late answer is let in and dropped before the next request."""
+        sdo, wait = self.plant.sdo, self.plant.sdo.RESPONSE_TIMEOUT
+        sdo.RESPONSE_TIMEOUT = POLL_ANSWER_S
+        try:
+            index = rc["period_index"].raw
+            if index >= target_index and rc["state"].raw == 0:
+                return True
+            return int(index)
+        except SdoError:
+            self._check_alive(-1 if self._hold_index < 0 else self._hold_index)
+            time.sleep(POLL_ANSWER_S)
+            sdo.responses = queue.Queue()
+            return None
+        finally:
+            sdo.RESPONSE_TIMEOUT = wait
 
     def _check_alive(self, index: int) -> None:
         if self.liveness is None:

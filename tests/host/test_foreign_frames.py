@@ -131,3 +131,34 @@ def test_a_short_frame_on_a_pdo_identifier_does_not_crash(clean: tuple[RunResult
     extra["dlc"] = rng.integers(0, 3, 200)
     res = _decode(_splice(frames, extra, lo, len(frames), rng))
     assert res.status != "ok" or res.summary["bus_stats"]["interference"]["frames"] == 0
+
+
+def test_a_foreign_sync_while_the_master_configures_changes_nothing(clean: tuple[RunResult, np.ndarray]) -> None:
+    ref, frames = clean
+    rng = np.random.default_rng(5)
+    lo, _ = _loop_span(frames)
+    extra = _random(rng, 20, 0x080)
+    extra["dlc"] = 1
+    res = _decode(_splice(frames, extra, 5, lo - 50, rng))  # among the SDO configuration, before NMT start
+    assert res.status == "ok" and res.summary["periods"] == ref.summary["periods"]
+    assert res.signals == ref.signals  # the layout was read once the configuration was complete
+    _same_traces(res.trace, ref.trace)
+
+
+def test_a_log_cut_short_is_not_a_clean_run(clean: tuple[RunResult, np.ndarray]) -> None:
+    _, frames = clean
+    lo, hi = _loop_span(frames)
+    res = _decode(frames[: lo + (hi - lo) * 3 // 4])
+    assert res.status == "frames_lost" and res.summary["bus_stats"]["planned_periods"] == 200
+
+
+@pytest.mark.parametrize("what", ["measurement", "sync"])
+def test_a_lost_plant_frame_is_a_lost_frame_not_interference(clean: tuple[RunResult, np.ndarray], what: str) -> None:
+    _, frames = clean
+    lo, hi = _loop_span(frames)
+    cob = 0x290 if what == "measurement" else 0x080
+    pos = np.flatnonzero(frames["cob_id"] == cob)
+    pos = pos[(pos > lo) & (pos < hi)]
+    res = _decode(np.delete(frames, pos[len(pos) // 2]))
+    assert res.status == "frames_lost", (res.status, res.summary["bus_stats"])
+    assert res.summary["bus_stats"]["interference"]["frames"] == 0

@@ -63,17 +63,17 @@ def _run_with_sigints(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, presses: 
 
 
 def test_one_ctrl_c_while_writing_waits_for_the_results(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                         capsys: pytest.CaptureFixture[str]) -> None:
+                                                         capfd: pytest.CaptureFixture[str]) -> None:
     rc, out = _run_with_sigints(tmp_path, monkeypatch, 1)
     assert rc == 0
     for name in ("summary.json", "traces.npy", "bus.log", "run.rrd", "overview.svg"):
         assert (out / name).stat().st_size > 0, name
     assert not list(tmp_path.glob("*.failed*")) and not list(tmp_path.glob("*.partial"))
-    assert "finishing its results" in capsys.readouterr().err
+    assert "finishing its results" in capfd.readouterr().err
 
 
 def test_two_ctrl_c_while_writing_keep_the_complete_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                        capsys: pytest.CaptureFixture[str]) -> None:
+                                                        capfd: pytest.CaptureFixture[str]) -> None:
     rc, out = _run_with_sigints(tmp_path, monkeypatch, 2)
     assert rc == 130
     for name in ("summary.json", "traces.npy", "bus.log"):  # the run's data, whole
@@ -82,7 +82,7 @@ def test_two_ctrl_c_while_writing_keep_the_complete_run(tmp_path: Path, monkeypa
 
     assert len(np.load(out / "traces.npy")) == 200
     assert not list(tmp_path.glob("*.failed*")) and not list(tmp_path.glob("*.partial"))
-    assert "kept in" in capsys.readouterr().err
+    assert "kept in" in capfd.readouterr().err
 
 
 def test_a_refused_value_names_the_limit_and_leaves_nothing(tmp_path: Path) -> None:
