@@ -132,6 +132,10 @@ class Session:
         self.net.add_node(self.drive)
         for n in (self.plant, self.drive):
             n.sdo.RESPONSE_TIMEOUT = 5.0
+            # An SDO frame is always 8 bytes (CiA 301); canopen's client takes any frame on the identifier for
+            # the answer and fails on a short one (struct.error): a foreign frame there is dropped instead.
+            self.net.unsubscribe(n.sdo.tx_cobid, n.sdo.on_response)
+            self.net.subscribe(n.sdo.tx_cobid, _sdo_answers_only(n.sdo))
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
             self.liveness = Liveness(self.net, {"plant": self.opts.plant_id, "drive": self.opts.drive_id},
                                      getattr(self, "node_procs", {}), self.opts.heartbeat_timeout_ms,
@@ -473,13 +477,20 @@ class Session:
         return out
 
 
+def _sdo_answers_only(sdo):  # type: ignore[no-untyped-def]
+    def on_response(can_id: int, data: bytearray, ts: float) -> None:
+        if len(data) == 8:
+            sdo.on_response(can_id, data, ts)
+    return on_response
+
+
 def _read(var, attempts: int = 3):  # type: ignore[no-untyped-def]
     """An SDO read that survives a foreign frame on the SDO identifiers (a stray response taken for the
     answer): asked again, up to `attempts` times."""
     for i in range(attempts):
         try:
             return var.raw
-        except (SdoCommunicationError, SdoAbortedError):
+        except (SdoCommunicationError, SdoAbortedError, struct.error):
             if i == attempts - 1:
                 raise
             time.sleep(0.05)
