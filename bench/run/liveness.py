@@ -166,14 +166,17 @@ class Liveness:
                 return LoopStopped("node_lost", f"{self._who(name)} left OPERATIONAL: its heartbeat says "
                                    f"{NMT_STATES.get(st, hex(st))}", name, self.nodes[name],
                                    details={"cause": "nmt_state", "nmt_state": NMT_STATES.get(st, hex(st))})
+        # EMCY 0x8130 (a node lost the other's heartbeat) alone stops nothing: a node starved of CPU for a
+        # moment reports it and resets it when the heartbeat is back. It names the node when the bench
+        # has not heard it for half the consumer time either.
         for reporter, code, data, t in emcy:
-            if code == EMCY_HEARTBEAT:
-                lost = next((n for n, i in self.nodes.items() if i == data[3]), None)
-                if lost is not None and lost != reporter:
-                    return LoopStopped("node_lost", f"{self._who(reporter)} lost the heartbeat of "
-                                       f"{self._who(lost)} (EMCY 0x8130)", lost, self.nodes[lost],
-                                       detected_after_s=now - last[lost], details={"cause": "emcy_8130",
-                                                                                   "reported_by": reporter})
+            lost = next((n for n, i in self.nodes.items() if i == data[3]), None)
+            if code == EMCY_HEARTBEAT and lost is not None and lost != reporter \
+                    and now - last[lost] > self.timeout_s / 2:
+                return LoopStopped("node_lost", f"{self._who(reporter)} lost the heartbeat of "
+                                   f"{self._who(lost)} (EMCY 0x8130), and so did the bench", lost,
+                                   self.nodes[lost], detected_after_s=now - last[lost],
+                                   details={"cause": "emcy_8130", "reported_by": reporter})
         return None
 
     def emcy_list(self) -> list[dict[str, Any]]:

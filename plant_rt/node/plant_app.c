@@ -437,13 +437,16 @@ static void hook_on_reset(void *user, co_node_t *node, int communication_only)
     model_reset(app);
 }
 
-/* The drive's heartbeat (0x1016) timed out: the drive is dead or silent. The plant stops the loop
- * (run_periods = 0, holding) instead of applying the last command for ever; the stack has sent
- * EMCY 0x8130 with the drive's node-ID, which tells the master. */
+/* The drive's heartbeat (0x1016) timed out: the drive is dead or silent; the stack has sent EMCY
+ * 0x8130 with the drive's node-ID. In real time the plant stops the loop (run_periods = 0, holding)
+ * instead of applying the last command for ever. In lockstep it applies nothing without a command
+ * anyway: it keeps waiting, so that a drive only starved of CPU for a while (its heartbeat then
+ * comes back and the EMCY is reset) leaves the run unchanged; the master judges the drive. */
 static void hook_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
 {
     plant_app_t *app = user_app(user, node);
     (void)node_id;
+    if (M.x2003_run_control.mode != 1u) return;
     M.x2003_run_control.run_periods = 0u;
     M.x2003_run_control.state = 0u;
     app->paused = true;

@@ -66,7 +66,7 @@ def test_lockstep_under_cpu_load_is_bit_identical(vcan0: str, tmp_path: Path) ->
             h.kill()
             h.wait()
     for res in (quiet, loaded):
-        assert res.status == "ok", res.summary["bus_stats"]
+        assert res.status == "ok", (res.summary["stopped"], res.summary["bus_stats"])
         assert res.summary["bus_stats"]["lost_frames"] == 0
         assert res.counters["plant_missed_commands"] == 0 and res.counters["plant_late_commands"] == 0
     assert direct.trace is not None and quiet.trace is not None and loaded.trace is not None
