@@ -34,7 +34,10 @@ from .signals import SignalInfo, column_name
 
 SQRT3 = math.sqrt(3.0)
 KIND_FOREIGN, KIND_KNOWN, KIND_EMCY = 0, 1, 2  # what an identifier is to the run
-SYNC_LOOKBACK = 4  # foreign SYNCs tolerated between the plant's SYNC and its measurement
+# foreign SYNCs tolerated between the plant's SYNC and its measurement (a plant descheduled for 15 ms in a VM
+# while a flood runs at 2 ms saw 4); far fewer than the 240 SYNCs after which the counter repeats
+SYNC_LOOKBACK = 32
+START_LOOKAHEAD = 4096  # frames searched after a SYNC for the measurement that makes it the loop's first
 REFERENCES = ("iq_ref_A", "id_ref_A")
 TPDOS = 4
 
@@ -60,6 +63,17 @@ def layout_from_sdo(sdo: SdoLog) -> BusLayout:
                 layout.pdos.append(PdoLayout(node.name, f"TPDO{n + 1}", int(cob) & 0x7FF,
                                              int(v.get((0x1800 + n, 2)) or 0), sigs))
     return layout
+
+
+def _plant_field(layout: BusLayout, name: str, fmt: str) -> tuple[int, int] | None:
+    """(COB-ID, byte offset) of a plant signal in its PDOs, or None when not mapped (with that format)."""
+    for p in layout.pdos:
+        off = 0
+        for q, f in p.signals:
+            if p.node == "plant" and q == name and f == fmt:
+                return p.cob_id, off
+            off += np.dtype(f).itemsize
+    return None
 
 
 @dataclass
@@ -141,14 +155,8 @@ class Decoder:
         for p in [*self.layout.pdos, *hold]:
             self._known[p.cob_id & 0x7FF] = True
         self._kind = self._kinds()
-        for p in self.layout.pdos:
-            off = 0
-            for q, fmt in p.signals:
-                if p.node == "plant" and q == "Measurement.sync_counter" and fmt == "B":
-                    self._meas = (p.cob_id, off)
-                if p.node == "plant" and q == "Measurement.sample_index" and fmt == "H":
-                    self._index = (p.cob_id, off)
-                off += np.dtype(fmt).itemsize
+        self._meas = _plant_field(self.layout, "Measurement.sync_counter", "B")
+        self._index = _plant_field(self.layout, "Measurement.sample_index", "H")
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
         names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC", "<f4")]
@@ -189,18 +197,24 @@ class Decoder:
                     self._carry = np.zeros(0, dtype=FRAME_DTYPE)
                     return None
                 if buf["cob_id"][first] == self.sdo.sync_cob_id:
-                    if not self._nmt_seen or self._nmt_started:
-                        break
                     # a SYNC while the master configures (NMT reset seen, no start yet) is not the loop's
+                    starts = not self._nmt_seen or self._nmt_started
+                    judged = self._starts_loop(buf, first) if starts else False
+                    if judged is None:  # its measurement is not in yet: decide with the next chunk
+                        self._carry = buf[first:]
+                        return None
+                    if judged:
+                        break
                     self.stats.foreign[self.sdo.sync_cob_id] = self.stats.foreign.get(self.sdo.sync_cob_id, 0) + 1
                     first += 1
                 start = first
             self._freeze()
             buf, new_from = buf[first:], 0
+            self._carry_genuine = True  # judged the plant's first SYNC by _starts_loop
         assert self.layout is not None
         sync = self._genuine_syncs(buf)
-        if new_from > 0 and self._carry_genuine:
-            sync[0] = True  # the carry starts at a plant SYNC (decided with the chunk before)
+        if self._carry_genuine:
+            sync[0] = True  # buf starts at a plant SYNC (decided with the chunk before)
         period_of = self._base + np.cumsum(sync) - 1  # frames before the carry's SYNC: none (it starts with one)
         self._count_new(buf[new_from:], period_of[new_from:])
         sdo = self.sdo.mask(buf)
@@ -233,7 +247,8 @@ class Decoder:
             # the loop ends with the command of its last period (what the plant waits for before it holds):
             # what follows is after the loop (a flood there is counted, and cannot change the verdict)
             last = int(np.flatnonzero(sync)[-1])
-            cmd = np.flatnonzero(buf["cob_id"] == self._cmd_cob)
+            cmd_len = next(p.numpy_dtype().itemsize for p in self.layout.pdos if p.cob_id == self._cmd_cob)
+            cmd = np.flatnonzero((buf["cob_id"] == self._cmd_cob) & (buf["dlc"] == cmd_len))
             cmd = cmd[cmd > last]
             if len(cmd):
                 end = int(cmd[0]) + 1
@@ -247,6 +262,31 @@ class Decoder:
         stop = int(period_of[-1]) + 1
         self._carry = np.zeros(0, dtype=FRAME_DTYPE)
         return self._rows(buf, period_of, sync, self._emitted, stop) if stop > self._emitted else None
+
+    def _starts_loop(self, buf: np.ndarray, at: int) -> bool | None:
+        """Is the SYNC at buf[at] the plant's first (the loop's start)? Judged as _genuine_syncs judges
+        every later one, with the layout as configured so far: the plant's next measurement carries its
+        counter, and no SYNC nearer to that measurement carries it too. None: the measurement is not in
+        yet. A foreign SYNC before the run (a bus that was never quiet) must not start the loop early."""
+        overflow = int(self.sdo.plant.get("Synchronous counter overflow value") or 0)
+        if overflow < 2:
+            return int(buf["dlc"][at]) == 0
+        if int(buf["dlc"][at]) != 1:
+            return False
+        meas = _plant_field(layout_from_sdo(self.sdo), "Measurement.sync_counter", "B")
+        if meas is None:  # no counter mapped: no way to tell, the first SYNC starts the loop
+            return True
+        cob = buf["cob_id"]
+        end = at + 1 + START_LOOKAHEAD
+        after = np.flatnonzero((cob[at + 1:end] == meas[0]) & (buf["dlc"][at + 1:end] > meas[1]))
+        if len(after) == 0:
+            return None if len(buf) < end else False
+        m = at + 1 + int(after[0])
+        counter = int(buf["data"][m, meas[1]])
+        if int(buf["data"][at, 0]) != counter:
+            return False
+        between = np.flatnonzero((cob[at + 1:m] == self.sdo.sync_cob_id) & (buf["dlc"][at + 1:m] == 1))
+        return not (buf["data"][at + 1 + between, 0] == counter).any()
 
     def _kinds(self) -> np.ndarray:
         kind = np.where(self._known, KIND_KNOWN, KIND_FOREIGN).astype(np.uint8)
@@ -361,6 +401,11 @@ class Decoder:
                 per = per - 1  # synchronous drive TPDO at SYNC k: state after step k-1
             ok = (per >= r0) & (per < r1)
             pos, per = pos[ok], per[ok]
+            dt = pdo.numpy_dtype()
+            odd = buf["dlc"][pos] != dt.itemsize
+            if odd.any():  # the nodes send a PDO at its mapped length: another length is a frame they did not send
+                self._interfere(cob_id, per[odd])
+                pos, per = pos[~odd], per[~odd]
             if len(per) > 1:  # one frame per period: a second one is interference (the first is the loop's)
                 dup = np.r_[False, per[1:] == per[:-1]]
                 if dup.any():
@@ -379,7 +424,6 @@ class Decoder:
                         self._lost(per[lost])
                         pos, per = pos[~dup], per[~dup]
             per = per - r0
-            dt = pdo.numpy_dtype()
             vals = np.ascontiguousarray(data[pos, : dt.itemsize]).view(dt).reshape(-1)
             got = np.zeros(n, dtype=bool)
             got[per] = True
@@ -414,7 +458,8 @@ class Decoder:
         return out
 
     def _misaligned(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> np.ndarray:
-        """Periods in [r0, r1) holding a measurement whose sample index is not theirs (a lost SYNC)."""
+        """Periods in [r0, r1) holding a measurement of the next period's sample: the SYNC between them was
+        lost. Any other sample index in a second measurement (a frame the plant did not send) is not."""
         if self._index is None:
             return np.zeros(0, dtype=np.int64)
         cob_id, off = self._index
@@ -424,7 +469,7 @@ class Decoder:
         pos, per = pos[ok], per[ok]
         d = buf["data"][pos]
         si = d[:, off].astype(np.int64) | (d[:, off + 1].astype(np.int64) << 8)
-        return np.unique(per[si != per % 65536])
+        return np.unique(per[si == (per + 1) % 65536])
 
     def _lost(self, periods: np.ndarray) -> None:
         if len(periods):

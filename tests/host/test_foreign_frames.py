@@ -123,14 +123,37 @@ def test_a_flood_after_the_loop_changes_nothing(clean: tuple[RunResult, np.ndarr
     _same_traces(res.trace, ref.trace)
 
 
-def test_a_short_frame_on_a_pdo_identifier_does_not_crash(clean: tuple[RunResult, np.ndarray]) -> None:
-    _, frames = clean
+def test_a_short_frame_on_a_pdo_identifier_is_interference(clean: tuple[RunResult, np.ndarray]) -> None:
+    ref, frames = clean
     rng = np.random.default_rng(4)
     lo, hi = _loop_span(frames)
-    extra = _random(rng, 200, rng.choice([0x190, 0x290, 0x210, 0x4A0, 0x490, 0x5A0, 0x590, 0x720], 200))
+    extra = _random(rng, 200, rng.choice([0x190, 0x290, 0x210], 200))  # the loop's PDOs (not the drive's trace:
+    # those of period 0 come with SYNC 1 and belong to no period)
     extra["dlc"] = rng.integers(0, 3, 200)
-    res = _decode(_splice(frames, extra, lo, len(frames), rng))
-    assert res.status != "ok" or res.summary["bus_stats"]["interference"]["frames"] == 0
+    service = _random(rng, 200, rng.choice([0x490, 0x5A0, 0x590, 0x720], 200))  # hold, SDO, heartbeat
+    service["dlc"] = rng.integers(0, 3, 200)
+    _decode(_splice(frames, service, lo, len(frames), rng))  # no crash
+    res = _decode(_splice(frames, extra, lo + 1, hi - 1, rng))
+    # the nodes receive them too (and refuse them: EMCY 0x8210): interference, never a lost frame, and
+    # never the value of a period (a short frame first in its period once hid the plant's own)
+    bs = res.summary["bus_stats"]
+    assert res.status == "interference" and bs["interference"]["frames"] == 200, bs
+    assert bs["lost_frames"] == 0 and bs["sync_counter_gaps"] == 0, bs
+    assert res.summary["periods"] == ref.summary["periods"]
+
+
+def test_a_measurement_the_plant_did_not_send_is_interference(clean: tuple[RunResult, np.ndarray]) -> None:
+    # A full-length frame on the measurement identifier with a random sample index: the drive acts on it,
+    # so the run is interference -- not a lost SYNC (that is a second measurement of the next period only).
+    ref, frames = clean
+    rng = np.random.default_rng(8)
+    lo, hi = _loop_span(frames)
+    extra = _random(rng, 50, 0x290)
+    extra["dlc"] = 8
+    res = _decode(_splice(frames, extra, lo + 1, hi - 1, rng))
+    bs = res.summary["bus_stats"]
+    assert res.status == "interference", bs
+    assert bs["interference"]["by_cob_id"]["0x290"] == 50
 
 
 def test_a_foreign_sync_while_the_master_configures_changes_nothing(clean: tuple[RunResult, np.ndarray]) -> None:
@@ -142,6 +165,25 @@ def test_a_foreign_sync_while_the_master_configures_changes_nothing(clean: tuple
     res = _decode(_splice(frames, extra, 5, lo - 50, rng))  # among the SDO configuration, before NMT start
     assert res.status == "ok" and res.summary["periods"] == ref.summary["periods"]
     assert res.signals == ref.signals  # the layout was read once the configuration was complete
+    _same_traces(res.trace, ref.trace)
+
+
+@pytest.mark.parametrize("dlc", [0, 1])
+def test_foreign_syncs_before_the_master_starts_change_nothing(clean: tuple[RunResult, np.ndarray], dlc: int) -> None:
+    # A bus that was never quiet: fake SYNCs (and other frames) recorded before the master's first frame,
+    # with no NMT command yet to tell configuration from loop. None may start the loop.
+    ref, frames = clean
+    rng = np.random.default_rng(6 + dlc)
+    syncs = _random(rng, 200, 0x080)
+    syncs["dlc"] = dlc
+    syncs["data"][:50, 0] = 1  # the counter the plant's first SYNC carries, too
+    extra = np.concatenate([syncs, _random(rng, 400)])
+    rng.shuffle(extra)
+    res = _decode(np.concatenate([extra, frames]))
+    assert res.status == "ok", res.summary["bus_stats"]
+    assert res.summary["periods"] == ref.summary["periods"]
+    assert res.signals == ref.signals  # the layout was read once the configuration was complete
+    assert res.summary["bus_stats"]["lost_frames"] == 0
     _same_traces(res.trace, ref.trace)
 
 
