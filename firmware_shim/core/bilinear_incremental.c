@@ -54,21 +54,6 @@ void bilinear_incremental_reset(bilinear_incremental_state_t *st) {
   st->n_steps = 0u;
 }
 
-void bilinear_incremental_preload(bilinear_incremental_state_t *st, float id_A,
-                                  float iq_A, float vd_V, float vq_V) {
-  /* Steady state of Eq. 22/23: with i* = i(k) = i(k-2) and
-   * u(k) = u(k-1) = u(k-2) = u the law returns u again. */
-  st->i_d_hist_A[0] = st->i_d_hist_A[1] = id_A;
-  st->i_q_hist_A[0] = st->i_q_hist_A[1] = iq_A;
-  for (int n = 0; n < 3; ++n) {
-    st->u_d_hist_V[n] = vd_V;
-    st->u_q_hist_V[n] = vq_V;
-  }
-  st->v_d_raw_V = st->v_d_V = vd_V;
-  st->v_q_raw_V = st->v_q_V = vq_V;
-  st->limited = 0u;
-}
-
 void bilinear_incremental_step(bilinear_incremental_state_t *st, float id_A,
                                float iq_A, float omega_e_rad_s,
                                float id_ref_A, float iq_ref_A, float *v_d_V,
@@ -124,10 +109,4 @@ void bilinear_incremental_step(bilinear_incremental_state_t *st, float id_A,
   st->n_steps++;
   *v_d_V = vd;
   *v_q_V = vq;
-}
-
-void bilinear_incremental_commit(bilinear_incremental_state_t *st,
-                                 float v_d_applied_V, float v_q_applied_V) {
-  st->u_d_hist_V[0] = v_d_applied_V;
-  st->u_q_hist_V[0] = v_q_applied_V;
 }

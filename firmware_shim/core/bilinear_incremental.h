@@ -20,9 +20,7 @@
  * Voltage memory: u(k), u(k-1), u(k-2) are the voltages ACTUALLY APPLIED
  * (after the Vmax limit), because Eq. 21 is the motor equation over
  * [k-2, k] and holds for the applied voltages; this also makes the law
- * wind-up free.  If the caller applies a different voltage than the one
- * returned (other limiter, dead-time compensation ...), it reports it with
- * bilinear_incremental_commit().
+ * wind-up free.
  *
  * Closed-loop analysis (exact ZOH plant, not the paper's Ts -> 0 limit):
  * see firmware_shim/tests/test_zhao2022_stability.c and
@@ -75,12 +73,6 @@ int bilinear_incremental_init(const bilinear_incremental_config_t *cfg,
 /* Clears the current and voltage histories (keeps the gains). */
 void bilinear_incremental_reset(bilinear_incremental_state_t *st);
 
-/* Bumpless start at a steady operating point: fills the history as if the
- * currents (id, iq) had been held for three periods by the applied voltage
- * (vd, vq) - e.g. when the drive switches to this controller. */
-void bilinear_incremental_preload(bilinear_incremental_state_t *st, float id_A,
-                                  float iq_A, float vd_V, float vq_V);
-
 /* One current period.  Inputs: measured id(k), iq(k) [A], electrical speed
  * w [rad/s], references id*, iq* [A] (the paper's i_dref/i_qref, wanted at
  * k+2).  Output: dq command u(k+1) [V], limited to Vmax (radially). */
@@ -88,10 +80,5 @@ void bilinear_incremental_step(bilinear_incremental_state_t *st, float id_A,
                                float iq_A, float omega_e_rad_s,
                                float id_ref_A, float iq_ref_A, float *v_d_V,
                                float *v_q_V);
-
-/* Optional: replace the newest voltage memory u(k+1) by the voltage the
- * caller actually applied (call after step, before the next step). */
-void bilinear_incremental_commit(bilinear_incremental_state_t *st,
-                                 float v_d_applied_V, float v_q_applied_V);
 
 #endif

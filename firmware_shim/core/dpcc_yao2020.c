@@ -129,12 +129,6 @@ static float clampf(float v, float lo, float hi) {
   return v;
 }
 
-void yao_dpcc_set_applied(yao_dpcc_state_t *st, float v_star_d_V,
-                          float v_star_q_V) {
-  st->v_star_d_V = v_star_d_V;
-  st->v_star_q_V = v_star_q_V;
-}
-
 /* ---------------------------------------------------------------- ident */
 
 static uint32_t ident_total_phases(const yao_dpcc_config_t *cfg) {

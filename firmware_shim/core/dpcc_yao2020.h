@@ -180,11 +180,6 @@ void yao_dpcc_step(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
                    float id_A, float iq_A, float w_rad_s, float theta_e_rad,
                    float id_ref_A, float iq_ref_A, yao_dpcc_cmd_t *cmd);
 
-/* If the drive limits/alters the command after yao_dpcc_step(), report the
- * v* (frame theta(k) + wT) actually applied so the observer uses it. */
-void yao_dpcc_set_applied(yao_dpcc_state_t *st, float v_star_d_V,
-                          float v_star_q_V);
-
 /* Identification commands.  start: from IDLE/DONE/ABORTED, requires steady
  * speed and iq reference (checked every period while running; a change
  * aborts and restores the R_hat/L_hat held at the start). */

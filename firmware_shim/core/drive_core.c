@@ -199,7 +199,8 @@ static void drive_apply_pending_gains(drive_t *drv) {
   s->n_gain_updates++;
 }
 
-void drive_speed_step(drive_t *drv, float theta_m_rad) {
+/* Speed/position period: called by drive_current_step every speed_loop_divider steps. */
+static void drive_speed_step(drive_t *drv, float theta_m_rad) {
   drive_config_t *c = &drv->cfg;
   drive_state_t *s = &drv->st;
   outer_loops_state_t *o = &drv->outer;

@@ -148,9 +148,6 @@ void drive_attach_trace(drive_t *drv, trace_recorder_t *rec);
 
 /* Current-period "ISR". */
 void drive_current_step(drive_t *drv, const drive_meas_t *meas, drive_cmd_t *cmd);
-/* Speed/position period (called by drive_current_step every
- * speed_loop_divider steps; public for tests). */
-void drive_speed_step(drive_t *drv, float theta_m_rad);
 
 float drive_signal(const drive_t *drv, trace_signal_t id);
 

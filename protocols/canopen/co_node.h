@@ -189,9 +189,6 @@ int co_sync_produce(co_node_t *node, int64_t now_us);
 /* Request an event-driven (or type-0) TPDO. pdo is 0-based. */
 void co_tpdo_request(co_node_t *node, uint8_t pdo);
 
-/* Send a TPDO now regardless of its type (used by tests and by the lockstep shims). */
-int co_tpdo_send_now(co_node_t *node, uint8_t pdo);
-
 /* Local NMT transition (as if commanded by the master). */
 void co_nmt_command(co_node_t *node, uint8_t cs);
 

@@ -170,12 +170,6 @@ static int tpdo_send(co_node_t *node, uint8_t n)
     return co_node_send(node, p->cob_id, d, p->bytes);
 }
 
-int co_tpdo_send_now(co_node_t *node, uint8_t pdo)
-{
-    if (pdo >= CO_NUM_PDO) return -1;
-    return tpdo_send(node, pdo);
-}
-
 static bool inhibit_elapsed(co_node_t *node, uint8_t n)
 {
     co_pdo_t *p = &node->tpdo[n];
