@@ -1,7 +1,8 @@
 """The EDS files, read with `canopen` (the single source of truth of the CANopen contract).
 
 `canopen` parses integer LowLimit/HighLimit but not REAL32 ones; :func:`float_limits`
-reads those from the same EDS section. protocols/gen_od.py uses the same function.
+reads those from the same EDS section (protocols/gen_od.py, which stands on its own, has its own
+copy of this reader; tests/host/test_eds.py checks that both agree).
 """
 
 from __future__ import annotations

@@ -12,12 +12,14 @@ indices and sub-indices the node code uses.
     python protocols/gen_od.py --check    # exit 1 if a generated file is stale
 
 `canopen` parses integer LowLimit/HighLimit but ignores REAL32 ones; those are
-read from the same EDS section with configparser.
+read from the same EDS section with configparser. The generator stands on its own
+(python with `canopen`, nothing of the bench): firmware builds can run it anywhere.
 """
 
 from __future__ import annotations
 
 import argparse
+import configparser
 import logging
 import re
 import struct
@@ -27,9 +29,6 @@ from pathlib import Path
 
 import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from bench.eds import float_limits  # noqa: E402  (the same reader the bench uses)
 
 HERE = Path(__file__).resolve().parent
 EDS_DIR = HERE / "eds"
@@ -86,6 +85,24 @@ def _section(var: ODVariable) -> str:
     return f"{var.index:04X}"
 
 
+def float_limits(raw: configparser.ConfigParser, var: ODVariable) -> tuple[float | None, float | None]:
+    """LowLimit/HighLimit of a REAL32 entry, which `canopen` does not parse (bench/eds.py reads them
+    the same way; tests/host/test_eds.py checks that both agree on every entry)."""
+    sec = _section(var)
+
+    def get(key: str) -> float | None:
+        return float(raw.get(sec, key)) if raw.has_option(sec, key) else None
+
+    return get("LowLimit"), get("HighLimit")
+
+
+def _raw(eds: Path) -> configparser.ConfigParser:
+    raw = configparser.ConfigParser(strict=False)
+    raw.optionxform = str  # type: ignore[assignment,method-assign]
+    raw.read(eds)
+    return raw
+
+
 def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], list[str], list[str]]:
     eds = EDS_DIR / f"{node}.eds"
     handler = _Collect()
@@ -96,10 +113,12 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
         logging.getLogger("canopen").removeHandler(handler)
     if handler.messages:
         raise EdsError(f"{eds}: canopen warned: {handler.messages}")
+    raw = _raw(eds)
     entries: list[Entry] = []
     comm_fields: list[str] = []
     mfr_fields: list[str] = []
     defines: list[str] = []
+    field_lists: list[str] = []
     for index in sorted(od.indices):
         obj = od.indices[index]
         area = comm_fields if index < 0x2000 else mfr_fields
@@ -134,7 +153,7 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
                 decl = f"{ctype} {member_name};"
             members.append(decl)
             if var.data_type == datatypes.REAL32:
-                low, high = float_limits(eds, var)
+                low, high = float_limits(raw, var)
             else:
                 low, high = var.min, var.max
             if (low is None) != (high is None):
@@ -144,7 +163,19 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
             area.append(members[0])
         else:
             area.append("struct {\n        " + "\n        ".join(members) + f"\n    }} {oname};")
-    return od, entries, comm_fields, mfr_fields, defines
+            if index >= 0x2000:
+                field_lists.append(_field_list(macro_base, obj, oname, subs))
+    return od, entries, comm_fields, mfr_fields, defines + field_lists
+
+
+def _field_list(macro_base: str, obj: ODRecord | ODArray, oname: str, subs: list[ODVariable]) -> str:
+    """X-macro of a manufacturer record's values: X(index, subindex, record member, field). A node app
+    expands it into the table that copies the record to and from its core's config struct, whose fields
+    carry the same names (the compiler refuses a name the core does not have): co_field_map.h."""
+    rows = [f"    X(0x{v.index:04X}u, 0x{v.subindex:02X}u, {oname}, {c_ident(v.name)})" for v in subs
+            if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)]
+    return (f"\n/* 0x{obj.index:04X} {obj.name}: X(index, subindex, record, field) */\n"
+            f"#define OD_{macro_base}_FIELDS(X) \\\n" + " \\\n".join(rows) + "\n")
 
 
 class _Collect(logging.Handler):

@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "co_field_map.h"
 #include "od_plant.h"
 #include "presets.h"
 
@@ -12,77 +13,23 @@
 
 /* ------------------------------------------------------------------ OD <-> config */
 
+/* Motor model, Inverter and Sensors (0x2000-0x2002) <-> plant_config_t: the rows are the EDS's
+ * own lists (od_plant.h), the fields of plant_config_t carry the EDS names. */
+#define PLANT_ROW(index, sub, record, field) CO_FIELD_MAP_ROW(OD_PLANT.mfr, plant_config_t, record, field),
+static const co_field_map_t config_rows[] = {
+    OD_PLANT_MOTOR_MODEL_FIELDS(PLANT_ROW) OD_PLANT_INVERTER_FIELDS(PLANT_ROW) OD_PLANT_SENSORS_FIELDS(PLANT_ROW)};
+#undef PLANT_ROW
+#define N_CONFIG_ROWS (sizeof config_rows / sizeof config_rows[0])
+
 void plant_app_config_from_od(plant_config_t *c)
 {
-    plant_config_defaults(c);
-    c->R_ohm = (double)M.x2000_motor_model.R_ohm;
-    c->Ld_H = (double)M.x2000_motor_model.Ld_H;
-    c->Lq_H = (double)M.x2000_motor_model.Lq_H;
-    c->psi_Wb = (double)M.x2000_motor_model.psi_Wb;
-    c->pole_pairs = (int32_t)M.x2000_motor_model.pole_pairs;
-    c->J_kgm2 = (double)M.x2000_motor_model.J_kgm2;
-    c->B_Nm_per_rad_s = (double)M.x2000_motor_model.B_Nm_per_rad_s;
-    c->T_load_Nm = (double)M.x2000_motor_model.T_load_Nm;
-    c->mech_mode = (plant_mech_mode_t)M.x2000_motor_model.mech_mode;
-    c->omega_imposed_rad_s = (double)M.x2000_motor_model.omega_imposed_rad_s;
-    c->sat_enable = M.x2000_motor_model.sat_enable != 0u;
-    c->sat_I_A = (double)M.x2000_motor_model.sat_I_A;
-    c->sat_Lq_inf_H = (double)M.x2000_motor_model.sat_Lq_inf_H;
-    c->rk4_h_rel = (double)M.x2000_motor_model.rk4_h_rel;
-    c->rk4_min_substeps = M.x2000_motor_model.rk4_min_substeps;
-
-    c->Ts_s = (double)M.x2001_Inverter.Ts_s;
-    c->Vdc_V = (double)M.x2001_Inverter.Vdc_V;
-    c->mod_limit = (plant_mod_limit_t)M.x2001_Inverter.mod_limit;
-    c->t_dead_s = (double)M.x2001_Inverter.t_dead_s;
-    c->deadtime_I_sat_A = (double)M.x2001_Inverter.deadtime_I_sat_A;
-    c->I_trip_A = (double)M.x2001_Inverter.I_trip_A;
-    c->Ts_pwm_s = (double)M.x2001_Inverter.Ts_pwm_s;
-    c->hold_frame = (plant_hold_frame_t)M.x2001_Inverter.hold_frame;
-
-    c->adc_lsb_A = (double)M.x2002_Sensors.adc_lsb_A;
-    c->adc_offset_a_A = (double)M.x2002_Sensors.adc_offset_a_A;
-    c->adc_noise_std_A = (double)M.x2002_Sensors.adc_noise_std_A;
-    c->rng_seed = (uint64_t)M.x2002_Sensors.rng_seed;
-    c->encoder_lines = M.x2002_Sensors.encoder_lines;
-    c->adc_offset_b_A = (double)M.x2002_Sensors.adc_offset_b_A;
-    c->adc_full_scale_A = (double)M.x2002_Sensors.adc_full_scale_A;
+    plant_config_defaults(c); /* the fields the OD does not carry */
+    co_field_map_to_core(config_rows, N_CONFIG_ROWS, c);
 }
 
 void plant_app_config_to_od(const plant_config_t *c)
 {
-    M.x2000_motor_model.R_ohm = (float)c->R_ohm;
-    M.x2000_motor_model.Ld_H = (float)c->Ld_H;
-    M.x2000_motor_model.Lq_H = (float)c->Lq_H;
-    M.x2000_motor_model.psi_Wb = (float)c->psi_Wb;
-    M.x2000_motor_model.pole_pairs = (uint8_t)c->pole_pairs;
-    M.x2000_motor_model.J_kgm2 = (float)c->J_kgm2;
-    M.x2000_motor_model.B_Nm_per_rad_s = (float)c->B_Nm_per_rad_s;
-    M.x2000_motor_model.T_load_Nm = (float)c->T_load_Nm;
-    M.x2000_motor_model.mech_mode = (uint8_t)c->mech_mode;
-    M.x2000_motor_model.omega_imposed_rad_s = (float)c->omega_imposed_rad_s;
-    M.x2000_motor_model.sat_enable = c->sat_enable ? 1u : 0u;
-    M.x2000_motor_model.sat_I_A = (float)c->sat_I_A;
-    M.x2000_motor_model.sat_Lq_inf_H = (float)c->sat_Lq_inf_H;
-    M.x2000_motor_model.rk4_h_rel = (float)c->rk4_h_rel;
-    M.x2000_motor_model.rk4_min_substeps = c->rk4_min_substeps;
-
-    M.x2001_Inverter.Ts_s = (float)c->Ts_s;
-    M.x2001_Inverter.Vdc_V = (float)c->Vdc_V;
-    M.x2001_Inverter.mod_limit = (uint8_t)c->mod_limit;
-    M.x2001_Inverter.t_dead_s = (float)c->t_dead_s;
-    M.x2001_Inverter.deadtime_I_sat_A = (float)c->deadtime_I_sat_A;
-    M.x2001_Inverter.I_trip_A = (float)c->I_trip_A;
-    M.x2001_Inverter.Ts_pwm_s = (float)c->Ts_pwm_s;
-    M.x2001_Inverter.hold_frame = (uint8_t)c->hold_frame;
-
-    M.x2002_Sensors.adc_lsb_A = (float)c->adc_lsb_A;
-    M.x2002_Sensors.adc_offset_a_A = (float)c->adc_offset_a_A;
-    M.x2002_Sensors.adc_noise_std_A = (float)c->adc_noise_std_A;
-    M.x2002_Sensors.rng_seed = (uint32_t)c->rng_seed;
-    M.x2002_Sensors.encoder_lines = c->encoder_lines;
-    M.x2002_Sensors.adc_offset_b_A = (float)c->adc_offset_b_A;
-    M.x2002_Sensors.adc_full_scale_A = (float)c->adc_full_scale_A;
+    co_field_map_to_od(config_rows, N_CONFIG_ROWS, c);
 }
 
 /* ------------------------------------------------------------------ helpers */

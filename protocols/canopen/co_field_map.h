@@ -1,0 +1,50 @@
+/* co_field_map.h - copy a record of the object dictionary to and from a core's config struct.
+ *
+ * The rows come from the X-macro lists protocols/gen_od.py writes for each manufacturer record
+ * (OD_<NODE>_<RECORD>_FIELDS in od_<node>.h): the core's field carries the name of the EDS entry,
+ * and the compiler refuses a name the core does not have. So a name, a default or a range is
+ * written once, in the EDS; the node app expands the list and loops over the rows.
+ *
+ * Values go through a double: exact for the OD types used in records (REAL32, UNSIGNED8..32,
+ * INTEGER8..32) and the core types (float, double, bool, fixed-width integers, enums).
+ * Portable: no OS headers, no allocation. */
+#ifndef CO_FIELD_MAP_H
+#define CO_FIELD_MAP_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+typedef enum {
+    CO_FM_FLOAT = 0,
+    CO_FM_DOUBLE,
+    CO_FM_BOOL,
+    CO_FM_SINT, /* int8_t .. int64_t */
+    CO_FM_UINT  /* unsigned integers and enums of any size */
+} co_fm_kind_t;
+
+typedef struct {
+    void *od;             /* the value in the OD's RAM */
+    uint16_t core_offset; /* offsetof(core struct, field) */
+    uint8_t od_kind, od_size;
+    uint8_t core_kind, core_size;
+} co_field_map_t;
+
+#define CO_FM_KIND(x)                                                                                  \
+    _Generic((x), float: CO_FM_FLOAT, double: CO_FM_DOUBLE, bool: CO_FM_BOOL, int8_t: CO_FM_SINT,   \
+             int16_t: CO_FM_SINT, int32_t: CO_FM_SINT, int64_t: CO_FM_SINT, default: CO_FM_UINT)
+
+/* One row: the OD record member `ram.record.field` <-> `core_t.field`. */
+#define CO_FIELD_MAP_ROW(ram, core_t, record, field)                                                   \
+    {&(ram).record.field, (uint16_t)offsetof(core_t, field), (uint8_t)CO_FM_KIND((ram).record.field),  \
+     (uint8_t)sizeof((ram).record.field), (uint8_t)CO_FM_KIND(((core_t *)0)->field),                 \
+     (uint8_t)sizeof(((core_t *)0)->field)}
+
+/* Every row's OD value -> the core struct at `core`. */
+void co_field_map_to_core(const co_field_map_t *rows, size_t n, void *core);
+/* Every row's core value -> the OD. */
+void co_field_map_to_od(const co_field_map_t *rows, size_t n, const void *core);
+/* The row of an OD value (NULL when the value is not mapped). */
+const co_field_map_t *co_field_map_find(const co_field_map_t *rows, size_t n, const void *od_value);
+
+#endif
