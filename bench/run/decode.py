@@ -31,13 +31,10 @@ from .layout import FMT, BusLayout, PdoLayout
 from .frames import FRAME_DTYPE
 from .sdo_log import SdoLog
 from .signals import SignalInfo, column_name
+from .syncs import genuine_syncs, plant_field, starts_loop
 
 SQRT3 = math.sqrt(3.0)
 KIND_FOREIGN, KIND_KNOWN, KIND_EMCY = 0, 1, 2  # what an identifier is to the run
-# foreign SYNCs tolerated between the plant's SYNC and its measurement (a plant descheduled for 15 ms in a VM
-# while a flood runs at 2 ms saw 4); far fewer than the 240 SYNCs after which the counter repeats
-SYNC_LOOKBACK = 32
-START_LOOKAHEAD = 4096  # frames searched after a SYNC for the measurement that makes it the loop's first
 REFERENCES = ("iq_ref_A", "id_ref_A")
 TPDOS = 4
 
@@ -63,17 +60,6 @@ def layout_from_sdo(sdo: SdoLog) -> BusLayout:
                 layout.pdos.append(PdoLayout(node.name, f"TPDO{n + 1}", int(cob) & 0x7FF,
                                              int(v.get((0x1800 + n, 2)) or 0), sigs))
     return layout
-
-
-def _plant_field(layout: BusLayout, name: str, fmt: str) -> tuple[int, int] | None:
-    """(COB-ID, byte offset) of a plant signal in its PDOs, or None when not mapped (with that format)."""
-    for p in layout.pdos:
-        off = 0
-        for q, f in p.signals:
-            if p.node == "plant" and q == name and f == fmt:
-                return p.cob_id, off
-            off += np.dtype(f).itemsize
-    return None
 
 
 @dataclass
@@ -155,8 +141,8 @@ class Decoder:
         for p in [*self.layout.pdos, *hold]:
             self._known[p.cob_id & 0x7FF] = True
         self._kind = self._kinds()
-        self._meas = _plant_field(self.layout, "Measurement.sync_counter", "B")
-        self._index = _plant_field(self.layout, "Measurement.sample_index", "H")
+        self._meas = plant_field(self.layout, "Measurement.sync_counter", "B")
+        self._index = plant_field(self.layout, "Measurement.sample_index", "H")
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
         names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC", "<f4")]
@@ -263,81 +249,22 @@ class Decoder:
         self._carry = np.zeros(0, dtype=FRAME_DTYPE)
         return self._rows(buf, period_of, sync, self._emitted, stop) if stop > self._emitted else None
 
-    def _starts_loop(self, buf: np.ndarray, at: int) -> bool | None:
-        """Is the SYNC at buf[at] the plant's first (the loop's start)? Judged as _genuine_syncs judges
-        every later one, with the layout as configured so far: the plant's next measurement carries its
-        counter, and no SYNC nearer to that measurement carries it too. None: the measurement is not in
-        yet. A foreign SYNC before the run (a bus that was never quiet) must not start the loop early."""
-        overflow = int(self.sdo.plant.get("Synchronous counter overflow value") or 0)
-        if overflow < 2:
-            return int(buf["dlc"][at]) == 0
-        if int(buf["dlc"][at]) != 1:
-            return False
-        meas = _plant_field(layout_from_sdo(self.sdo), "Measurement.sync_counter", "B")
-        if meas is None:  # no counter mapped: no way to tell, the first SYNC starts the loop
-            return True
-        cob = buf["cob_id"]
-        end = at + 1 + START_LOOKAHEAD
-        after = np.flatnonzero((cob[at + 1:end] == meas[0]) & (buf["dlc"][at + 1:end] > meas[1]))
-        if len(after) == 0:
-            return None if len(buf) < end else False
-        m = at + 1 + int(after[0])
-        counter = int(buf["data"][m, meas[1]])
-        if int(buf["data"][at, 0]) != counter:
-            return False
-        between = np.flatnonzero((cob[at + 1:m] == self.sdo.sync_cob_id) & (buf["dlc"][at + 1:m] == 1))
-        return not (buf["data"][at + 1 + between, 0] == counter).any()
-
     def _kinds(self) -> np.ndarray:
         kind = np.where(self._known, KIND_KNOWN, KIND_FOREIGN).astype(np.uint8)
         for nid in (self.sdo.plant.node_id, self.sdo.drive.node_id):
             kind[0x080 + nid] = KIND_EMCY
         return kind
 
+    def _overflow(self) -> int:
+        return int(self.sdo.plant.get("Synchronous counter overflow value") or 0)
+
+    def _starts_loop(self, buf: np.ndarray, at: int) -> bool | None:
+        meas = plant_field(layout_from_sdo(self.sdo), "Measurement.sync_counter", "B")
+        return starts_loop(buf, at, self.sdo.sync_cob_id, self._overflow(), meas)
+
     def _genuine_syncs(self, buf: np.ndarray) -> np.ndarray:
-        """Mask of the plant's own SYNCs in buf: the SYNC's counter is the sync_counter of the plant's
-        next measurement PDO. A SYNC with no measurement after it yet is undecided (not a period until
-        it is; at the end of the log, foreign). Without a counter (0x1019 = 0), every SYNC of length 0."""
         assert self.layout is not None
-        cob = buf["cob_id"]
-        cand = np.flatnonzero(cob == self.layout.sync_cob_id)
-        sync = np.zeros(len(buf), dtype=bool)
-        if len(cand) == 0:
-            return sync
-        dlc = buf["dlc"][cand]
-        overflow = int(self.sdo.plant.get("Synchronous counter overflow value") or 0)
-        if overflow < 2 or self._meas is None:
-            sync[cand[dlc == (1 if overflow >= 2 else 0)]] = True
-            return sync
-        meas_cob, off = self._meas
-        m_pos = np.flatnonzero((cob == meas_cob) & (buf["dlc"] > off))
-        counter = np.where(dlc == 1, buf["data"][cand, 0].astype(np.int64), -1)
-        meas_counter = buf["data"][m_pos, off].astype(np.int64)
-        before = np.searchsorted(cand, m_pos) - 1  # the SYNC candidate just before each measurement
-        # The plant sends its measurement right after its SYNC; foreign SYNCs may fall in between: look a
-        # few candidates back. Counters repeat only every 240 SYNCs, so an old SYNC never matches.
-        done = np.zeros(len(m_pos), dtype=bool)  # each measurement marks one SYNC: the nearest one with its counter
-        for back in range(SYNC_LOOKBACK):
-            c = before - back
-            hit = (c >= 0) & ~done
-            hit[hit] = counter[c[hit]] == meas_counter[hit]
-            sync[cand[c[hit]]] = True
-            done |= hit
-            if done.all():  # a clean stream: every measurement found its SYNC right before it
-                break
-        # A SYNC whose measurement was lost: length 1, its counter right after the previous plant SYNC's and
-        # right before the next one's (a period then counted as missing its measurement, not as foreign).
-        g = sync[cand]
-        gi = np.flatnonzero(g)
-        rest = np.flatnonzero(~g & (dlc == 1))
-        if len(gi) >= 2 and len(rest):
-            k = np.searchsorted(gi, rest)
-            ok = (k > 0) & (k < len(gi))
-            rest, k = rest[ok], k[ok]
-            c, prev, nxt = counter[rest], counter[gi[k - 1]], counter[gi[k]]
-            fit = (np.where(prev >= overflow, 1, prev + 1) == c) & (np.where(c >= overflow, 1, c + 1) == nxt)
-            sync[cand[rest[fit]]] = True
-        return sync  # an undecided tail (no measurement yet) is decided with the next chunk: the carry keeps it
+        return genuine_syncs(buf, self.layout.sync_cob_id, self._overflow(), self._meas)
 
     def _count_new(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """Frames on identifiers the run does not use, by COB-ID, and the EMCYs (each frame once, when new)."""
