@@ -169,13 +169,20 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
 
 
 def _field_list(macro_base: str, obj: ODRecord | ODArray, oname: str, subs: list[ODVariable]) -> str:
-    """X-macro of a manufacturer record's values: X(index, subindex, record member, field). A node app
-    expands it into the table that copies the record to and from its core's config struct, whose fields
-    carry the same names (the compiler refuses a name the core does not have): co_field_map.h."""
-    rows = [f"    X(0x{v.index:04X}u, 0x{v.subindex:02X}u, {oname}, {c_ident(v.name)})" for v in subs
-            if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)]
-    return (f"\n/* 0x{obj.index:04X} {obj.name}: X(index, subindex, record, field) */\n"
-            f"#define OD_{macro_base}_FIELDS(X) \\\n" + " \\\n".join(rows) + "\n")
+    """X-macros of a manufacturer record's values, X(index, subindex, record member, field): its
+    parameters (writable: _PARAMS) and its status values (read-only: _STATUS). A node app expands them
+    into the tables that copy the record to and from its core's structs, whose fields carry the same
+    names (the compiler refuses a name the core does not have): protocols/canopen/co_field_map.h."""
+    out = []
+    for suffix, writable in (("PARAMS", True), ("STATUS", False)):
+        rows = [f"    X(0x{v.index:04X}u, 0x{v.subindex:02X}u, {oname}, {c_ident(v.name)})" for v in subs
+                if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)
+                and v.writable == writable]
+        if rows:
+            out.append(f"/* 0x{obj.index:04X} {obj.name}, {'parameters' if writable else 'status'}: "
+                       f"X(index, subindex, record, field) */\n#define OD_{macro_base}_{suffix}(X) \\\n"
+                       + " \\\n".join(rows) + "\n")
+    return "\n" + "\n".join(out)
 
 
 class _Collect(logging.Handler):

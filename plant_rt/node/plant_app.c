@@ -17,7 +17,7 @@
  * own lists (od_plant.h), the fields of plant_config_t carry the EDS names. */
 #define PLANT_ROW(index, sub, record, field) CO_FIELD_MAP_ROW(OD_PLANT.mfr, plant_config_t, record, field),
 static const co_field_map_t config_rows[] = {
-    OD_PLANT_MOTOR_MODEL_FIELDS(PLANT_ROW) OD_PLANT_INVERTER_FIELDS(PLANT_ROW) OD_PLANT_SENSORS_FIELDS(PLANT_ROW)};
+    OD_PLANT_MOTOR_MODEL_PARAMS(PLANT_ROW) OD_PLANT_INVERTER_PARAMS(PLANT_ROW) OD_PLANT_SENSORS_PARAMS(PLANT_ROW)};
 #undef PLANT_ROW
 #define N_CONFIG_ROWS (sizeof config_rows / sizeof config_rows[0])
 

@@ -686,8 +686,8 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB 0x04u
 #define OD_DRIVE_LIVE_TRACE_DECIMATION_SUB 0x05u
 
-/* 0x2100 Measurement: X(index, subindex, record, field) */
-#define OD_DRIVE_MEASUREMENT_FIELDS(X) \
+/* 0x2100 Measurement, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_MEASUREMENT_PARAMS(X) \
     X(0x2100u, 0x01u, x2100_Measurement, i_a_A) \
     X(0x2100u, 0x02u, x2100_Measurement, i_b_A) \
     X(0x2100u, 0x03u, x2100_Measurement, theta_m_rad) \
@@ -696,14 +696,14 @@ extern const co_od_t od_drive;
     X(0x2100u, 0x06u, x2100_Measurement, sample_index)
 
 
-/* 0x2102 Voltage command: X(index, subindex, record, field) */
-#define OD_DRIVE_VOLTAGE_COMMAND_FIELDS(X) \
+/* 0x2102 Voltage command, status: X(index, subindex, record, field) */
+#define OD_DRIVE_VOLTAGE_COMMAND_STATUS(X) \
     X(0x2102u, 0x01u, x2102_voltage_command, v_alpha_V) \
     X(0x2102u, 0x02u, x2102_voltage_command, v_beta_V)
 
 
-/* 0x2200 Controller: X(index, subindex, record, field) */
-#define OD_DRIVE_CONTROLLER_FIELDS(X) \
+/* 0x2200 Controller, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_CONTROLLER_PARAMS(X) \
     X(0x2200u, 0x01u, x2200_Controller, controller) \
     X(0x2200u, 0x02u, x2200_Controller, Ts_s) \
     X(0x2200u, 0x03u, x2200_Controller, speed_loop_divider) \
@@ -726,12 +726,15 @@ extern const co_od_t od_drive;
     X(0x2200u, 0x14u, x2200_Controller, estimator_enable)
 
 
-/* 0x2201 Online tuning: X(index, subindex, record, field) */
-#define OD_DRIVE_ONLINE_TUNING_FIELDS(X) \
+/* 0x2201 Online tuning, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_ONLINE_TUNING_PARAMS(X) \
     X(0x2201u, 0x01u, x2201_online_tuning, enable) \
     X(0x2201u, 0x02u, x2201_online_tuning, det_threshold_A2) \
     X(0x2201u, 0x03u, x2201_online_tuning, average_m) \
-    X(0x2201u, 0x04u, x2201_online_tuning, separate_d_axis) \
+    X(0x2201u, 0x04u, x2201_online_tuning, separate_d_axis)
+
+/* 0x2201 Online tuning, status: X(index, subindex, record, field) */
+#define OD_DRIVE_ONLINE_TUNING_STATUS(X) \
     X(0x2201u, 0x05u, x2201_online_tuning, det_A2) \
     X(0x2201u, 0x06u, x2201_online_tuning, K1_hat) \
     X(0x2201u, 0x07u, x2201_online_tuning, K2_hat) \
@@ -744,8 +747,8 @@ extern const co_od_t od_drive;
     X(0x2201u, 0x0Eu, x2201_online_tuning, gain_updates)
 
 
-/* 0x2202 References: X(index, subindex, record, field) */
-#define OD_DRIVE_REFERENCES_FIELDS(X) \
+/* 0x2202 References, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_REFERENCES_PARAMS(X) \
     X(0x2202u, 0x01u, x2202_References, mode) \
     X(0x2202u, 0x02u, x2202_References, iq_ref_A) \
     X(0x2202u, 0x03u, x2202_References, id_ref_A) \
@@ -757,16 +760,16 @@ extern const co_od_t od_drive;
     X(0x2202u, 0x09u, x2202_References, v_q_open_V)
 
 
-/* 0x2203 Outer loops: X(index, subindex, record, field) */
-#define OD_DRIVE_OUTER_LOOPS_FIELDS(X) \
+/* 0x2203 Outer loops, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_OUTER_LOOPS_PARAMS(X) \
     X(0x2203u, 0x01u, x2203_outer_loops, speed_bandwidth_Hz) \
     X(0x2203u, 0x02u, x2203_outer_loops, position_bandwidth_Hz) \
     X(0x2203u, 0x03u, x2203_outer_loops, iq_limit_A) \
     X(0x2203u, 0x04u, x2203_outer_loops, speed_pi_zero_ratio)
 
 
-/* 0x2204 Drive status: X(index, subindex, record, field) */
-#define OD_DRIVE_DRIVE_STATUS_FIELDS(X) \
+/* 0x2204 Drive status, status: X(index, subindex, record, field) */
+#define OD_DRIVE_DRIVE_STATUS_STATUS(X) \
     X(0x2204u, 0x01u, x2204_drive_status, current_steps) \
     X(0x2204u, 0x02u, x2204_drive_status, lost_measurements) \
     X(0x2204u, 0x03u, x2204_drive_status, late_measurements) \
@@ -777,8 +780,8 @@ extern const co_od_t od_drive;
     X(0x2204u, 0x08u, x2204_drive_status, last_sample_index)
 
 
-/* 0x2206 Yao 2020 DPCC: X(index, subindex, record, field) */
-#define OD_DRIVE_YAO_2020_DPCC_FIELDS(X) \
+/* 0x2206 Yao 2020 DPCC, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_YAO_2020_DPCC_PARAMS(X) \
     X(0x2206u, 0x01u, x2206_yao_2020_dpcc, observer_enable) \
     X(0x2206u, 0x02u, x2206_yao_2020_dpcc, Q_d) \
     X(0x2206u, 0x03u, x2206_yao_2020_dpcc, Q_q) \
@@ -800,6 +803,11 @@ extern const co_od_t od_drive;
     X(0x2206u, 0x13u, x2206_yao_2020_dpcc, steady_tol_iq_A) \
     X(0x2206u, 0x14u, x2206_yao_2020_dpcc, min_speed_rad_s) \
     X(0x2206u, 0x15u, x2206_yao_2020_dpcc, ident_command) \
+    X(0x2206u, 0x25u, x2206_yao_2020_dpcc, rls_enable) \
+    X(0x2206u, 0x26u, x2206_yao_2020_dpcc, rls_lambda)
+
+/* 0x2206 Yao 2020 DPCC, status: X(index, subindex, record, field) */
+#define OD_DRIVE_YAO_2020_DPCC_STATUS(X) \
     X(0x2206u, 0x16u, x2206_yao_2020_dpcc, ident_state) \
     X(0x2206u, 0x17u, x2206_yao_2020_dpcc, abort_reason) \
     X(0x2206u, 0x18u, x2206_yao_2020_dpcc, progress) \
@@ -815,24 +823,22 @@ extern const co_od_t od_drive;
     X(0x2206u, 0x22u, x2206_yao_2020_dpcc, dM_q_V) \
     X(0x2206u, 0x23u, x2206_yao_2020_dpcc, motor_class) \
     X(0x2206u, 0x24u, x2206_yao_2020_dpcc, gains_high) \
-    X(0x2206u, 0x25u, x2206_yao_2020_dpcc, rls_enable) \
-    X(0x2206u, 0x26u, x2206_yao_2020_dpcc, rls_lambda) \
     X(0x2206u, 0x27u, x2206_yao_2020_dpcc, rls_R_hat_ohm) \
     X(0x2206u, 0x28u, x2206_yao_2020_dpcc, rls_L_hat_H) \
     X(0x2206u, 0x29u, x2206_yao_2020_dpcc, p_hat_d_A) \
     X(0x2206u, 0x2Au, x2206_yao_2020_dpcc, p_hat_q_A)
 
 
-/* 0x2207 Zhao 2022: X(index, subindex, record, field) */
-#define OD_DRIVE_ZHAO_2022_FIELDS(X) \
+/* 0x2207 Zhao 2022, status: X(index, subindex, record, field) */
+#define OD_DRIVE_ZHAO_2022_STATUS(X) \
     X(0x2207u, 0x01u, x2207_zhao_2022, K1_V_A) \
     X(0x2207u, 0x02u, x2207_zhao_2022, K2_V_A) \
     X(0x2207u, 0x03u, x2207_zhao_2022, G_V_A) \
     X(0x2207u, 0x04u, x2207_zhao_2022, limited)
 
 
-/* 0x2300 Trace: X(index, subindex, record, field) */
-#define OD_DRIVE_TRACE_FIELDS(X) \
+/* 0x2300 Trace, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_TRACE_PARAMS(X) \
     X(0x2300u, 0x01u, x2300_Trace, state) \
     X(0x2300u, 0x02u, x2300_Trace, trigger_signal) \
     X(0x2300u, 0x03u, x2300_Trace, trigger_level) \
@@ -847,18 +853,24 @@ extern const co_od_t od_drive;
     X(0x2300u, 0x0Cu, x2300_Trace, signal_5) \
     X(0x2300u, 0x0Du, x2300_Trace, signal_6) \
     X(0x2300u, 0x0Eu, x2300_Trace, signal_7) \
-    X(0x2300u, 0x0Fu, x2300_Trace, signal_8) \
+    X(0x2300u, 0x0Fu, x2300_Trace, signal_8)
+
+/* 0x2300 Trace, status: X(index, subindex, record, field) */
+#define OD_DRIVE_TRACE_STATUS(X) \
     X(0x2300u, 0x10u, x2300_Trace, captured_bytes) \
     X(0x2300u, 0x11u, x2300_Trace, trigger_row)
 
 
-/* 0x2302 Live trace: X(index, subindex, record, field) */
-#define OD_DRIVE_LIVE_TRACE_FIELDS(X) \
-    X(0x2302u, 0x01u, x2302_live_trace, value_1) \
-    X(0x2302u, 0x02u, x2302_live_trace, value_2) \
+/* 0x2302 Live trace, parameters: X(index, subindex, record, field) */
+#define OD_DRIVE_LIVE_TRACE_PARAMS(X) \
     X(0x2302u, 0x03u, x2302_live_trace, live_signal_1) \
     X(0x2302u, 0x04u, x2302_live_trace, live_signal_2) \
     X(0x2302u, 0x05u, x2302_live_trace, decimation)
+
+/* 0x2302 Live trace, status: X(index, subindex, record, field) */
+#define OD_DRIVE_LIVE_TRACE_STATUS(X) \
+    X(0x2302u, 0x01u, x2302_live_trace, value_1) \
+    X(0x2302u, 0x02u, x2302_live_trace, value_2)
 
 
 #endif /* OD_DRIVE_H */
