@@ -4,6 +4,10 @@
  * A driver feeds received frames to co_node_process() and calls co_node_tick()
  * periodically; frames go out through the co_tx_fn given at init
  * (protocols/socketcan/ on Linux).
+ *
+ * The node owns NMT, the heartbeat producer and consumers and SYNC, and composes the
+ * services, each in its own module that knows nothing of the node (CANopenNode's
+ * split): co_emcy.h, co_pdo.h, co_sdo_server.h, all over co_od.h and co_tx.h.
  */
 #ifndef CO_NODE_H
 #define CO_NODE_H
@@ -11,13 +15,15 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "co_emcy.h"
 #include "co_frame.h"
 #include "co_od.h"
+#include "co_pdo.h"
+#include "co_sdo_server.h"
+#include "co_tx.h"
 
 #define CO_NUM_PDO 4u
-#define CO_PDO_MAX_MAPPED 8u
 #define CO_HB_CONSUMERS 4u
-#define CO_SDO_BUF 64u
 
 typedef enum {
     CO_NMT_INITIALIZING = 0x00,
@@ -34,23 +40,6 @@ enum {
     CO_NMT_CS_RESET_NODE = 0x81,
     CO_NMT_CS_RESET_COMM = 0x82
 };
-
-/* EMCY error codes used by the slave itself (CiA 301 table 21). */
-#define CO_EMCY_NO_ERROR 0x0000u
-#define CO_EMCY_HEARTBEAT 0x8130u
-#define CO_EMCY_PDO_LENGTH 0x8210u
-#define CO_EMCY_PDO_LENGTH_EXCEEDED 0x8220u
-#define CO_EMCY_SYNC_LENGTH 0x8240u
-#define CO_EMCY_RPDO_TIMEOUT 0x8250u
-
-/* Error register bits (0x1001). */
-#define CO_ERR_REG_GENERIC 0x01u
-#define CO_ERR_REG_CURRENT 0x02u
-#define CO_ERR_REG_VOLTAGE 0x04u
-#define CO_ERR_REG_TEMPERATURE 0x08u
-#define CO_ERR_REG_COMMUNICATION 0x10u
-#define CO_ERR_REG_PROFILE 0x20u
-#define CO_ERR_REG_MANUFACTURER 0x80u
 
 typedef struct co_node co_node_t;
 
@@ -75,50 +64,6 @@ typedef struct {
 } co_hooks_t;
 
 typedef struct {
-    const co_od_entry_t *entry[CO_PDO_MAX_MAPPED];
-    uint8_t count;
-    uint8_t bytes;
-    bool valid;            /* COB-ID valid and mapping resolved */
-    uint16_t cob_id;
-    uint8_t trans_type;
-    uint8_t sync_start;    /* cached from the communication parameter (sub 6) */
-    uint16_t event_ms;     /* cached sub 5 */
-    uint16_t inhibit_100us;/* cached sub 3 */
-    /* TPDO */
-    uint8_t sync_count;
-    bool pending;          /* event requested (or type 0 waiting for SYNC) */
-    bool started;          /* SYNC start value reached */
-    int64_t last_tx_us;
-    int64_t next_event_us;
-    /* RPDO */
-    uint8_t rx_buf[8];
-    bool rx_buffered;      /* synchronous RPDO waiting for the next SYNC */
-    int64_t last_rx_us;
-    bool deadline_armed;
-    bool deadline_reported;
-    bool length_reported;
-} co_pdo_t;
-
-typedef enum {
-    CO_SDO_IDLE = 0,
-    CO_SDO_DOWNLOAD,
-    CO_SDO_UPLOAD
-} co_sdo_state_t;
-
-typedef struct {
-    co_sdo_state_t state;
-    const co_od_entry_t *entry;
-    uint16_t index;
-    uint8_t subindex;
-    uint8_t toggle;
-    uint32_t size;      /* total bytes (indicated or known) */
-    bool size_known;
-    uint32_t offset;
-    uint8_t buf[CO_SDO_BUF];
-    int64_t last_us;
-} co_sdo_t;
-
-typedef struct {
     uint8_t node_id;
     uint16_t time_ms;
     bool active;
@@ -132,8 +77,7 @@ struct co_node {
     const co_od_t *od;
     uint8_t node_id;
     co_nmt_state_t nmt;
-    co_tx_fn tx;
-    void *tx_user;
+    co_tx_t tx;                /* the driver's transmit callback and the frame counters */
     co_hooks_t hooks;
     void *user;
     int64_t now_us;
@@ -155,21 +99,20 @@ struct co_node {
     int64_t sync_next_us;
     uint32_t syncs;            /* SYNC events processed */
 
+    /* Services, wired to this node by co_node_init. */
+    co_emcy_t emcy;
+    co_pdo_env_t pdo_env;      /* what the PDOs share: OD, tx, EMCY, the hooks' adapters */
     co_pdo_t rpdo[CO_NUM_PDO];
     co_pdo_t tpdo[CO_NUM_PDO];
-    co_sdo_t sdo;
-    uint32_t sdo_timeout_us;
+    co_sdo_server_t sdo;
 
-    /* EMCY bookkeeping */
-    uint16_t active_errors[8];
-    uint8_t n_active_errors;
-
-    /* Statistics (frames) */
-    uint32_t rx_frames, tx_frames, tx_errors, sdo_aborts;
+    /* Statistics (frames received; sent: tx.frames, tx.errors; SDO aborts: sdo.aborts) */
+    uint32_t rx_frames;
 };
 
 /* Initialise: restore the OD defaults, send the boot-up message and enter
- * pre-operational (CiA 301 NMT slave start-up). */
+ * pre-operational (CiA 301 NMT slave start-up). The node must not be moved or
+ * copied afterwards (its services point into it). */
 void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn tx, void *tx_user,
                   const co_hooks_t *hooks, void *user, int64_t now_us);
 
@@ -192,22 +135,8 @@ void co_tpdo_request(co_node_t *node, uint8_t pdo);
 /* Local NMT transition (as if commanded by the master). */
 void co_nmt_command(co_node_t *node, uint8_t cs);
 
-/* EMCY: raise an error (adds to 0x1003, sets 0x1001 bits, sends the EMCY frame). */
+/* EMCY of this node (co_emcy_report_error / co_emcy_clear_error on node->emcy). */
 void co_emcy_raise(co_node_t *node, uint16_t code, uint8_t err_reg_bits, const uint8_t msef[5]);
-/* Clear an active error; when none is left, send the "error reset" EMCY and clear 0x1001. */
 void co_emcy_clear(co_node_t *node, uint16_t code);
-
-/* Internal: apply a validated SDO write (used by the SDO server). */
-uint32_t co_node_sdo_write(co_node_t *node, const co_od_entry_t *e, const uint8_t *data, uint32_t len);
-void co_sdo_process(co_node_t *node, const co_frame_t *frame);
-void co_sdo_tick(co_node_t *node);
-void co_pdo_configure_all(co_node_t *node);
-uint32_t co_pdo_check_write(co_node_t *node, const co_od_entry_t *e, const uint8_t *data, uint32_t len);
-void co_pdo_after_write(co_node_t *node, const co_od_entry_t *e);
-void co_pdo_rx(co_node_t *node, const co_frame_t *frame);
-void co_pdo_sync(co_node_t *node, uint8_t counter);
-void co_pdo_sync_tx(co_node_t *node, uint8_t counter);
-void co_pdo_tick(co_node_t *node);
-int co_node_send(co_node_t *node, uint16_t cob_id, const uint8_t *data, uint8_t dlc);
 
 #endif /* CO_NODE_H */

@@ -2,103 +2,128 @@
  * upload/download, toggle-bit check, timeout, abort codes. Block transfer is
  * answered with "command specifier not valid" (0x05040001), which masters such
  * as python canopen take as "use segmented transfer". */
+#include "co_sdo_server.h"
+
 #include <string.h>
 
-#include "co_node.h"
+void co_sdo_server_init(co_sdo_server_t *s, const co_od_t *od, co_tx_t *tx, uint8_t node_id,
+                        co_sdo_write_fn write, co_sdo_pre_read_fn pre_read, void *ctx)
+{
+    memset(s, 0, sizeof *s);
+    s->od = od;
+    s->tx = tx;
+    s->tx_cob_id = (uint16_t)(0x580u + node_id);
+    s->timeout_us = CO_SDO_SERVER_TIMEOUT_US;
+    s->write = write;
+    s->pre_read = pre_read;
+    s->ctx = ctx;
+}
+
+void co_sdo_server_reset(co_sdo_server_t *s)
+{
+    memset(&s->transfer, 0, sizeof s->transfer);
+}
 
 static void put_u32(uint8_t *p, uint32_t v)
 {
     p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); p[2] = (uint8_t)(v >> 16); p[3] = (uint8_t)(v >> 24);
 }
 
-static void sdo_send(co_node_t *node, const uint8_t d[8])
+static void sdo_send(co_sdo_server_t *s, const uint8_t d[8])
 {
-    co_node_send(node, (uint16_t)(0x580u + node->node_id), d, 8);
+    co_tx_send(s->tx, s->tx_cob_id, d, 8);
 }
 
-static void sdo_abort(co_node_t *node, uint16_t index, uint8_t sub, uint32_t code)
+static void sdo_abort(co_sdo_server_t *s, uint16_t index, uint8_t sub, uint32_t code)
 {
     uint8_t d[8] = {0x80, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};
     put_u32(&d[4], code);
-    sdo_send(node, d);
-    ++node->sdo_aborts;
-    node->sdo.state = CO_SDO_IDLE;
+    sdo_send(s, d);
+    ++s->aborts;
+    s->transfer.state = CO_SDO_IDLE;
 }
 
-static const co_od_entry_t *lookup(co_node_t *node, uint16_t index, uint8_t sub, uint32_t *abort)
+static const co_od_entry_t *lookup(const co_sdo_server_t *s, uint16_t index, uint8_t sub, uint32_t *abort)
 {
     int exists = 0;
-    const co_od_entry_t *e = co_od_find(node->od, index, sub, &exists);
+    const co_od_entry_t *e = co_od_find(s->od, index, sub, &exists);
     if (!e) *abort = exists ? CO_ABORT_NO_SUB : CO_ABORT_NO_OBJECT;
     return e;
 }
 
-static void upload_initiate(co_node_t *node, uint16_t index, uint8_t sub)
+static void begin_transfer(co_sdo_transfer_t *t, co_sdo_state_t state, const co_od_entry_t *e, uint16_t index,
+                           uint8_t sub, uint32_t size, bool size_known, int64_t now_us)
+{
+    t->state = state;
+    t->entry = e;
+    t->index = index;
+    t->subindex = sub;
+    t->size = size;
+    t->size_known = size_known; /* read by download segments only */
+    t->offset = 0;
+    t->toggle = 0;
+    t->last_us = now_us;
+}
+
+static void upload_initiate(co_sdo_server_t *s, uint16_t index, uint8_t sub, int64_t now_us)
 {
     uint32_t abort = 0;
-    const co_od_entry_t *e = lookup(node, index, sub, &abort);
-    if (!e) { sdo_abort(node, index, sub, abort); return; }
-    if (!(e->flags & CO_ODF_READ)) { sdo_abort(node, index, sub, CO_ABORT_WRITE_ONLY); return; }
-    if (node->hooks.pre_read) node->hooks.pre_read(node->user, node, e);
+    const co_od_entry_t *e = lookup(s, index, sub, &abort);
+    if (!e) { sdo_abort(s, index, sub, abort); return; }
+    if (!(e->flags & CO_ODF_READ)) { sdo_abort(s, index, sub, CO_ABORT_WRITE_ONLY); return; }
+    if (s->pre_read) s->pre_read(s->ctx, e);
     uint32_t size = co_od_value_size(e);
     uint8_t d[8] = {0, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};
     if (size <= 4u && size > 0u) {
         d[0] = (uint8_t)(0x43u | ((4u - size) << 2));
         co_od_read_raw(e, 0, &d[4], 4);
-        sdo_send(node, d);
-        node->sdo.state = CO_SDO_IDLE;
+        sdo_send(s, d);
+        s->transfer.state = CO_SDO_IDLE;
         return;
     }
     /* Segmented (also for empty strings/domains: size 0 in one empty last segment). */
     d[0] = 0x41;
     put_u32(&d[4], size);
-    sdo_send(node, d);
-    node->sdo.state = CO_SDO_UPLOAD;
-    node->sdo.entry = e;
-    node->sdo.index = index;
-    node->sdo.subindex = sub;
-    node->sdo.size = size;
-    node->sdo.offset = 0;
-    node->sdo.toggle = 0;
-    node->sdo.last_us = node->now_us;
+    sdo_send(s, d);
+    begin_transfer(&s->transfer, CO_SDO_UPLOAD, e, index, sub, size, false, now_us);
 }
 
-static void upload_segment(co_node_t *node, const uint8_t *req)
+static void upload_segment(co_sdo_server_t *s, const uint8_t *req, int64_t now_us)
 {
-    co_sdo_t *s = &node->sdo;
-    uint8_t t = (uint8_t)((req[0] >> 4) & 1u);
-    if (t != s->toggle) { sdo_abort(node, s->index, s->subindex, CO_ABORT_TOGGLE); return; }
+    co_sdo_transfer_t *t = &s->transfer;
+    uint8_t toggle = (uint8_t)((req[0] >> 4) & 1u);
+    if (toggle != t->toggle) { sdo_abort(s, t->index, t->subindex, CO_ABORT_TOGGLE); return; }
     uint8_t d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-    uint32_t n = co_od_read_raw(s->entry, s->offset, &d[1], 7);
+    uint32_t n = co_od_read_raw(t->entry, t->offset, &d[1], 7);
     /* A value that shrank under the transfer (domain refreshed) ends it early. */
-    s->offset += n;
-    uint8_t last = s->offset >= s->size || n < 7u ? 1u : 0u;
-    d[0] = (uint8_t)((t << 4) | ((7u - n) << 1) | last);
-    sdo_send(node, d);
-    s->toggle ^= 1u;
-    s->last_us = node->now_us;
-    if (last) s->state = CO_SDO_IDLE;
+    t->offset += n;
+    uint8_t last = t->offset >= t->size || n < 7u ? 1u : 0u;
+    d[0] = (uint8_t)((toggle << 4) | ((7u - n) << 1) | last);
+    sdo_send(s, d);
+    t->toggle ^= 1u;
+    t->last_us = now_us;
+    if (last) t->state = CO_SDO_IDLE;
 }
 
-static void download_initiate(co_node_t *node, const uint8_t *req, uint16_t index, uint8_t sub)
+static void download_initiate(co_sdo_server_t *s, const uint8_t *req, uint16_t index, uint8_t sub, int64_t now_us)
 {
     uint32_t abort = 0;
-    const co_od_entry_t *e = lookup(node, index, sub, &abort);
-    if (!e) { sdo_abort(node, index, sub, abort); return; }
-    if (!(e->flags & CO_ODF_WRITE)) { sdo_abort(node, index, sub, CO_ABORT_READ_ONLY); return; }
+    const co_od_entry_t *e = lookup(s, index, sub, &abort);
+    if (!e) { sdo_abort(s, index, sub, abort); return; }
+    if (!(e->flags & CO_ODF_WRITE)) { sdo_abort(s, index, sub, CO_ABORT_READ_ONLY); return; }
     uint8_t cs = req[0];
     bool expedited = (cs & 0x02u) != 0u;
     bool size_ind = (cs & 0x01u) != 0u;
     uint32_t fixed = co_dt_size(e->datatype);
     if (expedited) {
         /* Without a size indication the length is only known for fixed-size types. */
-        if (!size_ind && !fixed) { sdo_abort(node, index, sub, CO_ABORT_TYPE_MISMATCH); return; }
+        if (!size_ind && !fixed) { sdo_abort(s, index, sub, CO_ABORT_TYPE_MISMATCH); return; }
         uint32_t len = size_ind ? 4u - ((cs >> 2) & 3u) : fixed;
-        abort = co_node_sdo_write(node, e, &req[4], len);
-        if (abort) { sdo_abort(node, index, sub, abort); return; }
+        abort = s->write(s->ctx, e, &req[4], len);
+        if (abort) { sdo_abort(s, index, sub, abort); return; }
         uint8_t d[8] = {0x60, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};
-        sdo_send(node, d);
-        node->sdo.state = CO_SDO_IDLE;
+        sdo_send(s, d);
+        s->transfer.state = CO_SDO_IDLE;
         return;
     }
     uint32_t size = (uint32_t)req[4] | (uint32_t)req[5] << 8 | (uint32_t)req[6] << 16 | (uint32_t)req[7] << 24;
@@ -107,98 +132,97 @@ static void download_initiate(co_node_t *node, const uint8_t *req, uint16_t inde
     else if (e->datatype == CO_DT_VISIBLE_STRING) cap = e->size;
     else if (e->datatype == CO_DT_DOMAIN) cap = ((const co_domain_t *)e->data)->capacity;
     if (size_ind) {
-        if (size > cap) { sdo_abort(node, index, sub, CO_ABORT_TOO_LONG); return; }
-        if (fixed && size < fixed) { sdo_abort(node, index, sub, CO_ABORT_TOO_SHORT); return; }
+        if (size > cap) { sdo_abort(s, index, sub, CO_ABORT_TOO_LONG); return; }
+        if (fixed && size < fixed) { sdo_abort(s, index, sub, CO_ABORT_TOO_SHORT); return; }
     }
     if (e->datatype == CO_DT_DOMAIN && !((const co_domain_t *)e->data)->data) {
-        sdo_abort(node, index, sub, CO_ABORT_DATA_LOCAL);
+        sdo_abort(s, index, sub, CO_ABORT_DATA_LOCAL);
         return;
     }
-    co_sdo_t *s = &node->sdo;
-    s->state = CO_SDO_DOWNLOAD;
-    s->entry = e;
-    s->index = index;
-    s->subindex = sub;
-    s->size = size;
-    s->size_known = size_ind;
-    s->offset = 0;
-    s->toggle = 0;
-    s->last_us = node->now_us;
+    begin_transfer(&s->transfer, CO_SDO_DOWNLOAD, e, index, sub, size, size_ind, now_us);
     uint8_t d[8] = {0x60, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};
-    sdo_send(node, d);
+    sdo_send(s, d);
 }
 
-static void download_segment(co_node_t *node, const uint8_t *req)
+static void download_segment(co_sdo_server_t *s, const uint8_t *req, int64_t now_us)
 {
-    co_sdo_t *s = &node->sdo;
-    uint8_t t = (uint8_t)((req[0] >> 4) & 1u);
-    if (t != s->toggle) { sdo_abort(node, s->index, s->subindex, CO_ABORT_TOGGLE); return; }
+    co_sdo_transfer_t *t = &s->transfer;
+    uint8_t toggle = (uint8_t)((req[0] >> 4) & 1u);
+    if (toggle != t->toggle) { sdo_abort(s, t->index, t->subindex, CO_ABORT_TOGGLE); return; }
     uint32_t n = 7u - ((req[0] >> 1) & 7u);
     bool last = (req[0] & 1u) != 0u;
-    const co_od_entry_t *e = s->entry;
+    const co_od_entry_t *e = t->entry;
     bool domain = e->datatype == CO_DT_DOMAIN;
     uint32_t cap = domain ? ((const co_domain_t *)e->data)->capacity
                           : (e->datatype == CO_DT_VISIBLE_STRING ? e->size : co_dt_size(e->datatype));
     if (cap > CO_SDO_BUF && !domain) cap = CO_SDO_BUF;
-    if (s->offset + n > cap || (s->size_known && s->offset + n > s->size)) {
-        sdo_abort(node, s->index, s->subindex, CO_ABORT_TOO_LONG);
+    if (t->offset + n > cap || (t->size_known && t->offset + n > t->size)) {
+        sdo_abort(s, t->index, t->subindex, CO_ABORT_TOO_LONG);
         return;
     }
     if (domain) {
         /* Domains are streamed straight into the application's buffer; size set at the end. */
-        memcpy(((co_domain_t *)e->data)->data + s->offset, &req[1], n);
+        memcpy(((co_domain_t *)e->data)->data + t->offset, &req[1], n);
     } else {
-        memcpy(&s->buf[s->offset], &req[1], n);
+        memcpy(&t->buf[t->offset], &req[1], n);
     }
-    s->offset += n;
-    s->toggle ^= 1u;
-    s->last_us = node->now_us;
+    t->offset += n;
+    t->toggle ^= 1u;
+    t->last_us = now_us;
     if (last) {
-        if (s->size_known && s->offset != s->size) {
-            sdo_abort(node, s->index, s->subindex, s->offset < s->size ? CO_ABORT_TOO_SHORT : CO_ABORT_TOO_LONG);
+        if (t->size_known && t->offset != t->size) {
+            sdo_abort(s, t->index, t->subindex, t->offset < t->size ? CO_ABORT_TOO_SHORT : CO_ABORT_TOO_LONG);
             return;
         }
         uint32_t abort;
         if (domain) {
             co_domain_t *dm = (co_domain_t *)e->data;
-            abort = co_node_sdo_write(node, e, dm->data, s->offset);
+            abort = s->write(s->ctx, e, dm->data, t->offset);
         } else {
-            abort = co_node_sdo_write(node, e, s->buf, s->offset);
+            abort = s->write(s->ctx, e, t->buf, t->offset);
         }
-        if (abort) { sdo_abort(node, s->index, s->subindex, abort); return; }
-        s->state = CO_SDO_IDLE;
+        if (abort) { sdo_abort(s, t->index, t->subindex, abort); return; }
+        t->state = CO_SDO_IDLE;
     }
-    uint8_t d[8] = {(uint8_t)(0x20u | (t << 4)), 0, 0, 0, 0, 0, 0, 0};
-    sdo_send(node, d);
+    uint8_t d[8] = {(uint8_t)(0x20u | (toggle << 4)), 0, 0, 0, 0, 0, 0, 0};
+    sdo_send(s, d);
 }
 
-void co_sdo_process(co_node_t *node, const co_frame_t *frame)
+void co_sdo_server_process(co_sdo_server_t *s, const co_frame_t *request, int64_t now_us)
 {
-    if (frame->dlc != 8u) return; /* SDO frames are always 8 bytes; others are not SDO requests */
-    const uint8_t *req = frame->data;
+    if (request->dlc != 8u) return; /* SDO frames are always 8 bytes; others are not SDO requests */
+    const uint8_t *req = request->data;
     uint8_t ccs = (uint8_t)(req[0] >> 5);
     uint16_t index = (uint16_t)(req[1] | (req[2] << 8));
     uint8_t sub = req[3];
-    node->sdo.last_us = node->now_us;
+    co_sdo_transfer_t *t = &s->transfer;
+    t->last_us = now_us;
     switch (ccs) {
-    case 1: download_initiate(node, req, index, sub); break;
-    case 2: upload_initiate(node, index, sub); break;
+    case 1: download_initiate(s, req, index, sub, now_us); break;
+    case 2: upload_initiate(s, index, sub, now_us); break;
     case 0:
-        if (node->sdo.state == CO_SDO_DOWNLOAD) download_segment(node, req);
-        else sdo_abort(node, node->sdo.index, node->sdo.subindex, CO_ABORT_CMD);
+        if (t->state == CO_SDO_DOWNLOAD) download_segment(s, req, now_us);
+        else sdo_abort(s, t->index, t->subindex, CO_ABORT_CMD);
         break;
     case 3:
-        if (node->sdo.state == CO_SDO_UPLOAD) upload_segment(node, req);
-        else sdo_abort(node, node->sdo.index, node->sdo.subindex, CO_ABORT_CMD);
+        if (t->state == CO_SDO_UPLOAD) upload_segment(s, req, now_us);
+        else sdo_abort(s, t->index, t->subindex, CO_ABORT_CMD);
         break;
-    case 4: node->sdo.state = CO_SDO_IDLE; break; /* abort from the client: no answer */
-    default: sdo_abort(node, index, sub, CO_ABORT_CMD); break; /* 5, 6: block transfer; 7: invalid */
+    case 4: t->state = CO_SDO_IDLE; break; /* abort from the client: no answer */
+    default: sdo_abort(s, index, sub, CO_ABORT_CMD); break; /* 5, 6: block transfer; 7: invalid */
     }
 }
 
-void co_sdo_tick(co_node_t *node)
+void co_sdo_server_tick(co_sdo_server_t *s, int64_t now_us)
 {
-    co_sdo_t *s = &node->sdo;
-    if (s->state != CO_SDO_IDLE && node->now_us - s->last_us > (int64_t)node->sdo_timeout_us)
-        sdo_abort(node, s->index, s->subindex, CO_ABORT_TIMEOUT);
+    const co_sdo_transfer_t *t = &s->transfer;
+    if (t->state != CO_SDO_IDLE && now_us - t->last_us > (int64_t)s->timeout_us)
+        sdo_abort(s, t->index, t->subindex, CO_ABORT_TIMEOUT);
+}
+
+int64_t co_sdo_server_next_event(const co_sdo_server_t *s, int64_t next_us)
+{
+    if (s->transfer.state == CO_SDO_IDLE) return next_us;
+    int64_t timeout = s->transfer.last_us + s->timeout_us;
+    return timeout < next_us ? timeout : next_us;
 }

@@ -1,0 +1,23 @@
+/* co_tx.c - sending a frame through the driver (see co_tx.h). */
+#include "co_tx.h"
+
+#include <string.h>
+
+void co_tx_init(co_tx_t *tx, co_tx_fn fn, void *user)
+{
+    memset(tx, 0, sizeof *tx);
+    tx->fn = fn;
+    tx->user = user;
+}
+
+int co_tx_send(co_tx_t *tx, uint16_t cob_id, const uint8_t *data, uint8_t dlc)
+{
+    co_frame_t f;
+    memset(&f, 0, sizeof f);
+    f.cob_id = cob_id & 0x7FFu;
+    f.dlc = dlc;
+    if (dlc) memcpy(f.data, data, dlc);
+    int r = tx->fn ? tx->fn(tx->user, &f) : -1;
+    if (r == 0) ++tx->frames; else ++tx->errors;
+    return r;
+}
