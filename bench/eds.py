@@ -53,6 +53,21 @@ def float_limits(path: Path, var: ODVariable) -> tuple[float | None, float | Non
     return get("LowLimit"), get("HighLimit")
 
 
+def value_names(path: Path, var: ODVariable) -> tuple[str, ...]:
+    """Names of an enumerated entry's values 0, 1, ... (key ValueNames of its EDS section, also read by
+    protocols/gen_od.py for the C enumerations); () for a plain number."""
+    raw = _raw(str(path))
+    sec = section_of(var)
+    if not raw.has_option(sec, "ValueNames"):
+        return ()
+    return tuple(n.strip() for n in raw.get(sec, "ValueNames").split(","))
+
+
+def enum(node: str, obj: str, name: str) -> dict[str, int]:
+    """Value of each name of an enumerated entry, e.g. enum("drive", "Controller", "controller")."""
+    return {n: i for i, n in enumerate(value_names(eds_path(node), load(node)[obj][name]))}
+
+
 def _cached(what: str, node: str, build: Callable[[], T]) -> T:
     """`build()` memoized on disk, keyed by the EDS file's content and the canopen version: parsing
     an EDS costs ~0.1 s of every command's start; unpickling it a few ms."""
@@ -92,6 +107,7 @@ class Param:
     low: float | None
     high: float | None
     description: str
+    names: tuple[str, ...] = ()  # of the values 0, 1, ... of an enumerated entry (EDS ValueNames)
 
     @property
     def is_float(self) -> bool:
@@ -118,5 +134,5 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
             else:
                 lo, hi = var.min, var.max
             out[var.name] = Param(node, oname, var.name, var.index, var.subindex, var.data_type, lo, hi,
-                                  var.description or "")
+                                  var.description or "", value_names(eds_path(node), var))
     return out

@@ -64,13 +64,6 @@ SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
 }
 # Run-control entries the bench drives itself (scenario.timing sets the mode).
 RESERVED = {("Run control", "run_periods"), ("Run control", "trip_clear"), ("Run control", "mode")}
-ENUMS: dict[str, dict[str, int]] = {
-    "controller": {"open_loop": 0, "pi": 1, "deadbeat_you2019": 2, "dpcc_yao2020": 3,
-                   "incremental_zhao2022": 4, "predictive_zhao2022": 5},
-    "mech_mode": {"free": 0, "locked": 1, "imposed_speed": 2},
-    "mod_limit": {"none": 0, "hexagon": 1, "circle": 2},
-    "hold_frame": {"stator": 0, "rotor": 1},
-}
 RATIOS = {"R_hat_ratio": (("R_hat_ohm", "R_ohm"),), "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),
           "Lq_hat_ratio": (("Lq_hat_H", "Lq_H"),), "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
           "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),)}
@@ -145,8 +138,8 @@ def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, d
         raise ScenarioError(f"{where}: unknown key {full!r}; allowed in [{section}]: {', '.join(allowed)}")
     p = table[key]
     if isinstance(value, str):
-        names = ENUMS.get(key)
-        if names is None or value not in names:
+        names = {n: i for i, n in enumerate(p.names)}  # the EDS's ValueNames
+        if value not in names:
             choices = f"one of {', '.join(names)}" if names else f"a number ({_fmt_range(p)})"
             raise ScenarioError(f"{where}: {full} = {value!r}: expected {choices}")
         value = names[value]

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from ..tools.plan import classic_frame_bits
-from ..scenario import ENUMS, STATUSES
+from ..eds import enum
+from ..scenario import STATUSES
 from .decode import Decoder
 
 SCHEMA_VERSION = 2
@@ -55,7 +56,7 @@ END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
 PLANT_VALUES = (("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode",
                                  "omega_imposed_rad_s")),
                 ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")))
-CONTROLLER_NAMES = {v: k for k, v in ENUMS["controller"].items()}
+CONTROLLER_NAMES = {v: k for k, v in enum("drive", "Controller", "controller").items()}
 
 
 def _num(v: float | None) -> float | int | None:
@@ -101,7 +102,7 @@ def divergence_bound_A(plant: dict[str, Any]) -> float | None:
     if not R or not vdc:
         return None
     emf = 0.0
-    if plant.get("mech_mode") == ENUMS["mech_mode"]["imposed_speed"]:
+    if plant.get("mech_mode") == enum("plant", "Motor model", "mech_mode")["imposed_speed"]:
         emf = abs(plant.get("omega_imposed_rad_s") or 0.0) * (plant.get("pole_pairs") or 1) * (plant.get("psi_Wb")
                                                                                               or 0.0)
     return 2.0 * (2.0 / 3.0 * vdc + emf) / R

@@ -15,7 +15,7 @@
 
 /* Motor model, Inverter and Sensors (0x2000-0x2002) <-> plant_config_t: the rows are the EDS's
  * own lists (od_plant.h), the fields of plant_config_t carry the EDS names. */
-#define PLANT_ROW(index, sub, record, field) CO_FIELD_MAP_ROW(OD_PLANT.mfr, plant_config_t, record, field),
+#define PLANT_ROW(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(OD_PLANT.mfr, plant_config_t, record, field),
 static const co_field_map_t config_rows[] = {
     OD_PLANT_MOTOR_MODEL_PARAMS(PLANT_ROW) OD_PLANT_INVERTER_PARAMS(PLANT_ROW) OD_PLANT_SENSORS_PARAMS(PLANT_ROW)};
 #undef PLANT_ROW

@@ -4,6 +4,7 @@
 
 #include <stdint.h>
 #include "co_od.h"
+#include "od_plant_fields.h"
 
 #define OD_PLANT_DEFAULT_NODE_ID 16u
 
@@ -513,91 +514,5 @@ extern const co_od_t od_plant;
 #define OD_PLANT_VOLTAGE_COMMAND_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_VOLTAGE_COMMAND_V_ALPHA_V_SUB 0x01u
 #define OD_PLANT_VOLTAGE_COMMAND_V_BETA_V_SUB 0x02u
-
-/* 0x2000 Motor model, parameters: X(index, subindex, record, field) */
-#define OD_PLANT_MOTOR_MODEL_PARAMS(X) \
-    X(0x2000u, 0x01u, x2000_motor_model, R_ohm) \
-    X(0x2000u, 0x02u, x2000_motor_model, Ld_H) \
-    X(0x2000u, 0x03u, x2000_motor_model, Lq_H) \
-    X(0x2000u, 0x04u, x2000_motor_model, psi_Wb) \
-    X(0x2000u, 0x05u, x2000_motor_model, pole_pairs) \
-    X(0x2000u, 0x06u, x2000_motor_model, J_kgm2) \
-    X(0x2000u, 0x07u, x2000_motor_model, B_Nm_per_rad_s) \
-    X(0x2000u, 0x08u, x2000_motor_model, T_load_Nm) \
-    X(0x2000u, 0x09u, x2000_motor_model, mech_mode) \
-    X(0x2000u, 0x0Au, x2000_motor_model, omega_imposed_rad_s) \
-    X(0x2000u, 0x0Bu, x2000_motor_model, sat_enable) \
-    X(0x2000u, 0x0Cu, x2000_motor_model, sat_I_A) \
-    X(0x2000u, 0x0Du, x2000_motor_model, sat_Lq_inf_H) \
-    X(0x2000u, 0x0Eu, x2000_motor_model, rk4_h_rel) \
-    X(0x2000u, 0x0Fu, x2000_motor_model, rk4_min_substeps)
-
-
-/* 0x2001 Inverter, parameters: X(index, subindex, record, field) */
-#define OD_PLANT_INVERTER_PARAMS(X) \
-    X(0x2001u, 0x01u, x2001_Inverter, Ts_s) \
-    X(0x2001u, 0x02u, x2001_Inverter, Vdc_V) \
-    X(0x2001u, 0x03u, x2001_Inverter, mod_limit) \
-    X(0x2001u, 0x04u, x2001_Inverter, t_dead_s) \
-    X(0x2001u, 0x05u, x2001_Inverter, deadtime_I_sat_A) \
-    X(0x2001u, 0x06u, x2001_Inverter, I_trip_A) \
-    X(0x2001u, 0x07u, x2001_Inverter, Ts_pwm_s) \
-    X(0x2001u, 0x08u, x2001_Inverter, hold_frame)
-
-
-/* 0x2002 Sensors, parameters: X(index, subindex, record, field) */
-#define OD_PLANT_SENSORS_PARAMS(X) \
-    X(0x2002u, 0x01u, x2002_Sensors, adc_lsb_A) \
-    X(0x2002u, 0x02u, x2002_Sensors, adc_offset_a_A) \
-    X(0x2002u, 0x03u, x2002_Sensors, adc_noise_std_A) \
-    X(0x2002u, 0x04u, x2002_Sensors, rng_seed) \
-    X(0x2002u, 0x05u, x2002_Sensors, encoder_lines) \
-    X(0x2002u, 0x06u, x2002_Sensors, adc_offset_b_A) \
-    X(0x2002u, 0x07u, x2002_Sensors, adc_full_scale_A)
-
-
-/* 0x2003 Run control, parameters: X(index, subindex, record, field) */
-#define OD_PLANT_RUN_CONTROL_PARAMS(X) \
-    X(0x2003u, 0x01u, x2003_run_control, mode) \
-    X(0x2003u, 0x02u, x2003_run_control, run_periods) \
-    X(0x2003u, 0x04u, x2003_run_control, command_timeout_us) \
-    X(0x2003u, 0x07u, x2003_run_control, trip_clear)
-
-/* 0x2003 Run control, status: X(index, subindex, record, field) */
-#define OD_PLANT_RUN_CONTROL_STATUS(X) \
-    X(0x2003u, 0x03u, x2003_run_control, period_index) \
-    X(0x2003u, 0x05u, x2003_run_control, missed_commands) \
-    X(0x2003u, 0x06u, x2003_run_control, late_commands) \
-    X(0x2003u, 0x08u, x2003_run_control, trip_active) \
-    X(0x2003u, 0x09u, x2003_run_control, state) \
-    X(0x2003u, 0x0Au, x2003_run_control, sync_overruns) \
-    X(0x2003u, 0x0Bu, x2003_run_control, max_sync_lateness_us)
-
-
-/* 0x2005 Plant state, status: X(index, subindex, record, field) */
-#define OD_PLANT_PLANT_STATE_STATUS(X) \
-    X(0x2005u, 0x01u, x2005_plant_state, id_A) \
-    X(0x2005u, 0x02u, x2005_plant_state, iq_A) \
-    X(0x2005u, 0x03u, x2005_plant_state, omega_m_rad_s) \
-    X(0x2005u, 0x04u, x2005_plant_state, theta_m_rad) \
-    X(0x2005u, 0x05u, x2005_plant_state, torque_Nm) \
-    X(0x2005u, 0x06u, x2005_plant_state, energy_in_J)
-
-
-/* 0x2100 Measurement, status: X(index, subindex, record, field) */
-#define OD_PLANT_MEASUREMENT_STATUS(X) \
-    X(0x2100u, 0x01u, x2100_Measurement, i_a_A) \
-    X(0x2100u, 0x02u, x2100_Measurement, i_b_A) \
-    X(0x2100u, 0x03u, x2100_Measurement, theta_m_rad) \
-    X(0x2100u, 0x04u, x2100_Measurement, sync_counter) \
-    X(0x2100u, 0x05u, x2100_Measurement, status) \
-    X(0x2100u, 0x06u, x2100_Measurement, sample_index)
-
-
-/* 0x2102 Voltage command, parameters: X(index, subindex, record, field) */
-#define OD_PLANT_VOLTAGE_COMMAND_PARAMS(X) \
-    X(0x2102u, 0x01u, x2102_voltage_command, v_alpha_V) \
-    X(0x2102u, 0x02u, x2102_voltage_command, v_beta_V)
-
 
 #endif /* OD_PLANT_H */

@@ -39,10 +39,10 @@ def test_generator_stands_on_its_own() -> None:
 
 
 @pytest.mark.parametrize("node", ["plant", "drive"])
-def test_generator_and_bench_read_the_same_float_limits(node: str) -> None:
+def test_generator_and_bench_read_the_same_float_limits_and_value_names(node: str) -> None:
     import importlib.util
 
-    from bench.eds import float_limits
+    from bench.eds import float_limits, value_names
 
     spec = importlib.util.spec_from_file_location("gen_od", REPO / "protocols" / "gen_od.py")
     assert spec is not None and spec.loader is not None
@@ -52,13 +52,17 @@ def test_generator_and_bench_read_the_same_float_limits(node: str) -> None:
     path = EDS_DIR / f"{node}.eds"
     raw = gen._raw(path)
     od = canopen.import_od(str(path))
-    n = 0
+    n = names = 0
     for obj in od.values():
         for var in ([obj] if isinstance(obj, canopen.objectdictionary.ODVariable) else obj.values()):
             if var.data_type == canopen.objectdictionary.datatypes.REAL32:
                 assert gen.float_limits(raw, var) == float_limits(path, var), var.name
                 n += 1
-    assert n > 10
+            assert tuple(gen.value_names(raw, var)) == value_names(path, var), var.name
+            if value_names(path, var):
+                names += 1
+                assert var.max is not None and len(value_names(path, var)) == var.max + 1, var.name  # HighLimit
+    assert n > 10 and names >= 2
 
 
 def test_generator_detects_a_stale_file(tmp_path) -> None:  # type: ignore[no-untyped-def]
