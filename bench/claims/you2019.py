@@ -94,7 +94,7 @@ def claim_saturated_step(bus: str) -> ClaimResult:
                              "peak_A": float(np.nanmax(tr["iq_A"]))},
         "5 <= periods to 98 % <= 8, at least one saturated command, |iq| < 5 A",
         5 <= reach <= 8 and saturated >= 1 and bounded,
-        details={"memory_reading": "unlimited v(k-2) memory (default); see firmware_shim/core/deadbeat_z.c"})
+        details={"memory_reading": "unlimited v(k-2) memory (default); see firmware_shim/core/you2019_deadbeat.c"})
 
 
 def closed_loop_response(A: float, B: float, A_hat: float, B_hat: float, n: int) -> np.ndarray:

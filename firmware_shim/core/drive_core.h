@@ -16,15 +16,15 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "bilinear_incremental.h"
-#include "current_estimator.h"
-#include "deadbeat_z.h"
-#include "dpcc_yao2020.h"
-#include "gain_identification.h"
+#include "zhao2022_incremental.h"
+#include "you2019_estimator.h"
+#include "you2019_deadbeat.h"
+#include "yao2020_dpcc.h"
+#include "you2019_identification.h"
 #include "outer_loops.h"
 #include "pi_current.h"
-#include "predictive_euler.h"
-#include "rls_yao2020.h"
+#include "zhao2022_predictive.h"
+#include "yao2020_rls.h"
 #include "trace_recorder.h"
 
 typedef enum {

@@ -10,7 +10,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"

@@ -46,8 +46,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "bilinear_incremental.h"
-#include "predictive_euler.h"
+#include "zhao2022_incremental.h"
+#include "zhao2022_predictive.h"
 
 #define ZH_PI 3.14159265358979323846
 #define ZH_IM CMPLX(0.0, 1.0) /* double imaginary unit (I is complex float) */

@@ -73,7 +73,7 @@ static inline void yplant_advance(yplant_t *pl, double v_al_new, double v_be_new
 }
 
 /* One closed-loop period of yao_dpcc against the plant. */
-#ifdef DPCC_YAO2020_H
+#ifdef YAO2020_DPCC_H
 static inline void yloop_step(yplant_t *pl, const yao_dpcc_config_t *cfg,
                               yao_dpcc_state_t *st, double id_ref, double iq_ref,
                               yao_dpcc_cmd_t *cmd) {

@@ -11,8 +11,8 @@
 #include <stdlib.h>
 #include <time.h>
 
-#include "dpcc_yao2020.h"
-#include "rls_yao2020.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_rls.h"
 
 static double now_ns(void) {
   struct timespec ts;

@@ -7,8 +7,8 @@
 #include <stdlib.h>
 #include <time.h>
 
-#include "bilinear_incremental.h"
-#include "predictive_euler.h"
+#include "zhao2022_incremental.h"
+#include "zhao2022_predictive.h"
 
 static double now_ns(void) {
   struct timespec ts;

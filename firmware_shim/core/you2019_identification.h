@@ -1,4 +1,4 @@
-/* gain_identification.h - You 2019 Sec. 6: online deadbeat gain
+/* you2019_identification.h - You 2019 Sec. 6: online deadbeat gain
  * identification (Eq. 22-32, Eq. 34-35), per axis.
  *
  * Eq. 31 correction: the paper prints B_hat = 1 / K2_bar, which contradicts
@@ -17,8 +17,8 @@
  * right thing to do and leaves only the feed-forward error (psi_hat, L_hat
  * mismatch, and the w Ts rotation of the stator-frame-held vector) as a bias
  * term in Eq. 23. */
-#ifndef GAIN_IDENTIFICATION_H
-#define GAIN_IDENTIFICATION_H
+#ifndef YOU2019_IDENTIFICATION_H
+#define YOU2019_IDENTIFICATION_H
 
 #include <stdbool.h>
 #include <stdint.h>

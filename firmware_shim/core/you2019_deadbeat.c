@@ -1,5 +1,5 @@
-/* deadbeat_z.c - You 2019 deadbeat current controller (Sec. 4). */
-#include "deadbeat_z.h"
+/* you2019_deadbeat.c - You 2019 deadbeat current controller (Sec. 4). */
+#include "you2019_deadbeat.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,4 +1,4 @@
-/* rls_yao2020.h - recursive-least-squares R/L identification used as the
+/* yao2020_rls.h - recursive-least-squares R/L identification used as the
  * baseline of Yao 2020 (Sec. VI-B, Eq. 46-48, after Underwood & Husain
  * 2010), on the fully discretised model of Eq. 7.
  *
@@ -11,8 +11,8 @@
  * biases R_hat and L_hat (the point of the comparison).
  * Eq. 48 as extracted prints L = -R T / ln x; read as L_hat = -R_hat T /
  * ln x_hat (R_hat = (1 - x_hat) / y_hat). */
-#ifndef RLS_YAO2020_H
-#define RLS_YAO2020_H
+#ifndef YAO2020_RLS_H
+#define YAO2020_RLS_H
 
 #include <stdint.h>
 

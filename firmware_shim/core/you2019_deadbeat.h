@@ -1,7 +1,7 @@
-/* deadbeat_z.h - z-domain deadbeat current controller, You 2019 Sec. 4
+/* you2019_deadbeat.h - z-domain deadbeat current controller, You 2019 Sec. 4
  * (Eq. 2-3 model gains, Eq. 16-19 control law). */
-#ifndef DEADBEAT_Z_H
-#define DEADBEAT_Z_H
+#ifndef YOU2019_DEADBEAT_H
+#define YOU2019_DEADBEAT_H
 
 #include <stdint.h>
 
@@ -12,7 +12,7 @@
  * LIMITED: the decoupled part of the voltage actually applied (Eq. 35).  The
  *   law then degenerates to e(k) = A e(k-1) after one saturated period and the
  *   current crawls with the open-loop time constant L/R (~59 periods here).
- * See tests/test_deadbeat_step.c for the simulation of both readings. */
+ * See tests/test_you2019_deadbeat_step.c for the simulation of both readings. */
 typedef enum {
   DEADBEAT_MEMORY_UNLIMITED = 0,
   DEADBEAT_MEMORY_LIMITED = 1,

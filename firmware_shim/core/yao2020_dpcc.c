@@ -1,13 +1,13 @@
-/* dpcc_yao2020.c - Yao 2020 improved DPCC: fully discretised model
+/* yao2020_dpcc.c - Yao 2020 improved DPCC: fully discretised model
  * (Eq. 4-7), deadbeat law (Eq. 12), sliding-mode disturbance observer
  * (Eq. 13-18), R/L identification from the reconstructed characteristic
- * vector (Eq. 22-45).  See dpcc_yao2020.h for timing, frames and units.
+ * vector (Eq. 22-45).  See yao2020_dpcc.h for timing, frames and units.
  *
  * Complex notation used in the comments: a dq (or alpha-beta) 2-vector
  * [a b] is the complex number a + j b.  Then Tr = exp(-j w T), Tr^-1 =
  * exp(+j w T), G1 = x, H1 = y, G2 = d1 + j d2, G = x Tr, H = y Tr,
  * F = Tr G2. */
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
 
 #include <math.h>
 #include <string.h>

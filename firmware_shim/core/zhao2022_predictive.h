@@ -1,4 +1,4 @@
-/* predictive_euler.h - conventional one-step predictive (deadbeat) current
+/* zhao2022_predictive.h - conventional one-step predictive (deadbeat) current
  * controller from the forward-Euler model, the baseline of Zhao 2022
  * (Zhao et al., Machines 2022), Sec. 2.2, Eq. 3-6.
  *
@@ -9,12 +9,12 @@
  * NOT compensated: the law assumes its output acts over [k, k+1], while on
  * the bench (and in Zhao 2022 Fig. 2) the command computed at k acts over
  * [k+1, k+2].  That mismatch is what the comparison with the incremental
- * law (bilinear_incremental.h) is about; do not "fix" it here.
+ * law (zhao2022_incremental.h) is about; do not "fix" it here.
  *
  * Memory-less apart from the trace; no integral action, so errors of
  * R^ and psi^ leave a steady-state current error (test_zhao2022_flux.c). */
-#ifndef PREDICTIVE_EULER_H
-#define PREDICTIVE_EULER_H
+#ifndef ZHAO2022_PREDICTIVE_H
+#define ZHAO2022_PREDICTIVE_H
 
 #include <stdint.h>
 

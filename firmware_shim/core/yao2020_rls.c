@@ -1,10 +1,10 @@
-/* rls_yao2020.c - Yao 2020 Eq. 46-48 RLS baseline. */
-#include "rls_yao2020.h"
+/* yao2020_rls.c - Yao 2020 Eq. 46-48 RLS baseline. */
+#include "yao2020_rls.h"
 
 #include <math.h>
 #include <string.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
 
 void yao_rls_default_config(yao_rls_config_t *cfg) {
   cfg->Ts_s = 100e-6f;

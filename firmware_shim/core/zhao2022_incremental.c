@@ -1,4 +1,4 @@
-/* bilinear_incremental.c - Zhao 2022 incremental deadbeat current controller
+/* zhao2022_incremental.c - Zhao 2022 incremental deadbeat current controller
  * (bilinear discretisation, two-period delay), Sec. 4.1 Eq. 14-23.
  *
  * Derivation check (done by hand from Eq. 1-2, not copied from the text):
@@ -21,7 +21,7 @@
  * In complex form (i = id + j iq) both axes are
  *    u(k+1) = (K1 + j w L0)(i* - i(k-2)) - K2 (i(k) - i(k-2))
  *             - u(k) + u(k-1) + u(k-2),   K1 = R0 + L0/Ts, K2 = 2 L0/Ts. */
-#include "bilinear_incremental.h"
+#include "zhao2022_incremental.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,4 +1,4 @@
-/* test_deadbeat_step.c - You 2019 deadbeat controller against the exact
+/* test_you2019_deadbeat_step.c - You 2019 deadbeat controller against the exact
  * discrete standstill plant: matched step, voltage-limited step (both
  * memory readings), inductance and resistance mismatch vs analytic poles. */
 #include <complex.h>

@@ -1,4 +1,4 @@
-/* bilinear_incremental.h - incremental deadbeat current controller from the
+/* zhao2022_incremental.h - incremental deadbeat current controller from the
  * bilinear (trapezoidal) discretisation with the two-period delay, Zhao 2022
  * (Zhao, Chen, Wang, Li, Mao, Li, Zhang, Wu, "An Improved Deadbeat Current
  * Controller of PMSM Based on Bilinear Discretization", Machines 2022),
@@ -25,8 +25,8 @@
  * Closed-loop analysis (exact ZOH plant, not the paper's Ts -> 0 limit):
  * see firmware_shim/tests/test_zhao2022_stability.c and
  * docs/analysis/zhao2022_stability.py. */
-#ifndef BILINEAR_INCREMENTAL_H
-#define BILINEAR_INCREMENTAL_H
+#ifndef ZHAO2022_INCREMENTAL_H
+#define ZHAO2022_INCREMENTAL_H
 
 #include <stdint.h>
 

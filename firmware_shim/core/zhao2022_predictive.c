@@ -1,6 +1,6 @@
-/* predictive_euler.c - Zhao 2022 conventional forward-Euler predictive
+/* zhao2022_predictive.c - Zhao 2022 conventional forward-Euler predictive
  * current controller (Sec. 2.2, Eq. 3-6), the baseline of the comparison. */
-#include "predictive_euler.h"
+#include "zhao2022_predictive.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,4 +1,4 @@
-/* test_gain_identification.c - You 2019 Sec. 6 online tuning against the
+/* test_you2019_identification.c - You 2019 Sec. 6 online tuning against the
  * exact discrete standstill plant, starting from L_hat = 0.5 L and 1.2 L. */
 #include <math.h>
 #include <stdio.h>

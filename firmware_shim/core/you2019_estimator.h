@@ -1,4 +1,4 @@
-/* current_estimator.h - You 2019 Sec. 3.2: predictive current estimator
+/* you2019_estimator.h - You 2019 Sec. 3.2: predictive current estimator
  * (Eq. 5-9, Fig. 4) and dead-time compensation from the estimated phase
  * currents (Eq. 7, Fig. 3).
  *
@@ -8,7 +8,7 @@
  *   i_hat(k)= B_hat (v*(k) + u(k)) + A_hat i_hat(k-1)  (Eq. 5/6 + PI)
  * i_hat(k) predicts the current sampled at k+2.
  *
- * Integral gain derivation (see current_estimator.c for the algebra):
+ * Integral gain derivation (see you2019_estimator.c for the algebra):
  *   with kp from Eq. 8 the PI zero cancels the model pole A_hat, the loop
  *   gain is g / (z (z - 1)) with g = ki Ts B_hat / (1 - A_hat) (= ki Ts / R_hat),
  *   characteristic polynomial z^2 - z + g, tracking transfer function
@@ -19,8 +19,8 @@
  *     g = (b + sqrt(b^2 + 8 (1 - c))) / 2,
  *   clamped to g <= 1/4 (never underdamped).  900 Hz gives g = 0.2003,
  *   poles 0.724 / 0.276 (zeta > 1).  ki = g (1 - A_hat) / (B_hat Ts). */
-#ifndef CURRENT_ESTIMATOR_H
-#define CURRENT_ESTIMATOR_H
+#ifndef YOU2019_ESTIMATOR_H
+#define YOU2019_ESTIMATOR_H
 
 #include <stdint.h>
 

@@ -1,4 +1,4 @@
-/* test_current_estimator.c - You 2019 Eq. 5-9 estimator and dead-time
+/* test_you2019_estimator.c - You 2019 Eq. 5-9 estimator and dead-time
  * compensation shape. */
 #include <math.h>
 #include <stdio.h>

@@ -1,4 +1,4 @@
-/* dpcc_yao2020.h - improved deadbeat predictive current control (DPCC) with
+/* yao2020_dpcc.h - improved deadbeat predictive current control (DPCC) with
  * sliding-mode disturbance observer and online R/L identification for
  * surface-mounted PMSMs, after Yao, Huang, Peng, Dong, Zhang, "An Improved
  * Deadbeat Predictive Current Control With Online Parameter Identification
@@ -31,8 +31,8 @@
  * Integral estimator gains: k_L in H/(V s), k_R in ohm/(V s)
  * (dL_hat/dt = -k_L dM_q, dR_hat/dt = -k_R dM_d for a negative injection,
  * Eq. 44, discretised with forward Euler at the current period). */
-#ifndef DPCC_YAO2020_H
-#define DPCC_YAO2020_H
+#ifndef YAO2020_DPCC_H
+#define YAO2020_DPCC_H
 
 #include <stdbool.h>
 #include <stdint.h>

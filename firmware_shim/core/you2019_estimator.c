@@ -1,4 +1,4 @@
-/* current_estimator.c - You 2019 Eq. 5-9 and dead-time compensation.
+/* you2019_estimator.c - You 2019 Eq. 5-9 and dead-time compensation.
  *
  * Derivation of the estimator loop (per axis):
  *   model (Eq. 5):  i_hat = B_hat z / (z - A_hat) (v* + u)
@@ -14,7 +14,7 @@
  *   damping) for 1 - 4 g = 0 -> g = 1/4.  Tracking TF g / (z^2 - z + g);
  *   |.|^2 = 1/2 at z = e^{j theta} leads to
  *     g^2 - b g - 2 (1 - c) = 0,  c = cos theta, b = 2 (2c + 1)(c - 1). */
-#include "current_estimator.h"
+#include "you2019_estimator.h"
 
 #include <math.h>
 

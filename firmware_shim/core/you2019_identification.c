@@ -1,5 +1,5 @@
-/* gain_identification.c - You 2019 Eq. 22-32. */
-#include "gain_identification.h"
+/* you2019_identification.c - You 2019 Eq. 22-32. */
+#include "you2019_identification.h"
 
 #include <math.h>
 #include <string.h>
