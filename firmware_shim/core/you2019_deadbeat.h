@@ -1,26 +1,27 @@
-/* you2019_deadbeat.h - z-domain deadbeat current controller, You 2019 Sec. 4
+/* you2019_deadbeat.h - You 2019 z-domain deadbeat current controller, Sec. 4
  * (Eq. 2-3 model gains, Eq. 16-19 control law). */
 #ifndef YOU2019_DEADBEAT_H
 #define YOU2019_DEADBEAT_H
 
 #include <stdint.h>
 
-/* What the controller memory v*(k-2) of Eq. 17/19 holds.
+/* What the controller memory v*(k-2) of You 2019 Eq. 17/19 holds.
  * UNLIMITED (default): the raw controller output.  This is the reading that
  *   reproduces You 2019 Fig. 9/18b/19b (0->4 A in about 6 periods, the
  *   command "saturates several times", "pulse-wise voltage").
- * LIMITED: the decoupled part of the voltage actually applied (Eq. 35).  The
- *   law then degenerates to e(k) = A e(k-1) after one saturated period and the
- *   current crawls with the open-loop time constant L/R (~59 periods here).
+ * LIMITED: the decoupled part of the voltage actually applied (You 2019
+ *   Eq. 35).  The law then degenerates to e(k) = A e(k-1) after one saturated
+ *   period and the current crawls with the open-loop time constant L/R (~59
+ *   periods here).
  * See tests/test_you2019_deadbeat_step.c for the simulation of both readings. */
 typedef enum {
-  DEADBEAT_MEMORY_UNLIMITED = 0,
-  DEADBEAT_MEMORY_LIMITED = 1,
-} deadbeat_memory_t;
+  YOU2019_DEADBEAT_MEMORY_UNLIMITED = 0,
+  YOU2019_DEADBEAT_MEMORY_LIMITED = 1,
+} you2019_deadbeat_memory_t;
 
 typedef struct {
-  uint8_t memory_mode; /* deadbeat_memory_t, default UNLIMITED */
-} deadbeat_config_t;
+  uint8_t memory_mode; /* you2019_deadbeat_memory_t, default UNLIMITED */
+} you2019_deadbeat_config_t;
 
 typedef struct {
   /* active gains (from R_hat/L_hat or from the online identification) */
@@ -29,34 +30,38 @@ typedef struct {
   float e_q_prev_A, e_d_prev_A;
   /* controller output memory v*(k-1), v*(k-2) (decoupled part, no feed-forward) */
   float v_q_mem_V[2], v_d_mem_V[2];
-  /* last raw output of Eq. 17 / Eq. 19 */
+  /* last raw output of You 2019 Eq. 17 / Eq. 19 */
   float v_q_raw_V, v_d_raw_V;
-} deadbeat_state_t;
+} you2019_deadbeat_state_t;
 
 /* You 2019 Eq. 2-3: A = exp(-Ts R/L), B = (1 - A)/R. */
-void deadbeat_model_gains(float Ts_s, float R_ohm, float L_H, float *A,
-                          float *B_A_Vs);
+void you2019_deadbeat_model_gains(float Ts_s, float R_ohm, float L_H, float *A,
+                                  float *B_A_Vs);
 
 /* You 2019 Eq. 17: K1 = 1/B, K2 = A/B. */
-void deadbeat_controller_gains(float A, float B_A_Vs, float *K1_V_A,
-                               float *K2_V_A);
+void you2019_deadbeat_controller_gains(float A, float B_A_Vs, float *K1_V_A,
+                                       float *K2_V_A);
 
 /* Pure control law, You 2019 Eq. 17/19. */
-static inline float deadbeat_law(float v_km2_V, float K1_V_A, float K2_V_A,
-                                 float e_k_A, float e_km1_A) {
+static inline float you2019_deadbeat_law(float v_km2_V, float K1_V_A,
+                                         float K2_V_A, float e_k_A,
+                                         float e_km1_A) {
   return v_km2_V + K1_V_A * e_k_A - K2_V_A * e_km1_A;
 }
 
-void deadbeat_reset(deadbeat_state_t *st);
+void you2019_deadbeat_reset(you2019_deadbeat_state_t *st);
 
-/* Computes the decoupled controller voltages (Eq. 17 and Eq. 19) into
- * st->v_q_raw_V / st->v_d_raw_V and returns them. Call deadbeat_commit()
- * afterwards with the decoupled voltage actually applied (after Eq. 33). */
-void deadbeat_step(deadbeat_state_t *st, float iq_ref_A, float iq_A,
-                   float id_ref_A, float id_A, float *v_q_V, float *v_d_V);
+/* Computes the decoupled controller voltages (You 2019 Eq. 17 and Eq. 19)
+ * into st->v_d_raw_V / st->v_q_raw_V and returns them.  Call
+ * you2019_deadbeat_commit() afterwards with the decoupled voltage actually
+ * applied (after You 2019 Eq. 33). */
+void you2019_deadbeat_step(you2019_deadbeat_state_t *st, float id_ref_A,
+                           float iq_ref_A, float id_A, float iq_A, float *v_d_V,
+                           float *v_q_V);
 
 /* Updates the v*(k-1), v*(k-2) memory according to memory_mode. */
-void deadbeat_commit(const deadbeat_config_t *cfg, deadbeat_state_t *st,
-                     float v_q_applied_V, float v_d_applied_V);
+void you2019_deadbeat_commit(const you2019_deadbeat_config_t *cfg,
+                             you2019_deadbeat_state_t *st, float v_d_applied_V,
+                             float v_q_applied_V);
 
 #endif
