@@ -62,22 +62,22 @@ test: setup
 
 $(BUILD)/obj/protocols/socketcan/%.o: protocols/socketcan/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -c $< -o $@
 $(BUILD)/obj/protocols/tools/%.o: protocols/tools/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -c $< -o $@
 $(BUILD)/obj/plant_rt/node/%.o: plant_rt/node/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -c $< -o $@
 $(BUILD)/obj/firmware_shim/shim/%.o: firmware_shim/shim/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -c $< -o $@
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -c $< -o $@
 $(BUILD)/obj/firmware_shim/%.o: firmware_shim/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_FW) $(INC) -MMD -c $< -o $@
+	$(CC) $(CFLAGS_FW) $(INC) -MMD -MP -c $< -o $@
 $(BUILD)/obj/%.o: %.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_CORE) $(INC) -MMD -c $< -o $@
+	$(CC) $(CFLAGS_CORE) $(INC) -MMD -MP -c $< -o $@
 
 $(LIBCO): $(call obj,$(CO_SRC))
 	@mkdir -p $(@D); rm -f $@; ar rcs $@ $^

@@ -27,7 +27,7 @@ from ..scenario import parse
 class ClaimResult:
     paper: str               # "You 2019"
     claim_id: str            # "you2019-1a"
-    figure: str              # "Fig. 8 / Eq. 20-21"
+    figure: str              # "Fig. 8 / You 2019 Eq. 20-21"
     statement: str           # what the paper says
     paper_value: Any
     bench_value: Any

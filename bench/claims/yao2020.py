@@ -70,7 +70,7 @@ def g2(R: float, L: float, w: float) -> complex:
 
 def steady_state_no_observer(R: float, L: float, Rh: float, Lh: float, psi: float, psih: float, w: float,
                              r: complex) -> complex:
-    """Conventional DPCC (observer off, p_hat = F_hat e(psi_hat)) in steady state, derived from Eq. 7/12:
+    """Conventional DPCC (observer off, p_hat = F_hat e(psi_hat)) in steady state, derived from Yao 2020 Eq. 7/12:
     i (1 - x e) = (y/y_hat)(r (1 - x_hat e) - p_hat) + p,  e = exp(-j w T), p = e G2 j w psi."""
     x, y = xy(R, L)
     xh, yh = xy(Rh, Lh)
@@ -81,12 +81,12 @@ def steady_state_no_observer(R: float, L: float, Rh: float, Lh: float, psi: floa
 
 
 def first_sample_error(R: float, L: float, Rh: float, Lh: float) -> float:
-    """e(k0+2)/dr of a reference step with the observer tracking p (Eq. 20): y/y_hat - 1."""
+    """e(k0+2)/dr of a reference step with the observer tracking p (Yao 2020 Eq. 20): y/y_hat - 1."""
     return xy(R, L)[1] / xy(Rh, Lh)[1] - 1.0
 
 
 def dM_gain(R: float, L: float, w: float, did: float, axis: str) -> float:
-    """Loop gain of the integral estimators at the fixed point (derived from Eq. 26-29):
+    """Loop gain of the integral estimators at the fixed point (derived from Yao 2020 Eq. 26-29):
     dM = did (Z_hat/Zd_hat)(Zd - Zd_hat), Zd = (exp(j w T) - x)/y; d(dM_q)/dL_hat or d(dM_d)/dR_hat."""
     def zd(Rx: float, Lx: float) -> complex:
         x, y = xy(Rx, Lx)
@@ -129,7 +129,7 @@ def claim_observer(bus: str) -> ClaimResult:
     pred_off = steady_state_no_observer(R, L, 1.5 * R, 1.5 * L, psi, psi, w, complex(0, iq0))
     err_off, err_on = abs(ss[0] - 1j * iq0), abs(ss[1] - 1j * iq0)
     return ClaimResult(
-        PAPER, "yao2020-1a", "Fig. 10(a), Eq. 13-20",
+        PAPER, "yao2020-1a", "Fig. 10(a), Yao 2020 Eq. 13-20",
         "with L_hat = 1.5 L and R_hat = 1.5 R the disturbance observer removes the steady-state current error",
         "tracking error gradually eliminated",
         {"error_observer_off_A": err_off, "derived_error_observer_off_A": abs(pred_off - 1j * iq0),
@@ -167,7 +167,7 @@ def claim_low_frequency(bus: str) -> list[ClaimResult]:
     conv = bool(len(done_at) and done_at[0] < s2 and tr[COL + "L_converged"][s2 - 1] == 1
                 and tr[COL + "R_converged"][s2 - 1] == 1)
     res.append(ClaimResult(
-        PAPER, "yao2020-1b", "Fig. 10(b)-(f), Eq. 30-45",
+        PAPER, "yao2020-1b", "Fig. 10(b)-(f), Yao 2020 Eq. 30-45",
         "after two -2 A d-axis injections (L first, then R) L_hat and R_hat converge to the motor's L and R",
         {"L_hat": "L", "R_hat": "R"},
         {"L_hat_H": Lh, "R_hat_ohm": Rh, "L_error_pct": 100 * eL, "R_error_pct": 100 * eR,
@@ -257,7 +257,7 @@ def claim_gain_speed(bus: str) -> ClaimResult:
                      "L_hat_H": float(tr[COL + "L_hat_H"][-2]), "R_hat_ohm": float(tr[COL + "R_hat_ohm"][-2])})
     tL = [r["t_L_ms"] for r in rows]
     tR = [r["t_R_ms"] for r in rows]
-    # Eq. 44: first-order convergence, time constant 1/(k x loop gain): t x k constant
+    # Yao 2020 Eq. 44: first-order convergence, time constant 1/(k x loop gain): t x k constant
     kt_L = [r["t_L_ms"] * r["gain_x_table_III"] for r in rows]
     kt_R = [r["t_R_ms"] * r["gain_x_table_III"] for r in rows]
     spread = max(max(kt_L) / min(kt_L), max(kt_R) / min(kt_R))
@@ -268,7 +268,7 @@ def claim_gain_speed(bus: str) -> ClaimResult:
         "200 T = 20 ms estimation errors appear)",
         {"t_L_ms": 26, "t_R_ms": 22}, {"runs": rows, "t_times_gain_spread": spread},
         "convergence times of L_hat and R_hat strictly decreasing with the gain (t x k, constant for a pure "
-        "first-order loop of Eq. 44, reported as its spread)", bool(ok),
+        "first-order loop of Yao 2020 Eq. 44, reported as its spread)", bool(ok),
         why_differs="The paper's 26/22 ms are for its (unstated) largest experimental gains; the bench reports the "
                     "time per gain (x20 of Table III gives about the paper's 26 ms for L). t x k is not constant "
                     "for R: the R loop starts far from R (R_hat = 1 ohm) and the time to enter the dead zone is "
@@ -276,7 +276,7 @@ def claim_gain_speed(bus: str) -> ClaimResult:
 
 
 def rls_fixed_point(w: float, psih: float, i: complex, v: complex, R0: float, L0: float) -> tuple[float, float]:
-    """Fixed point eps = 0 of Eq. 46-47 at one operating point (Newton on theta = (x_hat, y_hat)):
+    """Fixed point eps = 0 of Yao 2020 Eq. 46-47 at one operating point (Newton on theta = (x_hat, y_hat)):
     exp(j w T) i - G2(x_hat, y_hat) j w psi_hat = x_hat i + y_hat v."""
     x, y = xy(R0, L0)
 
@@ -326,7 +326,7 @@ def claim_rls_flux(bus: str) -> list[ClaimResult]:
             (abs(rls_R / R - 1) > 0.5)
         prop_ok = abs(pr_R / R - 1) < 0.02 and abs(pr_L / L - 1) < 0.02
         out.append(ClaimResult(
-            PAPER, f"yao2020-4-psi{ratio}", "Fig. 16-17, Eq. 46-48",
+            PAPER, f"yao2020-4-psi{ratio}", "Fig. 16-17, Yao 2020 Eq. 46-48",
             f"with psi_hat = {ratio} psi the RLS estimates of R and L converge to biased values; the proposed "
             "identification (no psi) finds R and L",
             {"rls": "biased", "proposed": "R, L"},
@@ -337,8 +337,8 @@ def claim_rls_flux(bus: str) -> list[ClaimResult]:
             "RLS at its derived fixed point within 3 % (or, when that fixed point is unphysical, R_hat off by "
             "> 50 %); proposed R_hat, L_hat within 2 % of the motor", bool(rls_ok and prop_ok),
             why_differs="" if physical else
-            "The fixed point of Eq. 46-47 has R < 0 here: Eq. 48 rejects it and the RLS keeps its last physical "
-            "estimate, which is far from R (the bias the paper shows).",
+            "The fixed point of Yao 2020 Eq. 46-47 has R < 0 here: Yao 2020 Eq. 48 rejects it and the RLS "
+            "keeps its last physical estimate, which is far from R (the bias the paper shows).",
             details={"operating_point": {"i_A": str(i_op), "v_V": str(v_op)}}, runs=[run.name]))
     return out
 

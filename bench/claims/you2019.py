@@ -44,7 +44,7 @@ def model_gains(run: Run, L_key: str = "Lq_H") -> tuple[float, float]:
 
 
 def claim_matched_step(bus: str) -> list[ClaimResult]:
-    """Fig. 8 / 18a and Eq. 20-21: 0 -> 1 A, matched parameters."""
+    """Fig. 8 / 18a and You 2019 Eq. 20-21: 0 -> 1 A, matched parameters."""
     run = run_raw(base("you2019-matched-1A"), bus)
     tr = run.tr
     A, B = model_gains(run)
@@ -61,7 +61,7 @@ def claim_matched_step(bus: str) -> list[ClaimResult]:
         "periods == 2, |i - i*| < 1e-5 A from k+2 on", m.periods_to_settle == 2 and float(err_after.max()) < 1e-5,
         runs=[run.name])]
     res.append(ClaimResult(
-        PAPER, "you2019-1b", "Eq. 20-21",
+        PAPER, "you2019-1b", "You 2019 Eq. 20-21",
         "the first two voltage commands after the step are about 84.14 V and 2.1 V",
         {"v_k_V": 84.14, "v_k1_V": 2.1}, {"v_k_V": v0, "v_k1_V": v1, "K1_V_A": 1.0 / B, "R_ohm": R},
         "paper's values within 1 %; bench check: v(k) = K1 * 1 A and v(k+1) = (K1 - K2) * 1 A = R * 1 A "
@@ -69,8 +69,9 @@ def claim_matched_step(bus: str) -> list[ClaimResult]:
         abs(v0 - 84.14) < 0.8414 and abs(v1 - 2.1) < 0.021,
         bench_ok=abs(v0 - 1.0 / B) < 1e-3 * (1.0 / B) and abs(v1 - R) < 1e-3 * max(R, 1.0) + 2e-3,
         why_differs="The bench reproduces the exact-gain law: v(k) = K1 = 1/B = 83.25 V and v(k+1) = K1 - K2 = R = "
-                    "1.4 V. The paper's Eq. 20 approximates L di/dt over one period (its 84.14 V implies a larger "
-                    "L), and Eq. 21's own formula r_s * 1 A gives 1.4 V with Table A2's 1.4 ohm, not 2.1 V.",
+                    "1.4 V. The paper's You 2019 Eq. 20 approximates L di/dt over one period (its 84.14 V implies a "
+                    "larger L), and You 2019 Eq. 21's own formula r_s * 1 A gives 1.4 V with Table A2's 1.4 ohm, "
+                    "not 2.1 V.",
         runs=[run.name]))
     return res
 
@@ -94,7 +95,7 @@ def claim_saturated_step(bus: str) -> ClaimResult:
                              "peak_A": float(np.nanmax(tr["iq_A"]))},
         "5 <= periods to 98 % <= 8, at least one saturated command, |iq| < 5 A",
         5 <= reach <= 8 and saturated >= 1 and bounded,
-        details={"memory_reading": "unlimited v(k-2) memory (default); see firmware_shim/core/deadbeat_z.c"})
+        details={"memory_reading": "unlimited v(k-2) memory (default); see firmware_shim/core/you2019_deadbeat.c"})
 
 
 def closed_loop_response(A: float, B: float, A_hat: float, B_hat: float, n: int) -> np.ndarray:
@@ -170,7 +171,7 @@ def claim_resistance_mismatch(bus: str) -> ClaimResult:
 
 
 def identification_errors(run: Run, threshold_A2: float = 0.2) -> np.ndarray:
-    """Relative error of every identified K1 whose |det| passed the threshold (Eq. 27)."""
+    """Relative error of every identified K1 whose |det| passed the threshold (You 2019 Eq. 27)."""
     A, B = model_gains(run)
     det, k1 = run.tr["det_A2"], run.tr["K1_hat"]
     ok = np.isfinite(det) & (np.abs(det) > threshold_A2) & np.isfinite(k1) & (k1 != 0)
@@ -197,7 +198,7 @@ def claim_identification_accuracy(bus: str) -> list[ClaimResult]:
     e_noisy = identification_errors(noisy)
     pct = {f"p{q}": float(np.percentile(e_noisy, q)) for q in (50, 90, 100)} if len(e_noisy) else {}
     return [
-        ClaimResult(PAPER, "you2019-4a", "Section 6.1, Eq. 22-27",
+        ClaimResult(PAPER, "you2019-4a", "Section 6.1, You 2019 Eq. 22-27",
                     "the controller gain is identified in one current period whenever |det| is large enough",
                     "exact in one period", {"identifications": int(len(e_clean)),
                                             "max_rel_error_K1": float(e_clean.max()) if len(e_clean) else None},

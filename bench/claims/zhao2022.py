@@ -117,7 +117,7 @@ def _growth(lam: float, bus: str) -> dict[str, float]:
 
 
 def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
-    """Eq. 34-42: stable for L > 3/4 L0; bench: coarse-to-fine bisection of lam = L/L0 over short runs."""
+    """Zhao 2022 Eq. 34-42: stable for L > 3/4 L0; bench: coarse-to-fine bisection of lam = L/L0 over short runs."""
     runs = [_growth(0.8, bus), _growth(0.6, bus)]
     lo, hi = 0.6, 0.8
     if runs[0]["stable"] and not runs[1]["stable"]:
@@ -131,12 +131,12 @@ def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
                 lo = mid
     bench = hi
     poly = poly_boundary(lambda lam: q_incremental(R, L, R, L / lam))
-    poly_tsk = poly_boundary(lambda lam: q_paper(lam))  # Eq. 34 (Ts -> 0)
+    poly_tsk = poly_boundary(lambda lam: q_paper(lam))  # Zhao 2022 Eq. 34 (Ts -> 0)
     decided_like_poly = all(r["stable"] == (r["poly_radius"] < 1) for r in runs)
     res = (hi - lo) + 1e-9
     ok_bench = lo - 1e-9 <= poly <= hi + 1e-9 and decided_like_poly
     return ClaimResult(
-        PAPER, "zhao2022-6", "Eq. 34-42, Sec. 4.2",
+        PAPER, "zhao2022-6", "Zhao 2022 Eq. 34-42, Sec. 4.2",
         "the incremental deadbeat loop is stable when L > (3/4) L0",
         {"smallest_stable_L_over_L0": 0.75},
         {"bench_boundary_L_over_L0": [lo, hi], "polynomial_boundary": poly, "eq34_small_Ts_boundary": poly_tsk,
@@ -146,9 +146,9 @@ def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
         "boundary is 3/4 within the bisection width",
         bool(ok_bench and abs(poly - 0.75) <= res),
         why_differs=f"With the exact ZOH plant the boundary is L/L0 = {poly:.4f} (bench {lo:.4f}..{hi:.4f}), not "
-                    "3/4: Eq. 34 drops R and R0 (Ts -> 0 with R Ts/L -> 0), but the Table 1 motor has R Ts/L = "
-                    f"{R * TS / L:.3f}; the paper's polynomial itself gives {poly_tsk:.4f}. So the law is stable "
-                    "down to L ~ 0.70 L0 on this motor: the paper's 3/4 is conservative here.",
+                    "3/4: Zhao 2022 Eq. 34 drops R and R0 (Ts -> 0 with R Ts/L -> 0), but the Table 1 motor has "
+                    f"R Ts/L = {R * TS / L:.3f}; the paper's polynomial itself gives {poly_tsk:.4f}. So the law is "
+                    "stable down to L ~ 0.70 L0 on this motor: the paper's 3/4 is conservative here.",
         bench_ok=bool(ok_bench), details={"bench_ok": bool(ok_bench)})
 
 
@@ -176,9 +176,9 @@ def claim_flux_independence(bus: str, wrong: tuple[float, ...] = (0.8, 1.2)) -> 
                           "euler_error_pct_of_step": 100 * err / 0.04}
         ok = ok and abs(err - pred) < 0.02 * abs(pred) and abs(inc_err) < 1e-6
     return ClaimResult(
-        PAPER, "zhao2022-7", "Eq. 20-23, Sec. 4.1",
-        "the incremental law does not depend on the flux linkage (psi cancels between Eq. 20 and Eq. 21); the "
-        "conventional law does (Eq. 6)",
+        PAPER, "zhao2022-7", "Zhao 2022 Eq. 20-23, Sec. 4.1",
+        "the incremental law does not depend on the flux linkage (psi cancels between Zhao 2022 Eq. 20 and "
+        "Eq. 21); the conventional law does (Zhao 2022 Eq. 6)",
         {"incremental": "independent of psi_hat", "conventional": "steady-state error with wrong psi_hat"}, out,
         "incremental: iq identical (< 1e-9 A) for psi_hat = 0.8/1.0/1.2 psi and no steady-state error; Euler: "
         "steady-state error = derived w dpsi Ts/L0 within 2 %", bool(ok),

@@ -55,9 +55,18 @@ static inline void dq_inv_clarke(float x_alpha, float x_beta, float *x_a,
   *x_c = -0.5f * x_alpha - 0.5f * DQ_SQRT3_F * x_beta;
 }
 
-/* You 2019 Eq. 33: sqrt(vq^2 + vd^2) <= Vmax.  The paper's Eq. 34 keeps the
- * d-axis voltage and gives the q axis what remains (d priority); the radial
- * variant scales both.  Returns 1 when the vector was limited. */
+/* Scale (v_d, v_q), whose squared magnitude is mag2_V2, to the radius
+ * vmax_V (direction kept).  The one radial scaling of both limiters below. */
+static inline void dq_scale_to_radius(float *v_d_V, float *v_q_V, float mag2_V2,
+                                      float vmax_V) {
+  const float s = vmax_V / sqrtf(mag2_V2);
+  *v_d_V = *v_d_V * s;
+  *v_q_V = *v_q_V * s;
+}
+
+/* You 2019 Eq. 33: sqrt(vq^2 + vd^2) <= Vmax.  The paper's You 2019 Eq. 34
+ * keeps the d-axis voltage and gives the q axis what remains (d priority);
+ * the radial variant scales both.  Returns 1 when the vector was limited. */
 static inline uint8_t dq_limit_voltage(float *v_d_V, float *v_q_V, float vmax_V,
                                        uint8_t radial) {
   const float vd = *v_d_V;
@@ -67,12 +76,11 @@ static inline uint8_t dq_limit_voltage(float *v_d_V, float *v_q_V, float vmax_V,
     return 0u;
   }
   if (radial != 0u) {
-    const float s = vmax_V / sqrtf(mag2);
-    *v_d_V = vd * s;
-    *v_q_V = vq * s;
+    dq_scale_to_radius(v_d_V, v_q_V, mag2, vmax_V);
     return 1u;
   }
-  /* d priority (Eq. 34): clamp d to the circle, q gets +-sqrt(Vmax^2 - vd^2) */
+  /* d priority (You 2019 Eq. 34): clamp d to the circle, q gets
+   * +-sqrt(Vmax^2 - vd^2) */
   float vd_l = vd;
   if (vd_l > vmax_V) vd_l = vmax_V;
   if (vd_l < -vmax_V) vd_l = -vmax_V;
@@ -83,6 +91,25 @@ static inline uint8_t dq_limit_voltage(float *v_d_V, float *v_q_V, float vmax_V,
   if (vq_l < -vq_max) vq_l = -vq_max;
   *v_d_V = vd_l;
   *v_q_V = vq_l;
+  return 1u;
+}
+
+/* Radial limit of the surface-mounted laws (Yao 2020 DPCC, Zhao 2022
+ * incremental and predictive): the command is scaled onto the voltage circle
+ * of radius vmax_V.  It differs from dq_limit_voltage(.., radial = 1) in two
+ * cases only: vmax_V <= 0 (or NaN) means no limit, and a NaN magnitude passes
+ * unlimited (the comparison is "mag2 > Vmax^2", not "!(mag2 <= Vmax^2)").
+ * Returns 1 when the vector was scaled. */
+static inline uint8_t dq_limit_voltage_radial(float *v_d_V, float *v_q_V,
+                                              float vmax_V) {
+  if (!(vmax_V > 0.0f)) {
+    return 0u;
+  }
+  const float mag2 = *v_d_V * *v_d_V + *v_q_V * *v_q_V;
+  if (!(mag2 > vmax_V * vmax_V)) {
+    return 0u;
+  }
+  dq_scale_to_radius(v_d_V, v_q_V, mag2, vmax_V);
   return 1u;
 }
 

@@ -1,6 +1,7 @@
-/* drive_core.c - glue: transforms, controller switch, Eq. 4 decoupling,
- * Eq. 33-35 limiting, dead-time compensation, Fig. 16 tuning pipeline;
- * the surface-mounted controllers of Yao 2020 and Zhao 2022 (drive_step_spm). */
+/* drive_core.c - glue: transforms, controller switch, You 2019 Eq. 4
+ * decoupling, Eq. 33-35 limiting, dead-time compensation, Fig. 16 tuning
+ * pipeline; the surface-mounted controllers of Yao 2020 and Zhao 2022
+ * (drive_step_spm). */
 #include "drive_core.h"
 
 #include <math.h>
@@ -22,7 +23,7 @@ void drive_default_config(drive_config_t *cfg) {
   cfg->vlimit_radial = 0u;
   cfg->decoupling_enable = 1u;
   cfg->angle_advance_periods = 1.5f;
-  cfg->deadbeat.memory_mode = (uint8_t)DEADBEAT_MEMORY_UNLIMITED;
+  cfg->deadbeat.memory_mode = (uint8_t)YOU2019_DEADBEAT_MEMORY_UNLIMITED;
   cfg->pi.bandwidth_Hz = 1000.0f;
   cfg->estimator.enable = 1u;
   cfg->estimator.bandwidth_Hz = 900.0f; /* Sec. 3.2 */
@@ -40,7 +41,7 @@ void drive_default_config(drive_config_t *cfg) {
   cfg->outer.iq_max_A = 4.0f;           /* rated current */
   cfg->outer.profile_max_speed_rad_s = 314.159265f; /* 3000 rpm */
   cfg->outer.profile_accel_rad_s2 = 2000.0f;
-  yao_dpcc_default_config(&cfg->yao);   /* Yao 2020 Table III */
+  yao2020_dpcc_default_config(&cfg->yao);   /* Yao 2020 Table III */
   cfg->yao_rls_enable = 0u;
   cfg->yao_rls_lambda = 0.995f;
 }
@@ -63,42 +64,42 @@ static void drive_recompute_spm(drive_t *drv, int switched) {
   drv->yao_cfg.L_hat_H = c->Lq_hat_H;
   drv->yao_cfg.psi_hat_Wb = c->psi_hat_Wb;
   drv->yao_cfg.Vmax_V = c->Vmax_V;
-  yao_rls_default_config(&drv->rls_cfg);
+  yao2020_rls_default_config(&drv->rls_cfg);
   drv->rls_cfg.Ts_s = c->Ts_s;
   drv->rls_cfg.psi_hat_Wb = c->psi_hat_Wb;
   drv->rls_cfg.lambda = c->yao_rls_lambda;
-  bilinear_incremental_config_t ic;
+  zhao2022_incremental_config_t ic;
   ic.R_hat_ohm = c->R_hat_ohm;
   ic.L_hat_H = c->Lq_hat_H;
   ic.Ts_s = c->Ts_s;
   ic.Vmax_V = c->Vmax_V;
-  predictive_euler_config_t ec;
+  zhao2022_predictive_config_t ec;
   ec.R_hat_ohm = c->R_hat_ohm;
   ec.L_hat_H = c->Lq_hat_H;
   ec.psi_hat_Wb = c->psi_hat_Wb;
   ec.Ts_s = c->Ts_s;
   ec.Vmax_V = c->Vmax_V;
-  (void)predictive_euler_init(&ec, &drv->eul); /* memory-less law */
+  (void)zhao2022_predictive_init(&ec, &drv->eul); /* memory-less law */
   if (switched) {
-    yao_dpcc_reset(&drv->yao_cfg, &drv->yao);
-    (void)bilinear_incremental_init(&ic, &drv->inc);
+    yao2020_dpcc_reset(&drv->yao_cfg, &drv->yao);
+    (void)zhao2022_incremental_init(&ic, &drv->inc);
   } else {
     if (model_changed) {
       /* a write of the mismatch knobs replaces the Yao 2020 estimates */
-      yao_dpcc_ident_abort(&drv->yao);
+      yao2020_identification_abort(&drv->yao);
       drv->yao.R_hat_ohm = c->R_hat_ohm;
       drv->yao.L_hat_H = c->Lq_hat_H;
     }
     /* new gains, history kept (bumpless) */
-    bilinear_incremental_state_t g;
-    (void)bilinear_incremental_init(&ic, &g);
+    zhao2022_incremental_state_t g;
+    (void)zhao2022_incremental_init(&ic, &g);
     drv->inc.K1_V_A = g.K1_V_A;
     drv->inc.K2_V_A = g.K2_V_A;
     drv->inc.L_hat_H = g.L_hat_H;
     drv->inc.Vmax_V = g.Vmax_V;
   }
   if (c->yao_rls_enable != 0u && (s->rls_cache == 0u || switched)) {
-    yao_rls_init(&drv->rls_cfg, &drv->rls, c->R_hat_ohm, c->Lq_hat_H);
+    yao2020_rls_init(&drv->rls_cfg, &drv->rls, c->R_hat_ohm, c->Lq_hat_H);
   }
   s->rls_cache = c->yao_rls_enable;
 }
@@ -107,21 +108,21 @@ static void drive_recompute(drive_t *drv) {
   const drive_config_t *c = &drv->cfg;
   drive_state_t *s = &drv->st;
   float Aq, Bq, Ad, Bd;
-  deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Lq_hat_H, &Aq, &Bq);
-  deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Ld_hat_H, &Ad, &Bd);
-  deadbeat_controller_gains(Aq, Bq, &drv->db.K1q_V_A, &drv->db.K2q_V_A);
-  deadbeat_controller_gains(Ad, Bd, &drv->db.K1d_V_A, &drv->db.K2d_V_A);
-  current_estimator_set_model(&drv->est, 0u, Aq, Bq);
-  current_estimator_set_model(&drv->est, 1u, Ad, Bd);
-  current_estimator_design_pi(&c->estimator, &drv->est, 0u, c->Ts_s);
-  current_estimator_design_pi(&c->estimator, &drv->est, 1u, c->Ts_s);
+  you2019_deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Lq_hat_H, &Aq, &Bq);
+  you2019_deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Ld_hat_H, &Ad, &Bd);
+  you2019_deadbeat_controller_gains(Aq, Bq, &drv->db.K1q_V_A, &drv->db.K2q_V_A);
+  you2019_deadbeat_controller_gains(Ad, Bd, &drv->db.K1d_V_A, &drv->db.K2d_V_A);
+  you2019_estimator_set_model(&drv->est, 0u, Aq, Bq);
+  you2019_estimator_set_model(&drv->est, 1u, Ad, Bd);
+  you2019_estimator_design_pi(&c->estimator, &drv->est, 0u, c->Ts_s);
+  you2019_estimator_design_pi(&c->estimator, &drv->est, 1u, c->Ts_s);
   pi_current_design(&c->pi, &drv->pi, c->R_hat_ohm, c->Ld_hat_H, c->Lq_hat_H);
   outer_loops_design(&c->outer, &drv->outer, c->pole_pairs, c->psi_hat_Wb);
   s->Lq_active_H = c->Lq_hat_H;
   s->Ld_active_H = c->Ld_hat_H;
   drive_recompute_spm(drv, s->controller_cache != c->controller);
   if (s->controller_cache != c->controller) {
-    deadbeat_reset(&drv->db);
+    you2019_deadbeat_reset(&drv->db);
     pi_current_reset(&drv->pi);
   }
   s->pending_q = s->pending_d = 0u;
@@ -138,10 +139,10 @@ static void drive_recompute(drive_t *drv) {
 void drive_init(drive_t *drv, const drive_config_t *cfg) {
   memset(drv, 0, sizeof(*drv));
   drv->cfg = *cfg;
-  deadbeat_reset(&drv->db);
+  you2019_deadbeat_reset(&drv->db);
   pi_current_reset(&drv->pi);
-  current_estimator_reset(&drv->est);
-  gain_id_reset(&drv->ident);
+  you2019_estimator_reset(&drv->est);
+  you2019_identification_reset(&drv->ident);
   outer_loops_reset(&drv->outer);
   drv->st.controller_cache = 0xFFu; /* every controller starts from reset */
   drive_recompute(drv);
@@ -171,27 +172,29 @@ static void drive_apply_pending_gains(drive_t *drv) {
     s->est_pi_countdown--;
     if (s->est_pi_countdown == 0u) {
       /* You 2019 Eq. 8/9 with the identified model gains */
-      current_estimator_design_pi(&drv->cfg.estimator, &drv->est, 0u, drv->cfg.Ts_s);
-      current_estimator_design_pi(&drv->cfg.estimator, &drv->est, 1u, drv->cfg.Ts_s);
+      you2019_estimator_design_pi(&drv->cfg.estimator, &drv->est, 0u,
+                                  drv->cfg.Ts_s);
+      you2019_estimator_design_pi(&drv->cfg.estimator, &drv->est, 1u,
+                                  drv->cfg.Ts_s);
     }
   }
   if (s->pending_q == 0u && s->pending_d == 0u) {
     return;
   }
-  const gain_id_axis_state_t *q = &drv->ident.q;
-  const gain_id_axis_state_t *d =
+  const you2019_identification_axis_state_t *q = &drv->ident.q;
+  const you2019_identification_axis_state_t *d =
       drv->cfg.ident.identify_d_axis != 0u ? &drv->ident.d : &drv->ident.q;
   if (s->pending_q != 0u) {
     drv->db.K1q_V_A = q->K1_bar_V_A;
     drv->db.K2q_V_A = q->K2_bar_V_A;
-    current_estimator_set_model(&drv->est, 0u, q->A_hat, q->B_hat_A_Vs);
+    you2019_estimator_set_model(&drv->est, 0u, q->A_hat, q->B_hat_A_Vs);
     s->Lq_active_H = q->L_hat_H;
   }
   if (s->pending_d != 0u) {
     /* default (paper): d-axis gains copied from the q axis */
     drv->db.K1d_V_A = d->K1_bar_V_A;
     drv->db.K2d_V_A = d->K2_bar_V_A;
-    current_estimator_set_model(&drv->est, 1u, d->A_hat, d->B_hat_A_Vs);
+    you2019_estimator_set_model(&drv->est, 1u, d->A_hat, d->B_hat_A_Vs);
     s->Ld_active_H = d->L_hat_H;
   }
   s->pending_q = s->pending_d = 0u;
@@ -229,14 +232,16 @@ static void drive_speed_step(drive_t *drv, float theta_m_rad) {
 
   /* You 2019 Fig. 16: Eq. 28-32 at the speed-loop execution */
   if (c->ident.enable != 0u) {
-    if (gain_id_average(&c->ident, &drv->ident.q, c->Ts_s, c->R_hat_ohm)) {
+    if (you2019_identification_average(&c->ident, &drv->ident.q, c->Ts_s,
+                                       c->R_hat_ohm)) {
       s->pending_q = 1u;
       if (c->ident.identify_d_axis == 0u) {
         s->pending_d = 1u;
       }
     }
     if (c->ident.identify_d_axis != 0u &&
-        gain_id_average(&c->ident, &drv->ident.d, c->Ts_s, c->R_hat_ohm)) {
+        you2019_identification_average(&c->ident, &drv->ident.d, c->Ts_s,
+                                       c->R_hat_ohm)) {
       s->pending_d = 1u;
     }
   }
@@ -279,13 +284,13 @@ static void drive_fill_signals(drive_t *drv, const drive_meas_t *m) {
 static void drive_step_you2019(drive_t *drv);
 
 void drive_reset_controller_memory(drive_t *drv) {
-  deadbeat_reset(&drv->db);
+  you2019_deadbeat_reset(&drv->db);
   pi_current_reset(&drv->pi);
-  yao_dpcc_ident_abort(&drv->yao);
+  yao2020_identification_abort(&drv->yao);
   drv->yao.primed = 0u; /* observer restarts from F e(psi_hat); R_hat/L_hat kept */
   drv->yao.v_star_d_V = drv->yao.v_star_q_V = 0.0f;
-  bilinear_incremental_reset(&drv->inc);
-  predictive_euler_reset(&drv->eul);
+  zhao2022_incremental_reset(&drv->inc);
+  zhao2022_predictive_reset(&drv->eul);
 }
 
 bool drive_yao_ident_start(drive_t *drv) {
@@ -293,15 +298,17 @@ bool drive_yao_ident_start(drive_t *drv) {
       drv->cfg.yao.observer_enable == 0u) {
     return false;
   }
-  return yao_dpcc_ident_start(&drv->yao_cfg, &drv->yao);
+  return yao2020_identification_start(&drv->yao_cfg, &drv->yao);
 }
 
-void drive_yao_ident_abort(drive_t *drv) { yao_dpcc_ident_abort(&drv->yao); }
+void drive_yao_ident_abort(drive_t *drv) {
+  yao2020_identification_abort(&drv->yao);
+}
 
 /* Surface-mounted controllers (Yao 2020, Zhao 2022): the paper's law on the
  * measured dq currents with the drive's electrical speed; the law limits its
  * own command to Vmax_V (radially) and keeps the applied voltage in its
- * memory.  No Eq. 4 feed-forward (each law has its own speed terms). */
+ * memory.  No You 2019 Eq. 4 feed-forward (each law has its own speed terms). */
 static void drive_step_spm(drive_t *drv) {
   const drive_config_t *c = &drv->cfg;
   drive_state_t *s = &drv->st;
@@ -312,12 +319,12 @@ static void drive_step_spm(drive_t *drv) {
     /* Yao 2020 Eq. 12-18 (+ identification); the returned stator-frame
      * vector already includes the one-period rotation (Eq. 9): no angle
      * advance here */
-    yao_dpcc_step(&drv->yao_cfg, &drv->yao, s->i_d_A, s->i_q_A, w, s->theta_e_rad,
-                  s->id_ref_A, s->iq_ref_A, &drv->yao_cmd);
+    yao2020_dpcc_step(&drv->yao_cfg, &drv->yao, s->id_ref_A, s->iq_ref_A,
+                      s->i_d_A, s->i_q_A, w, s->theta_e_rad, &drv->yao_cmd);
     if (c->yao_rls_enable != 0u) {
       /* Yao 2020 Eq. 46-48: i(k) and v(k) = v*(k-1) (frame theta(k)) */
-      yao_rls_update(&drv->rls_cfg, &drv->rls, s->i_d_A, s->i_q_A, drv->yao.v_app_d_V,
-                     drv->yao.v_app_q_V, w);
+      yao2020_rls_update(&drv->rls_cfg, &drv->rls, s->i_d_A, s->i_q_A,
+                         drv->yao.v_app_d_V, drv->yao.v_app_q_V, w);
     }
     s->v_d_V = drv->yao_cmd.v_ref_d_V; /* frame theta(k), like the other laws */
     s->v_q_V = drv->yao_cmd.v_ref_q_V;
@@ -328,13 +335,13 @@ static void drive_step_spm(drive_t *drv) {
     float vd, vq;
     if (c->controller == (uint8_t)DRIVE_CTRL_INCREMENTAL_ZHAO2022) {
       /* Zhao 2022 Eq. 22/23 */
-      bilinear_incremental_step(&drv->inc, s->i_d_A, s->i_q_A, w, s->id_ref_A, s->iq_ref_A,
-                                &vd, &vq);
+      zhao2022_incremental_step(&drv->inc, s->id_ref_A, s->iq_ref_A, s->i_d_A,
+                                s->i_q_A, w, &vd, &vq);
       s->v_limited = drv->inc.limited;
     } else {
       /* Zhao 2022 Eq. 5/6 */
-      predictive_euler_step(&drv->eul, s->i_d_A, s->i_q_A, w, s->id_ref_A, s->iq_ref_A,
-                            &vd, &vq);
+      zhao2022_predictive_step(&drv->eul, s->id_ref_A, s->iq_ref_A, s->i_d_A,
+                               s->i_q_A, w, &vd, &vq);
       s->v_limited = drv->eul.limited;
     }
     s->v_d_V = vd;
@@ -392,7 +399,7 @@ void drive_current_step(drive_t *drv, const drive_meas_t *m, drive_cmd_t *cmd) {
 }
 
 /* PI and You 2019 deadbeat: Eq. 4 decoupling, Eq. 33-35 limiting, angle
- * advance, Eq. 5-9 estimator, Eq. 22-27 identification. */
+ * advance, You 2019 Eq. 5-9 estimator, Eq. 22-27 identification. */
 static void drive_step_you2019(drive_t *drv) {
   const drive_config_t *c = &drv->cfg;
   drive_state_t *s = &drv->st;
@@ -411,14 +418,14 @@ static void drive_step_you2019(drive_t *drv) {
   float vq_c = 0.0f, vd_c = 0.0f;
   switch ((drive_controller_t)c->controller) {
     case DRIVE_CTRL_PI:
-      pi_current_step(&drv->pi, c->Ts_s, s->iq_ref_A, s->i_q_A, s->id_ref_A,
-                      s->i_d_A, &vq_c, &vd_c);
+      pi_current_step(&drv->pi, s->id_ref_A, s->iq_ref_A, s->i_d_A, s->i_q_A,
+                      c->Ts_s, &vd_c, &vq_c);
       break;
     case DRIVE_CTRL_DEADBEAT_YOU2019:
     default:
       /* You 2019 Eq. 17 / Eq. 19 */
-      deadbeat_step(&drv->db, s->iq_ref_A, s->i_q_A, s->id_ref_A, s->i_d_A,
-                    &vq_c, &vd_c);
+      you2019_deadbeat_step(&drv->db, s->id_ref_A, s->iq_ref_A, s->i_d_A,
+                            s->i_q_A, &vd_c, &vq_c);
       break;
   }
 
@@ -432,11 +439,12 @@ static void drive_step_you2019(drive_t *drv) {
 
   switch ((drive_controller_t)c->controller) {
     case DRIVE_CTRL_PI:
-      pi_current_commit(&drv->pi, s->v_q_star_V, s->v_d_star_V);
+      pi_current_commit(&drv->pi, s->v_d_star_V, s->v_q_star_V);
       break;
     case DRIVE_CTRL_DEADBEAT_YOU2019:
     default:
-      deadbeat_commit(&c->deadbeat, &drv->db, s->v_q_star_V, s->v_d_star_V);
+      you2019_deadbeat_commit(&c->deadbeat, &drv->db, s->v_d_star_V,
+                              s->v_q_star_V);
       break;
   }
 
@@ -449,10 +457,10 @@ static void drive_step_you2019(drive_t *drv) {
 
   /* You 2019 Eq. 5-9 estimator, Eq. 7 dead-time compensation */
   if (c->estimator.enable != 0u) {
-    current_estimator_step(&drv->est, c->Ts_s, s->i_q_A, s->i_d_A,
-                           s->v_q_star_V, s->v_d_star_V);
+    you2019_estimator_step(&drv->est, s->i_d_A, s->i_q_A, s->v_d_star_V,
+                           s->v_q_star_V, c->Ts_s);
     if (c->estimator.deadtime_enable != 0u) {
-      current_estimator_deadtime(&c->estimator, &drv->est, cc, sc);
+      you2019_estimator_deadtime(&c->estimator, &drv->est, cc, sc);
       s->v_alpha_V += drv->est.v_dt_alpha_V;
       s->v_beta_V += drv->est.v_dt_beta_V;
     }
@@ -460,9 +468,11 @@ static void drive_step_you2019(drive_t *drv) {
 
   /* You 2019 Eq. 22-27: identification every current period */
   if (c->ident.enable != 0u) {
-    gain_id_sample(&c->ident, &drv->ident.q, s->i_q_A, s->v_q_star_V);
+    you2019_identification_sample(&c->ident, &drv->ident.q, s->i_q_A,
+                                  s->v_q_star_V);
     if (c->ident.identify_d_axis != 0u) {
-      gain_id_sample(&c->ident, &drv->ident.d, s->i_d_A, s->v_d_star_V);
+      you2019_identification_sample(&c->ident, &drv->ident.d, s->i_d_A,
+                                    s->v_d_star_V);
     }
   }
 }

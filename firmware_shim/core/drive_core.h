@@ -16,22 +16,23 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "bilinear_incremental.h"
-#include "current_estimator.h"
-#include "deadbeat_z.h"
-#include "dpcc_yao2020.h"
-#include "gain_identification.h"
 #include "outer_loops.h"
 #include "pi_current.h"
-#include "predictive_euler.h"
-#include "rls_yao2020.h"
 #include "trace_recorder.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_identification.h"
+#include "yao2020_rls.h"
+#include "you2019_deadbeat.h"
+#include "you2019_estimator.h"
+#include "you2019_identification.h"
+#include "zhao2022_incremental.h"
+#include "zhao2022_predictive.h"
 
 typedef enum {
   DRIVE_CTRL_PI = 0,
   DRIVE_CTRL_DEADBEAT_YOU2019 = 1,
   /* surface-mounted (single-inductance) controllers: L_hat = Lq_hat_H,
-   * no Eq. 4 decoupling / You 2019 estimator / dead-time compensation /
+   * no You 2019 Eq. 4 decoupling / You 2019 estimator / dead-time compensation /
    * Eq. 33 limiter of the drive (each limits its own command radially to
    * Vmax_V); see drive_step_spm() in drive_core.c */
   DRIVE_CTRL_DPCC_YAO2020 = 2,         /* Yao 2020 DPCC + SMO + R/L ident */
@@ -57,21 +58,21 @@ typedef struct {
   float Ld_hat_H;             /* default 4.46e-3 */
   float Lq_hat_H;             /* default 4.54e-3 */
   float psi_hat_Wb;           /* default 0.042 */
-  float Vmax_V;               /* Eq. 33 radius, default 139 */
-  uint8_t vlimit_radial;      /* 0: d priority (Eq. 34), 1: radial */
-  uint8_t decoupling_enable;  /* Eq. 4 feed-forward, default 1 */
+  float Vmax_V;               /* You 2019 Eq. 33 radius, default 139 */
+  uint8_t vlimit_radial;      /* 0: d priority (You 2019 Eq. 34), 1: radial */
+  uint8_t decoupling_enable;  /* You 2019 Eq. 4 feed-forward, default 1 */
   float angle_advance_periods;/* inverse-Park angle advance in Ts, default 1.5 */
-  deadbeat_config_t deadbeat;
+  you2019_deadbeat_config_t deadbeat;
   pi_current_config_t pi;
-  current_estimator_config_t estimator;
-  gain_identification_config_t ident; /* ident.enable = tuning switch */
+  you2019_estimator_config_t estimator;
+  you2019_identification_config_t ident; /* ident.enable = tuning switch */
   outer_loops_config_t outer;
   /* Yao 2020 DPCC (controller DRIVE_CTRL_DPCC_YAO2020).  Its Ts_s,
    * R_hat_ohm, L_hat_H, psi_hat_Wb and Vmax_V are NOT read: the drive's
    * Ts_s, R_hat_ohm, Lq_hat_H, psi_hat_Wb and Vmax_V above are used (the
    * identification then moves the controller's own R_hat/L_hat, readable
    * in drive_t.yao). */
-  yao_dpcc_config_t yao;
+  yao2020_dpcc_config_t yao;
   uint8_t yao_rls_enable;     /* Yao 2020 Sec. VI-B RLS baseline beside the DPCC */
   float yao_rls_lambda;       /* RLS forgetting factor, default 0.995 */
 } drive_config_t;
@@ -99,12 +100,12 @@ typedef struct {
   float theta_e_rad, omega_e_rad_s;
   float i_d_A, i_q_A;
   float iq_ref_A, id_ref_A;   /* references used in this step */
-  float v_q_ff_V, v_d_ff_V;   /* Eq. 4 */
-  float v_q_V, v_d_V;         /* total dq command after Eq. 33 */
-  float v_q_star_V, v_d_star_V;/* decoupled applied command (Eq. 35) */
+  float v_q_ff_V, v_d_ff_V;   /* You 2019 Eq. 4 */
+  float v_q_V, v_d_V;         /* total dq command after You 2019 Eq. 33 */
+  float v_q_star_V, v_d_star_V;/* decoupled applied command (You 2019 Eq. 35) */
   float v_alpha_V, v_beta_V;
   uint8_t v_limited;
-  /* active model used for feed-forward (config or identified, Eq. 32) */
+  /* active model used for feed-forward (config or identified, You 2019 Eq. 32) */
   float Lq_active_H, Ld_active_H;
   /* Fig. 16 pipeline */
   uint8_t pending_q, pending_d;
@@ -122,19 +123,19 @@ typedef struct {
   drive_config_t cfg;
   drive_setpoint_t sp;
   drive_state_t st;
-  deadbeat_state_t db;
+  you2019_deadbeat_state_t db;
   pi_current_state_t pi;
-  current_estimator_state_t est;
-  gain_identification_state_t ident;
+  you2019_estimator_state_t est;
+  you2019_identification_state_t ident;
   outer_loops_state_t outer;
   /* surface-mounted controllers (derived configs rebuilt by the recompute) */
-  yao_dpcc_config_t yao_cfg;
-  yao_dpcc_state_t yao;
-  yao_dpcc_cmd_t yao_cmd;     /* last Yao 2020 command */
-  yao_rls_config_t rls_cfg;
-  yao_rls_state_t rls;
-  bilinear_incremental_state_t inc;
-  predictive_euler_state_t eul;
+  yao2020_dpcc_config_t yao_cfg;
+  yao2020_dpcc_state_t yao;
+  yao2020_dpcc_cmd_t yao_cmd;     /* last Yao 2020 command */
+  yao2020_rls_config_t rls_cfg;
+  yao2020_rls_state_t rls;
+  zhao2022_incremental_state_t inc;
+  zhao2022_predictive_state_t eul;
   trace_recorder_t *trace;    /* optional, NULL = no tracing */
 } drive_t;
 

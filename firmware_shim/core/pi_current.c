@@ -23,9 +23,9 @@ void pi_current_reset(pi_current_state_t *st) {
   st->e_q_A = st->e_d_A = 0.0f;
 }
 
-void pi_current_step(pi_current_state_t *st, float Ts_s, float iq_ref_A,
-                     float iq_A, float id_ref_A, float id_A, float *v_q_V,
-                     float *v_d_V) {
+void pi_current_step(pi_current_state_t *st, float id_ref_A, float iq_ref_A,
+                     float id_A, float iq_A, float Ts_s, float *v_d_V,
+                     float *v_q_V) {
   st->i_q_A = iq_A;
   st->i_d_A = id_A;
   st->e_q_A = iq_ref_A - iq_A;
@@ -52,8 +52,8 @@ static float pi_axis_antiwindup(float integ, float R_hat_ohm, float i_A,
   return integ;
 }
 
-void pi_current_commit(pi_current_state_t *st, float v_q_applied_V,
-                       float v_d_applied_V) {
+void pi_current_commit(pi_current_state_t *st, float v_d_applied_V,
+                       float v_q_applied_V) {
   st->integ_q_V = pi_axis_antiwindup(st->integ_q_V, st->R_hat_ohm, st->i_q_A,
                                      st->v_q_raw_V, v_q_applied_V);
   st->integ_d_V = pi_axis_antiwindup(st->integ_d_V, st->R_hat_ohm, st->i_d_A,

@@ -10,7 +10,7 @@
  * Anti-windup (IMC-consistent back-calculation): with Ki/Kp = R/L the
  * integrator of the unsaturated loop holds exactly R_hat * i (the resistive
  * drop of the current the loop is producing).  While the output is limited
- * by Eq. 33 the integrator is therefore re-set to R_hat * i_measured,
+ * by You 2019 Eq. 33 the integrator is therefore re-set to R_hat * i_measured,
  * bounded by the applied voltage; after de-saturation the loop continues
  * as the first-order IMC response without the slow L/R tail a simply
  * frozen integrator would leave, and without overshoot. */
@@ -35,11 +35,11 @@ void pi_current_design(const pi_current_config_t *cfg, pi_current_state_t *st,
                        float R_hat_ohm, float Ld_hat_H, float Lq_hat_H);
 void pi_current_reset(pi_current_state_t *st);
 /* Decoupled controller voltage (feed-forward added by the caller). */
-void pi_current_step(pi_current_state_t *st, float Ts_s, float iq_ref_A,
-                     float iq_A, float id_ref_A, float id_A, float *v_q_V,
-                     float *v_d_V);
+void pi_current_step(pi_current_state_t *st, float id_ref_A, float iq_ref_A,
+                     float id_A, float iq_A, float Ts_s, float *v_d_V,
+                     float *v_q_V);
 /* Anti-windup: called with the decoupled voltage actually applied. */
-void pi_current_commit(pi_current_state_t *st, float v_q_applied_V,
-                       float v_d_applied_V);
+void pi_current_commit(pi_current_state_t *st, float v_d_applied_V,
+                       float v_q_applied_V);
 
 #endif

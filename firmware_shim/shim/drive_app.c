@@ -225,10 +225,10 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
     }
     case OD_DRIVE_YAO_2020_DPCC_IDX: {
 #define y (&m->x2206_yao_2020_dpcc)
-        const yao_dpcc_state_t *st = &d->yao;
+        const yao2020_dpcc_state_t *st = &d->yao;
         y->ident_state = st->id_state;
         y->abort_reason = st->abort_reason;
-        y->progress = yao_dpcc_ident_progress(&d->yao_cfg, st);
+        y->progress = yao2020_identification_progress(&d->yao_cfg, st);
         y->R_hat_ohm = st->R_hat_ohm;
         y->L_hat_H = st->L_hat_H;
         y->R_id_ohm = st->R_id_ohm;
@@ -509,7 +509,7 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
             if (d->cfg.controller != (uint8_t)DRIVE_CTRL_DPCC_YAO2020 ||
                 m->x2200_Controller.controller == DRIVE_APP_CTRL_OPEN_LOOP || d->cfg.yao.observer_enable == 0u)
                 return CO_ABORT_PARAM_INCOMPAT; /* the identification needs the DPCC with its observer */
-            if (d->yao.primed == 0u || yao_dpcc_ident_running(&d->yao))
+            if (d->yao.primed == 0u || yao2020_identification_running(&d->yao))
                 return CO_ABORT_DATA_STATE; /* not run yet / already running */
         }
         return 0;

@@ -9,8 +9,8 @@
  *       currents and speed (Yao 2020: its stator-frame output, no angle
  *       advance; Zhao 2022: its dq output, rotated by the drive's advance).
  * Also: the Yao 2020 identification started by SDO (0x2206:15 = 1) follows
- * yao_dpcc_ident_start() on the direct core; the RLS baseline (0x2206:25)
- * equals yao_rls_update() on the same data; refusals (salient model,
+ * yao2020_identification_start() on the direct core; the RLS baseline (0x2206:25)
+ * equals yao2020_rls_update() on the same data; refusals (salient model,
  * identification without the DPCC); switching back to 2 keeps You 2019.
  *
  * Link: test + drive_app.c + libfw.a + libco.a (-lm). */
@@ -205,22 +205,22 @@ static void run_controller(uint8_t od_ctrl)
     drive_apply_config(&ref);
 
     /* direct cores, configured from the same values */
-    yao_dpcc_config_t ycfg;
-    yao_dpcc_default_config(&ycfg);
+    yao2020_dpcc_config_t ycfg;
+    yao2020_dpcc_default_config(&ycfg);
     ycfg.Ts_s = kTs; ycfg.R_hat_ohm = kR; ycfg.L_hat_H = kL; ycfg.psi_hat_Wb = kPsi; ycfg.Vmax_V = kVmax;
-    static yao_dpcc_state_t yst;
-    yao_dpcc_init(&ycfg, &yst);
-    yao_rls_config_t rcfg;
-    yao_rls_default_config(&rcfg);
+    static yao2020_dpcc_state_t yst;
+    yao2020_dpcc_init(&ycfg, &yst);
+    yao2020_rls_config_t rcfg;
+    yao2020_rls_default_config(&rcfg);
     rcfg.Ts_s = kTs; rcfg.psi_hat_Wb = kPsi; rcfg.lambda = 0.995f;
-    yao_rls_state_t rls;
-    yao_rls_init(&rcfg, &rls, kR, kL);
-    bilinear_incremental_config_t icfg = {kR, kL, kTs, kVmax};
-    bilinear_incremental_state_t ist;
-    EXPECT(bilinear_incremental_init(&icfg, &ist) == 0);
-    predictive_euler_config_t ecfg = {kR, kL, kPsi, kTs, kVmax};
-    predictive_euler_state_t est;
-    EXPECT(predictive_euler_init(&ecfg, &est) == 0);
+    yao2020_rls_state_t rls;
+    yao2020_rls_init(&rcfg, &rls, kR, kL);
+    zhao2022_incremental_config_t icfg = {kR, kL, kTs, kVmax};
+    zhao2022_incremental_state_t ist;
+    EXPECT(zhao2022_incremental_init(&icfg, &ist) == 0);
+    zhao2022_predictive_config_t ecfg = {kR, kL, kPsi, kTs, kVmax};
+    zhao2022_predictive_state_t est;
+    EXPECT(zhao2022_predictive_init(&ecfg, &est) == 0);
 
     int n_same_drive = 0, n_same_core = 0, n = 0;
     const int N = 400, K_ID = 120;
@@ -228,8 +228,8 @@ static void run_controller(uint8_t od_ctrl)
         if (od_ctrl == 3u && k == K_ID) {
             EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == 0);
             EXPECT(drive_yao_ident_start(&ref));
-            EXPECT(yao_dpcc_ident_start(&ycfg, &yst));
-            EXPECT(yao_dpcc_ident_running(&g_app.drv.yao));
+            EXPECT(yao2020_identification_start(&ycfg, &yst));
+            EXPECT(yao2020_identification_running(&g_app.drv.yao));
         }
         const drive_meas_t m = meas_of(k);
         const co_frame_t *f = sample(&m, k);
@@ -248,15 +248,15 @@ static void run_controller(uint8_t od_ctrl)
         dq_park(ial, ibe, cs, sn, &id, &iq);
         float va, vb;
         if (od_ctrl == 3u) {
-            yao_dpcc_cmd_t yc;
-            yao_dpcc_step(&ycfg, &yst, id, iq, w, th, 0.0f, 2.0f, &yc);
-            yao_rls_update(&rcfg, &rls, id, iq, yst.v_app_d_V, yst.v_app_q_V, w);
+            yao2020_dpcc_cmd_t yc;
+            yao2020_dpcc_step(&ycfg, &yst, 0.0f, 2.0f, id, iq, w, th, &yc);
+            yao2020_rls_update(&rcfg, &rls, id, iq, yst.v_app_d_V, yst.v_app_q_V, w);
             va = yc.v_alpha_V;
             vb = yc.v_beta_V;
         } else {
             float vd, vq;
-            if (od_ctrl == 4u) bilinear_incremental_step(&ist, id, iq, w, 0.0f, 2.0f, &vd, &vq);
-            else predictive_euler_step(&est, id, iq, w, 0.0f, 2.0f, &vd, &vq);
+            if (od_ctrl == 4u) zhao2022_incremental_step(&ist, 0.0f, 2.0f, id, iq, w, &vd, &vq);
+            else zhao2022_predictive_step(&est, 0.0f, 2.0f, id, iq, w, &vd, &vq);
             const float thc = th + 1.5f * w * kTs;
             dq_inv_park(vd, vq, cosf(thc), sinf(thc), &va, &vb);
         }
@@ -265,13 +265,14 @@ static void run_controller(uint8_t od_ctrl)
     EXPECT(n_same_drive == N);
     EXPECT(n_same_core == N);
     if (od_ctrl == 3u) {
-        EXPECT(g_app.drv.yao.id_state == yst.id_state && yst.id_state != (uint8_t)YAO_ID_IDLE);
-        EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
-        EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
-        EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
-        EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
-        EXPECT(g_app.drv.yao.id_state == (uint8_t)YAO_ID_ABORTED);
-        EXPECT(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
+      EXPECT(g_app.drv.yao.id_state == yst.id_state &&
+             yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
+      EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
+      EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
+      EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
+      EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
+      EXPECT(g_app.drv.yao.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
+      EXPECT(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
     }
     if (od_ctrl == 4u) {
         EXPECT(same_bits(rd_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K1_V_A_SUB), ist.K1_V_A));

@@ -402,8 +402,8 @@ static void test_sdo_gains(void)
     EXPECT(f && same_bits(get_f32(&f->data[0]), c.v_alpha_V) && same_bits(get_f32(&f->data[4]), c.v_beta_V));
     const float K1_after = sdo_read_f32(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_SUB);
     float A, B, K1e, K2e;
-    deadbeat_model_gains(55e-6f, 1.4f, Lq_new, &A, &B);
-    deadbeat_controller_gains(A, B, &K1e, &K2e);
+    you2019_deadbeat_model_gains(55e-6f, 1.4f, Lq_new, &A, &B);
+    you2019_deadbeat_controller_gains(A, B, &K1e, &K2e);
     EXPECT(same_bits(K1_after, K1e) && same_bits(K1_after, ref.db.K1q_V_A));
     EXPECT(K1_after < 0.6f * K1_before);
 

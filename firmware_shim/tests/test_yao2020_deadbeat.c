@@ -8,7 +8,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"
@@ -20,16 +20,16 @@
 static void run(const char *name, int high, int observer, double iq_step, double id_step) {
   yplant_t pl;
   if (high) yplant_high(&pl); else yplant_low(&pl);
-  yao_dpcc_config_t cfg;
-  yao_dpcc_default_config(&cfg);
+  yao2020_dpcc_config_t cfg;
+  yao2020_dpcc_default_config(&cfg);
   cfg.R_hat_ohm = (float)pl.R;
   cfg.L_hat_H = (float)pl.L;
   cfg.psi_hat_Wb = observer ? 0.0f : (float)pl.psi; /* observer: psi unused */
   cfg.observer_enable = (uint8_t)observer;
-  static yao_dpcc_state_t st;
-  yao_dpcc_init(&cfg, &st);
+  static yao2020_dpcc_state_t st;
+  yao2020_dpcc_init(&cfg, &st);
   static double iq[N], id[N], eq[N];
-  yao_dpcc_cmd_t cmd;
+  yao2020_dpcc_cmd_t cmd;
   for (int k = 0; k < N; ++k) {
     const double iqr = k >= K1 ? iq_step : 0.0;
     const double idr = k >= K2 ? id_step : 0.0;

@@ -1,4 +1,4 @@
-/* test_yao2020_gain_sweep.c - convergence time of the L and R integral
+/* test_yao2020_gain_sweep.c - Yao 2020: convergence time of the L and R integral
  * estimators vs their gains k_L, k_R (Yao 2020 Eq. 44-45, Fig. 14/15).
  * With the plant gain k (dM per unit parameter error, exact closed form at
  * the fixed point) the estimator is dp/dt = -k_{L,R} k (p - p_true), so the
@@ -10,7 +10,8 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_identification.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"
@@ -22,8 +23,8 @@ typedef struct { double tL, tR, eL, eR; int ok; } res_t;
 static res_t run(int high, double kL, double kR) {
   yplant_t pl;
   if (high) yplant_high(&pl); else yplant_low(&pl);
-  yao_dpcc_config_t cfg;
-  yao_dpcc_default_config(&cfg);
+  yao2020_dpcc_config_t cfg;
+  yao2020_dpcc_default_config(&cfg);
   cfg.R_hat_ohm = (float)(1.5 * pl.R);
   cfg.L_hat_H = (float)(1.5 * pl.L);
   cfg.psi_hat_Wb = (float)pl.psi;
@@ -38,19 +39,19 @@ static res_t run(int high, double kL, double kR) {
     cfg.kL_low_H_Vs = (float)kL;
     cfg.kR_low_ohm_Vs = (float)kR;
   }
-  static yao_dpcc_state_t st;
-  yao_dpcc_init(&cfg, &st);
-  yao_dpcc_cmd_t cmd;
+  static yao2020_dpcc_state_t st;
+  yao2020_dpcc_init(&cfg, &st);
+  yao2020_dpcc_cmd_t cmd;
   for (int k = 0; k < 3000; ++k) yloop_step(&pl, &cfg, &st, 0.0, iq, &cmd);
-  yao_dpcc_ident_start(&cfg, &st);
-  for (int k = 0; k < 2000000 && yao_dpcc_ident_running(&st); ++k)
+  yao2020_identification_start(&cfg, &st);
+  for (int k = 0; k < 2000000 && yao2020_identification_running(&st); ++k)
     yloop_step(&pl, &cfg, &st, 0.0, iq, &cmd);
   res_t r;
   r.tL = st.t_L_conv_periods * T;
   r.tR = st.t_R_conv_periods * T;
   r.eL = (double)st.L_id_H / pl.L - 1.0;
   r.eR = (double)st.R_id_ohm / pl.R - 1.0;
-  r.ok = st.id_state == YAO_ID_DONE && st.L_converged && st.R_converged;
+  r.ok = st.id_state == YAO2020_IDENTIFICATION_DONE && st.L_converged && st.R_converged;
   return r;
 }
 

@@ -8,7 +8,8 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_identification.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"
@@ -16,9 +17,9 @@
 #define IQ0 10.0
 static const double T = 100e-6;
 
-static void settle(yplant_t *pl, const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st, int n,
+static void settle(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st, int n,
                    double idr, double iqr) {
-  yao_dpcc_cmd_t cmd;
+  yao2020_dpcc_cmd_t cmd;
   for (int k = 0; k < n; ++k) yloop_step(pl, cfg, st, idr, iqr, &cmd);
 }
 
@@ -26,8 +27,8 @@ static void run(double th_scale) {
   const double R = 0.045, L = 24e-6;
   yplant_t pl;
   yplant_high(&pl);
-  yao_dpcc_config_t cfg;
-  yao_dpcc_default_config(&cfg);
+  yao2020_dpcc_config_t cfg;
+  yao2020_dpcc_default_config(&cfg);
   cfg.R_hat_ohm = (float)(1.5 * R);
   cfg.L_hat_H = (float)(1.5 * L);
   cfg.psi_hat_Wb = (float)pl.psi;
@@ -36,17 +37,17 @@ static void run(double th_scale) {
   cfg.th_L_V = (float)(0.1 * th_scale);
   cfg.th_R_V = (float)(0.03 * th_scale);
   cfg.n_timeout = 400000u;
-  static yao_dpcc_state_t st;
-  yao_dpcc_init(&cfg, &st);
+  static yao2020_dpcc_state_t st;
+  yao2020_dpcc_init(&cfg, &st);
   settle(&pl, &cfg, &st, 3000, 0.0, IQ0);
   const double ss = hypot(pl.id, pl.iq - IQ0);
-  yao_dpcc_cmd_t cmd;
-  CHECK(yao_dpcc_ident_start(&cfg, &st), "start");
+  yao2020_dpcc_cmd_t cmd;
+  CHECK(yao2020_identification_start(&cfg, &st), "start");
   int k;
-  for (k = 0; k < 1000000 && yao_dpcc_ident_running(&st); ++k)
+  for (k = 0; k < 1000000 && yao2020_identification_running(&st); ++k)
     yloop_step(&pl, &cfg, &st, 0.0, IQ0, &cmd);
   float Rid, Lid;
-  const bool done = yao_dpcc_ident_result(&st, &Rid, &Lid);
+  const bool done = yao2020_identification_result(&st, &Rid, &Lid);
   const double eL = (double)Lid / L - 1.0, eR = (double)Rid / R - 1.0;
   /* exact loop gains at the fixed point (closed form of dM, derived) */
   const ycx gl = ydM_exact(R, L, R, L * (1 + 1e-6), pl.w, T, -5.0);
@@ -54,7 +55,7 @@ static void run(double th_scale) {
   const double kL = gl.im / (L * 1e-6), kR = gr.re / (R * 1e-6);
   const double dL_bound = (double)cfg.th_L_V / kL * 1.2, dR_bound = (double)cfg.th_R_V / kR * 1.2;
   printf("dead zones TH_L %.3g V, TH_R %.3g V (x%.2g of Table III); steady error before ID %.2e A\n"
-         "  class %d (Eq. 30-31), high gains %d: kL %.2g H/(V s), kR %.2g ohm/(V s); exact loop gains"
+         "  class %d (Yao 2020 Eq. 30-31), high gains %d: kL %.2g H/(V s), kR %.2g ohm/(V s); exact loop gains"
          " %.0f V/H, %.3f V/ohm\n  predicted tau_L %.3f s (exact %.3f s), tau_R %.2f s (exact %.2f s)\n"
          "  done %d after %.2f s; L_hat = %.3f uH (error %+.2f %%, bound %.2f %%, converged %d after"
          " %.2f s integrating)\n  R_hat = %.2f mohm (error %+.2f %%, bound %.2f %%, converged %d after"

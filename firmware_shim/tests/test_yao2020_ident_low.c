@@ -13,7 +13,8 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_identification.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"
@@ -25,19 +26,19 @@
 #define ID1 (-1.0)
 static const double T = 100e-6;
 
-static void settle(yplant_t *pl, const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
+static void settle(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
                    int n, double idr, double iqr) {
-  yao_dpcc_cmd_t cmd;
+  yao2020_dpcc_cmd_t cmd;
   for (int k = 0; k < n; ++k) yloop_step(pl, cfg, st, idr, iqr, &cmd);
 }
 
 /* Step response: returns e(k0+2)/dr, and the max |e|/dr over k0+2..k0+n of
  * the stepped axis and of the other axis; settle periods to 2 %. */
 typedef struct { double e2, emax, cross, over; int settle2, nlim; } step_t;
-static step_t step_test(yplant_t *pl, const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
+static step_t step_test(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
                         int axis_q, double from, double to, int n) {
   step_t r = {0, 0, 0, 0, 0, 0};
-  yao_dpcc_cmd_t cmd;
+  yao2020_dpcc_cmd_t cmd;
   const double dr = to - from;
   int last_out = 1; /* settle2 = first k >= 2 after which |e| <= 2 % */
   for (int k = 0; k <= n; ++k) {
@@ -70,15 +71,16 @@ typedef struct {
   double max_id_dev_l, tauL, tauR;
 } ident_t;
 
-static ident_t identify(yplant_t *pl, const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
+static ident_t identify(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
                         int max_steps) {
   ident_t r = {0};
-  yao_dpcc_cmd_t cmd;
-  CHECK(yao_dpcc_ident_start(cfg, st), "ident_start refused");
+  yao2020_dpcc_cmd_t cmd;
+  CHECK(yao2020_identification_start(cfg, st), "ident_start refused");
   int k, got_first = 0;
-  for (k = 0; k < max_steps && yao_dpcc_ident_running(st); ++k) {
+  for (k = 0; k < max_steps && yao2020_identification_running(st); ++k) {
     yloop_step(pl, cfg, st, 0.0, IQ0, &cmd);
-    if (!got_first && st->id_state == YAO_ID_INJECT_L && st->phase_count == cfg->n_settle + 1u) {
+    if (!got_first && st->id_state == YAO2020_IDENTIFICATION_INJECT_L &&
+        st->phase_count == cfg->n_settle + 1u) {
       r.dM_first_d = st->dM_d_V;
       r.dM_first_q = st->dM_q_V;
       got_first = 1;
@@ -86,7 +88,7 @@ static ident_t identify(yplant_t *pl, const yao_dpcc_config_t *cfg, yao_dpcc_sta
   }
   r.t_done_s = k * T;
   r.state = st->id_state;
-  yao_dpcc_ident_result(st, &r.R, &r.L);
+  yao2020_identification_result(st, &r.R, &r.L);
   r.Lconv = st->L_converged;
   r.Rconv = st->R_converged;
   r.tL = st->t_L_conv_periods;
@@ -98,8 +100,8 @@ static ident_t identify(yplant_t *pl, const yao_dpcc_config_t *cfg, yao_dpcc_sta
 
 int main(void) {
   yplant_t pl;
-  yao_dpcc_config_t cfg;
-  static yao_dpcc_state_t st;
+  yao2020_dpcc_config_t cfg;
+  static yao2020_dpcc_state_t st;
   const double R = 2.2, L = 5.5e-3;
 
   /* ---- 1. steady-state error, observer off vs on */
@@ -107,13 +109,13 @@ int main(void) {
   double ss[2];
   for (int obs = 0; obs < 2; ++obs) {
     yplant_low(&pl);
-    yao_dpcc_default_config(&cfg);
+    yao2020_dpcc_default_config(&cfg);
     cfg.R_hat_ohm = (float)(1.5 * R);
     cfg.L_hat_H = (float)(1.5 * L);
     cfg.psi_hat_Wb = (float)pl.psi;
     cfg.Vmax_V = (float)(300.0 / sqrt(3.0));
     cfg.observer_enable = (uint8_t)obs;
-    yao_dpcc_init(&cfg, &st);
+    yao2020_dpcc_init(&cfg, &st);
     settle(&pl, &cfg, &st, 3000, 0.0, IQ0);
     ss[obs] = hypot(pl.id, pl.iq - IQ0);
     printf("   observer %s: |i - i*| = %.4e A (id = %+.4f, iq = %.4f)\n", obs ? "on " : "off",
@@ -151,12 +153,13 @@ int main(void) {
   CHECK(fabs(id.dM_first_d - dM_pred.re) < 0.01 * fabs(dM_pred.re) + 2e-3 &&
             fabs(id.dM_first_q - dM_pred.im) < 0.01 * fabs(dM_pred.im) + 2e-3,
         "firmware dM vs closed form");
-  CHECK(id.state == YAO_ID_DONE && id.Lconv && id.Rconv, "identification must finish");
+  CHECK(id.state == YAO2020_IDENTIFICATION_DONE && id.Lconv && id.Rconv,
+        "identification must finish");
   /* dead zones: |dM_q| <= TH_L ~ w |did| |dL| , |dM_d| <= TH_R ~ |did| |dR|
-   * (Eq. 35/36), plus margin for the per-step increment */
+   * (Yao 2020 Eq. 35/36), plus margin for the per-step increment */
   const double dL_bound = (double)cfg.th_L_V / (pl.w * 2.0) * 1.2;
   const double dR_bound = (double)cfg.th_R_V / 2.0 * 1.2 + 2e-3;
-  printf("   dead-zone bounds (Eq. 35/36): |dL| <= %.4f mH (%.2f %%), |dR| <= %.4f ohm (%.2f %%)\n",
+  printf("   dead-zone bounds (Yao 2020 Eq. 35/36): |dL| <= %.4f mH (%.2f %%), |dR| <= %.4f ohm (%.2f %%)\n",
          dL_bound * 1e3, 100 * dL_bound / L, dR_bound, 100 * dR_bound / R);
   CHECK(fabs((double)id.L - L) <= dL_bound, "L_hat outside the dead-zone bound");
   CHECK(fabs((double)id.R - R) <= dR_bound, "R_hat outside the dead-zone bound");
@@ -181,11 +184,11 @@ int main(void) {
   /* ---- 5. variants (reported) */
   for (int variant = 0; variant < 2; ++variant) {
     yplant_low(&pl);
-    yao_dpcc_config_t c2 = cfg;
+    yao2020_dpcc_config_t c2 = cfg;
     c2.R_hat_ohm = (float)Rh;
     c2.L_hat_H = (float)Lh;
     if (variant == 0) c2.rereference = 0u; else c2.n_rounds = 2u;
-    yao_dpcc_init(&c2, &st);
+    yao2020_dpcc_init(&c2, &st);
     settle(&pl, &c2, &st, 3000, 0.0, IQ0);
     ident_t v = identify(&pl, &c2, &st, 300000);
     printf("5.%d %s: state %d, L_hat error %+.3f %% (conv %d), R_hat error %+.3f %% (conv %d),"

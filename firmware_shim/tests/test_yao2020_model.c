@@ -5,12 +5,13 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_identification.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"
 
-/* (a) one period of Eq. 7 vs RK4 */
+/* (a) one period of Yao 2020 Eq. 7 vs RK4 */
 static void check_model(const char *name, yplant_t *pl, double w, double iscale,
                         double vscale) {
   double maxerr = 0.0;
@@ -32,9 +33,9 @@ static void check_model(const char *name, yplant_t *pl, double w, double iscale,
     pl->val_pend = val;
     pl->vbe_pend = vbe;
     yplant_advance(pl, 0.0, 0.0);
-    /* Eq. 7: i(k+1) = Tr (x i + y v + G2 e), e = [0 w psi] */
-    yao_dpcc_model_t m;
-    yao_dpcc_model((float)pl->R, (float)pl->L, (float)w, (float)pl->Ts, &m);
+    /* Yao 2020 Eq. 7: i(k+1) = Tr (x i + y v + G2 e), e = [0 w psi] */
+    yao2020_dpcc_model_t m;
+    yao2020_dpcc_model((float)pl->R, (float)pl->L, (float)w, (float)pl->Ts, &m);
     const double e = w * pl->psi;
     const double ad = (double)m.x * id0 + (double)m.y * vd - (double)m.d2 * e;
     const double aq = (double)m.x * iq0 + (double)m.y * vq + (double)m.d1 * e;
@@ -43,12 +44,12 @@ static void check_model(const char *name, yplant_t *pl, double w, double iscale,
     const double err = hypot(pd - pl->id, pq - pl->iq);
     if (err > maxerr) maxerr = err;
   }
-  printf("  Eq. 4-7 vs RK4, %-5s w = %8.1f rad/s: max |i_model - i_rk4| = %.3e A"
+  printf("  Yao 2020 Eq. 4-7 vs RK4, %-5s w = %8.1f rad/s: max |i_model - i_rk4| = %.3e A"
          " (scale %.0f A)\n", name, w, maxerr, iscale);
   CHECK(maxerr < 2e-5 * iscale + 1e-6, "model error %s w=%g: %g", name, w, maxerr);
 }
 
-/* (b)-(d) dM for a d-axis step: Eq. 27-28 + Eq. 29, closed form, Eq. 35/36,
+/* (b)-(d) dM for a d-axis step: Yao 2020 Eq. 27-28 + Eq. 29, closed form, Yao 2020 Eq. 35/36,
  * Eq. 42/43 */
 static void check_dM(const char *name, double R, double L, double Rh, double Lh,
                      double w, double T, double did, int low) {
@@ -56,40 +57,40 @@ static void check_dM(const char *name, double R, double L, double Rh, double Lh,
   yxy(R, L, T, &x, &y);
   yxy(Rh, Lh, T, &xh, &yh);
   const double c = cos(w * T), s = sin(w * T);
-  /* Eq. 6 with the estimates */
+  /* Yao 2020 Eq. 6 with the estimates */
   const double den = Rh * Rh + w * w * Lh * Lh;
   const double d1 = ((xh - c) * Rh - s * w * Lh) / den;
   const double d2 = -((xh - c) * w * Lh + s * Rh) / den;
-  /* Eq. 29 */
+  /* Yao 2020 Eq. 29 */
   const double dvd = (c - x) * did / y, dvq = s * did / y;
-  /* Eq. 28, Eq. 27 */
+  /* Yao 2020 Eq. 28, Eq. 27 */
   const double xt = xh - x, yt = yh - y;
   const double dWd = -d1 * (xt * did + yt * dvd) - d2 * yt * dvq;
   const double dWq = d2 * (xt * did + yt * dvd) - d1 * yt * dvq;
   const double n2 = d1 * d1 + d2 * d2;
   const double dMd = dWd / n2, dMq = dWq / n2;
   const ycx ex = ydM_exact(R, L, Rh, Lh, w, T, did);
-  printf("  %-5s R_hat/R %.2f L_hat/L %.2f: Eq.27-29 dM = (%+9.4f, %+9.4f) V,"
+  printf("  %-5s R_hat/R %.2f L_hat/L %.2f: Yao 2020 Eq.27-29 dM = (%+9.4f, %+9.4f) V,"
          " closed form (%+9.4f, %+9.4f) V\n", name, Rh / R, Lh / L, dMd, dMq,
          ex.re, ex.im);
   CHECK(fabs(dMd - ex.re) < 1e-7 * (1.0 + fabs(ex.re)) &&
             fabs(dMq - ex.im) < 1e-7 * (1.0 + fabs(ex.im)),
-        "Eq. 27-29 vs closed form");
+        "Yao 2020 Eq. 27-29 vs closed form");
   if (low) {
-    /* Eq. 35/36 divided by |d_hat|^2 = (T/L_hat)^2 (Eq. 32: d1 ~ -T/L_hat,
+    /* Yao 2020 Eq. 35/36 divided by |d_hat|^2 = (T/L_hat)^2 (Eq. 32: d1 ~ -T/L_hat,
      * d2 ~ 0; the extracted prefactor (R^2 T + wTwL)/(R^2 + w^2 L^2) reads
      * (R^2 T/L + w^2 T L)/(R^2 + w^2 L^2) = T/L_hat):
      *   dM_d ~ (R - R_hat) did,   dM_q ~ w (L - L_hat) did */
     const double ad = (R - Rh) * did, aq = w * (L - Lh) * did;
-    printf("        low-frequency form Eq. 35/36: (%+9.4f, %+9.4f) V"
+    printf("        low-frequency form Yao 2020 Eq. 35/36: (%+9.4f, %+9.4f) V"
            "   [d1 = %.4e vs -T/L_hat = %.4e, d2 = %.2e]\n", ad, aq, d1, -T / Lh, d2);
     const double sc = fabs(ex.re) + fabs(ex.im);
     CHECK(fabs(ad - ex.re) < 0.1 * sc && fabs(aq - ex.im) < 0.1 * sc,
           "low-frequency approximation off by more than 10 %% of |dM|");
   } else {
-    /* Eq. 42 and Eq. 43 divided by |d_hat|^2 ~ (s^2 + (c - x)^2)/(w L_hat)^2
+    /* Yao 2020 Eq. 42 and Eq. 43 divided by |d_hat|^2 ~ (s^2 + (c - x)^2)/(w L_hat)^2
      * (Eq. 37); Eq. 43 is evaluated with L_hat = L as stated there. */
-    /* Eq. 41: y_hat - y ~ (L - L_hat) T / (L L_hat), i.e. the extracted
+    /* Yao 2020 Eq. 41: y_hat - y ~ (L - L_hat) T / (L L_hat), i.e. the extracted
      * "y~ = y_hat - y" sign is consistent with Eq. 34; Eq. 42 follows. */
     const double dWq42 = (s * s + (c - x) * (c - x)) * T / (y * w * L * Lh * Lh) *
                          (L - Lh) * did;
@@ -97,12 +98,12 @@ static void check_dM(const char *name, double R, double L, double Rh, double Lh,
     double xL, yL;
     yxy(Rh, L, T, &xL, &yL);
     const double dWd43 = s / (w * Lh) * (yL / y) * (exp(-Rh * T / L) - exp(-R * T / L)) * did;
-    printf("        high-frequency form Eq. 42/43: (%+9.4f, %+9.4f) V\n",
+    printf("        high-frequency form Yao 2020 Eq. 42/43: (%+9.4f, %+9.4f) V\n",
            dWd43 / n2a, dWq42 / n2a);
     if (fabs(Lh - L) > 1e-12) {
-      CHECK(fabs(dWq42 / n2a - ex.im) < 0.15 * fabs(ex.im), "Eq. 42 vs exact (L case)");
+      CHECK(fabs(dWq42 / n2a - ex.im) < 0.15 * fabs(ex.im), "Yao 2020 Eq. 42 vs exact (L case)");
     } else {
-      CHECK(fabs(dWd43 / n2a - ex.re) < 0.15 * fabs(ex.re), "Eq. 43 vs exact (R case)");
+      CHECK(fabs(dWd43 / n2a - ex.re) < 0.15 * fabs(ex.re), "Yao 2020 Eq. 43 vs exact (R case)");
     }
   }
 }
@@ -144,7 +145,7 @@ int main(void) {
     /* fixed point: dM = 0 iff Zd_hat = Zd iff (x_hat, y_hat) = (x, y) */
     const ycx z = ydM_exact(2.2, 5.5e-3, 2.2, 5.5e-3, wl, T, -2.0);
     CHECK(fabs(z.re) + fabs(z.im) < 1e-9, "dM at matched parameters");
-    /* local loop gains at the fixed point (used by Eq. 44) */
+    /* local loop gains at the fixed point (used by Yao 2020 Eq. 44) */
     const double hL = 1e-8, hR = 1e-5;
     const ycx gl = ydM_exact(2.2, 5.5e-3, 2.2, 5.5e-3 + hL, wl, T, -2.0);
     const ycx gr = ydM_exact(2.2, 5.5e-3, 2.2 + hR, 5.5e-3, wl, T, -2.0);
@@ -156,17 +157,20 @@ int main(void) {
            gl.im / hL, wl * 2.0, gr.re / hR, ghl.im / 1e-11, wh * 5.0, ghr.re / 1e-7);
   }
 
-  printf("(e) Eq. 30-31 classification\n");
-  const yao_motor_class_t cl = yao_dpcc_classify(2.2f, 5.5e-3f, (float)wl, 1e-4f);
-  const yao_motor_class_t ch = yao_dpcc_classify(0.045f, 24e-6f, (float)wh, 1e-4f);
-  const yao_motor_class_t ch15 = yao_dpcc_classify(0.0675f, 36e-6f, (float)wh, 1e-4f);
+  printf("(e) Yao 2020 Eq. 30-31 classification\n");
+  const yao2020_identification_motor_class_t cl =
+      yao2020_identification_classify(2.2f, 5.5e-3f, (float)wl, 1e-4f);
+  const yao2020_identification_motor_class_t ch =
+      yao2020_identification_classify(0.045f, 24e-6f, (float)wh, 1e-4f);
+  const yao2020_identification_motor_class_t ch15 =
+      yao2020_identification_classify(0.0675f, 36e-6f, (float)wh, 1e-4f);
   printf("  Table I @133.3 Hz: class %d (cos wT = %.4f, |e^-a - (1-a)| = %.2e)\n", (int)cl,
          cos(wl * T), fabs(exp(-0.04) - 0.96));
   printf("  Table II @1.33 kHz: class %d (cos wT = %.4f, R = %.4f vs 0.2 w L = %.4f);"
          " with 1.5R,1.5L: class %d\n", (int)ch, cos(wh * T), 0.045, 0.2 * wh * 24e-6,
          (int)ch15);
-  CHECK(cl == YAO_MOTOR_LOW_FREQ, "Table I must be low-frequency");
-  CHECK(ch == YAO_MOTOR_NEITHER, "Table II misses R < 0.2 w L (0.045 > 0.0401)");
+  CHECK(cl == YAO2020_IDENTIFICATION_MOTOR_LOW_FREQ, "Table I must be low-frequency");
+  CHECK(ch == YAO2020_IDENTIFICATION_MOTOR_NEITHER, "Table II misses R < 0.2 w L (0.045 > 0.0401)");
   printf("%s\n", g_fail ? "test_yao2020_model: FAIL" : "test_yao2020_model: OK");
   return g_fail;
 }

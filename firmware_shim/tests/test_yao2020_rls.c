@@ -10,8 +10,9 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "dpcc_yao2020.h"
-#include "rls_yao2020.h"
+#include "yao2020_dpcc.h"
+#include "yao2020_identification.h"
+#include "yao2020_rls.h"
 #include "yao2020_plant.h"
 
 #include "test_check.h"
@@ -50,29 +51,29 @@ static void predict(double w, double psih, ycx i, ycx v, double *R, double *L) {
 int main(void) {
   const double R = 2.2, L = 5.5e-3, iq = 4.0;
   const double ratios[3] = {0.8, 1.0, 1.2};
-  printf("RLS (Eq. 46-48), lambda 0.995, start R_hat = 1.5 R, L_hat = 1.5 L, 1 s of data\n");
+  printf("RLS (Yao 2020 Eq. 46-48), lambda 0.995, start R_hat = 1.5 R, L_hat = 1.5 L, 1 s of data\n");
   for (int j = 0; j < 3; ++j) {
     yplant_t pl;
     yplant_low(&pl);
-    yao_dpcc_config_t cfg;
-    yao_dpcc_default_config(&cfg);
+    yao2020_dpcc_config_t cfg;
+    yao2020_dpcc_default_config(&cfg);
     cfg.R_hat_ohm = (float)R;
     cfg.L_hat_H = (float)L;
-    static yao_dpcc_state_t st;
-    yao_dpcc_init(&cfg, &st);
-    yao_rls_config_t rc;
-    yao_rls_default_config(&rc);
+    static yao2020_dpcc_state_t st;
+    yao2020_dpcc_init(&cfg, &st);
+    yao2020_rls_config_t rc;
+    yao2020_rls_default_config(&rc);
     rc.psi_hat_Wb = (float)(ratios[j] * pl.psi);
-    yao_rls_state_t rs;
-    yao_rls_init(&rc, &rs, (float)(1.5 * R), (float)(1.5 * L));
-    yao_dpcc_cmd_t cmd;
+    yao2020_rls_state_t rs;
+    yao2020_rls_init(&rc, &rs, (float)(1.5 * R), (float)(1.5 * L));
+    yao2020_dpcc_cmd_t cmd;
     /* i(k) measured before the controller step; v(k) = v_app (over [k, k+1]) */
     double vd_avg = 0, vq_avg = 0;
     for (int k = 0; k < 10000; ++k) {
       const float id_m = (float)pl.id, iq_m = (float)pl.iq;
       yloop_step(&pl, &cfg, &st, 0.0, iq, &cmd);
       if (k >= 10)
-        yao_rls_update(&rc, &rs, id_m, iq_m, st.v_app_d_V, st.v_app_q_V, (float)pl.w);
+        yao2020_rls_update(&rc, &rs, id_m, iq_m, st.v_app_d_V, st.v_app_q_V, (float)pl.w);
       if (k >= 9000) {
         vd_avg += (double)st.v_app_d_V / 1000.0;
         vq_avg += (double)st.v_app_q_V / 1000.0;
@@ -89,8 +90,8 @@ int main(void) {
       CHECK(fabs((double)rs.R_hat_ohm / Rp - 1) < 0.02 && fabs((double)rs.L_hat_H / Lp - 1) < 0.02,
             "RLS vs derived fixed point (psi_hat %.1f psi)", ratios[j]);
     } else {
-      /* no physical fixed point: x_hat -> > 1, Eq. 48 rejected (R_hat held) */
-      printf("    (fixed point has R < 0: Eq. 48 guard keeps the last physical R_hat, L_hat)\n");
+      /* no physical fixed point: x_hat -> > 1, Yao 2020 Eq. 48 rejected (R_hat held) */
+      printf("    (fixed point has R < 0: Yao 2020 Eq. 48 guard keeps the last physical R_hat, L_hat)\n");
       CHECK(rs.x_hat > 1.0f, "x_hat must run past 1 when the fixed point has R < 0");
     }
     if (j == 1) CHECK(fabs(eR) < 0.01 && fabs(eL) < 0.01, "RLS with the true psi must be unbiased");
@@ -104,21 +105,21 @@ int main(void) {
     yplant_t pl;
     yplant_low(&pl);
     const double psi_true = pl.psi;
-    yao_dpcc_config_t cfg;
-    yao_dpcc_default_config(&cfg);
+    yao2020_dpcc_config_t cfg;
+    yao2020_dpcc_default_config(&cfg);
     cfg.R_hat_ohm = (float)(1.5 * R);
     cfg.L_hat_H = (float)(1.5 * L);
     cfg.psi_hat_Wb = (float)((j < 3 ? ratios[j] : 1.0) * psi_true);
     if (j >= 3) pl.psi = ratios[j == 3 ? 0 : 2] * psi_true;
-    static yao_dpcc_state_t st;
-    yao_dpcc_init(&cfg, &st);
-    yao_dpcc_cmd_t cmd;
+    static yao2020_dpcc_state_t st;
+    yao2020_dpcc_init(&cfg, &st);
+    yao2020_dpcc_cmd_t cmd;
     for (int k = 0; k < 3000; ++k) yloop_step(&pl, &cfg, &st, 0.0, iq, &cmd);
-    yao_dpcc_ident_start(&cfg, &st);
-    for (int k = 0; k < 300000 && yao_dpcc_ident_running(&st); ++k)
+    yao2020_identification_start(&cfg, &st);
+    for (int k = 0; k < 300000 && yao2020_identification_running(&st); ++k)
       yloop_step(&pl, &cfg, &st, 0.0, iq, &cmd);
     float Ri, Li;
-    const bool done = yao_dpcc_ident_result(&st, &Ri, &Li);
+    const bool done = yao2020_identification_result(&st, &Ri, &Li);
     printf("  %s = %.1f psi: done %d, R_hat = %.4f ohm (%+.3f %%), L_hat = %.4f mH (%+.3f %%)\n",
            j < 3 ? "controller psi_hat" : "plant psi        ", j < 3 ? ratios[j] : ratios[j == 3 ? 0 : 2],
            done, (double)Ri, 100 * ((double)Ri / R - 1), (double)Li * 1e3, 100 * ((double)Li / L - 1));

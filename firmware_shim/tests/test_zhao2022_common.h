@@ -28,14 +28,14 @@
  *       Q(z) = (z - Phi)(z - 1)(z + 1)^2 + Gam K2 z^2 + Gam (K1c - K2)
  *   (a common factor z was cancelled).  Q(1) = Gam K1c, so T(1) = 1 for any
  *   parameter error (integral action of the incremental form).
- *   Paper's approximation (Eq. 28-34): R = R0 = w = 0 in the limit
+ *   Paper's approximation (Zhao 2022 Eq. 28-34): R = R0 = w = 0 in the limit
  *   Ts -> 0 gives Phi = 1, Gam = Ts/L and Q = (L0/L) [lam (z^2-1)^2
- *   + 2 (z^2 - 1) + 1] with lam = L/L0, i.e. exactly Eq. 34's denominator.
+ *   + 2 (z^2 - 1) + 1] with lam = L/L0, i.e. exactly Zhao 2022 Eq. 34's denominator.
  *   The exact plant therefore reproduces the paper's polynomial when
  *   R Ts / L -> 0; for the Table 1 motor R Ts / L = 0.349, which moves the
  *   boundary (test_zhao2022_stability.c).
  *
- * Closed loop of the conventional law (Eq. 5/6) with the same plant:
+ * Closed loop of the conventional law (Zhao 2022 Eq. 5/6) with the same plant:
  *   v(k) = (R0 - L0/Ts + j w L0) i(k) + (L0/Ts) r(k) + j w psi0
  *   =>  (z^2 - Phi z - Gam (R0 - L0/Ts + j w L0)) I = Gam (L0/Ts) R + dist. */
 #ifndef TEST_ZHAO2022_COMMON_H
@@ -46,8 +46,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "bilinear_incremental.h"
-#include "predictive_euler.h"
+#include "zhao2022_incremental.h"
+#include "zhao2022_predictive.h"
 
 #define ZH_PI 3.14159265358979323846
 #define ZH_IM CMPLX(0.0, 1.0) /* double imaginary unit (I is complex float) */
@@ -115,33 +115,33 @@ static const char *const zh_law_name[2] = {"incremental(bilinear)",
 
 typedef struct {
   zh_law_t law;
-  bilinear_incremental_state_t inc;
-  predictive_euler_state_t eul;
+  zhao2022_incremental_state_t inc;
+  zhao2022_predictive_state_t eul;
 } zh_ctrl_t;
 
 static inline int zh_ctrl_init(zh_ctrl_t *c, zh_law_t law, double R0, double L0,
                                double psi0, double Vmax) {
   c->law = law;
   if (law == ZH_INC) {
-    const bilinear_incremental_config_t cfg = {(float)R0, (float)L0,
+    const zhao2022_incremental_config_t cfg = {(float)R0, (float)L0,
                                                (float)ZH_TS, (float)Vmax};
-    return bilinear_incremental_init(&cfg, &c->inc);
+    return zhao2022_incremental_init(&cfg, &c->inc);
   }
-  const predictive_euler_config_t cfg = {(float)R0, (float)L0, (float)psi0,
+  const zhao2022_predictive_config_t cfg = {(float)R0, (float)L0, (float)psi0,
                                          (float)ZH_TS, (float)Vmax};
-  return predictive_euler_init(&cfg, &c->eul);
+  return zhao2022_predictive_init(&cfg, &c->eul);
 }
 
 static inline void zh_ctrl_step(zh_ctrl_t *c, double complex i, double w,
                                 double complex r, double *vd, double *vq) {
   float fd, fq;
   if (c->law == ZH_INC) {
-    bilinear_incremental_step(&c->inc, (float)creal(i), (float)cimag(i),
-                              (float)w, (float)creal(r), (float)cimag(r), &fd,
+    zhao2022_incremental_step(&c->inc, (float)creal(r), (float)cimag(r),
+                              (float)creal(i), (float)cimag(i), (float)w, &fd,
                               &fq);
   } else {
-    predictive_euler_step(&c->eul, (float)creal(i), (float)cimag(i), (float)w,
-                          (float)creal(r), (float)cimag(r), &fd, &fq);
+    zhao2022_predictive_step(&c->eul, (float)creal(r), (float)cimag(r), (float)creal(i),
+                             (float)cimag(i), (float)w, &fd, &fq);
   }
   *vd = (double)fd;
   *vq = (double)fq;
@@ -215,7 +215,7 @@ static inline double complex zh_num_incremental(const zh_loop_t *lp) {
   return Gam * (lp->R0 + lp->L0 / ZH_TS + ZH_IM * lp->w * lp->L0);
 }
 
-/* Exact ZOH plant + delay + conventional Eq. 5/6, deg 2. */
+/* Exact ZOH plant + delay + conventional Zhao 2022 Eq. 5/6, deg 2. */
 static inline int zh_poly_euler(const zh_loop_t *lp, double complex *c) {
   double complex Phi, Gam;
   zh_plant_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);

@@ -1,4 +1,4 @@
-/* test_zhao2022_flux.c - independence from the permanent-magnet flux at
+/* test_zhao2022_flux.c - Zhao 2022: independence from the permanent-magnet flux at
  * speed (Zhao 2022 Sec. 4.1: Eq. 22/23 contain no psi; Eq. 6 does).
  *
  * Rotor at rated speed (367.72 deg/s -> w = 32.09 rad/s electrical, back-EMF
@@ -9,7 +9,7 @@
  *    (v = (R + j w L) i + j w psi in the rotor frame):
  *      (L0/Ts)(i* - i) = (R - R0) i + j w (L - L0) i + j w (psi - psi0)
  *    -> matched R, L: iq* - iq = w (psi - psi^) Ts / L0, id* - id = 0.
- *  - incremental law: bilinear_incremental_config_t has no psi^ at all, so
+ *  - incremental law: zhao2022_incremental_config_t has no psi^ at all, so
  *    "psi^ = 0.8/1.2 psi" cannot change it; the physical equivalent is the
  *    PLANT flux differing from any assumed value: psi = 0.8, 1.0, 1.2 psi_n.
  *    Expected: zero steady-state error in every case (T(1) = 1 and the
@@ -53,7 +53,7 @@ int main(void) {
   printf("rated speed: w_e = %.3f rad/s, back-EMF w psi = %.3f V, Ts/L0 = %.3e\n",
          ZH_WE_RATED, ZH_WE_RATED * ZH_PSI, ZH_TS / ZH_L);
 
-  printf("\nconventional (Eq. 5/6), plant psi = psi_n = %.5f Wb:\n", ZH_PSI);
+  printf("\nconventional (Zhao 2022 Eq. 5/6), plant psi = psi_n = %.5f Wb:\n", ZH_PSI);
   for (int m = 0; m < 3; ++m) {
     run(ZH_EUL, ZH_PSI, fac[m] * ZH_PSI, step, &ro[m]);
     const double complex e_end = ZH_IM * step - ro[m].i[N - 1];
@@ -72,7 +72,7 @@ int main(void) {
                fabs(cimag(ZH_IM * step - ro[2].i[N - 1])) > 5e-3,
            "conventional law must depend on psi^");
 
-  printf("\nincremental (Eq. 22/23): no psi^ in bilinear_incremental_config_t; "
+  printf("\nincremental (Zhao 2022 Eq. 22/23): no psi^ in zhao2022_incremental_config_t; "
          "plant psi varied instead:\n");
   for (int m = 0; m < 3; ++m) run(ZH_INC, fac[m] * ZH_PSI, 0.0, step, &ri[m]);
   for (int m = 0; m < 3; ++m) {

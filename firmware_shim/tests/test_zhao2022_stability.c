@@ -1,4 +1,4 @@
-/* test_zhao2022_stability.c - stability boundary of the Zhao 2022
+/* test_zhao2022_stability.c - Zhao 2022: stability boundary of the
  * incremental deadbeat law (Eq. 22/23) under inductance mismatch L/L0:
  *   (1) closed-loop SIMULATION: float32 firmware law + exact ZOH plant with
  *       the one-period delay, no voltage limit (linear), sweep of L/L0;
@@ -117,17 +117,17 @@ int main(void) {
   printf("Zhao 2022 incremental law, Table 1 motor, Ts = 100 us, R Ts/L = %.4f\n",
          ZH_R * ZH_TS / ZH_L);
 
-  /* ---- paper (Eq. 34) */
+  /* ---- paper (Zhao 2022 Eq. 34) */
   const double lam_paper = zh_boundary(zh_poly_paper_eq34, &base,
                                        ZH_VARY_CONTROLLER, 0.999, 0.2, 1e-3);
   const double lam_paper_cf = paper_closed_form_boundary();
-  printf("\npaper Eq. 34 (Ts -> 0): boundary from roots %.6f, from Eq. 35 closed "
+  printf("\npaper Zhao 2022 Eq. 34 (Ts -> 0): boundary from roots %.6f, from Zhao 2022 Eq. 35 closed "
          "form %.6f (paper: 3/4)\n", lam_paper, lam_paper_cf);
   ZH_CHECK(fabs(lam_paper - 0.75) < 1e-6 && fabs(lam_paper_cf - 0.75) < 1e-9,
            "paper boundary");
   const double up_paper = zh_boundary(zh_poly_paper_eq34, &base,
                                       ZH_VARY_CONTROLLER, 1.001, 20.0, 1e-2);
-  printf("paper Eq. 34 upper: stable up to lam = %.3f (search end 20): radius at "
+  printf("paper Zhao 2022 Eq. 34 upper: stable up to lam = %.3f (search end 20): radius at "
          "20 = %.4f = sqrt((lam-1)/lam) -> 1\n", up_paper,
          zh_radius_at(zh_poly_paper_eq34, &base, ZH_VARY_CONTROLLER, 20.0));
 
@@ -140,16 +140,16 @@ int main(void) {
            "Ts -> 0 is R Ts/L -> 0)\n", l0);
     ZH_CHECK(fabs(l0 - 0.75) < 1e-4, "R->0 limit %g", l0);
   }
-  /* ---- paper's Eq. 28 without Ts -> 0 */
+  /* ---- paper's Zhao 2022 Eq. 28 without Ts -> 0 */
   const double lam_eq28 = zh_boundary(zh_poly_paper_eq28, &base,
                                       ZH_VARY_CONTROLLER, 0.999, 0.2, 1e-3);
   const double lam_eq28p = zh_boundary(zh_poly_paper_eq28, &base, ZH_VARY_PLANT,
                                        0.999, 0.2, 1e-3);
-  printf("paper Eq. 28 kept with Ts (bilinear 'plant', R0 = R): %.6f (L0 = L/lam)"
+  printf("paper Zhao 2022 Eq. 28 kept with Ts (bilinear 'plant', R0 = R): %.6f (L0 = L/lam)"
          ", %.6f (L = lam L0); analytic 3/4 - R Ts/(4 L0) = %.6f for the latter\n",
          lam_eq28, lam_eq28p, 0.75 - ZH_R * ZH_TS / (4.0 * ZH_L));
   ZH_CHECK(fabs(lam_eq28p - (0.75 - ZH_R * ZH_TS / (4.0 * ZH_L))) < 1e-6,
-           "Eq. 28 analytic");
+           "Zhao 2022 Eq. 28 analytic");
 
   /* ---- exact plant: polynomial vs simulation */
   int sim_ok = 1;
@@ -215,7 +215,7 @@ int main(void) {
   }
 
   /* ---- table of spectral radii */
-  printf("\n  lam   exact(L0=L/lam)  exact(L=lam L0)  Eq.28(Ts kept)  Eq.34(paper)  "
+  printf("\n  lam   exact(L0=L/lam)  exact(L=lam L0)  Zhao 2022 Eq.28(Ts kept)  Eq.34(paper)  "
          "Euler(L0=L/lam)\n");
   const double lams[] = {0.5, 0.6, 0.65, 0.69, 0.70, 0.7015, 0.71, 0.75, 0.8, 0.9,
                          1.0, 1.2, 1.5, 2.0, 2.5, 2.6, 3.0};

@@ -1,5 +1,5 @@
-/* test_zhao2022_step.c - matched-parameter q-axis current step of the
- * Zhao 2022 incremental law (Eq. 22/23) and of the conventional Euler law
+/* test_zhao2022_step.c - Zhao 2022: matched-parameter q-axis current step of
+ * the incremental law (Eq. 22/23) and of the conventional Euler law
  * (Eq. 5/6), Table 1 motor at 10 kHz, standstill, exact ZOH plant with the
  * one-period delay (test_zhao2022_common.h).
  *
@@ -103,7 +103,7 @@ int main(void) {
     ZH_CHECK(o.iq[K0] == 0.0 && o.iq[K0 + 1] == 0.0,
              "one-period delay: nothing before k0+2");
     if (law == ZH_INC) {
-      /* Eq. 22 at k0 with zero history: u = (R0 + L0/Ts) i*, then at k0+1
+      /* Zhao 2022 Eq. 22 at k0 with zero history: u = (R0 + L0/Ts) i*, then at k0+1
        * u = (R0 + L0/Ts) i* - u(k0+1) = 0 -> i(k0+2) = Gam (R + L/Ts) i*. */
       const double A = exp(-ZH_R * ZH_TS / ZH_L), B = (1.0 - A) / ZH_R;
       const double i2 = B * (ZH_R + ZH_L / ZH_TS) * step;
@@ -111,7 +111,7 @@ int main(void) {
              "%.5f A)\n", i2, step);
       ZH_CHECK(fabs(o.iq[K0 + 2] - i2) < 1e-6, "first sample %g vs %g",
                o.iq[K0 + 2], i2);
-      ZH_CHECK(fabs(o.vq[K0 + 1]) < 1e-5, "second command is 0 (Eq. 22)");
+      ZH_CHECK(fabs(o.vq[K0 + 1]) < 1e-5, "second command is 0 (Zhao 2022 Eq. 22)");
     }
   }
   ZH_CHECK(os[ZH_INC] < os[ZH_EUL], "incremental should overshoot less");

@@ -72,13 +72,13 @@ static inline void yplant_advance(yplant_t *pl, double v_al_new, double v_be_new
   pl->vbe_pend = v_be_new;
 }
 
-/* One closed-loop period of yao_dpcc against the plant. */
-#ifdef DPCC_YAO2020_H
-static inline void yloop_step(yplant_t *pl, const yao_dpcc_config_t *cfg,
-                              yao_dpcc_state_t *st, double id_ref, double iq_ref,
-                              yao_dpcc_cmd_t *cmd) {
-  yao_dpcc_step(cfg, st, (float)pl->id, (float)pl->iq, (float)pl->w,
-                (float)pl->th, (float)id_ref, (float)iq_ref, cmd);
+/* One closed-loop period of yao2020_dpcc against the plant. */
+#ifdef YAO2020_DPCC_H
+static inline void yloop_step(yplant_t *pl, const yao2020_dpcc_config_t *cfg,
+                              yao2020_dpcc_state_t *st, double id_ref, double iq_ref,
+                              yao2020_dpcc_cmd_t *cmd) {
+  yao2020_dpcc_step(cfg, st, (float)id_ref, (float)iq_ref, (float)pl->id,
+                    (float)pl->iq, (float)pl->w, (float)pl->th, cmd);
   yplant_advance(pl, (double)cmd->v_alpha_V, (double)cmd->v_beta_V);
 }
 #endif
@@ -93,19 +93,19 @@ static inline ycx ycx_div(ycx a, ycx b) {
 }
 static inline ycx ycx_sub(ycx a, ycx b) { return ycx_mk(a.re - b.re, a.im - b.im); }
 
-/* x, y of Eq. 6 in double */
+/* x, y of Yao 2020 Eq. 6 in double */
 static inline void yxy(double R, double L, double T, double *x, double *y) {
   *x = exp(-R * T / L);
   *y = -expm1(-R * T / L) / R;
 }
-/* Discrete steady-state impedance Zd = (exp(j w T) - x) / y: from Eq. 7 in
- * steady state, dv = H^-1 (I - G) di = Zd di (Eq. 29). */
+/* Discrete steady-state impedance Zd = (exp(j w T) - x) / y: from Yao 2020 Eq. 7 in
+ * steady state, dv = H^-1 (I - G) di = Zd di (Yao 2020 Eq. 29). */
 static inline ycx yZd(double R, double L, double w, double T) {
   double x, y;
   yxy(R, L, T, &x, &y);
   return ycx_mk((cos(w * T) - x) / y, sin(w * T) / y);
 }
-/* Exact dM (derived from Eq. 26-29):
+/* Exact dM (derived from Yao 2020 Eq. 26-29):
  *   dM = did * (Z_hat / Zd_hat) * (Zd - Zd_hat),  Z_hat = R_hat + j w L_hat,
  * for a pure d-axis current step did (iq unchanged). */
 static inline ycx ydM_exact(double R, double L, double Rh, double Lh, double w,

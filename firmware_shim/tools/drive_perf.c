@@ -43,22 +43,23 @@ static double bench(uint8_t controller, uint8_t tuning, long n) {
 }
 
 static double bench_average(long n) {
-  gain_identification_config_t cfg = {1u, 0.2f, 8u, 0u};
-  static gain_id_axis_state_t ax;
-  gain_id_reset_axis(&ax);
+  you2019_identification_config_t cfg = {1u, 0.2f, 8u, 0u};
+  static you2019_identification_axis_state_t ax;
+  you2019_identification_reset_axis(&ax);
   double t_sample = 0.0, t_avg = 0.0;
   for (long k = 0; k < n; ++k) {
     const double t0 = now_ns();
     for (int j = 0; j < 8; ++j) {
       const float i = (float)((k * 8 + j) % 7);
-      gain_id_sample(&cfg, &ax, i, 83.0f * i - 81.8f * (float)((k * 8 + j + 6) % 7));
+      you2019_identification_sample(&cfg, &ax, i, 83.0f * i - 81.8f * (float)((k * 8 + j + 6) % 7));
     }
     const double t1 = now_ns();
-    sink = gain_id_average(&cfg, &ax, 55e-6f, 1.4f) ? ax.L_hat_H : 0.0f;
+    sink = you2019_identification_average(&cfg, &ax, 55e-6f, 1.4f) ? ax.L_hat_H : 0.0f;
     t_avg += now_ns() - t1;
     t_sample += t1 - t0;
   }
-  printf("gain_id_sample (Eq. 24-27, per call):   %8.1f ns\n", t_sample / (double)(n * 8));
+  printf("identification sample (You 2019 Eq. 24-27, per call): %8.1f ns\n",
+         t_sample / (double)(n * 8));
   return t_avg / (double)n;
 }
 
@@ -73,7 +74,7 @@ int main(int argc, char **argv) {
   const unsigned nupd = (unsigned)drv.st.n_gain_updates;
   printf("PI current step:                       %8.1f ns\n", bench((uint8_t)DRIVE_CTRL_PI, 0u, n));
   const long na = n / 8 > 0 ? n / 8 : 1;
-  printf("identification update (Eq. 28-32):     %8.1f ns\n", bench_average(na));
+  printf("identification update (You 2019 Eq. 28-32): %8.1f ns\n", bench_average(na));
   printf("gain updates applied in tuning run:    %u\n", nupd);
   return 0;
 }

@@ -125,8 +125,8 @@ def closed_loop() -> dict[str, Any]:
 DRIVE_PERF_KEYS = {"deadbeat current step": "deadbeat_step_ns",
                    "deadbeat + identification step": "deadbeat_ident_step_ns",
                    "PI current step": "pi_step_ns",
-                   "gain_id_sample (Eq. 24-27, per call)": "gain_id_sample_ns",
-                   "identification update (Eq. 28-32)": "ident_update_ns"}
+                   "identification sample (You 2019 Eq. 24-27, per call)": "ident_sample_ns",
+                   "identification update (You 2019 Eq. 28-32)": "ident_update_ns"}
 
 
 def _parse_drive_perf(out: str) -> dict[str, float]:
@@ -154,8 +154,8 @@ def _callgrind(steps: int, tmp: Path) -> dict[str, Any]:
     src = max(cands, key=lambda s: len(re.findall(r"=> \S+:bench \(1x\)", s)), default="")
     bench_calls = [int(m[1].replace(",", "")) for m in re.finditer(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:bench \(1x\)",
                                                                    src, re.M)]
-    avg = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:gain_id_average \(", src, re.M)
-    smp = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:gain_id_sample \(", src, re.M)
+    avg = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:you2019_identification_average \(", src, re.M)
+    smp = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:you2019_identification_sample \(", src, re.M)
     if len(bench_calls) != 3 or not avg or not smp:
         raise RuntimeError("cannot find drive_perf's call sites in callgrind_annotate's output")
     return {"total": total, "deadbeat": bench_calls[0], "deadbeat_ident": bench_calls[1], "pi": bench_calls[2],
@@ -208,14 +208,14 @@ def yao2020_identification_cost() -> dict[str, Any]:
     baseline (the paper, on a 150 MHz DSP: 0.313 us against 18.9 us)."""
     if not (shutil.which("valgrind") and shutil.which("callgrind_annotate")):
         return {"error": "valgrind / callgrind_annotate not installed"}
-    fns = ("yao_dpcc_ident_update", "yao_rls_update", "yao_dpcc_step")
+    fns = ("yao2020_identification_update", "yao2020_rls_update", "yao2020_dpcc_step")
     n1, n2 = 10000, 20000
     with tempfile.TemporaryDirectory() as td:
         a = _fn_inclusive(n1, "yao2020_perf", fns, Path(td))
         b = _fn_inclusive(n2, "yao2020_perf", fns, Path(td))
     per = {fn: (b[fn] - a[fn]) / (n2 - n1) for fn in fns}
     return {"step_counts": [n1, n2], "instructions_per_call": per,
-            "rls_over_proposed": per["yao_rls_update"] / per["yao_dpcc_ident_update"],
+            "rls_over_proposed": per["yao2020_rls_update"] / per["yao2020_identification_update"],
             "paper_us_on_150MHz_DSP": {"proposed": 0.313, "rls": 18.9, "ratio": 18.9 / 0.313}}
 
 

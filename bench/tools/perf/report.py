@@ -71,8 +71,8 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
         t = fw["timing_ns"]
         for k, label in (("deadbeat_step_ns", "deadbeat current step"),
                          ("deadbeat_ident_step_ns", "deadbeat + identification step"),
-                         ("pi_step_ns", "PI current step"), ("gain_id_sample_ns", "identification sample (per call)"),
-                         ("ident_update_ns", "identification update (Eq. 28-32)")):
+                         ("pi_step_ns", "PI current step"), ("ident_sample_ns", "identification sample (per call)"),
+                         ("ident_update_ns", "identification update (You 2019 Eq. 28-32)")):
             if k in t:
                 L.append(f"  {label:<40} {t[k]:8.1f} ns")
         cg = fw.get("callgrind", {})
@@ -104,9 +104,10 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
     yc = L.sec(r, "yao2020_identification", "Yao 2020 identification vs RLS (callgrind, instructions per call)")
     if yc:
         ipc = yc["instructions_per_call"]
-        L.append(f"  proposed identification update (yao_dpcc_ident_update)  {ipc['yao_dpcc_ident_update']:8.1f}")
-        L.append(f"  RLS baseline update (yao_rls_update, Eq. 46-48)           {ipc['yao_rls_update']:8.1f}")
-        L.append(f"  whole DPCC step (yao_dpcc_step)                           {ipc['yao_dpcc_step']:8.1f}")
+        for fn, label in (("yao2020_identification_update", "proposed identification update"),
+                          ("yao2020_rls_update", "RLS baseline update (Yao 2020 Eq. 46-48)"),
+                          ("yao2020_dpcc_step", "whole DPCC step")):
+            L.append(f"  {label + ' (' + fn + ')':<72} {ipc[fn]:8.1f}")
         L.append(f"  RLS / proposed: {yc['rls_over_proposed']:.1f}x  (paper on a 150 MHz DSP: 0.313 us vs 18.9 us, "
                  f"{yc['paper_us_on_150MHz_DSP']['ratio']:.0f}x)")
 

@@ -1,4 +1,4 @@
-/* current_estimator.c - You 2019 Eq. 5-9 and dead-time compensation.
+/* you2019_estimator.c - You 2019 Eq. 5-9 and dead-time compensation.
  *
  * Derivation of the estimator loop (per axis):
  *   model (Eq. 5):  i_hat = B_hat z / (z - A_hat) (v* + u)
@@ -14,13 +14,13 @@
  *   damping) for 1 - 4 g = 0 -> g = 1/4.  Tracking TF g / (z^2 - z + g);
  *   |.|^2 = 1/2 at z = e^{j theta} leads to
  *     g^2 - b g - 2 (1 - c) = 0,  c = cos theta, b = 2 (2c + 1)(c - 1). */
-#include "current_estimator.h"
+#include "you2019_estimator.h"
 
 #include <math.h>
 
 #include "dq_math.h"
 
-void current_estimator_reset(current_estimator_state_t *st) {
+void you2019_estimator_reset(you2019_estimator_state_t *st) {
   st->i_hat_q_A = st->i_hat_d_A = 0.0f;
   st->i_hat_q_hist_A[0] = st->i_hat_q_hist_A[1] = 0.0f;
   st->i_hat_d_hist_A[0] = st->i_hat_d_hist_A[1] = 0.0f;
@@ -30,7 +30,7 @@ void current_estimator_reset(current_estimator_state_t *st) {
   st->v_dt_alpha_V = st->v_dt_beta_V = 0.0f;
 }
 
-float current_estimator_loop_gain(float Ts_s, float bandwidth_Hz) {
+float you2019_estimator_loop_gain(float Ts_s, float bandwidth_Hz) {
   const float theta = DQ_TWO_PI_F * bandwidth_Hz * Ts_s;
   if (!(theta > 0.0f) || theta >= DQ_PI_F) {
     return 0.25f;
@@ -44,7 +44,7 @@ float current_estimator_loop_gain(float Ts_s, float bandwidth_Hz) {
   return g;
 }
 
-void current_estimator_set_model(current_estimator_state_t *st, uint8_t axis,
+void you2019_estimator_set_model(you2019_estimator_state_t *st, uint8_t axis,
                                  float A, float B_A_Vs) {
   if (axis == 0u) {
     st->A_q = A;
@@ -55,10 +55,10 @@ void current_estimator_set_model(current_estimator_state_t *st, uint8_t axis,
   }
 }
 
-void current_estimator_design_pi(const current_estimator_config_t *cfg,
-                                 current_estimator_state_t *st, uint8_t axis,
+void you2019_estimator_design_pi(const you2019_estimator_config_t *cfg,
+                                 you2019_estimator_state_t *st, uint8_t axis,
                                  float Ts_s) {
-  const float g = current_estimator_loop_gain(Ts_s, cfg->bandwidth_Hz);
+  const float g = you2019_estimator_loop_gain(Ts_s, cfg->bandwidth_Hz);
   const float A = axis == 0u ? st->A_q : st->A_d;
   const float B = axis == 0u ? st->B_q_A_Vs : st->B_d_A_Vs;
   const float one_minus_a = 1.0f - A;
@@ -91,8 +91,8 @@ static float estimator_axis(float i_A, float v_V, float A, float B, float kp,
   return i_hat;
 }
 
-void current_estimator_step(current_estimator_state_t *st, float Ts_s,
-                            float iq_A, float id_A, float v_q_V, float v_d_V) {
+void you2019_estimator_step(you2019_estimator_state_t *st, float id_A,
+                            float iq_A, float v_d_V, float v_q_V, float Ts_s) {
   st->i_hat_q_A = estimator_axis(iq_A, v_q_V, st->A_q, st->B_q_A_Vs, st->kp_q,
                                  st->ki_q_1_s, Ts_s, st->i_hat_q_hist_A,
                                  &st->integ_q_V, &st->err_q_A);
@@ -101,7 +101,7 @@ void current_estimator_step(current_estimator_state_t *st, float Ts_s,
                                  &st->integ_d_V, &st->err_d_A);
 }
 
-float current_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A) {
+float you2019_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A) {
   /* You 2019 Fig. 3: the dead-time voltage error grows with |i| and
    * saturates above about 1 A; modelled as a linear ramp clamped at I_sat. */
   float x = I_sat_A > 1e-6f ? i_A / I_sat_A : (i_A > 0.0f ? 1.0f : -1.0f);
@@ -110,15 +110,18 @@ float current_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A) {
   return V_dt_V * x;
 }
 
-void current_estimator_deadtime(const current_estimator_config_t *cfg,
-                                current_estimator_state_t *st, float cos_th,
+void you2019_estimator_deadtime(const you2019_estimator_config_t *cfg,
+                                you2019_estimator_state_t *st, float cos_th,
                                 float sin_th) {
   float i_al, i_be;
   /* You 2019 Eq. 7: estimated dq currents -> estimated phase currents */
   dq_inv_park(st->i_hat_d_A, st->i_hat_q_A, cos_th, sin_th, &i_al, &i_be);
   dq_inv_clarke(i_al, i_be, &st->i_hat_a_A, &st->i_hat_b_A, &st->i_hat_c_A);
-  const float va = current_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A, st->i_hat_a_A);
-  const float vb = current_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A, st->i_hat_b_A);
-  const float vc = current_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A, st->i_hat_c_A);
+  const float va = you2019_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A,
+                                                    st->i_hat_a_A);
+  const float vb = you2019_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A,
+                                                    st->i_hat_b_A);
+  const float vc = you2019_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A,
+                                                    st->i_hat_c_A);
   dq_clarke3(va, vb, vc, &st->v_dt_alpha_V, &st->v_dt_beta_V);
 }

@@ -1,4 +1,4 @@
-/* current_estimator.h - You 2019 Sec. 3.2: predictive current estimator
+/* you2019_estimator.h - You 2019 Sec. 3.2: predictive current estimator
  * (Eq. 5-9, Fig. 4) and dead-time compensation from the estimated phase
  * currents (Eq. 7, Fig. 3).
  *
@@ -8,7 +8,7 @@
  *   i_hat(k)= B_hat (v*(k) + u(k)) + A_hat i_hat(k-1)  (Eq. 5/6 + PI)
  * i_hat(k) predicts the current sampled at k+2.
  *
- * Integral gain derivation (see current_estimator.c for the algebra):
+ * Integral gain derivation (see you2019_estimator.c for the algebra):
  *   with kp from Eq. 8 the PI zero cancels the model pole A_hat, the loop
  *   gain is g / (z (z - 1)) with g = ki Ts B_hat / (1 - A_hat) (= ki Ts / R_hat),
  *   characteristic polynomial z^2 - z + g, tracking transfer function
@@ -19,8 +19,8 @@
  *     g = (b + sqrt(b^2 + 8 (1 - c))) / 2,
  *   clamped to g <= 1/4 (never underdamped).  900 Hz gives g = 0.2003,
  *   poles 0.724 / 0.276 (zeta > 1).  ki = g (1 - A_hat) / (B_hat Ts). */
-#ifndef CURRENT_ESTIMATOR_H
-#define CURRENT_ESTIMATOR_H
+#ifndef YOU2019_ESTIMATOR_H
+#define YOU2019_ESTIMATOR_H
 
 #include <stdint.h>
 
@@ -30,12 +30,12 @@ typedef struct {
   uint8_t deadtime_enable;   /* add dead-time compensation (default 0) */
   float V_dt_V;              /* compensation voltage amplitude per phase */
   float I_sat_A;             /* |i| above which the compensation saturates */
-} current_estimator_config_t;
+} you2019_estimator_config_t;
 
 typedef struct {
-  /* model gains used by Eq. 5/6 */
+  /* model gains used by You 2019 Eq. 5/6 */
   float A_q, B_q_A_Vs, A_d, B_d_A_Vs;
-  /* PI gains (Eq. 8/9) */
+  /* PI gains (You 2019 Eq. 8/9) */
   float kp_q, ki_q_1_s, kp_d, ki_d_1_s;
   float g_loop;              /* loop gain g of the design, for tracing */
   /* predictions and histories: [0] = i_hat(k-1), [1] = i_hat(k-2) */
@@ -46,32 +46,33 @@ typedef struct {
   /* dead-time compensation output (stator frame) and phase currents */
   float i_hat_a_A, i_hat_b_A, i_hat_c_A;
   float v_dt_alpha_V, v_dt_beta_V;
-} current_estimator_state_t;
+} you2019_estimator_state_t;
 
-void current_estimator_reset(current_estimator_state_t *st);
+void you2019_estimator_reset(you2019_estimator_state_t *st);
 
 /* Loop gain g for a requested bandwidth (clamped to 1/4, see above). */
-float current_estimator_loop_gain(float Ts_s, float bandwidth_Hz);
+float you2019_estimator_loop_gain(float Ts_s, float bandwidth_Hz);
 
-/* Set the model (Eq. 5/6) gains of one axis (axis 0 = q, 1 = d). */
-void current_estimator_set_model(current_estimator_state_t *st, uint8_t axis,
+/* Set the model (You 2019 Eq. 5/6) gains of one axis (axis 0 = q, 1 = d). */
+void you2019_estimator_set_model(you2019_estimator_state_t *st, uint8_t axis,
                                  float A, float B_A_Vs);
-/* Design the PI of one axis from its current model gains (Eq. 8/9). */
-void current_estimator_design_pi(const current_estimator_config_t *cfg,
-                                 current_estimator_state_t *st, uint8_t axis,
+/* Design the PI of one axis from its current model gains (You 2019 Eq. 8/9). */
+void you2019_estimator_design_pi(const you2019_estimator_config_t *cfg,
+                                 you2019_estimator_state_t *st, uint8_t axis,
                                  float Ts_s);
 
-/* One current period: measured i(k), decoupled voltage command v*(k). */
-void current_estimator_step(current_estimator_state_t *st, float Ts_s,
-                            float iq_A, float id_A, float v_q_V, float v_d_V);
+/* One current period: measured i(k), decoupled voltage command v*(k), d
+ * before q. */
+void you2019_estimator_step(you2019_estimator_state_t *st, float id_A,
+                            float iq_A, float v_d_V, float v_q_V, float Ts_s);
 
 /* Per-phase dead-time voltage shape: V_dt * sat(i / I_sat). */
-float current_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A);
+float you2019_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A);
 
 /* Dead-time compensation in the stator frame from the estimated dq currents
- * rotated with (cos_th, sin_th) to phases (Eq. 7). */
-void current_estimator_deadtime(const current_estimator_config_t *cfg,
-                                current_estimator_state_t *st, float cos_th,
+ * rotated with (cos_th, sin_th) to phases (You 2019 Eq. 7). */
+void you2019_estimator_deadtime(const you2019_estimator_config_t *cfg,
+                                you2019_estimator_state_t *st, float cos_th,
                                 float sin_th);
 
 #endif

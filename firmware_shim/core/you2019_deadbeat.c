@@ -1,11 +1,11 @@
-/* deadbeat_z.c - You 2019 deadbeat current controller (Sec. 4). */
-#include "deadbeat_z.h"
+/* you2019_deadbeat.c - You 2019 deadbeat current controller (Sec. 4). */
+#include "you2019_deadbeat.h"
 
 #include <math.h>
 #include <string.h>
 
-void deadbeat_model_gains(float Ts_s, float R_ohm, float L_H, float *A,
-                          float *B_A_Vs) {
+void you2019_deadbeat_model_gains(float Ts_s, float R_ohm, float L_H, float *A,
+                                  float *B_A_Vs) {
   /* You 2019 Eq. 2-3: A_m = exp(-Ts r_s / L), B_m = (1 - A_m) / r_s.
    * Written with expm1f so that B stays accurate for small Ts R / L and the
    * R -> 0 limit B -> Ts / L is handled. */
@@ -19,14 +19,14 @@ void deadbeat_model_gains(float Ts_s, float R_ohm, float L_H, float *A,
   }
 }
 
-void deadbeat_controller_gains(float A, float B_A_Vs, float *K1_V_A,
-                               float *K2_V_A) {
+void you2019_deadbeat_controller_gains(float A, float B_A_Vs, float *K1_V_A,
+                                       float *K2_V_A) {
   /* You 2019 Eq. 17 (and Eq. 19 for d): K1 = 1/B_m, K2 = A_m/B_m. */
   *K1_V_A = 1.0f / B_A_Vs;
   *K2_V_A = A / B_A_Vs;
 }
 
-void deadbeat_reset(deadbeat_state_t *st) {
+void you2019_deadbeat_reset(you2019_deadbeat_state_t *st) {
   st->e_q_prev_A = 0.0f;
   st->e_d_prev_A = 0.0f;
   st->v_q_mem_V[0] = st->v_q_mem_V[1] = 0.0f;
@@ -35,29 +35,31 @@ void deadbeat_reset(deadbeat_state_t *st) {
   st->v_d_raw_V = 0.0f;
 }
 
-void deadbeat_step(deadbeat_state_t *st, float iq_ref_A, float iq_A,
-                   float id_ref_A, float id_A, float *v_q_V, float *v_d_V) {
+void you2019_deadbeat_step(you2019_deadbeat_state_t *st, float id_ref_A,
+                           float iq_ref_A, float id_A, float iq_A, float *v_d_V,
+                           float *v_q_V) {
   const float e_q = iq_ref_A - iq_A;
   const float e_d = id_ref_A - id_A;
   /* You 2019 Eq. 17:
    * v*q(k) = v*q(k-2) + K1q (i*q(k) - iq(k)) - K2q (i*q(k-1) - iq(k-1)) */
-  st->v_q_raw_V =
-      deadbeat_law(st->v_q_mem_V[1], st->K1q_V_A, st->K2q_V_A, e_q, st->e_q_prev_A);
+  st->v_q_raw_V = you2019_deadbeat_law(st->v_q_mem_V[1], st->K1q_V_A,
+                                       st->K2q_V_A, e_q, st->e_q_prev_A);
   /* You 2019 Eq. 19 (d axis, same structure) */
-  st->v_d_raw_V =
-      deadbeat_law(st->v_d_mem_V[1], st->K1d_V_A, st->K2d_V_A, e_d, st->e_d_prev_A);
+  st->v_d_raw_V = you2019_deadbeat_law(st->v_d_mem_V[1], st->K1d_V_A,
+                                       st->K2d_V_A, e_d, st->e_d_prev_A);
   st->e_q_prev_A = e_q;
   st->e_d_prev_A = e_d;
   *v_q_V = st->v_q_raw_V;
   *v_d_V = st->v_d_raw_V;
 }
 
-void deadbeat_commit(const deadbeat_config_t *cfg, deadbeat_state_t *st,
-                     float v_q_applied_V, float v_d_applied_V) {
+void you2019_deadbeat_commit(const you2019_deadbeat_config_t *cfg,
+                             you2019_deadbeat_state_t *st, float v_d_applied_V,
+                             float v_q_applied_V) {
   float vq = st->v_q_raw_V;
   float vd = st->v_d_raw_V;
-  if (cfg->memory_mode == (uint8_t)DEADBEAT_MEMORY_LIMITED) {
-    /* memory = decoupled voltage really applied (Eq. 33 then Eq. 35) */
+  if (cfg->memory_mode == (uint8_t)YOU2019_DEADBEAT_MEMORY_LIMITED) {
+    /* memory = decoupled voltage really applied (You 2019 Eq. 33 then Eq. 35) */
     vq = v_q_applied_V;
     vd = v_d_applied_V;
   }

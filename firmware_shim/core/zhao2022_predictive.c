@@ -1,12 +1,13 @@
-/* predictive_euler.c - Zhao 2022 conventional forward-Euler predictive
+/* zhao2022_predictive.c - Zhao 2022 conventional forward-Euler predictive
  * current controller (Sec. 2.2, Eq. 3-6), the baseline of the comparison. */
-#include "predictive_euler.h"
+#include "zhao2022_predictive.h"
 
-#include <math.h>
 #include <string.h>
 
-int predictive_euler_init(const predictive_euler_config_t *cfg,
-                          predictive_euler_state_t *st) {
+#include "dq_math.h"
+
+int zhao2022_predictive_init(const zhao2022_predictive_config_t *cfg,
+                             zhao2022_predictive_state_t *st) {
   memset(st, 0, sizeof(*st));
   if (!(cfg->L_hat_H > 0.0f) || !(cfg->Ts_s > 0.0f)) {
     return -1;
@@ -20,7 +21,7 @@ int predictive_euler_init(const predictive_euler_config_t *cfg,
   return 0;
 }
 
-void predictive_euler_reset(predictive_euler_state_t *st) {
+void zhao2022_predictive_reset(zhao2022_predictive_state_t *st) {
   st->v_d_ff_V = st->v_q_ff_V = 0.0f;
   st->v_d_raw_V = st->v_q_raw_V = 0.0f;
   st->v_d_V = st->v_q_V = 0.0f;
@@ -28,9 +29,9 @@ void predictive_euler_reset(predictive_euler_state_t *st) {
   st->n_steps = 0u;
 }
 
-void predictive_euler_step(predictive_euler_state_t *st, float id_A,
-                           float iq_A, float omega_e_rad_s, float id_ref_A,
-                           float iq_ref_A, float *v_d_V, float *v_q_V) {
+void zhao2022_predictive_step(zhao2022_predictive_state_t *st, float id_ref_A,
+                              float iq_ref_A, float id_A, float iq_A,
+                              float omega_e_rad_s, float *v_d_V, float *v_q_V) {
   const float wL = omega_e_rad_s * st->L_hat_H;
   /* Zhao 2022 Eq. 4 = B^-1 (X_ref(k+1) - A(k) X(k) - d(k)) with Eq. 3's
    * A = [1 - Ts R/L, Ts w; -Ts w, 1 - Ts R/L], d = [0; -Ts psi w / L]:
@@ -45,16 +46,7 @@ void predictive_euler_step(predictive_euler_state_t *st, float id_A,
   st->v_d_raw_V = vd;
   st->v_q_raw_V = vq;
   /* Zhao 2022 Sec. 5.1: command restricted to the voltage circle */
-  st->limited = 0u;
-  if (st->Vmax_V > 0.0f) {
-    const float mag2 = vd * vd + vq * vq;
-    if (mag2 > st->Vmax_V * st->Vmax_V) {
-      const float s = st->Vmax_V / sqrtf(mag2);
-      vd *= s;
-      vq *= s;
-      st->limited = 1u;
-    }
-  }
+  st->limited = dq_limit_voltage_radial(&vd, &vq, st->Vmax_V);
   st->v_d_V = vd;
   st->v_q_V = vq;
   st->n_steps++;

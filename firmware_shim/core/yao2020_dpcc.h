@@ -1,8 +1,9 @@
-/* dpcc_yao2020.h - improved deadbeat predictive current control (DPCC) with
- * sliding-mode disturbance observer and online R/L identification for
- * surface-mounted PMSMs, after Yao, Huang, Peng, Dong, Zhang, "An Improved
- * Deadbeat Predictive Current Control With Online Parameter Identification
- * for Surface-Mounted PMSMs", IEEE TIE 67(12), 2020 ("Yao 2020").
+/* yao2020_dpcc.h - Yao 2020: improved deadbeat predictive current control
+ * (DPCC) with sliding-mode disturbance observer and online R/L
+ * identification for surface-mounted PMSMs, after Yao, Huang, Peng, Dong,
+ * Zhang, "An Improved Deadbeat Predictive Current Control With Online
+ * Parameter Identification for Surface-Mounted PMSMs", IEEE TIE 67(12), 2020
+ * ("Yao 2020").
  *
  * Blocks (equation numbers of Yao 2020):
  *   - fully discretised (zero-order hold) model with the rotation over one
@@ -12,10 +13,12 @@
  *     disturbance is the conventional back-EMF term F [0, w psi_hat]);
  *   - reconstructed characteristic vector M = F^-1 p_hat, Eq. 22-29, and the
  *     R/L identification by negative d-axis current injection with integral
- *     estimators and dead zones, Eq. 30-45, Table III; L first, then R.
+ *     estimators and dead zones, Eq. 30-45, Table III; L first, then R
+ *     (yao2020_identification.h; its configuration and state are part of
+ *     the DPCC's below).
  *
- * Timing (same as drive_core.h): the command returned by yao_dpcc_step() at
- * sample k is applied by the PWM over [k+1, k+2], held constant in the
+ * Timing (same as drive_core.h): the command returned by yao2020_dpcc_step()
+ * at sample k is applied by the PWM over [k+1, k+2], held constant in the
  * STATOR frame, and first shows in the current sampled at k+2.  The
  * reference passed at sample k is therefore the target of i(k+2)
  * (i_ref(k+2) of Eq. 12); the previous one is i_ref(k+1).
@@ -31,45 +34,10 @@
  * Integral estimator gains: k_L in H/(V s), k_R in ohm/(V s)
  * (dL_hat/dt = -k_L dM_q, dR_hat/dt = -k_R dM_d for a negative injection,
  * Eq. 44, discretised with forward Euler at the current period). */
-#ifndef DPCC_YAO2020_H
-#define DPCC_YAO2020_H
+#ifndef YAO2020_DPCC_H
+#define YAO2020_DPCC_H
 
-#include <stdbool.h>
 #include <stdint.h>
-
-/* Motor class of Yao 2020 Definitions 1 and 2 (Eq. 30-31). */
-typedef enum {
-  YAO_MOTOR_LOW_FREQ = 0,  /* Eq. 30 holds */
-  YAO_MOTOR_HIGH_FREQ = 1, /* Eq. 31 holds */
-  YAO_MOTOR_NEITHER = 2,   /* neither definition holds */
-} yao_motor_class_t;
-
-/* Gain-set selection of the identification. */
-typedef enum {
-  YAO_GAINS_AUTO = 0, /* cos(wT) >= 0.98 -> low-frequency gains, else high */
-  YAO_GAINS_LOW = 1,
-  YAO_GAINS_HIGH = 2,
-} yao_gain_select_t;
-
-/* Identification sequence. */
-typedef enum {
-  YAO_ID_IDLE = 0,
-  YAO_ID_PRE_L = 1,    /* base id, wait then capture M(t0) (Eq. 24) */
-  YAO_ID_INJECT_L = 2, /* id = base + inj, integrate L_hat on dM_q (Fig. 9a) */
-  YAO_ID_PRE_R = 3,    /* back to base id, wait then capture M(t0) */
-  YAO_ID_INJECT_R = 4, /* id = base + inj, integrate R_hat on dM_d (Fig. 9b) */
-  YAO_ID_POST = 5,     /* back to base id, wait */
-  YAO_ID_DONE = 6,
-  YAO_ID_ABORTED = 7,
-} yao_id_state_t;
-
-typedef enum {
-  YAO_ABORT_NONE = 0,
-  YAO_ABORT_SPEED_CHANGED = 1, /* |w - w_start| > steady_tol_w_rad_s */
-  YAO_ABORT_IQ_CHANGED = 2,    /* |iq_ref - iq_ref_start| > steady_tol_iq_A */
-  YAO_ABORT_LOW_SPEED = 3,     /* |w| < min_speed_rad_s (dM_q ~ w dL) */
-  YAO_ABORT_USER = 4,
-} yao_abort_reason_t;
 
 typedef struct {
   float Ts_s;            /* current period T, default 100e-6 (Table III) */
@@ -79,11 +47,12 @@ typedef struct {
   float L_hat_H;         /* default 5.5e-3 (Table I) */
   float psi_hat_Wb;      /* only for observer_enable = 0 and the first step */
   float Vmax_V;          /* radial voltage limit, 0 = off (default 0) */
-  uint8_t observer_enable; /* 1 (default): SMO Eq. 13-18; 0: p = F e(psi_hat) */
-  float Q_d, Q_q;        /* Eq. 16 reaching-law matrix, default 0.4, 0.4 */
+  uint8_t observer_enable; /* 1 (default): SMO, Yao 2020 Eq. 13-18;
+                            * 0: p = F e(psi_hat) */
+  float Q_d, Q_q;        /* Yao 2020 Eq. 16 reaching-law matrix, default 0.4, 0.4 */
   /* identification (Sec. IV-E, Table III) */
   float inj_id_A;        /* d-axis injection step, default -2 (low-freq test) */
-  uint8_t gain_select;   /* yao_gain_select_t, default AUTO */
+  uint8_t gain_select;   /* yao2020_identification_gain_select_t, default AUTO */
   float kL_low_H_Vs;     /* default 0.005 */
   float kR_low_ohm_Vs;   /* default 4 */
   float kL_high_H_Vs;    /* default 2e-5 */
@@ -102,34 +71,34 @@ typedef struct {
   float min_speed_rad_s;    /* default 50 */
   float R_min_ohm, R_max_ohm; /* estimate clamps, default 1e-4, 1e3 */
   float L_min_H, L_max_H;     /* default 1e-7, 1 */
-} yao_dpcc_config_t;
+} yao2020_dpcc_config_t;
 
-/* Estimated-parameter model of one period (Eq. 5-6). */
+/* Estimated-parameter model of one period (Yao 2020 Eq. 5-6). */
 typedef struct {
   float x, y;   /* x = exp(-R T / L), y = (1 - x) / R (A/V) */
   float c, s;   /* cos(w T), sin(w T) */
   float d1, d2; /* G2 = [d1 -d2; d2 d1] (A/V) */
-} yao_dpcc_model_t;
+} yao2020_dpcc_model_t;
 
 typedef struct {
-  float v_star_d_V, v_star_q_V; /* v*(k), frame theta(k) + w T (Eq. 9) */
+  float v_star_d_V, v_star_q_V; /* v*(k), frame theta(k) + w T (Yao 2020 Eq. 9) */
   float v_ref_d_V, v_ref_q_V;   /* Tr^-1 v*(k), frame theta(k) */
   float v_alpha_V, v_beta_V;    /* stator frame, held over [k+1, k+2] */
   float id_ref_eff_A;           /* d reference incl. injection */
   uint8_t limited;              /* Vmax_V limit active */
-} yao_dpcc_cmd_t;
+} yao2020_dpcc_cmd_t;
 
 typedef struct {
   /* active estimated parameters (controller model) */
   float R_hat_ohm, L_hat_H;
-  yao_dpcc_model_t m;           /* model of this step */
+  yao2020_dpcc_model_t m;           /* model of this step */
   float Gp_x, Gp_c, Gp_s;       /* G_hat of the previous step (x, cos, sin) */
-  /* observer (Eq. 13-18) */
+  /* observer (Yao 2020 Eq. 13-18) */
   float i_pred_d_A, i_pred_q_A; /* i_hat(k+1) predicted at k */
   float i_err_d_A, i_err_q_A;   /* i_tilde(k) = i_hat(k) - i(k) */
-  float p_prev_d_A, p_prev_q_A; /* p(k-1), Eq. 18 */
-  float p_hat_d_A, p_hat_q_A;   /* p_hat(k), Eq. 17 */
-  /* reconstructed characteristic vector (Eq. 22) */
+  float p_prev_d_A, p_prev_q_A; /* p(k-1), Yao 2020 Eq. 18 */
+  float p_hat_d_A, p_hat_q_A;   /* p_hat(k), Yao 2020 Eq. 17 */
+  /* reconstructed characteristic vector (Yao 2020 Eq. 22) */
   float M_d_V, M_q_V;
   float dM_d_V, dM_q_V;         /* M(k) - M(t0) (identification phases) */
   /* voltages */
@@ -140,9 +109,10 @@ typedef struct {
   uint8_t primed;
   uint32_t step_count;
   /* identification */
-  uint8_t id_state;        /* yao_id_state_t */
-  uint8_t abort_reason;    /* yao_abort_reason_t */
-  uint8_t motor_class;     /* yao_motor_class_t (Eq. 30-31, from R_hat/L_hat) */
+  uint8_t id_state;        /* yao2020_identification_phase_t */
+  uint8_t abort_reason;    /* yao2020_identification_abort_reason_t */
+  uint8_t motor_class;     /* yao2020_identification_motor_class_t
+                            * (Yao 2020 Eq. 30-31, from R_hat/L_hat) */
   uint8_t gains_high;      /* 1: high-frequency gain set in use */
   uint8_t round;           /* current round (0-based) */
   uint8_t L_converged, R_converged; /* last injection ended in the dead zone */
@@ -155,50 +125,52 @@ typedef struct {
   float N0_d, N0_q, i0_d, i0_q, v0_d, v0_q, M0_d, M0_q; /* M(t0) reference */
   float acc[8];
   float kL_H_Vs, kR_ohm_Vs;          /* gains in use */
-  float tau_L_pred_s, tau_R_pred_s;  /* Eq. 44 with the k of Eq. 35/36 or 42/43 */
+  float tau_L_pred_s, tau_R_pred_s;  /* Yao 2020 Eq. 44 with the k of
+                                      * Eq. 35/36 or 42/43 */
   uint32_t t_L_conv_periods, t_R_conv_periods; /* integrating periods to converge */
   float L_id_H, R_id_ohm;            /* converged values */
-} yao_dpcc_state_t;
+} yao2020_dpcc_state_t;
 
-void yao_dpcc_default_config(yao_dpcc_config_t *cfg);
+void yao2020_dpcc_default_config(yao2020_dpcc_config_t *cfg);
 /* init = reset (takes R_hat/L_hat from the config). */
-void yao_dpcc_init(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st);
-void yao_dpcc_reset(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st);
+void yao2020_dpcc_init(const yao2020_dpcc_config_t *cfg,
+                       yao2020_dpcc_state_t *st);
+void yao2020_dpcc_reset(const yao2020_dpcc_config_t *cfg,
+                        yao2020_dpcc_state_t *st);
 
 /* Yao 2020 Eq. 5-6 for (R, L, w, T). */
-void yao_dpcc_model(float R_ohm, float L_H, float w_rad_s, float Ts_s,
-                    yao_dpcc_model_t *m);
+void yao2020_dpcc_model(float R_ohm, float L_H, float w_rad_s, float Ts_s,
+                        yao2020_dpcc_model_t *m);
 
-/* Yao 2020 Definitions 1-2 (Eq. 30-31). */
-yao_motor_class_t yao_dpcc_classify(float R_ohm, float L_H, float w_rad_s,
-                                    float Ts_s);
+/* One current period.  id_ref/iq_ref: targets of i(k+2); id/iq: measured
+ * currents at sample k (frame of theta_e); w: electrical speed; theta_e:
+ * electrical angle at sample k. */
+void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg,
+                       yao2020_dpcc_state_t *st, float id_ref_A, float iq_ref_A,
+                       float id_A, float iq_A, float w_rad_s, float theta_e_rad,
+                       yao2020_dpcc_cmd_t *cmd);
 
-/* One current period.  id/iq: measured currents at sample k (frame of
- * theta_e); w: electrical speed; theta_e: electrical angle at sample k;
- * id_ref/iq_ref: targets of i(k+2). */
-void yao_dpcc_step(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
-                   float id_A, float iq_A, float w_rad_s, float theta_e_rad,
-                   float id_ref_A, float iq_ref_A, yao_dpcc_cmd_t *cmd);
-
-/* Identification commands.  start: from IDLE/DONE/ABORTED, requires steady
- * speed and iq reference (checked every period while running; a change
- * aborts and restores the R_hat/L_hat held at the start). */
-bool yao_dpcc_ident_start(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st);
-void yao_dpcc_ident_abort(yao_dpcc_state_t *st);
-bool yao_dpcc_ident_running(const yao_dpcc_state_t *st);
-/* 0..1: completed phases / total phases of the sequence. */
-float yao_dpcc_ident_progress(const yao_dpcc_config_t *cfg,
-                              const yao_dpcc_state_t *st);
-/* Converged values (true when the sequence is DONE). */
-bool yao_dpcc_ident_result(const yao_dpcc_state_t *st, float *R_ohm,
-                           float *L_H);
-
-/* Identification update of one period (state machine + Eq. 22-45 estimator),
- * called by yao_dpcc_step() after the observer; public for the perf tool.
- * Uses st->p_hat, st->m, st->v_app and the measured current; updates
- * R_hat/L_hat (effective from the next step) and st->id_inj_A. */
-void yao_dpcc_ident_update(const yao_dpcc_config_t *cfg, yao_dpcc_state_t *st,
-                           float id_A, float iq_A, float w_rad_s,
-                           float iq_ref_A);
+/* Complex-number helpers of the step and the identification (a dq 2-vector
+ * [a b] is a + j b, see yao2020_dpcc.c). */
+/* Tr [a b] = exp(-j w T)(a + j b) */
+static inline void yao2020_dpcc_rot_fwd(const yao2020_dpcc_model_t *m, float a,
+                                        float b, float *oa, float *ob) {
+  *oa = m->c * a + m->s * b;
+  *ob = -m->s * a + m->c * b;
+}
+/* Tr^-1 [a b] = exp(+j w T)(a + j b) */
+static inline void yao2020_dpcc_rot_inv(const yao2020_dpcc_model_t *m, float a,
+                                        float b, float *oa, float *ob) {
+  *oa = m->c * a - m->s * b;
+  *ob = m->s * a + m->c * b;
+}
+/* G2^-1 [a b] = (a + j b) / (d1 + j d2) */
+static inline void yao2020_dpcc_g2_solve(const yao2020_dpcc_model_t *m, float a,
+                                         float b, float *oa, float *ob) {
+  const float n2 = m->d1 * m->d1 + m->d2 * m->d2;
+  const float inv = n2 > 0.0f ? 1.0f / n2 : 0.0f;
+  *oa = (m->d1 * a + m->d2 * b) * inv;
+  *ob = (m->d1 * b - m->d2 * a) * inv;
+}
 
 #endif

@@ -1,20 +1,22 @@
-/* gain_identification.c - You 2019 Eq. 22-32. */
-#include "gain_identification.h"
+/* you2019_identification.c - You 2019 Eq. 22-32. */
+#include "you2019_identification.h"
 
 #include <math.h>
 #include <string.h>
 
-void gain_id_reset_axis(gain_id_axis_state_t *ax) {
+void you2019_identification_reset_axis(
+    you2019_identification_axis_state_t *ax) {
   memset(ax, 0, sizeof(*ax));
 }
 
-void gain_id_reset(gain_identification_state_t *st) {
-  gain_id_reset_axis(&st->q);
-  gain_id_reset_axis(&st->d);
+void you2019_identification_reset(you2019_identification_state_t *st) {
+  you2019_identification_reset_axis(&st->q);
+  you2019_identification_reset_axis(&st->d);
 }
 
-float gain_id_solve(float i_k, float i_km1, float i_km2, float v_km2,
-                    float v_km3, float *K1, float *K2) {
+float you2019_identification_solve(float i_k, float i_km1, float i_km2,
+                                   float v_km2, float v_km3, float *K1,
+                                   float *K2) {
   /* You 2019 Eq. 22: i(k)   = B v(k-2) + A i(k-1)
    *                  i(k-1) = B v(k-3) + A i(k-2)
    * Eq. 23: [ i(k)   -i(k-1) ] [K1]   [v(k-2)]
@@ -35,15 +37,17 @@ float gain_id_solve(float i_k, float i_km1, float i_km2, float v_km2,
   return det;
 }
 
-void gain_id_sample(const gain_identification_config_t *cfg,
-                    gain_id_axis_state_t *ax, float i_A, float v_applied_V) {
+void you2019_identification_sample(const you2019_identification_config_t *cfg,
+                                   you2019_identification_axis_state_t *ax,
+                                   float i_A, float v_applied_V) {
   ax->accepted = 0u;
   if (ax->primed >= 3u) {
     float K1, K2;
     /* at sample k: v_hist[0] = v(k-1) (unused), v_hist[1] = v(k-2),
      * v_km3 = v(k-3) */
-    const float det = gain_id_solve(i_A, ax->i_hist_A[0], ax->i_hist_A[1],
-                                    ax->v_hist_V[1], ax->v_km3_V, &K1, &K2);
+    const float det =
+        you2019_identification_solve(i_A, ax->i_hist_A[0], ax->i_hist_A[1],
+                                     ax->v_hist_V[1], ax->v_km3_V, &K1, &K2);
     ax->det_A2 = det;
     ax->K1_hat_V_A = K1;
     ax->K2_hat_V_A = K2;
@@ -51,7 +55,8 @@ void gain_id_sample(const gain_identification_config_t *cfg,
     if (fabsf(det) > cfg->det_threshold_A2) {
       uint8_t m = cfg->window_m;
       if (m < 1u) m = 1u;
-      if (m > GAIN_ID_MAX_WINDOW) m = (uint8_t)GAIN_ID_MAX_WINDOW;
+      if (m > YOU2019_IDENTIFICATION_MAX_WINDOW)
+        m = (uint8_t)YOU2019_IDENTIFICATION_MAX_WINDOW;
       if (ax->win_head >= m) ax->win_head = 0u;
       ax->win_K1[ax->win_head] = K1;
       ax->win_K2[ax->win_head] = K2;
@@ -71,8 +76,9 @@ void gain_id_sample(const gain_identification_config_t *cfg,
   ax->i_hist_A[0] = i_A;
 }
 
-bool gain_id_average(const gain_identification_config_t *cfg,
-                     gain_id_axis_state_t *ax, float Ts_s, float R_hat_ohm) {
+bool you2019_identification_average(const you2019_identification_config_t *cfg,
+                                    you2019_identification_axis_state_t *ax,
+                                    float Ts_s, float R_hat_ohm) {
   (void)cfg;
   if (ax->win_count == 0u) {
     return false;

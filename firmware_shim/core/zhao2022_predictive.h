@@ -1,5 +1,5 @@
-/* predictive_euler.h - conventional one-step predictive (deadbeat) current
- * controller from the forward-Euler model, the baseline of Zhao 2022
+/* zhao2022_predictive.h - Zhao 2022 baseline: conventional one-step
+ * predictive (deadbeat) current controller from the forward-Euler model
  * (Zhao et al., Machines 2022), Sec. 2.2, Eq. 3-6.
  *
  *   ud(k) = R^ id(k) + L^/Ts (id* - id(k)) - w L^ iq(k)            (Eq. 5)
@@ -9,12 +9,12 @@
  * NOT compensated: the law assumes its output acts over [k, k+1], while on
  * the bench (and in Zhao 2022 Fig. 2) the command computed at k acts over
  * [k+1, k+2].  That mismatch is what the comparison with the incremental
- * law (bilinear_incremental.h) is about; do not "fix" it here.
+ * law (zhao2022_incremental.h) is about; do not "fix" it here.
  *
  * Memory-less apart from the trace; no integral action, so errors of
  * R^ and psi^ leave a steady-state current error (test_zhao2022_flux.c). */
-#ifndef PREDICTIVE_EULER_H
-#define PREDICTIVE_EULER_H
+#ifndef ZHAO2022_PREDICTIVE_H
+#define ZHAO2022_PREDICTIVE_H
 
 #include <stdint.h>
 
@@ -24,30 +24,30 @@ typedef struct {
   float psi_hat_Wb;  /* permanent-magnet flux for the w psi back-EMF term */
   float Ts_s;        /* current period (100e-6) */
   float Vmax_V;      /* radius of the dq voltage circle; <= 0: no limit */
-} predictive_euler_config_t;
+} zhao2022_predictive_config_t;
 
 typedef struct {
   /* copies / derived from the config */
   float R_hat_ohm, L_hat_H, psi_hat_Wb, Vmax_V;
-  float G_V_A;                /* L0/Ts (= B^-1 of Eq. 3/4) */
+  float G_V_A;                /* L0/Ts (= B^-1 of Zhao 2022 Eq. 3/4) */
   /* trace of the last step */
   float v_d_ff_V, v_q_ff_V;   /* speed terms: -w L iq, w L id + w psi */
-  float v_d_raw_V, v_q_raw_V; /* Eq. 5/6 before the limit */
+  float v_d_raw_V, v_q_raw_V; /* Zhao 2022 Eq. 5/6 before the limit */
   float v_d_V, v_q_V;         /* returned (limited) command */
   uint8_t limited;
   uint32_t n_steps;
-} predictive_euler_state_t;
+} zhao2022_predictive_state_t;
 
 /* Returns 0, or -1 when L_hat_H <= 0 or Ts_s <= 0 (state zeroed). */
-int predictive_euler_init(const predictive_euler_config_t *cfg,
-                          predictive_euler_state_t *st);
+int zhao2022_predictive_init(const zhao2022_predictive_config_t *cfg,
+                             zhao2022_predictive_state_t *st);
 /* Clears the trace (the law itself has no memory). */
-void predictive_euler_reset(predictive_euler_state_t *st);
-/* One current period: measured id(k), iq(k) [A], electrical speed w [rad/s],
- * references id*, iq* [A] (the paper's i_ref(k+1)); returns u(k) [V],
+void zhao2022_predictive_reset(zhao2022_predictive_state_t *st);
+/* One current period: references id*, iq* [A] (the paper's i_ref(k+1)),
+ * measured id(k), iq(k) [A], electrical speed w [rad/s]; returns u(k) [V],
  * limited to Vmax (radially). */
-void predictive_euler_step(predictive_euler_state_t *st, float id_A,
-                           float iq_A, float omega_e_rad_s, float id_ref_A,
-                           float iq_ref_A, float *v_d_V, float *v_q_V);
+void zhao2022_predictive_step(zhao2022_predictive_state_t *st, float id_ref_A,
+                              float iq_ref_A, float id_A, float iq_A,
+                              float omega_e_rad_s, float *v_d_V, float *v_q_V);
 
 #endif

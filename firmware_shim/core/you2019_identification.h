@@ -1,4 +1,4 @@
-/* gain_identification.h - You 2019 Sec. 6: online deadbeat gain
+/* you2019_identification.h - You 2019 Sec. 6: online deadbeat gain
  * identification (Eq. 22-32, Eq. 34-35), per axis.
  *
  * Eq. 31 correction: the paper prints B_hat = 1 / K2_bar, which contradicts
@@ -17,64 +17,68 @@
  * right thing to do and leaves only the feed-forward error (psi_hat, L_hat
  * mismatch, and the w Ts rotation of the stator-frame-held vector) as a bias
  * term in Eq. 23. */
-#ifndef GAIN_IDENTIFICATION_H
-#define GAIN_IDENTIFICATION_H
+#ifndef YOU2019_IDENTIFICATION_H
+#define YOU2019_IDENTIFICATION_H
 
 #include <stdbool.h>
 #include <stdint.h>
 
-#define GAIN_ID_MAX_WINDOW 16u
+#define YOU2019_IDENTIFICATION_MAX_WINDOW 16u
 
 typedef struct {
   uint8_t enable;           /* tuning switch (default 0) */
-  float det_threshold_A2;   /* Eq. 27 threshold, default 0.2 A^2 (Sec. 7) */
-  uint8_t window_m;         /* Eq. 28-29 m, default 8, max 16 */
+  float det_threshold_A2;   /* You 2019 Eq. 27 threshold, default 0.2 A^2
+                             * (Sec. 7) */
+  uint8_t window_m;         /* You 2019 Eq. 28-29 m, default 8, max 16 */
   uint8_t identify_d_axis;  /* 0 (default, paper): copy q gains to d */
-} gain_identification_config_t;
+} you2019_identification_config_t;
 
 typedef struct {
   /* history: i(k-1), i(k-2); v(k-1), v(k-2) (decoupled applied voltage) */
   float i_hist_A[2];
   float v_hist_V[2];
   float v_km3_V;            /* v(k-3) at the next sample */
-  /* latest Eq. 24/25 result */
+  /* latest You 2019 Eq. 24/25 result */
   float det_A2;
   float K1_hat_V_A, K2_hat_V_A;
-  uint8_t accepted;         /* latest identification passed Eq. 27 */
+  uint8_t accepted;         /* latest identification passed You 2019 Eq. 27 */
   uint8_t primed;           /* number of valid history samples (max 3) */
   /* window of accepted identifications (ring) */
-  float win_K1[GAIN_ID_MAX_WINDOW];
-  float win_K2[GAIN_ID_MAX_WINDOW];
-  float win_absdet[GAIN_ID_MAX_WINDOW];
+  float win_K1[YOU2019_IDENTIFICATION_MAX_WINDOW];
+  float win_K2[YOU2019_IDENTIFICATION_MAX_WINDOW];
+  float win_absdet[YOU2019_IDENTIFICATION_MAX_WINDOW];
   uint8_t win_count, win_head;
-  /* Eq. 28-32 results */
+  /* You 2019 Eq. 28-32 results */
   float K1_bar_V_A, K2_bar_V_A;
   float A_hat, B_hat_A_Vs, L_hat_H, R_id_ohm;
   uint32_t n_identified, n_updates;
-} gain_id_axis_state_t;
+} you2019_identification_axis_state_t;
 
 typedef struct {
-  gain_id_axis_state_t q;
-  gain_id_axis_state_t d;
-} gain_identification_state_t;
+  you2019_identification_axis_state_t q;
+  you2019_identification_axis_state_t d;
+} you2019_identification_state_t;
 
-void gain_id_reset_axis(gain_id_axis_state_t *ax);
-void gain_id_reset(gain_identification_state_t *st);
+void you2019_identification_reset_axis(you2019_identification_axis_state_t *ax);
+void you2019_identification_reset(you2019_identification_state_t *st);
 
-/* Pure Eq. 24/25 solve.  Returns det(i) (Eq. 25). */
-float gain_id_solve(float i_k, float i_km1, float i_km2, float v_km2,
-                    float v_km3, float *K1, float *K2);
+/* Pure You 2019 Eq. 24/25 solve.  Returns det(i) (Eq. 25). */
+float you2019_identification_solve(float i_k, float i_km1, float i_km2,
+                                   float v_km2, float v_km3, float *K1,
+                                   float *K2);
 
 /* One current period: sampled current i(k) and the decoupled voltage v*(k)
  * actually applied (computed at k, acting over [k+1, k+2]). Identifies with
  * i(k), i(k-1), i(k-2), v(k-2), v(k-3), then pushes i(k), v(k). */
-void gain_id_sample(const gain_identification_config_t *cfg,
-                    gain_id_axis_state_t *ax, float i_A, float v_applied_V);
+void you2019_identification_sample(const you2019_identification_config_t *cfg,
+                                   you2019_identification_axis_state_t *ax,
+                                   float i_A, float v_applied_V);
 
-/* Speed-loop rate: det-weighted averages Eq. 28-29 and Eq. 30-32.  Returns
+/* Speed-loop rate: det-weighted averages You 2019 Eq. 28-29 and Eq. 30-32.  Returns
  * true when a new, physically valid (K1 > 0, 0 < A < 1) set is available in
  * ax->K1_bar..L_hat.  Clears the window. */
-bool gain_id_average(const gain_identification_config_t *cfg,
-                     gain_id_axis_state_t *ax, float Ts_s, float R_hat_ohm);
+bool you2019_identification_average(const you2019_identification_config_t *cfg,
+                                    you2019_identification_axis_state_t *ax,
+                                    float Ts_s, float R_hat_ohm);
 
 #endif

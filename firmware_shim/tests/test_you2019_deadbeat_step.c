@@ -1,4 +1,4 @@
-/* test_deadbeat_step.c - You 2019 deadbeat controller against the exact
+/* test_you2019_deadbeat_step.c - You 2019 deadbeat controller against the exact
  * discrete standstill plant: matched step, voltage-limited step (both
  * memory readings), inductance and resistance mismatch vs analytic poles. */
 #include <complex.h>
@@ -38,8 +38,8 @@ static void run_step(const drive_config_t *cfg, double iq_ref, run_t *r) {
 }
 
 /* Closed loop with controller gains from (R_hat, L_hat) and plant (R, L):
- *   C(z) = (z^2 - Ah z) / (Bh (z^2 - 1))          (Eq. 16)
- *   G(z) = B z^-2 / (1 - A z^-1) = B / (z (z - A)) (Eq. 2)
+ *   C(z) = (z^2 - Ah z) / (Bh (z^2 - 1))          (You 2019 Eq. 16)
+ *   G(z) = B z^-2 / (1 - A z^-1) = B / (z (z - A)) (You 2019 Eq. 2)
  *   1 + C G = 0  <=>  P(z) = (z^2 - 1)(z - A) + beta (z - Ah) = 0, beta = B/Bh
  *   P(z) = z^3 - A z^2 + (beta - 1) z + (A - beta Ah)
  *   T(z) = beta (z - Ah) / P(z); matched (beta = 1, Ah = A): T = 1/z^2.
@@ -97,7 +97,7 @@ int main(void) {
   }
   printf("[matched 0->1A] iq(k0+1)=%.7f iq(k0+2)=%.7f max|iq-1| after k0+2=%.3g max=%.7f\n",
          r.iq[K0 + 1], r.iq[K0 + 2], maxerr_after, maxi);
-  printf("[matched 0->1A] vq(k0)=%.4f V (K1*1=%.4f, paper 84.14, Eq.20 L/Ts=%.3f)"
+  printf("[matched 0->1A] vq(k0)=%.4f V (K1*1=%.4f, paper 84.14, You 2019 Eq.20 L/Ts=%.3f)"
          " vq(k0+1)=%.4f V (K1-K2=R*1=%.4f, paper 2.1) vq(end)=%.4f\n",
          r.vq[K0], K1, Lq / Ts, r.vq[K0 + 1], K1 - K2, r.vq[NSTEP - 1]);
   CHECK(fabs(r.iq[K0 + 1]) < 1e-6, "iq(k0+1) not 0");
@@ -129,7 +129,7 @@ int main(void) {
       CHECK(reach >= 5 && reach <= 8, "unlimited memory: %d periods", reach);
       CHECK(imax < 4.0 * 1.05, "overshoot too large");
       CHECK(fabs(r.iq[NSTEP - 1] - 4.0) < 2e-3, "no convergence");
-      CHECK(r.nlim >= 2, "should saturate several times (Eq. 17 pulse-wise)");
+      CHECK(r.nlim >= 2, "should saturate several times (You 2019 Eq. 17 pulse-wise)");
     } else {
       CHECK(reach > 20, "limited memory expected to crawl (open loop), got %d", reach);
     }

@@ -1,4 +1,4 @@
-/* test_current_estimator.c - You 2019 Eq. 5-9 estimator and dead-time
+/* test_you2019_estimator.c - You 2019 Eq. 5-9 estimator and dead-time
  * compensation shape. */
 #include <math.h>
 #include <stdio.h>
@@ -10,11 +10,11 @@ static int g_fail = 0;
 
 int main(void) {
   const float Ts = 55e-6f;
-  const double g900 = (double)current_estimator_loop_gain(Ts, 900.0f);
-  const double gcrit = (double)current_estimator_loop_gain(Ts, 5000.0f);
+  const double g900 = (double)you2019_estimator_loop_gain(Ts, 900.0f);
+  const double gcrit = (double)you2019_estimator_loop_gain(Ts, 5000.0f);
   const double disc = sqrt(1 - 4 * g900);
   printf("[estimator design] g(900 Hz)=%.4f poles %.4f, %.4f (real, zeta>1); g clamp=%.4f"
-         " (critical, double pole 0.5); ki = g R_hat/Ts = %.1f 1/s, kp = ki A Ts/(1-A) (Eq. 8) = %.3f\n",
+         " (critical, double pole 0.5); ki = g R_hat/Ts = %.1f 1/s, kp = ki A Ts/(1-A) (You 2019 Eq. 8) = %.3f\n",
          g900, (1 + disc) / 2, (1 - disc) / 2, gcrit, g900 * 1.4 / 55e-6,
          g900 * 1.4 / 55e-6 * 0.98318 * 55e-6 / (1 - 0.98318));
   CHECK(fabs(g900 - 0.2003) < 1e-3, "g(900 Hz)");
@@ -50,15 +50,15 @@ int main(void) {
     else CHECK(tail < 2e-3, "estimator integral should remove the error");
   }
   /* dead-time shape (Fig. 3): linear up to I_sat, saturated above */
-  const float v1 = current_estimator_deadtime_shape(4.0f, 1.0f, 0.5f);
-  const float v2 = current_estimator_deadtime_shape(4.0f, 1.0f, -3.0f);
+  const float v1 = you2019_estimator_deadtime_shape(4.0f, 1.0f, 0.5f);
+  const float v2 = you2019_estimator_deadtime_shape(4.0f, 1.0f, -3.0f);
   printf("[dead-time] V(0.5A)=%.2f V V(-3A)=%.2f V (V_dt=4, I_sat=1)\n", (double)v1, (double)v2);
   CHECK(fabsf(v1 - 2.0f) < 1e-6f && fabsf(v2 + 4.0f) < 1e-6f, "shape");
   /* compensation vector for a positive a-phase current at theta = 0 */
-  current_estimator_config_t ec = {1u, 900.0f, 1u, 4.0f, 1.0f};
-  current_estimator_state_t es; current_estimator_reset(&es);
+  you2019_estimator_config_t ec = {1u, 900.0f, 1u, 4.0f, 1.0f};
+  you2019_estimator_state_t es; you2019_estimator_reset(&es);
   es.i_hat_d_A = 3.0f; es.i_hat_q_A = 0.0f;
-  current_estimator_deadtime(&ec, &es, 1.0f, 0.0f);
+  you2019_estimator_deadtime(&ec, &es, 1.0f, 0.0f);
   printf("[dead-time] id_hat=3A at theta=0: ia=%.2f ib=%.2f ic=%.2f -> v_alpha=%.3f v_beta=%.3f"
          " (expect 4*4/3=5.333, 0)\n", (double)es.i_hat_a_A, (double)es.i_hat_b_A,
          (double)es.i_hat_c_A, (double)es.v_dt_alpha_V, (double)es.v_dt_beta_V);

@@ -1,12 +1,12 @@
-/* rls_yao2020.c - Yao 2020 Eq. 46-48 RLS baseline. */
-#include "rls_yao2020.h"
+/* yao2020_rls.c - Yao 2020 Eq. 46-48 RLS baseline. */
+#include "yao2020_rls.h"
 
 #include <math.h>
 #include <string.h>
 
-#include "dpcc_yao2020.h"
+#include "yao2020_dpcc.h"
 
-void yao_rls_default_config(yao_rls_config_t *cfg) {
+void yao2020_rls_default_config(yao2020_rls_config_t *cfg) {
   cfg->Ts_s = 100e-6f;
   cfg->psi_hat_Wb = 0.12f;
   cfg->lambda = 0.995f;
@@ -14,11 +14,11 @@ void yao_rls_default_config(yao_rls_config_t *cfg) {
   cfg->P0_y = 1e-4f;
 }
 
-void yao_rls_init(const yao_rls_config_t *cfg, yao_rls_state_t *st,
-                  float R0_ohm, float L0_H) {
+void yao2020_rls_init(const yao2020_rls_config_t *cfg, yao2020_rls_state_t *st,
+                      float R0_ohm, float L0_H) {
   memset(st, 0, sizeof(*st));
-  yao_dpcc_model_t m;
-  yao_dpcc_model(R0_ohm, L0_H, 0.0f, cfg->Ts_s, &m);
+  yao2020_dpcc_model_t m;
+  yao2020_dpcc_model(R0_ohm, L0_H, 0.0f, cfg->Ts_s, &m);
   st->x_hat = m.x;
   st->y_hat = m.y;
   st->P11 = cfg->P0_x;
@@ -27,24 +27,24 @@ void yao_rls_init(const yao_rls_config_t *cfg, yao_rls_state_t *st,
   st->L_hat_H = L0_H;
 }
 
-void yao_rls_update(const yao_rls_config_t *cfg, yao_rls_state_t *st,
-                    float id_A, float iq_A, float vd_V, float vq_V,
-                    float w_rad_s) {
+void yao2020_rls_update(const yao2020_rls_config_t *cfg,
+                        yao2020_rls_state_t *st, float id_A, float iq_A,
+                        float vd_V, float vq_V, float w_rad_s) {
   if (st->primed != 0u) {
     const float T = cfg->Ts_s;
     const float wT = st->w * T;
     const float c = cosf(wT), s = sinf(wT);
-    /* G2_hat from the current estimates (Eq. 6 with Eq. 48) */
-    yao_dpcc_model_t m;
-    yao_dpcc_model(st->R_hat_ohm, st->L_hat_H, st->w, T, &m);
+    /* G2_hat from the current estimates (Yao 2020 Eq. 6 with Eq. 48) */
+    yao2020_dpcc_model_t m;
+    yao2020_dpcc_model(st->R_hat_ohm, st->L_hat_H, st->w, T, &m);
     const float e = st->w * cfg->psi_hat_Wb;
-    /* Eq. 47: y = Tr^-1 i(k) - G2_hat e(k-1) */
+    /* Yao 2020 Eq. 47: y = Tr^-1 i(k) - G2_hat e(k-1) */
     const float yd = (c * id_A - s * iq_A) - (-m.d2 * e);
     const float yq = (s * id_A + c * iq_A) - (m.d1 * e);
     /* phi = [[id iq],[vd vq]] (params x outputs), phi^T theta = x i + y v */
     const float a11 = st->i_d, a12 = st->i_q; /* phi row x */
     const float a21 = st->v_d, a22 = st->v_q; /* phi row y */
-    /* Eq. 46: eps = y - phi^T theta */
+    /* Yao 2020 Eq. 46: eps = y - phi^T theta */
     st->eps_d = yd - (a11 * st->x_hat + a21 * st->y_hat);
     st->eps_q = yq - (a12 * st->x_hat + a22 * st->y_hat);
     /* B = P phi (2x2) */
@@ -77,7 +77,7 @@ void yao_rls_update(const yao_rls_config_t *cfg, yao_rls_state_t *st,
       st->P12 = n12;
       st->P22 = n22;
     }
-    /* Eq. 48 */
+    /* Yao 2020 Eq. 48 */
     if (st->x_hat > 0.0f && st->x_hat < 1.0f && st->y_hat > 0.0f) {
       const float R = (1.0f - st->x_hat) / st->y_hat;
       const float L = -R * T / logf(st->x_hat);

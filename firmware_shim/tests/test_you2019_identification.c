@@ -1,4 +1,4 @@
-/* test_gain_identification.c - You 2019 Sec. 6 online tuning against the
+/* test_you2019_identification.c - You 2019 Sec. 6 online tuning against the
  * exact discrete standstill plant, starting from L_hat = 0.5 L and 1.2 L. */
 #include <math.h>
 #include <stdio.h>
@@ -27,7 +27,7 @@ static void run_case(double lf, int d_axis) {
   double max_e1 = 0, max_e2 = 0, min_absdet_acc = 1e9;
   float kp_before = 0;
   double i_hist[600];
-  const gain_id_axis_state_t *ax = d_axis ? &drv.ident.d : &drv.ident.q;
+  const you2019_identification_axis_state_t *ax = d_axis ? &drv.ident.d : &drv.ident.q;
   for (int k = 0; k < 600; ++k) {
     drive_meas_t m;
     drive_cmd_t c;
@@ -76,18 +76,19 @@ static void run_case(double lf, int d_axis) {
   CHECK(upd_step > 0 && upd_step - first_acc <= 9, "update later than one speed period");
   CHECK(est_pi_step == upd_step + 2, "estimator PI not 2 periods after model update");
   CHECK(fabs((double)K1a - K1) / K1 < 0.01 && fabs((double)K2a - K2) / K2 < 0.01, "active gains");
-  CHECK(fabs((double)ax->L_hat_H - L) / L < 0.01, "L_hat (Eq. 32)");
+  CHECK(fabs((double)ax->L_hat_H - L) / L < 0.01, "L_hat (You 2019 Eq. 32)");
   CHECK(fabs(i_hist[k1 + 1] - 1.0) < 0.01 && maxdev2 < 0.01 * 2.0,
         "not back to the 2-period deadbeat response");
   if (!d_axis) CHECK(fabs((double)drv.db.K1d_V_A - K1) / K1 < 0.01, "q->d copy");
 }
 
 int main(void) {
-  /* pure Eq. 24 solve check with a hand example: A=0.9, B=0.01 */
+  /* pure You 2019 Eq. 24 solve check with a hand example: A=0.9, B=0.01 */
   float K1, K2;
-  const float det = gain_id_solve(0.9f * 0.5f + 0.01f * 30.0f, 0.5f, 0.0f, 30.0f, 50.0f, &K1, &K2);
-  printf("[Eq.24 unit] det=%.4f K1=%.3f (100) K2=%.3f (90)\n", (double)det, (double)K1, (double)K2);
-  CHECK(fabsf(K1 - 100.0f) < 1e-3f && fabsf(K2 - 90.0f) < 1e-3f, "Eq. 24 solve");
+  const float det =
+      you2019_identification_solve(0.9f * 0.5f + 0.01f * 30.0f, 0.5f, 0.0f, 30.0f, 50.0f, &K1, &K2);
+  printf("[You 2019 Eq.24 unit] det=%.4f K1=%.3f (100) K2=%.3f (90)\n", (double)det, (double)K1, (double)K2);
+  CHECK(fabsf(K1 - 100.0f) < 1e-3f && fabsf(K2 - 90.0f) < 1e-3f, "You 2019 Eq. 24 solve");
   run_case(0.5, 0);
   run_case(1.2, 0);
   run_case(0.5, 1);

@@ -1,4 +1,4 @@
-/* bilinear_incremental.c - Zhao 2022 incremental deadbeat current controller
+/* zhao2022_incremental.c - Zhao 2022 incremental deadbeat current controller
  * (bilinear discretisation, two-period delay), Sec. 4.1 Eq. 14-23.
  *
  * Derivation check (done by hand from Eq. 1-2, not copied from the text):
@@ -21,13 +21,14 @@
  * In complex form (i = id + j iq) both axes are
  *    u(k+1) = (K1 + j w L0)(i* - i(k-2)) - K2 (i(k) - i(k-2))
  *             - u(k) + u(k-1) + u(k-2),   K1 = R0 + L0/Ts, K2 = 2 L0/Ts. */
-#include "bilinear_incremental.h"
+#include "zhao2022_incremental.h"
 
-#include <math.h>
 #include <string.h>
 
-int bilinear_incremental_init(const bilinear_incremental_config_t *cfg,
-                              bilinear_incremental_state_t *st) {
+#include "dq_math.h"
+
+int zhao2022_incremental_init(const zhao2022_incremental_config_t *cfg,
+                              zhao2022_incremental_state_t *st) {
   memset(st, 0, sizeof(*st));
   if (!(cfg->L_hat_H > 0.0f) || !(cfg->Ts_s > 0.0f) ||
       !(cfg->R_hat_ohm >= 0.0f)) {
@@ -41,7 +42,7 @@ int bilinear_incremental_init(const bilinear_incremental_config_t *cfg,
   return 0;
 }
 
-void bilinear_incremental_reset(bilinear_incremental_state_t *st) {
+void zhao2022_incremental_reset(zhao2022_incremental_state_t *st) {
   st->i_d_hist_A[0] = st->i_d_hist_A[1] = 0.0f;
   st->i_q_hist_A[0] = st->i_q_hist_A[1] = 0.0f;
   for (int n = 0; n < 3; ++n) {
@@ -54,9 +55,9 @@ void bilinear_incremental_reset(bilinear_incremental_state_t *st) {
   st->n_steps = 0u;
 }
 
-void bilinear_incremental_step(bilinear_incremental_state_t *st, float id_A,
-                               float iq_A, float omega_e_rad_s,
-                               float id_ref_A, float iq_ref_A, float *v_d_V,
+void zhao2022_incremental_step(zhao2022_incremental_state_t *st, float id_ref_A,
+                               float iq_ref_A, float id_A,
+                               float iq_A, float omega_e_rad_s, float *v_d_V,
                                float *v_q_V) {
   const float id_km2 = st->i_d_hist_A[1];
   const float iq_km2 = st->i_q_hist_A[1];
@@ -65,14 +66,14 @@ void bilinear_incremental_step(bilinear_incremental_state_t *st, float id_A,
   /* Zhao 2022 Eq. 23 (d axis):
    * ud(k+1) = (R + L/Ts)(id* - id(k-2)) - 2L/Ts (id(k) - id(k-2))
    *           - ud(k) + ud(k-2) + ud(k-1) - w L (iq* - iq(k-2)) */
-  float vd = bilinear_incremental_law(st->K1_V_A, st->K2_V_A, id_ref_A, id_A,
+  float vd = zhao2022_incremental_law(st->K1_V_A, st->K2_V_A, id_ref_A, id_A,
                                       id_km2, st->u_d_hist_V[0],
                                       st->u_d_hist_V[1], st->u_d_hist_V[2]) -
              wL * (iq_ref_A - iq_km2);
   /* Zhao 2022 Eq. 22 (q axis):
    * uq(k+1) = (R + L/Ts)(iq* - iq(k-2)) - 2L/Ts (iq(k) - iq(k-2))
    *           - uq(k) + uq(k-2) + uq(k-1) + w L (id* - id(k-2)) */
-  float vq = bilinear_incremental_law(st->K1_V_A, st->K2_V_A, iq_ref_A, iq_A,
+  float vq = zhao2022_incremental_law(st->K1_V_A, st->K2_V_A, iq_ref_A, iq_A,
                                       iq_km2, st->u_q_hist_V[0],
                                       st->u_q_hist_V[1], st->u_q_hist_V[2]) +
              wL * (id_ref_A - id_km2);
@@ -81,16 +82,7 @@ void bilinear_incremental_step(bilinear_incremental_state_t *st, float id_A,
 
   /* Zhao 2022 Sec. 5.1: the command is restricted to the inverter's
    * voltage circle (radial scaling keeps the direction). */
-  st->limited = 0u;
-  if (st->Vmax_V > 0.0f) {
-    const float mag2 = vd * vd + vq * vq;
-    if (mag2 > st->Vmax_V * st->Vmax_V) {
-      const float s = st->Vmax_V / sqrtf(mag2);
-      vd *= s;
-      vq *= s;
-      st->limited = 1u;
-    }
-  }
+  st->limited = dq_limit_voltage_radial(&vd, &vq, st->Vmax_V);
 
   /* shift the histories: u(k+1) becomes the next step's u(k) */
   st->u_d_hist_V[2] = st->u_d_hist_V[1];
