@@ -31,7 +31,7 @@ Layout (every key optional except where noted)::
     iq_ref_A = 0.0
 
     [trace]                      # the drive's synchronous trace TPDOs (drive.eds names, REAL32/integers,
-    pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat"]    # at most 8 bytes each); default below
+    pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"]    # at most 8 bytes each); default below
     pdo4 = ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]
 
     [[events]]                   # applied before the current step of period `at_period`
@@ -67,7 +67,7 @@ RESERVED = {("Run control", "run_periods"), ("Run control", "trip_clear"), ("Run
 RATIOS = {"R_hat_ratio": (("R_hat_ohm", "R_ohm"),), "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),
           "Lq_hat_ratio": (("Lq_hat_H", "Lq_H"),), "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
           "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),)}
-DEFAULT_TRACE: dict[int, tuple[str, ...]] = {3: ("Online tuning.det_A2", "Online tuning.K1_hat"),
+DEFAULT_TRACE: dict[int, tuple[str, ...]] = {3: ("Online tuning.det_A2", "Online tuning.K1_hat_V_A"),
                                              4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")

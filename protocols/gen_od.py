@@ -182,7 +182,9 @@ def _field_list(macro_base: str, obj: ODRecord | ODArray, oname: str, subs: list
             out.append(f"/* 0x{obj.index:04X} {obj.name}, {'parameters' if writable else 'status'}: "
                        f"X(index, subindex, record, field, EDS default) */\n#define OD_{macro_base}_{suffix}(X) \\\n"
                        + " \\\n".join(rows) + "\n")
-    return "\n" + "\n".join(out)
+    defaults = [f"#define OD_{macro_base}_{c_ident(v.name).upper()}_DEFAULT {_default_of(v)}" for v in subs
+                if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)]
+    return "\n" + "\n".join(out) + "\n" + "\n".join(defaults) + "\n"
 
 
 def _default_of(var: ODVariable) -> str:

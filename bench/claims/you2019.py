@@ -173,7 +173,7 @@ def claim_resistance_mismatch(bus: str) -> ClaimResult:
 def identification_errors(run: Run, threshold_A2: float = 0.2) -> np.ndarray:
     """Relative error of every identified K1 whose |det| passed the threshold (You 2019 Eq. 27)."""
     A, B = model_gains(run)
-    det, k1 = run.tr["det_A2"], run.tr["K1_hat"]
+    det, k1 = run.tr["det_A2"], run.tr["K1_hat_V_A"]
     ok = np.isfinite(det) & (np.abs(det) > threshold_A2) & np.isfinite(k1) & (k1 != 0)
     return np.abs(k1[ok] * B - 1.0)
 

@@ -37,7 +37,7 @@ PRIORITY = ("node_lost", "interference", "non_finite", "diverged", "tripped", "f
 
 # What each controller identifies or applies, read by SDO at the end of every run (and so in the log).
 CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "deadbeat_you2019": ("You 2019", "Online tuning", ("K1_avg", "K2_avg", "L_hat_H", "K1_active_V_A",
+    "deadbeat_you2019": ("You 2019", "Online tuning", ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H", "K1_active_V_A",
                                                        "K2_active_V_A", "identifications", "gain_updates")),
     "dpcc_yao2020": ("Yao 2020", "Yao 2020 DPCC", ("R_hat_ohm", "L_hat_H", "p_hat_d_A", "p_hat_q_A", "dM_d_V",
                                                    "dM_q_V", "ident_state",
@@ -79,9 +79,8 @@ def identified(dec: Decoder) -> dict[str, Any]:
     out["paper"] = paper
     vals = {s: _num(dec.sdo.drive.get(obj, s)) for s in subs}
     if kind == "deadbeat_you2019":
-        vals["K1_avg_V_A"], vals["K2_avg_V_A"] = vals.pop("K1_avg"), vals.pop("K2_avg")
         if not vals.get("identifications"):
-            for k in ("K1_avg_V_A", "K2_avg_V_A", "L_hat_H"):
+            for k in ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H"):
                 vals[k] = None
             out["note"] = "no identification ran (online tuning off or never excited): K1/K2 averages and " \
                           "L_hat not applicable; K1_active_V_A is the gain in use"

@@ -9,41 +9,56 @@
 
 #include "dq_math.h"
 
+/* The EDS defaults (od_drive_fields.h): the drive starts as the node does. */
 void drive_default_config(drive_config_t *cfg) {
   memset(cfg, 0, sizeof(*cfg));
-  cfg->Ts_s = 55e-6f;               /* You 2019 Table A1 */
-  cfg->pole_pairs = 5.0f;           /* Table A2 */
-  cfg->speed_loop_divider = 8u;     /* 440 us / 55 us */
-  cfg->controller = (uint8_t)DRIVE_CTRL_DEADBEAT_YOU2019;
-  cfg->R_hat_ohm = 1.4f;
-  cfg->Ld_hat_H = 4.46e-3f;
-  cfg->Lq_hat_H = 4.54e-3f;
-  cfg->psi_hat_Wb = 0.042f;
-  cfg->Vmax_V = 139.0f;             /* Sec. 7 */
-  cfg->vlimit_radial = 0u;
-  cfg->decoupling_enable = 1u;
-  cfg->angle_advance_periods = 1.5f;
-  cfg->deadbeat.memory_mode = (uint8_t)YOU2019_DEADBEAT_MEMORY_UNLIMITED;
-  cfg->pi.bandwidth_Hz = 1000.0f;
-  cfg->estimator.enable = 1u;
-  cfg->estimator.bandwidth_Hz = 900.0f; /* Sec. 3.2 */
-  cfg->estimator.deadtime_enable = 0u;
-  cfg->estimator.V_dt_V = 0.0f;
-  cfg->estimator.I_sat_A = 1.0f;        /* Fig. 3 */
-  cfg->ident.enable = 0u;
-  cfg->ident.det_threshold_A2 = 0.2f;   /* Sec. 7 */
-  cfg->ident.window_m = 8u;
-  cfg->ident.identify_d_axis = 0u;
-  cfg->outer.J_kgm2 = 3.0e-5f;          /* not in the paper: bench value */
-  cfg->outer.speed_bw_Hz = 100.0f;      /* Sec. 3.1 */
-  cfg->outer.position_bw_Hz = 10.0f;    /* Sec. 3.1 */
-  cfg->outer.speed_pi_zero_ratio = 0.25f;
-  cfg->outer.iq_max_A = 4.0f;           /* rated current */
-  cfg->outer.profile_max_speed_rad_s = 314.159265f; /* 3000 rpm */
-  cfg->outer.profile_accel_rad_s2 = 2000.0f;
-  yao2020_dpcc_default_config(&cfg->yao);   /* Yao 2020 Table III */
-  cfg->yao_rls_enable = 0u;
-  cfg->yao_rls_lambda = 0.995f;
+  yao2020_dpcc_default_config(&cfg->yao); /* what the EDS does not set (Yao 2020 Table III) */
+#define AT_ROOT(index, sub, record, field, eds_default) cfg->field = eds_default;
+#define IN_IDENT(index, sub, record, field, eds_default) cfg->ident.field = eds_default;
+#define IN_OUTER(index, sub, record, field, eds_default) cfg->outer.field = eds_default;
+#define IN_YAO(index, sub, record, field, eds_default) cfg->yao.field = eds_default;
+  OD_DRIVE_CONTROLLER_PARAMS(AT_ROOT)
+  OD_DRIVE_ONLINE_TUNING_PARAMS(IN_IDENT)
+  OD_DRIVE_OUTER_LOOPS_PARAMS(IN_OUTER)
+  OD_DRIVE_YAO_2020_DPCC_PARAMS(IN_YAO)
+#undef AT_ROOT
+#undef IN_IDENT
+#undef IN_OUTER
+#undef IN_YAO
+  cfg->outer.profile_speed_rad_s = OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_DEFAULT;
+  cfg->outer.profile_accel_rad_s2 = OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_DEFAULT;
+}
+
+drive_config_verdict_t drive_config_check(const drive_config_t *c, uint8_t mode) {
+  const uint8_t ctrl = c->controller;
+  const float Ts = c->Ts_s;
+  if (ctrl != (uint8_t)OD_DRIVE_CONTROLLER_OPEN_LOOP && !drive_controller_exists(ctrl))
+    return DRIVE_CONFIG_NO_SUCH_CONTROLLER;
+  if (c->deadtime_comp_enable != 0u && c->estimator_enable == 0u)
+    return DRIVE_CONFIG_INCOMPATIBLE; /* dead-time compensation uses the estimated currents */
+  if (c->ident.enable != 0u &&
+      (ctrl != (uint8_t)DRIVE_CTRL_DEADBEAT_YOU2019 || mode == (uint8_t)OD_DRIVE_MODE_OPEN_LOOP))
+    return DRIVE_CONFIG_INCOMPATIBLE; /* You 2019 tuning identifies deadbeat gains in closed loop */
+  if (c->pi_bandwidth_Hz * 6.0f * Ts >= 1.0f)
+    return DRIVE_CONFIG_INCOMPATIBLE; /* PI phase margin 90 deg - 2 pi f 1.5 Ts <= 0 */
+  if (c->estimator_bandwidth_Hz * 2.0f * Ts >= 1.0f)
+    return DRIVE_CONFIG_INCOMPATIBLE; /* above Nyquist */
+  if (c->outer.speed_bandwidth_Hz * 2.0f * Ts * (float)c->speed_loop_divider >= 1.0f)
+    return DRIVE_CONFIG_INCOMPATIBLE; /* above the speed loop's Nyquist */
+  if (c->outer.position_bandwidth_Hz >= c->outer.speed_bandwidth_Hz)
+    return DRIVE_CONFIG_INCOMPATIBLE; /* cascade: position loop inside the speed bandwidth */
+  return DRIVE_CONFIG_OK;
+}
+
+drive_config_verdict_t drive_config_check_selection(const drive_config_t *c) {
+  const float Ld = c->Ld_hat_H, Lq = c->Lq_hat_H;
+  if (drive_controller_is_spm(c->controller) && !(fabsf(Ld - Lq) <= 0.05f * Lq))
+    return DRIVE_CONFIG_INCOMPATIBLE;
+  return DRIVE_CONFIG_OK;
+}
+
+int drive_controller_exists(uint8_t controller) {
+  return controller >= (uint8_t)DRIVE_CTRL_PI && controller <= (uint8_t)DRIVE_CTRL_PREDICTIVE_ZHAO2022;
 }
 
 int drive_controller_is_spm(uint8_t controller) {
@@ -67,7 +82,7 @@ static void drive_recompute_spm(drive_t *drv, int switched) {
   yao2020_rls_default_config(&drv->rls_cfg);
   drv->rls_cfg.Ts_s = c->Ts_s;
   drv->rls_cfg.psi_hat_Wb = c->psi_hat_Wb;
-  drv->rls_cfg.lambda = c->yao_rls_lambda;
+  drv->rls_cfg.lambda = c->yao.rls_lambda;
   zhao2022_incremental_config_t ic;
   ic.R_hat_ohm = c->R_hat_ohm;
   ic.L_hat_H = c->Lq_hat_H;
@@ -98,10 +113,10 @@ static void drive_recompute_spm(drive_t *drv, int switched) {
     drv->inc.L_hat_H = g.L_hat_H;
     drv->inc.Vmax_V = g.Vmax_V;
   }
-  if (c->yao_rls_enable != 0u && (s->rls_cache == 0u || switched)) {
+  if (c->yao.rls_enable != 0u && (s->rls_cache == 0u || switched)) {
     yao2020_rls_init(&drv->rls_cfg, &drv->rls, c->R_hat_ohm, c->Lq_hat_H);
   }
-  s->rls_cache = c->yao_rls_enable;
+  s->rls_cache = c->yao.rls_enable;
 }
 
 static void drive_recompute(drive_t *drv) {
@@ -114,10 +129,10 @@ static void drive_recompute(drive_t *drv) {
   you2019_deadbeat_controller_gains(Ad, Bd, &drv->db.K1d_V_A, &drv->db.K2d_V_A);
   you2019_estimator_set_model(&drv->est, 0u, Aq, Bq);
   you2019_estimator_set_model(&drv->est, 1u, Ad, Bd);
-  you2019_estimator_design_pi(&c->estimator, &drv->est, 0u, c->Ts_s);
-  you2019_estimator_design_pi(&c->estimator, &drv->est, 1u, c->Ts_s);
-  pi_current_design(&c->pi, &drv->pi, c->R_hat_ohm, c->Ld_hat_H, c->Lq_hat_H);
-  outer_loops_design(&c->outer, &drv->outer, c->pole_pairs, c->psi_hat_Wb);
+  you2019_estimator_design_pi(c->estimator_bandwidth_Hz, &drv->est, 0u, c->Ts_s);
+  you2019_estimator_design_pi(c->estimator_bandwidth_Hz, &drv->est, 1u, c->Ts_s);
+  pi_current_design(c->pi_bandwidth_Hz, &drv->pi, c->R_hat_ohm, c->Ld_hat_H, c->Lq_hat_H);
+  outer_loops_design(&c->outer, &drv->outer, c->pole_pairs, c->psi_hat_Wb, c->J_hat_kgm2);
   s->Lq_active_H = c->Lq_hat_H;
   s->Ld_active_H = c->Ld_hat_H;
   drive_recompute_spm(drv, s->controller_cache != c->controller);
@@ -128,11 +143,8 @@ static void drive_recompute(drive_t *drv) {
   s->pending_q = s->pending_d = 0u;
   s->est_pi_countdown = 0u;
   s->R_hat_cache = c->R_hat_ohm;
-  s->Ld_hat_cache = c->Ld_hat_H;
   s->Lq_hat_cache = c->Lq_hat_H;
-  s->psi_hat_cache = c->psi_hat_Wb;
   s->controller_cache = c->controller;
-  s->tuning_cache = c->ident.enable;
   s->dirty = 0u;
 }
 
@@ -152,15 +164,9 @@ void drive_apply_config(drive_t *drv) { drv->st.dirty = 1u; }
 
 void drive_attach_trace(drive_t *drv, trace_recorder_t *rec) { drv->trace = rec; }
 
+/* One config-change path: drive_apply_config() after a change, effective here. */
 static void drive_check_config(drive_t *drv) {
-  const drive_config_t *c = &drv->cfg;
-  const drive_state_t *s = &drv->st;
-  if (s->dirty != 0u || c->R_hat_ohm != s->R_hat_cache ||
-      c->Ld_hat_H != s->Ld_hat_cache || c->Lq_hat_H != s->Lq_hat_cache ||
-      c->psi_hat_Wb != s->psi_hat_cache || c->controller != s->controller_cache ||
-      c->ident.enable != s->tuning_cache) {
-    drive_recompute(drv);
-  }
+  if (drv->st.dirty != 0u) drive_recompute(drv);
 }
 
 /* You 2019 Fig. 16: gains averaged at the speed-loop execution are loaded
@@ -172,9 +178,9 @@ static void drive_apply_pending_gains(drive_t *drv) {
     s->est_pi_countdown--;
     if (s->est_pi_countdown == 0u) {
       /* You 2019 Eq. 8/9 with the identified model gains */
-      you2019_estimator_design_pi(&drv->cfg.estimator, &drv->est, 0u,
+      you2019_estimator_design_pi(drv->cfg.estimator_bandwidth_Hz, &drv->est, 0u,
                                   drv->cfg.Ts_s);
-      you2019_estimator_design_pi(&drv->cfg.estimator, &drv->est, 1u,
+      you2019_estimator_design_pi(drv->cfg.estimator_bandwidth_Hz, &drv->est, 1u,
                                   drv->cfg.Ts_s);
     }
   }
@@ -183,7 +189,7 @@ static void drive_apply_pending_gains(drive_t *drv) {
   }
   const you2019_identification_axis_state_t *q = &drv->ident.q;
   const you2019_identification_axis_state_t *d =
-      drv->cfg.ident.identify_d_axis != 0u ? &drv->ident.d : &drv->ident.q;
+      drv->cfg.ident.separate_d_axis != 0u ? &drv->ident.d : &drv->ident.q;
   if (s->pending_q != 0u) {
     drv->db.K1q_V_A = q->K1_bar_V_A;
     drv->db.K2q_V_A = q->K2_bar_V_A;
@@ -214,7 +220,7 @@ static void drive_speed_step(drive_t *drv, float theta_m_rad) {
 
   switch ((drive_mode_t)drv->sp.mode) {
     case DRIVE_MODE_POSITION:
-      outer_loops_profile(&c->outer, o, drv->sp.position_target_rad, T_sp);
+      outer_loops_profile(&c->outer, o, drv->sp.position_ref_rad, T_sp);
       (void)outer_loops_speed(&c->outer, o, outer_loops_position(o), T_sp);
       break;
     case DRIVE_MODE_SPEED:
@@ -235,11 +241,11 @@ static void drive_speed_step(drive_t *drv, float theta_m_rad) {
     if (you2019_identification_average(&c->ident, &drv->ident.q, c->Ts_s,
                                        c->R_hat_ohm)) {
       s->pending_q = 1u;
-      if (c->ident.identify_d_axis == 0u) {
+      if (c->ident.separate_d_axis == 0u) {
         s->pending_d = 1u;
       }
     }
-    if (c->ident.identify_d_axis != 0u &&
+    if (c->ident.separate_d_axis != 0u &&
         you2019_identification_average(&c->ident, &drv->ident.d, c->Ts_s,
                                        c->R_hat_ohm)) {
       s->pending_d = 1u;
@@ -321,7 +327,7 @@ static void drive_step_spm(drive_t *drv) {
      * advance here */
     yao2020_dpcc_step(&drv->yao_cfg, &drv->yao, s->id_ref_A, s->iq_ref_A,
                       s->i_d_A, s->i_q_A, w, s->theta_e_rad, &drv->yao_cmd);
-    if (c->yao_rls_enable != 0u) {
+    if (c->yao.rls_enable != 0u) {
       /* Yao 2020 Eq. 46-48: i(k) and v(k) = v*(k-1) (frame theta(k)) */
       yao2020_rls_update(&drv->rls_cfg, &drv->rls, s->i_d_A, s->i_q_A,
                          drv->yao.v_app_d_V, drv->yao.v_app_q_V, w);
@@ -443,7 +449,7 @@ static void drive_step_you2019(drive_t *drv) {
       break;
     case DRIVE_CTRL_DEADBEAT_YOU2019:
     default:
-      you2019_deadbeat_commit(&c->deadbeat, &drv->db, s->v_d_star_V,
+      you2019_deadbeat_commit(c->limited_memory, &drv->db, s->v_d_star_V,
                               s->v_q_star_V);
       break;
   }
@@ -456,11 +462,11 @@ static void drive_step_you2019(drive_t *drv) {
   dq_inv_park(s->v_d_V, s->v_q_V, cc, sc, &s->v_alpha_V, &s->v_beta_V);
 
   /* You 2019 Eq. 5-9 estimator, Eq. 7 dead-time compensation */
-  if (c->estimator.enable != 0u) {
+  if (c->estimator_enable != 0u) {
     you2019_estimator_step(&drv->est, s->i_d_A, s->i_q_A, s->v_d_star_V,
                            s->v_q_star_V, c->Ts_s);
-    if (c->estimator.deadtime_enable != 0u) {
-      you2019_estimator_deadtime(&c->estimator, &drv->est, cc, sc);
+    if (c->deadtime_comp_enable != 0u) {
+      you2019_estimator_deadtime(c->deadtime_comp_V, c->deadtime_comp_I_sat_A, &drv->est, cc, sc);
       s->v_alpha_V += drv->est.v_dt_alpha_V;
       s->v_beta_V += drv->est.v_dt_beta_V;
     }
@@ -470,7 +476,7 @@ static void drive_step_you2019(drive_t *drv) {
   if (c->ident.enable != 0u) {
     you2019_identification_sample(&c->ident, &drv->ident.q, s->i_q_A,
                                   s->v_q_star_V);
-    if (c->ident.identify_d_axis != 0u) {
+    if (c->ident.separate_d_axis != 0u) {
       you2019_identification_sample(&c->ident, &drv->ident.d, s->i_d_A,
                                     s->v_d_star_V);
     }

@@ -6,13 +6,13 @@
 #include "dq_math.h"
 
 void outer_loops_design(const outer_loops_config_t *cfg, outer_loops_state_t *st,
-                        float pole_pairs, float psi_hat_Wb) {
+                        float pole_pairs, float psi_hat_Wb, float J_hat_kgm2) {
   /* torque constant for id = 0: T = 1.5 p psi iq */
   st->Kt_Nm_A = 1.5f * pole_pairs * psi_hat_Wb;
-  const float ww = DQ_TWO_PI_F * cfg->speed_bw_Hz;
-  st->Kp_w_A_s_rad = st->Kt_Nm_A > 0.0f ? ww * cfg->J_kgm2 / st->Kt_Nm_A : 0.0f;
+  const float ww = DQ_TWO_PI_F * cfg->speed_bandwidth_Hz;
+  st->Kp_w_A_s_rad = st->Kt_Nm_A > 0.0f ? ww * J_hat_kgm2 / st->Kt_Nm_A : 0.0f;
   st->Ki_w_A_rad = st->Kp_w_A_s_rad * ww * cfg->speed_pi_zero_ratio;
-  st->Kp_p_1_s = DQ_TWO_PI_F * cfg->position_bw_Hz;
+  st->Kp_p_1_s = DQ_TWO_PI_F * cfg->position_bandwidth_Hz;
 }
 
 void outer_loops_reset(outer_loops_state_t *st) {
@@ -45,7 +45,7 @@ void outer_loops_measure(outer_loops_state_t *st, float theta_m_rad, float T_s) 
 void outer_loops_profile(const outer_loops_config_t *cfg, outer_loops_state_t *st,
                          float target_rad, float T_s) {
   const float a = cfg->profile_accel_rad_s2;
-  const float vmax = cfg->profile_max_speed_rad_s;
+  const float vmax = cfg->profile_speed_rad_s;
   const float dist = target_rad - st->pos_ref_rad;
   const float sgn = dist >= 0.0f ? 1.0f : -1.0f;
   /* fastest speed from which we can still stop at the target */
@@ -79,7 +79,7 @@ float outer_loops_speed(const outer_loops_config_t *cfg, outer_loops_state_t *st
   const float integ_prev = st->integ_A;
   st->integ_A += st->Ki_w_A_rad * T_s * e;
   float iq = st->Kp_w_A_s_rad * e + st->integ_A;
-  const float lim = cfg->iq_max_A;
+  const float lim = cfg->iq_limit_A;
   if (iq > lim || iq < -lim) {
     /* clamping anti-windup */
     if ((iq > lim && e > 0.0f) || (iq < -lim && e < 0.0f)) {

@@ -15,13 +15,14 @@
 #include <stdint.h>
 
 typedef struct {
-  float J_kgm2;                  /* rotor + load inertia */
-  float speed_bw_Hz;             /* default 100 */
-  float position_bw_Hz;          /* default 10 */
-  float speed_pi_zero_ratio;     /* PI zero / speed bandwidth, default 0.25 */
-  float iq_max_A;                /* current reference limit, default 4 */
-  float profile_max_speed_rad_s; /* default 314.16 (3000 rpm) */
-  float profile_accel_rad_s2;    /* default 2000 */
+  /* the drive's Outer loops parameters (0x2203), EDS names */
+  float speed_bandwidth_Hz;
+  float position_bandwidth_Hz;
+  float iq_limit_A;              /* current reference limit */
+  float speed_pi_zero_ratio;     /* PI zero / speed bandwidth */
+  /* the profile of References (0x2202) */
+  float profile_speed_rad_s;
+  float profile_accel_rad_s2;
 } outer_loops_config_t;
 
 typedef struct {
@@ -37,7 +38,7 @@ typedef struct {
 } outer_loops_state_t;
 
 void outer_loops_design(const outer_loops_config_t *cfg, outer_loops_state_t *st,
-                        float pole_pairs, float psi_hat_Wb);
+                        float pole_pairs, float psi_hat_Wb, float J_hat_kgm2);
 void outer_loops_reset(outer_loops_state_t *st);
 /* Speed estimate from the encoder; T_s is the speed-loop period. */
 void outer_loops_measure(outer_loops_state_t *st, float theta_m_rad, float T_s);

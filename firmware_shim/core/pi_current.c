@@ -5,10 +5,10 @@
 
 #include "dq_math.h"
 
-void pi_current_design(const pi_current_config_t *cfg, pi_current_state_t *st,
+void pi_current_design(float pi_bandwidth_Hz, pi_current_state_t *st,
                        float R_hat_ohm, float Ld_hat_H, float Lq_hat_H) {
   /* IMC rule: C(s) = (w_bw / s) (L s + R)  =>  Kp = w_bw L, Ki = w_bw R. */
-  const float w_bw = DQ_TWO_PI_F * cfg->bandwidth_Hz;
+  const float w_bw = DQ_TWO_PI_F * pi_bandwidth_Hz;
   st->Kp_q_V_A = w_bw * Lq_hat_H;
   st->Kp_d_V_A = w_bw * Ld_hat_H;
   st->Ki_q_V_As = w_bw * R_hat_ohm;

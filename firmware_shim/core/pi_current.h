@@ -20,10 +20,6 @@
 #include <stdint.h>
 
 typedef struct {
-  float bandwidth_Hz;   /* default 1000 */
-} pi_current_config_t;
-
-typedef struct {
   float Kp_q_V_A, Ki_q_V_As, Kp_d_V_A, Ki_d_V_As;
   float integ_q_V, integ_d_V;
   float v_q_raw_V, v_d_raw_V;
@@ -31,7 +27,7 @@ typedef struct {
   float i_q_A, i_d_A, R_hat_ohm;
 } pi_current_state_t;
 
-void pi_current_design(const pi_current_config_t *cfg, pi_current_state_t *st,
+void pi_current_design(float pi_bandwidth_Hz, pi_current_state_t *st,
                        float R_hat_ohm, float Ld_hat_H, float Lq_hat_H);
 void pi_current_reset(pi_current_state_t *st);
 /* Decoupled controller voltage (feed-forward added by the caller). */

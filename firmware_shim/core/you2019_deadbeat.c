@@ -53,12 +53,12 @@ void you2019_deadbeat_step(you2019_deadbeat_state_t *st, float id_ref_A,
   *v_d_V = st->v_d_raw_V;
 }
 
-void you2019_deadbeat_commit(const you2019_deadbeat_config_t *cfg,
+void you2019_deadbeat_commit(uint8_t limited_memory,
                              you2019_deadbeat_state_t *st, float v_d_applied_V,
                              float v_q_applied_V) {
   float vq = st->v_q_raw_V;
   float vd = st->v_d_raw_V;
-  if (cfg->memory_mode == (uint8_t)YOU2019_DEADBEAT_MEMORY_LIMITED) {
+  if (limited_memory == (uint8_t)YOU2019_DEADBEAT_MEMORY_LIMITED) {
     /* memory = decoupled voltage really applied (You 2019 Eq. 33 then Eq. 35) */
     vq = v_q_applied_V;
     vd = v_d_applied_V;

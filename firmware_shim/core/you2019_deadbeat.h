@@ -20,10 +20,6 @@ typedef enum {
 } you2019_deadbeat_memory_t;
 
 typedef struct {
-  uint8_t memory_mode; /* you2019_deadbeat_memory_t, default UNLIMITED */
-} you2019_deadbeat_config_t;
-
-typedef struct {
   /* active gains (from R_hat/L_hat or from the online identification) */
   float K1q_V_A, K2q_V_A, K1d_V_A, K2d_V_A;
   /* errors e(k-1) = i*(k-1) - i(k-1) */
@@ -59,8 +55,9 @@ void you2019_deadbeat_step(you2019_deadbeat_state_t *st, float id_ref_A,
                            float iq_ref_A, float id_A, float iq_A, float *v_d_V,
                            float *v_q_V);
 
-/* Updates the v*(k-1), v*(k-2) memory according to memory_mode. */
-void you2019_deadbeat_commit(const you2019_deadbeat_config_t *cfg,
+/* Updates the v*(k-1), v*(k-2) memory according to limited_memory
+ * (you2019_deadbeat_memory_t). */
+void you2019_deadbeat_commit(uint8_t limited_memory,
                              you2019_deadbeat_state_t *st, float v_d_applied_V,
                              float v_q_applied_V);
 

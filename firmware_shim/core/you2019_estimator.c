@@ -55,10 +55,10 @@ void you2019_estimator_set_model(you2019_estimator_state_t *st, uint8_t axis,
   }
 }
 
-void you2019_estimator_design_pi(const you2019_estimator_config_t *cfg,
+void you2019_estimator_design_pi(float estimator_bandwidth_Hz,
                                  you2019_estimator_state_t *st, uint8_t axis,
                                  float Ts_s) {
-  const float g = you2019_estimator_loop_gain(Ts_s, cfg->bandwidth_Hz);
+  const float g = you2019_estimator_loop_gain(Ts_s, estimator_bandwidth_Hz);
   const float A = axis == 0u ? st->A_q : st->A_d;
   const float B = axis == 0u ? st->B_q_A_Vs : st->B_d_A_Vs;
   const float one_minus_a = 1.0f - A;
@@ -110,18 +110,18 @@ float you2019_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A) {
   return V_dt_V * x;
 }
 
-void you2019_estimator_deadtime(const you2019_estimator_config_t *cfg,
+void you2019_estimator_deadtime(float deadtime_comp_V, float deadtime_comp_I_sat_A,
                                 you2019_estimator_state_t *st, float cos_th,
                                 float sin_th) {
   float i_al, i_be;
   /* You 2019 Eq. 7: estimated dq currents -> estimated phase currents */
   dq_inv_park(st->i_hat_d_A, st->i_hat_q_A, cos_th, sin_th, &i_al, &i_be);
   dq_inv_clarke(i_al, i_be, &st->i_hat_a_A, &st->i_hat_b_A, &st->i_hat_c_A);
-  const float va = you2019_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A,
+  const float va = you2019_estimator_deadtime_shape(deadtime_comp_V, deadtime_comp_I_sat_A,
                                                     st->i_hat_a_A);
-  const float vb = you2019_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A,
+  const float vb = you2019_estimator_deadtime_shape(deadtime_comp_V, deadtime_comp_I_sat_A,
                                                     st->i_hat_b_A);
-  const float vc = you2019_estimator_deadtime_shape(cfg->V_dt_V, cfg->I_sat_A,
+  const float vc = you2019_estimator_deadtime_shape(deadtime_comp_V, deadtime_comp_I_sat_A,
                                                     st->i_hat_c_A);
   dq_clarke3(va, vb, vc, &st->v_dt_alpha_V, &st->v_dt_beta_V);
 }

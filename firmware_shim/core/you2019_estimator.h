@@ -25,14 +25,6 @@
 #include <stdint.h>
 
 typedef struct {
-  uint8_t enable;            /* run the estimator (default 1) */
-  float bandwidth_Hz;        /* -3 dB of i_hat(k-2)/i(k), default 900 */
-  uint8_t deadtime_enable;   /* add dead-time compensation (default 0) */
-  float V_dt_V;              /* compensation voltage amplitude per phase */
-  float I_sat_A;             /* |i| above which the compensation saturates */
-} you2019_estimator_config_t;
-
-typedef struct {
   /* model gains used by You 2019 Eq. 5/6 */
   float A_q, B_q_A_Vs, A_d, B_d_A_Vs;
   /* PI gains (You 2019 Eq. 8/9) */
@@ -57,7 +49,7 @@ float you2019_estimator_loop_gain(float Ts_s, float bandwidth_Hz);
 void you2019_estimator_set_model(you2019_estimator_state_t *st, uint8_t axis,
                                  float A, float B_A_Vs);
 /* Design the PI of one axis from its current model gains (You 2019 Eq. 8/9). */
-void you2019_estimator_design_pi(const you2019_estimator_config_t *cfg,
+void you2019_estimator_design_pi(float estimator_bandwidth_Hz,
                                  you2019_estimator_state_t *st, uint8_t axis,
                                  float Ts_s);
 
@@ -71,7 +63,7 @@ float you2019_estimator_deadtime_shape(float V_dt_V, float I_sat_A, float i_A);
 
 /* Dead-time compensation in the stator frame from the estimated dq currents
  * rotated with (cos_th, sin_th) to phases (You 2019 Eq. 7). */
-void you2019_estimator_deadtime(const you2019_estimator_config_t *cfg,
+void you2019_estimator_deadtime(float deadtime_comp_V, float deadtime_comp_I_sat_A,
                                 you2019_estimator_state_t *st, float cos_th,
                                 float sin_th);
 

@@ -53,7 +53,7 @@ void you2019_identification_sample(const you2019_identification_config_t *cfg,
     ax->K2_hat_V_A = K2;
     /* You 2019 Eq. 27: identify only when |det| > det_thres */
     if (fabsf(det) > cfg->det_threshold_A2) {
-      uint8_t m = cfg->window_m;
+      uint8_t m = cfg->average_m;
       if (m < 1u) m = 1u;
       if (m > YOU2019_IDENTIFICATION_MAX_WINDOW)
         m = (uint8_t)YOU2019_IDENTIFICATION_MAX_WINDOW;

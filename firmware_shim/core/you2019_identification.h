@@ -29,8 +29,8 @@ typedef struct {
   uint8_t enable;           /* tuning switch (default 0) */
   float det_threshold_A2;   /* You 2019 Eq. 27 threshold, default 0.2 A^2
                              * (Sec. 7) */
-  uint8_t window_m;         /* You 2019 Eq. 28-29 m, default 8, max 16 */
-  uint8_t identify_d_axis;  /* 0 (default, paper): copy q gains to d */
+  uint8_t average_m;        /* You 2019 Eq. 28-29 m, default 8, max 16 */
+  uint8_t separate_d_axis;  /* 0 (default, paper): copy q gains to d */
 } you2019_identification_config_t;
 
 typedef struct {

@@ -4,6 +4,7 @@
 
 #include <string.h>
 
+#include "co_field_map.h"
 #include "dq_math.h"
 #include "od_drive.h"
 
@@ -19,106 +20,46 @@ static int is_finite_f(float x)
     return (x - x) == 0.0f; /* false for NaN and +-inf */
 }
 
-/* OD (0x2200-0x2203) -> drive_config_t.  core_ctrl: controller to keep when
- * the OD selects the open loop (the core has no open-loop controller). */
+/* The drive's parameter records -> drive_config_t, one row per EDS entry (the
+ * lists od_drive_fields.h generates; the config's fields carry the EDS names). */
+#define AT_ROOT(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(od_drive_mfr_t, drive_config_t, record, field),
+#define IN_IDENT(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, ident, record, field),
+#define IN_OUTER(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, record, field),
+#define IN_YAO(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, yao, record, field),
+static const co_field_map_t config_rows[] = {
+    OD_DRIVE_CONTROLLER_PARAMS(AT_ROOT) OD_DRIVE_ONLINE_TUNING_PARAMS(IN_IDENT)
+    OD_DRIVE_OUTER_LOOPS_PARAMS(IN_OUTER) OD_DRIVE_YAO_2020_DPCC_PARAMS(IN_YAO)
+    /* the profile of References belongs to the outer loops */
+    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, x2202_References, profile_speed_rad_s),
+    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, x2202_References, profile_accel_rad_s2)};
+#undef AT_ROOT
+#undef IN_IDENT
+#undef IN_OUTER
+#undef IN_YAO
+
+/* OD -> drive_config_t.  core_ctrl: controller to keep when the OD selects the
+ * open loop (the core has no open-loop controller). */
 static void od_to_config(const od_drive_mfr_t *m, drive_config_t *c, uint8_t core_ctrl)
 {
-#define k (&m->x2200_Controller)
-    c->Ts_s = k->Ts_s;
-    c->pole_pairs = (float)k->pole_pairs;
-    c->speed_loop_divider = k->speed_loop_divider;
-    c->controller = k->controller == DRIVE_APP_CTRL_OPEN_LOOP ? core_ctrl : (uint8_t)(k->controller - 1u);
-    c->R_hat_ohm = k->R_hat_ohm;
-    c->Ld_hat_H = k->Ld_hat_H;
-    c->Lq_hat_H = k->Lq_hat_H;
-    c->psi_hat_Wb = k->psi_hat_Wb;
-    c->Vmax_V = k->Vmax_V;
-    c->vlimit_radial = k->vlimit_radial;
-    c->decoupling_enable = k->decoupling_enable;
-    c->angle_advance_periods = k->angle_advance_periods;
-    c->deadbeat.memory_mode = k->limited_memory;
-    c->pi.bandwidth_Hz = k->pi_bandwidth_Hz;
-    c->estimator.enable = k->estimator_enable;
-    c->estimator.bandwidth_Hz = k->estimator_bandwidth_Hz;
-    c->estimator.deadtime_enable = k->deadtime_comp_enable;
-    c->estimator.V_dt_V = k->deadtime_comp_V;
-    c->estimator.I_sat_A = k->deadtime_comp_I_sat_A;
-    c->ident.enable = m->x2201_online_tuning.enable;
-    c->ident.det_threshold_A2 = m->x2201_online_tuning.det_threshold_A2;
-    c->ident.window_m = m->x2201_online_tuning.average_m;
-    c->ident.identify_d_axis = m->x2201_online_tuning.separate_d_axis;
-    c->outer.J_kgm2 = k->J_hat_kgm2;
-    c->outer.speed_bw_Hz = m->x2203_outer_loops.speed_bandwidth_Hz;
-    c->outer.position_bw_Hz = m->x2203_outer_loops.position_bandwidth_Hz;
-    c->outer.speed_pi_zero_ratio = m->x2203_outer_loops.speed_pi_zero_ratio;
-    c->outer.iq_max_A = m->x2203_outer_loops.iq_limit_A;
-    c->outer.profile_max_speed_rad_s = m->x2202_References.profile_speed_rad_s;
-    c->outer.profile_accel_rad_s2 = m->x2202_References.profile_accel_rad_s2;
-#undef k
-#define y (&m->x2206_yao_2020_dpcc)
-    c->yao.observer_enable = y->observer_enable;
-    c->yao.Q_d = y->Q_d;
-    c->yao.Q_q = y->Q_q;
-    c->yao.inj_id_A = y->inj_id_A;
-    c->yao.gain_select = y->gain_select;
-    c->yao.kL_low_H_Vs = y->kL_low_H_Vs;
-    c->yao.kR_low_ohm_Vs = y->kR_low_ohm_Vs;
-    c->yao.kL_high_H_Vs = y->kL_high_H_Vs;
-    c->yao.kR_high_ohm_Vs = y->kR_high_ohm_Vs;
-    c->yao.th_L_V = y->th_L_V;
-    c->yao.th_R_V = y->th_R_V;
-    c->yao.n_settle = y->n_settle;
-    c->yao.n_avg = y->n_avg;
-    c->yao.n_hold = y->n_hold;
-    c->yao.n_timeout = y->n_timeout;
-    c->yao.n_rounds = y->n_rounds;
-    c->yao.rereference = y->rereference;
-    c->yao.steady_tol_w_rad_s = y->steady_tol_w_rad_s;
-    c->yao.steady_tol_iq_A = y->steady_tol_iq_A;
-    c->yao.min_speed_rad_s = y->min_speed_rad_s;
-    c->yao_rls_enable = y->rls_enable;
-    c->yao_rls_lambda = y->rls_lambda;
-#undef y
+    co_field_map_to_core(config_rows, sizeof config_rows / sizeof config_rows[0], m, c);
+    if (c->controller == (uint8_t)OD_DRIVE_CONTROLLER_OPEN_LOOP) c->controller = core_ctrl;
 }
 
-/* OD controller value of a surface-mounted law (Yao 2020, Zhao 2022). */
-static int od_ctrl_is_spm(uint8_t od_ctrl)
+/* Would the core accept the parameter records of m?  (Its rules: drive_config_check.) */
+static uint32_t check_config(const drive_t *d, const od_drive_mfr_t *m, int controller_written)
 {
-    return od_ctrl != DRIVE_APP_CTRL_OPEN_LOOP && drive_controller_is_spm((uint8_t)(od_ctrl - 1u));
-}
-
-/* The surface-mounted laws have one inductance (Lq_hat_H): selecting them
- * with a salient model is refused rather than silently dropping Ld_hat. */
-static uint32_t validate_spm_selection(const od_drive_mfr_t *m)
-{
-    const float Ld = m->x2200_Controller.Ld_hat_H, Lq = m->x2200_Controller.Lq_hat_H;
-    if (od_ctrl_is_spm(m->x2200_Controller.controller) && !(fabsf(Ld - Lq) <= 0.05f * Lq))
-        return CO_ABORT_INVALID_VALUE;
-    return 0;
-}
-
-/* Cross-field rules of 0x2200-0x2203 (single-field ranges are in the EDS). */
-static uint32_t validate_config(const od_drive_mfr_t *m)
-{
-    const uint8_t ctrl = m->x2200_Controller.controller;
-    const float Ts = m->x2200_Controller.Ts_s;
-    if (ctrl != DRIVE_APP_CTRL_OPEN_LOOP && (uint32_t)(ctrl - 1u) >= (uint32_t)DRIVE_CTRL_COUNT)
-        return CO_ABORT_INVALID_VALUE; /* controller not implemented by the core */
-    if (m->x2200_Controller.deadtime_comp_enable != 0u && m->x2200_Controller.estimator_enable == 0u)
-        return CO_ABORT_PARAM_INCOMPAT; /* dead-time compensation uses the estimated currents */
-    if (m->x2201_online_tuning.enable != 0u &&
-        (ctrl != (uint8_t)(DRIVE_CTRL_DEADBEAT_YOU2019 + 1) ||
-         m->x2202_References.mode == DRIVE_APP_MODE_OPEN_LOOP))
-        return CO_ABORT_PARAM_INCOMPAT; /* You 2019 tuning identifies deadbeat gains in closed loop */
-    if (m->x2200_Controller.pi_bandwidth_Hz * 6.0f * Ts >= 1.0f)
-        return CO_ABORT_PARAM_INCOMPAT; /* PI phase margin 90 deg - 2 pi f 1.5 Ts <= 0 */
-    if (m->x2200_Controller.estimator_bandwidth_Hz * 2.0f * Ts >= 1.0f)
-        return CO_ABORT_PARAM_INCOMPAT; /* above Nyquist */
-    if (m->x2203_outer_loops.speed_bandwidth_Hz * 2.0f * Ts * (float)m->x2200_Controller.speed_loop_divider >= 1.0f)
-        return CO_ABORT_PARAM_INCOMPAT; /* above the speed loop's Nyquist */
-    if (m->x2203_outer_loops.position_bandwidth_Hz >= m->x2203_outer_loops.speed_bandwidth_Hz)
-        return CO_ABORT_PARAM_INCOMPAT; /* cascade: position loop inside the speed bandwidth */
-    return 0;
+    drive_config_t c = d->cfg;
+    co_field_map_to_core(config_rows, sizeof config_rows / sizeof config_rows[0], m, &c); /* 0 = open loop */
+    if (controller_written && drive_config_check_selection(&c) != DRIVE_CONFIG_OK)
+        return CO_ABORT_INVALID_VALUE; /* a surface-mounted law with a salient model */
+    switch (drive_config_check(&c, m->x2202_References.mode)) {
+    case DRIVE_CONFIG_OK: return 0;
+    case DRIVE_CONFIG_NO_SUCH_CONTROLLER: return CO_ABORT_INVALID_VALUE;
+    default: return CO_ABORT_PARAM_INCOMPAT;
+    }
 }
 
 /* EDS trigger_edge (0 immediate, 1 rising, 2 falling, 3 either) -> trace_edge_t. */
@@ -211,10 +152,10 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
     case OD_DRIVE_ONLINE_TUNING_IDX: {
 #define t (&m->x2201_online_tuning)
         t->det_A2 = d->ident.q.det_A2;
-        t->K1_hat = d->ident.q.K1_hat_V_A;
-        t->K2_hat = d->ident.q.K2_hat_V_A;
-        t->K1_avg = d->ident.q.K1_bar_V_A;
-        t->K2_avg = d->ident.q.K2_bar_V_A;
+        t->K1_hat_V_A = d->ident.q.K1_hat_V_A;
+        t->K2_hat_V_A = d->ident.q.K2_hat_V_A;
+        t->K1_bar_V_A = d->ident.q.K1_bar_V_A;
+        t->K2_bar_V_A = d->ident.q.K2_bar_V_A;
         t->L_hat_H = d->ident.q.L_hat_H;
         t->identifications = d->ident.q.n_identified;
         t->K1_active_V_A = d->db.K1q_V_A;
@@ -403,11 +344,11 @@ void drive_app_current_step(drive_app_t *app)
     if (is_finite_f(r->iq_ref_A)) d->sp.iq_ref_A = r->iq_ref_A;
     if (is_finite_f(r->id_ref_A)) d->sp.id_ref_A = r->id_ref_A;
     if (is_finite_f(r->speed_ref_rad_s)) d->sp.speed_ref_rad_s = r->speed_ref_rad_s;
-    if (is_finite_f(r->position_ref_rad)) d->sp.position_target_rad = r->position_ref_rad;
+    if (is_finite_f(r->position_ref_rad)) d->sp.position_ref_rad = r->position_ref_rad;
 
 #undef r
-    app->open_loop = (uint8_t)(m->x2200_Controller.controller == DRIVE_APP_CTRL_OPEN_LOOP ||
-                               mode == DRIVE_APP_MODE_OPEN_LOOP);
+    app->open_loop = (uint8_t)(m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP ||
+                               mode == OD_DRIVE_MODE_OPEN_LOOP);
     if (app->open_loop) {
         open_loop_step(app, m);
     } else {
@@ -497,17 +438,15 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
     tmp.data = (uint8_t *)&cand + off;
     co_od_store(&tmp, data, len);
 
-    if (idx == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB) {
-        const uint32_t r = validate_spm_selection(&cand);
-        if (r != 0u) return r;
-    }
-    if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX) return validate_config(&cand);
+    if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX)
+        return check_config(&app->drv, &cand,
+                            idx == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB);
 
     if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
         const drive_t *d = &app->drv;
         if (data[0] == 1u) {
             if (d->cfg.controller != (uint8_t)DRIVE_CTRL_DPCC_YAO2020 ||
-                m->x2200_Controller.controller == DRIVE_APP_CTRL_OPEN_LOOP || d->cfg.yao.observer_enable == 0u)
+                m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP || d->cfg.yao.observer_enable == 0u)
                 return CO_ABORT_PARAM_INCOMPAT; /* the identification needs the DPCC with its observer */
             if (d->yao.primed == 0u || yao2020_identification_running(&d->yao))
                 return CO_ABORT_DATA_STATE; /* not run yet / already running */
@@ -539,22 +478,6 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
     return 0;
 }
 
-/* Fields the core watches by itself at every step (drive_core.h). */
-static int watched_by_core(const co_od_entry_t *e)
-{
-    if (e->index == OD_DRIVE_CONTROLLER_IDX) {
-        switch (e->subindex) {
-        case OD_DRIVE_CONTROLLER_CONTROLLER_SUB:
-        case OD_DRIVE_CONTROLLER_R_HAT_OHM_SUB:
-        case OD_DRIVE_CONTROLLER_LD_HAT_H_SUB:
-        case OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB:
-        case OD_DRIVE_CONTROLLER_PSI_HAT_WB_SUB: return 1;
-        default: return 0;
-        }
-    }
-    return e->index == OD_DRIVE_ONLINE_TUNING_IDX && e->subindex == OD_DRIVE_ONLINE_TUNING_ENABLE_SUB;
-}
-
 static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
 {
     drive_app_t *app = (drive_app_t *)user;
@@ -572,9 +495,13 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
                           (idx == OD_DRIVE_REFERENCES_IDX &&
                            (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
                             e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));
-    if (is_config) {
-        od_to_config(m, &app->drv.cfg, app->drv.cfg.controller);
-        if (!watched_by_core(e)) drive_apply_config(&app->drv);
+    if (is_config) { /* the one config-change path: copy, and recompute at the next step if it changed */
+        drive_config_t c = app->drv.cfg;
+        od_to_config(m, &c, c.controller);
+        if (memcmp(&c, &app->drv.cfg, sizeof c) != 0) {
+            app->drv.cfg = c;
+            drive_apply_config(&app->drv);
+        }
         return;
     }
     if (idx == OD_DRIVE_TRACE_IDX && e->subindex == OD_DRIVE_TRACE_STATE_SUB) {

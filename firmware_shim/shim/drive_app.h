@@ -76,11 +76,6 @@ enum {
 
 #define DRIVE_APP_PENDING_EMCY 4u
 
-/* OD controller value of the open-loop mode (0x2200:01). */
-#define DRIVE_APP_CTRL_OPEN_LOOP 0u
-/* 0x2202:01 mode value of the open-loop voltage mode. */
-#define DRIVE_APP_MODE_OPEN_LOOP 3u
-
 typedef struct {
     drive_t drv;               /* firmware core */
     trace_recorder_t trace;    /* oscilloscope buffer, exposed as 0x2301 */

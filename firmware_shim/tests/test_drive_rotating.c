@@ -67,7 +67,7 @@ int main(void) {
   /* 3. position mode: move 11 pi (You 2019 Fig. 22) */
   plant_init_you2019(&pl); pl.rotating = 1; pl.free_speed = 1; pl.n_sub = 10;
   drive_init(&drv, &cfg);
-  drv.sp.mode = DRIVE_MODE_POSITION; drv.sp.position_target_rad = 11.0f * 3.14159265f;
+  drv.sp.mode = DRIVE_MODE_POSITION; drv.sp.position_ref_rad = 11.0f * 3.14159265f;
   double vmax = 0, maxerr = 0;
   for (int k = 0; k < 40000; ++k) {
     drive_meas_t m; drive_cmd_t c;

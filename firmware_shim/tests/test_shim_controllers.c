@@ -191,7 +191,7 @@ static void run_controller(uint8_t od_ctrl)
 {
     setup();
     configure_by_sdo();
-    const uint8_t core_ctrl = (uint8_t)(od_ctrl - 1u);
+    const uint8_t core_ctrl = od_ctrl; /* the core runs the OD's controller values */
     if (od_ctrl == 3u) EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_ENABLE_SUB, 1u) == 0);
     EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, od_ctrl) == 0);
     if (od_ctrl != 3u)
@@ -201,7 +201,7 @@ static void run_controller(uint8_t od_ctrl)
 
     static drive_t ref;
     configure_ref(&ref, core_ctrl);
-    ref.cfg.yao_rls_enable = od_ctrl == 3u ? 1u : 0u;
+    ref.cfg.yao.rls_enable = od_ctrl == 3u ? 1u : 0u;
     drive_apply_config(&ref);
 
     /* direct cores, configured from the same values */

@@ -396,7 +396,8 @@ static void test_sdo_gains(void)
     EXPECT(same_bits(OD_DRIVE.mfr.x2200_Controller.Lq_hat_H, Lq_new));
     EXPECT(same_bits(g_app.drv.db.K1q_V_A, K1_before)); /* not before the next step */
 
-    ref.cfg.Lq_hat_H = Lq_new; /* the same mismatch knob, written directly */
+    ref.cfg.Lq_hat_H = Lq_new; /* the same mismatch knob, written directly ... */
+    drive_apply_config(&ref); /* ... through the one config-change path */
     const co_frame_t *f = sample(&m, 5);
     drive_current_step(&ref, &m, &c);
     EXPECT(f && same_bits(get_f32(&f->data[0]), c.v_alpha_V) && same_bits(get_f32(&f->data[4]), c.v_beta_V));
@@ -424,8 +425,8 @@ static void test_sdo_gains(void)
 
     /* a non-watched field (memory reading) reaches the core through drive_apply_config */
     EXPECT(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LIMITED_MEMORY_SUB, 1) == 0);
-    EXPECT(g_app.drv.cfg.deadbeat.memory_mode == 1u && g_app.drv.st.dirty == 1u);
-    EXPECT(g_app.drv.cfg.estimator.deadtime_enable == 1u && g_app.drv.cfg.ident.enable == 1u);
+    EXPECT(g_app.drv.cfg.limited_memory == 1u && g_app.drv.st.dirty == 1u);
+    EXPECT(g_app.drv.cfg.deadtime_comp_enable == 1u && g_app.drv.cfg.ident.enable == 1u);
     EXPECT(sample(&m, 6) != NULL);
     EXPECT(g_app.drv.st.dirty == 0u);
     printf("(c) SDO 23 00 22 06 Lq_hat = %.3g H: K1 %.3f -> %.3f V/A at the next step (bit-identical to the core); aborts OK\n",

@@ -109,7 +109,7 @@ int main(void) {
   /* ---- 2. 0 -> 4 A with Vmax = 139 V, both memory readings ---- */
   for (int mode = 0; mode < 2; ++mode) {
     drive_default_config(&cfg);
-    cfg.deadbeat.memory_mode = (uint8_t)mode;
+    cfg.limited_memory = (uint8_t)mode;
     run_step(&cfg, 4.0, &r);
     int reach = -1;
     double imax = 0;

@@ -55,10 +55,9 @@ int main(void) {
   printf("[dead-time] V(0.5A)=%.2f V V(-3A)=%.2f V (V_dt=4, I_sat=1)\n", (double)v1, (double)v2);
   CHECK(fabsf(v1 - 2.0f) < 1e-6f && fabsf(v2 + 4.0f) < 1e-6f, "shape");
   /* compensation vector for a positive a-phase current at theta = 0 */
-  you2019_estimator_config_t ec = {1u, 900.0f, 1u, 4.0f, 1.0f};
   you2019_estimator_state_t es; you2019_estimator_reset(&es);
   es.i_hat_d_A = 3.0f; es.i_hat_q_A = 0.0f;
-  you2019_estimator_deadtime(&ec, &es, 1.0f, 0.0f);
+  you2019_estimator_deadtime(4.0f, 1.0f, &es, 1.0f, 0.0f); /* V_dt = 4 V, I_sat = 1 A */
   printf("[dead-time] id_hat=3A at theta=0: ia=%.2f ib=%.2f ic=%.2f -> v_alpha=%.3f v_beta=%.3f"
          " (expect 4*4/3=5.333, 0)\n", (double)es.i_hat_a_A, (double)es.i_hat_b_A,
          (double)es.i_hat_c_A, (double)es.v_dt_alpha_V, (double)es.v_dt_beta_V);

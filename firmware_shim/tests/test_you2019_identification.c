@@ -20,7 +20,7 @@ static void run_case(double lf, int d_axis) {
   cfg.Lq_hat_H = (float)(lf * 4.54e-3);
   cfg.Ld_hat_H = (float)(lf * 4.46e-3);
   cfg.ident.enable = 1u;
-  cfg.ident.identify_d_axis = (uint8_t)d_axis;
+  cfg.ident.separate_d_axis = (uint8_t)d_axis;
   drive_init(&drv, &cfg);
   const int k0 = 13, k1 = 400;
   int n_acc = 0, first_acc = -1, upd_step = -1, est_pi_step = -1;

@@ -15,7 +15,7 @@
 
 /* Motor model, Inverter and Sensors (0x2000-0x2002) <-> plant_config_t: the rows are the EDS's
  * own lists (od_plant.h), the fields of plant_config_t carry the EDS names. */
-#define PLANT_ROW(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(OD_PLANT.mfr, plant_config_t, record, field),
+#define PLANT_ROW(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_config_t, record, field),
 static const co_field_map_t config_rows[] = {
     OD_PLANT_MOTOR_MODEL_PARAMS(PLANT_ROW) OD_PLANT_INVERTER_PARAMS(PLANT_ROW) OD_PLANT_SENSORS_PARAMS(PLANT_ROW)};
 #undef PLANT_ROW
@@ -24,12 +24,12 @@ static const co_field_map_t config_rows[] = {
 void plant_app_config_from_od(plant_config_t *c)
 {
     plant_config_defaults(c); /* the fields the OD does not carry */
-    co_field_map_to_core(config_rows, N_CONFIG_ROWS, c);
+    co_field_map_to_core(config_rows, N_CONFIG_ROWS, &M, c);
 }
 
 void plant_app_config_to_od(const plant_config_t *c)
 {
-    co_field_map_to_od(config_rows, N_CONFIG_ROWS, c);
+    co_field_map_to_od(config_rows, N_CONFIG_ROWS, &M, c);
 }
 
 /* ------------------------------------------------------------------ helpers */

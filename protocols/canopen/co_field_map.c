@@ -72,25 +72,20 @@ static void put(void *p, uint8_t kind, uint8_t size, value_t v)
     }
 }
 
-void co_field_map_to_core(const co_field_map_t *rows, size_t n, void *core)
+void co_field_map_to_core(const co_field_map_t *rows, size_t n, const void *od, void *core)
 {
     for (size_t i = 0; i < n; ++i) {
         const co_field_map_t *r = &rows[i];
-        put((uint8_t *)core + r->core_offset, r->core_kind, r->core_size, get(r->od, r->od_kind, r->od_size));
+        put((uint8_t *)core + r->core_offset, r->core_kind, r->core_size,
+            get((const uint8_t *)od + r->od_offset, r->od_kind, r->od_size));
     }
 }
 
-void co_field_map_to_od(const co_field_map_t *rows, size_t n, const void *core)
+void co_field_map_to_od(const co_field_map_t *rows, size_t n, void *od, const void *core)
 {
     for (size_t i = 0; i < n; ++i) {
         const co_field_map_t *r = &rows[i];
-        put(r->od, r->od_kind, r->od_size, get((const uint8_t *)core + r->core_offset, r->core_kind, r->core_size));
+        put((uint8_t *)od + r->od_offset, r->od_kind, r->od_size,
+            get((const uint8_t *)core + r->core_offset, r->core_kind, r->core_size));
     }
-}
-
-const co_field_map_t *co_field_map_find(const co_field_map_t *rows, size_t n, const void *od_value)
-{
-    for (size_t i = 0; i < n; ++i)
-        if (rows[i].od == od_value) return &rows[i];
-    return NULL;
 }

@@ -24,8 +24,8 @@ typedef enum {
 } co_fm_kind_t;
 
 typedef struct {
-    void *od;             /* the value in the OD's RAM */
-    uint16_t core_offset; /* offsetof(core struct, field) */
+    uint16_t od_offset;   /* offsetof(OD struct, record.field) */
+    uint16_t core_offset; /* offsetof(core struct, [member.]field) */
     uint8_t od_kind, od_size;
     uint8_t core_kind, core_size;
 } co_field_map_t;
@@ -34,17 +34,21 @@ typedef struct {
     _Generic((x), float: CO_FM_FLOAT, double: CO_FM_DOUBLE, bool: CO_FM_BOOL, int8_t: CO_FM_SINT,   \
              int16_t: CO_FM_SINT, int32_t: CO_FM_SINT, int64_t: CO_FM_SINT, default: CO_FM_UINT)
 
-/* One row: the OD record member `ram.record.field` <-> `core_t.field`. */
-#define CO_FIELD_MAP_ROW(ram, core_t, record, field)                                                   \
-    {&(ram).record.field, (uint16_t)offsetof(core_t, field), (uint8_t)CO_FM_KIND((ram).record.field),  \
-     (uint8_t)sizeof((ram).record.field), (uint8_t)CO_FM_KIND(((core_t *)0)->field),                 \
-     (uint8_t)sizeof(((core_t *)0)->field)}
+/* One row: od_t.record.field <-> core_t.field. */
+#define CO_FIELD_MAP_ROW(od_t, core_t, record, field)                                                  \
+    {(uint16_t)offsetof(od_t, record.field), (uint16_t)offsetof(core_t, field),                        \
+     (uint8_t)CO_FM_KIND(((od_t *)0)->record.field), (uint8_t)sizeof(((od_t *)0)->record.field),        \
+     (uint8_t)CO_FM_KIND(((core_t *)0)->field), (uint8_t)sizeof(((core_t *)0)->field)}
 
-/* Every row's OD value -> the core struct at `core`. */
-void co_field_map_to_core(const co_field_map_t *rows, size_t n, void *core);
+/* One row into a member struct of the core's config: od_t.record.field <-> core_t.member.field. */
+#define CO_FIELD_MAP_ROW_IN(od_t, core_t, member, record, field)                                       \
+    {(uint16_t)offsetof(od_t, record.field), (uint16_t)offsetof(core_t, member.field),                 \
+     (uint8_t)CO_FM_KIND(((od_t *)0)->record.field), (uint8_t)sizeof(((od_t *)0)->record.field),        \
+     (uint8_t)CO_FM_KIND(((core_t *)0)->member.field), (uint8_t)sizeof(((core_t *)0)->member.field)}
+
+/* Every row's OD value (in the OD struct at `od`) -> the core struct at `core`. */
+void co_field_map_to_core(const co_field_map_t *rows, size_t n, const void *od, void *core);
 /* Every row's core value -> the OD. */
-void co_field_map_to_od(const co_field_map_t *rows, size_t n, const void *core);
-/* The row of an OD value (NULL when the value is not mapped). */
-const co_field_map_t *co_field_map_find(const co_field_map_t *rows, size_t n, const void *od_value);
+void co_field_map_to_od(const co_field_map_t *rows, size_t n, void *od, const void *core);
 
 #endif

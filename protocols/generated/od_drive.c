@@ -182,10 +182,10 @@ static const od_drive_ram_t defaults = {
     .mfr.x2201_online_tuning.average_m = 0x8u,
     .mfr.x2201_online_tuning.separate_d_axis = 0x0u,
     .mfr.x2201_online_tuning.det_A2 = 0.0f,
-    .mfr.x2201_online_tuning.K1_hat = 0.0f,
-    .mfr.x2201_online_tuning.K2_hat = 0.0f,
-    .mfr.x2201_online_tuning.K1_avg = 0.0f,
-    .mfr.x2201_online_tuning.K2_avg = 0.0f,
+    .mfr.x2201_online_tuning.K1_hat_V_A = 0.0f,
+    .mfr.x2201_online_tuning.K2_hat_V_A = 0.0f,
+    .mfr.x2201_online_tuning.K1_bar_V_A = 0.0f,
+    .mfr.x2201_online_tuning.K2_bar_V_A = 0.0f,
     .mfr.x2201_online_tuning.L_hat_H = 0.0f,
     .mfr.x2201_online_tuning.identifications = 0x0u,
     .mfr.x2201_online_tuning.K1_active_V_A = 0.0f,
@@ -469,10 +469,10 @@ static const co_od_entry_t entries[] = {
     {0x2201u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.average_m), &OD_DRIVE.mfr.x2201_online_tuning.average_m, {.i = 1}, {.i = 16}}, /* average_m */
     {0x2201u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.separate_d_axis), &OD_DRIVE.mfr.x2201_online_tuning.separate_d_axis, {.i = 0}, {.i = 1}}, /* separate_d_axis */
     {0x2201u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.det_A2), &OD_DRIVE.mfr.x2201_online_tuning.det_A2, {.i = 0}, {.i = 0}}, /* det_A2 */
-    {0x2201u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_hat), &OD_DRIVE.mfr.x2201_online_tuning.K1_hat, {.i = 0}, {.i = 0}}, /* K1_hat */
-    {0x2201u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_hat), &OD_DRIVE.mfr.x2201_online_tuning.K2_hat, {.i = 0}, {.i = 0}}, /* K2_hat */
-    {0x2201u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_avg), &OD_DRIVE.mfr.x2201_online_tuning.K1_avg, {.i = 0}, {.i = 0}}, /* K1_avg */
-    {0x2201u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_avg), &OD_DRIVE.mfr.x2201_online_tuning.K2_avg, {.i = 0}, {.i = 0}}, /* K2_avg */
+    {0x2201u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_hat_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_hat_V_A, {.i = 0}, {.i = 0}}, /* K1_hat_V_A */
+    {0x2201u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_hat_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K2_hat_V_A, {.i = 0}, {.i = 0}}, /* K2_hat_V_A */
+    {0x2201u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_bar_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_bar_V_A, {.i = 0}, {.i = 0}}, /* K1_bar_V_A */
+    {0x2201u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_bar_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K2_bar_V_A, {.i = 0}, {.i = 0}}, /* K2_bar_V_A */
     {0x2201u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.L_hat_H), &OD_DRIVE.mfr.x2201_online_tuning.L_hat_H, {.i = 0}, {.i = 0}}, /* L_hat_H */
     {0x2201u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.identifications), &OD_DRIVE.mfr.x2201_online_tuning.identifications, {.i = 0}, {.i = 0}}, /* identifications */
     {0x2201u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_active_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_active_V_A, {.i = 0}, {.i = 0}}, /* K1_active_V_A */

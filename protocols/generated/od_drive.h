@@ -237,10 +237,10 @@ typedef struct {
         uint8_t average_m;
         uint8_t separate_d_axis;
         float det_A2;
-        float K1_hat;
-        float K2_hat;
-        float K1_avg;
-        float K2_avg;
+        float K1_hat_V_A;
+        float K2_hat_V_A;
+        float K1_bar_V_A;
+        float K2_bar_V_A;
         float L_hat_H;
         uint32_t identifications;
         float K1_active_V_A;
@@ -572,10 +572,10 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_ONLINE_TUNING_AVERAGE_M_SUB 0x03u
 #define OD_DRIVE_ONLINE_TUNING_SEPARATE_D_AXIS_SUB 0x04u
 #define OD_DRIVE_ONLINE_TUNING_DET_A2_SUB 0x05u
-#define OD_DRIVE_ONLINE_TUNING_K1_HAT_SUB 0x06u
-#define OD_DRIVE_ONLINE_TUNING_K2_HAT_SUB 0x07u
-#define OD_DRIVE_ONLINE_TUNING_K1_AVG_SUB 0x08u
-#define OD_DRIVE_ONLINE_TUNING_K2_AVG_SUB 0x09u
+#define OD_DRIVE_ONLINE_TUNING_K1_HAT_V_A_SUB 0x06u
+#define OD_DRIVE_ONLINE_TUNING_K2_HAT_V_A_SUB 0x07u
+#define OD_DRIVE_ONLINE_TUNING_K1_BAR_V_A_SUB 0x08u
+#define OD_DRIVE_ONLINE_TUNING_K2_BAR_V_A_SUB 0x09u
 #define OD_DRIVE_ONLINE_TUNING_L_HAT_H_SUB 0x0Au
 #define OD_DRIVE_ONLINE_TUNING_IDENTIFICATIONS_SUB 0x0Bu
 #define OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_SUB 0x0Cu

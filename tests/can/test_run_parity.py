@@ -26,7 +26,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory, vcan0: str) -> dict[str, tupl
     return out
 
 
-SIGNALS = ("i_a_A", "i_b_A", "theta_m_rad", "sample_index", "status", "v_alpha_V", "v_beta_V", "det_A2", "K1_hat",
+SIGNALS = ("i_a_A", "i_b_A", "theta_m_rad", "sample_index", "status", "v_alpha_V", "v_beta_V", "det_A2", "K1_hat_V_A",
            "K1_active_V_A", "L_hat_H", "iq_A", "id_A")
 
 
@@ -38,7 +38,7 @@ def test_lockstep_over_vcan_equals_direct_bit_for_bit(runs) -> None:  # type: ig
         np.testing.assert_array_equal(vcan[name], direct[name], err_msg=name)
     # the run did something: noise, tuning and steps show in the traces
     assert np.nanstd(direct["i_a_A"]) > 0.1
-    assert np.nanmax(np.abs(direct["K1_hat"])) > 0
+    assert np.nanmax(np.abs(direct["K1_hat_V_A"])) > 0
 
 
 def test_two_lockstep_runs_over_vcan_are_identical(runs) -> None:  # type: ignore[no-untyped-def]

@@ -84,7 +84,7 @@ def test_replay_of_an_asc_log_gives_the_same_traces(tmp_path: Path) -> None:
     res = bench("replay", str(out / "bus.asc"), "--no-viewer")
     assert res.returncode == 0, res.stderr
     a, b = np.load(out / "traces.npy"), np.load(out / "replay" / "traces.npy")
-    for key in ("i_a_A", "i_b_A", "v_alpha_V", "v_beta_V", "iq_ref_A", "K1_hat"):
+    for key in ("i_a_A", "i_b_A", "v_alpha_V", "v_beta_V", "iq_ref_A", "K1_hat_V_A"):
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
 
 
@@ -153,7 +153,7 @@ def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None
                 "bus_stats"):
         assert a[key] == b[key], key
     assert any(s["tuning_on"] for s in a["steps"]) and not all(s["tuning_on"] for s in a["steps"])
-    assert a["identified"]["K1_avg_V_A"] is not None
+    assert a["identified"]["K1_bar_V_A"] is not None
     ta, tb = np.load(out / "traces.npy"), np.load(alone / "replay" / "traces.npy")
     assert ta.dtype == tb.dtype
     for name in ta.dtype.names:

@@ -21,6 +21,9 @@ import pytest
 from bench.paths import REPO
 
 CORE = REPO / "firmware_shim" / "core"
+GENERATED = REPO / "protocols" / "generated"
+# the EDS's names, defaults and enumerations as plain C (protocols/gen_od.py): the core's one generated input
+PLAIN_GENERATED = {"od_drive_fields.h"}
 SOURCES = sorted(CORE.glob("*.c"))
 ARM_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2", "-std=c11",
              "-Wall", "-Wextra", "-Werror", "-Wshadow", "-Wstrict-prototypes", "-Wdouble-promotion",
@@ -44,8 +47,8 @@ def test_core_sources_exist() -> None:
 def test_builds_for_cortex_m4f_without_warnings(src: Path, tmp_path: Path) -> None:
     gcc, size = _tool("arm-none-eabi-gcc"), _tool("arm-none-eabi-size")
     obj = tmp_path / (src.stem + ".o")
-    res = subprocess.run([gcc, *ARM_FLAGS, f"-I{CORE}", "-c", str(src), "-o", str(obj)], capture_output=True,
-                         text=True, timeout=120)
+    res = subprocess.run([gcc, *ARM_FLAGS, f"-I{CORE}", f"-I{GENERATED}", "-c", str(src), "-o", str(obj)],
+                         capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, f"{src.name} does not build for the Cortex-M4F:\n{res.stderr}"
     assert res.stderr.strip() == "", f"{src.name}: compiler output:\n{res.stderr}"
     out = subprocess.run([size, "-B", str(obj)], capture_output=True, text=True, timeout=60, check=True).stdout
@@ -56,7 +59,7 @@ def test_builds_for_cortex_m4f_without_warnings(src: Path, tmp_path: Path) -> No
 
 @pytest.mark.parametrize("path", sorted(CORE.glob("*.[ch]")), ids=lambda p: p.name)
 def test_no_os_headers(path: Path) -> None:
-    local = {p.name for p in CORE.glob("*.h")}
+    local = {p.name for p in CORE.glob("*.h")} | PLAIN_GENERATED
     bad = []
     for kind, name in INCLUDE_RE.findall(path.read_text()):
         if kind == "<" and name not in ALLOWED_SYSTEM_HEADERS:
@@ -64,4 +67,9 @@ def test_no_os_headers(path: Path) -> None:
         elif kind == '"' and name not in local:
             bad.append(f'"{name}" (not a header of firmware_shim/core)')
     assert not bad, f"{path.name} includes {', '.join(bad)}; the core may use only " \
-                    f"{sorted(ALLOWED_SYSTEM_HEADERS)} and its own headers"
+                    f"{sorted(ALLOWED_SYSTEM_HEADERS)}, its own headers and {sorted(PLAIN_GENERATED)}"
+
+
+@pytest.mark.parametrize("name", sorted(PLAIN_GENERATED))
+def test_generated_plain_headers_include_nothing(name: str) -> None:
+    assert not INCLUDE_RE.findall((GENERATED / name).read_text()), f"{name} must stay plain C (no include)"

@@ -40,7 +40,7 @@ EXPECTED: dict[str, tuple[str, str]] = {
     "K1_active_V_A": ("V_per_A", "gains (V/A)"),
     "L_hat_H": ("H", "inductances (H)"),
     "det_A2": ("A2", "squared currents (A²)"),
-    "K1_hat": ("count_or_ratio", "counts and ratios"),
+    "K1_hat_V_A": ("V_per_A", "gains (V/A)"),  # K1_hat had no unit and landed among the counts
     "sync_counter": ("count_or_ratio", "counts and ratios"),
     "Yao_2020_DPCC_R_hat_ohm": ("ohm", "resistances (Ω)"),
     "Yao_2020_DPCC_L_hat_H": ("H", "inductances (H)"),
@@ -63,7 +63,7 @@ def make_run(n: int, first_period: int = 5, dt: float = 1e-4) -> dict[str, np.nd
     run["L_hat_H"] = 0.0045 + 1e-5 * rng.standard_normal(n)
     run["sync_counter"] = (period % 256).astype(np.uint8)
     run["Zhao_2022_limited"] = rng.random(n) < 0.2
-    run["K1_hat"] = run["K1_hat"].astype(np.float32)
+    run["K1_hat_V_A"] = run["K1_hat_V_A"].astype(np.float32)
     run["L_hat_H"][3] = np.nan
     run["Yao_2020_DPCC_R_hat_ohm"][n // 2 : n // 2 + 7] = np.nan
     run["det_A2"][-1] = np.inf

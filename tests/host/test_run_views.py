@@ -39,7 +39,7 @@ pdo4 = {pdo4}
 
 CASES = {
     "you2019": ("you2019", "deadbeat_you2019", "enable = 1",
-                ["Online tuning.det_A2", "Online tuning.K1_hat"], ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]),
+                ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"], ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]),
     "yao2020": ("yao2020_low", "dpcc_yao2020", "observer_enable = 1\nR_hat_ratio = 1.5",
                 ["Yao 2020 DPCC.R_hat_ohm", "Yao 2020 DPCC.L_hat_H"], ["Yao 2020 DPCC.p_hat_d_A", "Yao 2020 DPCC.p_hat_q_A"]),
     "zhao2022": ("zhao2022", "incremental_zhao2022", "Vmax_V = 16.0",

@@ -183,6 +183,20 @@ def test_every_equation_reference_names_its_paper() -> None:
                      + "\n".join(bad))
 
 
+def eds_segments(text: str) -> list[tuple[int, str]]:
+    """(line, text) of every Description of an EDS file (what users read in a tool or the scenario errors)."""
+    return [(i, line[len("Description="):]) for i, line in enumerate(text.splitlines(), 1)
+            if line.startswith("Description=")]
+
+
+def test_every_eds_description_names_its_paper() -> None:
+    bad = [f"{path.relative_to(REPO)}:{line}: ...{ctx}..."
+           for path in sorted((REPO / "protocols" / "eds").glob("*.eds"))
+           for line, seg in eds_segments(path.read_text()) for ctx in bare_equation_refs(seg)]
+    assert not bad, "EDS descriptions with an equation reference that names no paper:\n" + "\n".join(bad)
+    assert len(bare_equation_refs("Description=det-weighted average K1 (Eq. 28), V/A")) == 1  # the check bites
+
+
 # ------------------------------------------------------------------ file name = prefix
 def global_functions(obj: Path) -> list[str]:
     out = subprocess.run([shutil.which("nm") or "nm", "--defined-only", str(obj)], capture_output=True,
