@@ -47,6 +47,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "od_plant_fields.h" /* the EDS's enumerations (protocols/gen_od.py) */
 #include "plant_rng.h"
 
 /* ---- error codes returned by plant_prepare ---------------------------- */
@@ -70,21 +71,22 @@ enum {
     PLANT_ERR_ENUM = -16        /* modulation/hold enum out of range */
 };
 
+/* the values of the EDS (ValueNames of Motor model.mech_mode, Inverter.mod_limit / hold_frame) */
 typedef enum {
-    PLANT_MECH_FREE = 0,          /* J domega/dt = Te - B omega - T_load */
-    PLANT_MECH_LOCKED = 1,        /* omega = 0, theta held */
-    PLANT_MECH_IMPOSED_SPEED = 2  /* dynamometer holds omega_imposed_rad_s */
+    PLANT_MECH_FREE = OD_PLANT_MECH_MODE_FREE,          /* J domega/dt = Te - B omega - T_load */
+    PLANT_MECH_LOCKED = OD_PLANT_MECH_MODE_LOCKED,        /* omega = 0, theta held */
+    PLANT_MECH_IMPOSED_SPEED = OD_PLANT_MECH_MODE_IMPOSED_SPEED /* dynamometer holds omega_imposed_rad_s */
 } plant_mech_mode_t;
 
 typedef enum {
-    PLANT_MOD_NONE = 0,       /* command applied as is */
-    PLANT_MOD_SVPWM_HEX = 1,  /* clip to hexagon, vertices 2/3 Vdc */
-    PLANT_MOD_CIRCLE = 2      /* clip to circle of radius Vdc/sqrt(3) */
+    PLANT_MOD_NONE = OD_PLANT_MOD_LIMIT_NONE,       /* command applied as is */
+    PLANT_MOD_SVPWM_HEX = OD_PLANT_MOD_LIMIT_HEXAGON,  /* clip to hexagon, vertices 2/3 Vdc */
+    PLANT_MOD_CIRCLE = OD_PLANT_MOD_LIMIT_CIRCLE /* clip to circle of radius Vdc/sqrt(3) */
 } plant_mod_limit_t;
 
 typedef enum {
-    PLANT_HOLD_STATOR = 0,  /* real inverter: alpha-beta command constant */
-    PLANT_HOLD_ROTOR = 1    /* idealised model: dq command constant (for comparison) */
+    PLANT_HOLD_STATOR = OD_PLANT_HOLD_FRAME_STATOR,  /* real inverter: alpha-beta command constant */
+    PLANT_HOLD_ROTOR = OD_PLANT_HOLD_FRAME_ROTOR /* idealised model: dq command constant (for comparison) */
 } plant_hold_frame_t;
 
 /* ---- parameters ------------------------------------------------------- */

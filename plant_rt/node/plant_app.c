@@ -113,7 +113,7 @@ bool plant_app_running(const plant_app_t *app)
 bool plant_app_realtime_mode(const plant_app_t *app)
 {
     (void)app;
-    return M.x2003_run_control.mode == 1u;
+    return M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME;
 }
 
 int64_t plant_app_period_ns(const plant_app_t *app)
@@ -154,7 +154,7 @@ static void note_arrival(plant_app_t *app, int64_t t_us)
         app->cmd_ready = true;
         deadline = app->sched_us[app->k % PLANT_APP_SCHED_RING] + period_us(app);
     }
-    if (app->started && M.x2003_run_control.mode == 1u) hist_add(app, t_us - deadline);
+    if (app->started && M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME) hist_add(app, t_us - deadline);
 }
 
 static void scan_arrivals(plant_app_t *app)
@@ -175,7 +175,7 @@ static void handle_miss(plant_app_t *app)
     if (app->late_in_period) {
         /* lockstep: tolerate a drive that is several periods behind; real time:
          * the SYNCs do not wait, assume at once that a command was dropped */
-        uint32_t limit = M.x2003_run_control.mode == 1u ? 1u : PLANT_APP_RESYNC_PERIODS;
+        uint32_t limit = M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME ? 1u : PLANT_APP_RESYNC_PERIODS;
         if (++app->late_timeout_streak >= limit) {
             app->owed = 0; /* resynchronise: the drive dropped a command */
             app->late_timeout_streak = 0;
@@ -330,7 +330,7 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     ++app->syncs;
     app->last_sync_us = now;
     app->wait_start_us = now;
-    app->sched_us[app->k % PLANT_APP_SCHED_RING] = M.x2003_run_control.mode == 1u ? app->tick_sched_us : now;
+    app->sched_us[app->k % PLANT_APP_SCHED_RING] = M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME ? app->tick_sched_us : now;
     app->cmd_ready = false;
     app->cmd_seen = false;
     app->late_in_period = false;
@@ -393,7 +393,7 @@ static void hook_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
 {
     plant_app_t *app = user_app(user, node);
     (void)node_id;
-    if (M.x2003_run_control.mode != 1u) return;
+    if (M.x2003_run_control.mode != OD_PLANT_MODE_REALTIME) return;
     M.x2003_run_control.run_periods = 0u;
     M.x2003_run_control.state = 0u;
     app->paused = true;
@@ -455,7 +455,7 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
         }
         return -1;
     }
-    if (M.x2003_run_control.mode == 1u) return -1; /* real time: the transport ticks */
+    if (M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME) return -1; /* real time: the transport ticks */
     if (app->paused) {
         app->paused = false;
         app->wait_start_us = now_us; /* the timeout counts from the resume */
@@ -477,7 +477,7 @@ int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_u
 {
     if (!app->node) return -1;
     scan_arrivals(app);
-    if (!plant_app_running(app) || M.x2003_run_control.mode != 1u) {
+    if (!plant_app_running(app) || M.x2003_run_control.mode != OD_PLANT_MODE_REALTIME) {
         app->paused = true;
         return -1;
     }

@@ -182,7 +182,7 @@ int main(int argc, char **argv)
         return 1;
     }
     plant_app_bind(&g_app, &g_rt.node);
-    if (realtime) OD_PLANT.mfr.x2003_run_control.mode = 1u;
+    if (realtime) OD_PLANT.mfr.x2003_run_control.mode = OD_PLANT_MODE_REALTIME;
     printf("plant_node: node-ID %u on %s, %s mode, Ts = %.1f us\n", (unsigned)node_id, iface,
            realtime ? "real-time" : "lockstep", (double)plant_app_period_ns(&g_app) / 1000.0);
     fflush(stdout);
