@@ -8,357 +8,450 @@
 
 #define OD_DRIVE_DEFAULT_NODE_ID 32u
 
+/* 0x1003 Pre-defined error field */
+typedef struct {
+    uint8_t number_of_errors;
+    uint32_t standard_error_field_1;
+    uint32_t standard_error_field_2;
+    uint32_t standard_error_field_3;
+    uint32_t standard_error_field_4;
+    uint32_t standard_error_field_5;
+    uint32_t standard_error_field_6;
+    uint32_t standard_error_field_7;
+    uint32_t standard_error_field_8;
+} od_drive_pre_defined_error_field_t;
+
+/* 0x1016 Consumer heartbeat time */
+typedef struct {
+    uint8_t number_of_entries;
+    uint32_t consumer_heartbeat_time_1;
+    uint32_t consumer_heartbeat_time_2;
+} od_drive_consumer_heartbeat_time_t;
+
+/* 0x1018 Identity object */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t Vendor_ID;
+    uint32_t product_code;
+    uint32_t revision_number;
+    uint32_t serial_number;
+} od_drive_identity_object_t;
+
+/* 0x1200 SDO server parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_client_to_server;
+    uint32_t cob_id_server_to_client;
+} od_drive_sdo_server_parameter_t;
+
+/* 0x1400 RPDO1 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_drive_rpdo1_communication_parameter_t;
+
+/* 0x1401 RPDO2 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_drive_rpdo2_communication_parameter_t;
+
+/* 0x1402 RPDO3 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_drive_rpdo3_communication_parameter_t;
+
+/* 0x1403 RPDO4 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_drive_rpdo4_communication_parameter_t;
+
+/* 0x1600 RPDO1 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_rpdo1_mapping_parameter_t;
+
+/* 0x1601 RPDO2 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_rpdo2_mapping_parameter_t;
+
+/* 0x1602 RPDO3 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_rpdo3_mapping_parameter_t;
+
+/* 0x1603 RPDO4 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_rpdo4_mapping_parameter_t;
+
+/* 0x1800 TPDO1 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_drive_tpdo1_communication_parameter_t;
+
+/* 0x1801 TPDO2 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_drive_tpdo2_communication_parameter_t;
+
+/* 0x1802 TPDO3 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_drive_tpdo3_communication_parameter_t;
+
+/* 0x1803 TPDO4 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_drive_tpdo4_communication_parameter_t;
+
+/* 0x1A00 TPDO1 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_tpdo1_mapping_parameter_t;
+
+/* 0x1A01 TPDO2 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_tpdo2_mapping_parameter_t;
+
+/* 0x1A02 TPDO3 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_tpdo3_mapping_parameter_t;
+
+/* 0x1A03 TPDO4 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_drive_tpdo4_mapping_parameter_t;
+
+/* 0x2100 Measurement */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float i_a_A;
+    float i_b_A;
+    float theta_m_rad;
+    uint8_t sync_counter;
+    uint8_t status;
+    uint16_t sample_index;
+} od_drive_measurement_t;
+
+/* 0x2102 Voltage command */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float v_alpha_V;
+    float v_beta_V;
+} od_drive_voltage_command_t;
+
+/* 0x2200 Controller */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t controller;
+    float Ts_s;
+    uint8_t speed_loop_divider;
+    float R_hat_ohm;
+    float Ld_hat_H;
+    float Lq_hat_H;
+    float psi_hat_Wb;
+    uint8_t pole_pairs;
+    float Vmax_V;
+    float pi_bandwidth_Hz;
+    uint8_t limited_memory;
+    uint8_t deadtime_comp_enable;
+    float deadtime_comp_V;
+    float deadtime_comp_I_sat_A;
+    float estimator_bandwidth_Hz;
+    float J_hat_kgm2;
+    uint8_t vlimit_radial;
+    uint8_t decoupling_enable;
+    float angle_advance_periods;
+    uint8_t estimator_enable;
+} od_drive_controller_t;
+
+/* 0x2201 Online tuning */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t enable;
+    float det_threshold_A2;
+    uint8_t average_m;
+    uint8_t separate_d_axis;
+    float det_A2;
+    float K1_hat_V_A;
+    float K2_hat_V_A;
+    float K1_bar_V_A;
+    float K2_bar_V_A;
+    float L_hat_H;
+    uint32_t identifications;
+    float K1_active_V_A;
+    float K2_active_V_A;
+    uint32_t gain_updates;
+} od_drive_online_tuning_t;
+
+/* 0x2202 References */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t mode;
+    float iq_ref_A;
+    float id_ref_A;
+    float speed_ref_rad_s;
+    float position_ref_rad;
+    float profile_speed_rad_s;
+    float profile_accel_rad_s2;
+    float v_d_open_V;
+    float v_q_open_V;
+} od_drive_references_t;
+
+/* 0x2203 Outer loops */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float speed_bandwidth_Hz;
+    float position_bandwidth_Hz;
+    float iq_limit_A;
+    float speed_pi_zero_ratio;
+} od_drive_outer_loops_t;
+
+/* 0x2204 Drive status */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t current_steps;
+    uint32_t lost_measurements;
+    uint32_t late_measurements;
+    float id_A;
+    float iq_A;
+    float speed_rad_s;
+    float iq_ref_active_A;
+    uint16_t last_sample_index;
+} od_drive_drive_status_t;
+
+/* 0x2206 Yao 2020 DPCC */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t observer_enable;
+    float Q_d;
+    float Q_q;
+    float inj_id_A;
+    uint8_t gain_select;
+    float kL_low_H_Vs;
+    float kR_low_ohm_Vs;
+    float kL_high_H_Vs;
+    float kR_high_ohm_Vs;
+    float th_L_V;
+    float th_R_V;
+    uint32_t n_settle;
+    uint32_t n_avg;
+    uint32_t n_hold;
+    uint32_t n_timeout;
+    uint8_t n_rounds;
+    uint8_t rereference;
+    float steady_tol_w_rad_s;
+    float steady_tol_iq_A;
+    float min_speed_rad_s;
+    uint8_t ident_command;
+    uint8_t ident_state;
+    uint8_t abort_reason;
+    float progress;
+    float R_hat_ohm;
+    float L_hat_H;
+    float R_id_ohm;
+    float L_id_H;
+    uint8_t L_converged;
+    uint8_t R_converged;
+    float t_L_conv_s;
+    float t_R_conv_s;
+    float dM_d_V;
+    float dM_q_V;
+    uint8_t motor_class;
+    uint8_t gains_high;
+    uint8_t rls_enable;
+    float rls_lambda;
+    float rls_R_hat_ohm;
+    float rls_L_hat_H;
+    float p_hat_d_A;
+    float p_hat_q_A;
+} od_drive_yao_2020_dpcc_t;
+
+/* 0x2207 Zhao 2022 */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float K1_V_A;
+    float K2_V_A;
+    float G_V_A;
+    uint8_t limited;
+} od_drive_zhao_2022_t;
+
+/* 0x2300 Trace */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t state;
+    uint8_t trigger_signal;
+    float trigger_level;
+    uint8_t trigger_edge;
+    uint16_t pretrigger_samples;
+    uint16_t decimation;
+    uint8_t signal_count;
+    uint8_t signal_1;
+    uint8_t signal_2;
+    uint8_t signal_3;
+    uint8_t signal_4;
+    uint8_t signal_5;
+    uint8_t signal_6;
+    uint8_t signal_7;
+    uint8_t signal_8;
+    uint32_t captured_bytes;
+    uint32_t trigger_row;
+} od_drive_trace_t;
+
+/* 0x2302 Live trace */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float value_1;
+    float value_2;
+    uint8_t live_signal_1;
+    uint8_t live_signal_2;
+    uint16_t decimation;
+} od_drive_live_trace_t;
+
 typedef struct {
     uint32_t x1000_device_type;
     uint8_t x1001_error_register;
-    struct {
-        uint8_t number_of_errors;
-        uint32_t standard_error_field_1;
-        uint32_t standard_error_field_2;
-        uint32_t standard_error_field_3;
-        uint32_t standard_error_field_4;
-        uint32_t standard_error_field_5;
-        uint32_t standard_error_field_6;
-        uint32_t standard_error_field_7;
-        uint32_t standard_error_field_8;
-    } x1003_pre_defined_error_field;
+    od_drive_pre_defined_error_field_t x1003_pre_defined_error_field;
     uint32_t x1005_cob_id_sync_message;
     uint32_t x1006_communication_cycle_period;
     char x1008_manufacturer_device_name[15];
     char x100A_manufacturer_software_version[6];
     uint32_t x1014_cob_id_emcy;
-    struct {
-        uint8_t number_of_entries;
-        uint32_t consumer_heartbeat_time_1;
-        uint32_t consumer_heartbeat_time_2;
-    } x1016_consumer_heartbeat_time;
+    od_drive_consumer_heartbeat_time_t x1016_consumer_heartbeat_time;
     uint16_t x1017_producer_heartbeat_time;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t Vendor_ID;
-        uint32_t product_code;
-        uint32_t revision_number;
-        uint32_t serial_number;
-    } x1018_identity_object;
+    od_drive_identity_object_t x1018_identity_object;
     uint8_t x1019_synchronous_counter_overflow_value;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_client_to_server;
-        uint32_t cob_id_server_to_client;
-    } x1200_sdo_server_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1400_rpdo1_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1401_rpdo2_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1402_rpdo3_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1403_rpdo4_communication_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1600_rpdo1_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1601_rpdo2_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1602_rpdo3_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1603_rpdo4_mapping_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1800_tpdo1_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1801_tpdo2_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1802_tpdo3_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1803_tpdo4_communication_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A00_tpdo1_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A01_tpdo2_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A02_tpdo3_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A03_tpdo4_mapping_parameter;
+    od_drive_sdo_server_parameter_t x1200_sdo_server_parameter;
+    od_drive_rpdo1_communication_parameter_t x1400_rpdo1_communication_parameter;
+    od_drive_rpdo2_communication_parameter_t x1401_rpdo2_communication_parameter;
+    od_drive_rpdo3_communication_parameter_t x1402_rpdo3_communication_parameter;
+    od_drive_rpdo4_communication_parameter_t x1403_rpdo4_communication_parameter;
+    od_drive_rpdo1_mapping_parameter_t x1600_rpdo1_mapping_parameter;
+    od_drive_rpdo2_mapping_parameter_t x1601_rpdo2_mapping_parameter;
+    od_drive_rpdo3_mapping_parameter_t x1602_rpdo3_mapping_parameter;
+    od_drive_rpdo4_mapping_parameter_t x1603_rpdo4_mapping_parameter;
+    od_drive_tpdo1_communication_parameter_t x1800_tpdo1_communication_parameter;
+    od_drive_tpdo2_communication_parameter_t x1801_tpdo2_communication_parameter;
+    od_drive_tpdo3_communication_parameter_t x1802_tpdo3_communication_parameter;
+    od_drive_tpdo4_communication_parameter_t x1803_tpdo4_communication_parameter;
+    od_drive_tpdo1_mapping_parameter_t x1A00_tpdo1_mapping_parameter;
+    od_drive_tpdo2_mapping_parameter_t x1A01_tpdo2_mapping_parameter;
+    od_drive_tpdo3_mapping_parameter_t x1A02_tpdo3_mapping_parameter;
+    od_drive_tpdo4_mapping_parameter_t x1A03_tpdo4_mapping_parameter;
 } od_drive_comm_t;
 
 typedef struct {
-    struct {
-        uint8_t highest_sub_index_supported;
-        float i_a_A;
-        float i_b_A;
-        float theta_m_rad;
-        uint8_t sync_counter;
-        uint8_t status;
-        uint16_t sample_index;
-    } x2100_Measurement;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float v_alpha_V;
-        float v_beta_V;
-    } x2102_voltage_command;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint8_t controller;
-        float Ts_s;
-        uint8_t speed_loop_divider;
-        float R_hat_ohm;
-        float Ld_hat_H;
-        float Lq_hat_H;
-        float psi_hat_Wb;
-        uint8_t pole_pairs;
-        float Vmax_V;
-        float pi_bandwidth_Hz;
-        uint8_t limited_memory;
-        uint8_t deadtime_comp_enable;
-        float deadtime_comp_V;
-        float deadtime_comp_I_sat_A;
-        float estimator_bandwidth_Hz;
-        float J_hat_kgm2;
-        uint8_t vlimit_radial;
-        uint8_t decoupling_enable;
-        float angle_advance_periods;
-        uint8_t estimator_enable;
-    } x2200_Controller;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint8_t enable;
-        float det_threshold_A2;
-        uint8_t average_m;
-        uint8_t separate_d_axis;
-        float det_A2;
-        float K1_hat_V_A;
-        float K2_hat_V_A;
-        float K1_bar_V_A;
-        float K2_bar_V_A;
-        float L_hat_H;
-        uint32_t identifications;
-        float K1_active_V_A;
-        float K2_active_V_A;
-        uint32_t gain_updates;
-    } x2201_online_tuning;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint8_t mode;
-        float iq_ref_A;
-        float id_ref_A;
-        float speed_ref_rad_s;
-        float position_ref_rad;
-        float profile_speed_rad_s;
-        float profile_accel_rad_s2;
-        float v_d_open_V;
-        float v_q_open_V;
-    } x2202_References;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float speed_bandwidth_Hz;
-        float position_bandwidth_Hz;
-        float iq_limit_A;
-        float speed_pi_zero_ratio;
-    } x2203_outer_loops;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t current_steps;
-        uint32_t lost_measurements;
-        uint32_t late_measurements;
-        float id_A;
-        float iq_A;
-        float speed_rad_s;
-        float iq_ref_active_A;
-        uint16_t last_sample_index;
-    } x2204_drive_status;
+    od_drive_measurement_t x2100_Measurement;
+    od_drive_voltage_command_t x2102_voltage_command;
+    od_drive_controller_t x2200_Controller;
+    od_drive_online_tuning_t x2201_online_tuning;
+    od_drive_references_t x2202_References;
+    od_drive_outer_loops_t x2203_outer_loops;
+    od_drive_drive_status_t x2204_drive_status;
     char x2205_drive_label[33];
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint8_t observer_enable;
-        float Q_d;
-        float Q_q;
-        float inj_id_A;
-        uint8_t gain_select;
-        float kL_low_H_Vs;
-        float kR_low_ohm_Vs;
-        float kL_high_H_Vs;
-        float kR_high_ohm_Vs;
-        float th_L_V;
-        float th_R_V;
-        uint32_t n_settle;
-        uint32_t n_avg;
-        uint32_t n_hold;
-        uint32_t n_timeout;
-        uint8_t n_rounds;
-        uint8_t rereference;
-        float steady_tol_w_rad_s;
-        float steady_tol_iq_A;
-        float min_speed_rad_s;
-        uint8_t ident_command;
-        uint8_t ident_state;
-        uint8_t abort_reason;
-        float progress;
-        float R_hat_ohm;
-        float L_hat_H;
-        float R_id_ohm;
-        float L_id_H;
-        uint8_t L_converged;
-        uint8_t R_converged;
-        float t_L_conv_s;
-        float t_R_conv_s;
-        float dM_d_V;
-        float dM_q_V;
-        uint8_t motor_class;
-        uint8_t gains_high;
-        uint8_t rls_enable;
-        float rls_lambda;
-        float rls_R_hat_ohm;
-        float rls_L_hat_H;
-        float p_hat_d_A;
-        float p_hat_q_A;
-    } x2206_yao_2020_dpcc;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float K1_V_A;
-        float K2_V_A;
-        float G_V_A;
-        uint8_t limited;
-    } x2207_zhao_2022;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint8_t state;
-        uint8_t trigger_signal;
-        float trigger_level;
-        uint8_t trigger_edge;
-        uint16_t pretrigger_samples;
-        uint16_t decimation;
-        uint8_t signal_count;
-        uint8_t signal_1;
-        uint8_t signal_2;
-        uint8_t signal_3;
-        uint8_t signal_4;
-        uint8_t signal_5;
-        uint8_t signal_6;
-        uint8_t signal_7;
-        uint8_t signal_8;
-        uint32_t captured_bytes;
-        uint32_t trigger_row;
-    } x2300_Trace;
+    od_drive_yao_2020_dpcc_t x2206_yao_2020_dpcc;
+    od_drive_zhao_2022_t x2207_zhao_2022;
+    od_drive_trace_t x2300_Trace;
     co_domain_t x2301_trace_buffer;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float value_1;
-        float value_2;
-        uint8_t live_signal_1;
-        uint8_t live_signal_2;
-        uint16_t decimation;
-    } x2302_live_trace;
+    od_drive_live_trace_t x2302_live_trace;
 } od_drive_mfr_t;
 
 /* The communication part comes first: a communication reset restores it alone. */

@@ -8,269 +8,350 @@
 
 #define OD_PLANT_DEFAULT_NODE_ID 16u
 
+/* 0x1003 Pre-defined error field */
+typedef struct {
+    uint8_t number_of_errors;
+    uint32_t standard_error_field_1;
+    uint32_t standard_error_field_2;
+    uint32_t standard_error_field_3;
+    uint32_t standard_error_field_4;
+    uint32_t standard_error_field_5;
+    uint32_t standard_error_field_6;
+    uint32_t standard_error_field_7;
+    uint32_t standard_error_field_8;
+} od_plant_pre_defined_error_field_t;
+
+/* 0x1016 Consumer heartbeat time */
+typedef struct {
+    uint8_t number_of_entries;
+    uint32_t consumer_heartbeat_time_1;
+    uint32_t consumer_heartbeat_time_2;
+} od_plant_consumer_heartbeat_time_t;
+
+/* 0x1018 Identity object */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t Vendor_ID;
+    uint32_t product_code;
+    uint32_t revision_number;
+    uint32_t serial_number;
+} od_plant_identity_object_t;
+
+/* 0x1200 SDO server parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_client_to_server;
+    uint32_t cob_id_server_to_client;
+} od_plant_sdo_server_parameter_t;
+
+/* 0x1400 RPDO1 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_plant_rpdo1_communication_parameter_t;
+
+/* 0x1401 RPDO2 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_plant_rpdo2_communication_parameter_t;
+
+/* 0x1402 RPDO3 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_plant_rpdo3_communication_parameter_t;
+
+/* 0x1403 RPDO4 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_rpdo;
+    uint8_t transmission_type;
+    uint16_t event_timer;
+} od_plant_rpdo4_communication_parameter_t;
+
+/* 0x1600 RPDO1 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_rpdo1_mapping_parameter_t;
+
+/* 0x1601 RPDO2 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_rpdo2_mapping_parameter_t;
+
+/* 0x1602 RPDO3 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_rpdo3_mapping_parameter_t;
+
+/* 0x1603 RPDO4 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_rpdo4_mapping_parameter_t;
+
+/* 0x1800 TPDO1 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_plant_tpdo1_communication_parameter_t;
+
+/* 0x1801 TPDO2 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_plant_tpdo2_communication_parameter_t;
+
+/* 0x1802 TPDO3 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_plant_tpdo3_communication_parameter_t;
+
+/* 0x1803 TPDO4 communication parameter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t cob_id_used_by_tpdo;
+    uint8_t transmission_type;
+    uint16_t inhibit_time;
+    uint16_t event_timer;
+    uint8_t sync_start_value;
+} od_plant_tpdo4_communication_parameter_t;
+
+/* 0x1A00 TPDO1 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_tpdo1_mapping_parameter_t;
+
+/* 0x1A01 TPDO2 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_tpdo2_mapping_parameter_t;
+
+/* 0x1A02 TPDO3 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_tpdo3_mapping_parameter_t;
+
+/* 0x1A03 TPDO4 mapping parameter */
+typedef struct {
+    uint8_t number_of_mapped_objects;
+    uint32_t mapping_entry_1;
+    uint32_t mapping_entry_2;
+    uint32_t mapping_entry_3;
+    uint32_t mapping_entry_4;
+    uint32_t mapping_entry_5;
+    uint32_t mapping_entry_6;
+    uint32_t mapping_entry_7;
+    uint32_t mapping_entry_8;
+} od_plant_tpdo4_mapping_parameter_t;
+
+/* 0x2000 Motor model */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float R_ohm;
+    float Ld_H;
+    float Lq_H;
+    float psi_Wb;
+    uint8_t pole_pairs;
+    float J_kgm2;
+    float B_Nm_per_rad_s;
+    float T_load_Nm;
+    uint8_t mech_mode;
+    float omega_imposed_rad_s;
+    uint8_t sat_enable;
+    float sat_I_A;
+    float sat_Lq_inf_H;
+    float rk4_h_rel;
+    uint32_t rk4_min_substeps;
+} od_plant_motor_model_t;
+
+/* 0x2001 Inverter */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float Ts_s;
+    float Vdc_V;
+    uint8_t mod_limit;
+    float t_dead_s;
+    float deadtime_I_sat_A;
+    float I_trip_A;
+    float Ts_pwm_s;
+    uint8_t hold_frame;
+} od_plant_inverter_t;
+
+/* 0x2002 Sensors */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float adc_lsb_A;
+    float adc_offset_a_A;
+    float adc_noise_std_A;
+    uint32_t rng_seed;
+    uint32_t encoder_lines;
+    float adc_offset_b_A;
+    float adc_full_scale_A;
+} od_plant_sensors_t;
+
+/* 0x2003 Run control */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t mode;
+    uint32_t run_periods;
+    uint32_t period_index;
+    uint32_t command_timeout_us;
+    uint32_t missed_commands;
+    uint32_t late_commands;
+    uint8_t trip_clear;
+    uint8_t trip_active;
+    uint8_t state;
+    uint32_t sync_overruns;
+    uint32_t max_sync_lateness_us;
+} od_plant_run_control_t;
+
+/* 0x2005 Plant state */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float id_A;
+    float iq_A;
+    float omega_m_rad_s;
+    float theta_m_rad;
+    float torque_Nm;
+    float energy_in_J;
+} od_plant_plant_state_t;
+
+/* 0x2100 Measurement */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float i_a_A;
+    float i_b_A;
+    float theta_m_rad;
+    uint8_t sync_counter;
+    uint8_t status;
+    uint16_t sample_index;
+} od_plant_measurement_t;
+
+/* 0x2102 Voltage command */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float v_alpha_V;
+    float v_beta_V;
+} od_plant_voltage_command_t;
+
 typedef struct {
     uint32_t x1000_device_type;
     uint8_t x1001_error_register;
-    struct {
-        uint8_t number_of_errors;
-        uint32_t standard_error_field_1;
-        uint32_t standard_error_field_2;
-        uint32_t standard_error_field_3;
-        uint32_t standard_error_field_4;
-        uint32_t standard_error_field_5;
-        uint32_t standard_error_field_6;
-        uint32_t standard_error_field_7;
-        uint32_t standard_error_field_8;
-    } x1003_pre_defined_error_field;
+    od_plant_pre_defined_error_field_t x1003_pre_defined_error_field;
     uint32_t x1005_cob_id_sync_message;
     uint32_t x1006_communication_cycle_period;
     char x1008_manufacturer_device_name[15];
     char x100A_manufacturer_software_version[6];
     uint32_t x1014_cob_id_emcy;
-    struct {
-        uint8_t number_of_entries;
-        uint32_t consumer_heartbeat_time_1;
-        uint32_t consumer_heartbeat_time_2;
-    } x1016_consumer_heartbeat_time;
+    od_plant_consumer_heartbeat_time_t x1016_consumer_heartbeat_time;
     uint16_t x1017_producer_heartbeat_time;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t Vendor_ID;
-        uint32_t product_code;
-        uint32_t revision_number;
-        uint32_t serial_number;
-    } x1018_identity_object;
+    od_plant_identity_object_t x1018_identity_object;
     uint8_t x1019_synchronous_counter_overflow_value;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_client_to_server;
-        uint32_t cob_id_server_to_client;
-    } x1200_sdo_server_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1400_rpdo1_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1401_rpdo2_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1402_rpdo3_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_rpdo;
-        uint8_t transmission_type;
-        uint16_t event_timer;
-    } x1403_rpdo4_communication_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1600_rpdo1_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1601_rpdo2_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1602_rpdo3_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1603_rpdo4_mapping_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1800_tpdo1_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1801_tpdo2_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1802_tpdo3_communication_parameter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint32_t cob_id_used_by_tpdo;
-        uint8_t transmission_type;
-        uint16_t inhibit_time;
-        uint16_t event_timer;
-        uint8_t sync_start_value;
-    } x1803_tpdo4_communication_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A00_tpdo1_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A01_tpdo2_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A02_tpdo3_mapping_parameter;
-    struct {
-        uint8_t number_of_mapped_objects;
-        uint32_t mapping_entry_1;
-        uint32_t mapping_entry_2;
-        uint32_t mapping_entry_3;
-        uint32_t mapping_entry_4;
-        uint32_t mapping_entry_5;
-        uint32_t mapping_entry_6;
-        uint32_t mapping_entry_7;
-        uint32_t mapping_entry_8;
-    } x1A03_tpdo4_mapping_parameter;
+    od_plant_sdo_server_parameter_t x1200_sdo_server_parameter;
+    od_plant_rpdo1_communication_parameter_t x1400_rpdo1_communication_parameter;
+    od_plant_rpdo2_communication_parameter_t x1401_rpdo2_communication_parameter;
+    od_plant_rpdo3_communication_parameter_t x1402_rpdo3_communication_parameter;
+    od_plant_rpdo4_communication_parameter_t x1403_rpdo4_communication_parameter;
+    od_plant_rpdo1_mapping_parameter_t x1600_rpdo1_mapping_parameter;
+    od_plant_rpdo2_mapping_parameter_t x1601_rpdo2_mapping_parameter;
+    od_plant_rpdo3_mapping_parameter_t x1602_rpdo3_mapping_parameter;
+    od_plant_rpdo4_mapping_parameter_t x1603_rpdo4_mapping_parameter;
+    od_plant_tpdo1_communication_parameter_t x1800_tpdo1_communication_parameter;
+    od_plant_tpdo2_communication_parameter_t x1801_tpdo2_communication_parameter;
+    od_plant_tpdo3_communication_parameter_t x1802_tpdo3_communication_parameter;
+    od_plant_tpdo4_communication_parameter_t x1803_tpdo4_communication_parameter;
+    od_plant_tpdo1_mapping_parameter_t x1A00_tpdo1_mapping_parameter;
+    od_plant_tpdo2_mapping_parameter_t x1A01_tpdo2_mapping_parameter;
+    od_plant_tpdo3_mapping_parameter_t x1A02_tpdo3_mapping_parameter;
+    od_plant_tpdo4_mapping_parameter_t x1A03_tpdo4_mapping_parameter;
 } od_plant_comm_t;
 
 typedef struct {
-    struct {
-        uint8_t highest_sub_index_supported;
-        float R_ohm;
-        float Ld_H;
-        float Lq_H;
-        float psi_Wb;
-        uint8_t pole_pairs;
-        float J_kgm2;
-        float B_Nm_per_rad_s;
-        float T_load_Nm;
-        uint8_t mech_mode;
-        float omega_imposed_rad_s;
-        uint8_t sat_enable;
-        float sat_I_A;
-        float sat_Lq_inf_H;
-        float rk4_h_rel;
-        uint32_t rk4_min_substeps;
-    } x2000_motor_model;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float Ts_s;
-        float Vdc_V;
-        uint8_t mod_limit;
-        float t_dead_s;
-        float deadtime_I_sat_A;
-        float I_trip_A;
-        float Ts_pwm_s;
-        uint8_t hold_frame;
-    } x2001_Inverter;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float adc_lsb_A;
-        float adc_offset_a_A;
-        float adc_noise_std_A;
-        uint32_t rng_seed;
-        uint32_t encoder_lines;
-        float adc_offset_b_A;
-        float adc_full_scale_A;
-    } x2002_Sensors;
-    struct {
-        uint8_t highest_sub_index_supported;
-        uint8_t mode;
-        uint32_t run_periods;
-        uint32_t period_index;
-        uint32_t command_timeout_us;
-        uint32_t missed_commands;
-        uint32_t late_commands;
-        uint8_t trip_clear;
-        uint8_t trip_active;
-        uint8_t state;
-        uint32_t sync_overruns;
-        uint32_t max_sync_lateness_us;
-    } x2003_run_control;
+    od_plant_motor_model_t x2000_motor_model;
+    od_plant_inverter_t x2001_Inverter;
+    od_plant_sensors_t x2002_Sensors;
+    od_plant_run_control_t x2003_run_control;
     char x2004_motor_preset[33];
-    struct {
-        uint8_t highest_sub_index_supported;
-        float id_A;
-        float iq_A;
-        float omega_m_rad_s;
-        float theta_m_rad;
-        float torque_Nm;
-        float energy_in_J;
-    } x2005_plant_state;
+    od_plant_plant_state_t x2005_plant_state;
     co_domain_t x2006_lateness_histogram;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float i_a_A;
-        float i_b_A;
-        float theta_m_rad;
-        uint8_t sync_counter;
-        uint8_t status;
-        uint16_t sample_index;
-    } x2100_Measurement;
-    struct {
-        uint8_t highest_sub_index_supported;
-        float v_alpha_V;
-        float v_beta_V;
-    } x2102_voltage_command;
+    od_plant_measurement_t x2100_Measurement;
+    od_plant_voltage_command_t x2102_voltage_command;
 } od_plant_mfr_t;
 
 /* The communication part comes first: a communication reset restores it alone. */
