@@ -15,7 +15,7 @@ CFLAGS_CORE := $(CSTD) $(OPT) $(WARN) -fPIC
 CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
 CFLAGS_HOST := $(CSTD) $(OPT) $(WARN) -D_GNU_SOURCE -fPIC
 INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
-       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim
+       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Itests/c
 
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)

@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "dq_math.h"
-#include "test_check.h"
+#include "check.h"
 
 static uint32_t bits(float x) {
   uint32_t u;
@@ -62,5 +62,5 @@ int main(void) {
   CHECK(diff == 0, "%ld of %ld commands differ from dq_limit_voltage(.., 1)",
         diff, n);
   printf("dq limiters: %ld commands compared, %ld differ\n", n, diff);
-  return g_fail;
+  return check_finish("test_dq_limit");
 }

@@ -3,17 +3,17 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "check.h"
 #include "drive_core.h"
-#include "plant_model.h"
+#include "drive_plant.h"
 
-static int g_fail = 0;
 
 static void run(double ref, double *overshoot, int *t98, int *nlim, double *final,
                 double *integ_max) {
   static drive_t drv;
   drive_config_t cfg;
-  plant_t pl;
-  plant_init_you2019(&pl);
+  drive_plant_t pl;
+  drive_plant_init(&pl, "you2019");
   drive_default_config(&cfg);
   cfg.controller = (uint8_t)DRIVE_CTRL_PI;
   drive_init(&drv, &cfg);
@@ -21,7 +21,7 @@ static void run(double ref, double *overshoot, int *t98, int *nlim, double *fina
   *t98 = -1; *nlim = 0; *integ_max = 0;
   for (int k = 0; k < 3000; ++k) {
     drive_meas_t m; drive_cmd_t c;
-    plant_measure(&pl, &m);
+    drive_plant_measure(&pl, &m);
     drv.sp.iq_ref_A = k >= 10 ? (float)ref : 0.0f;
     drive_current_step(&drv, &m, &c);
     const double iq = (double)drv.st.i_q_A;
@@ -30,7 +30,7 @@ static void run(double ref, double *overshoot, int *t98, int *nlim, double *fina
     *nlim += drv.st.v_limited;
     if (fabs((double)drv.pi.integ_q_V) > *integ_max) *integ_max = fabs((double)drv.pi.integ_q_V);
     *final = iq;
-    plant_advance(&pl, &c);
+    drive_plant_advance(&pl, &c);
   }
   *overshoot = (imax - ref) / ref;
 }
@@ -50,6 +50,5 @@ int main(void) {
   CHECK(nlim > 0, "20 A step should saturate");
   CHECK(os < 0.12, "windup overshoot %.3f", os);
   CHECK(fabs(fin - 20) < 1e-3, "steady state");
-  printf("%s (%d failures)\n", g_fail ? "FAILED" : "PASSED", g_fail);
-  return g_fail ? 1 : 0;
+  return check_finish("test_pi_current");
 }

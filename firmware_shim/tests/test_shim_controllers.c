@@ -18,145 +18,54 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "co_membus.h"
+#include "check.h"
 #include "co_node.h"
 #include "dq_math.h"
 #include "drive_app.h"
 #include "drive_core.h"
+#include "motor_model.h"
 #include "od_drive.h"
-
-static int g_fail;
-#define EXPECT(c)                                                                  \
-    do {                                                                          \
-        if (!(c)) {                                                               \
-            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #c); \
-            ++g_fail;                                                             \
-        }                                                                         \
-    } while (0)
-
-#define DRIVE_ID 0x20u
-#define COB_CMD 0x210u
-#define COB_MEAS1 0x190u
-#define COB_MEAS2 0x290u
-#define COB_SDO_RX (0x600u + DRIVE_ID)
-#define COB_SDO_TX (0x580u + DRIVE_ID)
 #include "shim_testbus.h"
 
-static uint8_t g_sync;
+#define STEP_US 100 /* bus time of one exchange */
 
-static void inject(uint16_t cob, uint8_t dlc, const uint8_t *d)
+static void setup_drive(void)
 {
-    co_frame_t f;
-    memset(&f, 0, sizeof f);
-    f.cob_id = cob;
-    f.dlc = dlc;
-    if (dlc) memcpy(f.data, d, dlc);
-    EXPECT(co_membus_inject(&g_bus, &f) == 0);
-}
-
-static void deliver(void)
-{
-    g_now += 100;
-    co_membus_deliver(&g_bus, g_now);
-}
-
-static const co_frame_t *find(uint16_t cob)
-{
-    for (int i = 0; i < g_ncap; ++i)
-        if ((g_cap[i].cob_id & 0x7FFu) == cob) return &g_cap[i];
-    return NULL;
-}
-
-static void setup(void)
-{
-    co_membus_init(&g_bus, sink, NULL);
-    int port = co_membus_port(&g_bus);
-    drive_app_init(&g_app);
-    g_now = 1000;
+    setup(STEP_US);
     g_sync = 0;
-    co_node_init(&g_node, &od_drive, DRIVE_ID, co_membus_tx, &g_bus.ports[port], drive_app_hooks(), &g_app, g_now);
-    co_membus_attach(&g_bus, port, &g_node);
-    drive_app_bind(&g_app, &g_node);
-    deliver();
-    const uint8_t start[2] = {0x01, 0x00};
-    inject(0x000, 2, start);
-    deliver();
-    EXPECT(g_node.nmt == CO_NMT_OPERATIONAL);
-}
-
-static const co_frame_t *sample(const drive_meas_t *m, uint16_t k)
-{
-    g_sync = (uint8_t)(g_sync >= 240u ? 1u : g_sync + 1u);
-    uint8_t d[8];
-    g_ncap = 0;
-    inject(0x080, 1, &g_sync);
-    put_f32(&d[0], m->i_a_A);
-    put_f32(&d[4], m->i_b_A);
-    inject(COB_MEAS1, 8, d);
-    put_f32(&d[0], m->theta_m_rad);
-    d[4] = g_sync;
-    d[5] = 0;
-    d[6] = (uint8_t)k;
-    d[7] = (uint8_t)(k >> 8);
-    inject(COB_MEAS2, 8, d);
-    deliver();
-    return find(COB_CMD);
-}
-
-static uint32_t sdo_download(uint16_t idx, uint8_t sub, const uint8_t *v, uint8_t n)
-{
-    uint8_t d[8] = {(uint8_t)(0x23u | ((4u - n) << 2)), (uint8_t)idx, (uint8_t)(idx >> 8), sub, 0, 0, 0, 0};
-    memcpy(&d[4], v, n);
-    g_ncap = 0;
-    inject(COB_SDO_RX, 8, d);
-    deliver();
-    const co_frame_t *r = find(COB_SDO_TX);
-    if (!r) return 0xFFFFFFFFu;
-    if (r->data[0] == 0x60) return 0;
-    if (r->data[0] == 0x80)
-        return (uint32_t)r->data[4] | (uint32_t)r->data[5] << 8 | (uint32_t)r->data[6] << 16 |
-               (uint32_t)r->data[7] << 24;
-    return 0xFFFFFFFEu;
-}
-
-static uint32_t wr_f32(uint16_t idx, uint8_t sub, float v)
-{
-    uint8_t b[4];
-    put_f32(b, v);
-    return sdo_download(idx, sub, b, 4);
-}
-
-static uint32_t wr_u8(uint16_t idx, uint8_t sub, uint8_t v) { return sdo_download(idx, sub, &v, 1); }
-
-static float rd_f32(uint16_t idx, uint8_t sub)
-{
-    uint8_t d[8] = {0x40, (uint8_t)idx, (uint8_t)(idx >> 8), sub, 0, 0, 0, 0};
-    g_ncap = 0;
-    inject(COB_SDO_RX, 8, d);
-    deliver();
-    const co_frame_t *r = find(COB_SDO_TX);
-    EXPECT(r && (r->data[0] & 0xE3u) == 0x43u);
-    return r ? get_f32(&r->data[4]) : NAN;
 }
 
 /* ------------------------------------------------------------------ model */
 
 #define C_IDX OD_DRIVE_CONTROLLER_IDX
 #define Y_IDX OD_DRIVE_YAO_2020_DPCC_IDX
-static const float kTs = 100e-6f, kR = 2.2f, kL = 5.5e-3f, kPsi = 0.12f, kVmax = 173.2f;
-static const uint8_t kPp = 4u;
+/* The drive's model: the yao2020_low motor of plant_rt/core/presets.c (load_motor); Vmax a
+ * round number under Vdc/sqrt(3) = 173.205 V. */
+static float kTs, kR, kL, kPsi;
+static uint8_t kPp;
+static const float kVmax = 173.2f;
+
+static void load_motor(void)
+{
+    const motor_params_t mp = motor_params_preset("yao2020_low");
+    kTs = (float)mp.Ts_s;
+    kR = (float)mp.R_ohm;
+    kL = (float)mp.Lq_H;
+    kPsi = (float)mp.psi_Wb;
+    kPp = (uint8_t)mp.pole_pairs;
+}
 
 static void configure_by_sdo(void)
 {
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_TS_S_SUB, kTs) == 0);
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_POLE_PAIRS_SUB, kPp) == 0);
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_R_HAT_OHM_SUB, kR) == 0);
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LD_HAT_H_SUB, kL) == 0);
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, kL) == 0);
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_PSI_HAT_WB_SUB, kPsi) == 0);
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_VMAX_V_SUB, kVmax) == 0);
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_SPEED_LOOP_DIVIDER_SUB, 1u) == 0);
-    EXPECT(wr_f32(OD_DRIVE_REFERENCES_IDX, OD_DRIVE_REFERENCES_IQ_REF_A_SUB, 2.0f) == 0);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_TS_S_SUB, kTs) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_POLE_PAIRS_SUB, kPp) == 0);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_R_HAT_OHM_SUB, kR) == 0);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_LD_HAT_H_SUB, kL) == 0);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, kL) == 0);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_PSI_HAT_WB_SUB, kPsi) == 0);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_VMAX_V_SUB, kVmax) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_SPEED_LOOP_DIVIDER_SUB, 1u) == 0);
+    CHECK_TRUE(sdo_write_f32(OD_DRIVE_REFERENCES_IDX, OD_DRIVE_REFERENCES_IQ_REF_A_SUB, 2.0f) == 0);
 }
 
 static void configure_ref(drive_t *ref, uint8_t core_ctrl)
@@ -189,15 +98,15 @@ static drive_meas_t meas_of(uint16_t k)
 
 static void run_controller(uint8_t od_ctrl)
 {
-    setup();
+    setup_drive();
     configure_by_sdo();
     const uint8_t core_ctrl = od_ctrl; /* the core runs the OD's controller values */
-    if (od_ctrl == 3u) EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_ENABLE_SUB, 1u) == 0);
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, od_ctrl) == 0);
+    if (od_ctrl == 3u) CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_ENABLE_SUB, 1u) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, od_ctrl) == 0);
     if (od_ctrl != 3u)
-        EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
+        CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
     else /* not run yet: the observer has no steady state to latch */
-        EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == CO_ABORT_DATA_STATE);
+        CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == CO_ABORT_DATA_STATE);
 
     static drive_t ref;
     configure_ref(&ref, core_ctrl);
@@ -217,19 +126,19 @@ static void run_controller(uint8_t od_ctrl)
     yao2020_rls_init(&rcfg, &rls, kR, kL);
     zhao2022_incremental_config_t icfg = {kR, kL, kTs, kVmax};
     zhao2022_incremental_state_t ist;
-    EXPECT(zhao2022_incremental_init(&icfg, &ist) == 0);
+    CHECK_TRUE(zhao2022_incremental_init(&icfg, &ist) == 0);
     zhao2022_predictive_config_t ecfg = {kR, kL, kPsi, kTs, kVmax};
     zhao2022_predictive_state_t est;
-    EXPECT(zhao2022_predictive_init(&ecfg, &est) == 0);
+    CHECK_TRUE(zhao2022_predictive_init(&ecfg, &est) == 0);
 
     int n_same_drive = 0, n_same_core = 0, n = 0;
     const int N = 400, K_ID = 120;
     for (uint16_t k = 0; k < (uint16_t)N; ++k) {
         if (od_ctrl == 3u && k == K_ID) {
-            EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == 0);
-            EXPECT(drive_yao_ident_start(&ref));
-            EXPECT(yao2020_identification_start(&ycfg, &yst));
-            EXPECT(yao2020_identification_running(&g_app.drv.yao));
+            CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == 0);
+            CHECK_TRUE(drive_yao_ident_start(&ref));
+            CHECK_TRUE(yao2020_identification_start(&ycfg, &yst));
+            CHECK_TRUE(yao2020_identification_running(&g_app.drv.yao));
         }
         const drive_meas_t m = meas_of(k);
         const co_frame_t *f = sample(&m, k);
@@ -238,8 +147,7 @@ static void run_controller(uint8_t od_ctrl)
         drive_cmd_t c;
         drive_current_step(&ref, &m, &c);
         ++n;
-        if (f && same_bits(get_f32(&f->data[0]), c.v_alpha_V) && same_bits(get_f32(&f->data[4]), c.v_beta_V))
-            ++n_same_drive;
+        if (cmd_is(f, c.v_alpha_V, c.v_beta_V)) ++n_same_drive;
         /* (2) the controller's own core */
         const float th = dq_wrap_pi((float)kPp * m.theta_m_rad);
         const float cs = cosf(th), sn = sinf(th);
@@ -260,23 +168,23 @@ static void run_controller(uint8_t od_ctrl)
             const float thc = th + 1.5f * w * kTs;
             dq_inv_park(vd, vq, cosf(thc), sinf(thc), &va, &vb);
         }
-        if (f && same_bits(get_f32(&f->data[0]), va) && same_bits(get_f32(&f->data[4]), vb)) ++n_same_core;
+        if (cmd_is(f, va, vb)) ++n_same_core;
     }
-    EXPECT(n_same_drive == N);
-    EXPECT(n_same_core == N);
+    CHECK_TRUE(n_same_drive == N);
+    CHECK_TRUE(n_same_core == N);
     if (od_ctrl == 3u) {
-      EXPECT(g_app.drv.yao.id_state == yst.id_state &&
-             yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
-      EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
-      EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
-      EXPECT(same_bits(rd_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
-      EXPECT(wr_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
-      EXPECT(g_app.drv.yao.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
-      EXPECT(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
+      CHECK_TRUE(g_app.drv.yao.id_state == yst.id_state &&
+                 yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
+      CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
+      CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
+      CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
+      CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
+      CHECK_TRUE(g_app.drv.yao.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
+      CHECK_TRUE(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
     }
     if (od_ctrl == 4u) {
-        EXPECT(same_bits(rd_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K1_V_A_SUB), ist.K1_V_A));
-        EXPECT(same_bits(rd_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K2_V_A_SUB), ist.K2_V_A));
+        CHECK_TRUE(testbus_same_f32(sdo_read_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K1_V_A_SUB), ist.K1_V_A));
+        CHECK_TRUE(testbus_same_f32(sdo_read_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K2_V_A_SUB), ist.K2_V_A));
     }
     printf("controller %u: %d/%d commands = drive_current_step, %d/%d = the core called directly%s\n",
            (unsigned)od_ctrl, n_same_drive, N, n_same_core, N,
@@ -286,21 +194,21 @@ static void run_controller(uint8_t od_ctrl)
 /* Refusals and the switch back to You 2019. */
 static void test_selection_rules(void)
 {
-    setup();
+    setup_drive();
     /* default You 2019 model is nearly round (4.46 / 4.54 mH): accepted */
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 4u) == 0);
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 4u) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
     /* salient model: the single-inductance laws are refused */
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 2.27e-3f) == 0);
-    for (uint8_t c = 3u; c <= 5u; ++c) EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, c) == CO_ABORT_INVALID_VALUE);
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 6u) == CO_ABORT_VALUE_HIGH);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 2.27e-3f) == 0);
+    for (uint8_t c = 3u; c <= 5u; ++c) CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, c) == CO_ABORT_INVALID_VALUE);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 6u) == CO_ABORT_VALUE_HIGH);
     /* online tuning (You 2019) stays reserved to controller 2 */
-    EXPECT(wr_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 4.46e-3f) == 0);
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 5u) == 0);
-    EXPECT(wr_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
+    CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 4.46e-3f) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 5u) == 0);
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
 
     /* back to You 2019: commands bit-identical to a fresh You 2019 drive */
-    EXPECT(wr_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
+    CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
     static drive_t ref;
     drive_config_t cfg;
     drive_default_config(&cfg);
@@ -312,19 +220,19 @@ static void test_selection_rules(void)
         const co_frame_t *f = sample(&m, k);
         drive_cmd_t c;
         drive_current_step(&ref, &m, &c);
-        if (f && same_bits(get_f32(&f->data[0]), c.v_alpha_V) && same_bits(get_f32(&f->data[4]), c.v_beta_V)) ++same;
+        if (cmd_is(f, c.v_alpha_V, c.v_beta_V)) ++same;
     }
-    EXPECT(same == 50);
+    CHECK_TRUE(same == 50);
     printf("selection rules: salient model refused (0x06090030) for 3-5, 6 above range; back to You 2019: %d/50 "
            "bit-identical\n", same);
 }
 
 int main(void)
 {
+    load_motor();
     run_controller(3u);
     run_controller(4u);
     run_controller(5u);
     test_selection_rules();
-    printf("%s\n", g_fail ? "test_shim_controllers: FAIL" : "test_shim_controllers: OK");
-    return g_fail ? 1 : 0;
+    return check_finish("test_shim_controllers");
 }

@@ -2,10 +2,10 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "check.h"
 #include "drive_core.h"
-#include "plant_model.h"
+#include "drive_plant.h"
 
-static int g_fail = 0;
 static trace_recorder_t rec;
 
 static float rd(uint32_t row, uint32_t ch) {
@@ -57,8 +57,8 @@ int main(void) {
   for (int n = 0; n < 5; ++n) { sig[TRACE_SIG_IQ_REF] = n < 2 ? 1.0f : 0.0f; trace_sample(&rec, sig); }
   CHECK(rec.status == TRACE_ARMED, "early trigger accepted");
   /* driven by the drive: capture a current step */
-  static drive_t drv; drive_config_t cfg; plant_t pl;
-  plant_init_you2019(&pl); drive_default_config(&cfg); drive_init(&drv, &cfg);
+  static drive_t drv; drive_config_t cfg; drive_plant_t pl;
+  drive_plant_init(&pl, "you2019"); drive_default_config(&cfg); drive_init(&drv, &cfg);
   drive_attach_trace(&drv, &rec);
   memset(&c, 0, sizeof(c));
   c.signal_0 = TRACE_SIG_IQ_REF; c.signal_1 = TRACE_SIG_IQ; c.signal_2 = TRACE_SIG_VQ;
@@ -68,16 +68,15 @@ int main(void) {
   trace_arm(&rec, &c);
   for (int k = 0; k < 3000; ++k) {
     drive_meas_t m; drive_cmd_t cmd;
-    plant_measure(&pl, &m);
+    drive_plant_measure(&pl, &m);
     drv.sp.iq_ref_A = k >= 50 ? 1.0f : 0.0f;
     drive_current_step(&drv, &m, &cmd);
-    plant_advance(&pl, &cmd);
+    drive_plant_advance(&pl, &cmd);
   }
   printf("[trace drive] rows around trigger: iq_ref/iq/vq:");
   for (uint32_t r = 3; r < 8; ++r) printf(" (%g %.4f %.2f)", (double)rd(r, 0), (double)rd(r, 1), (double)rd(r, 2));
   printf("\n");
   CHECK(rec.status == TRACE_DONE, "drive capture");
   CHECK(rd(4, 0) == 1.0f && rd(6, 1) > 0.9999f && rd(5, 1) == 0.0f, "drive capture content");
-  printf("%s (%d failures)\n", g_fail ? "FAILED" : "PASSED", g_fail);
-  return g_fail ? 1 : 0;
+  return check_finish("test_trace_recorder");
 }

@@ -9,22 +9,22 @@
 #include <stdio.h>
 
 #include "yao2020_dpcc.h"
-#include "yao2020_plant.h"
+#include "yao2020_common.h"
 
-#include "test_check.h"
+#include "check.h"
 
 #define N 800
 #define K1 300 /* iq step */
 #define K2 500 /* id step */
 
 static void run(const char *name, int high, int observer, double iq_step, double id_step) {
-  yplant_t pl;
+  motor_t pl;
   if (high) yplant_high(&pl); else yplant_low(&pl);
   yao2020_dpcc_config_t cfg;
   yao2020_dpcc_default_config(&cfg);
-  cfg.R_hat_ohm = (float)pl.R;
-  cfg.L_hat_H = (float)pl.L;
-  cfg.psi_hat_Wb = observer ? 0.0f : (float)pl.psi; /* observer: psi unused */
+  cfg.R_hat_ohm = (float)pl.par.R_ohm;
+  cfg.L_hat_H = (float)pl.par.Lq_H;
+  cfg.psi_hat_Wb = observer ? 0.0f : (float)pl.par.psi_Wb; /* observer: psi unused */
   cfg.observer_enable = (uint8_t)observer;
   static yao2020_dpcc_state_t st;
   yao2020_dpcc_init(&cfg, &st);
@@ -33,8 +33,8 @@ static void run(const char *name, int high, int observer, double iq_step, double
   for (int k = 0; k < N; ++k) {
     const double iqr = k >= K1 ? iq_step : 0.0;
     const double idr = k >= K2 ? id_step : 0.0;
-    iq[k] = pl.iq;
-    id[k] = pl.id;
+    iq[k] = pl.iq_A;
+    id[k] = pl.id_A;
     yloop_step(&pl, &cfg, &st, idr, iqr, &cmd);
     eq[k] = hypot((double)st.i_err_d_A, (double)st.i_err_q_A);
   }
@@ -88,6 +88,5 @@ int main(void) {
   run("high", 1, 1, 10.0, -5.0);
   run("low", 0, 0, 4.0, -2.0);
   run("high", 1, 0, 10.0, -5.0);
-  printf("%s\n", g_fail ? "test_yao2020_deadbeat: FAIL" : "test_yao2020_deadbeat: OK");
-  return g_fail;
+  return check_finish("test_yao2020_deadbeat");
 }

@@ -12,22 +12,22 @@
 
 #include "yao2020_dpcc.h"
 #include "yao2020_identification.h"
-#include "yao2020_plant.h"
+#include "yao2020_common.h"
 
-#include "test_check.h"
+#include "check.h"
 
 static const double T = 100e-6;
 
 typedef struct { double tL, tR, eL, eR; int ok; } res_t;
 
 static res_t run(int high, double kL, double kR) {
-  yplant_t pl;
+  motor_t pl;
   if (high) yplant_high(&pl); else yplant_low(&pl);
   yao2020_dpcc_config_t cfg;
   yao2020_dpcc_default_config(&cfg);
-  cfg.R_hat_ohm = (float)(1.5 * pl.R);
-  cfg.L_hat_H = (float)(1.5 * pl.L);
-  cfg.psi_hat_Wb = (float)pl.psi;
+  cfg.R_hat_ohm = (float)(1.5 * pl.par.R_ohm);
+  cfg.L_hat_H = (float)(1.5 * pl.par.Lq_H);
+  cfg.psi_hat_Wb = (float)pl.par.psi_Wb;
   const double iq = high ? 10.0 : 4.0;
   if (high) {
     cfg.inj_id_A = -5.0f;
@@ -49,25 +49,26 @@ static res_t run(int high, double kL, double kR) {
   res_t r;
   r.tL = st.t_L_conv_periods * T;
   r.tR = st.t_R_conv_periods * T;
-  r.eL = (double)st.L_id_H / pl.L - 1.0;
-  r.eR = (double)st.R_id_ohm / pl.R - 1.0;
+  r.eL = (double)st.L_id_H / pl.par.Lq_H - 1.0;
+  r.eR = (double)st.R_id_ohm / pl.par.R_ohm - 1.0;
   r.ok = st.id_state == YAO2020_IDENTIFICATION_DONE && st.L_converged && st.R_converged;
   return r;
 }
 
 static void sweep(int high, const double *kLs, const double *kRs, int n, int do_R) {
-  yplant_t pl;
+  motor_t pl;
   if (high) yplant_high(&pl); else yplant_low(&pl);
   const double did = high ? -5.0 : -2.0;
   const double thL = high ? 0.01 : 0.1, thR = high ? 0.003 : 0.03;
-  const ycx gl = ydM_exact(pl.R, pl.L, pl.R, pl.L * (1 + 1e-6), pl.w, T, did);
-  const ycx gr = ydM_exact(pl.R, pl.L, pl.R * (1 + 1e-6), pl.L, pl.w, T, did);
-  const double kpl = gl.im / (pl.L * 1e-6), kpr = gr.re / (pl.R * 1e-6);
+  const double R = pl.par.R_ohm, L = pl.par.Lq_H, w = motor_omega_e(&pl);
+  const ycx gl = ydM_exact(R, L, R, L * (1 + 1e-6), w, T, did);
+  const ycx gr = ydM_exact(R, L, R * (1 + 1e-6), L, w, T, did);
+  const double kpl = gl.im / (L * 1e-6), kpr = gr.re / (R * 1e-6);
   double prevL = 1e9, prevR = 1e9;
   for (int i = 0; i < n; ++i) {
     const res_t r = run(high, kLs[i], kRs[i]);
-    const double tLp = log(0.5 * pl.L / (thL / kpl)) / (kLs[i] * kpl);
-    const double tRp = log(0.5 * pl.R / (thR / kpr)) / (kRs[i] * kpr);
+    const double tLp = log(0.5 * L / (thL / kpl)) / (kLs[i] * kpl);
+    const double tRp = log(0.5 * R / (thR / kpr)) / (kRs[i] * kpr);
     printf("  %-4s kL %-8.3g t_L = %7.1f ms (pred %7.1f, tau %6.1f ms), L err %+6.2f %% | "
            "kR %-6.3g t_R = %7.1f ms (pred %7.1f, tau %6.1f ms), R err %+6.2f %%\n",
            high ? "high" : "low", kLs[i], r.tL * 1e3, tLp * 1e3, 1e3 / (kLs[i] * kpl), 100 * r.eL,
@@ -92,6 +93,5 @@ int main(void) {
   const double kL_high[] = {1e-5, 2e-5, 4e-5, 1e-4};
   const double kR_high[] = {0.4, 0.4, 0.4, 0.4};
   sweep(1, kL_high, kR_high, 4, 0);
-  printf("%s\n", g_fail ? "test_yao2020_gain_sweep: FAIL" : "test_yao2020_gain_sweep: OK");
-  return g_fail;
+  return check_finish("test_yao2020_gain_sweep");
 }

@@ -10,29 +10,29 @@
 
 #include "yao2020_dpcc.h"
 #include "yao2020_identification.h"
-#include "yao2020_plant.h"
+#include "yao2020_common.h"
 
-#include "test_check.h"
+#include "check.h"
 
 #define IQ0 10.0
 static const double T = 100e-6;
 
-static void settle(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st, int n,
+static void settle(motor_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st, int n,
                    double idr, double iqr) {
   yao2020_dpcc_cmd_t cmd;
   for (int k = 0; k < n; ++k) yloop_step(pl, cfg, st, idr, iqr, &cmd);
 }
 
 static void run(double th_scale) {
-  const double R = 0.045, L = 24e-6;
-  yplant_t pl;
+  motor_t pl;
   yplant_high(&pl);
+  const double R = pl.par.R_ohm, L = pl.par.Lq_H;
   yao2020_dpcc_config_t cfg;
   yao2020_dpcc_default_config(&cfg);
   cfg.R_hat_ohm = (float)(1.5 * R);
   cfg.L_hat_H = (float)(1.5 * L);
-  cfg.psi_hat_Wb = (float)pl.psi;
-  cfg.Vmax_V = (float)(48.0 / sqrt(3.0));
+  cfg.psi_hat_Wb = (float)pl.par.psi_Wb;
+  cfg.Vmax_V = (float)(pl.par.Vdc_V / sqrt(3.0));
   cfg.inj_id_A = -5.0f;
   cfg.th_L_V = (float)(0.1 * th_scale);
   cfg.th_R_V = (float)(0.03 * th_scale);
@@ -40,7 +40,7 @@ static void run(double th_scale) {
   static yao2020_dpcc_state_t st;
   yao2020_dpcc_init(&cfg, &st);
   settle(&pl, &cfg, &st, 3000, 0.0, IQ0);
-  const double ss = hypot(pl.id, pl.iq - IQ0);
+  const double ss = hypot(pl.id_A, pl.iq_A - IQ0);
   yao2020_dpcc_cmd_t cmd;
   CHECK(yao2020_identification_start(&cfg, &st), "start");
   int k;
@@ -50,8 +50,8 @@ static void run(double th_scale) {
   const bool done = yao2020_identification_result(&st, &Rid, &Lid);
   const double eL = (double)Lid / L - 1.0, eR = (double)Rid / R - 1.0;
   /* exact loop gains at the fixed point (closed form of dM, derived) */
-  const ycx gl = ydM_exact(R, L, R, L * (1 + 1e-6), pl.w, T, -5.0);
-  const ycx gr = ydM_exact(R, L, R * (1 + 1e-6), L, pl.w, T, -5.0);
+  const ycx gl = ydM_exact(R, L, R, L * (1 + 1e-6), motor_omega_e(&pl), T, -5.0);
+  const ycx gr = ydM_exact(R, L, R * (1 + 1e-6), L, motor_omega_e(&pl), T, -5.0);
   const double kL = gl.im / (L * 1e-6), kR = gr.re / (R * 1e-6);
   const double dL_bound = (double)cfg.th_L_V / kL * 1.2, dR_bound = (double)cfg.th_R_V / kR * 1.2;
   printf("dead zones TH_L %.3g V, TH_R %.3g V (x%.2g of Table III); steady error before ID %.2e A\n"
@@ -78,10 +78,10 @@ static void run(double th_scale) {
   double e2 = 0, emax = 0, cross = 0;
   for (int j = 0; j < 300; ++j) {
     if (j >= 2) {
-      const double e = (pl.iq - 12.0) / 2.0;
+      const double e = (pl.iq_A - 12.0) / 2.0;
       if (j == 2) e2 = e;
       emax = fmax(emax, fabs(e));
-      cross = fmax(cross, fabs(pl.id) / 2.0);
+      cross = fmax(cross, fabs(pl.id_A) / 2.0);
     }
     yloop_step(&pl, &cfg, &st, 0.0, 12.0, &cmd);
   }
@@ -94,6 +94,5 @@ static void run(double th_scale) {
 int main(void) {
   run(1.0);
   run(0.1);
-  printf("%s\n", g_fail ? "test_yao2020_ident_high: FAIL" : "test_yao2020_ident_high: OK");
-  return g_fail;
+  return check_finish("test_yao2020_ident_high");
 }

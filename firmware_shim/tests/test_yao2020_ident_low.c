@@ -15,9 +15,9 @@
 
 #include "yao2020_dpcc.h"
 #include "yao2020_identification.h"
-#include "yao2020_plant.h"
+#include "yao2020_common.h"
 
-#include "test_check.h"
+#include "check.h"
 
 #define IQ0 4.0
 /* step sizes small enough that Vmax = 300/sqrt(3) V is never reached (the
@@ -26,7 +26,7 @@
 #define ID1 (-1.0)
 static const double T = 100e-6;
 
-static void settle(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
+static void settle(motor_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
                    int n, double idr, double iqr) {
   yao2020_dpcc_cmd_t cmd;
   for (int k = 0; k < n; ++k) yloop_step(pl, cfg, st, idr, iqr, &cmd);
@@ -35,15 +35,15 @@ static void settle(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_
 /* Step response: returns e(k0+2)/dr, and the max |e|/dr over k0+2..k0+n of
  * the stepped axis and of the other axis; settle periods to 2 %. */
 typedef struct { double e2, emax, cross, over; int settle2, nlim; } step_t;
-static step_t step_test(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
+static step_t step_test(motor_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
                         int axis_q, double from, double to, int n) {
   step_t r = {0, 0, 0, 0, 0, 0};
   yao2020_dpcc_cmd_t cmd;
   const double dr = to - from;
   int last_out = 1; /* settle2 = first k >= 2 after which |e| <= 2 % */
   for (int k = 0; k <= n; ++k) {
-    const double i_ax = axis_q ? pl->iq : pl->id;
-    const double i_ot = axis_q ? pl->id : pl->iq;
+    const double i_ax = axis_q ? pl->iq_A : pl->id_A;
+    const double i_ot = axis_q ? pl->id_A : pl->iq_A;
     const double ot_ref = axis_q ? 0.0 : IQ0;
     if (k >= 2) {
       const double e = (i_ax - to) / dr;
@@ -71,7 +71,7 @@ typedef struct {
   double max_id_dev_l, tauL, tauR;
 } ident_t;
 
-static ident_t identify(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
+static ident_t identify(motor_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st,
                         int max_steps) {
   ident_t r = {0};
   yao2020_dpcc_cmd_t cmd;
@@ -99,10 +99,11 @@ static ident_t identify(yplant_t *pl, const yao2020_dpcc_config_t *cfg, yao2020_
 }
 
 int main(void) {
-  yplant_t pl;
+  motor_t pl;
   yao2020_dpcc_config_t cfg;
   static yao2020_dpcc_state_t st;
-  const double R = 2.2, L = 5.5e-3;
+  const motor_params_t mp = motor_params_preset("yao2020_low");
+  const double R = mp.R_ohm, L = mp.Lq_H;
 
   /* ---- 1. steady-state error, observer off vs on */
   printf("1. steady-state error with R_hat = 1.5 R, L_hat = 1.5 L, iq* = %.0f A @ 133.3 Hz\n", IQ0);
@@ -112,14 +113,14 @@ int main(void) {
     yao2020_dpcc_default_config(&cfg);
     cfg.R_hat_ohm = (float)(1.5 * R);
     cfg.L_hat_H = (float)(1.5 * L);
-    cfg.psi_hat_Wb = (float)pl.psi;
-    cfg.Vmax_V = (float)(300.0 / sqrt(3.0));
+    cfg.psi_hat_Wb = (float)pl.par.psi_Wb;
+    cfg.Vmax_V = (float)(mp.Vdc_V / sqrt(3.0));
     cfg.observer_enable = (uint8_t)obs;
     yao2020_dpcc_init(&cfg, &st);
     settle(&pl, &cfg, &st, 3000, 0.0, IQ0);
-    ss[obs] = hypot(pl.id, pl.iq - IQ0);
+    ss[obs] = hypot(pl.id_A, pl.iq_A - IQ0);
     printf("   observer %s: |i - i*| = %.4e A (id = %+.4f, iq = %.4f)\n", obs ? "on " : "off",
-           ss[obs], pl.id, pl.iq);
+           ss[obs], pl.id_A, pl.iq_A);
   }
   CHECK(ss[0] > 0.05, "without observer a steady-state error is expected");
   CHECK(ss[1] < 1e-3, "observer must remove the steady-state error");
@@ -140,7 +141,7 @@ int main(void) {
   /* ---- 3. identification */
   ident_t id = identify(&pl, &cfg, &st, 200000);
   const double eL = (double)id.L / L - 1.0, eR = (double)id.R / R - 1.0;
-  const ycx dM_pred = ydM_exact(R, L, Rh, Lh, pl.w, T, (double)cfg.inj_id_A);
+  const ycx dM_pred = ydM_exact(R, L, Rh, Lh, motor_omega_e(&pl), T, (double)cfg.inj_id_A);
   printf("3. identification (inj %.1f A, kL %.3g, kR %.3g, TH_L %.2g V, TH_R %.2g V):\n"
          "   first dM (firmware) = (%+.4f, %+.4f) V, derived closed form (%+.4f, %+.4f) V\n"
          "   state %d, L_hat = %.4f mH (error %+.3f %%, converged %d after %.1f ms integrating,"
@@ -157,7 +158,7 @@ int main(void) {
         "identification must finish");
   /* dead zones: |dM_q| <= TH_L ~ w |did| |dL| , |dM_d| <= TH_R ~ |did| |dR|
    * (Yao 2020 Eq. 35/36), plus margin for the per-step increment */
-  const double dL_bound = (double)cfg.th_L_V / (pl.w * 2.0) * 1.2;
+  const double dL_bound = (double)cfg.th_L_V / (motor_omega_e(&pl) * 2.0) * 1.2;
   const double dR_bound = (double)cfg.th_R_V / 2.0 * 1.2 + 2e-3;
   printf("   dead-zone bounds (Yao 2020 Eq. 35/36): |dL| <= %.4f mH (%.2f %%), |dR| <= %.4f ohm (%.2f %%)\n",
          dL_bound * 1e3, 100 * dL_bound / L, dR_bound, 100 * dR_bound / R);
@@ -197,6 +198,5 @@ int main(void) {
            v.state, 100 * ((double)v.L / L - 1), v.Lconv, 100 * ((double)v.R / R - 1), v.Rconv,
            v.t_done_s);
   }
-  printf("%s\n", g_fail ? "test_yao2020_ident_low: FAIL" : "test_yao2020_ident_low: OK");
-  return g_fail;
+  return check_finish("test_yao2020_ident_low");
 }

@@ -7,12 +7,12 @@
 
 #include "yao2020_dpcc.h"
 #include "yao2020_identification.h"
-#include "yao2020_plant.h"
+#include "yao2020_common.h"
 
-#include "test_check.h"
+#include "check.h"
 
 /* (a) one period of Yao 2020 Eq. 7 vs RK4 */
-static void check_model(const char *name, yplant_t *pl, double w, double iscale,
+static void check_model(const char *name, motor_t *pl, double w, double iscale,
                         double vscale) {
   double maxerr = 0.0;
   unsigned seed = 12345u;
@@ -22,26 +22,26 @@ static void check_model(const char *name, yplant_t *pl, double w, double iscale,
       seed = seed * 1103515245u + 12345u;
       r[j] = ((double)((seed >> 8) & 0xffff) / 65535.0) * 2.0 - 1.0;
     }
-    pl->w = w;
-    pl->id = iscale * r[0];
-    pl->iq = iscale * r[1];
-    pl->th = 3.0 * r[4];
+    pl->omega_m_rad_s = w;
+    pl->id_A = iscale * r[0];
+    pl->iq_A = iscale * r[1];
+    pl->theta_m_rad = 3.0 * r[4];
     const double val = vscale * r[2], vbe = vscale * r[3];
-    const double c = cos(pl->th), s = sin(pl->th);
+    const double c = cos(pl->theta_m_rad), s = sin(pl->theta_m_rad);
     const double vd = val * c + vbe * s, vq = -val * s + vbe * c;
-    const double id0 = pl->id, iq0 = pl->iq;
-    pl->val_pend = val;
-    pl->vbe_pend = vbe;
+    const double id0 = pl->id_A, iq0 = pl->iq_A;
+    pl->v_alpha_pend_V = val;
+    pl->v_beta_pend_V = vbe;
     yplant_advance(pl, 0.0, 0.0);
     /* Yao 2020 Eq. 7: i(k+1) = Tr (x i + y v + G2 e), e = [0 w psi] */
     yao2020_dpcc_model_t m;
-    yao2020_dpcc_model((float)pl->R, (float)pl->L, (float)w, (float)pl->Ts, &m);
-    const double e = w * pl->psi;
+    yao2020_dpcc_model((float)pl->par.R_ohm, (float)pl->par.Lq_H, (float)w, (float)pl->par.Ts_s, &m);
+    const double e = w * pl->par.psi_Wb;
     const double ad = (double)m.x * id0 + (double)m.y * vd - (double)m.d2 * e;
     const double aq = (double)m.x * iq0 + (double)m.y * vq + (double)m.d1 * e;
     const double pd = (double)m.c * ad + (double)m.s * aq;
     const double pq = -(double)m.s * ad + (double)m.c * aq;
-    const double err = hypot(pd - pl->id, pq - pl->iq);
+    const double err = hypot(pd - pl->id_A, pq - pl->iq_A);
     if (err > maxerr) maxerr = err;
   }
   printf("  Yao 2020 Eq. 4-7 vs RK4, %-5s w = %8.1f rad/s: max |i_model - i_rk4| = %.3e A"
@@ -109,32 +109,35 @@ static void check_dM(const char *name, double R, double L, double Rh, double Lh,
 }
 
 int main(void) {
-  yplant_t pl;
+  motor_t pl;
   printf("(a) fully discretised model, one period\n");
   yplant_low(&pl);
-  const double wl = pl.w;
+  const double wl = motor_omega_e(&pl);
   check_model("low", &pl, 0.0, 5.0, 150.0);
   check_model("low", &pl, wl, 5.0, 150.0);
   check_model("low", &pl, -wl, 5.0, 150.0);
   yplant_high(&pl);
-  const double wh = pl.w;
+  const double wh = motor_omega_e(&pl);
   check_model("high", &pl, 0.0, 20.0, 24.0);
   check_model("high", &pl, wh, 20.0, 24.0);
   check_model("high", &pl, -wh, 20.0, 24.0);
 
   printf("(b-d) dM = M(t1) - M(t0) for a d-axis injection (Fig. 7/8 cases)\n");
   const double T = 100e-6;
-  check_dM("low", 2.2, 5.5e-3, 2.2, 1.5 * 5.5e-3, wl, T, -2.0, 1);
-  check_dM("low", 2.2, 5.5e-3, 1.5 * 2.2, 5.5e-3, wl, T, -2.0, 1);
-  check_dM("low", 2.2, 5.5e-3, 1.5 * 2.2, 1.5 * 5.5e-3, wl, T, -2.0, 1);
-  check_dM("high", 0.045, 24e-6, 0.045, 1.5 * 24e-6, wh, T, -5.0, 0);
-  check_dM("high", 0.045, 24e-6, 1.5 * 0.045, 24e-6, wh, T, -5.0, 0);
+  const motor_params_t lo = motor_params_preset("yao2020_low");
+  const motor_params_t hi = motor_params_preset("yao2020_high");
+  const double R_lo = lo.R_ohm, L_lo = lo.Lq_H, R_hi = hi.R_ohm, L_hi = hi.Lq_H;
+  check_dM("low", R_lo, L_lo, R_lo, 1.5 * L_lo, wl, T, -2.0, 1);
+  check_dM("low", R_lo, L_lo, 1.5 * R_lo, L_lo, wl, T, -2.0, 1);
+  check_dM("low", R_lo, L_lo, 1.5 * R_lo, 1.5 * L_lo, wl, T, -2.0, 1);
+  check_dM("high", R_hi, L_hi, R_hi, 1.5 * L_hi, wh, T, -5.0, 0);
+  check_dM("high", R_hi, L_hi, 1.5 * R_hi, L_hi, wh, T, -5.0, 0);
   /* Fig. 7/8 qualitative statement: L error -> M_q responds, R error -> M_d */
   {
-    const ycx a = ydM_exact(2.2, 5.5e-3, 2.2, 8.25e-3, wl, T, -2.0);
-    const ycx b = ydM_exact(2.2, 5.5e-3, 3.3, 5.5e-3, wl, T, -2.0);
-    const ycx c = ydM_exact(0.045, 24e-6, 0.045, 36e-6, wh, T, -5.0);
-    const ycx d = ydM_exact(0.045, 24e-6, 0.0675, 24e-6, wh, T, -5.0);
+    const ycx a = ydM_exact(R_lo, L_lo, R_lo, 1.5 * L_lo, wl, T, -2.0);
+    const ycx b = ydM_exact(R_lo, L_lo, 1.5 * R_lo, L_lo, wl, T, -2.0);
+    const ycx c = ydM_exact(R_hi, L_hi, R_hi, 1.5 * L_hi, wh, T, -5.0);
+    const ycx d = ydM_exact(R_hi, L_hi, 1.5 * R_hi, L_hi, wh, T, -5.0);
     printf("  |dM_q/dM_d|: low 1.5L %.1f, high 1.5L %.1f;  |dM_d/dM_q|: low 1.5R %.1f,"
            " high 1.5R %.2f\n", fabs(a.im / a.re), fabs(c.im / c.re),
            fabs(b.re / b.im), fabs(d.re / d.im));
@@ -143,14 +146,14 @@ int main(void) {
     CHECK(c.im > 0 && fabs(c.im) > 3 * fabs(c.re), "Fig. 8(a,b)");
     CHECK(d.re > 0, "Fig. 8(c,d): M_d must rise");
     /* fixed point: dM = 0 iff Zd_hat = Zd iff (x_hat, y_hat) = (x, y) */
-    const ycx z = ydM_exact(2.2, 5.5e-3, 2.2, 5.5e-3, wl, T, -2.0);
+    const ycx z = ydM_exact(R_lo, L_lo, R_lo, L_lo, wl, T, -2.0);
     CHECK(fabs(z.re) + fabs(z.im) < 1e-9, "dM at matched parameters");
     /* local loop gains at the fixed point (used by Yao 2020 Eq. 44) */
     const double hL = 1e-8, hR = 1e-5;
-    const ycx gl = ydM_exact(2.2, 5.5e-3, 2.2, 5.5e-3 + hL, wl, T, -2.0);
-    const ycx gr = ydM_exact(2.2, 5.5e-3, 2.2 + hR, 5.5e-3, wl, T, -2.0);
-    const ycx ghl = ydM_exact(0.045, 24e-6, 0.045, 24e-6 + 1e-11, wh, T, -5.0);
-    const ycx ghr = ydM_exact(0.045, 24e-6, 0.045 + 1e-7, 24e-6, wh, T, -5.0);
+    const ycx gl = ydM_exact(R_lo, L_lo, R_lo, L_lo + hL, wl, T, -2.0);
+    const ycx gr = ydM_exact(R_lo, L_lo, R_lo + hR, L_lo, wl, T, -2.0);
+    const ycx ghl = ydM_exact(R_hi, L_hi, R_hi, L_hi + 1e-11, wh, T, -5.0);
+    const ycx ghr = ydM_exact(R_hi, L_hi, R_hi + 1e-7, L_hi, wh, T, -5.0);
     printf("  exact loop gains k = d(dM_q)/dL_hat, d(dM_d)/dR_hat at the fixed point:\n"
            "    low : %.1f V/H (w|did| = %.1f), %.4f V/ohm (|did| = 2)\n"
            "    high: %.1f V/H (w|did| = %.1f), %.4f V/ohm (|did| = 5)\n",
@@ -159,18 +162,17 @@ int main(void) {
 
   printf("(e) Yao 2020 Eq. 30-31 classification\n");
   const yao2020_identification_motor_class_t cl =
-      yao2020_identification_classify(2.2f, 5.5e-3f, (float)wl, 1e-4f);
+      yao2020_identification_classify((float)R_lo, (float)L_lo, (float)wl, 1e-4f);
   const yao2020_identification_motor_class_t ch =
-      yao2020_identification_classify(0.045f, 24e-6f, (float)wh, 1e-4f);
+      yao2020_identification_classify((float)R_hi, (float)L_hi, (float)wh, 1e-4f);
   const yao2020_identification_motor_class_t ch15 =
-      yao2020_identification_classify(0.0675f, 36e-6f, (float)wh, 1e-4f);
+      yao2020_identification_classify((float)(1.5 * R_hi), (float)(1.5 * L_hi), (float)wh, 1e-4f);
   printf("  Table I @133.3 Hz: class %d (cos wT = %.4f, |e^-a - (1-a)| = %.2e)\n", (int)cl,
          cos(wl * T), fabs(exp(-0.04) - 0.96));
   printf("  Table II @1.33 kHz: class %d (cos wT = %.4f, R = %.4f vs 0.2 w L = %.4f);"
-         " with 1.5R,1.5L: class %d\n", (int)ch, cos(wh * T), 0.045, 0.2 * wh * 24e-6,
+         " with 1.5R,1.5L: class %d\n", (int)ch, cos(wh * T), R_hi, 0.2 * wh * L_hi,
          (int)ch15);
   CHECK(cl == YAO2020_IDENTIFICATION_MOTOR_LOW_FREQ, "Table I must be low-frequency");
   CHECK(ch == YAO2020_IDENTIFICATION_MOTOR_NEITHER, "Table II misses R < 0.2 w L (0.045 > 0.0401)");
-  printf("%s\n", g_fail ? "test_yao2020_model: FAIL" : "test_yao2020_model: OK");
-  return g_fail;
+  return check_finish("test_yao2020_model");
 }

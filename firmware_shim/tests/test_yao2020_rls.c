@@ -13,9 +13,9 @@
 #include "yao2020_dpcc.h"
 #include "yao2020_identification.h"
 #include "yao2020_rls.h"
-#include "yao2020_plant.h"
+#include "yao2020_common.h"
 
-#include "test_check.h"
+#include "check.h"
 
 static const double T = 100e-6;
 
@@ -30,8 +30,9 @@ static void resid(double xh, double yh, double w, double psih, ycx i, ycx v, dou
 }
 
 static void predict(double w, double psih, ycx i, ycx v, double *R, double *L) {
+  const motor_params_t mp = motor_params_preset("yao2020_low");
   double x, y;
-  yxy(2.2, 5.5e-3, T, &x, &y);
+  yxy(mp.R_ohm, mp.Lq_H, T, &x, &y);
   for (int it = 0; it < 50; ++it) {
     double r[2], rx[2], ry[2];
     const double hx = 1e-9, hy = 1e-9 * y;
@@ -49,11 +50,12 @@ static void predict(double w, double psih, ycx i, ycx v, double *R, double *L) {
 }
 
 int main(void) {
-  const double R = 2.2, L = 5.5e-3, iq = 4.0;
+  const motor_params_t mp = motor_params_preset("yao2020_low");
+  const double R = mp.R_ohm, L = mp.Lq_H, iq = 4.0;
   const double ratios[3] = {0.8, 1.0, 1.2};
   printf("RLS (Yao 2020 Eq. 46-48), lambda 0.995, start R_hat = 1.5 R, L_hat = 1.5 L, 1 s of data\n");
   for (int j = 0; j < 3; ++j) {
-    yplant_t pl;
+    motor_t pl;
     yplant_low(&pl);
     yao2020_dpcc_config_t cfg;
     yao2020_dpcc_default_config(&cfg);
@@ -63,24 +65,24 @@ int main(void) {
     yao2020_dpcc_init(&cfg, &st);
     yao2020_rls_config_t rc;
     yao2020_rls_default_config(&rc);
-    rc.psi_hat_Wb = (float)(ratios[j] * pl.psi);
+    rc.psi_hat_Wb = (float)(ratios[j] * pl.par.psi_Wb);
     yao2020_rls_state_t rs;
     yao2020_rls_init(&rc, &rs, (float)(1.5 * R), (float)(1.5 * L));
     yao2020_dpcc_cmd_t cmd;
     /* i(k) measured before the controller step; v(k) = v_app (over [k, k+1]) */
     double vd_avg = 0, vq_avg = 0;
     for (int k = 0; k < 10000; ++k) {
-      const float id_m = (float)pl.id, iq_m = (float)pl.iq;
+      const float id_m = (float)pl.id_A, iq_m = (float)pl.iq_A;
       yloop_step(&pl, &cfg, &st, 0.0, iq, &cmd);
       if (k >= 10)
-        yao2020_rls_update(&rc, &rs, id_m, iq_m, st.v_app_d_V, st.v_app_q_V, (float)pl.w);
+        yao2020_rls_update(&rc, &rs, id_m, iq_m, st.v_app_d_V, st.v_app_q_V, (float)motor_omega_e(&pl));
       if (k >= 9000) {
         vd_avg += (double)st.v_app_d_V / 1000.0;
         vq_avg += (double)st.v_app_q_V / 1000.0;
       }
     }
     double Rp, Lp;
-    predict(pl.w, ratios[j] * pl.psi, ycx_mk(0.0, iq), ycx_mk(vd_avg, vq_avg), &Rp, &Lp);
+    predict(motor_omega_e(&pl), ratios[j] * pl.par.psi_Wb, ycx_mk(0.0, iq), ycx_mk(vd_avg, vq_avg), &Rp, &Lp);
     const double eR = (double)rs.R_hat_ohm / R - 1, eL = (double)rs.L_hat_H / L - 1;
     printf("  psi_hat = %.1f psi: x_hat = %.6f, y_hat = %.6f A/V -> R_hat = %.4f ohm (%+7.2f %%),"
            " L_hat = %.4f mH (%+7.2f %%); derived fixed point R %.4f ohm, L %.4f mH\n", ratios[j],
@@ -102,15 +104,15 @@ int main(void) {
   double Lref = 0, Rref = 0;
   for (int j = 0; j < 5; ++j) {
     /* j 0..2: controller psi_hat 0.8/1.0/1.2 psi; j 3..4: plant psi 0.8/1.2 */
-    yplant_t pl;
+    motor_t pl;
     yplant_low(&pl);
-    const double psi_true = pl.psi;
+    const double psi_true = pl.par.psi_Wb;
     yao2020_dpcc_config_t cfg;
     yao2020_dpcc_default_config(&cfg);
     cfg.R_hat_ohm = (float)(1.5 * R);
     cfg.L_hat_H = (float)(1.5 * L);
     cfg.psi_hat_Wb = (float)((j < 3 ? ratios[j] : 1.0) * psi_true);
-    if (j >= 3) pl.psi = ratios[j == 3 ? 0 : 2] * psi_true;
+    if (j >= 3) pl.par.psi_Wb = ratios[j == 3 ? 0 : 2] * psi_true;
     static yao2020_dpcc_state_t st;
     yao2020_dpcc_init(&cfg, &st);
     yao2020_dpcc_cmd_t cmd;
@@ -133,6 +135,5 @@ int main(void) {
     if (j == 2) CHECK(fabs((double)Li - Lref) < 1e-4 * L && fabs((double)Ri - Rref) < 1e-4 * R,
                       "psi_hat must not change the result");
   }
-  printf("%s\n", g_fail ? "test_yao2020_rls: FAIL" : "test_yao2020_rls: OK");
-  return g_fail;
+  return check_finish("test_yao2020_rls");
 }

@@ -5,10 +5,10 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "check.h"
 #include "drive_core.h"
-#include "plant_model.h"
+#include "drive_plant.h"
 
-static int g_fail = 0;
 #define NSTEP 2000
 #define K0 10
 
@@ -20,20 +20,20 @@ typedef struct {
 
 static void run_step(const drive_config_t *cfg, double iq_ref, run_t *r) {
   static drive_t drv;
-  plant_t pl;
-  plant_init_you2019(&pl);
+  drive_plant_t pl;
+  drive_plant_init(&pl, "you2019");
   drive_init(&drv, cfg);
   r->nlim = 0;
   for (int k = 0; k < NSTEP; ++k) {
     drive_meas_t m;
     drive_cmd_t c;
-    plant_measure(&pl, &m);
+    drive_plant_measure(&pl, &m);
     drv.sp.iq_ref_A = k >= K0 ? (float)iq_ref : 0.0f;
     drive_current_step(&drv, &m, &c);
     r->iq[k] = (double)drv.st.i_q_A;
     r->vq[k] = (double)drv.st.v_q_V;
     r->nlim += drv.st.v_limited;
-    plant_advance(&pl, &c);
+    drive_plant_advance(&pl, &c);
   }
 }
 
@@ -48,7 +48,7 @@ static void run_step(const drive_config_t *cfg, double iq_ref, run_t *r) {
  *          + beta (r(k-2) - Ah r(k-3)) */
 static void analytic(double R, double L, double Rh, double Lh, double complex poles[3],
                      double *y, int n, double ref) {
-  const double Ts = 55e-6;
+  const double Ts = motor_params_preset("you2019").Ts_s;
   const double A = exp(-Ts * R / L), B = (1 - A) / R;
   const double Ah = exp(-Ts * Rh / Lh), Bh = (1 - Ah) / Rh;
   const double beta = B / Bh;
@@ -83,7 +83,8 @@ static int settle_periods(const double *y, double ref, double tol) {
 int main(void) {
   static run_t r;
   drive_config_t cfg;
-  const double Ts = 55e-6, R = 1.4, Lq = 4.54e-3;
+  const motor_params_t mp = motor_params_preset("you2019");
+  const double Ts = mp.Ts_s, R = mp.R_ohm, Lq = mp.Lq_H;
   const double A = exp(-Ts * R / Lq), B = (1 - A) / R, K1 = 1 / B, K2 = A / B;
   printf("You 2019 motor: A=%.7f B=%.7f A/Vs  K1=%.4f V/A K2=%.4f V/A\n", A, B, K1, K2);
 
@@ -202,6 +203,5 @@ int main(void) {
     CHECK(maxdev < 1e-4, "deviation from analytic");
   }
 
-  printf("%s (%d failures)\n", g_fail ? "FAILED" : "PASSED", g_fail);
-  return g_fail ? 1 : 0;
+  return check_finish("test_you2019_deadbeat_step");
 }

@@ -3,19 +3,19 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "check.h"
 #include "drive_core.h"
-#include "plant_model.h"
+#include "drive_plant.h"
 
-static int g_fail = 0;
 
 static void run_case(double lf, int d_axis) {
   static drive_t drv;
   drive_config_t cfg;
-  plant_t pl;
-  const double Ts = 55e-6, R = 1.4;
-  const double L = d_axis ? 4.46e-3 : 4.54e-3;
+  drive_plant_t pl;
+  drive_plant_init(&pl, "you2019");
+  const double Ts = pl.zoh.par.Ts_s, R = pl.zoh.par.R_ohm;
+  const double L = d_axis ? pl.zoh.par.Ld_H : pl.zoh.par.Lq_H;
   const double A = exp(-Ts * R / L), B = (1 - A) / R, K1 = 1 / B, K2 = A / B;
-  plant_init_you2019(&pl);
   drive_default_config(&cfg);
   cfg.Lq_hat_H = (float)(lf * 4.54e-3);
   cfg.Ld_hat_H = (float)(lf * 4.46e-3);
@@ -31,7 +31,7 @@ static void run_case(double lf, int d_axis) {
   for (int k = 0; k < 600; ++k) {
     drive_meas_t m;
     drive_cmd_t c;
-    plant_measure(&pl, &m);
+    drive_plant_measure(&pl, &m);
     const float ref = k >= k1 ? 2.0f : (k >= k0 ? 1.0f : 0.0f);
     if (d_axis) drv.sp.id_ref_A = ref; else drv.sp.iq_ref_A = ref;
     const uint32_t nupd = drv.st.n_gain_updates;
@@ -49,7 +49,7 @@ static void run_case(double lf, int d_axis) {
     if (upd_step < 0 && drv.st.n_gain_updates != nupd) upd_step = k;
     if (upd_step >= 0 && est_pi_step < 0 && (d_axis ? drv.est.kp_d : drv.est.kp_q) != kp_before)
       est_pi_step = k;
-    plant_advance(&pl, &c);
+    drive_plant_advance(&pl, &c);
   }
   const float K1a = d_axis ? drv.db.K1d_V_A : drv.db.K1q_V_A;
   const float K2a = d_axis ? drv.db.K2d_V_A : drv.db.K2q_V_A;
@@ -93,6 +93,5 @@ int main(void) {
   run_case(1.2, 0);
   run_case(0.5, 1);
   run_case(1.2, 1);
-  printf("%s (%d failures)\n", g_fail ? "FAILED" : "PASSED", g_fail);
-  return g_fail ? 1 : 0;
+  return check_finish("test_you2019_identification");
 }

@@ -1,18 +1,18 @@
 /* test_zhao2022_common.h - shared by the test_zhao2022_*.c mains (not a test
  * executable itself: the Makefile only builds test_*.c).  Double precision.
  *
- *  1. Zhao 2022 Table 1 motor, as read in plant_rt/core/presets.c
- *     (fill_zhao2022): R 48.9 ohm, Ld = Lq = 14 mH, 5 pole pairs,
+ *  1. Zhao 2022 Table 1 motor: the "zhao2022" preset of
+ *     plant_rt/core/presets.c (R 48.9 ohm, Ld = Lq = 14 mH, 5 pole pairs,
  *     psi = 1.4213 / (1.5 * 5) Wb, Ts = 100 us (10 kHz current control),
- *     Udc = 28 V, rated speed 367.72 deg/s.
- *  2. Exact discrete SPMSM in the rotor frame: w constant over the period,
- *     voltage held (in the rotor frame) over the period, complex notation
- *     i = id + j iq:
+ *     Udc = 28 V, rated speed 367.72 deg/s), read once by zh_motor().
+ *  2. The plant: the exact discrete model of tests/c/motor_model.h
+ *     (motor_zoh_t): w constant over the period, voltage held (in the rotor
+ *     frame) over the period, complex notation i = id + j iq:
  *        di/dt = -(R/L + j w) i + (u - j w psi)/L
  *        i(k+1) = Phi i(k) + Gam (u(k) - j w psi),
  *        Phi = exp(-(R/L + j w) Ts), Gam = (1 - Phi)/(R + j w L)
  *     One-period command delay: the command computed from sample k acts
- *     over [k+1, k+2] (zh_plant_advance stores it and applies it at the
+ *     over [k+1, k+2] (motor_zoh_advance stores it and applies it at the
  *     next call), as in Zhao 2022 Fig. 2 and drive_core.h.
  *  3. Closed-loop characteristic polynomials and a root finder
  *     (Durand-Kerner) -> spectral radius -> stability boundary in L/L0.
@@ -46,66 +46,44 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "check.h"
+#include "motor_model.h"
 #include "zhao2022_incremental.h"
 #include "zhao2022_predictive.h"
 
-#define ZH_PI 3.14159265358979323846
-#define ZH_IM CMPLX(0.0, 1.0) /* double imaginary unit (I is complex float) */
-/* Zhao 2022 Table 1 / Table 2 as read by plant_rt/core/presets.c */
-#define ZH_R 48.9
-#define ZH_L 14e-3
-#define ZH_TS 100e-6
-#define ZH_P 5.0
-#define ZH_PSI (1.4213 / 7.5)
-#define ZH_J 9.717e-5
-#define ZH_KT 1.4213
-#define ZH_UDC 28.0
-#define ZH_VMAX (ZH_UDC / 1.7320508075688772) /* linear SVPWM circle */
-#define ZH_WM_RATED (367.72 * ZH_PI / 180.0)   /* mechanical rad/s */
-#define ZH_WE_RATED (ZH_P * ZH_WM_RATED)        /* 32.09 rad/s electrical */
+#define ZH_PI MOTOR_PI
+#define ZH_IM MOTOR_IM
 
-static int g_zh_fail = 0;
-#define ZH_CHECK(cond, ...)                               \
-  do {                                                    \
-    if (!(cond)) {                                        \
-      g_zh_fail = 1;                                      \
-      printf("FAIL %s:%d: ", __FILE__, __LINE__);         \
-      printf(__VA_ARGS__);                                \
-      printf("\n");                                       \
-    }                                                     \
-  } while (0)
-
-/* ---------------------------------------------------------------- plant */
-typedef struct {
-  double R, L, psi, Ts, w;   /* w: electrical rad/s, constant */
-  double complex i;          /* id + j iq */
-  double complex u_pend;     /* command waiting for its interval */
-  double complex Phi, Gam;
-} zh_plant_t;
-
-static inline void zh_plant_coeffs(double R, double L, double Ts, double w,
-                                   double complex *Phi, double complex *Gam) {
-  const double complex a = R / L + ZH_IM * w;
-  *Phi = cexp(-a * Ts);
-  if (cabs(a * Ts) > 1e-8) {
-    *Gam = (1.0 - *Phi) / (L * a);
-  } else {
-    *Gam = Ts / L;
+/* ---------------------------------------------------------------- motor */
+static inline const motor_params_t *zh_motor(void) {
+  static motor_params_t par;
+  static int loaded = 0;
+  if (!loaded) {
+    par = motor_params_preset("zhao2022");
+    loaded = 1;
   }
+  return &par;
 }
+#define ZH_R (zh_motor()->R_ohm)
+#define ZH_L (zh_motor()->Lq_H) /* = Ld */
+#define ZH_TS (zh_motor()->Ts_s)
+#define ZH_P (zh_motor()->pole_pairs)
+#define ZH_PSI (zh_motor()->psi_Wb)
+#define ZH_UDC (zh_motor()->Vdc_V)
+#define ZH_VMAX (ZH_UDC / 1.7320508075688772)      /* linear SVPWM circle */
+#define ZH_WM_RATED (zh_motor()->omega_m_rated_rad_s) /* mechanical rad/s */
+#define ZH_WE_RATED (ZH_P * ZH_WM_RATED)             /* 32.09 rad/s electrical */
 
-static inline void zh_plant_init(zh_plant_t *pl, double R, double L, double psi,
+/* The plant: the Table 1 motor with the test's R, L (= Ld = Lq) and psi (the
+ * mismatch and flux sweeps), at the constant electrical speed w. */
+static inline void zh_plant_init(motor_zoh_t *pl, double R, double L, double psi,
                                  double w) {
-  pl->R = R; pl->L = L; pl->psi = psi; pl->Ts = ZH_TS; pl->w = w;
-  pl->i = 0.0; pl->u_pend = 0.0;
-  zh_plant_coeffs(R, L, pl->Ts, w, &pl->Phi, &pl->Gam);
-}
-
-/* Applies the pending command over [k, k+1] and queues v_new for
- * [k+1, k+2]. */
-static inline void zh_plant_advance(zh_plant_t *pl, double vd, double vq) {
-  pl->i = pl->Phi * pl->i + pl->Gam * (pl->u_pend - ZH_IM * pl->w * pl->psi);
-  pl->u_pend = vd + ZH_IM * vq;
+  motor_params_t par = *zh_motor();
+  par.R_ohm = R;
+  par.Ld_H = L;
+  par.Lq_H = L;
+  par.psi_Wb = psi;
+  motor_zoh_init(pl, &par, w);
 }
 
 /* --------------------------------------------------------- controllers */
@@ -195,7 +173,7 @@ typedef struct {
 /* Exact ZOH plant + one-period delay + Zhao 2022 Eq. 22/23: Q(z), deg 4. */
 static inline int zh_poly_incremental(const zh_loop_t *lp, double complex *c) {
   double complex Phi, Gam;
-  zh_plant_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
+  motor_zoh_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
   const double complex K1c = lp->R0 + lp->L0 / ZH_TS + ZH_IM * lp->w * lp->L0;
   const double K2 = 2.0 * lp->L0 / ZH_TS;
   /* (z - Phi)(z - 1) = z^2 - (Phi + 1) z + Phi; times (z^2 + 2 z + 1) */
@@ -211,14 +189,14 @@ static inline int zh_poly_incremental(const zh_loop_t *lp, double complex *c) {
 /* Numerator of T(z) = N z^2 / Q(z) for the incremental law. */
 static inline double complex zh_num_incremental(const zh_loop_t *lp) {
   double complex Phi, Gam;
-  zh_plant_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
+  motor_zoh_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
   return Gam * (lp->R0 + lp->L0 / ZH_TS + ZH_IM * lp->w * lp->L0);
 }
 
 /* Exact ZOH plant + delay + conventional Zhao 2022 Eq. 5/6, deg 2. */
 static inline int zh_poly_euler(const zh_loop_t *lp, double complex *c) {
   double complex Phi, Gam;
-  zh_plant_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
+  motor_zoh_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
   c[0] = 1.0;
   c[1] = -Phi;
   c[2] = -Gam * (lp->R0 - lp->L0 / ZH_TS + ZH_IM * lp->w * lp->L0);
@@ -226,7 +204,7 @@ static inline int zh_poly_euler(const zh_loop_t *lp, double complex *c) {
 }
 static inline double complex zh_num_euler(const zh_loop_t *lp) {
   double complex Phi, Gam;
-  zh_plant_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
+  motor_zoh_coeffs(lp->R, lp->L, ZH_TS, lp->w, &Phi, &Gam);
   return Gam * lp->L0 / ZH_TS;
 }
 

@@ -50,20 +50,20 @@ static void fit(const double *y, double th, double *gain, double *phase_deg) {
 
 static void run(zh_law_t law, double L0, double w, double *gain, double *ph) {
   static double y[N];
-  zh_plant_t pl;
+  motor_zoh_t pl;
   zh_ctrl_t c;
   const double th = 2.0 * ZH_PI * F_HZ * ZH_TS;
   zh_plant_init(&pl, ZH_R, ZH_L, ZH_PSI, w);
-  ZH_CHECK(zh_ctrl_init(&c, law, ZH_R, L0, ZH_PSI, ZH_VMAX) == 0, "init");
+  CHECK(zh_ctrl_init(&c, law, ZH_R, L0, ZH_PSI, ZH_VMAX) == 0, "init");
   int nlim = 0;
   for (int k = 0; k < N; ++k) {
     double vd, vq;
-    y[k] = cimag(pl.i);
-    zh_ctrl_step(&c, pl.i, w, ZH_IM * (AMP * sin(th * k)), &vd, &vq);
+    y[k] = cimag(pl.i_A);
+    zh_ctrl_step(&c, pl.i_A, w, ZH_IM * (AMP * sin(th * k)), &vd, &vq);
     if (k >= KFIT) nlim += zh_ctrl_limited(&c);
-    zh_plant_advance(&pl, vd, vq);
+    motor_zoh_advance(&pl, vd, vq);
   }
-  ZH_CHECK(nlim == 0, "sine run limited %d times", nlim);
+  CHECK(nlim == 0, "sine run limited %d times", nlim);
   fit(y, th, gain, ph);
 }
 
@@ -86,14 +86,14 @@ int main(void) {
              "gain %.4f (T(z): %.4f), lag = %.2f periods; rated speed: lag "
              "%.3f deg, gain %.4f\n", zh_law_name[law], lam[m], -ph, -ph_a, g,
              cabs(T), -ph / (360.0 * F_HZ * ZH_TS), -phw, gw);
-      ZH_CHECK(fabs(ph - ph_a) < 0.02, "phase vs T(z)");
-      ZH_CHECK(fabs(g - cabs(T)) < 2e-4, "gain vs T(z)");
-      ZH_CHECK(fabs(phw - ph) < 1.0 && fabs(gw - g) < 0.02, "rated speed");
+      CHECK(fabs(ph - ph_a) < 0.02, "phase vs T(z)");
+      CHECK(fabs(g - cabs(T)) < 2e-4, "gain vs T(z)");
+      CHECK(fabs(phw - ph) < 1.0 && fabs(gw - g) < 0.02, "rated speed");
       if (m == 0) lag_matched[law] = -ph;
     }
   }
   printf("SUMMARY matched phase lag at 95.5 Hz: incremental %.2f deg, "
          "conventional %.2f deg\n", lag_matched[ZH_INC], lag_matched[ZH_EUL]);
-  printf("\n%s\n", g_zh_fail ? "test_zhao2022_phase: FAILED" : "test_zhao2022_phase: ok");
-  return g_zh_fail;
+  printf("\n");
+  return check_finish("test_zhao2022_phase");
 }

@@ -29,7 +29,7 @@ typedef struct {
 } zh_simres_t;
 
 static zh_simres_t sim_stable(zh_law_t law, const zh_loop_t *lp) {
-  zh_plant_t pl;
+  motor_zoh_t pl;
   zh_ctrl_t c;
   zh_simres_t res = {-1, 0.0};
   const double step = 0.05;
@@ -41,11 +41,11 @@ static zh_simres_t sim_stable(zh_law_t law, const zh_loop_t *lp) {
     for (int k = 0; k < CHUNK; ++k) {
       double vd, vq;
       const double complex r = ZH_IM * step;
-      const double e = cabs(pl.i - r);
+      const double e = cabs(pl.i_A - r);
       if (!(e <= 1e30)) { env = 1e31; break; }
       if (e > env) env = e;
-      zh_ctrl_step(&c, pl.i, lp->w, r, &vd, &vq);
-      zh_plant_advance(&pl, vd, vq);
+      zh_ctrl_step(&c, pl.i_A, lp->w, r, &vd, &vq);
+      motor_zoh_advance(&pl, vd, vq);
     }
     if (ch > 0 && env_prev > 0.0 && env > 0.0 && env < 1e30 &&
         env_prev < 1e30 && env > 1e-7 * step)
@@ -123,8 +123,8 @@ int main(void) {
   const double lam_paper_cf = paper_closed_form_boundary();
   printf("\npaper Zhao 2022 Eq. 34 (Ts -> 0): boundary from roots %.6f, from Zhao 2022 Eq. 35 closed "
          "form %.6f (paper: 3/4)\n", lam_paper, lam_paper_cf);
-  ZH_CHECK(fabs(lam_paper - 0.75) < 1e-6 && fabs(lam_paper_cf - 0.75) < 1e-9,
-           "paper boundary");
+  CHECK(fabs(lam_paper - 0.75) < 1e-6 && fabs(lam_paper_cf - 0.75) < 1e-9,
+        "paper boundary");
   const double up_paper = zh_boundary(zh_poly_paper_eq34, &base,
                                       ZH_VARY_CONTROLLER, 1.001, 20.0, 1e-2);
   printf("paper Zhao 2022 Eq. 34 upper: stable up to lam = %.3f (search end 20): radius at "
@@ -138,7 +138,7 @@ int main(void) {
                                   0.999, 0.2, 1e-3);
     printf("exact plant with R = R0 -> 0: boundary %.6f (= 3/4: the paper's "
            "Ts -> 0 is R Ts/L -> 0)\n", l0);
-    ZH_CHECK(fabs(l0 - 0.75) < 1e-4, "R->0 limit %g", l0);
+    CHECK(fabs(l0 - 0.75) < 1e-4, "R->0 limit %g", l0);
   }
   /* ---- paper's Zhao 2022 Eq. 28 without Ts -> 0 */
   const double lam_eq28 = zh_boundary(zh_poly_paper_eq28, &base,
@@ -148,8 +148,8 @@ int main(void) {
   printf("paper Zhao 2022 Eq. 28 kept with Ts (bilinear 'plant', R0 = R): %.6f (L0 = L/lam)"
          ", %.6f (L = lam L0); analytic 3/4 - R Ts/(4 L0) = %.6f for the latter\n",
          lam_eq28, lam_eq28p, 0.75 - ZH_R * ZH_TS / (4.0 * ZH_L));
-  ZH_CHECK(fabs(lam_eq28p - (0.75 - ZH_R * ZH_TS / (4.0 * ZH_L))) < 1e-6,
-           "Zhao 2022 Eq. 28 analytic");
+  CHECK(fabs(lam_eq28p - (0.75 - ZH_R * ZH_TS / (4.0 * ZH_L))) < 1e-6,
+        "Zhao 2022 Eq. 28 analytic");
 
   /* ---- exact plant: polynomial vs simulation */
   int sim_ok = 1;
@@ -186,12 +186,12 @@ int main(void) {
            "paper 0.75 -> difference %+.4f\n", dl, s.lam_sim, s.n_points,
            s.n_disagree, s.n_undecided, s.lam_sim - 0.75);
     const int agree = (s.lam_sim >= lam_poly - 1e-9) && (s.lam_sim - dl < lam_poly);
-    ZH_CHECK(agree, "sim %g vs poly %g", s.lam_sim, lam_poly);
-    ZH_CHECK(s.n_disagree == 0 && s.n_undecided == 0, "pointwise agreement");
+    CHECK(agree, "sim %g vs poly %g", s.lam_sim, lam_poly);
+    CHECK(s.n_disagree == 0 && s.n_undecided == 0, "pointwise agreement");
     sim_ok &= agree;
     if (ci == 0) { lam_poly_main = lam_poly; lam_sim_main = s.lam_sim; }
   }
-  ZH_CHECK(lam_poly_main < 0.75 - 0.03, "exact boundary should be below 3/4");
+  CHECK(lam_poly_main < 0.75 - 0.03, "exact boundary should be below 3/4");
 
   /* ---- upper boundary (L0 < L) */
   {
@@ -209,9 +209,9 @@ int main(void) {
     printf("  simulation sweep 1.000 -> 3.000 step 0.002: largest stable lam %.3f "
            "(%d disagree, %d undecided); paper (Sec. 4.2): 'constantly stable "
            "when L0 < L'\n", s.lam_sim, s.n_disagree, s.n_undecided);
-    ZH_CHECK(s.lam_sim <= up_poly + 1e-9 && s.lam_sim + 0.002 > up_poly,
-             "upper sim %g vs poly %g", s.lam_sim, up_poly);
-    ZH_CHECK(s.n_disagree == 0 && s.n_undecided == 0, "pointwise agreement (upper)");
+    CHECK(s.lam_sim <= up_poly + 1e-9 && s.lam_sim + 0.002 > up_poly,
+          "upper sim %g vs poly %g", s.lam_sim, up_poly);
+    CHECK(s.n_disagree == 0 && s.n_undecided == 0, "pointwise agreement (upper)");
   }
 
   /* ---- table of spectral radii */
@@ -231,8 +231,7 @@ int main(void) {
   printf("\nSUMMARY smallest stable L/L0 (Table 1 motor, plant fixed): simulated "
          "%.3f, polynomial %.4f, paper 0.75 (difference %+.4f)\n", lam_sim_main,
          lam_poly_main, lam_poly_main - 0.75);
-  printf("\n%s\n", g_zh_fail ? "test_zhao2022_stability: FAILED"
-                            : "test_zhao2022_stability: ok");
+  printf("\n");
   (void)sim_ok;
-  return g_zh_fail;
+  return check_finish("test_zhao2022_stability");
 }

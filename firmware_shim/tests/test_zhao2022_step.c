@@ -28,19 +28,19 @@ typedef struct {
 
 static void run(zh_law_t law, double R, double L, double R0, double L0,
                 double Vmax, double step, zh_run_t *o) {
-  zh_plant_t pl;
+  motor_zoh_t pl;
   zh_ctrl_t c;
   zh_plant_init(&pl, R, L, ZH_PSI, 0.0);
-  ZH_CHECK(zh_ctrl_init(&c, law, R0, L0, ZH_PSI, Vmax) == 0, "init");
+  CHECK(zh_ctrl_init(&c, law, R0, L0, ZH_PSI, Vmax) == 0, "init");
   o->nlim = 0;
   for (int k = 0; k < N; ++k) {
     double vd, vq;
     const double complex r = ZH_IM * (k >= K0 ? step : 0.0);
-    o->iq[k] = cimag(pl.i);
-    zh_ctrl_step(&c, pl.i, 0.0, r, &vd, &vq);
+    o->iq[k] = cimag(pl.i_A);
+    zh_ctrl_step(&c, pl.i_A, 0.0, r, &vd, &vq);
     o->vq[k] = vq;
     o->nlim += zh_ctrl_limited(&c);
-    zh_plant_advance(&pl, vd, vq);
+    motor_zoh_advance(&pl, vd, vq);
   }
 }
 
@@ -96,12 +96,12 @@ int main(void) {
            "max |sim - T(z)| = %.2e A, final error %.2e A\n",
            os[law], os_a, st[law], st_a, vmax, o.nlim, maxdiff,
            step - o.iq[N - 1]);
-    ZH_CHECK(maxdiff < 2e-6, "closed loop differs from T(z): %g", maxdiff);
-    ZH_CHECK(st[law] == st_a && fabs(os[law] - os_a) < 0.01, "metrics");
-    ZH_CHECK(fabs(step - o.iq[N - 1]) < 1e-6, "steady-state error");
-    ZH_CHECK(o.nlim == 0, "small step must stay linear");
-    ZH_CHECK(o.iq[K0] == 0.0 && o.iq[K0 + 1] == 0.0,
-             "one-period delay: nothing before k0+2");
+    CHECK(maxdiff < 2e-6, "closed loop differs from T(z): %g", maxdiff);
+    CHECK(st[law] == st_a && fabs(os[law] - os_a) < 0.01, "metrics");
+    CHECK(fabs(step - o.iq[N - 1]) < 1e-6, "steady-state error");
+    CHECK(o.nlim == 0, "small step must stay linear");
+    CHECK(o.iq[K0] == 0.0 && o.iq[K0 + 1] == 0.0,
+          "one-period delay: nothing before k0+2");
     if (law == ZH_INC) {
       /* Zhao 2022 Eq. 22 at k0 with zero history: u = (R0 + L0/Ts) i*, then at k0+1
        * u = (R0 + L0/Ts) i* - u(k0+1) = 0 -> i(k0+2) = Gam (R + L/Ts) i*. */
@@ -109,12 +109,12 @@ int main(void) {
       const double i2 = B * (ZH_R + ZH_L / ZH_TS) * step;
       printf("  i(k0+2) expected Gam (R + L/Ts) i* = %.5f A (deadbeat would be "
              "%.5f A)\n", i2, step);
-      ZH_CHECK(fabs(o.iq[K0 + 2] - i2) < 1e-6, "first sample %g vs %g",
-               o.iq[K0 + 2], i2);
-      ZH_CHECK(fabs(o.vq[K0 + 1]) < 1e-5, "second command is 0 (Zhao 2022 Eq. 22)");
+      CHECK(fabs(o.iq[K0 + 2] - i2) < 1e-6, "first sample %g vs %g",
+            o.iq[K0 + 2], i2);
+      CHECK(fabs(o.vq[K0 + 1]) < 1e-5, "second command is 0 (Zhao 2022 Eq. 22)");
     }
   }
-  ZH_CHECK(os[ZH_INC] < os[ZH_EUL], "incremental should overshoot less");
+  CHECK(os[ZH_INC] < os[ZH_EUL], "incremental should overshoot less");
 
   /* R -> 0 (R Ts/L -> 0): the two-period bilinear model equals the exact
    * integrator and Q(z) = z^4: deadbeat, i(k0+2) = i*, exact thereafter. */
@@ -126,7 +126,7 @@ int main(void) {
       if (fabs(o.iq[k] - step) > dev) dev = fabs(o.iq[k] - step);
     printf("\n[incremental, R -> 0] max |iq - i*| from k0+2 on: %.2e A "
            "(deadbeat in 2 periods)\n", dev);
-    ZH_CHECK(dev < 1e-6, "R->0 deadbeat");
+    CHECK(dev < 1e-6, "R->0 deadbeat");
   }
 
   /* Large step with the voltage limit: memory = applied voltage. */
@@ -143,11 +143,11 @@ int main(void) {
     printf("  iq(k0+j), j=0..12:");
     for (int j = 0; j <= 12; ++j) printf(" %.4f", o.iq[K0 + j]);
     printf("\n");
-    ZH_CHECK(o.nlim > 0, "big step must saturate");
-    ZH_CHECK(fabs(big - o.iq[N - 1]) < 1e-5, "saturated step converges");
-    ZH_CHECK(s < 60, "no wind-up (settling %d)", s);
+    CHECK(o.nlim > 0, "big step must saturate");
+    CHECK(fabs(big - o.iq[N - 1]) < 1e-5, "saturated step converges");
+    CHECK(s < 60, "no wind-up (settling %d)", s);
   }
 
-  printf("\n%s\n", g_zh_fail ? "test_zhao2022_step: FAILED" : "test_zhao2022_step: ok");
-  return g_zh_fail;
+  printf("\n");
+  return check_finish("test_zhao2022_step");
 }

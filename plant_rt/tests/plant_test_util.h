@@ -1,5 +1,6 @@
 /*
- * plant_test_util.h - shared helpers for the plant core tests (header only).
+ * plant_test_util.h - shared helpers for the plant core tests (header only); the check
+ * macros are those of tests/c/check.h.
  *
  * ref_*: an INDEPENDENT reference model in long double, written in a
  * different formulation from the core:
@@ -21,24 +22,6 @@
 
 #define T_PI 3.14159265358979323846264338327950288L
 #define T_TWO_PI (2.0L * T_PI)
-
-static int g_fail = 0;
-
-#define CHECK(cond, ...)                                              \
-    do {                                                              \
-        if (!(cond)) {                                                \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);               \
-            printf(__VA_ARGS__);                                      \
-            printf("\n");                                             \
-            g_fail = 1;                                               \
-        }                                                             \
-    } while (0)
-
-static inline int test_finish(const char *name)
-{
-    printf("%s: %s\n", name, g_fail ? "FAILED" : "PASSED");
-    return g_fail ? 1 : 0;
-}
 
 /* deterministic command sequence for the tests (LCG, independent of the core) */
 static inline double test_lcg_uniform(unsigned long long *st)

@@ -3,7 +3,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "plant_test_util.h"
+#include "check.h"
 #include "plant_testbus.h"
 #include "presets.h"
 
@@ -67,7 +67,7 @@ static void test_boundary(void)
         tb_period(tb, 10.0f, -4.0f);
     }
     int mism = 0;
-    for (int j = 0; j <= N; ++j) mism += !tb_f32_same(ia[j], tb->smp[j].ia);
+    for (int j = 0; j <= N; ++j) mism += !testbus_same_f32(ia[j], tb->smp[j].ia);
     printf("R 1.4 -> 5 ohm written after sample %d: node vs core (change at SYNC %d): %d of %d samples differ\n", K,
            K + 1, mism, N + 1);
     printf("  i_a(K+1) %.6f, i_a(K+2) %.6f, i_a(N) %.6f A\n", (double)tb->smp[K + 1].ia, (double)tb->smp[K + 2].ia,
@@ -133,6 +133,5 @@ int main(void)
     test_defaults_are_you2019();
     test_boundary();
     test_rejects_and_presets();
-    printf("test_node_config: %s\n", g_fail ? "FAILED" : "PASSED");
-    return g_fail;
+    return check_finish("test_node_config");
 }

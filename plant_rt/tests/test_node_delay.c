@@ -9,7 +9,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "plant_test_util.h"
+#include "check.h"
 #include "plant_testbus.h"
 
 #define N_PER 40
@@ -50,7 +50,7 @@ int main(void)
 
     int first_diff = -1;
     for (int j = 0; j <= N_PER; ++j) {
-        int same = tb_f32_same(run_a[j].ia, run_b[j].ia) && tb_f32_same(run_a[j].ib, run_b[j].ib);
+        int same = testbus_same_f32(run_a[j].ia, run_b[j].ia) && testbus_same_f32(run_a[j].ib, run_b[j].ib);
         if (!same && first_diff < 0) first_diff = j;
     }
     printf("step sent after sample %d (%.1f V alpha); first sample that differs: %d\n", K_STEP, (double)V_STEP_V,
@@ -73,8 +73,8 @@ int main(void)
             plant_step(&s, &cfg, held, 0.0);
         }
         plant_sample(&s, &cfg, &m);
-        if (!tb_f32_same(m.i_a_A, run_a[j].ia) || !tb_f32_same(m.i_b_A, run_a[j].ib) ||
-            !tb_f32_same(m.theta_m_rad, run_a[j].th))
+        if (!testbus_same_f32(m.i_a_A, run_a[j].ia) || !testbus_same_f32(m.i_b_A, run_a[j].ib) ||
+            !testbus_same_f32(m.theta_m_rad, run_a[j].th))
             ++mismatches;
         double e = fabs((double)m.i_a_A - (double)run_a[j].ia);
         if (e > max_err) max_err = e;
@@ -83,6 +83,5 @@ int main(void)
     printf("  i_a at K+2..K+5 (node): %.6g %.6g %.6g %.6g A\n", (double)run_a[K_STEP + 2].ia,
            (double)run_a[K_STEP + 3].ia, (double)run_a[K_STEP + 4].ia, (double)run_a[K_STEP + 5].ia);
     CHECK(mismatches == 0, "node and direct core disagree");
-    printf("test_node_delay: %s\n", g_fail ? "FAILED" : "PASSED");
-    return g_fail;
+    return check_finish("test_node_delay");
 }

@@ -8,16 +8,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "plant_test_util.h"
+#include "check.h"
 #include "plant_testbus.h"
 
 #define N_PER 400
 
 static tb_t g_tb;
-static tb_rec_t g_rec[2][TB_MAX_REC];
+static testbus_rec_t g_rec[2][TESTBUS_MAX_REC];
 static uint32_t g_n[2];
 
-static uint64_t fnv(const tb_rec_t *r, uint32_t n)
+static uint64_t fnv(const testbus_rec_t *r, uint32_t n)
 {
     uint64_t h = 1469598103934665603ULL;
     for (uint32_t i = 0; i < n; ++i) {
@@ -48,7 +48,7 @@ static void run(int which)
         float va = 8.0f * ea + xa, vb = 8.0f * eb + xb;
         if (k == 150) CHECK(tb_w_f32(tb, 0x2000, OD_PLANT_MOTOR_MODEL_R_OHM_SUB, 2.0f) == 0, "R");
         if (k == 250) { /* the drive skips this command: timeout */
-            tb->now_us += 500;
+            tb->bus.now_us += 500;
             tb_poll(tb);
             continue;
         }
@@ -56,11 +56,11 @@ static void run(int which)
     }
     CHECK(tb->n_smp == N_PER, "samples %u (one command taken as late after the skip)", (unsigned)tb->n_smp);
     for (uint32_t j = 0; j < tb->n_smp; j += 50) printf("  k=%u i_a=%.4f i_b=%.4f\n", (unsigned)j, (double)tb->smp[j].ia, (double)tb->smp[j].ib);
-    g_n[which] = tb->n_rec;
-    memcpy(g_rec[which], tb->rec, sizeof(tb_rec_t) * tb->n_rec);
-    printf("run %d: %u frames, %u SYNCs, missed %u, fnv64 %016llx, last i_a %.6f A\n", which, (unsigned)tb->n_rec,
+    g_n[which] = tb->bus.n_rec;
+    memcpy(g_rec[which], tb->bus.rec, sizeof(testbus_rec_t) * tb->bus.n_rec);
+    printf("run %d: %u frames, %u SYNCs, missed %u, fnv64 %016llx, last i_a %.6f A\n", which, (unsigned)tb->bus.n_rec,
            (unsigned)tb->n_sync, (unsigned)OD_PLANT.mfr.x2003_run_control.missed_commands,
-           (unsigned long long)fnv(tb->rec, tb->n_rec), (double)tb->smp[tb->n_smp - 1u].ia);
+           (unsigned long long)fnv(tb->bus.rec, tb->bus.n_rec), (double)tb->smp[tb->n_smp - 1u].ia);
 }
 
 int main(void)
@@ -70,13 +70,12 @@ int main(void)
     CHECK(g_n[0] == g_n[1], "frame counts %u vs %u", (unsigned)g_n[0], (unsigned)g_n[1]);
     uint32_t diff = 0;
     for (uint32_t i = 0; i < g_n[0] && i < g_n[1]; ++i) {
-        const tb_rec_t *a = &g_rec[0][i], *b = &g_rec[1][i];
+        const testbus_rec_t *a = &g_rec[0][i], *b = &g_rec[1][i];
         if (a->f.cob_id != b->f.cob_id || a->f.dlc != b->f.dlc || memcmp(a->f.data, b->f.data, 8) != 0 ||
             a->sender != b->sender || a->t_us != b->t_us)
             ++diff;
     }
     printf("frames differing: %u of %u\n", (unsigned)diff, (unsigned)g_n[0]);
     CHECK(diff == 0, "runs differ");
-    printf("test_node_determinism: %s\n", g_fail ? "FAILED" : "PASSED");
-    return g_fail;
+    return check_finish("test_node_determinism");
 }

@@ -2,7 +2,7 @@
  * run_periods holding, and the real-time tick (time driven by hand). */
 #include <stdio.h>
 
-#include "plant_test_util.h"
+#include "check.h"
 #include "plant_testbus.h"
 
 static tb_t g_tb;
@@ -24,28 +24,28 @@ static void test_holds_and_timeout(void)
     tb_poll(tb);
     CHECK(tb->n_sync == 0, "SYNC while pre-operational");
     tb_nmt(tb, 0x01u);
-    tb->now_us = 5000;
+    tb->bus.now_us = 5000;
     tb_poll(tb);
     CHECK(tb->n_sync == 0, "SYNC with run_periods = 0");
     CHECK(RC.state == 0, "state %u", RC.state);
     tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 0xFFFFFFFFu);
-    int64_t t0 = tb->now_us;
+    int64_t t0 = tb->bus.now_us;
     int64_t hint = tb_poll(tb);
     CHECK(tb->n_sync == 1 && tb->n_smp == 1, "SYNC 0 (n_sync %u)", (unsigned)tb->n_sync);
     CHECK(hint == timeout_us, "wait hint %lld", (long long)hint);
 
     /* no command: the plant waits */
     uint32_t polls = 0;
-    for (tb->now_us = t0 + 1; tb->now_us < t0 + timeout_us; tb->now_us += 37) {
+    for (tb->bus.now_us = t0 + 1; tb->bus.now_us < t0 + timeout_us; tb->bus.now_us += 37) {
         hint = tb_poll(tb);
         ++polls;
-        CHECK(tb->n_sync == 1, "SYNC 1 before the command / timeout at t+%lld", (long long)(tb->now_us - t0));
-        CHECK(hint == t0 + timeout_us - tb->now_us, "hint %lld at t+%lld", (long long)hint,
-              (long long)(tb->now_us - t0));
+        CHECK(tb->n_sync == 1, "SYNC 1 before the command / timeout at t+%lld", (long long)(tb->bus.now_us - t0));
+        CHECK(hint == t0 + timeout_us - tb->bus.now_us, "hint %lld at t+%lld", (long long)hint,
+              (long long)(tb->bus.now_us - t0));
     }
     printf("no command: %u polls over %u us, SYNCs %u (held)\n", (unsigned)polls, (unsigned)timeout_us,
            (unsigned)tb->n_sync);
-    tb->now_us = t0 + timeout_us;
+    tb->bus.now_us = t0 + timeout_us;
     tb_poll(tb);
     CHECK(tb->n_sync == 2, "SYNC 1 at the timeout");
     CHECK(RC.missed_commands == 1, "missed %u", (unsigned)RC.missed_commands);
@@ -54,13 +54,13 @@ static void test_holds_and_timeout(void)
            (unsigned)RC.missed_commands, last(tb)->status);
 
     /* the late command for sample 0 arrives now: late, does not release SYNC 2 */
-    tb->now_us += 50;
+    tb->bus.now_us += 50;
     tb_cmd(tb, 1.0f, 0.0f);
     tb_poll(tb);
     CHECK(tb->n_sync == 2, "a late command released a SYNC");
     CHECK(RC.late_commands == 1, "late %u", (unsigned)RC.late_commands);
     /* the command for sample 1: releases SYNC 2 at once */
-    tb->now_us += 50;
+    tb->bus.now_us += 50;
     tb_cmd(tb, 2.0f, 0.0f);
     tb_poll(tb);
     CHECK(tb->n_sync == 3, "the on-time command did not release SYNC 2");
@@ -76,16 +76,16 @@ static void test_holds_and_timeout(void)
 
     /* a dropped command (never sent): lockstep resynchronises */
     uint32_t miss0 = RC.missed_commands;
-    tb->now_us += timeout_us;
+    tb->bus.now_us += timeout_us;
     tb_poll(tb); /* timeout */
     uint32_t syncs0 = tb->n_sync;
     int extra_timeouts = 0;
     for (int j = 0; j < 10; ++j) {
-        tb->now_us += 10;
+        tb->bus.now_us += 10;
         tb_cmd(tb, 0.5f, 0.0f);
         tb_poll(tb);
         if (tb->n_sync == syncs0 + (uint32_t)j) { /* not released: wait for the timeout */
-            tb->now_us += timeout_us;
+            tb->bus.now_us += timeout_us;
             tb_poll(tb);
             ++extra_timeouts;
         }
@@ -100,12 +100,12 @@ static void test_holds_and_timeout(void)
     tb_t *t = tb;
     uint32_t late0 = RC.late_commands;
     for (int j = 0; j < 3; ++j) {
-        t->now_us += timeout_us;
+        t->bus.now_us += timeout_us;
         tb_poll(t);
     }
     uint32_t s1 = t->n_sync;
     for (int j = 0; j < 3; ++j) {
-        t->now_us += 5;
+        t->bus.now_us += 5;
         tb_cmd(t, 9.0f, 0.0f); /* the stale ones */
         tb_poll(t);
     }
@@ -136,7 +136,7 @@ static void test_run_periods(void)
     /* NMT stop: nothing more even with run_periods */
     tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 0xFFFFFFFFu);
     tb_nmt(tb, 0x02u);
-    tb->now_us += 1000000;
+    tb->bus.now_us += 1000000;
     tb_poll(tb);
     CHECK(tb->n_sync == 8, "SYNC while stopped");
     printf("run_periods: 5 -> %u SYNCs then holding (status 0x%02x), +3 -> 8; stopped: no SYNC\n", 5u,
@@ -155,23 +155,23 @@ static void test_realtime_tick(void)
     int64_t deadline = 1000;
     /* arrival offsets relative to the next deadline: -40 (early), -5, +12 (late), none (miss) */
     const int64_t offs[] = {-40, -5, 12, 1000, -30, -30};
-    tb->now_us = deadline;
-    plant_app_realtime_tick(&tb->app, tb->now_us, 0);
+    tb->bus.now_us = deadline;
+    plant_app_realtime_tick(&tb->app, tb->bus.now_us, 0);
     tb_deliver(tb);
     for (unsigned j = 0; j < sizeof offs / sizeof offs[0]; ++j) {
         int64_t next = deadline + Ts;
         if (offs[j] < 0) {
-            tb->now_us = next + offs[j];
+            tb->bus.now_us = next + offs[j];
             tb_cmd(tb, 1.0f, 0.0f);
-            plant_app_poll(&tb->app, tb->now_us);
+            plant_app_poll(&tb->app, tb->bus.now_us);
         }
-        tb->now_us = next + 3; /* woke 3 us late */
-        plant_app_realtime_tick(&tb->app, tb->now_us, 3);
+        tb->bus.now_us = next + 3; /* woke 3 us late */
+        plant_app_realtime_tick(&tb->app, tb->bus.now_us, 3);
         tb_deliver(tb);
         if (offs[j] >= 0 && offs[j] < 1000) {
-            tb->now_us = next + offs[j];
+            tb->bus.now_us = next + offs[j];
             tb_cmd(tb, 1.0f, 0.0f);
-            plant_app_poll(&tb->app, tb->now_us);
+            plant_app_poll(&tb->app, tb->bus.now_us);
         }
         deadline = next;
     }
@@ -199,6 +199,5 @@ int main(void)
     test_holds_and_timeout();
     test_run_periods();
     test_realtime_tick();
-    printf("test_node_lockstep: %s\n", g_fail ? "FAILED" : "PASSED");
-    return g_fail;
+    return check_finish("test_node_lockstep");
 }

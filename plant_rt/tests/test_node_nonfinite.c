@@ -11,7 +11,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "plant_test_util.h"
+#include "check.h"
 #include "plant_testbus.h"
 #include "presets.h"
 
@@ -88,6 +88,5 @@ int main(void)
 {
     test_levels();
     test_nonfinite_command();
-    printf("test_node_nonfinite: %s\n", g_fail ? "FAILED" : "PASSED");
-    return g_fail;
+    return check_finish("test_node_nonfinite");
 }

@@ -2,7 +2,7 @@
  * 0x2003:08; cleared only by writing 1 to 0x2003:07 (EMCY error reset). */
 #include <stdio.h>
 
-#include "plant_test_util.h"
+#include "check.h"
 #include "plant_testbus.h"
 
 static tb_t g_tb;
@@ -59,6 +59,5 @@ int main(void)
     printf("after clear, 1 V command: inverter applies v_alpha = %.4f V (dead time included), i_a = %.4f A, "
            "status 0x%02x\n", tb->app.state.v_app_alpha_V, (double)last(tb)->ia, last(tb)->status);
     CHECK(tb->app.state.v_app_alpha_V != 0.0, "inverter still off");
-    printf("test_node_trip: %s\n", g_fail ? "FAILED" : "PASSED");
-    return g_fail;
+    return check_finish("test_node_trip");
 }

@@ -4,6 +4,7 @@
  * Statistical bounds are computed from N (5-sigma of the estimators):
  *   mean: sigma/sqrt(N);  std: sigma/sqrt(2N);  correlation: 1/sqrt(N).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -163,5 +164,5 @@ int main(void)
         plant_sample(&s, &co, &m);
         CHECK(m.i_a_A == (float)m.i_a_true_A && m.i_b_A == (float)m.i_b_true_A, "ideal ADC");
     }
-    return test_finish("test_plant_adc");
+    return check_finish("test_plant_adc");
 }

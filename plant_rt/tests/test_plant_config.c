@@ -6,6 +6,7 @@
  *  - all presets load by name, carry the paper values, and prepare in all
  *    three mechanical modes; unknown names are rejected.
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -124,5 +125,5 @@ int main(void)
     CHECK(plant_preset_load(NULL, &c) == PLANT_ERR_PRESET, "NULL name");
     CHECK(memcmp(&before, &c, sizeof(c)) == 0, "config untouched on failure");
     CHECK(plant_preset_name(99) == NULL, "name out of range");
-    return test_finish("test_plant_config");
+    return check_finish("test_plant_config");
 }

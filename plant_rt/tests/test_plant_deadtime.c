@@ -9,6 +9,7 @@
  *  3. effect: locked rotor, constant v_alpha -> steady state satisfies
  *     R I = V - (2/3) V_dt (tanh(I/Is) + tanh(I/(2 Is))) (solved by bisection).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -108,5 +109,5 @@ int main(void)
         CHECK(fabs(s.id_A - Iexp) < 1e-9, "steady state with dead time");
         CHECK(fabs(s.iq_A) < 1e-9, "no q current");
     }
-    return test_finish("test_plant_deadtime");
+    return check_finish("test_plant_deadtime");
 }

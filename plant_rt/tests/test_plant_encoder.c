@@ -6,6 +6,7 @@
  */
 #include <stdlib.h>
 
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -79,5 +80,5 @@ int main(void)
            e, s.theta_m_rad, th);
     CHECK(e < 1e-6, "ideal angle");
     CHECK(fabs(s.theta_m_rad - th) < 1e-9, "angle integration");
-    return test_finish("test_plant_encoder");
+    return check_finish("test_plant_encoder");
 }

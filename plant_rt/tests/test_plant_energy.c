@@ -11,6 +11,7 @@
  */
 #include <complex.h>
 
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -92,5 +93,5 @@ int main(void)
                (double)ecu, s.energy.copper_J, rc, (double)ein, s.energy.in_J, ri);
         CHECK(rc < 1e-9 && ri < 1e-9, "energy integrals vs closed form");
     }
-    return test_finish("test_plant_energy");
+    return check_finish("test_plant_energy");
 }

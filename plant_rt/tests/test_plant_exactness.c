@@ -6,6 +6,7 @@
  * sequence of stator-frame voltage commands.  Also compares the exact
  * per-period energy integrals (Van Loan) with the reference quadratures.
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -94,5 +95,5 @@ int main(void)
     run_case("yao2020_high 1.33 kHz", &ch, 0.2, 300, 3.0, &ei, &ee);
     CHECK(ei < 1e-6, "yao high current error %.3e", ei);
     CHECK(ee < 1e-6, "yao high energy error %.3e", ee);
-    return test_finish("test_plant_exactness");
+    return check_finish("test_plant_exactness");
 }

@@ -10,6 +10,7 @@
  *     mech = dKE + friction + load (bound 1e-6 of mech; limited by the RK4
  *     speed error, since KE = J w^2/2 is evaluated from the integrated w).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -111,5 +112,5 @@ int main(void)
             CHECK(fmax(ei / imax, ew / wmax) > err_def, "coarse must be worse");
         }
     }
-    return test_finish("test_plant_free_mech");
+    return check_finish("test_plant_free_mech");
 }

@@ -13,6 +13,7 @@
  *     [w Ld, R]].
  * The measured values must fall in [0.8, 1.25] x (A) and [0.5, 2] x (B).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -91,5 +92,5 @@ int main(void)
         printf("   relative to rated 4 A: %.2f %%\n", 100.0 * meas / 4.0);
         CHECK(meas > 0.5 * pred && meas < 2.0 * pred, "steady-state difference %.4e vs %.4e", meas, pred);
     }
-    return test_finish("test_plant_hold_frame");
+    return check_finish("test_plant_hold_frame");
 }

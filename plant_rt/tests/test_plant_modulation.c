@@ -6,6 +6,7 @@
  *   r(phi) = (Vdc/sqrt 3) / cos(((phi mod 60deg) - 30deg)).
  * Over-range commands are scaled toward the origin (angle preserved).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -64,5 +65,5 @@ int main(void)
         CHECK(fabs(s.v_app_alpha_V - cases[i].ea) < 1e-9 && fabs(s.v_app_beta_V - cases[i].eb) < 1e-9,
               "case %zu", i);
     }
-    return test_finish("test_plant_modulation");
+    return check_finish("test_plant_modulation");
 }

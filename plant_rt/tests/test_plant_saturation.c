@@ -10,6 +10,7 @@
  *  3. energy balance with saturation (residual < 1e-7 of the input energy);
  *  4. saturation really changes the response (> 5 % at ~3 I_sat).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -130,5 +131,5 @@ int main(void)
                a.iq_A, b.iq_A, 100.0 * rel);
         CHECK(rel > 0.05, "saturation should raise the current");
     }
-    return test_finish("test_plant_saturation");
+    return check_finish("test_plant_saturation");
 }

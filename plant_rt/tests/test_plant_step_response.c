@@ -9,6 +9,7 @@
  */
 #include <complex.h>
 
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -99,5 +100,5 @@ int main(void)
     printf("1000 rpm, Ld=Lq, alpha-beta step vs closed form (2000 periods): max err %.3e A, rel %.3e (peak %.3f A)\n",
            maxerr, maxerr / imax, imax);
     CHECK(maxerr / imax < 1e-9, "at-speed closed form error %.3e", maxerr / imax);
-    return test_finish("test_plant_step_response");
+    return check_finish("test_plant_step_response");
 }

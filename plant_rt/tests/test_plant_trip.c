@@ -19,6 +19,7 @@
  * command never reaches the model, so the state stays finite (exact and RK4
  * paths, with and without a modulation limit, which would turn inf into NaN).
  */
+#include "check.h"
 #include "plant_test_util.h"
 #include "presets.h"
 
@@ -276,5 +277,5 @@ int main(void)
     }
     test_preset_levels();
     test_nonfinite();
-    return test_finish("test_plant_trip");
+    return check_finish("test_plant_trip");
 }

@@ -4,23 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "co_membus.h"
 #include "co_node.h"
 #include "od_drive.h"
 #include "od_plant.h"
-
-#define MAX_OUT 64
-
-static co_frame_t g_out[MAX_OUT];
-static int g_n_out;
-
-static void sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us)
-{
-    (void)user;
-    (void)now_us;
-    if (sender == CO_MEMBUS_EXTERNAL) return;
-    if (g_n_out < MAX_OUT) g_out[g_n_out++] = *f;
-}
+#include "testbus.h"
 
 static int parse_frame(const char *s, co_frame_t *f)
 {
@@ -47,10 +34,8 @@ static void fmt(const co_frame_t *f, char *buf, size_t cap)
 }
 
 typedef struct {
-    co_membus_t bus;
-    co_node_t node;
-    int port;
-    int expect_idx; /* next g_out index expected */
+    testbus_t tb;
+    uint32_t expect_idx; /* next frame of the node expected */
     int failures;
     char name[256];
     int active;
@@ -60,27 +45,25 @@ static int64_t g_now = 1000;
 
 static void start(ctx_t *c, const char *node, unsigned id)
 {
-    co_membus_init(&c->bus, sink, NULL);
-    c->port = co_membus_port(&c->bus);
     const co_od_t *od = strcmp(node, "drive") == 0 ? &od_drive : &od_plant;
-    co_node_init(&c->node, od, (uint8_t)id, co_membus_tx, &c->bus.ports[c->port], NULL, NULL, g_now);
-    co_membus_attach(&c->bus, c->port, &c->node);
-    co_membus_deliver(&c->bus, g_now);
-    g_n_out = 0; /* ignore the boot-up message */
+    testbus_init(&c->tb, od, (uint8_t)id, NULL, NULL, g_now, 100);
+    testbus_deliver(&c->tb);
+    testbus_clear(&c->tb); /* ignore the boot-up message */
     c->expect_idx = 0;
 }
 
 static void flush_check(ctx_t *c)
 {
-    if (c->active && c->expect_idx != g_n_out) {
+    const uint32_t n_out = testbus_node_frames(&c->tb);
+    if (c->active && c->expect_idx != n_out) {
         char b[64];
-        for (int i = c->expect_idx; i < g_n_out; ++i) {
-            fmt(&g_out[i], b, sizeof b);
+        for (uint32_t i = c->expect_idx; i < n_out; ++i) {
+            fmt(testbus_node_frame(&c->tb, i), b, sizeof b);
             printf("  %s: unexpected frame %s\n", c->name, b);
         }
         ++c->failures;
     }
-    g_n_out = 0;
+    testbus_clear(&c->tb);
     c->expect_idx = 0;
 }
 
@@ -111,26 +94,25 @@ int main(int argc, char **argv)
             if (sscanf(line + 5, "%15s %x", node, &id) != 2) { printf("bad node line\n"); return 1; }
             start(&c, node, id);
         } else if (strncmp(line, "nmt operational", 15) == 0) {
-            co_nmt_command(&c.node, CO_NMT_CS_START);
+            co_nmt_command(&c.tb.node, CO_NMT_CS_START);
         } else if (line[0] == '>') {
             flush_check(&c);
             co_frame_t f;
             if (parse_frame(line + 2, &f)) { printf("bad frame '%s'\n", line); return 1; }
-            co_membus_inject(&c.bus, &f);
-            g_now += 100;
-            co_membus_deliver(&c.bus, g_now);
+            testbus_send(&c.tb, f.cob_id, f.dlc, f.data);
+            g_now = c.tb.now_us;
         } else if (line[0] == '<') {
             co_frame_t want;
             if (parse_frame(line + 2, &want)) { printf("bad frame '%s'\n", line); return 1; }
             char wb[64], gb[64];
             fmt(&want, wb, sizeof wb);
             ++frames_checked;
-            if (c.expect_idx >= g_n_out) {
+            if (c.expect_idx >= testbus_node_frames(&c.tb)) {
                 printf("  %s: expected %s, got nothing\n", c.name, wb);
                 ++c.failures;
                 continue;
             }
-            const co_frame_t *got = &g_out[c.expect_idx++];
+            const co_frame_t *got = testbus_node_frame(&c.tb, c.expect_idx++);
             fmt(got, gb, sizeof gb);
             if (got->cob_id != want.cob_id || got->dlc != want.dlc || memcmp(got->data, want.data, want.dlc) != 0) {
                 printf("  %s: expected %s, got %s\n", c.name, wb, gb);
