@@ -92,27 +92,28 @@ $(BUILD)/bin/%: protocols/tools/%.c $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBSCAN) $(LIBCO) -lm -o $@
 $(BUILD)/tests/protocols_%: protocols/tests/%.c $(LIBCO)
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBCO) -lm -o $@
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBCO) -lm -o $@
 $(BUILD)/bin/%: plant_rt/tools/%.c $(LIBPLANT)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBPLANT) -lm -o $@
 $(BUILD)/tests/plant_%: plant_rt/tests/%.c $(LIBPLANT)
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBPLANT) -lm -o $@
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBPLANT) -lm -o $@
 # Tests of the node apps need the CANopen core and the portable app glue too.
-$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c firmware_shim/shim/drive_app.c $(LIBFW) $(LIBCO)
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) $< firmware_shim/shim/drive_app.c $(LIBFW) $(LIBCO) -lm -o $@
+# The drive tests close the loop against the plant's own motor model (tests/c/motor_model.h): libplant.
+$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c firmware_shim/shim/drive_app.c $(LIBFW) $(LIBPLANT) $(LIBCO)
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< firmware_shim/shim/drive_app.c $(LIBFW) $(LIBPLANT) $(LIBCO) -lm -o $@
 $(BUILD)/tests/plant_test_node_%: plant_rt/tests/test_node_%.c plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO)
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) $< plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO) -lm -o $@
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO) -lm -o $@
 $(BUILD)/bin/%: firmware_shim/tools/%.c $(LIBFW)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
-$(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW)
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
+$(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW) $(LIBPLANT)
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBFW) $(LIBPLANT) -lm -o $@
 
 $(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
@@ -129,4 +130,4 @@ $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 clean:
 	rm -rf $(BUILD)
 
--include $(shell find $(BUILD)/obj -name '*.d' 2>/dev/null)
+-include $(shell find $(BUILD)/obj $(BUILD)/deps -name '*.d' 2>/dev/null)

@@ -22,9 +22,7 @@
  *                (Ld = Lq = L); a salient motor (Ld != Lq) only at standstill, per axis:
  *                  i_x(k+1) = A_x i_x(k) + B_x u_x(k),  A_x = exp(-Ts R/L_x),  B_x = (1 - A_x)/R.
  *
- * Header only.  The drive tests link libfw (and libco), not libplant (Makefile), so the preset
- * loader and the plant core it calls (plant_config_defaults) are compiled into the test here;
- * a test that links libplant defines MOTOR_MODEL_LINKS_LIBPLANT before including this file. */
+ * Header only; a test that includes it links libplant (the presets and the plant core: Makefile). */
 #ifndef TESTS_C_MOTOR_MODEL_H
 #define TESTS_C_MOTOR_MODEL_H
 
@@ -34,12 +32,6 @@
 #include <stdlib.h>
 
 #include "presets.h"
-#ifndef MOTOR_MODEL_LINKS_LIBPLANT
-#include "plant_expm.c"
-#include "plant_rng.c"
-#include "pmsm_plant.c"
-#include "presets.c"
-#endif
 
 #define MOTOR_PI 3.14159265358979323846
 #define MOTOR_IM CMPLX(0.0, 1.0) /* double imaginary unit (I is complex float) */
