@@ -39,6 +39,15 @@
  * All functions take the config by const pointer; after any change of the
  * config call plant_prepare() again (it keeps the electrical/mechanical
  * state, recomputes the discretization and validates the parameters).
+ *
+ * Blocks (internal headers of plant_rt/core; the API below is their glue in
+ * pmsm_plant.c).  They share plant_config_t and plant_state_t, whose fields
+ * the callers use by flat names; the comments there say which block owns
+ * which fields:
+ *  - plant_machine: electrical model, mechanics, energy (exact / RK4 paths);
+ *  - plant_inverter: modulation limit, dead time, over-current trip, the
+ *    applied voltage the machine holds over the period;
+ *  - plant_sensors: ADC of the phase currents, encoder.
  */
 #ifndef PMSM_PLANT_H
 #define PMSM_PLANT_H
@@ -49,6 +58,10 @@
 
 #include "od_plant_fields.h" /* the EDS's enumerations (protocols/gen_od.py) */
 #include "plant_rng.h"
+
+/* constants of the blocks */
+#define PLANT_TWO_PI 6.283185307179586476925286766559005768
+#define PLANT_SQRT3 1.732050807568877293527446341505872367
 
 /* ---- error codes returned by plant_prepare ---------------------------- */
 enum {
@@ -91,10 +104,10 @@ typedef enum {
 
 /* ---- parameters ------------------------------------------------------- */
 typedef struct {
-    /* timing */
+    /* timing (every block) */
     double Ts_s;                  /* plant period = SYNC/current-loop period */
 
-    /* motor */
+    /* motor (plant_machine) */
     double R_ohm;                 /* phase resistance */
     double Ld_H;
     double Lq_H;                  /* unsaturated q inductance (Lq0) */
@@ -112,14 +125,14 @@ typedef struct {
     double sat_I_A;               /* current where L_inc drop is half of (Lq - Lq_inf) */
     double sat_Lq_inf_H;          /* incremental inductance at |iq| -> inf */
 
-    /* mechanics */
+    /* mechanics (plant_machine) */
     plant_mech_mode_t mech_mode;
     double J_kgm2;
     double B_Nm_per_rad_s;        /* viscous friction */
     double T_load_Nm;             /* constant load torque (opposes positive Te) */
     double omega_imposed_rad_s;   /* mechanical speed in IMPOSED_SPEED mode */
 
-    /* inverter */
+    /* inverter (plant_inverter; hold_frame is applied by plant_machine) */
     double Vdc_V;
     plant_mod_limit_t mod_limit;
     /* dead time: per-phase voltage error
@@ -131,7 +144,7 @@ typedef struct {
     double deadtime_I_sat_A;
     plant_hold_frame_t hold_frame;
 
-    /* sensors */
+    /* sensors (plant_sensors) */
     double adc_lsb_A;             /* 0 = no quantization */
     double adc_offset_a_A;
     double adc_offset_b_A;
@@ -140,14 +153,14 @@ typedef struct {
     uint32_t encoder_lines;       /* 0 = ideal angle; else 4*lines counts/rev */
     uint64_t rng_seed;
 
-    /* protection: the trip latches (applied voltage 0 from then on, until
-     * plant_clear_trip) when |i| of any phase exceeds I_trip_A, and - even
-     * with the level off - on a non-finite voltage command or phase current
-     * (a broken model state cannot be integrated further).  The presets set
-     * a level derived from the motor (presets.c). */
+    /* protection (plant_inverter): the trip latches (applied voltage 0 from
+     * then on, until plant_clear_trip) when |i| of any phase exceeds
+     * I_trip_A, and - even with the level off - on a non-finite voltage
+     * command or phase current (a broken model state cannot be integrated
+     * further).  The presets set a level derived from the motor (presets.c). */
     double I_trip_A;              /* over-current level, peak phase A; 0 = off */
 
-    /* numerics of the RK4 path (FREE mechanics or saturation) */
+    /* numerics of the RK4 path (FREE mechanics or saturation; plant_machine) */
     double rk4_h_rel;             /* max h*lambda per sub-step (default 0.02) */
     uint32_t rk4_min_substeps;    /* default 1 */
 } plant_config_t;
@@ -185,9 +198,9 @@ typedef struct {
 
 /* ---- runtime state ----------------------------------------------------- */
 typedef struct {
-    /* electrical, rotor frame */
+    /* electrical, rotor frame (plant_machine) */
     double id_A, iq_A;
-    /* mechanical */
+    /* mechanical (plant_machine) */
     double theta_m_rad;           /* [0, 2pi) */
     int64_t revolutions;
     double omega_m_rad_s;
@@ -195,16 +208,17 @@ typedef struct {
     /* time */
     uint64_t k;
     double t_s;
-    /* inverter trace of the last step */
+    /* inverter trace of the last step (plant_inverter) */
     double v_lim_alpha_V, v_lim_beta_V;   /* command after modulation limit */
     double v_app_alpha_V, v_app_beta_V;   /* actually applied (dead time, trip) */
     bool tripped;
-    /* energy */
+    /* energy (plant_machine) */
     plant_energy_t energy;
-    /* sensors */
+    /* sensors: ADC noise (plant_sensors) */
     plant_rng_t rng;
 
-    /* ---- discretization cache (written by plant_prepare) ---- */
+    /* ---- discretization cache (written by plant_prepare; plant_machine
+     * but for Vdt_V, plant_inverter) ---- */
     int status;                   /* result of the last plant_prepare */
     bool exact;                   /* exact matrix-exponential path */
     double phi[2][5];             /* rows id, iq of expm(A Ts) */
