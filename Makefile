@@ -2,6 +2,7 @@
 #
 #   make demo   set up everything (Debian packages, .venv, C build) and run the demo
 #   make test   set up everything and run the whole test suite (real vcan; VM if needed)
+#   make format apply the code style (ruff format, clang-format; checked by tests/host/test_style.py)
 #
 # `make all` only builds the C code (C11, -Wall -Wextra -Werror), into build/.
 
@@ -40,7 +41,7 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node)
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup fuzz
+.PHONY: all clean demo test setup fuzz format
 
 # libFuzzer harness of the CANopen slave (clang, ASan + UBSan).
 FUZZ_CFLAGS := -std=c11 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(WARN)
@@ -59,6 +60,12 @@ demo: setup
 
 test: setup
 	@bash scripts/run_tests.sh
+
+# The hand-written C (protocols/generated is gen_od.py's: its .clang-format turns formatting off).
+STYLE_C = $(shell find firmware_shim plant_rt protocols bench/direct -name '*.[ch]' -not -path 'protocols/generated/*')
+format:
+	.venv/bin/ruff format .
+	clang-format -i --style=file $(STYLE_C)
 
 $(BUILD)/obj/protocols/socketcan/%.o: protocols/socketcan/%.c
 	@mkdir -p $(@D)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One-shot, idempotent set-up of everything the bench needs on a Debian machine:
-#   1. Debian packages (C toolchains, can-utils; the QEMU/virtme-ng fallback only
-#      when the host kernel has no SocketCAN),
+#   1. Debian packages (C toolchains, clang-format, can-utils; the QEMU/virtme-ng
+#      fallback only when the host kernel has no SocketCAN),
 #   2. the Python virtual environment .venv with the pinned dependencies of
 #      pyproject.toml and the `bench` command,
 #   3. the C build (make).
@@ -24,7 +24,7 @@ EOF
 }
 
 # ---------------------------------------------------------------- Debian packages
-PKGS=(gcc make clang libclang-rt-14-dev can-utils valgrind gcc-arm-none-eabi
+PKGS=(gcc make clang libclang-rt-14-dev clang-format can-utils valgrind gcc-arm-none-eabi
       libnewlib-arm-none-eabi iproute2 kmod chromium)
 if have_host_can; then
     log "host kernel has SocketCAN: no VM fallback needed"
