@@ -13,7 +13,7 @@ import os
 import pickle
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import TypeVar
 
@@ -35,7 +35,7 @@ def section_of(var: ODVariable) -> str:
     return f"{var.index:04X}"
 
 
-@lru_cache(maxsize=None)
+@cache
 def _raw(path: str) -> configparser.ConfigParser:
     raw = configparser.ConfigParser(strict=False)
     raw.optionxform = str  # type: ignore[assignment,method-assign]
@@ -89,7 +89,7 @@ def _cached(what: str, node: str, build: Callable[[], T]) -> T:
     return value
 
 
-@lru_cache(maxsize=None)
+@cache
 def load(node: str, node_id: int | None = None) -> canopen.ObjectDictionary:
     return _cached(f"od|{node_id}", node, lambda: canopen.import_od(str(eds_path(node)), node_id=node_id))
 
@@ -114,7 +114,7 @@ class Param:
         return self.data_type == datatypes.REAL32
 
 
-@lru_cache(maxsize=None)
+@cache
 def params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
     """Writable sub-entries of the named objects, by sub-entry name."""
     return _cached(f"params|{'|'.join(objects)}", node, lambda: _params(node, objects))

@@ -294,7 +294,7 @@ def render(node: str) -> tuple[str, str, str]:
         if lit is not None:
             c.append(f"    .{e.field} = {lit},")
     c.append("};\n")
-    c.append(f"static const co_od_entry_t entries[] = {{")
+    c.append("static const co_od_entry_t entries[] = {")
     for e in entries:
         var = e.var
         flags = []

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from . import ClaimResult, Run, run_raw, traced
+from . import ClaimResult, run_raw, traced
 
 PAPER = "Yao 2020"
 OBJ = "Yao 2020 DPCC"

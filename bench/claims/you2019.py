@@ -356,13 +356,13 @@ def claim_tuning_position_profile(bus: str) -> list[ClaimResult]:
             {"first_gain_update_period": first, "move_start_period": 20, "peak_speed_rad_s": peak_speed,
              "median_stair_error_matched": err_ref, "median_stair_error_untuned": err_off,
              "median_stair_error_tuned": err_on, "stairs_tuned": len(f_on)},
-            "gains updated within 4 speed-loop periods of the start; afterwards the median deviation of the 2-period "
-            "response to each speed-loop reference stair is within 2 % of the matched controller's (untuned: more "
-            "than twice it)", bool(ok),
-            why_differs="The bench measures the response to each speed-loop reference stair during the acceleration "
-                        "(iq* changes every 8 periods) against the same move with a matched controller, not the "
-                        "paper's oscilloscope traces; the matched controller's own deviation (a few %) comes from "
-                        "the speed changing within the two periods and the 2500-line encoder; saturation is off.",
+            "gains updated within 4 speed-loop periods of the start; afterwards the median deviation of the "
+            "2-period response to each speed-loop reference stair is within 2 % of the matched controller's "
+            "(untuned: more than twice it)", bool(ok),
+            why_differs="The bench measures the response to each speed-loop reference stair during the "
+                        "acceleration (iq* changes every 8 periods) against the same move with a matched controller, "
+                        "not the paper's oscilloscope traces; the matched controller's own deviation (a few %) comes "
+                        "from the speed changing within the two periods and the 2500-line encoder; saturation is off.",
             runs=[on.name, off.name, matched.name]))
     return out
 

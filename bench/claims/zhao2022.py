@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from . import ClaimResult, traced, run_raw
+from . import ClaimResult, run_raw, traced
 
 PAPER = "Zhao 2022"
 R, L, TS, PP = 48.9, 14e-3, 100e-6, 5
@@ -129,7 +129,6 @@ def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
                 hi = mid
             else:
                 lo = mid
-    bench = hi
     poly = poly_boundary(lambda lam: q_incremental(R, L, R, L / lam))
     poly_tsk = poly_boundary(lambda lam: q_paper(lam))  # Zhao 2022 Eq. 34 (Ts -> 0)
     decided_like_poly = all(r["stable"] == (r["poly_radius"] < 1) for r in runs)

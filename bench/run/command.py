@@ -23,7 +23,6 @@ from ..scenario import Scenario, ScenarioError, load
 from .canlog import LOG_FORMATS
 from .outputs import Outputs, print_result
 
-
 CAPTURE_REFUSED = 65  # `bench capture` in the VM: a node refused a value of the scenario (EX_DATAERR)
 
 
@@ -247,13 +246,12 @@ def _run_here(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Ou
 def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
     """The bus half runs in the VM (`bench capture`: nodes, master, candump); the host follows
     candump's log on the shared folder and feeds the same pipeline as it grows (live view included)."""
-    from ..tools.vm import VmOptions, run_in_vm
-    from .pipeline import Pipeline
-    from .sources import LogFollower
-
     import uuid
 
     from ..paths import REPO
+    from ..tools.vm import VmOptions, run_in_vm
+    from .pipeline import Pipeline
+    from .sources import LogFollower
 
     # The guest's /tmp is its own: stage the capture in the repository (always shared with the VM).
     stage = REPO / "build" / "capture" / uuid.uuid4().hex[:12]

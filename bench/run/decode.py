@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .layout import FMT, BusLayout, PdoLayout
 from .frames import FRAME_DTYPE
+from .layout import FMT, BusLayout, PdoLayout
 from .sdo_log import SdoLog
 from .signals import SignalInfo, column_name
 from .syncs import genuine_syncs, plant_field, starts_loop
@@ -275,7 +275,7 @@ class Decoder:
         foreign = kind == KIND_FOREIGN
         if foreign.any():
             ids, n = np.unique(cob[foreign], return_counts=True)
-            for i, c in zip(ids.tolist(), n.tolist()):
+            for i, c in zip(ids.tolist(), n.tolist(), strict=True):
                 self.stats.foreign[i] = self.stats.foreign.get(i, 0) + c
 
     def _emcy(self, frames: np.ndarray, periods: np.ndarray, hit: np.ndarray) -> None:

@@ -169,7 +169,7 @@ class Liveness:
         # EMCY 0x8130 (a node lost the other's heartbeat) alone stops nothing: a node starved of CPU for a
         # moment reports it and resets it when the heartbeat is back. It names the node when the bench
         # has not heard it for half the consumer time either.
-        for reporter, code, data, t in emcy:
+        for reporter, code, data, _t in emcy:
             lost = next((n for n, i in self.nodes.items() if i == data[3]), None)
             if code == EMCY_HEARTBEAT and lost is not None and lost != reporter \
                     and now - last[lost] > self.timeout_s / 2:

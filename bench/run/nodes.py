@@ -22,7 +22,7 @@ class NodeProcess:
         self.proc: subprocess.Popen[bytes] | None = None
         self._log_fh = None
 
-    def start(self) -> "NodeProcess":
+    def start(self) -> NodeProcess:
         out = subprocess.DEVNULL
         if self.log is not None:
             self._log_fh = open(self.log, "wb")  # noqa: SIM115 - closed in stop()
@@ -48,7 +48,7 @@ class NodeProcess:
             self._log_fh.close()
         return self.proc.returncode
 
-    def __enter__(self) -> "NodeProcess":
+    def __enter__(self) -> NodeProcess:
         return self.start()
 
     def __exit__(self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None) -> None:

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from pathlib import Path
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,8 +26,7 @@ from .session import RunOptions, Session
 from .signals import SignalInfo
 from .sinks import Sink, TraceCollector
 from .stats import STEP_SIGNALS, Envelope, StepTracker
-from .summary import (SCHEMA_VERSION, bus_stats, divergence_bound_A, frame_bits, identified, plant_values,
-                      verdict)
+from .summary import SCHEMA_VERSION, bus_stats, divergence_bound_A, frame_bits, identified, plant_values, verdict
 
 FrameSink = Any  # has write(frames) and close()
 Progress = Callable[[int, int], None]

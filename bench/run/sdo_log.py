@@ -127,7 +127,7 @@ class SdoLog:
 
     def feed(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """SDO frames (see `mask`) in bus order, with the number of SYNCs seen before each."""
-        for f, period in zip(frames, periods):
+        for f, period in zip(frames, periods, strict=True):
             if int(f["dlc"]) != 8:
                 continue
             cob, d = int(f["cob_id"]), bytes(f["data"])

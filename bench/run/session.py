@@ -24,10 +24,10 @@ import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoError
 
 from ..eds import load as load_od
-from .nodes import NodeProcess
 from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
 from .liveness import Liveness, LoopStopped
+from .nodes import NodeProcess
 from .summary import END_READS, PLANT_VALUES
 
 PROGRESS = Callable[[int, int], None]

@@ -44,5 +44,5 @@ class SignalInfo:
     storage: str = "<f8"  # dtype in traces.npy: "<f4" holds a REAL32 or a small integer exactly
 
     @classmethod
-    def of(cls, name: str, source: str, storage: str = "<f8") -> "SignalInfo":
+    def of(cls, name: str, source: str, storage: str = "<f8") -> SignalInfo:
         return cls(name, unit_of(name), source, storage)

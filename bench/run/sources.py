@@ -21,10 +21,10 @@ from pathlib import Path
 import can
 import numpy as np
 
-from .nodes import in_vm
 from .canlog import _to_frames, parse_candump
 from .direct import Hil
 from .frames import empty
+from .nodes import in_vm
 
 
 class DirectSource:

@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from ..tools.plan import classic_frame_bits
 from ..eds import enum
 from ..scenario import STATUSES
+from ..tools.plan import classic_frame_bits
 from .decode import Decoder
 
 SCHEMA_VERSION = 2

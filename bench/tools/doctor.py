@@ -8,8 +8,8 @@ import subprocess
 from dataclasses import dataclass
 
 from .. import canbus
-from . import vm
 from ..paths import BIN, REPO
+from . import vm
 
 
 @dataclass

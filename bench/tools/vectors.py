@@ -14,7 +14,7 @@ class Frame:
     data: bytes
 
     @classmethod
-    def parse(cls, text: str) -> "Frame":
+    def parse(cls, text: str) -> Frame:
         cob, _, hexdata = text.strip().partition("#")
         return cls(int(cob, 16), bytes.fromhex(hexdata))
 

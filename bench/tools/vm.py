@@ -113,7 +113,8 @@ def _guest_script(cmd: list[str], cwd: Path, status_file: Path, interfaces: tupl
     up = ["modprobe -a vcan can_raw can_bcm 2>/dev/null || modprobe -a vcan can_raw || exit 90"]
     for name in interfaces:
         up.append(f"ip link add dev {name} type vcan && ip link set {name} txqueuelen 4000 && "
-                  f"ip link set up {name} || {{ echo 'bench vm: cannot create {name}' >&2; echo 91 > {status_file}; exit 91; }}")
+                  f"ip link set up {name} || {{ echo 'bench vm: cannot create {name}' >&2; "
+                  f"echo 91 > {status_file}; exit 91; }}")
     return "\n".join([
         "#!/bin/sh",
         *up,

@@ -41,7 +41,7 @@ def _pts(x: np.ndarray, y: np.ndarray, steps: bool = False) -> list[tuple[float,
     if steps and len(x) > 1:
         x = np.repeat(x, 2)[1:]
         y = np.repeat(y, 2)[:-1]
-    return [(float(a), float(b) if np.isfinite(b) else None) for a, b in zip(x, y)]
+    return [(float(a), float(b) if np.isfinite(b) else None) for a, b in zip(x, y, strict=True)]
 
 
 def _svg(*charts: pygal.XY) -> str:

@@ -388,7 +388,7 @@ class RerunSink:
             self.live.disconnect()
         self.live = None
 
-    def __enter__(self) -> "RerunSink":
+    def __enter__(self) -> RerunSink:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 ROLES = ("rerun", "plots")
-_STARTED: dict[str, "_Proc"] = {}
+_STARTED: dict[str, _Proc] = {}
 
 
 class _Proc:

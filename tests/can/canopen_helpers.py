@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import can
 import canopen
 
-from bench.run.nodes import NodeProcess
 from bench.paths import EDS_DIR
+from bench.run.nodes import NodeProcess
 
 
 class Capture(can.Listener):

@@ -11,7 +11,6 @@ from collections.abc import Iterator
 import pytest
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 from canopen.sdo.exceptions import SdoAbortedError
-
 from canopen_helpers import Target, node_target
 
 # (binary, its arguments, EDS kind, node-ID)

@@ -1,6 +1,7 @@
 """Real-time mode over vcan, at a slow period with wide tolerances (a VM under QEMU's software
-emulation cannot pace periods of a few ms: its SYNC intervals jitter by about 2 ms; see docs/VM.md): SYNC at absolute deadlines every Ts, the loop closed in time,
-late/missing commands counted and the lateness histogram readable by SDO."""
+emulation cannot pace periods of a few ms: its SYNC intervals jitter by about 2 ms; see docs/VM.md):
+SYNC at absolute deadlines every Ts, the loop closed in time, late/missing commands counted and the
+lateness histogram readable by SDO."""
 
 from __future__ import annotations
 

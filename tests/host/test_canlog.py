@@ -19,7 +19,6 @@ from bench.run import canlog
 from bench.run.canlog import LOG_FORMATS, CandumpWriter, export, read_frames
 from bench.run.frames import FRAME_DTYPE
 
-
 LINE_RE = re.compile(rb"^\(\d{10}\.\d{6}\) vcan0 [0-9A-F]{3}#(?:[0-9A-F]{2}){0,8}$")
 
 

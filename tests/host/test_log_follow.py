@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.run.canlog import CandumpWriter
 from bench.run.pipeline import Pipeline
 from bench.run.sinks import FrameCollector
 from bench.run.sources import LogFollower
 from bench.scenario import load
-from bench.paths import REPO
 
 
 def test_follower_decodes_a_growing_log_once(tmp_path: Path) -> None:

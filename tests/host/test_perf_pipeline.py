@@ -17,7 +17,6 @@ from bench.tools.perf.common import measure
 from bench.tools.perf.pipeline import TARGETS, Sizes, pipeline, target_rows
 from bench.tools.perf.report import format_report
 
-
 TINY = Sizes(one_second_periods=2000, repetitions=1, whole_periods=2000, api_periods=(2000,), loop_periods=2000,
              live_periods_per_update=200, peers=False)
 

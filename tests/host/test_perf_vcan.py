@@ -9,12 +9,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from bench.paths import REPO
 from bench.run.frames import FRAME_DTYPE
 from bench.tools.perf.vcan import _FrameCount, recorder_check
-
 
 
 def test_recorder_check_of_a_complete_log(tmp_path: Path) -> None:

@@ -17,13 +17,11 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pytest
-
-
 import rerun as rr
 from rerun.chunk import RrdReader
+from rrd_util import read_recording
 
 from bench.run.signals import SignalInfo
-from rrd_util import read_recording
 from bench.view import rerun_sink
 from bench.view.rerun_sink import RerunSink, ServeError, entity_path, unit_slug, view_name
 

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rrd_util import read_recording
 
 from bench.paths import REPO
 from bench.run.signals import unit_of
-from rrd_util import read_recording
 
 SCENARIO = """
 [scenario]

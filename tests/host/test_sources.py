@@ -149,7 +149,8 @@ def test_scanner_flags_a_bare_c_reference(src: str) -> None:
     "/* Yao 2020 Eqs. 13-15 */",
     "/* (Zhao 2022 Eq. 22/23) */",
     "/* Yao 2020 Definition 1 (Eq. 30) and Definition 2 (Eq. 31). */",
-    "/* You 2019 Sec. 3.2: the estimator,\n * with the PI of Eq. 8 (q) and Eq. 9 (d),\n * and many more words before Eq. 7 */",
+    "/* You 2019 Sec. 3.2: the estimator,\n * with the PI of Eq. 8 (q) and Eq. 9 (d),\n"
+    " * and many more words before Eq. 7 */",
     "// Zhao 2022: the d axis\n// ud(k+1) = ... (Eq. 23)\n",
     "/* zhao2022_incremental.c - Zhao 2022 incremental deadbeat controller,\n * many words later:\n * Eq. 14-23 */",
     'printf("update (You 2019 Eq. 28-32): %f\\n", t);',

@@ -18,7 +18,6 @@ import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.paths import EDS_DIR
-
 from bench.run.direct import DirectBus, Hil
 
 PLANT_ID, DRIVE_ID = 0x10, 0x20

@@ -18,7 +18,8 @@ _RERUN_CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 import rerun as rr
-periods, signals, batch, decimate, limit = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), sys.argv[5]
+periods, signals, batch, decimate = (int(a) for a in sys.argv[1:5])
+limit = sys.argv[5]
 def rss_kB():
     with open("/proc/self/statm") as fh:
         return int(fh.read().split()[1]) * 4
@@ -36,7 +37,8 @@ for a in range(0, periods, batch):
     sent += len(k[sl])
 rec.flush()
 wall = time.monotonic() - t0
-print(json.dumps({"rss_before_kB": before, "rss_after_kB": rss_kB(), "peak_rss_kB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+print(json.dumps({"rss_before_kB": before, "rss_after_kB": rss_kB(),
+                  "peak_rss_kB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                   "wall_s": wall, "periods_per_s": periods / wall, "samples_sent": sent * signals}))
 """
 

@@ -98,7 +98,8 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
         for key in ("decimate_1", "decimate_10"):
             d = rl[key]
             L.append(f"  {key.replace('_', ' ')}: {d['samples_sent']:,} samples in {d['wall_s']:.1f} s "
-                     f"({d['periods_per_s']:,.0f} periods/s), RSS +{(d['rss_after_kB'] - d['rss_before_kB']) / 1024:.0f} MiB "
+                     f"({d['periods_per_s']:,.0f} periods/s), "
+                     f"RSS +{(d['rss_after_kB'] - d['rss_before_kB']) / 1024:.0f} MiB "
                      f"(peak {d['peak_rss_kB'] / 1024:.0f} MiB), server memory limit {rl['server_memory_limit']}")
 
     yc = L.sec(r, "yao2020_identification", "Yao 2020 identification vs RLS (callgrind, instructions per call)")

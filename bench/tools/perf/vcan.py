@@ -26,6 +26,7 @@ import numpy as np
 
 from ...paths import REPO, binary
 from .common import PERF_DIR, TARGET_LONG_PERIODS, TARGET_VCAN_RATIO
+
 FLOOR_RE = (r"periods (\d+) frames_per_period (\d+) wall_s ([\d.]+) periods_per_s ([\d.]+) "
             r"rtt_us mean ([\d.]+) min ([\d.]+) median ([\d.]+) p99 ([\d.]+) max ([\d.]+)")
 
