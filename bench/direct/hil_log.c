@@ -29,7 +29,8 @@
 
 static const char HEX_UP[] = "0123456789ABCDEF";
 
-/* "00".."99": two decimal digits per table look-up. */
+/* "00".."99": two decimal digits per table look-up (the tables below keep their rows). */
+/* clang-format off */
 static const char DEC2[200] = {
     '0','0','0','1','0','2','0','3','0','4','0','5','0','6','0','7','0','8','0','9',
     '1','0','1','1','1','2','1','3','1','4','1','5','1','6','1','7','1','8','1','9',
@@ -51,6 +52,7 @@ static const uint8_t HEXV1[256] = {
     ['A'] = 11, ['B'] = 12, ['C'] = 13, ['D'] = 14, ['E'] = 15, ['F'] = 16,
     ['a'] = 11, ['b'] = 12, ['c'] = 13, ['d'] = 14, ['e'] = 15, ['f'] = 16,
 };
+/* clang-format on */
 
 static int is_space(char c) { return SPACE[(unsigned char)c]; }
 
@@ -250,7 +252,10 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
     unsigned dlc = 0;
     const unsigned max_bytes = fd ? 64u : 8u;
     while (p < q) {
-        if (*p == '.') { ++p; continue; }      /* candump's optional byte separator */
+        if (*p == '.') { /* candump's optional byte separator */
+            ++p;
+            continue;
+        }
         if (q - p < 2) return LINE_SKIP;       /* odd number of hex digits */
         int hi = hexval(p[0]), lo = hexval(p[1]);
         if (hi < 0 || lo < 0) return LINE_SKIP;

@@ -73,8 +73,8 @@ class PdoStats:
 class DecodeStats:
     periods: int = 0
     frames: int = 0
-    foreign: dict[int, int] = field(default_factory=dict)       # COB-ID -> frames on identifiers the run
-                                                                # does not use (and foreign SYNCs)
+    # COB-ID -> frames on identifiers the run does not use (and foreign SYNCs)
+    foreign: dict[int, int] = field(default_factory=dict)
     interference: dict[int, int] = field(default_factory=dict)  # COB-ID -> extra frames on the loop's own
     first_interference_period: int | None = None
     first_lost_period: int | None = None     # the first period with a missing frame, a gap or a misaligned sample

@@ -51,13 +51,14 @@ class RunOptions:
     start_plant: bool = True       # start the C plant process (False: a physical plant/drive is on the bus)
     start_drive: bool = True       # start the C drive process (False: a physical drive implements drive.eds)
     out: Path | None = None        # where the node processes' output goes (None: nowhere)
-    record: bool = True            # record every frame (candump / in-process); off only to time the loop alone
-                                   # (then nothing is decoded: the result has no periods)
+    # record every frame (candump / in-process); off only to time the loop alone (then nothing is decoded: the
+    # result has no periods)
+    record: bool = True
     chunk_periods: int = 65_536    # periods per chunk of the pipeline (direct mode: per C call)
     heartbeat_ms: int = 100        # both nodes' heartbeat producer time (0x1017)
-    heartbeat_timeout_ms: int = 1000  # consumer time (0x1016 of each node, and the bench's): a node silent
-                                      # this long is named and the run stops (10 heartbeats: load in a VM
-                                      # must not look like a dead node)
+    # consumer time (0x1016 of each node, and the bench's): a node silent this long is named and the run stops
+    # (10 heartbeats: load in a VM must not look like a dead node)
+    heartbeat_timeout_ms: int = 1000
     stall_s: float = 10.0          # both nodes alive, the period index still for this long: a frame was lost
 
 

@@ -29,12 +29,17 @@ static int is_finite_f(float x)
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, record, field),
 #define IN_YAO(index, sub, record, field, eds_default) \
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, yao, record, field),
+/* one list a line (clang-format would run the macro lists together) */
+/* clang-format off */
 static const co_field_map_t config_rows[] = {
-    OD_DRIVE_CONTROLLER_PARAMS(AT_ROOT) OD_DRIVE_ONLINE_TUNING_PARAMS(IN_IDENT)
-    OD_DRIVE_OUTER_LOOPS_PARAMS(IN_OUTER) OD_DRIVE_YAO_2020_DPCC_PARAMS(IN_YAO)
+    OD_DRIVE_CONTROLLER_PARAMS(AT_ROOT)
+    OD_DRIVE_ONLINE_TUNING_PARAMS(IN_IDENT)
+    OD_DRIVE_OUTER_LOOPS_PARAMS(IN_OUTER)
+    OD_DRIVE_YAO_2020_DPCC_PARAMS(IN_YAO)
     /* the profile of References belongs to the outer loops */
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, x2202_References, profile_speed_rad_s),
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, x2202_References, profile_accel_rad_s2)};
+/* clang-format on */
 #undef AT_ROOT
 #undef IN_IDENT
 #undef IN_OUTER

@@ -394,12 +394,14 @@ static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, do
     const double (*P)[5] = s->phi;
     s->id_A = P[0][0] * x0 + P[0][1] * x1 + P[0][2] * x2 + P[0][3] * x3 + P[0][4];
     s->iq_A = P[1][0] * x0 + P[1][1] * x1 + P[1][2] * x2 + P[1][3] * x3 + P[1][4];
-    /* energy integrals: exact quadratic forms in the start state */
+    /* energy integrals: exact quadratic forms in the start state (m: the upper triangle, row by row) */
+    /* clang-format off */
     const double m[15] = {x0 * x0, x0 * x1, x0 * x2, x0 * x3, x0,
                           x1 * x1, x1 * x2, x1 * x3, x1,
                           x2 * x2, x2 * x3, x2,
                           x3 * x3, x3,
                           1.0};
+    /* clang-format on */
     double ein = 0.0, ecu = 0.0, eme = 0.0;
     for (int i = 0; i < 15; ++i) {
         ein += s->q_in[i] * m[i];

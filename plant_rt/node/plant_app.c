@@ -16,8 +16,13 @@
 /* Motor model, Inverter and Sensors (0x2000-0x2002) <-> plant_config_t: the rows are the EDS's
  * own lists (od_plant.h), the fields of plant_config_t carry the EDS names. */
 #define PLANT_ROW(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_config_t, record, field),
+/* one list a line (clang-format would run the macro lists together) */
+/* clang-format off */
 static const co_field_map_t config_rows[] = {
-    OD_PLANT_MOTOR_MODEL_PARAMS(PLANT_ROW) OD_PLANT_INVERTER_PARAMS(PLANT_ROW) OD_PLANT_SENSORS_PARAMS(PLANT_ROW)};
+    OD_PLANT_MOTOR_MODEL_PARAMS(PLANT_ROW)
+    OD_PLANT_INVERTER_PARAMS(PLANT_ROW)
+    OD_PLANT_SENSORS_PARAMS(PLANT_ROW)};
+/* clang-format on */
 #undef PLANT_ROW
 #define N_CONFIG_ROWS (sizeof config_rows / sizeof config_rows[0])
 

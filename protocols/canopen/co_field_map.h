@@ -30,6 +30,8 @@ typedef struct {
     uint8_t core_kind, core_size;
 } co_field_map_t;
 
+/* Written by hand: clang-format 14 does not parse _Generic (nor offsetof in a braced list in a macro). */
+/* clang-format off */
 #define CO_FM_KIND(x)                                                                                  \
     _Generic((x), float: CO_FM_FLOAT, double: CO_FM_DOUBLE, bool: CO_FM_BOOL, int8_t: CO_FM_SINT,   \
              int16_t: CO_FM_SINT, int32_t: CO_FM_SINT, int64_t: CO_FM_SINT, default: CO_FM_UINT)
@@ -45,6 +47,7 @@ typedef struct {
     {(uint16_t)offsetof(od_t, record.field), (uint16_t)offsetof(core_t, member.field),                 \
      (uint8_t)CO_FM_KIND(((od_t *)0)->record.field), (uint8_t)sizeof(((od_t *)0)->record.field),        \
      (uint8_t)CO_FM_KIND(((core_t *)0)->member.field), (uint8_t)sizeof(((core_t *)0)->member.field)}
+/* clang-format on */
 
 /* Every row's OD value (in the OD struct at `od`) -> the core struct at `core`. */
 void co_field_map_to_core(const co_field_map_t *rows, size_t n, const void *od, void *core);
