@@ -22,8 +22,14 @@ def _cmd_vm(args: argparse.Namespace) -> int:
     if not cmd:
         print("bench vm: give the command after `--`, e.g. `bench vm -- ip link show vcan0`", file=sys.stderr)
         return 64
-    opts = VmOptions(cpus=args.cpus, memory=args.memory, timeout_s=args.timeout, kvm=args.kvm,
-                     interfaces=tuple(args.iface or ["vcan0"]), rwdirs=[Path(p) for p in args.rwdir or []])
+    opts = VmOptions(
+        cpus=args.cpus,
+        memory=args.memory,
+        timeout_s=args.timeout,
+        kvm=args.kvm,
+        interfaces=tuple(args.iface or ["vcan0"]),
+        rwdirs=[Path(p) for p in args.rwdir or []],
+    )
     try:
         return run_in_vm(cmd, opts)
     except VmError as exc:
@@ -44,8 +50,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from .tools.plan import format_plan, make_plan
 
     try:
-        plan = make_plan(args.bitrate, args.ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos,
-                         args.trace_decimation)
+        plan = make_plan(
+            args.bitrate, args.ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation
+        )
     except ValueError as exc:
         print(f"bench plan: {exc}", file=sys.stderr)
         return 64
@@ -117,19 +124,25 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="bench",
         description="Hardware-in-the-loop bench for PMSM deadbeat current control over CANopen "
-                    "(SocketCAN; a virtme-ng VM supplies vcan when the host kernel has no CAN).",
+        "(SocketCAN; a virtme-ng VM supplies vcan when the host kernel has no CAN).",
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    d = sub.add_parser("doctor", help="report kernel CAN, vcan0, VM fallback and tool versions",
-                       description="One screen: what the bench found, each problem with the command that fixes it. "
-                                   "Exit 0 when CAN work can run (on the host or in the VM).")
+    d = sub.add_parser(
+        "doctor",
+        help="report kernel CAN, vcan0, VM fallback and tool versions",
+        description="One screen: what the bench found, each problem with the command that fixes it. "
+        "Exit 0 when CAN work can run (on the host or in the VM).",
+    )
     d.set_defaults(func=_cmd_doctor)
 
-    v = sub.add_parser("vm", help="run a command inside the micro-VM with a real vcan0",
-                       description="Boot Debian's stock kernel under QEMU (virtme-ng), bring up vcan0, run CMD in the "
-                                   "current directory (the repository and the current directory are shared "
-                                   "read-write) and return CMD's exit status. Example: bench vm -- candump -n 1 vcan0")
+    v = sub.add_parser(
+        "vm",
+        help="run a command inside the micro-VM with a real vcan0",
+        description="Boot Debian's stock kernel under QEMU (virtme-ng), bring up vcan0, run CMD in the "
+        "current directory (the repository and the current directory are shared "
+        "read-write) and return CMD's exit status. Example: bench vm -- candump -n 1 vcan0",
+    )
     v.add_argument("--cpus", type=int, default=2, help="guest CPUs (default 2)")
     v.add_argument("--memory", default="2G", help="guest memory (default 2G)")
     v.add_argument("--timeout", type=float, default=3600.0, help="seconds before the VM is killed (default 3600)")
@@ -139,18 +152,24 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("cmd", nargs=argparse.REMAINDER, help="-- CMD [ARGS...]")
     v.set_defaults(func=_cmd_vm)
 
-    pp = sub.add_parser("pingpong", help="C ping-pong between two processes on a CAN interface (needs SocketCAN)",
-                        description="Start an echo and a ping C process on IFACE, verify every answer, print "
-                                    "round-trip statistics. Run it through `bench vm --` on hosts without CAN.")
+    pp = sub.add_parser(
+        "pingpong",
+        help="C ping-pong between two processes on a CAN interface (needs SocketCAN)",
+        description="Start an echo and a ping C process on IFACE, verify every answer, print "
+        "round-trip statistics. Run it through `bench vm --` on hosts without CAN.",
+    )
     pp.add_argument("--iface", default="vcan0")
     pp.add_argument("--count", type=int, default=1000)
     pp.set_defaults(func=_cmd_pingpong)
 
-    pl = sub.add_parser("plan", help="will the PDO set fit a real-time period on this bus?",
-                        description="Bits per control period of the configured PDO set (from the EDS files) with "
-                                    "worst-case bit stuffing, bus load, whether Ts fits in real time, the fastest "
-                                    "period that does, and what to change. Example: bench plan --bitrate 1000000 "
-                                    "--ts 55e-6")
+    pl = sub.add_parser(
+        "plan",
+        help="will the PDO set fit a real-time period on this bus?",
+        description="Bits per control period of the configured PDO set (from the EDS files) with "
+        "worst-case bit stuffing, bus load, whether Ts fits in real time, the fastest "
+        "period that does, and what to change. Example: bench plan --bitrate 1000000 "
+        "--ts 55e-6",
+    )
     pl.add_argument("--bitrate", type=float, default=1e6, help="nominal bit rate, bit/s (default 1e6)")
     pl.add_argument("--fd", action="store_true", help="CAN FD with bit-rate switch")
     pl.add_argument("--data-bitrate", type=float, default=None, help="CAN FD data-phase bit rate, bit/s")
@@ -163,13 +182,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .run.command import add_arguments
 
-    r = sub.add_parser("run", help="run a scenario: configure by SDO, run, record every frame, summarize",
-                       description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
-                                   "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
-                                   "every frame, and write summary.json, traces.npy, the CAN log, SVG plots and a "
-                                   "Rerun recording. The exit status is the run's verdict: 0 ok, 3 tripped, "
-                                   "4 diverged, 5 non-finite values, 6 frames lost, 7 expected status not reached "
-                                   "(1 failure, 2 bad input, 130 interrupted). Example: bench run scenarios/you2019_step.toml --bus direct")
+    r = sub.add_parser(
+        "run",
+        help="run a scenario: configure by SDO, run, record every frame, summarize",
+        description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
+        "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
+        "every frame, and write summary.json, traces.npy, the CAN log, SVG plots and a "
+        "Rerun recording. The exit status is the run's verdict: 0 ok, 3 tripped, "
+        "4 diverged, 5 non-finite values, 6 frames lost, 7 expected status not reached "
+        "(1 failure, 2 bad input, 130 interrupted). Example: bench run scenarios/you2019_step.toml --bus direct",
+    )
     add_arguments(r)
     r.set_defaults(func=_cmd_run)
     c = sub.add_parser("capture", help=argparse.SUPPRESS)
@@ -183,58 +205,76 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .replay import add_arguments as replay_args
 
-    rp = sub.add_parser("replay", help="decode a CAN log (candump/ASC/BLF, any bus) into traces and views",
-                        description="Decode any log python-can reads (candump .log, .asc, .blf) into traces.npy, "
-                                    "summary.json, SVG plots and a Rerun recording, as the run did: the PDO layout, "
-                                    "the plant's parameters and every setting come from the SDO traffic in the log "
-                                    "(the EDS defaults when it has none, said so). The exit status is the verdict, "
-                                    "as for bench run.")
+    rp = sub.add_parser(
+        "replay",
+        help="decode a CAN log (candump/ASC/BLF, any bus) into traces and views",
+        description="Decode any log python-can reads (candump .log, .asc, .blf) into traces.npy, "
+        "summary.json, SVG plots and a Rerun recording, as the run did: the PDO layout, "
+        "the plant's parameters and every setting come from the SDO traffic in the log "
+        "(the EDS defaults when it has none, said so). The exit status is the verdict, "
+        "as for bench run.",
+    )
     replay_args(rp)
     rp.set_defaults(func=_cmd_replay)
 
-    ex = sub.add_parser("export", help="convert a CAN log (candump .log, .asc, .blf) to another format",
-                        description="Convert a CAN log: .asc (Vector ASCII) and .blf (Vector binary) with "
-                                    "python-can's writers, .log (candump) with the bench's C writer. Example: "
-                                    "bench export runs/x/bus.log runs/x/bus.blf")
+    ex = sub.add_parser(
+        "export",
+        help="convert a CAN log (candump .log, .asc, .blf) to another format",
+        description="Convert a CAN log: .asc (Vector ASCII) and .blf (Vector binary) with "
+        "python-can's writers, .log (candump) with the bench's C writer. Example: "
+        "bench export runs/x/bus.log runs/x/bus.blf",
+    )
     ex.add_argument("log", type=Path, help="the log to read")
     ex.add_argument("dest", type=Path, help="the file to write (.log, .asc or .blf)")
     ex.set_defaults(func=_cmd_export)
 
     from .sweep import add_arguments as sweep_args
 
-    sw = sub.add_parser("sweep", help="run a grid of scenario variants in direct mode on every core",
-                        description="Example: bench sweep scenarios/you2019_step.toml "
-                                    "--grid controller.L_hat_ratio=0.5,1.0,1.2 --grid controller.R_hat_ratio=0.5,1.5")
+    sw = sub.add_parser(
+        "sweep",
+        help="run a grid of scenario variants in direct mode on every core",
+        description="Example: bench sweep scenarios/you2019_step.toml "
+        "--grid controller.L_hat_ratio=0.5,1.0,1.2 --grid controller.R_hat_ratio=0.5,1.5",
+    )
     sweep_args(sw)
     sw.set_defaults(func=_cmd_sweep)
 
     from .reproduce import add_arguments as reproduce_args
 
-    rep = sub.add_parser("reproduce", help="run every claim of the three papers and write a report",
-                         description="Runs, over vcan by default, a scenario for each quantitative claim of You 2019, "
-                                     "Yao 2020 and Zhao 2022, and writes report.md, report.html and report.json with "
-                                     "the paper's value, the bench's value, the tolerance and a verdict per claim.")
+    rep = sub.add_parser(
+        "reproduce",
+        help="run every claim of the three papers and write a report",
+        description="Runs, over vcan by default, a scenario for each quantitative claim of You 2019, "
+        "Yao 2020 and Zhao 2022, and writes report.md, report.html and report.json with "
+        "the paper's value, the bench's value, the tolerance and a verdict per claim.",
+    )
     reproduce_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
     from .tools.perf import add_arguments as perf_args
 
-    pf = sub.add_parser("perf", help="benchmarks: what a user waits for (whole commands beside the loop and a peer "
-                                     "simulator), cores, instruction counts, Cortex-M4F size, CANopen, vcan",
-                        description="Prints measured figures (never asserted), side by side in one run: the whole "
-                                    "`bench run` process beside the loop's own rate, the Python API and "
-                                    "gym-electric-motor on the same scenario (pipeline section, with its targets); "
-                                    "plant and controller cost per period in-process, instruction counts under "
-                                    "callgrind, Cortex-M4F code size, CANopen frame cost, and (unless --quick) "
-                                    "lockstep periods/s over vcan beside the C ping-pong floor of the same frames, "
-                                    "in one VM run. --only SECTION,... runs some sections.")
+    pf = sub.add_parser(
+        "perf",
+        help="benchmarks: what a user waits for (whole commands beside the loop and a peer "
+        "simulator), cores, instruction counts, Cortex-M4F size, CANopen, vcan",
+        description="Prints measured figures (never asserted), side by side in one run: the whole "
+        "`bench run` process beside the loop's own rate, the Python API and "
+        "gym-electric-motor on the same scenario (pipeline section, with its targets); "
+        "plant and controller cost per period in-process, instruction counts under "
+        "callgrind, Cortex-M4F code size, CANopen frame cost, and (unless --quick) "
+        "lockstep periods/s over vcan beside the C ping-pong floor of the same frames, "
+        "in one VM run. --only SECTION,... runs some sections.",
+    )
     perf_args(pf)
     pf.set_defaults(func=_cmd_perf)
 
-    dm = sub.add_parser("demo", help="the headline demo (the README's main job)",
-                        description="You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched "
-                                    "on halfway, over vcan0 (VM if needed), recorded and shown in Rerun; ends with a "
-                                    "before/after table and the paths of the results.")
+    dm = sub.add_parser(
+        "demo",
+        help="the headline demo (the README's main job)",
+        description="You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched "
+        "on halfway, over vcan0 (VM if needed), recorded and shown in Rerun; ends with a "
+        "before/after table and the paths of the results.",
+    )
     dm.add_argument("--bus", default="vcan0", help="vcan0 (default) or direct")
     dm.add_argument("--out", type=Path, default=None, help="output folder (default runs/demo-TIMESTAMP)")
     dm.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")

@@ -46,13 +46,19 @@ def main(args: argparse.Namespace) -> int:
     print(f"  {'':<16}{'periods to settle (2 %)':<28}{'mean overshoot':>16}")
     print(f"  {'tuning off':<16}{settle(before):<28}{mean([s['overshoot_A'] for s in before]):>13.3f} A")
     print(f"  {'tuning on':<16}{settle(after):<28}{mean([s['overshoot_A'] for s in after]):>13.3f} A")
-    print("  (the first steps after the switch still carry the error left by the gain change: a mode at the plant "
-          "pole, cancelled by the deadbeat zero, decaying with L/R)")
+    print(
+        "  (the first steps after the switch still carry the error left by the gain change: a mode at the plant "
+        "pole, cancelled by the deadbeat zero, decaying with L/R)"
+    )
     if ident.get("K1_bar_V_A") is not None:
-        print(f"  identified gains: K1 {ident['K1_bar_V_A']:.3f} V/A, K2 {ident['K2_bar_V_A']:.3f} V/A, "
-              f"L_hat {ident['L_hat_H'] * 1e3:.4f} mH (plant Lq {summary['plant']['Lq_H'] * 1e3:.4f} mH)")
+        print(
+            f"  identified gains: K1 {ident['K1_bar_V_A']:.3f} V/A, K2 {ident['K2_bar_V_A']:.3f} V/A, "
+            f"L_hat {ident['L_hat_H'] * 1e3:.4f} mH (plant Lq {summary['plant']['Lq_H'] * 1e3:.4f} mH)"
+        )
     print(f"  recording: {out_dir / 'run.rrd'} (rerun {out_dir / 'run.rrd'})")
     print(f"  CAN log:   {out_dir / summary['files']['log']}")
-    print(f"  traces:    {out_dir / summary['files']['traces']}; summary: {out_dir / 'summary.json'}; "
-          f"plots: {out_dir}/*.svg")
+    print(
+        f"  traces:    {out_dir / summary['files']['traces']}; summary: {out_dir / 'summary.json'}; "
+        f"plots: {out_dir}/*.svg"
+    )
     return rc

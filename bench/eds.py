@@ -133,6 +133,16 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
                 lo, hi = float_limits(eds_path(node), var)
             else:
                 lo, hi = var.min, var.max
-            out[var.name] = Param(node, oname, var.name, var.index, var.subindex, var.data_type, lo, hi,
-                                  var.description or "", value_names(eds_path(node), var))
+            out[var.name] = Param(
+                node,
+                oname,
+                var.name,
+                var.index,
+                var.subindex,
+                var.data_type,
+                lo,
+                hi,
+                var.description or "",
+                value_names(eds_path(node), var),
+            )
     return out

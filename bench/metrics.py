@@ -15,7 +15,7 @@ class StepMetrics:
     at_period: int
     from_A: float
     to_A: float
-    periods_to_settle: int | None   # periods after the step until the current stays within the band
+    periods_to_settle: int | None  # periods after the step until the current stays within the band
     overshoot_A: float
     overshoot_pct: float
     steady_state_error_A: float
@@ -44,7 +44,10 @@ def step_metrics(x: np.ndarray, ref: np.ndarray, signal: str, min_step_A: float 
         settle = None if len(outside) and outside[-1] == len(seg) - 1 else (int(outside[-1]) + 1 if len(outside) else 0)
         over = float(np.nanmax(np.sign(step) * (seg - r1)))
         over = max(over, 0.0)
-        tail = seg[len(seg) - max(1, len(seg) // 5):]
-        out.append(StepMetrics(signal, p, r0, r1, settle, over, 100.0 * over / abs(step),
-                               float(np.nanmean(tail - r1)), len(seg)))
+        tail = seg[len(seg) - max(1, len(seg) // 5) :]
+        out.append(
+            StepMetrics(
+                signal, p, r0, r1, settle, over, 100.0 * over / abs(step), float(np.nanmean(tail - r1)), len(seg)
+            )
+        )
     return out

@@ -18,11 +18,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", type=Path, help="CAN log (.log candump, .asc, .blf, ...)")
     p.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10, help="plant node-ID (default 0x10)")
     p.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20, help="drive node-ID (default 0x20)")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: LOG's folder/replay); "
-                   "must not exist or be empty")
-    p.add_argument("--expect", action="append", default=None, metavar="STATUS",
-                   help="the status the recorded run was meant to end with (as the scenario's expect; repeatable); "
-                        "default: the expect of summary.json beside the log, else ok")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default: LOG's folder/replay); must not exist or be empty",
+    )
+    p.add_argument(
+        "--expect",
+        action="append",
+        default=None,
+        metavar="STATUS",
+        help="the status the recorded run was meant to end with (as the scenario's expect; repeatable); "
+        "default: the expect of summary.json beside the log, else ok",
+    )
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer")
     p.add_argument("--serve", action="store_true", help="serve the Rerun web viewer (until Ctrl-C or --serve-for)")
     p.add_argument("--serve-for", type=float, default=None, metavar="SECONDS")
@@ -73,13 +82,24 @@ def main(args: argparse.Namespace) -> int:
         return 2
 
     live = "serve" if args.serve else ("spawn" if not args.no_viewer and os.environ.get("DISPLAY") else "none")
-    rerun = RerunSink(args.log.stem, out / "run.rrd", live=live,  # type: ignore[arg-type]
-                      web_port=args.web_port, grpc_port=args.grpc_port)
+    rerun = RerunSink(
+        args.log.stem,
+        out / "run.rrd",
+        live=live,  # type: ignore[arg-type]
+        web_port=args.web_port,
+        grpc_port=args.grpc_port,
+    )
     est_frames = max(1, args.log.stat().st_size // 33)  # a candump line is ~33 bytes: an estimate for the bar
     bar = Progress(est_frames, f"replay {args.log.name}", unit="frames")
     try:
-        res = replay_log(args.log, args.plant_id, args.drive_id, sinks=[TraceFileSink(out / TRACES_FILE), rerun],
-                         expect=expect, progress=bar.update)
+        res = replay_log(
+            args.log,
+            args.plant_id,
+            args.drive_id,
+            sinks=[TraceFileSink(out / TRACES_FILE), rerun],
+            expect=expect,
+            progress=bar.update,
+        )
     except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
         bar.close()
         return refuse(f"{args.log}: cannot decode: {exc}")
@@ -88,16 +108,24 @@ def main(args: argparse.Namespace) -> int:
     if s["periods"] == 0:
         return refuse(f"{args.log}: no SYNC found among {s['bus_stats']['frames']} frames: nothing to decode")
     if s["log"]["sdo_transfers"] == 0:
-        print("bench replay: the log holds no SDO traffic (recorded after the configuration, or of another "
-              f"master): decoded with the EDS defaults: the default PDO layout, pole pairs "
-              f"{s['plant'].get('pole_pairs')}, Ts {s['Ts_s']:g} s", file=sys.stderr)
+        print(
+            "bench replay: the log holds no SDO traffic (recorded after the configuration, or of another "
+            f"master): decoded with the EDS defaults: the default PDO layout, pole pairs "
+            f"{s['plant'].get('pole_pairs')}, Ts {s['Ts_s']:g} s",
+            file=sys.stderr,
+        )
     plots = step_plots(out, res.step_windows, s["steps"], args.log.name)
     ov = overview_plot(out, res.envelopes, args.log.name, s["Ts_s"])
-    s["files"] = {"traces": TRACES_FILE, "recording": "run.rrd", "plots": [p.name for p in plots] + ([ov.name]
-                                                                                                   if ov else [])}
+    s["files"] = {
+        "traces": TRACES_FILE,
+        "recording": "run.rrd",
+        "plots": [p.name for p in plots] + ([ov.name] if ov else []),
+    }
     (out / "summary.json").write_text(json.dumps(s, indent=2, default=str))
-    print(f"bench replay: {s['bus_stats']['frames']} frames, {s['periods']} periods decoded; "
-          f"{s['log']['frames_skipped']} frames skipped (not 11-bit data frames)")
+    print(
+        f"bench replay: {s['bus_stats']['frames']} frames, {s['periods']} periods decoded; "
+        f"{s['log']['frames_skipped']} frames skipped (not 11-bit data frames)"
+    )
     print_result(out, res)
     if args.serve:
         rerun.serve_until(args.serve_for)

@@ -23,25 +23,42 @@ from pathlib import Path
 from typing import Any
 
 PAPERS = {
-    "000": ("You 2019", "bench.claims.you2019",
-            "You, Huang, Yang - Online Current Loop Tuning for PMSM Servo Drives with Deadbeat Current Control "
-            "(Energies, 2019)"),
-    "001": ("Yao 2020", "bench.claims.yao2020",
-            "Yao, Huang, Peng, Dong, Zhang - An Improved Deadbeat Predictive Current Control With Online Parameter "
-            "Identification for Surface-Mounted PMSMs (IEEE TIE, 2020)"),
-    "003": ("Zhao 2022", "bench.claims.zhao2022",
-            "Zhao, Chen, Wang, Li, Mao, Li, Zhang, Wu - An Improved Deadbeat Current Controller of PMSM Based on "
-            "Bilinear Discretization (Machines, 2022)"),
+    "000": (
+        "You 2019",
+        "bench.claims.you2019",
+        "You, Huang, Yang - Online Current Loop Tuning for PMSM Servo Drives with Deadbeat Current Control "
+        "(Energies, 2019)",
+    ),
+    "001": (
+        "Yao 2020",
+        "bench.claims.yao2020",
+        "Yao, Huang, Peng, Dong, Zhang - An Improved Deadbeat Predictive Current Control With Online Parameter "
+        "Identification for Surface-Mounted PMSMs (IEEE TIE, 2020)",
+    ),
+    "003": (
+        "Zhao 2022",
+        "bench.claims.zhao2022",
+        "Zhao, Chen, Wang, Li, Mao, Li, Zhang, Wu - An Improved Deadbeat Current Controller of PMSM Based on "
+        "Bilinear Discretization (Machines, 2022)",
+    ),
 }
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--paper", choices=[*PAPERS, "all"], default="all",
-                   help="000 = You 2019, 001 = Yao 2020, 003 = Zhao 2022, all (default)")
+    p.add_argument(
+        "--paper",
+        choices=[*PAPERS, "all"],
+        default="all",
+        help="000 = You 2019, 001 = Yao 2020, 003 = Zhao 2022, all (default)",
+    )
     p.add_argument("--bus", default="vcan0", help="vcan0 (default; the VM supplies it if needed) or direct")
     p.add_argument("--out", type=Path, default=None, help="report folder (default reports/TIMESTAMP)")
-    p.add_argument("--publish", type=Path, default=None,
-                   help="also write a light copy (reports + plots, no recordings) to this folder, e.g. docs/reproduce")
+    p.add_argument(
+        "--publish",
+        type=Path,
+        default=None,
+        help="also write a light copy (reports + plots, no recordings) to this folder, e.g. docs/reproduce",
+    )
     p.add_argument("--collect-only", action="store_true", help=argparse.SUPPRESS)
 
 
@@ -75,8 +92,19 @@ def run_claim_function(fn: Any, bus: str, code: str, paper: str) -> list[dict[st
         recs = [r.to_dict() for r in (res if isinstance(res, list) else [res])]
     except Exception as exc:  # noqa: BLE001 - a claim that crashes is reported, not hidden
         traceback.print_exc()
-        recs = [ClaimResult(paper, f"{code}-{fn.__name__}", "-", (fn.__doc__ or fn.__name__).strip(), None,
-                            f"error: {exc}", "-", False, why_differs="the bench failed to run this claim").to_dict()]
+        recs = [
+            ClaimResult(
+                paper,
+                f"{code}-{fn.__name__}",
+                "-",
+                (fn.__doc__ or fn.__name__).strip(),
+                None,
+                f"error: {exc}",
+                "-",
+                False,
+                why_differs="the bench failed to run this claim",
+            ).to_dict()
+        ]
     for r in recs:
         if r.get("runs") is None:
             r["runs"] = list(claims.RUNS_USED) if len(recs) == 1 else []
@@ -101,15 +129,25 @@ def collect(papers: list[str], bus: str, out: Path) -> list[dict[str, Any]]:
     t0 = time.monotonic()
     for i, (code, name, fn) in enumerate(fns):
         if isinstance(fn, Exception):
-            results.append(ClaimResult(name, f"{code}-missing", "-", "the bench has no claims module for this paper",
-                                       None, f"{fn}", "-", False, why_differs="not implemented").to_dict())
+            results.append(
+                ClaimResult(
+                    name,
+                    f"{code}-missing",
+                    "-",
+                    "the bench has no claims module for this paper",
+                    None,
+                    f"{fn}",
+                    "-",
+                    False,
+                    why_differs="not implemented",
+                ).to_dict()
+            )
             continue
         el = time.monotonic() - t0
         eta = f", ~{_dur(el / i * (len(fns) - i))} left" if i else ""
         print(f"reproduce [{i + 1}/{len(fns)}] {name}: {fn.__name__} ... ({_dur(el)} elapsed{eta})", flush=True)
         results.extend(run_claim_function(fn, bus, code, name))
-    print(f"reproduce: {len(fns)} claim functions, {len(results)} claims in {_dur(time.monotonic() - t0)}",
-          flush=True)
+    print(f"reproduce: {len(fns)} claim functions, {len(results)} claims in {_dur(time.monotonic() - t0)}", flush=True)
     (out / "claims.json").write_text(json.dumps(results, indent=2, default=str))
     return results
 
@@ -162,8 +200,11 @@ def postprocess_runs(out: Path) -> int:
     from .view.rerun_sink import RerunSink
 
     root = out / "runs"
-    todo = [r for r in sorted(root.iterdir()) if (r / "bus.log").exists() and not (r / "run.rrd").exists()] \
-        if root.exists() else []
+    todo = (
+        [r for r in sorted(root.iterdir()) if (r / "bus.log").exists() and not (r / "run.rrd").exists()]
+        if root.exists()
+        else []
+    )
     failed = 0
     for i, run in enumerate(todo):
         t0 = time.monotonic()
@@ -192,42 +233,81 @@ def _fmt(v: Any) -> str:
 
 
 def write_reports(out: Path, results: list[dict[str, Any]], bus: str, wall_s: float, links: bool = True) -> None:
-    records = [{k: r.get(k) for k in ("paper", "claim_id", "figure", "statement", "paper_value", "bench_value",
-                                      "tolerance", "verdict", "bench_check", "why_differs", "runs")} for r in results]
-    (out / "report.json").write_text(json.dumps({"bus": bus, "wall_s": wall_s, "claims": records}, indent=2,
-                                                default=str))
+    records = [
+        {
+            k: r.get(k)
+            for k in (
+                "paper",
+                "claim_id",
+                "figure",
+                "statement",
+                "paper_value",
+                "bench_value",
+                "tolerance",
+                "verdict",
+                "bench_check",
+                "why_differs",
+                "runs",
+            )
+        }
+        for r in results
+    ]
+    (out / "report.json").write_text(
+        json.dumps({"bus": bus, "wall_s": wall_s, "claims": records}, indent=2, default=str)
+    )
     n_ok = sum(r["verdict"] == "reproduced" for r in results)
-    md = ["# Reproduction report", "",
-          f"Bus: `{bus}`. {len(results)} claims: {n_ok} reproduced, {len(results) - n_ok} differ. "
-          f"Wall time {wall_s:.0f} s. Generated by `bench reproduce`.", "",
-          "`verdict` compares the bench with the paper's statement; `bench check` says whether the loop behaves "
-          "as the equations predict (where the paper has a typo or an approximation, the bench's derived value).",
-          "", "| paper | claim | figure | verdict | bench check | bench value |", "|---|---|---|---|---|---|"]
+    md = [
+        "# Reproduction report",
+        "",
+        f"Bus: `{bus}`. {len(results)} claims: {n_ok} reproduced, {len(results) - n_ok} differ. "
+        f"Wall time {wall_s:.0f} s. Generated by `bench reproduce`.",
+        "",
+        "`verdict` compares the bench with the paper's statement; `bench check` says whether the loop behaves "
+        "as the equations predict (where the paper has a typo or an approximation, the bench's derived value).",
+        "",
+        "| paper | claim | figure | verdict | bench check | bench value |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in results:
-        md.append(f"| {r['paper']} | {r['claim_id']} | {r['figure']} | **{r['verdict']}** | {r.get('bench_check')} | "
-                  f"{_fmt(r['bench_value']).replace('|', '/')[:160]} |")
+        md.append(
+            f"| {r['paper']} | {r['claim_id']} | {r['figure']} | **{r['verdict']}** | {r.get('bench_check')} | "
+            f"{_fmt(r['bench_value']).replace('|', '/')[:160]} |"
+        )
     for code, (name, _, full) in PAPERS.items():
         rs = [r for r in results if r.get("paper_code") == code]
         if not rs:
             continue
         md += ["", f"## {name}", "", full, ""]
         for r in rs:
-            md += [f"### {r['claim_id']}: {r['verdict']}", "",
-                   f"*Paper ({r['figure']}):* {r['statement']}", "",
-                   f"- paper: {_fmt(r['paper_value'])}", f"- bench: {_fmt(r['bench_value'])}",
-                   f"- tolerance: {r['tolerance']}"]
+            md += [
+                f"### {r['claim_id']}: {r['verdict']}",
+                "",
+                f"*Paper ({r['figure']}):* {r['statement']}",
+                "",
+                f"- paper: {_fmt(r['paper_value'])}",
+                f"- bench: {_fmt(r['bench_value'])}",
+                f"- tolerance: {r['tolerance']}",
+            ]
             if r.get("why_differs"):
                 md.append(f"- why it differs / note: {r['why_differs']}")
             shown, others = _figure_runs(out, r)
             if shown:
                 md += ["", f"![{shown}](runs/{shown}/overview.png)"]
-                md.append(f"Run `{shown}`: [Rerun recording](runs/{shown}/run.rrd), [CAN log](runs/{shown}/bus.log), "
-                          f"[summary](runs/{shown}/summary.json)" if links else
-                          f"Run `{shown}` (its Rerun recording and CAN log are written by `bench reproduce`)")
+                md.append(
+                    f"Run `{shown}`: [Rerun recording](runs/{shown}/run.rrd), [CAN log](runs/{shown}/bus.log), "
+                    f"[summary](runs/{shown}/summary.json)"
+                    if links
+                    else f"Run `{shown}` (its Rerun recording and CAN log are written by `bench reproduce`)"
+                )
             if others:
-                md += ["", "Other runs of this claim: " + ", ".join(
-                    f"[`{o}`](runs/{o}/overview.png)" if (out / "runs" / o / "overview.png").exists() else f"`{o}`"
-                    for o in others)]
+                md += [
+                    "",
+                    "Other runs of this claim: "
+                    + ", ".join(
+                        f"[`{o}`](runs/{o}/overview.png)" if (out / "runs" / o / "overview.png").exists() else f"`{o}`"
+                        for o in others
+                    ),
+                ]
             md.append("")
     (out / "report.md").write_text("\n".join(md) + "\n")
     _write_html(out, results, bus, wall_s, n_ok, links)
@@ -270,14 +350,16 @@ def publish(out: Path, dest: Path) -> None:
     write_reports(dest, results, data["bus"], data["wall_s"], links=False)
 
 
-def _write_html(out: Path, results: list[dict[str, Any]], bus: str, wall_s: float, n_ok: int,
-                links: bool = True) -> None:
+def _write_html(
+    out: Path, results: list[dict[str, Any]], bus: str, wall_s: float, n_ok: int, links: bool = True
+) -> None:
     e = html.escape
     rows = "".join(
         f"<tr class='{e(r['verdict'])}'><td>{e(r['paper'])}</td><td><a href='#{e(r['claim_id'])}'>"
         f"{e(r['claim_id'])}</a></td><td>{e(str(r['figure']))}</td><td>{e(r['verdict'])}</td>"
         f"<td>{e(str(r.get('bench_check')))}</td></tr>"
-        for r in results)
+        for r in results
+    )
     sections = []
     for code, (name, _, full) in PAPERS.items():
         rs = [r for r in results if r.get("paper_code") == code]
@@ -288,22 +370,37 @@ def _write_html(out: Path, results: list[dict[str, Any]], bus: str, wall_s: floa
             img = ""
             shown, others = _figure_runs(out, r)
             if shown:
-                rec = (f": <a href='runs/{e(shown)}/run.rrd'>Rerun recording</a>, "
-                       f"<a href='runs/{e(shown)}/bus.log'>CAN log</a>") if links else ""
-                img = (f"<figure><img src='runs/{e(shown)}/overview.png' alt='{e(shown)}'>"
-                       f"<figcaption>bench run <code>{e(shown)}</code> for {e(str(r['figure']))}{rec}"
-                       f"</figcaption></figure>")
+                rec = (
+                    (
+                        f": <a href='runs/{e(shown)}/run.rrd'>Rerun recording</a>, "
+                        f"<a href='runs/{e(shown)}/bus.log'>CAN log</a>"
+                    )
+                    if links
+                    else ""
+                )
+                img = (
+                    f"<figure><img src='runs/{e(shown)}/overview.png' alt='{e(shown)}'>"
+                    f"<figcaption>bench run <code>{e(shown)}</code> for {e(str(r['figure']))}{rec}"
+                    f"</figcaption></figure>"
+                )
             if others:
-                img += "<p>Other runs of this claim: " + ", ".join(
-                    f"<a href='runs/{e(o)}/overview.png'><code>{e(o)}</code></a>"
-                    if (out / "runs" / o / "overview.png").exists() else f"<code>{e(o)}</code>"
-                    for o in others) + "</p>"
+                img += (
+                    "<p>Other runs of this claim: "
+                    + ", ".join(
+                        f"<a href='runs/{e(o)}/overview.png'><code>{e(o)}</code></a>"
+                        if (out / "runs" / o / "overview.png").exists()
+                        else f"<code>{e(o)}</code>"
+                        for o in others
+                    )
+                    + "</p>"
+                )
             why = f"<p><b>Why it differs / note:</b> {e(r['why_differs'])}</p>" if r.get("why_differs") else ""
             parts.append(
                 f"<section id='{e(r['claim_id'])}' class='{e(r['verdict'])}'><h3>{e(r['claim_id'])}: "
                 f"{e(r['verdict'])}</h3><p><i>Paper ({e(str(r['figure']))}):</i> {e(r['statement'])}</p>"
                 f"<ul><li>paper: {e(_fmt(r['paper_value']))}</li><li>bench: {e(_fmt(r['bench_value']))}</li>"
-                f"<li>tolerance: {e(str(r['tolerance']))}</li></ul>{why}{img}</section>")
+                f"<li>tolerance: {e(str(r['tolerance']))}</li></ul>{why}{img}</section>"
+            )
         sections.append("".join(parts))
     doc = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Reproduction report</title>
@@ -315,7 +412,7 @@ tr.reproduced td, section.reproduced h3{{color:#070}} img{{max-width:100%}}</sty
 <p>Bus <code>{e(bus)}</code>: {len(results)} claims, {n_ok} reproduced, {len(results) - n_ok} differ;
 wall time {wall_s:.0f} s. Generated by <code>bench reproduce</code>.</p>
 <table><tr><th>paper</th><th>claim</th><th>figure</th><th>verdict</th><th>bench check</th></tr>{rows}</table>
-{''.join(sections)}
+{"".join(sections)}
 <script>
 window.addEventListener('load', function () {{
   var imgs = document.images, broken = 0;
@@ -342,12 +439,18 @@ def main(args: argparse.Namespace) -> int:
         while out.exists():
             out, n = base.with_name(f"{base.name}-{n}"), n + 1
     if (why := _refusal(out)) is not None:
-        print(f"bench reproduce: {why}; nothing was changed. Give --out a new or empty folder "
-              "(or remove this one yourself).", file=sys.stderr)
+        print(
+            f"bench reproduce: {why}; nothing was changed. Give --out a new or empty folder "
+            "(or remove this one yourself).",
+            file=sys.stderr,
+        )
         return 2
     if args.publish and (why := _refusal(args.publish, replaceable_report=True)) is not None:
-        print(f"bench reproduce: --publish {why}; nothing was changed. Give a new or empty folder or a previous "
-              "published report.", file=sys.stderr)
+        print(
+            f"bench reproduce: --publish {why}; nothing was changed. Give a new or empty folder or a previous "
+            "published report.",
+            file=sys.stderr,
+        )
         return 2
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
@@ -355,9 +458,22 @@ def main(args: argparse.Namespace) -> int:
         from .tools.vm import VmOptions, run_in_vm
 
         print(f"bench reproduce: host kernel has no SocketCAN; running the claims over {args.bus} inside the VM")
-        rc = run_in_vm([sys.executable, "-m", "bench.cli", "reproduce", "--paper", args.paper, "--bus", args.bus,
-                        "--out", str(out.resolve()), "--collect-only"],
-                       VmOptions(timeout_s=5400, rwdirs=[out.resolve().parent]))
+        rc = run_in_vm(
+            [
+                sys.executable,
+                "-m",
+                "bench.cli",
+                "reproduce",
+                "--paper",
+                args.paper,
+                "--bus",
+                args.bus,
+                "--out",
+                str(out.resolve()),
+                "--collect-only",
+            ],
+            VmOptions(timeout_s=5400, rwdirs=[out.resolve().parent]),
+        )
         if rc != 0 or not (out / "claims.json").exists():
             print(f"bench reproduce: the claims run in the VM failed (status {rc})", file=sys.stderr)
             return 1
@@ -368,13 +484,14 @@ def main(args: argparse.Namespace) -> int:
     wall = time.monotonic() - t0
     write_reports(out, results, args.bus, wall)
     n_ok = sum(r["verdict"] == "reproduced" for r in results)
-    print(f"bench reproduce: {len(results)} claims: {n_ok} reproduced, {len(results) - n_ok} differ "
-          f"({wall:.0f} s)")
+    print(f"bench reproduce: {len(results)} claims: {n_ok} reproduced, {len(results) - n_ok} differ ({wall:.0f} s)")
     for r in results:
         print(f"  {r['verdict']:<11} bench {r.get('bench_check', '?'):<5} {r['claim_id']:<28} {r['figure']}")
     if failed:
-        print(f"bench reproduce: {failed} run(s) could not be post-processed (see above): their claims have "
-              "no figure", file=sys.stderr)
+        print(
+            f"bench reproduce: {failed} run(s) could not be post-processed (see above): their claims have no figure",
+            file=sys.stderr,
+        )
     print(f"report: {out / 'report.md'}, {out / 'report.html'}, {out / 'report.json'}")
     if args.publish:
         publish(out, args.publish)

@@ -64,11 +64,17 @@ SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
 }
 # Run-control entries the bench drives itself (scenario.timing sets the mode).
 RESERVED = {("Run control", "run_periods"), ("Run control", "trip_clear"), ("Run control", "mode")}
-RATIOS = {"R_hat_ratio": (("R_hat_ohm", "R_ohm"),), "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),
-          "Lq_hat_ratio": (("Lq_hat_H", "Lq_H"),), "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
-          "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),)}
-DEFAULT_TRACE: dict[int, tuple[str, ...]] = {3: ("Online tuning.det_A2", "Online tuning.K1_hat_V_A"),
-                                             4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H")}
+RATIOS = {
+    "R_hat_ratio": (("R_hat_ohm", "R_ohm"),),
+    "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),
+    "Lq_hat_ratio": (("Lq_hat_H", "Lq_H"),),
+    "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
+    "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),),
+}
+DEFAULT_TRACE: dict[int, tuple[str, ...]] = {
+    3: ("Online tuning.det_A2", "Online tuning.K1_hat_V_A"),
+    4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H"),
+}
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
 # Run statuses (bench/run/status.py gives each its exit code).
@@ -83,8 +89,8 @@ class ScenarioError(ValueError):
 class Setting:
     """One OD write, or a ratio resolved against the plant's value at configuration time."""
 
-    key: str                  # "section.name" as in the file
-    param: Param | None       # None for ratio keys
+    key: str  # "section.name" as in the file
+    param: Param | None  # None for ratio keys
     value: float | int
     ratio_of: tuple[tuple[str, str], ...] = ()  # ((drive param, plant param), ...)
 
@@ -152,8 +158,9 @@ def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, d
             raise ScenarioError(f"{where}: {full} = {value!r}: expected an integer ({_fmt_range(p)})")
         value = int(value)
     if (p.low is not None and value < p.low) or (p.high is not None and value > p.high):
-        raise ScenarioError(f"{where}: {full} = {value!r} is out of range: allowed {_fmt_range(p)} "
-                            f"(from {p.node}.eds {p.obj})")
+        raise ScenarioError(
+            f"{where}: {full} = {value!r} is out of range: allowed {_fmt_range(p)} (from {p.node}.eds {p.obj})"
+        )
     return Setting(full, p, value)
 
 
@@ -188,8 +195,9 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         raise ScenarioError(f"{where}: missing [scenario] table with at least name and periods")
     for key in head:
         if key not in {"name", "description", "periods", "seed", "timing", "expect"}:
-            raise ScenarioError(f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, "
-                                "timing, expect")
+            raise ScenarioError(
+                f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, timing, expect"
+            )
     name = head.get("name")
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"{where}: scenario.name must be a non-empty string")
@@ -205,11 +213,20 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     expect = head.get("expect", "ok")
     expect_list = [expect] if isinstance(expect, str) else expect
     if not isinstance(expect_list, list) or not expect_list or any(e not in STATUSES for e in expect_list):
-        raise ScenarioError(f"{where}: scenario.expect = {expect!r}: expected one of {', '.join(STATUSES)} "
-                            "or a list of them")
+        raise ScenarioError(
+            f"{where}: scenario.expect = {expect!r}: expected one of {', '.join(STATUSES)} or a list of them"
+        )
     tables = _param_tables()
-    sc = Scenario(name=name, periods=periods, source=where, description=str(head.get("description", "")),
-                  seed=seed, timing=timing, raw=raw, expect=tuple(expect_list))
+    sc = Scenario(
+        name=name,
+        periods=periods,
+        source=where,
+        description=str(head.get("description", "")),
+        seed=seed,
+        timing=timing,
+        raw=raw,
+        expect=tuple(expect_list),
+    )
     motor = dict(raw.get("motor", {}))
     preset = motor.pop("preset", "you2019")
     if preset is not None and preset not in PRESETS:
@@ -236,8 +253,9 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
             if section == "at_period":
                 continue
             if section not in SECTION_OBJECTS or not isinstance(values, dict):
-                raise ScenarioError(f"{w}: unknown key {section!r}; an event holds at_period and tables "
-                                    f"{', '.join(SECTION_OBJECTS)}")
+                raise ScenarioError(
+                    f"{w}: unknown key {section!r}; an event holds at_period and tables {', '.join(SECTION_OBJECTS)}"
+                )
             for key, value in values.items():
                 if section == "motor" and key == "preset":
                     raise ScenarioError(f"{w}: motor.preset cannot change during a run")
@@ -265,7 +283,7 @@ def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
         if key not in ("pdo3", "pdo4"):
             raise ScenarioError(f"{where}: unknown key trace.{key}; allowed: pdo3, pdo4")
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names) or not names:
-            raise ScenarioError(f"{where}: trace.{key} must be a non-empty list of \"Object.entry\" names")
+            raise ScenarioError(f'{where}: trace.{key} must be a non-empty list of "Object.entry" names')
         size = 0
         for name in names:
             obj, _, sub = name.partition(".")

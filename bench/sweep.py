@@ -26,10 +26,21 @@ METRICS = ("periods_to_settle", "overshoot_pct", "overshoot_A", "steady_state_er
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", type=Path)
-    p.add_argument("--grid", action="append", required=True, metavar="KEY=V1,V2,...",
-                   help="a scenario key and its values (repeatable: the grid is the product)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="fixed overrides applied to every point")
+    p.add_argument(
+        "--grid",
+        action="append",
+        required=True,
+        metavar="KEY=V1,V2,...",
+        help="a scenario key and its values (repeatable: the grid is the product)",
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="fixed overrides applied to every point",
+    )
     p.add_argument("--metric", choices=METRICS, default="periods_to_settle", help="heat-map metric")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/sweep-NAME-TIMESTAMP)")
@@ -55,25 +66,38 @@ def _point(task: tuple[str, list[str]]) -> dict[str, Any]:
     try:
         res = run_scenario(load(Path(path), overrides), RunOptions(bus="direct"))
     except Exception as exc:  # noqa: BLE001 - a point the node refuses is a row, not the end of the sweep
-        return {"overrides": overrides, **{m: None for m in METRICS}, "status": f"failed: {exc}",
-                "K1_active_V_A": None, "L_hat_H": None}
+        return {
+            "overrides": overrides,
+            **{m: None for m in METRICS},
+            "status": f"failed: {exc}",
+            "K1_active_V_A": None,
+            "L_hat_H": None,
+        }
     steps = [s for s in res.summary["steps"] if s["signal"] == "iq"]
     first = steps[0] if steps else {}
     ident = res.summary["identified"]
-    return {"overrides": overrides, **{m: first.get(m) for m in METRICS}, "status": res.status,
-            "K1_active_V_A": ident.get("K1_active_V_A"), "L_hat_H": ident.get("L_hat_H")}
+    return {
+        "overrides": overrides,
+        **{m: first.get(m) for m in METRICS},
+        "status": res.status,
+        "K1_active_V_A": ident.get("K1_active_V_A"),
+        "L_hat_H": ident.get("L_hat_H"),
+    }
 
 
-def run_grid(path: Path, grid: list[tuple[str, list[str]]], fixed: list[str], jobs: int,
-             progress: bool = True) -> list[dict[str, Any]]:
+def run_grid(
+    path: Path, grid: list[tuple[str, list[str]]], fixed: list[str], jobs: int, progress: bool = True
+) -> list[dict[str, Any]]:
     from tqdm import tqdm
 
     combos = list(itertools.product(*[[f"{k}={v}" for v in vals] for k, vals in grid]))
     tasks = [(str(path), [*fixed, *c]) for c in combos]
     ctx = mp.get_context("spawn")
     results: list[dict[str, Any]] = [{} for _ in tasks]
-    with ctx.Pool(processes=max(1, jobs)) as pool, \
-            tqdm(total=len(tasks), unit="run", disable=not (progress and sys.stderr.isatty())) as bar:
+    with (
+        ctx.Pool(processes=max(1, jobs)) as pool,
+        tqdm(total=len(tasks), unit="run", disable=not (progress and sys.stderr.isatty())) as bar,
+    ):
         for i, res in enumerate(pool.imap(_point, tasks)):
             results[i] = res
             bar.update(1)
@@ -109,10 +133,11 @@ def main(args: argparse.Namespace) -> int:
         w = csv.writer(fh)
         w.writerow([*keys, *METRICS, "status", "K1_active_V_A", "L_hat_H"])
         for r in results:
-            vals = [o.split("=", 1)[1] for o in r["overrides"][len(args.overrides):]]
+            vals = [o.split("=", 1)[1] for o in r["overrides"][len(args.overrides) :]]
             w.writerow([*vals, *[r.get(m) for m in METRICS], r["status"], r.get("K1_active_V_A"), r.get("L_hat_H")])
-    (out / "sweep.json").write_text(json.dumps({"scenario": sc.name, "grid": grid, "jobs": args.jobs,
-                                                "wall_s": wall, "results": results}, indent=2))
+    (out / "sweep.json").write_text(
+        json.dumps({"scenario": sc.name, "grid": grid, "jobs": args.jobs, "wall_s": wall, "results": results}, indent=2)
+    )
     if len(grid) == 2:
         _heatmap(out / f"heatmap_{args.metric}.png", grid, results, args.metric, sc.name)
     print((out / "sweep.csv").read_text().rstrip())
@@ -120,8 +145,9 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _heatmap(path: Path, grid: list[tuple[str, list[str]]], results: list[dict[str, Any]], metric: str,
-             title: str) -> None:
+def _heatmap(
+    path: Path, grid: list[tuple[str, list[str]]], results: list[dict[str, Any]], metric: str, title: str
+) -> None:
     import matplotlib
 
     matplotlib.use("Agg")

@@ -47,11 +47,16 @@ C_TYPES = {
     datatypes.REAL32: "float",
 }
 DT_NAMES = {
-    datatypes.BOOLEAN: "CO_DT_BOOLEAN", datatypes.INTEGER8: "CO_DT_INTEGER8",
-    datatypes.INTEGER16: "CO_DT_INTEGER16", datatypes.INTEGER32: "CO_DT_INTEGER32",
-    datatypes.UNSIGNED8: "CO_DT_UNSIGNED8", datatypes.UNSIGNED16: "CO_DT_UNSIGNED16",
-    datatypes.UNSIGNED32: "CO_DT_UNSIGNED32", datatypes.REAL32: "CO_DT_REAL32",
-    datatypes.VISIBLE_STRING: "CO_DT_VISIBLE_STRING", datatypes.DOMAIN: "CO_DT_DOMAIN",
+    datatypes.BOOLEAN: "CO_DT_BOOLEAN",
+    datatypes.INTEGER8: "CO_DT_INTEGER8",
+    datatypes.INTEGER16: "CO_DT_INTEGER16",
+    datatypes.INTEGER32: "CO_DT_INTEGER32",
+    datatypes.UNSIGNED8: "CO_DT_UNSIGNED8",
+    datatypes.UNSIGNED16: "CO_DT_UNSIGNED16",
+    datatypes.UNSIGNED32: "CO_DT_UNSIGNED32",
+    datatypes.REAL32: "CO_DT_REAL32",
+    datatypes.VISIBLE_STRING: "CO_DT_VISIBLE_STRING",
+    datatypes.DOMAIN: "CO_DT_DOMAIN",
 }
 
 
@@ -72,9 +77,9 @@ def c_ident(name: str) -> str:
 @dataclass
 class Entry:
     var: ODVariable
-    field: str      # C member path inside the RAM struct (e.g. "comm.x1017_producer_heartbeat_time")
+    field: str  # C member path inside the RAM struct (e.g. "comm.x1017_producer_heartbeat_time")
     ctype: str
-    capacity: int   # strings: characters without NUL
+    capacity: int  # strings: characters without NUL
     low: float | int | None
     high: float | int | None
 
@@ -103,8 +108,9 @@ def _raw(eds: Path) -> configparser.ConfigParser:
     return raw
 
 
-def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], list[str], list[str], list[str],
-                             list[str]]:
+def load(
+    node: str,
+) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], list[str], list[str], list[str], list[str]]:
     """The OD of a node: entries, record types, comm/mfr struct members, #defines, field lists and enums."""
     eds = EDS_DIR / f"{node}.eds"
     handler = _Collect()
@@ -166,8 +172,9 @@ def load(node: str) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], l
             area.append(members[0])
         else:
             rtype = f"od_{node}_{c_ident(obj.name).lower()}_t"
-            record_types.append(f"/* 0x{index:04X} {obj.name} */\ntypedef struct {{\n    "
-                                + "\n    ".join(members) + f"\n}} {rtype};\n")
+            record_types.append(
+                f"/* 0x{index:04X} {obj.name} */\ntypedef struct {{\n    " + "\n    ".join(members) + f"\n}} {rtype};\n"
+            )
             area.append(f"{rtype} {oname};")
             if index >= 0x2000:
                 field_lists.append(_field_list(macro_base, obj, oname, subs))
@@ -181,15 +188,25 @@ def _field_list(macro_base: str, obj: ODRecord | ODArray, oname: str, subs: list
     names (the compiler refuses a name the core does not have): protocols/canopen/co_field_map.h."""
     out = []
     for suffix, writable in (("PARAMS", True), ("STATUS", False)):
-        rows = [f"    X(0x{v.index:04X}u, 0x{v.subindex:02X}u, {oname}, {c_ident(v.name)}, {_default_of(v)})"
-                for v in subs if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)
-                and v.writable == writable]
+        rows = [
+            f"    X(0x{v.index:04X}u, 0x{v.subindex:02X}u, {oname}, {c_ident(v.name)}, {_default_of(v)})"
+            for v in subs
+            if v.subindex != 0
+            and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)
+            and v.writable == writable
+        ]
         if rows:
-            out.append(f"/* 0x{obj.index:04X} {obj.name}, {'parameters' if writable else 'status'}: "
-                       f"X(index, subindex, record, field, EDS default) */\n#define OD_{macro_base}_{suffix}(X) \\\n"
-                       + " \\\n".join(rows) + "\n")
-    defaults = [f"#define OD_{macro_base}_{c_ident(v.name).upper()}_DEFAULT {_default_of(v)}" for v in subs
-                if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)]
+            out.append(
+                f"/* 0x{obj.index:04X} {obj.name}, {'parameters' if writable else 'status'}: "
+                f"X(index, subindex, record, field, EDS default) */\n#define OD_{macro_base}_{suffix}(X) \\\n"
+                + " \\\n".join(rows)
+                + "\n"
+            )
+    defaults = [
+        f"#define OD_{macro_base}_{c_ident(v.name).upper()}_DEFAULT {_default_of(v)}"
+        for v in subs
+        if v.subindex != 0 and v.data_type not in (datatypes.DOMAIN, datatypes.VISIBLE_STRING)
+    ]
     return "\n" + "\n".join(out) + "\n" + "\n".join(defaults) + "\n"
 
 
@@ -197,8 +214,9 @@ def _default_of(var: ODVariable) -> str:
     if var.data_type == datatypes.REAL32:
         return _c_float(float(var.default or 0.0))
     value = int(var.default or 0)
-    return str(value) if var.data_type in (datatypes.INTEGER8, datatypes.INTEGER16, datatypes.INTEGER32) \
-        else f"{value}u"
+    return (
+        str(value) if var.data_type in (datatypes.INTEGER8, datatypes.INTEGER16, datatypes.INTEGER32) else f"{value}u"
+    )
 
 
 def value_names(raw: configparser.ConfigParser, var: ODVariable) -> list[str]:
@@ -213,13 +231,12 @@ def value_names(raw: configparser.ConfigParser, var: ODVariable) -> list[str]:
 def _enums(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigParser) -> list[str]:
     out = []
     for obj in od.values():
-        for var in ([obj] if isinstance(obj, ODVariable) else obj.values()):
+        for var in [obj] if isinstance(obj, ODVariable) else obj.values():
             names = value_names(raw, var)
             if names:
                 base = f"OD_{node.upper()}_{c_ident(var.name).upper()}"
                 rows = ",\n".join(f"    {base}_{n.upper()} = {i}" for i, n in enumerate(names))
-                out.append(f"/* 0x{var.index:04X}:{var.subindex:02X} {obj.name}.{var.name} */\n"
-                           f"enum {{\n{rows}\n}};\n")
+                out.append(f"/* 0x{var.index:04X}:{var.subindex:02X} {obj.name}.{var.name} */\nenum {{\n{rows}\n}};\n")
     return out
 
 
@@ -265,14 +282,29 @@ def render(node: str) -> tuple[str, str, str]:
     od, entries, record_types, comm_fields, mfr_fields, defines, fields = load(node)
     up = node.upper()
     src_note = f"Generated by protocols/gen_od.py from protocols/eds/{node}.eds - do not edit."
-    f: list[str] = [f"/* od_{node}_fields.h - {src_note}",
-                    " * Plain C, no CANopen: the cores include it for the names, defaults and enumerations",
-                    " * of the EDS (one source), the node app for its copy tables (co_field_map.h). */",
-                    f"#ifndef OD_{up}_FIELDS_H", f"#define OD_{up}_FIELDS_H", "", *fields,
-                    f"#endif /* OD_{up}_FIELDS_H */", ""]
-    h: list[str] = [f"/* od_{node}.h - {src_note} */", f"#ifndef OD_{up}_H", f"#define OD_{up}_H", "",
-                    '#include <stdint.h>', '#include "co_od.h"', f'#include "od_{node}_fields.h"', "",
-                    f"#define OD_{up}_DEFAULT_NODE_ID {od.node_id or 0}u", ""]
+    f: list[str] = [
+        f"/* od_{node}_fields.h - {src_note}",
+        " * Plain C, no CANopen: the cores include it for the names, defaults and enumerations",
+        " * of the EDS (one source), the node app for its copy tables (co_field_map.h). */",
+        f"#ifndef OD_{up}_FIELDS_H",
+        f"#define OD_{up}_FIELDS_H",
+        "",
+        *fields,
+        f"#endif /* OD_{up}_FIELDS_H */",
+        "",
+    ]
+    h: list[str] = [
+        f"/* od_{node}.h - {src_note} */",
+        f"#ifndef OD_{up}_H",
+        f"#define OD_{up}_H",
+        "",
+        "#include <stdint.h>",
+        '#include "co_od.h"',
+        f'#include "od_{node}_fields.h"',
+        "",
+        f"#define OD_{up}_DEFAULT_NODE_ID {od.node_id or 0}u",
+        "",
+    ]
     h += record_types
     h.append("typedef struct {")
     h += [f"    {f}" for f in comm_fields]
@@ -321,11 +353,15 @@ def render(node: str) -> tuple[str, str, str]:
         else:
             lim = f"{{.i = {int(e.low)}}}, {{.i = {int(e.high)}}}"  # type: ignore[arg-type]
         ptr = f"OD_{up}.{e.field}" if var.data_type == datatypes.VISIBLE_STRING else f"&OD_{up}.{e.field}"
-        c.append(f"    {{0x{var.index:04X}u, 0x{var.subindex:02X}u, {DT_NAMES[var.data_type]}, "
-                 f"{' | '.join(flags) or '0'}, {size}, {ptr}, {lim}}}, /* {var.name} */")
+        c.append(
+            f"    {{0x{var.index:04X}u, 0x{var.subindex:02X}u, {DT_NAMES[var.data_type]}, "
+            f"{' | '.join(flags) or '0'}, {size}, {ptr}, {lim}}}, /* {var.name} */"
+        )
     c.append("};\n")
-    c.append(f"const co_od_t od_{node} = {{entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_{up}, "
-             f"&defaults, sizeof(od_{node}_comm_t), sizeof(od_{node}_ram_t)}};")
+    c.append(
+        f"const co_od_t od_{node} = {{entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_{up}, "
+        f"&defaults, sizeof(od_{node}_comm_t), sizeof(od_{node}_ram_t)}};"
+    )
     c.append("")
     return "\n".join(h), "\n".join(c), "\n".join(f)
 
@@ -341,8 +377,11 @@ def main(argv: list[str] | None = None) -> int:
         except EdsError as exc:
             print(f"gen_od: {exc}", file=sys.stderr)
             return 2
-        for path, text in ((OUT_DIR / f"od_{node}.h", h), (OUT_DIR / f"od_{node}.c", c),
-                           (OUT_DIR / f"od_{node}_fields.h", f)):
+        for path, text in (
+            (OUT_DIR / f"od_{node}.h", h),
+            (OUT_DIR / f"od_{node}.c", c),
+            (OUT_DIR / f"od_{node}_fields.h", f),
+        ):
             if args.check:
                 if not path.exists() or path.read_text() != text:
                     stale.append(str(path))

@@ -25,14 +25,14 @@ from ..scenario import parse
 
 @dataclass
 class ClaimResult:
-    paper: str               # "You 2019"
-    claim_id: str            # "you2019-1a"
-    figure: str              # "Fig. 8 / You 2019 Eq. 20-21"
-    statement: str           # what the paper says
+    paper: str  # "You 2019"
+    claim_id: str  # "you2019-1a"
+    figure: str  # "Fig. 8 / You 2019 Eq. 20-21"
+    statement: str  # what the paper says
     paper_value: Any
     bench_value: Any
     tolerance: str
-    reproduced: bool         # the bench agrees with the paper's statement within the tolerance
+    reproduced: bool  # the bench agrees with the paper's statement within the tolerance
     why_differs: str = ""
     details: dict[str, Any] = field(default_factory=dict)
     plots: list[str] = field(default_factory=list)
@@ -63,7 +63,7 @@ class ClaimResult:
 class Run:
     result: RunResult
     tr: dict[str, np.ndarray]
-    out: Path | None                 # the run's folder (bus.log, summary.json) when kept
+    out: Path | None  # the run's folder (bus.log, summary.json) when kept
     frames: np.ndarray | None = None  # every frame, when asked for
 
     @property
@@ -139,7 +139,9 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
     assert res.trace is not None
     if not res.expected:  # a claim never rests on a run that went wrong (lost frames, a trip, ...)
         s = res.summary
-        raise RuntimeError(f"run {sc.name} on {bus} ended {res.status} (expected {', '.join(sc.expect)}): "
-                           f"flags {s['status_flags']}, lost frames {s['bus_stats']['lost_frames']}, "
-                           f"periods {s['periods']} of {sc.periods}")
+        raise RuntimeError(
+            f"run {sc.name} on {bus} ended {res.status} (expected {', '.join(sc.expect)}): "
+            f"flags {s['status_flags']}, lost frames {s['bus_stats']['lost_frames']}, "
+            f"periods {s['periods']} of {sc.periods}"
+        )
     return Run(res, res.trace, out, collector.frames if collector is not None else None)

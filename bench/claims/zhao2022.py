@@ -101,8 +101,13 @@ STEP = 0.05
 
 def _growth(lam: float, bus: str) -> dict[str, float]:
     """Run the incremental law with L0 = L/lam (locked rotor, 0.05 A step) and measure the error envelope."""
-    raw = base(f"zhao2022-stab-{lam:.4f}", 700, "incremental_zhao2022", controller={"L_hat_ratio": 1.0 / lam},
-               events=[{"at_period": 20, "references": {"iq_ref_A": STEP}}])
+    raw = base(
+        f"zhao2022-stab-{lam:.4f}",
+        700,
+        "incremental_zhao2022",
+        controller={"L_hat_ratio": 1.0 / lam},
+        events=[{"at_period": 20, "references": {"iq_ref_A": STEP}}],
+    )
     raw["scenario"]["expect"] = ["ok", "diverged"]  # a boundary search runs unstable loops on purpose
     run = run_raw(raw, bus)
     tr = run.tr
@@ -111,9 +116,16 @@ def _growth(lam: float, bus: str) -> dict[str, float]:
     rate = (m2 / m1) ** (1.0 / 300) if m1 > 0 and m2 > 0 else 0.0
     # decayed (or down at the float32 noise floor of the loop) and not a saturated limit cycle
     stable = m2 < 0.5 * STEP and (m2 < m1 or m2 < 1e-5 * STEP)
-    return {"lam": lam, "L_hat_ratio": 1.0 / lam, "env_early_A": m1, "env_late_A": m2, "rate_per_period": rate,
-            "stable": bool(stable), "poly_radius": radius(q_incremental(R, L, R, L / lam)),
-            "run_status": run.result.status}
+    return {
+        "lam": lam,
+        "L_hat_ratio": 1.0 / lam,
+        "env_early_A": m1,
+        "env_late_A": m2,
+        "rate_per_period": rate,
+        "stable": bool(stable),
+        "poly_radius": radius(q_incremental(R, L, R, L / lam)),
+        "run_status": run.result.status,
+    }
 
 
 def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
@@ -135,26 +147,40 @@ def claim_stability_boundary(bus: str, steps: int = 5) -> ClaimResult:
     res = (hi - lo) + 1e-9
     ok_bench = lo - 1e-9 <= poly <= hi + 1e-9 and decided_like_poly
     return ClaimResult(
-        PAPER, "zhao2022-6", "Zhao 2022 Eq. 34-42, Sec. 4.2",
+        PAPER,
+        "zhao2022-6",
+        "Zhao 2022 Eq. 34-42, Sec. 4.2",
         "the incremental deadbeat loop is stable when L > (3/4) L0",
         {"smallest_stable_L_over_L0": 0.75},
-        {"bench_boundary_L_over_L0": [lo, hi], "polynomial_boundary": poly, "eq34_small_Ts_boundary": poly_tsk,
-         "runs": runs, "R_Ts_over_L": R * TS / L},
+        {
+            "bench_boundary_L_over_L0": [lo, hi],
+            "polynomial_boundary": poly,
+            "eq34_small_Ts_boundary": poly_tsk,
+            "runs": runs,
+            "R_Ts_over_L": R * TS / L,
+        },
         f"bench bisection interval (width {res:.4f}) contains the exact closed-loop polynomial's boundary and every "
         "run's stable/unstable decision agrees with the polynomial's spectral radius; reproduced only if that "
         "boundary is 3/4 within the bisection width",
         bool(ok_bench and abs(poly - 0.75) <= res),
         why_differs=f"With the exact ZOH plant the boundary is L/L0 = {poly:.4f} (bench {lo:.4f}..{hi:.4f}), not "
-                    "3/4: Zhao 2022 Eq. 34 drops R and R0 (Ts -> 0 with R Ts/L -> 0), but the Table 1 motor has "
-                    f"R Ts/L = {R * TS / L:.3f}; the paper's polynomial itself gives {poly_tsk:.4f}. So the law is "
-                    "stable down to L ~ 0.70 L0 on this motor: the paper's 3/4 is conservative here.",
-        bench_ok=bool(ok_bench), details={"bench_ok": bool(ok_bench)})
+        "3/4: Zhao 2022 Eq. 34 drops R and R0 (Ts -> 0 with R Ts/L -> 0), but the Table 1 motor has "
+        f"R Ts/L = {R * TS / L:.3f}; the paper's polynomial itself gives {poly_tsk:.4f}. So the law is "
+        "stable down to L ~ 0.70 L0 on this motor: the paper's 3/4 is conservative here.",
+        bench_ok=bool(ok_bench),
+        details={"bench_ok": bool(ok_bench)},
+    )
 
 
 def _flux_run(controller: str, ratio: float, bus: str) -> dict[str, np.ndarray]:
-    raw = base(f"zhao2022-flux-{controller}-{ratio}", 600, controller, locked=False,
-               controller={"psi_hat_ratio": ratio},
-               events=[{"at_period": 300, "references": {"iq_ref_A": 0.04}}])
+    raw = base(
+        f"zhao2022-flux-{controller}-{ratio}",
+        600,
+        controller,
+        locked=False,
+        controller={"psi_hat_ratio": ratio},
+        events=[{"at_period": 300, "references": {"iq_ref_A": 0.04}}],
+    )
     return run_raw(raw, bus).tr
 
 
@@ -171,17 +197,26 @@ def claim_flux_independence(bus: str, wrong: tuple[float, ...] = (0.8, 1.2)) -> 
         # derived: i - r = Gam j w (psi0 - psi) / (1 - Phi - Gam a) = j w dpsi Ts / L0 for R0 = R, L0 = L
         pred = -(W_RATED * (r - 1.0) * PSI * TS / L)
         inc_err = float(np.mean(inc[r]["iq_ref_A"][-50:] - inc[r]["iq_A"][-50:]))
-        out[f"psi{r}"] = {"euler_error_A": err, "euler_derived_A": pred, "incremental_error_A": inc_err,
-                          "euler_error_pct_of_step": 100 * err / 0.04}
+        out[f"psi{r}"] = {
+            "euler_error_A": err,
+            "euler_derived_A": pred,
+            "incremental_error_A": inc_err,
+            "euler_error_pct_of_step": 100 * err / 0.04,
+        }
         ok = ok and abs(err - pred) < 0.02 * abs(pred) and abs(inc_err) < 1e-6
     return ClaimResult(
-        PAPER, "zhao2022-7", "Zhao 2022 Eq. 20-23, Sec. 4.1",
+        PAPER,
+        "zhao2022-7",
+        "Zhao 2022 Eq. 20-23, Sec. 4.1",
         "the incremental law does not depend on the flux linkage (psi cancels between Zhao 2022 Eq. 20 and "
         "Eq. 21); the conventional law does (Zhao 2022 Eq. 6)",
-        {"incremental": "independent of psi_hat", "conventional": "steady-state error with wrong psi_hat"}, out,
+        {"incremental": "independent of psi_hat", "conventional": "steady-state error with wrong psi_hat"},
+        out,
         "incremental: iq identical (< 1e-9 A) for psi_hat = 0.8/1.0/1.2 psi and no steady-state error; Euler: "
-        "steady-state error = derived w dpsi Ts/L0 within 2 %", bool(ok),
-        details={"speed_rad_s_electrical": W_RATED})
+        "steady-state error = derived w dpsi Ts/L0 within 2 %",
+        bool(ok),
+        details={"speed_rad_s_electrical": W_RATED},
+    )
 
 
 def claim_phase_lag(bus: str, f_Hz: float = 95.5, amplitude_A: float = 0.05, cycles: int = 3) -> ClaimResult:
@@ -189,8 +224,10 @@ def claim_phase_lag(bus: str, f_Hz: float = 95.5, amplitude_A: float = 0.05, cyc
     n_per = 1.0 / (f_Hz * TS)
     n = int(round(cycles * n_per))
     start = 20
-    events = [{"at_period": start + j, "references": {"iq_ref_A": float(amplitude_A * math.sin(2 * math.pi * f_Hz * j * TS))}}
-              for j in range(n)]
+    events = [
+        {"at_period": start + j, "references": {"iq_ref_A": float(amplitude_A * math.sin(2 * math.pi * f_Hz * j * TS))}}
+        for j in range(n)
+    ]
     w = 2 * math.pi * f_Hz * TS
     z = cmath.exp(1j * w)
     rows = {}
@@ -205,25 +242,36 @@ def claim_phase_lag(bus: str, f_Hz: float = 95.5, amplitude_A: float = 0.05, cyc
         cr = np.linalg.lstsq(basis, tr["iq_ref_A"][sl], rcond=None)[0]
         gain = float(np.hypot(*cy) / np.hypot(*cr))
         lag = -math.degrees(math.atan2(cy[1], cy[0]) - math.atan2(cr[1], cr[0]))
-        rows[ctl] = {"phase_lag_deg": lag, "gain": gain, "derived_lag_deg": -math.degrees(cmath.phase(model)),
-                     "derived_gain": abs(model), "two_period_delay_deg": math.degrees(2 * w)}
+        rows[ctl] = {
+            "phase_lag_deg": lag,
+            "gain": gain,
+            "derived_lag_deg": -math.degrees(cmath.phase(model)),
+            "derived_gain": abs(model),
+            "two_period_delay_deg": math.degrees(2 * w),
+        }
         ok_model = ok_model and abs(lag + math.degrees(cmath.phase(model))) < 0.05 and abs(gain - abs(model)) < 1e-3
     inc, eul = rows["incremental_zhao2022"], rows["predictive_zhao2022"]
     # paper: the improved law follows the reference, the conventional one shows a phase deviation
     paper_like = inc["phase_lag_deg"] < eul["phase_lag_deg"]
     return ClaimResult(
-        PAPER, "zhao2022-8", "Sec. 5.1, Fig. 5, Fig. 7",
-        "at 95.5 Hz the incremental law's iq follows the reference, the conventional law's iq shows a phase "
-        "deviation", {"incremental": "follows", "conventional": "phase deviation"}, rows,
+        PAPER,
+        "zhao2022-8",
+        "Sec. 5.1, Fig. 5, Fig. 7",
+        "at 95.5 Hz the incremental law's iq follows the reference, the conventional law's iq shows a phase deviation",
+        {"incremental": "follows", "conventional": "phase deviation"},
+        rows,
         "both lags = derived T(exp(j w Ts)) within 0.05 deg and gains within 1e-3; reproduced only if the "
-        "incremental law lags less than the conventional one", bool(ok_model and paper_like),
+        "incremental law lags less than the conventional one",
+        bool(ok_model and paper_like),
         why_differs="On the bench both laws lag: the incremental one by exactly the two-period delay it is built "
-                    f"for ({inc['phase_lag_deg']:.2f} deg, gain {inc['gain']:.4f}), the conventional one by less "
-                    f"({eul['phase_lag_deg']:.2f} deg, gain {eul['gain']:.4f}) because its uncompensated delay "
-                    "makes an under-damped loop whose phase at 95.5 Hz partly offsets the delay. The conventional "
-                    "law's 'deviation' is a deviation from the ideal delayed response (1.6 deg, and gain > 1), not "
-                    "a larger lag. The paper's figure shows the speed-loop closed system, not the current loop.",
-        bench_ok=bool(ok_model), details={"model_ok": bool(ok_model)})
+        f"for ({inc['phase_lag_deg']:.2f} deg, gain {inc['gain']:.4f}), the conventional one by less "
+        f"({eul['phase_lag_deg']:.2f} deg, gain {eul['gain']:.4f}) because its uncompensated delay "
+        "makes an under-damped loop whose phase at 95.5 Hz partly offsets the delay. The conventional "
+        "law's 'deviation' is a deviation from the ideal delayed response (1.6 deg, and gain > 1), not "
+        "a larger lag. The paper's figure shows the speed-loop closed system, not the current loop.",
+        bench_ok=bool(ok_model),
+        details={"model_ok": bool(ok_model)},
+    )
 
 
 SPEED_PDOS = {3: ("Drive status.speed_rad_s", "Drive status.iq_ref_active_A")}
@@ -233,11 +281,21 @@ DEG = math.pi / 180.0
 def _speed_raw(name: str, law: str, events: list[dict[str, Any]], periods: int) -> dict[str, Any]:
     """Free rotor, speed mode, the same speed PI for both laws (Sec. 5: 'the parameters of the PI
     controller in all experiments are the same')."""
-    return base(name, periods, law, locked=False,
-                motor={"mech_mode": "free"},
-                controller={"speed_loop_divider": 1, "position_bandwidth_Hz": 5.0, "speed_bandwidth_Hz": 300.0,
-                            "iq_limit_A": 0.3},
-                references={"mode": 1}, events=events)
+    return base(
+        name,
+        periods,
+        law,
+        locked=False,
+        motor={"mech_mode": "free"},
+        controller={
+            "speed_loop_divider": 1,
+            "position_bandwidth_Hz": 5.0,
+            "speed_bandwidth_Hz": 300.0,
+            "iq_limit_A": 0.3,
+        },
+        references={"mode": 1},
+        events=events,
+    )
 
 
 def _speed_lag(tr: dict[str, np.ndarray], ref: np.ndarray, f_Hz: float, start: int) -> tuple[float, float]:
@@ -265,8 +323,10 @@ def claim_speed_tracking(bus: str, f_Hz: float = 95.5, amplitude_deg_s: float = 
     for k in range(start, periods):
         ref[k] = amp * math.sin(2 * math.pi * f_Hz * (k - start) * TS)
         events.append({"at_period": k, "references": {"speed_ref_rad_s": float(ref[k])}})
-    step_events = [{"at_period": 100, "references": {"speed_ref_rad_s": 367.72 * DEG}},
-                   {"at_period": 300, "motor": {"T_load_Nm": 0.0296}}]
+    step_events = [
+        {"at_period": 100, "references": {"speed_ref_rad_s": 367.72 * DEG}},
+        {"at_period": 300, "motor": {"T_load_Nm": 0.0296}},
+    ]
     rows = {}
     with traced(SPEED_PDOS):
         for law in ("incremental_zhao2022", "predictive_zhao2022"):
@@ -278,25 +338,35 @@ def claim_speed_tracking(bus: str, f_Hz: float = 95.5, amplitude_deg_s: float = 
             before_load = float(np.nanmean(w[280:300]))
             dip = float(target - np.nanmin(w[300:400]))
             after = float(np.nanmean(w[460:499]))
-            rows[law] = {"sine_lag_deg": lag, "sine_gain": gain, "speed_before_load_rad_s": before_load,
-                         "load_dip_rad_s": dip, "speed_after_load_rad_s": after, "target_rad_s": target}
+            rows[law] = {
+                "sine_lag_deg": lag,
+                "sine_gain": gain,
+                "speed_before_load_rad_s": before_load,
+                "load_dip_rad_s": dip,
+                "speed_after_load_rad_s": after,
+                "target_rad_s": target,
+            }
     inc, eul = rows["incremental_zhao2022"], rows["predictive_zhao2022"]
     tracks = all(abs(r["speed_after_load_rad_s"] - r["target_rad_s"]) < 0.05 * r["target_rad_s"] for r in rows.values())
     return ClaimResult(
-        PAPER, "zhao2022-8s", "Fig. 4-11, Sec. 5.1",
+        PAPER,
+        "zhao2022-8s",
+        "Fig. 4-11, Sec. 5.1",
         "with the same speed PI, both current laws track a 95.5 Hz, 197.72 deg/s sine speed reference and reject the "
         "rated load step; the system with the improved (incremental) law tracks better",
-        {"incremental": "better tracking", "conventional": "phase deviation"}, rows,
+        {"incremental": "better tracking", "conventional": "phase deviation"},
+        rows,
         "reproduced if both recover the speed after the load (within 5 %) and the incremental law's sine phase lag "
         "is visibly smaller (by 1 deg or more) than the conventional law's; bench check: both track and recover",
         bool(tracks and inc["sine_lag_deg"] <= eul["sine_lag_deg"] - 1.0),
         bench_ok=bool(tracks),
         why_differs=f"Both laws track the sine and reject the load; their speed phase lags differ by "
-                    f"{abs(inc['sine_lag_deg'] - eul['sine_lag_deg']):.2f} deg only "
-                    f"({inc['sine_lag_deg']:.2f} vs {eul['sine_lag_deg']:.2f} deg): the speed loop (a 300 Hz PI at "
-                    "the current rate, the bench's design: the paper gives no gains) hides the difference between "
-                    "the current loops, whose own lags at 95.5 Hz are 6.88 and 5.28 deg (zhao2022-8). The speed is "
-                    "the drive's own estimate (angle difference per period).")
+        f"{abs(inc['sine_lag_deg'] - eul['sine_lag_deg']):.2f} deg only "
+        f"({inc['sine_lag_deg']:.2f} vs {eul['sine_lag_deg']:.2f} deg): the speed loop (a 300 Hz PI at "
+        "the current rate, the bench's design: the paper gives no gains) hides the difference between "
+        "the current loops, whose own lags at 95.5 Hz are 6.88 and 5.28 deg (zhao2022-8). The speed is "
+        "the drive's own estimate (angle difference per period).",
+    )
 
 
 ALL = [claim_stability_boundary, claim_flux_independence, claim_phase_lag, claim_speed_tracking]

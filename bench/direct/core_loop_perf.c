@@ -62,8 +62,8 @@ double hil_core_loop_ns(uint32_t periods)
         dm.i_b_A = pm.i_b_A;
         dm.theta_m_rad = pm.theta_m_rad;
         drive_current_step(&drv, &dm, &cmd);
-        plant_step(&ps, &pc, va, vb);   /* [k, k+1] with v*(k-1) */
-        va = (double)cmd.v_alpha_V;     /* v*(k), actuated at SYNC k+1 */
+        plant_step(&ps, &pc, va, vb); /* [k, k+1] with v*(k-1) */
+        va = (double)cmd.v_alpha_V;   /* v*(k), actuated at SYNC k+1 */
         vb = (double)cmd.v_beta_V;
     }
     const double t1 = core_now_ns();
@@ -71,7 +71,4 @@ double hil_core_loop_ns(uint32_t periods)
     return (t1 - t0) / (double)periods;
 }
 
-double hil_core_loop_iq_A(void)
-{
-    return g_last_iq_A;
-}
+double hil_core_loop_iq_A(void) { return g_last_iq_A; }

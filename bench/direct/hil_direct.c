@@ -51,14 +51,18 @@ static void sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us
     r.sender = sender;
     memcpy(r.data, f->data, f->dlc);
     if (H.rec) {
-        if (H.rec_n < H.rec_cap) H.rec[H.rec_n++] = r;
-        else ++H.rec_dropped;
+        if (H.rec_n < H.rec_cap)
+            H.rec[H.rec_n++] = r;
+        else
+            ++H.rec_dropped;
     }
     /* The master sees every frame of the nodes, like a CAN controller would, except the
      * PDO stream of a run (it reads the recorder instead). */
     if (sender != CO_MEMBUS_EXTERNAL && !H.running) {
-        if (H.mq_tail - H.mq_head < MASTER_Q) H.mq[H.mq_tail++ % MASTER_Q] = r;
-        else ++H.mq_dropped;
+        if (H.mq_tail - H.mq_head < MASTER_Q)
+            H.mq[H.mq_tail++ % MASTER_Q] = r;
+        else
+            ++H.mq_dropped;
     }
 }
 

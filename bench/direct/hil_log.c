@@ -106,8 +106,7 @@ static unsigned put_seconds(char *p, uint64_t s)
  * Returns the bytes written; 0 if n == 0, if the channel is unusable (see hil_log_line_max)
  * or if cap < the bytes of all n lines (nothing useful written then): cap >= n *
  * hil_log_line_max(channel) = n * (46 + strlen(channel)) is always enough. */
-uint64_t hil_log_format(const hil_frame_t *f, uint32_t n, uint64_t t0_us, const char *channel, char *out,
-                        uint64_t cap)
+uint64_t hil_log_format(const hil_frame_t *f, uint32_t n, uint64_t t0_us, const char *channel, char *out, uint64_t cap)
 {
     uint64_t L = channel_len(channel);
     if (!f || !out || L == 0 || n == 0) return 0;
@@ -175,9 +174,9 @@ enum { LINE_FRAME, LINE_SKIP, LINE_SILENT };
 /* One line [p, e) without its '\n'. LINE_FRAME fills *fr. */
 static int parse_line(const char *p, const char *e, hil_frame_t *fr)
 {
-    while (e > p && is_space(e[-1])) --e;  /* "\r\n" line ends, trailing blanks */
+    while (e > p && is_space(e[-1])) --e; /* "\r\n" line ends, trailing blanks */
     while (p < e && is_space(*p)) ++p;
-    if (p == e) return LINE_SILENT;          /* blank line */
+    if (p == e) return LINE_SILENT;                 /* blank line */
     if (*p == '#' || *p == ';') return LINE_SILENT; /* comment */
 
     /* (SECONDS.FRACTION) */
@@ -195,8 +194,10 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
         unsigned nf = 0;
         int round_up = 0;
         while (p < e && *p >= '0' && *p <= '9') {
-            if (nf < 6) us = us * 10u + (uint64_t)(*p - '0');
-            else if (nf == 6) round_up = *p >= '5';  /* to the nearest µs, like round(float * 1e6) */
+            if (nf < 6)
+                us = us * 10u + (uint64_t)(*p - '0');
+            else if (nf == 6)
+                round_up = *p >= '5'; /* to the nearest µs, like round(float * 1e6) */
             ++nf;
             ++p;
         }
@@ -204,7 +205,7 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
         us += (uint64_t)round_up;
     }
     if (p >= e || *p++ != ')') return LINE_SKIP;
-    uint64_t t_us = sec * 1000000u + us;       /* no overflow: sec <= SEC_MAX, us <= 1000000 */
+    uint64_t t_us = sec * 1000000u + us; /* no overflow: sec <= SEC_MAX, us <= 1000000 */
 
     /* channel: one token */
     if (p >= e || !is_space(*p)) return LINE_SKIP;
@@ -234,19 +235,19 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
         if (p - id0 <= 3) id = (id << 4) | (unsigned)v;
     }
     long nid = (long)(p - id0);
-    if (p >= q || nid == 0) return LINE_SKIP;  /* no '#' or no identifier */
-    if (nid > 3) return LINE_SKIP;             /* extended / error frame: not ours */
+    if (p >= q || nid == 0) return LINE_SKIP; /* no '#' or no identifier */
+    if (nid > 3) return LINE_SKIP;            /* extended / error frame: not ours */
     if (id > 0x7FFu) return LINE_SKIP;
-    ++p;                                       /* '#' */
+    ++p; /* '#' */
 
     int fd = 0;
-    if (p < q && *p == '#') {                  /* CAN FD: ##<flags><data> */
+    if (p < q && *p == '#') { /* CAN FD: ##<flags><data> */
         ++p;
         if (p >= q || hexval(*p) < 0) return LINE_SKIP;
         ++p;
         fd = 1;
     }
-    if (!fd && p < q && (*p == 'R' || *p == 'r')) return LINE_SKIP;  /* remote frame */
+    if (!fd && p < q && (*p == 'R' || *p == 'r')) return LINE_SKIP; /* remote frame */
 
     uint8_t data[64];
     unsigned dlc = 0;
@@ -256,14 +257,14 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
             ++p;
             continue;
         }
-        if (q - p < 2) return LINE_SKIP;       /* odd number of hex digits */
+        if (q - p < 2) return LINE_SKIP; /* odd number of hex digits */
         int hi = hexval(p[0]), lo = hexval(p[1]);
         if (hi < 0 || lo < 0) return LINE_SKIP;
         if (dlc >= max_bytes) return LINE_SKIP;
         data[dlc++] = (uint8_t)((hi << 4) | lo);
         p += 2;
     }
-    if (dlc > 8) return LINE_SKIP;             /* CAN FD frame longer than classic CAN */
+    if (dlc > 8) return LINE_SKIP; /* CAN FD frame longer than classic CAN */
 
     memset(fr, 0, sizeof *fr);
     fr->t_us = t_us;
@@ -294,8 +295,10 @@ uint32_t hil_log_parse(const char *buf, uint64_t len, hil_frame_t *out, uint32_t
             const char *nl = memchr(p, '\n', (size_t)(end - p));
             if (!nl) break;
             int k = parse_line(p, nl, &out[n]);
-            if (k == LINE_FRAME) ++n;
-            else if (k == LINE_SKIP) ++skip;
+            if (k == LINE_FRAME)
+                ++n;
+            else if (k == LINE_SKIP)
+                ++skip;
             p = nl + 1;
         }
         used = (uint64_t)(p - buf);

@@ -33,8 +33,8 @@ from .frames import FRAME_DTYPE
 
 LOG_FORMATS = ("log", "asc", "blf")
 
-_WRITE_BATCH = 1 << 16      # frames formatted per C call (buffer = batch * line_max bytes)
-_READ_BLOCK = 4 << 20       # bytes read from a .log per block; also the longest line accepted
+_WRITE_BATCH = 1 << 16  # frames formatted per C call (buffer = batch * line_max bytes)
+_READ_BLOCK = 4 << 20  # bytes read from a .log per block; also the longest line accepted
 _lib: ctypes.CDLL | None = None
 
 
@@ -47,11 +47,23 @@ def _hil() -> ctypes.CDLL:
         lib = ctypes.CDLL(str(path))
         lib.hil_log_line_max.argtypes = [ctypes.c_char_p]
         lib.hil_log_line_max.restype = ctypes.c_uint64
-        lib.hil_log_format.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint64, ctypes.c_char_p,
-                                       ctypes.c_void_p, ctypes.c_uint64]
+        lib.hil_log_format.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_uint32,
+            ctypes.c_uint64,
+            ctypes.c_char_p,
+            ctypes.c_void_p,
+            ctypes.c_uint64,
+        ]
         lib.hil_log_format.restype = ctypes.c_uint64
-        lib.hil_log_parse.argtypes = [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_void_p, ctypes.c_uint32,
-                                      ctypes.POINTER(ctypes.c_uint64), ctypes.POINTER(ctypes.c_uint64)]
+        lib.hil_log_parse.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_uint64,
+            ctypes.c_void_p,
+            ctypes.c_uint32,
+            ctypes.POINTER(ctypes.c_uint64),
+            ctypes.POINTER(ctypes.c_uint64),
+        ]
         lib.hil_log_parse.restype = ctypes.c_uint32
         _lib = lib
     return _lib
@@ -87,7 +99,7 @@ class CandumpWriter:
         arr = np.ascontiguousarray(frames.reshape(-1))
         buf_addr, cap = self._buf.ctypes.data, self._buf.nbytes
         for start in range(0, len(arr), _WRITE_BATCH):
-            part = arr[start:start + _WRITE_BATCH]
+            part = arr[start : start + _WRITE_BATCH]
             n = int(self._lib.hil_log_format(part.ctypes.data, len(part), self.t0_us, self._channel, buf_addr, cap))
             if n == 0:
                 raise RuntimeError("hil_log_format: buffer too small (line_max out of step with hil_log.c?)")
@@ -102,8 +114,9 @@ class CandumpWriter:
     def __enter__(self) -> CandumpWriter:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
 
@@ -152,8 +165,16 @@ class LogFrames(Iterator[np.ndarray]):
         filled = 0
         with open(self.path, "rb", buffering=0) as fh:
             while True:
-                n = int(lib.hil_log_parse(base + pos, have - pos, out.ctypes.data + filled * FRAME_DTYPE.itemsize,
-                                          self.chunk_frames - filled, ctypes.byref(consumed), ctypes.byref(skipped)))
+                n = int(
+                    lib.hil_log_parse(
+                        base + pos,
+                        have - pos,
+                        out.ctypes.data + filled * FRAME_DTYPE.itemsize,
+                        self.chunk_frames - filled,
+                        ctypes.byref(consumed),
+                        ctypes.byref(skipped),
+                    )
+                )
                 filled += n
                 pos += consumed.value
                 self.skipped += skipped.value
@@ -182,7 +203,7 @@ class LogFrames(Iterator[np.ndarray]):
                         have += 1
                     continue
                 if discarding:
-                    nl = np.flatnonzero(buf[have:have + got] == 0x0A)
+                    nl = np.flatnonzero(buf[have : have + got] == 0x0A)
                     if len(nl) == 0:
                         continue
                     start = have + int(nl[0]) + 1
@@ -202,8 +223,11 @@ class LogFrames(Iterator[np.ndarray]):
                 msgs = list(itertools.islice(it, self.chunk_frames))
                 if not msgs:
                     break
-                keep = [m for m in msgs if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame
-                                                or len(m.data) > 8)]
+                keep = [
+                    m
+                    for m in msgs
+                    if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame or len(m.data) > 8)
+                ]
                 self.skipped += len(msgs) - len(keep)
                 if keep:
                     yield _to_frames(keep)
@@ -215,8 +239,9 @@ def parse_candump(data: bytes) -> tuple[np.ndarray, int, int]:
     lib = _hil()
     out = np.empty(max(1, data.count(b"\n")), dtype=FRAME_DTYPE)
     consumed, skipped = ctypes.c_uint64(), ctypes.c_uint64()
-    n = int(lib.hil_log_parse(data, len(data), out.ctypes.data, len(out), ctypes.byref(consumed),
-                              ctypes.byref(skipped)))
+    n = int(
+        lib.hil_log_parse(data, len(data), out.ctypes.data, len(out), ctypes.byref(consumed), ctypes.byref(skipped))
+    )
     return out[:n], int(consumed.value), int(skipped.value)
 
 
@@ -234,8 +259,7 @@ def _to_frames(msgs: list[can.Message]) -> np.ndarray:
     arr["cob_id"] = [m.arbitration_id & 0x7FF for m in msgs]
     arr["dlc"] = [len(m.data) for m in msgs]
     arr["sender"] = 255
-    arr["data"] = np.frombuffer(b"".join(bytes(m.data).ljust(8, b"\0") for m in msgs),
-                                dtype=np.uint8).reshape(-1, 8)
+    arr["data"] = np.frombuffer(b"".join(bytes(m.data).ljust(8, b"\0") for m in msgs), dtype=np.uint8).reshape(-1, 8)
     return arr
 
 
@@ -243,9 +267,12 @@ def _to_messages(frames: np.ndarray) -> list[can.Message]:
     """FRAME_DTYPE -> can.Messages (timestamp = t_us / 1e6 s), for python-can's writers."""
     ts, ids, dlcs = frames["t_us"].tolist(), frames["cob_id"].tolist(), frames["dlc"].tolist()
     raw = np.ascontiguousarray(frames["data"]).tobytes()
-    return [can.Message(timestamp=t / 1e6, arbitration_id=i, is_extended_id=False, dlc=d,
-                        data=raw[8 * k:8 * k + d], is_rx=True)
-            for k, (t, i, d) in enumerate(zip(ts, ids, dlcs, strict=True))]
+    return [
+        can.Message(
+            timestamp=t / 1e6, arbitration_id=i, is_extended_id=False, dlc=d, data=raw[8 * k : 8 * k + d], is_rx=True
+        )
+        for k, (t, i, d) in enumerate(zip(ts, ids, dlcs, strict=True))
+    ]
 
 
 def export(src: Path, dst: Path, progress: Callable[[int], None] | None = None) -> int:

@@ -32,33 +32,62 @@ def default_out(sc: Scenario) -> Path:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario value with a dotted key following the TOML layout, "
-                        "e.g. --set controller.L_hat_ratio=0.5 (repeatable)")
-    p.add_argument("--bus", default="vcan0",
-                   help="'direct' (in-process, no bus), or a CAN channel: vcan0 (default; the VM supplies it on "
-                        "hosts without CAN), can0, ...")
-    p.add_argument("--interface", default="socketcan", help="python-can interface for the bench's master "
-                   "(default socketcan; the C nodes always use SocketCAN)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario value with a dotted key following the TOML layout, "
+        "e.g. --set controller.L_hat_ratio=0.5 (repeatable)",
+    )
+    p.add_argument(
+        "--bus",
+        default="vcan0",
+        help="'direct' (in-process, no bus), or a CAN channel: vcan0 (default; the VM supplies it on "
+        "hosts without CAN), can0, ...",
+    )
+    p.add_argument(
+        "--interface",
+        default="socketcan",
+        help="python-can interface for the bench's master (default socketcan; the C nodes always use SocketCAN)",
+    )
     p.add_argument("--channel", dest="bus", default=argparse.SUPPRESS, help="alias of --bus for python-can users")
     p.add_argument("--bitrate", type=int, default=None, help="bit rate for interfaces that need one")
     p.add_argument("--fd", action="store_true", help="open the bus as CAN FD (python-can fd=True)")
     p.add_argument("--data-bitrate", type=int, default=None, help="CAN FD data-phase bit rate")
     p.add_argument("--no-plant", action="store_true", help="do not start the C plant (a physical plant is on the bus)")
-    p.add_argument("--no-drive", action="store_true",
-                   help="do not start the C drive (a physical drive implementing drive.eds is on the bus)")
+    p.add_argument(
+        "--no-drive",
+        action="store_true",
+        help="do not start the C drive (a physical drive implementing drive.eds is on the bus)",
+    )
     p.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10, help="plant node-ID (default 0x10)")
     p.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20, help="drive node-ID (default 0x20)")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME-TIMESTAMP); "
-                   "must not exist or be empty")
-    p.add_argument("--log-format", choices=LOG_FORMATS, action="append", default=None,
-                   help="CAN log formats to write besides bus.log (candump, always written): asc, blf "
-                        "(python-can's writers; slow for long runs). Repeatable")
-    p.add_argument("--serve", action="store_true",
-                   help="serve the Rerun web viewer: prints the address a browser opens, streams while the run "
-                        "goes, and keeps serving after it until Ctrl-C (or --serve-for)")
-    p.add_argument("--serve-for", type=float, default=None, metavar="SECONDS",
-                   help="with --serve: stop serving this many seconds after the run (default: until Ctrl-C)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="output folder (default runs/NAME-TIMESTAMP); must not exist or be empty"
+    )
+    p.add_argument(
+        "--log-format",
+        choices=LOG_FORMATS,
+        action="append",
+        default=None,
+        help="CAN log formats to write besides bus.log (candump, always written): asc, blf "
+        "(python-can's writers; slow for long runs). Repeatable",
+    )
+    p.add_argument(
+        "--serve",
+        action="store_true",
+        help="serve the Rerun web viewer: prints the address a browser opens, streams while the run "
+        "goes, and keeps serving after it until Ctrl-C (or --serve-for)",
+    )
+    p.add_argument(
+        "--serve-for",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="with --serve: stop serving this many seconds after the run (default: until Ctrl-C)",
+    )
     p.add_argument("--web-port", type=int, default=9090, help="web viewer port for --serve (default 9090)")
     p.add_argument("--grpc-port", type=int, default=9876, help="Rerun gRPC port for --serve (default 9876)")
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer (the .rrd is still saved)")
@@ -93,8 +122,10 @@ def _bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     if not probe_af_can().af_can:
         if virtual:
             return None, True  # the VM creates it
-        return (f"--bus {args.bus}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
-                "only (--bus vcan0, vcan1, ...), or use --bus direct"), False
+        return (
+            f"--bus {args.bus}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
+            "only (--bus vcan0, vcan1, ...), or use --bus direct"
+        ), False
     if virtual and host_has_vcan(args.bus):  # a vcan is made when missing (as root); a real bus never is
         return None, False
     state = interface_state(args.bus)
@@ -105,8 +136,10 @@ def _bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     if not virtual and state == "up":
         return None, False
     if state is None:
-        return (f"--bus {args.bus}: no such CAN interface; this machine has: {buses}"
-                + ("" if virtual else "; or use --bus direct or a vcan name")), False
+        return (
+            f"--bus {args.bus}: no such CAN interface; this machine has: {buses}"
+            + ("" if virtual else "; or use --bus direct or a vcan name")
+        ), False
     return f"--bus {args.bus}: the interface is {state} (bring it up: ip link set {args.bus} up)", False
 
 
@@ -132,8 +165,11 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         return 2, None, None
     partial = out.with_name(out.name + ".partial")
     if partial.exists():
-        print(f"bench run: {partial} exists (another run writing there, or left by a crash); remove it or "
-              "choose another --out", file=sys.stderr)
+        print(
+            f"bench run: {partial} exists (another run writing there, or left by a crash); remove it or "
+            "choose another --out",
+            file=sys.stderr,
+        )
         return 2, None, None
     partial.mkdir(parents=True)
     print(f"bench run: {sc.name}: {sc.periods} periods on bus {args.bus} ({sc.timing})", flush=True)
@@ -170,8 +206,10 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     partial.rename(out)
     print_result(out, result)
     if cut:
-        print(f"bench run: the results were not all written; the run is complete and kept in {out} ({cut})",
-              file=sys.stderr)
+        print(
+            f"bench run: the results were not all written; the run is complete and kept in {out} ({cut})",
+            file=sys.stderr,
+        )
         return (130 if cut.startswith("interrupted") else 1), result, out
     outputs.serve(args)
     return result.exit_code, result, out
@@ -188,8 +226,11 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
     def on_sigint(signum: int, frame: Any) -> None:
         presses[0] += 1
         if presses[0] == 1:  # os.write: print() may be in use by the interrupted code
-            os.write(2, b"\nbench run: the loop is complete; finishing its results (a few seconds). Ctrl-C "
-                        b"again stops now, keeping what is written.\n")
+            os.write(
+                2,
+                b"\nbench run: the loop is complete; finishing its results (a few seconds). Ctrl-C "
+                b"again stops now, keeping what is written.\n",
+            )
             return
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a third press must not cut the saving below
         raise KeyboardInterrupt
@@ -208,8 +249,9 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
         finally:
             outputs.write_summary(result, complete=False)
         missing = [f for f in ("bus.log", "run.rrd") if not (partial / f).exists()]
-        return f"{why}; the plots and the recording may be incomplete" + (f"; missing: {', '.join(missing)}"
-                                                                         if missing else "")
+        return f"{why}; the plots and the recording may be incomplete" + (
+            f"; missing: {', '.join(missing)}" if missing else ""
+        )
     finally:
         if main:
             signal.signal(signal.SIGINT, old)
@@ -230,17 +272,31 @@ def _discard(partial: Path, out: Path) -> None:
 def _run_options(args: argparse.Namespace, out: Path) -> Any:
     from .session import RunOptions
 
-    return RunOptions(bus=args.bus, interface=args.interface, bitrate=args.bitrate, fd=args.fd,
-                      data_bitrate=args.data_bitrate, plant_id=args.plant_id, drive_id=args.drive_id,
-                      start_plant=not args.no_plant, start_drive=not args.no_drive, out=out)
+    return RunOptions(
+        bus=args.bus,
+        interface=args.interface,
+        bitrate=args.bitrate,
+        fd=args.fd,
+        data_bitrate=args.data_bitrate,
+        plant_id=args.plant_id,
+        drive_id=args.drive_id,
+        start_plant=not args.no_plant,
+        start_drive=not args.no_drive,
+        out=out,
+    )
 
 
 def _run_here(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
     from .pipeline import run_scenario
 
     with outputs.progress(sc.periods, "run") as bar:
-        return run_scenario(sc, _run_options(args, partial), sinks=outputs.sinks, frame_sinks=outputs.frame_sinks,
-                            progress=lambda done, total: bar.update(done - bar.n))
+        return run_scenario(
+            sc,
+            _run_options(args, partial),
+            sinks=outputs.sinks,
+            frame_sinks=outputs.frame_sinks,
+            progress=lambda done, total: bar.update(done - bar.n),
+        )
 
 
 def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
@@ -269,12 +325,28 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
         except BaseException as exc:  # noqa: BLE001 - reported by the main thread
             errors.append(exc)
 
-    cmd = [sys.executable, "-m", "bench.cli", "capture", str(args.scenario.resolve()), "--bus", args.bus,
-           "--out", str(stage), "--plant-id", str(args.plant_id), "--drive-id", str(args.drive_id)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "bench.cli",
+        "capture",
+        str(args.scenario.resolve()),
+        "--bus",
+        args.bus,
+        "--out",
+        str(stage),
+        "--plant-id",
+        str(args.plant_id),
+        "--drive-id",
+        str(args.drive_id),
+    ]
     for o in args.overrides:
         cmd += ["--set", o]
-    print("bench run: host kernel has no SocketCAN; the bus runs inside the virtme-ng VM (boot ~20 s); "
-          "the host decodes candump's log as it grows", flush=True)
+    print(
+        "bench run: host kernel has no SocketCAN; the bus runs inside the virtme-ng VM (boot ~20 s); "
+        "the host decodes candump's log as it grows",
+        flush=True,
+    )
     t0 = time.monotonic()
     try:
         with outputs.progress(sc.periods, "run (VM)") as bar:
@@ -303,8 +375,12 @@ def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: O
         for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
             shutil.move(str(f), partial / f.name)
         stage.rmdir()
-    return pipe.finish(sc.name, args.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)},
-                       cap.get("stopped"))
+    return pipe.finish(
+        sc.name,
+        args.bus,
+        {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)},
+        cap.get("stopped"),
+    )
 
 
 class _Quiet:
@@ -342,8 +418,7 @@ def capture_only(args: argparse.Namespace) -> int:
     except Exception as exc:  # noqa: BLE001 - one line the host shows (the VM's console is filtered)
         print(f"bench capture: FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
-    (args.out / "capture.json").write_text(json.dumps({"run_wall_s": run_wall, "pid": os.getpid(),
-                                                       "stopped": stopped}))
+    (args.out / "capture.json").write_text(json.dumps({"run_wall_s": run_wall, "pid": os.getpid(), "stopped": stopped}))
     if stopped:
         print(f"bench capture: stopped: {stopped['message']}")
     else:

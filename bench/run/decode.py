@@ -57,16 +57,17 @@ def layout_from_sdo(sdo: SdoLog) -> BusLayout:
                     break
                 sigs.append((node.qualname(var.index, var.subindex) or var.name, FMT[var.data_type]))
             else:
-                layout.pdos.append(PdoLayout(node.name, f"TPDO{n + 1}", int(cob) & 0x7FF,
-                                             int(v.get((0x1800 + n, 2)) or 0), sigs))
+                layout.pdos.append(
+                    PdoLayout(node.name, f"TPDO{n + 1}", int(cob) & 0x7FF, int(v.get((0x1800 + n, 2)) or 0), sigs)
+                )
     return layout
 
 
 @dataclass
 class PdoStats:
     pdo: PdoLayout
-    present: int = 0          # periods that got this PDO
-    non_finite: int = 0       # periods whose frame carried a NaN or an infinity
+    present: int = 0  # periods that got this PDO
+    non_finite: int = 0  # periods whose frame carried a NaN or an infinity
 
 
 @dataclass
@@ -77,15 +78,15 @@ class DecodeStats:
     foreign: dict[int, int] = field(default_factory=dict)
     interference: dict[int, int] = field(default_factory=dict)  # COB-ID -> extra frames on the loop's own
     first_interference_period: int | None = None
-    first_lost_period: int | None = None     # the first period with a missing frame, a gap or a misaligned sample
+    first_lost_period: int | None = None  # the first period with a missing frame, a gap or a misaligned sample
     after_loop_frames: int = 0
     sync_counter_gaps: int = 0
     sample_index_mismatches: int = 0
     pdos: dict[int, PdoStats] = field(default_factory=dict)
-    non_finite: dict[str, int] = field(default_factory=dict)   # column -> periods with a non-finite value
+    non_finite: dict[str, int] = field(default_factory=dict)  # column -> periods with a non-finite value
     first_non_finite_period: int | None = None
-    missing_measurements: int = 0   # periods without one of the plant's synchronous measurement PDOs
-    missing_commands: int = 0       # periods without the drive's command PDO
+    missing_measurements: int = 0  # periods without one of the plant's synchronous measurement PDOs
+    missing_commands: int = 0  # periods without the drive's command PDO
 
 
 class Decoder:
@@ -99,17 +100,17 @@ class Decoder:
         self.pole_pairs = 1
         self.ts_s = 1.0
         self._carry = np.zeros(0, dtype=FRAME_DTYPE)
-        self._base = 0           # period of the carry's first SYNC
-        self._emitted = 0        # rows emitted so far
+        self._base = 0  # period of the carry's first SYNC
+        self._emitted = 0  # rows emitted so far
         self._last_sync = -1
         self._last_sync_period = -1
         self.hold_cob_id: int | None = None
         self._cmd_cob: int | None = None
         self._carry_genuine = False  # the carry starts at a SYNC already judged the plant's
-        self._nmt_seen = False       # an NMT command went by (a master configuring the nodes) ...
-        self._nmt_started = False    # ... and NMT start: the loop's SYNCs come after it
+        self._nmt_seen = False  # an NMT command went by (a master configuring the nodes) ...
+        self._nmt_started = False  # ... and NMT start: the loop's SYNCs come after it
         self._index: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sample_index
-        self._meas: tuple[int, int] | None = None   # (COB-ID, byte offset) of Measurement.sync_counter
+        self._meas: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sync_counter
         self._known: np.ndarray = self._base_known()
         self._kind = self._kinds()
         self.emcy: list[dict[str, object]] = []
@@ -133,8 +134,11 @@ class Decoder:
         # bench's own plumbing, not a signal of the loop: not a trace column.
         hold = [p for p in self.layout.pdos if all(q.startswith("Run control.") for q, _ in p.signals)]
         self.hold_cob_id = hold[0].cob_id if hold else None
-        cmd = [p for p in self.layout.pdos if p.node == "drive" and any(q.startswith("Voltage command.")
-                                                                        for q, _ in p.signals)]
+        cmd = [
+            p
+            for p in self.layout.pdos
+            if p.node == "drive" and any(q.startswith("Voltage command.") for q, _ in p.signals)
+        ]
         self._cmd_cob = cmd[0].cob_id if cmd else None
         self.layout.pdos = [p for p in self.layout.pdos if p not in hold]
         self._known = self._base_known()
@@ -150,8 +154,9 @@ class Decoder:
             self.stats.pdos[pdo.cob_id] = PdoStats(pdo)
             for q, fmt in pdo.signals:
                 # float32 holds a REAL32 and an integer of up to 16 bits exactly (and NaN for a missing frame)
-                names.append(SignalInfo.of(column_name(q), f"{pdo.node} {pdo.pdo} {q}",
-                                           "<f4" if fmt in "fbBhH?" else "<f8"))
+                names.append(
+                    SignalInfo.of(column_name(q), f"{pdo.node} {pdo.pdo} {q}", "<f4" if fmt in "fbBhH?" else "<f8")
+                )
         cols = {s.name for s in names}
         if {"i_a_A", "i_b_A", "theta_m_rad"} <= cols:
             names += [SignalInfo.of(n, "derived (Park transform)") for n in ("id_A", "iq_A")]
@@ -287,9 +292,15 @@ class Decoder:
         hit = hit[frames["dlc"][hit] == 8]
         for i in hit[: 1000 - len(self.emcy)].tolist():
             d = bytes(frames["data"][i])
-            self.emcy.append({"period": max(0, int(periods[i])), "node": names[int(cob[i])],
-                              "code": f"0x{int.from_bytes(d[:2], 'little'):04X}", "error_register": d[2],
-                              "data": d[3:8].hex()})
+            self.emcy.append(
+                {
+                    "period": max(0, int(periods[i])),
+                    "node": names[int(cob[i])],
+                    "code": f"0x{int.from_bytes(d[:2], 'little'):04X}",
+                    "error_register": d[2],
+                    "data": d[3:8].hex(),
+                }
+            )
 
     def _follow_sdo(self, frames: np.ndarray, periods: np.ndarray) -> None:
         m = self.sdo.mask(frames)
@@ -297,8 +308,9 @@ class Decoder:
             self.sdo.feed(frames[m], periods[m])
 
     # ------------------------------------------------------------------ rows
-    def _rows(self, buf: np.ndarray, period_of: np.ndarray, is_sync: np.ndarray, r0: int, r1: int
-              ) -> dict[str, np.ndarray]:
+    def _rows(
+        self, buf: np.ndarray, period_of: np.ndarray, is_sync: np.ndarray, r0: int, r1: int
+    ) -> dict[str, np.ndarray]:
         assert self.layout is not None
         n = r1 - r0
         st = self.stats
@@ -439,7 +451,7 @@ class Decoder:
             col = np.full(r1 - r0, before[-1] if before else 0.0)
             for period, value in changes:
                 if r0 < period < r1:
-                    col[period - r0:] = value
+                    col[period - r0 :] = value
             out[name] = col
 
     def _continuity(self, out: dict[str, np.ndarray]) -> None:

@@ -16,8 +16,14 @@ from .frames import FRAME_DTYPE
 
 
 class _Frame(ctypes.Structure):
-    _fields_ = [("t_us", ctypes.c_uint64), ("seq", ctypes.c_uint32), ("cob_id", ctypes.c_uint16),
-                ("dlc", ctypes.c_uint8), ("sender", ctypes.c_uint8), ("data", ctypes.c_uint8 * 8)]
+    _fields_ = [
+        ("t_us", ctypes.c_uint64),
+        ("seq", ctypes.c_uint32),
+        ("cob_id", ctypes.c_uint16),
+        ("dlc", ctypes.c_uint8),
+        ("sender", ctypes.c_uint8),
+        ("data", ctypes.c_uint8 * 8),
+    ]
 
 
 class Hil:
@@ -67,8 +73,10 @@ class Hil:
         with self._lock:
             n = self.lib.hil_recorded()
             if self.lib.hil_record_dropped():
-                raise RuntimeError(f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped "
-                                   f"(buffer of {len(self._rec)} frames)")
+                raise RuntimeError(
+                    f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped "
+                    f"(buffer of {len(self._rec)} frames)"
+                )
             out = self._rec[:n]
             self._rec = np.empty(len(self._rec), dtype=FRAME_DTYPE)
             self.lib.hil_set_recorder(self._rec.ctypes.data, len(self._rec))
@@ -101,8 +109,14 @@ class DirectBus(can.BusABC):
         while True:
             f = self.hil.recv()
             if f is not None:
-                msg = can.Message(timestamp=f.t_us * 1e-6, arbitration_id=f.cob_id, is_extended_id=False,
-                                  dlc=f.dlc, data=bytes(f.data[: f.dlc]), channel="direct")
+                msg = can.Message(
+                    timestamp=f.t_us * 1e-6,
+                    arbitration_id=f.cob_id,
+                    is_extended_id=False,
+                    dlc=f.dlc,
+                    data=bytes(f.data[: f.dlc]),
+                    channel="direct",
+                )
                 return msg, False
             if self.closing or (deadline is not None and time.monotonic() >= deadline):
                 return None, False

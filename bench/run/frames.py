@@ -8,8 +8,9 @@ import numpy as np
 
 # t_us: simulated time (direct mode, from 0) or absolute time since the epoch (read from a log);
 # seq: bus order; sender: 0 plant, 1 drive, 255 master or unknown (a log).
-FRAME_DTYPE = np.dtype([("t_us", "<u8"), ("seq", "<u4"), ("cob_id", "<u2"), ("dlc", "u1"), ("sender", "u1"),
-                        ("data", "u1", (8,))])
+FRAME_DTYPE = np.dtype(
+    [("t_us", "<u8"), ("seq", "<u4"), ("cob_id", "<u2"), ("dlc", "u1"), ("sender", "u1"), ("data", "u1", (8,))]
+)
 
 
 def empty() -> np.ndarray:

@@ -10,14 +10,22 @@ import numpy as np
 from canopen.objectdictionary import datatypes
 
 # EDS data type -> numpy/struct format character of a mapped PDO entry.
-FMT = {datatypes.REAL32: "f", datatypes.UNSIGNED8: "B", datatypes.UNSIGNED16: "H", datatypes.UNSIGNED32: "I",
-       datatypes.INTEGER8: "b", datatypes.INTEGER16: "h", datatypes.INTEGER32: "i", datatypes.BOOLEAN: "?"}
+FMT = {
+    datatypes.REAL32: "f",
+    datatypes.UNSIGNED8: "B",
+    datatypes.UNSIGNED16: "H",
+    datatypes.UNSIGNED32: "I",
+    datatypes.INTEGER8: "b",
+    datatypes.INTEGER16: "h",
+    datatypes.INTEGER32: "i",
+    datatypes.BOOLEAN: "?",
+}
 
 
 @dataclass
 class PdoLayout:
-    node: str           # 'plant' | 'drive'
-    pdo: str            # 'TPDO1' ...
+    node: str  # 'plant' | 'drive'
+    pdo: str  # 'TPDO1' ...
     cob_id: int
     trans_type: int
     signals: list[tuple[str, str]]  # (qualified name "Object.sub", format char)

@@ -36,11 +36,11 @@ class LoopStopped(Exception):
     """The run ended before its last period: a node died or went silent (`node_lost`), or the loop
     stalled with both nodes alive (`frames_lost`)."""
 
-    status: str                     # node_lost | frames_lost
+    status: str  # node_lost | frames_lost
     message: str
-    node: str | None = None         # plant | drive
+    node: str | None = None  # plant | drive
     node_id: int | None = None
-    at_period: int | None = None    # the plant's last period, when known
+    at_period: int | None = None  # the plant's last period, when known
     detected_after_s: float | None = None  # since the node's last sign of life
     details: dict[str, Any] = field(default_factory=dict)
 
@@ -50,9 +50,16 @@ class LoopStopped(Exception):
     detected_at_unix: float = field(default_factory=time.time)  # when the bench noticed (wall clock)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"status": self.status, "message": self.message, "node": self.node, "node_id": self.node_id,
-                "at_period": self.at_period, "detected_after_s": self.detected_after_s,
-                "detected_at_unix": self.detected_at_unix, **self.details}
+        return {
+            "status": self.status,
+            "message": self.message,
+            "node": self.node,
+            "node_id": self.node_id,
+            "at_period": self.at_period,
+            "detected_after_s": self.detected_after_s,
+            "detected_at_unix": self.detected_at_unix,
+            **self.details,
+        }
 
 
 def _exit_text(rc: int) -> str:
@@ -67,12 +74,18 @@ def _exit_text(rc: int) -> str:
 class Liveness:
     """Heartbeats, EMCYs and node processes, watched from the master's network."""
 
-    def __init__(self, net: canopen.Network, nodes: dict[str, int], procs: dict[str, NodeProcess],
-                 timeout_ms: int, heartbeat_ms: int) -> None:
-        self.nodes = nodes                  # name -> node-ID
-        self.procs = procs                  # name -> process the bench started
+    def __init__(
+        self,
+        net: canopen.Network,
+        nodes: dict[str, int],
+        procs: dict[str, NodeProcess],
+        timeout_ms: int,
+        heartbeat_ms: int,
+    ) -> None:
+        self.nodes = nodes  # name -> node-ID
+        self.procs = procs  # name -> process the bench started
         self.timeout_s = timeout_ms / 1000.0
-        self.last: dict[str, float] = {}    # name -> monotonic time of the last heartbeat
+        self.last: dict[str, float] = {}  # name -> monotonic time of the last heartbeat
         self.state: dict[str, int] = {}
         self.emcy: list[tuple[str, int, bytes, float]] = []
         self.emcy_seen = 0
@@ -110,6 +123,7 @@ class Liveness:
                 # judged from the first OPERATIONAL heartbeat after the start (an older one may be late)
                 if st == 0x05 or (name in self.state and now - self._armed_at > self.grace_s):
                     self.state[name] = st
+
         return cb
 
     def _em(self, name: str):  # type: ignore[no-untyped-def]
@@ -118,6 +132,7 @@ class Liveness:
             if len(data) == 8 and int.from_bytes(data[:2], "little") == EMCY_HEARTBEAT and len(self.emcy) < 1000:
                 with self._lock:
                     self.emcy.append((name, EMCY_HEARTBEAT, bytes(data), time.monotonic()))
+
         return cb
 
     def arm(self) -> None:
@@ -145,10 +160,15 @@ class Liveness:
         for name, proc in self.procs.items():
             rc = proc.proc.poll() if proc.proc is not None else None
             if rc is not None:
-                return LoopStopped("node_lost", f"{self._who(name)}: its process {proc.name} {_exit_text(rc)}",
-                                   name, self.nodes[name], details={"cause": "process_exited", "exit_status": rc})
+                return LoopStopped(
+                    "node_lost",
+                    f"{self._who(name)}: its process {proc.name} {_exit_text(rc)}",
+                    name,
+                    self.nodes[name],
+                    details={"cause": "process_exited", "exit_status": rc},
+                )
         with self._lock:
-            last, state, emcy = dict(self.last), dict(self.state), list(self.emcy[self.emcy_seen:])
+            last, state, emcy = dict(self.last), dict(self.state), list(self.emcy[self.emcy_seen :])
         if any(now - last[n] > self.timeout_s for n in self.nodes):
             # a heartbeat may wait in the socket while this process was busy: let the notifier run, look again
             time.sleep(self.grace_s / 2)
@@ -158,25 +178,44 @@ class Liveness:
         for name in self.nodes:
             silent = now - last[name]
             if silent > self.timeout_s:
-                return LoopStopped("node_lost", f"{self._who(name)} sent no heartbeat for {silent:.2f} s (consumer "
-                                   f"time {self.timeout_s * 1000:.0f} ms): dead or silent", name, self.nodes[name],
-                                   detected_after_s=silent, details={"cause": "heartbeat_timeout"})
+                return LoopStopped(
+                    "node_lost",
+                    f"{self._who(name)} sent no heartbeat for {silent:.2f} s (consumer "
+                    f"time {self.timeout_s * 1000:.0f} ms): dead or silent",
+                    name,
+                    self.nodes[name],
+                    detected_after_s=silent,
+                    details={"cause": "heartbeat_timeout"},
+                )
             st = state.get(name)
             if st is not None and st != 0x05:
-                return LoopStopped("node_lost", f"{self._who(name)} left OPERATIONAL: its heartbeat says "
-                                   f"{NMT_STATES.get(st, hex(st))}", name, self.nodes[name],
-                                   details={"cause": "nmt_state", "nmt_state": NMT_STATES.get(st, hex(st))})
+                return LoopStopped(
+                    "node_lost",
+                    f"{self._who(name)} left OPERATIONAL: its heartbeat says {NMT_STATES.get(st, hex(st))}",
+                    name,
+                    self.nodes[name],
+                    details={"cause": "nmt_state", "nmt_state": NMT_STATES.get(st, hex(st))},
+                )
         # EMCY 0x8130 (a node lost the other's heartbeat) alone stops nothing: a node starved of CPU for a
         # moment reports it and resets it when the heartbeat is back. It names the node when the bench
         # has not heard it for half the consumer time either.
         for reporter, code, data, _t in emcy:
             lost = next((n for n, i in self.nodes.items() if i == data[3]), None)
-            if code == EMCY_HEARTBEAT and lost is not None and lost != reporter \
-                    and now - last[lost] > self.timeout_s / 2:
-                return LoopStopped("node_lost", f"{self._who(reporter)} lost the heartbeat of "
-                                   f"{self._who(lost)} (EMCY 0x8130), and so did the bench", lost,
-                                   self.nodes[lost], detected_after_s=now - last[lost],
-                                   details={"cause": "emcy_8130", "reported_by": reporter})
+            if (
+                code == EMCY_HEARTBEAT
+                and lost is not None
+                and lost != reporter
+                and now - last[lost] > self.timeout_s / 2
+            ):
+                return LoopStopped(
+                    "node_lost",
+                    f"{self._who(reporter)} lost the heartbeat of "
+                    f"{self._who(lost)} (EMCY 0x8130), and so did the bench",
+                    lost,
+                    self.nodes[lost],
+                    detected_after_s=now - last[lost],
+                    details={"cause": "emcy_8130", "reported_by": reporter},
+                )
         return None
 
     def emcy_list(self) -> list[dict[str, Any]]:

@@ -45,8 +45,11 @@ class Progress:
             self._last = now
             rate = self.n / max(now - self._t0, 1e-9)
             eta = (self.total - self.n) / rate if rate > 0 else float("nan")
-            print(f"  {self.desc}: {self.n}/{self.total} {self.unit} ({rate:,.0f}/s, ~{max(eta, 0):.0f} s left)",
-                  file=sys.stderr, flush=True)
+            print(
+                f"  {self.desc}: {self.n}/{self.total} {self.unit} ({rate:,.0f}/s, ~{max(eta, 0):.0f} s left)",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def close(self) -> None:
         if self._bar is not None:
@@ -77,9 +80,15 @@ class Outputs:
             live = "serve"
         elif not self.args.no_viewer and (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             live = "spawn"
-        worker = ViewWorker(self.sc.name, self.folder, live=live, live_decimate=self.args.live_decimate,
-                            web_port=getattr(self.args, "web_port", 9090), grpc_port=getattr(self.args, "grpc_port", 9876),
-                            serve_for=getattr(self.args, "serve_for", None))
+        worker = ViewWorker(
+            self.sc.name,
+            self.folder,
+            live=live,
+            live_decimate=self.args.live_decimate,
+            web_port=getattr(self.args, "web_port", 9090),
+            grpc_port=getattr(self.args, "grpc_port", 9876),
+            serve_for=getattr(self.args, "serve_for", None),
+        )
         if live == "serve":  # fail before the run if the ports are taken; the address, once, now
             worker.wait_ready()
         return worker
@@ -122,9 +131,13 @@ class Outputs:
         if cand.exists() and not self.log_path.exists():
             cand.rename(self.log_path)
         summary = result.summary
-        summary["files"] = {"log": self.log_path.name, "traces": TRACES_FILE,
-                            "exports": [f"bus.{f}" for f in self.log_formats] if complete else [],
-                            "recording": "run.rrd" if complete else None, "plots": plots or []}
+        summary["files"] = {
+            "log": self.log_path.name,
+            "traces": TRACES_FILE,
+            "exports": [f"bus.{f}" for f in self.log_formats] if complete else [],
+            "recording": "run.rrd" if complete else None,
+            "plots": plots or [],
+        }
         (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
 
     def abort(self) -> None:
@@ -165,37 +178,48 @@ def print_result(out: Path, result: Any) -> None:
     print(format_identified(s["identified"]))
     bs = s["bus_stats"]
     nf = bs["non_finite_values"]
-    print(f"bus: {bs['frames']} frames, {bs['lost_frames']} lost (SYNC gaps {bs['sync_counter_gaps']}, "
-          f"missing measurements {bs['missing_measurements']}, missing commands {bs['missing_commands']}), "
-          f"plant missed {bs['plant_missed_commands']}, late {bs['plant_late_commands']}"
-          + (f"; non-finite values: {', '.join(f'{k} x{v}' for k, v in nf.items())}" if nf else ""))
+    print(
+        f"bus: {bs['frames']} frames, {bs['lost_frames']} lost (SYNC gaps {bs['sync_counter_gaps']}, "
+        f"missing measurements {bs['missing_measurements']}, missing commands {bs['missing_commands']}), "
+        f"plant missed {bs['plant_missed_commands']}, late {bs['plant_late_commands']}"
+        + (f"; non-finite values: {', '.join(f'{k} x{v}' for k, v in nf.items())}" if nf else "")
+    )
     ff, itf = bs.get("foreign_frames", {}), bs.get("interference", {})
     if ff.get("frames") or itf.get("frames") or bs.get("after_loop_frames"):
-        print(f"bus: foreign frames {ff.get('frames', 0)} ({_ids(ff.get('by_cob_id', {}))}); interference "
-              f"{itf.get('frames', 0)} ({_ids(itf.get('by_cob_id', {}))}); after the loop "
-              f"{bs.get('after_loop_frames', 0)}")
+        print(
+            f"bus: foreign frames {ff.get('frames', 0)} ({_ids(ff.get('by_cob_id', {}))}); interference "
+            f"{itf.get('frames', 0)} ({_ids(itf.get('by_cob_id', {}))}); after the loop "
+            f"{bs.get('after_loop_frames', 0)}"
+        )
     emcy = s.get("emcy") or []
     if emcy:
         shown = ", ".join(f"{e['node']} {e['code']} at period {e['period']}" for e in emcy[:6])
         print(f"EMCY: {len(emcy)}{'+' if len(emcy) >= 100 else ''}: {shown}{' ...' if len(emcy) > 6 else ''}")
     t = s.get("timing", {})
     if t.get("periods_per_s"):
-        print(f"run: {s['periods']} periods in {t['run_wall_s']:.3f} s ({t['periods_per_s']:,.0f} periods/s, "
-              f"decoding included); with configuration {t['wall_s']:.2f} s")
+        print(
+            f"run: {s['periods']} periods in {t['run_wall_s']:.3f} s ({t['periods_per_s']:,.0f} periods/s, "
+            f"decoding included); with configuration {t['wall_s']:.2f} s"
+        )
     status = s["status"]
     osc = s.get("oscillating_steps") or []
-    why = {"tripped": f"the plant's over-current trip latched at period {s.get('first_trip_period')} "
-                      f"(I_trip_A = {s['plant'].get('I_trip_A')})",
-           "diverged": (f"the step at period {osc[0]} never settles: its error still swings over half the step at "
-                        "the end of its window (an unstable loop held by the voltage limit)" if osc else
-                        f"a phase current of {s['max_phase_current_A']:.3g} A, beyond "
-                        f"{s['divergence_bound_A']:.3g} A that the inverter can drive through the winding"),
-           "non_finite": f"non-finite values arrived in PDOs: {', '.join(nf)}",
-           "frames_lost": (s["stopped"]["message"] if s.get("stopped") else f"{bs['lost_frames']} frames lost"),
-           "node_lost": (s.get("stopped") or {}).get("message", ""),
-           "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
-                           f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
-                           f"first in period {bs.get('interference', {}).get('first_period')}"}.get(status, "")
+    why = {
+        "tripped": f"the plant's over-current trip latched at period {s.get('first_trip_period')} "
+        f"(I_trip_A = {s['plant'].get('I_trip_A')})",
+        "diverged": (
+            f"the step at period {osc[0]} never settles: its error still swings over half the step at "
+            "the end of its window (an unstable loop held by the voltage limit)"
+            if osc
+            else f"a phase current of {s['max_phase_current_A']:.3g} A, beyond "
+            f"{s['divergence_bound_A']:.3g} A that the inverter can drive through the winding"
+        ),
+        "non_finite": f"non-finite values arrived in PDOs: {', '.join(nf)}",
+        "frames_lost": (s["stopped"]["message"] if s.get("stopped") else f"{bs['lost_frames']} frames lost"),
+        "node_lost": (s.get("stopped") or {}).get("message", ""),
+        "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
+        f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
+        f"first in period {bs.get('interference', {}).get('first_period')}",
+    }.get(status, "")
     if status == "ok":
         print("status: ok")
     elif result.expected:

@@ -36,12 +36,12 @@ Progress = Callable[[int, int], None]
 class RunResult:
     scenario: str
     bus: str
-    status: str                      # ok | tripped | diverged | non_finite | frames_lost | node_lost | interference
-    exit_code: int                   # 0, or the status's code (bench/run/summary.py)
-    expected: bool                   # the status is what the scenario declared
+    status: str  # ok | tripped | diverged | non_finite | frames_lost | node_lost | interference
+    exit_code: int  # 0, or the status's code (bench/run/summary.py)
+    expected: bool  # the status is what the scenario declared
     summary: dict[str, Any]
     signals: list[SignalInfo] = field(default_factory=list)
-    trace: dict[str, np.ndarray] | None = None   # when asked for (keep_trace)
+    trace: dict[str, np.ndarray] | None = None  # when asked for (keep_trace)
     envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
     step_windows: list[dict[str, np.ndarray]] = field(default_factory=list)
 
@@ -69,8 +69,14 @@ class Pipeline:
     WINDOW = (4, 24)  # periods before and after a reference step kept for its plot
     MAX_WINDOWS = 64  # steps whose rows are kept (the plots show the first dozen)
 
-    def __init__(self, plant_id: int, drive_id: int, sinks: list[Sink] | None = None,
-                 frame_sinks: list[FrameSink] | None = None, expect: tuple[str, ...] = ("ok",)) -> None:
+    def __init__(
+        self,
+        plant_id: int,
+        drive_id: int,
+        sinks: list[Sink] | None = None,
+        frame_sinks: list[FrameSink] | None = None,
+        expect: tuple[str, ...] = ("ok",),
+    ) -> None:
         self.dec = Decoder(plant_id, drive_id)
         self.sinks = list(sinks or [])
         self.frame_sinks = list(frame_sinks or [])
@@ -83,7 +89,7 @@ class Pipeline:
         self.first_trip_period: int | None = None
         self.first_beyond_bound_period: int | None = None
         self._begun = False
-        self._tail: dict[str, np.ndarray] = {}       # the last rows, for step windows that start in a chunk
+        self._tail: dict[str, np.ndarray] = {}  # the last rows, for step windows that start in a chunk
         self._windows: list[dict[str, Any]] = []
         self._open_windows: list[dict[str, Any]] = []
         self._seen: set[tuple[int, str]] = set()
@@ -114,8 +120,9 @@ class Pipeline:
                 self.steps[sig].add(chunk["period"], chunk[x], chunk[ref])
         for n, env in self.envelopes.items():
             env.add(chunk[n])
-        phase = [np.abs(np.nan_to_num(chunk[c], nan=0.0, posinf=0.0, neginf=0.0)) for c in ("i_a_A", "i_b_A")
-                 if c in chunk]
+        phase = [
+            np.abs(np.nan_to_num(chunk[c], nan=0.0, posinf=0.0, neginf=0.0)) for c in ("i_a_A", "i_b_A") if c in chunk
+        ]
         if phase:
             a = np.maximum.reduce(phase)  # the larger phase current of each period
             self.max_phase_A = max(self.max_phase_A, float(a.max()))
@@ -155,14 +162,21 @@ class Pipeline:
                 self._seen.add((at, ref))
                 lo, hi = at - before, at + after
                 m = (p >= lo) & (p < hi)
-                w = {"at": at, "ref": ref, "lo": lo, "hi": hi, "have": int(p[m][-1]),
-                     "rows": {n: joined[n][m].copy() for n in names}}
+                w = {
+                    "at": at,
+                    "ref": ref,
+                    "lo": lo,
+                    "hi": hi,
+                    "have": int(p[m][-1]),
+                    "rows": {n: joined[n][m].copy() for n in names},
+                }
                 self._windows.append(w)
                 self._open_windows.append(w)
         self._tail = {n: joined[n][-before:] for n in names}
 
-    def finish(self, scenario: str, bus: str, wall: dict[str, float] | None = None,
-               stopped: dict[str, Any] | None = None) -> RunResult:
+    def finish(
+        self, scenario: str, bus: str, wall: dict[str, float] | None = None, stopped: dict[str, Any] | None = None
+    ) -> RunResult:
         """`stopped`: the run ended before its last period (LoopStopped.to_dict(): a node lost, a stall)."""
         self._rows(self.dec.finish())
         dec = self.dec
@@ -178,12 +192,14 @@ class Pipeline:
         trip_active = dec.sdo.plant.get("Run control", "trip_active")
         # A loop that never settles and still swings over half its step at the end of the window
         # oscillates (an unstable loop held by the voltage limit): diverged, though bounded.
-        oscillating = [s["at_period"] for s in steps if s["periods_to_settle"] is None
-                       and (s["tail_peak_to_peak_A"] or 0.0) > 0.5 * abs(s["to_A"] - s["from_A"])]
+        oscillating = [
+            s["at_period"]
+            for s in steps
+            if s["periods_to_settle"] is None and (s["tail_peak_to_peak_A"] or 0.0) > 0.5 * abs(s["to_A"] - s["from_A"])
+        ]
         # The periods the master ran (its run_periods writes, in the log): a log with fewer (cut short, a
         # recorder that lost the end) or more is not the run, unless the run stopped early.
-        planned = sum(int(v) for _, v in dec.sdo.changes("Run control.run_periods", node="plant")
-                      if 0 < v < 0xFFFFFFFF)
+        planned = sum(int(v) for _, v in dec.sdo.changes("Run control.run_periods", node="plant") if 0 < v < 0xFFFFFFFF)
         bstats["planned_periods"] = planned or None
         short = bool(planned) and dec.stats.periods != planned and not stopped
         flags = {
@@ -194,11 +210,15 @@ class Pipeline:
             "node_lost": bool(stopped and stopped["status"] == "node_lost"),
             "interference": bstats["interference"]["frames"] > 0,
         }
-        first = {"non_finite": dec.stats.first_non_finite_period, "tripped": self.first_trip_period,
-                 "diverged": self.first_beyond_bound_period if self.first_beyond_bound_period is not None
-                 else (oscillating[0] if oscillating else None),
-                 "interference": bstats["interference"]["first_period"],
-                 "frames_lost": dec.stats.first_lost_period}
+        first = {
+            "non_finite": dec.stats.first_non_finite_period,
+            "tripped": self.first_trip_period,
+            "diverged": self.first_beyond_bound_period
+            if self.first_beyond_bound_period is not None
+            else (oscillating[0] if oscillating else None),
+            "interference": bstats["interference"]["first_period"],
+            "frames_lost": dec.stats.first_lost_period,
+        }
         if stopped:
             at = stopped.get("at_period")
             first[stopped["status"]] = at if at is not None else dec.stats.periods
@@ -227,30 +247,59 @@ class Pipeline:
             "steps": steps,
             "identified": identified(dec),
             "plant": plant,
-            "controller": {n: ctl.get("Controller", n) for n in ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H",
-                                                                 "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs")},
-            "counters": {"plant_missed_commands": dec.sdo.plant.get("Run control", "missed_commands"),
-                         "plant_late_commands": dec.sdo.plant.get("Run control", "late_commands"),
-                         "plant_period_index": dec.sdo.plant.get("Run control", "period_index"),
-                         "drive_current_steps": ctl.get("Drive status", "current_steps"),
-                         "drive_lost_measurements": ctl.get("Drive status", "lost_measurements"),
-                         "drive_late_measurements": ctl.get("Drive status", "late_measurements")},
-            "settings": [{"period": w.period, "node": w.node, "name": w.name, "value": w.value}
-                         for w in dec.sdo.writes if w.period > 0],
+            "controller": {
+                n: ctl.get("Controller", n)
+                for n in (
+                    "controller",
+                    "R_hat_ohm",
+                    "Ld_hat_H",
+                    "Lq_hat_H",
+                    "psi_hat_Wb",
+                    "Vmax_V",
+                    "Ts_s",
+                    "pole_pairs",
+                )
+            },
+            "counters": {
+                "plant_missed_commands": dec.sdo.plant.get("Run control", "missed_commands"),
+                "plant_late_commands": dec.sdo.plant.get("Run control", "late_commands"),
+                "plant_period_index": dec.sdo.plant.get("Run control", "period_index"),
+                "drive_current_steps": ctl.get("Drive status", "current_steps"),
+                "drive_lost_measurements": ctl.get("Drive status", "lost_measurements"),
+                "drive_late_measurements": ctl.get("Drive status", "late_measurements"),
+            },
+            "settings": [
+                {"period": w.period, "node": w.node, "name": w.name, "value": w.value}
+                for w in dec.sdo.writes
+                if w.period > 0
+            ],
             "bus_stats": bstats,
             "timing": timing,
         }
         for s in self.sinks:
             s.end(summary)
-        windows = [{**w["rows"], "at_period": np.int64(w["at"])} for w in sorted(self._windows,
-                                                                                  key=lambda w: w["at"])]
-        return RunResult(scenario, bus, status, code, expected, summary, list(dec.signals),
-                         envelopes={n: e.arrays() for n, e in self.envelopes.items()}, step_windows=windows)
+        windows = [{**w["rows"], "at_period": np.int64(w["at"])} for w in sorted(self._windows, key=lambda w: w["at"])]
+        return RunResult(
+            scenario,
+            bus,
+            status,
+            code,
+            expected,
+            summary,
+            list(dec.signals),
+            envelopes={n: e.arrays() for n, e in self.envelopes.items()},
+            step_windows=windows,
+        )
 
 
-def run_scenario(sc: Scenario, opts: RunOptions | None = None, sinks: list[Sink] | None = None,
-                 frame_sinks: list[FrameSink] | None = None, keep_trace: bool = False,
-                 progress: Progress | None = None) -> RunResult:
+def run_scenario(
+    sc: Scenario,
+    opts: RunOptions | None = None,
+    sinks: list[Sink] | None = None,
+    frame_sinks: list[FrameSink] | None = None,
+    keep_trace: bool = False,
+    progress: Progress | None = None,
+) -> RunResult:
     """Run a scenario on a bus ('direct' or a SocketCAN/python-can channel) and return its result.
 
     `sinks` take the trace chunks (files, viewers); `frame_sinks` the raw frames (a log writer);
@@ -340,9 +389,15 @@ def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any
     return run_wall, stopped
 
 
-def replay_log(path: Path, plant_id: int = 0x10, drive_id: int = 0x20, sinks: list[Sink] | None = None,
-               keep_trace: bool = False, expect: tuple[str, ...] = ("ok",), progress: Callable[[int], None] | None
-               = None) -> RunResult:
+def replay_log(
+    path: Path,
+    plant_id: int = 0x10,
+    drive_id: int = 0x20,
+    sinks: list[Sink] | None = None,
+    keep_trace: bool = False,
+    expect: tuple[str, ...] = ("ok",),
+    progress: Callable[[int], None] | None = None,
+) -> RunResult:
     """A CAN log (candump .log, .asc, .blf, ...) through the same pipeline as a run: the same trace and
     summary, since the log carries the layout, the settings and the statuses (bench/run/sdo_log.py)."""
     from .canlog import read_frames
@@ -360,8 +415,7 @@ def replay_log(path: Path, plant_id: int = 0x10, drive_id: int = 0x20, sinks: li
         if progress:
             progress(len(chunk))
     res = pipe.finish(path.stem, f"log {path.name}", {"wall_s": time.monotonic() - t0})
-    res.summary["log"] = {"path": str(path), "frames_skipped": frames.skipped,
-                          "sdo_transfers": pipe.dec.sdo.transfers}
+    res.summary["log"] = {"path": str(path), "frames_skipped": frames.skipped, "sdo_transfers": pipe.dec.sdo.transfers}
     if collector is not None:
         res.trace = collector.trace
     return res

@@ -22,16 +22,26 @@ from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
 from ..eds import load as load_od
 
-STRUCT = {datatypes.BOOLEAN: "?", datatypes.INTEGER8: "b", datatypes.INTEGER16: "h", datatypes.INTEGER32: "i",
-          datatypes.UNSIGNED8: "B", datatypes.UNSIGNED16: "H", datatypes.UNSIGNED32: "I", datatypes.REAL32: "f",
-          datatypes.INTEGER64: "q", datatypes.UNSIGNED64: "Q", datatypes.REAL64: "d"}
+STRUCT = {
+    datatypes.BOOLEAN: "?",
+    datatypes.INTEGER8: "b",
+    datatypes.INTEGER16: "h",
+    datatypes.INTEGER32: "i",
+    datatypes.UNSIGNED8: "B",
+    datatypes.UNSIGNED16: "H",
+    datatypes.UNSIGNED32: "I",
+    datatypes.REAL32: "f",
+    datatypes.INTEGER64: "q",
+    datatypes.UNSIGNED64: "Q",
+    datatypes.REAL64: "d",
+}
 
 
 @dataclass
 class SdoWrite:
-    period: int      # the period it took effect (SYNCs seen before the request)
-    node: str        # 'plant' | 'drive'
-    name: str        # 'Object.sub' as in the EDS
+    period: int  # the period it took effect (SYNCs seen before the request)
+    node: str  # 'plant' | 'drive'
+    name: str  # 'Object.sub' as in the EDS
     value: float
 
 
@@ -49,8 +59,13 @@ class NodeState:
         self.od = load_od(self.name, self.node_id)
         self.vars: dict[tuple[int, int], ODVariable] = {}
         for obj in self.od.values():
-            subs = [obj] if isinstance(obj, ODVariable) else list(obj.subindices.values()) \
-                if isinstance(obj, (ODRecord, ODArray)) else []
+            subs = (
+                [obj]
+                if isinstance(obj, ODVariable)
+                else list(obj.subindices.values())
+                if isinstance(obj, (ODRecord, ODArray))
+                else []
+            )
             for v in subs:
                 self.vars[(v.index, v.subindex)] = v
                 if v.data_type in STRUCT and v.default is not None and not isinstance(v.default, (bytes, str)):

@@ -35,31 +35,33 @@ PROGRESS = Callable[[int, int], None]
 
 class SettingRefused(RuntimeError):
     """A node refused a value of the scenario (SDO abort): bad input, named with the EDS's limits."""
+
+
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
 
 
 @dataclass
 class RunOptions:
-    bus: str = "direct"            # "direct" or a CAN channel (vcan0, can0, ...)
-    interface: str = "socketcan"   # python-can interface for non-direct buses
+    bus: str = "direct"  # "direct" or a CAN channel (vcan0, can0, ...)
+    interface: str = "socketcan"  # python-can interface for non-direct buses
     bitrate: int | None = None
     fd: bool = False
     data_bitrate: int | None = None
     plant_id: int = 0x10
     drive_id: int = 0x20
-    start_plant: bool = True       # start the C plant process (False: a physical plant/drive is on the bus)
-    start_drive: bool = True       # start the C drive process (False: a physical drive implements drive.eds)
-    out: Path | None = None        # where the node processes' output goes (None: nowhere)
+    start_plant: bool = True  # start the C plant process (False: a physical plant/drive is on the bus)
+    start_drive: bool = True  # start the C drive process (False: a physical drive implements drive.eds)
+    out: Path | None = None  # where the node processes' output goes (None: nowhere)
     # record every frame (candump / in-process); off only to time the loop alone (then nothing is decoded: the
     # result has no periods)
     record: bool = True
-    chunk_periods: int = 65_536    # periods per chunk of the pipeline (direct mode: per C call)
-    heartbeat_ms: int = 100        # both nodes' heartbeat producer time (0x1017)
+    chunk_periods: int = 65_536  # periods per chunk of the pipeline (direct mode: per C call)
+    heartbeat_ms: int = 100  # both nodes' heartbeat producer time (0x1017)
     # consumer time (0x1016 of each node, and the bench's): a node silent this long is named and the run stops
     # (10 heartbeats: load in a VM must not look like a dead node)
     heartbeat_timeout_ms: int = 1000
-    stall_s: float = 10.0          # both nodes alive, the period index still for this long: a frame was lost
+    stall_s: float = 10.0  # both nodes alive, the period index still for this long: a frame was lost
 
 
 def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
@@ -98,16 +100,19 @@ class Session:
             self.hil = Hil(self.opts.plant_id, self.opts.drive_id)
             self.net.bus = DirectBus(self.hil)
         else:
+
             def log(name: str) -> Path | None:
                 return None if out is None else out / f"{name}.out"
 
             self.node_procs: dict[str, NodeProcess] = {}
             if self.opts.start_plant:
-                self.node_procs["plant"] = NodeProcess("plant_node", ["--iface", self.opts.bus, "--node-id",
-                                                                      str(self.opts.plant_id)], log("plant_node"))
+                self.node_procs["plant"] = NodeProcess(
+                    "plant_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)], log("plant_node")
+                )
             if self.opts.start_drive:
-                self.node_procs["drive"] = NodeProcess("drive_node", ["--iface", self.opts.bus, "--node-id",
-                                                                      str(self.opts.drive_id)], log("drive_node"))
+                self.node_procs["drive"] = NodeProcess(
+                    "drive_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
+                )
             for proc in self.node_procs.values():
                 self.procs.append(proc.start())
             # The master only needs SDO answers, NMT error control and EMCY: filtering in the kernel keeps
@@ -138,9 +143,13 @@ class Session:
             self.net.unsubscribe(n.sdo.tx_cobid, n.sdo.on_response)
             self.net.subscribe(n.sdo.tx_cobid, _sdo_answers_only(n.sdo))
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
-            self.liveness = Liveness(self.net, {"plant": self.opts.plant_id, "drive": self.opts.drive_id},
-                                     getattr(self, "node_procs", {}), self.opts.heartbeat_timeout_ms,
-                                     self.opts.heartbeat_ms)
+            self.liveness = Liveness(
+                self.net,
+                {"plant": self.opts.plant_id, "drive": self.opts.drive_id},
+                getattr(self, "node_procs", {}),
+                self.opts.heartbeat_timeout_ms,
+                self.opts.heartbeat_ms,
+            )
 
     def close(self) -> None:
         if self.liveness is not None:
@@ -181,8 +190,10 @@ class Session:
         for n in (self.plant, self.drive):
             self.net.unsubscribe(0x700 + n.id, on_boot)
             if not booted.get(n.id):
-                raise RuntimeError(f"node 0x{n.id:02X} did not answer the NMT reset with a boot-up message "
-                                   f"(is it on bus {self.opts.bus}?)")
+                raise RuntimeError(
+                    f"node 0x{n.id:02X} did not answer the NMT reset with a boot-up message "
+                    f"(is it on bus {self.opts.bus}?)"
+                )
 
     # ---------------------------------------------------------------- configuration
     def _write(self, var, value: float | int, what: str) -> None:  # type: ignore[no-untyped-def]
@@ -190,8 +201,10 @@ class Session:
         try:
             var.raw = value
         except SdoAbortedError as exc:
-            raise SettingRefused(f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
-                               f"{var.od.qualname!r}) at period {self._period}: {exc}{self._limits(var)}") from None
+            raise SettingRefused(
+                f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
+                f"{var.od.qualname!r}) at period {self._period}: {exc}{self._limits(var)}"
+            ) from None
 
     def _limits(self, var) -> str:  # type: ignore[no-untyped-def]
         """What the EDS says the value must be: its range, its description, and a limit in Ts worked out."""
@@ -200,16 +213,21 @@ class Session:
         od = var.od
         parts = []
         if od.min is not None or od.max is not None:
-            parts.append(f"range {od.min if od.min is not None else '-inf'} .. {od.max if od.max is not None else 'inf'}")
+            parts.append(
+                f"range {od.min if od.min is not None else '-inf'} .. {od.max if od.max is not None else 'inf'}"
+            )
         if od.description:
             parts.append(od.description)
         m = re.search(r"1/\((\d+) Ts\)", od.description or "")
         if m:
             try:
                 node = self.drive if var.sdo_node is self.drive.sdo else self.plant
-                ts = float(node.sdo["Controller"]["Ts_s"].raw if node is self.drive else node.sdo["Inverter"]["Ts_s"].raw)
-                parts.append(f"with the node's Ts_s = {ts:g} s now, 1/({m.group(1)} Ts) = "
-                             f"{1.0 / (int(m.group(1)) * ts):.6g}")
+                ts = float(
+                    node.sdo["Controller"]["Ts_s"].raw if node is self.drive else node.sdo["Inverter"]["Ts_s"].raw
+                )
+                parts.append(
+                    f"with the node's Ts_s = {ts:g} s now, 1/({m.group(1)} Ts) = {1.0 / (int(m.group(1)) * ts):.6g}"
+                )
             except Exception:  # noqa: BLE001 - the message is still useful without it
                 pass
         return ("; the EDS says: " + "; ".join(parts)) if parts else ""
@@ -243,8 +261,13 @@ class Session:
                 self.plant_values[name] = plant.sdo[obj][name].raw
         # The controller starts from the plant's true values; the scenario's mismatch follows.
         ctl = drive.sdo["Controller"]
-        for hat, true in (("R_hat_ohm", "R_ohm"), ("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H"), ("psi_hat_Wb", "psi_Wb"),
-                          ("J_hat_kgm2", "J_kgm2")):
+        for hat, true in (
+            ("R_hat_ohm", "R_ohm"),
+            ("Ld_hat_H", "Ld_H"),
+            ("Lq_hat_H", "Lq_H"),
+            ("psi_hat_Wb", "psi_Wb"),
+            ("J_hat_kgm2", "J_kgm2"),
+        ):
             self._write(ctl[hat], self.plant_values[true], f"controller.{hat}")
         explicit = {s.key for s in sc.settings}
         for s in sc.settings:
@@ -268,8 +291,11 @@ class Session:
         if not 0 < hb < to <= 0xFFFF:
             raise ValueError(f"heartbeat {hb} ms, consumer time {to} ms: need 0 < heartbeat < consumer time <= 65535")
         for node, other in ((self.plant, self.drive), (self.drive, self.plant)):
-            self._write(node.sdo["Consumer heartbeat time"][1], (other.id << 16) | to,
-                        f"consumer heartbeat time of node 0x{other.id:02X}")
+            self._write(
+                node.sdo["Consumer heartbeat time"][1],
+                (other.id << 16) | to,
+                f"consumer heartbeat time of node 0x{other.id:02X}",
+            )
             self._write(node.sdo["Producer heartbeat time"], hb, "producer heartbeat time")
 
     def wire_pdos(self) -> None:
@@ -401,9 +427,13 @@ class Session:
                 moved = time.monotonic()
             elif time.monotonic() - moved > self.opts.stall_s:  # also when the plant stops answering SDO
                 self._check_alive(index)
-                raise LoopStopped("frames_lost", f"the loop stalled at period {index}: both nodes alive, no "
-                                  f"progress for {self.opts.stall_s:g} s (a frame of the loop was lost on the "
-                                  "bus, or the plant no longer answers SDO)", at_period=index)
+                raise LoopStopped(
+                    "frames_lost",
+                    f"the loop stalled at period {index}: both nodes alive, no "
+                    f"progress for {self.opts.stall_s:g} s (a frame of the loop was lost on the "
+                    "bus, or the plant no longer answers SDO)",
+                    at_period=index,
+                )
 
     def _poll(self, rc, target_index: int) -> bool | int | None:  # type: ignore[no-untyped-def]
         """The plant's period index by SDO: True when it holds at or after target_index, else the index
@@ -482,6 +512,7 @@ def _sdo_answers_only(sdo):  # type: ignore[no-untyped-def]
     def on_response(can_id: int, data: bytearray, ts: float) -> None:
         if len(data) == 8:
             sdo.on_response(can_id, data, ts)
+
     return on_response
 
 

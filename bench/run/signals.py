@@ -12,15 +12,35 @@ from dataclasses import dataclass
 
 # Longest suffix first: "_V_A" before "_A", "_rad_s" before "_s".
 UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
-    ("_ohm_Vs", "Ω/(V·s)"), ("_H_Vs", "H/(V·s)"), ("_rad_s2", "rad/s²"), ("_rad_s", "rad/s"), ("_V_A", "V/A"),
-    ("_kgm2", "kg·m²"), ("_Nm", "N·m"), ("_ohm", "Ω"), ("_Wb", "Wb"), ("_A2", "A²"), ("_Hz", "Hz"), ("_rad", "rad"),
-    ("_A", "A"), ("_V", "V"), ("_H", "H"), ("_J", "J"), ("_s", "s"),
+    ("_ohm_Vs", "Ω/(V·s)"),
+    ("_H_Vs", "H/(V·s)"),
+    ("_rad_s2", "rad/s²"),
+    ("_rad_s", "rad/s"),
+    ("_V_A", "V/A"),
+    ("_kgm2", "kg·m²"),
+    ("_Nm", "N·m"),
+    ("_ohm", "Ω"),
+    ("_Wb", "Wb"),
+    ("_A2", "A²"),
+    ("_Hz", "Hz"),
+    ("_rad", "rad"),
+    ("_A", "A"),
+    ("_V", "V"),
+    ("_H", "H"),
+    ("_J", "J"),
+    ("_s", "s"),
 )
 
 # Objects whose entries keep their bare name in a trace (the loop's own quantities); entries of any
 # other object are prefixed with the object's name, so two controllers' L_hat_H never collide.
-BARE_OBJECTS = {"Measurement": "", "Voltage command": "", "Online tuning": "", "Plant state": "true_",
-                "Drive status": "drive_", "Live trace": "live_"}
+BARE_OBJECTS = {
+    "Measurement": "",
+    "Voltage command": "",
+    "Online tuning": "",
+    "Plant state": "true_",
+    "Drive status": "drive_",
+    "Live trace": "live_",
+}
 
 
 def column_name(qualified: str) -> str:
@@ -38,9 +58,9 @@ def unit_of(name: str) -> str:
 
 @dataclass(frozen=True)
 class SignalInfo:
-    name: str      # trace column, e.g. "Yao_2020_DPCC_R_hat_ohm"
-    unit: str      # "Ω"
-    source: str    # where it comes from: "plant TPDO1 Measurement.i_a_A", "derived", "scenario"
+    name: str  # trace column, e.g. "Yao_2020_DPCC_R_hat_ohm"
+    unit: str  # "Ω"
+    source: str  # where it comes from: "plant TPDO1 Measurement.i_a_A", "derived", "scenario"
     storage: str = "<f8"  # dtype in traces.npy: "<f4" holds a REAL32 or a small integer exactly
 
     @classmethod

@@ -213,6 +213,8 @@ class ListenerSource(can.Listener):
 
 def frames_from_messages(msgs: list[can.Message]) -> np.ndarray:
     """python-can messages (11-bit data frames of up to 8 bytes) as frames, by time stamp."""
-    keep = sorted((m for m in msgs if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame)
-                   and len(m.data) <= 8), key=lambda m: m.timestamp)
+    keep = sorted(
+        (m for m in msgs if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame) and len(m.data) <= 8),
+        key=lambda m: m.timestamp,
+    )
     return _to_frames(keep) if keep else empty()

@@ -46,7 +46,7 @@ class BlockSums:
             if self.n >= self.cap * self.block:
                 self._merge()
             room = min(len(x) - i, self.cap * self.block - self.n)
-            seg = x[i:i + room]
+            seg = x[i : i + room]
             good = ~np.isnan(seg)
             blk, starts = _blocks(self.n, len(seg), self.block)
             self._room(int(blk[-1]) + 1)
@@ -98,8 +98,17 @@ class StepTracker:
         self._prev_ref = float(ref[-1])
 
     def _begin(self, at: int, r0: float, r1: float) -> None:
-        self._open = {"at": at, "r0": r0, "r1": r1, "n": 0, "last_out": -1, "over": -np.inf, "all_nan": True,
-                      "sums": BlockSums(), "env": Envelope(4096)}
+        self._open = {
+            "at": at,
+            "r0": r0,
+            "r1": r1,
+            "n": 0,
+            "last_out": -1,
+            "over": -np.inf,
+            "all_nan": True,
+            "sums": BlockSums(),
+            "env": Envelope(4096),
+        }
 
     def _extend(self, seg: np.ndarray) -> None:
         w = self._open
@@ -131,8 +140,20 @@ class StepTracker:
         start = n - max(1, n // 5)
         tail = w["sums"].tail_mean(start)  # type: ignore[union-attr]
         p2p = w["env"].tail_range(start)  # type: ignore[union-attr]
-        self.done.append(StepMetrics(self.signal, int(w["at"]), r0, r1, settle, over,  # type: ignore[arg-type]
-                                     100.0 * over / abs(r1 - r0), tail, n, p2p))
+        self.done.append(
+            StepMetrics(
+                self.signal,
+                int(w["at"]),
+                r0,
+                r1,
+                settle,
+                over,  # type: ignore[arg-type]
+                100.0 * over / abs(r1 - r0),
+                tail,
+                n,
+                p2p,
+            )
+        )
 
     def finish(self) -> list[StepMetrics]:
         self._close()
@@ -160,7 +181,7 @@ class Envelope:
                 self.lo[half:], self.hi[half:] = np.inf, -np.inf
                 self.block *= 2
             room = min(len(x) - i, self.cap * self.block - self.n)
-            seg = x[i:i + room]
+            seg = x[i : i + room]
             good = np.isfinite(seg)
             blk, starts = _blocks(self.n, len(seg), self.block)
             self.lo[blk] = np.fmin(self.lo[blk], np.minimum.reduceat(np.where(good, seg, np.inf), starts))

@@ -28,8 +28,15 @@ from ..tools.plan import classic_frame_bits
 from .decode import Decoder
 
 SCHEMA_VERSION = 2
-EXIT_CODES = {"ok": 0, "tripped": 3, "diverged": 4, "non_finite": 5, "frames_lost": 6, "node_lost": 8,
-              "interference": 9}
+EXIT_CODES = {
+    "ok": 0,
+    "tripped": 3,
+    "diverged": 4,
+    "non_finite": 5,
+    "frames_lost": 6,
+    "node_lost": 8,
+    "interference": 9,
+}
 EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
 # at the same period, the root cause first
@@ -37,11 +44,28 @@ PRIORITY = ("node_lost", "interference", "non_finite", "diverged", "tripped", "f
 
 # What each controller identifies or applies, read by SDO at the end of every run (and so in the log).
 CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "deadbeat_you2019": ("You 2019", "Online tuning", ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H", "K1_active_V_A",
-                                                       "K2_active_V_A", "identifications", "gain_updates")),
-    "dpcc_yao2020": ("Yao 2020", "Yao 2020 DPCC", ("R_hat_ohm", "L_hat_H", "p_hat_d_A", "p_hat_q_A", "dM_d_V",
-                                                   "dM_q_V", "ident_state",
-                                                   "R_converged", "L_converged", "rls_R_hat_ohm", "rls_L_hat_H")),
+    "deadbeat_you2019": (
+        "You 2019",
+        "Online tuning",
+        ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H", "K1_active_V_A", "K2_active_V_A", "identifications", "gain_updates"),
+    ),
+    "dpcc_yao2020": (
+        "Yao 2020",
+        "Yao 2020 DPCC",
+        (
+            "R_hat_ohm",
+            "L_hat_H",
+            "p_hat_d_A",
+            "p_hat_q_A",
+            "dM_d_V",
+            "dM_q_V",
+            "ident_state",
+            "R_converged",
+            "L_converged",
+            "rls_R_hat_ohm",
+            "rls_L_hat_H",
+        ),
+    ),
     "incremental_zhao2022": ("Zhao 2022", "Zhao 2022", ("K1_V_A", "K2_V_A", "limited")),
     "predictive_zhao2022": ("Zhao 2022", "Zhao 2022", ("G_V_A", "limited")),
 }
@@ -49,13 +73,17 @@ CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
 END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("plant", "Run control", ("missed_commands", "late_commands", "period_index", "trip_active")),
     ("drive", "Drive status", ("current_steps", "lost_measurements", "late_measurements")),
-    ("drive", "Controller", ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s",
-                             "pole_pairs")),
+    (
+        "drive",
+        "Controller",
+        ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs"),
+    ),
     *{(("drive", obj, subs)) for _, obj, subs in CONTROLLER_RESULTS.values()},
 )
-PLANT_VALUES = (("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode",
-                                 "omega_imposed_rad_s")),
-                ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")))
+PLANT_VALUES = (
+    ("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode", "omega_imposed_rad_s")),
+    ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")),
+)
 CONTROLLER_NAMES = {v: k for k, v in enum("drive", "Controller", "controller").items()}
 
 
@@ -82,8 +110,10 @@ def identified(dec: Decoder) -> dict[str, Any]:
         if not vals.get("identifications"):
             for k in ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H"):
                 vals[k] = None
-            out["note"] = "no identification ran (online tuning off or never excited): K1/K2 averages and " \
-                          "L_hat not applicable; K1_active_V_A is the gain in use"
+            out["note"] = (
+                "no identification ran (online tuning off or never excited): K1/K2 averages and "
+                "L_hat not applicable; K1_active_V_A is the gain in use"
+            )
     if kind == "dpcc_yao2020":
         rls = _num(dec.sdo.drive.get("Yao 2020 DPCC", "rls_enable"))
         if not rls:
@@ -102,8 +132,9 @@ def divergence_bound_A(plant: dict[str, Any]) -> float | None:
         return None
     emf = 0.0
     if plant.get("mech_mode") == enum("plant", "Motor model", "mech_mode")["imposed_speed"]:
-        emf = abs(plant.get("omega_imposed_rad_s") or 0.0) * (plant.get("pole_pairs") or 1) * (plant.get("psi_Wb")
-                                                                                              or 0.0)
+        emf = (
+            abs(plant.get("omega_imposed_rad_s") or 0.0) * (plant.get("pole_pairs") or 1) * (plant.get("psi_Wb") or 0.0)
+        )
     return 2.0 * (2.0 / 3.0 * vdc + emf) / R
 
 
@@ -111,9 +142,14 @@ def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
     st = dec.stats
     n = max(1, st.periods)
 
-    cont = {"sync_counter_gaps": st.sync_counter_gaps, "missing_measurements": st.missing_measurements,
-            "missing_commands": st.missing_commands, "sample_index_mismatches": st.sample_index_mismatches}
+    cont = {
+        "sync_counter_gaps": st.sync_counter_gaps,
+        "missing_measurements": st.missing_measurements,
+        "missing_commands": st.missing_commands,
+        "sample_index_mismatches": st.sample_index_mismatches,
+    }
     ts = dec.ts_s
+
     def by_id(d: dict[int, int]) -> dict[str, int]:
         top = sorted(d.items(), key=lambda kv: -kv[1])
         out = {f"0x{k:03X}": v for k, v in top[:32]}
@@ -121,17 +157,26 @@ def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
             out["others"] = sum(v for _, v in top[32:])
         return out
 
-    return {"frames": st.frames, "frames_per_period": st.frames / n, "lost_frames": sum(cont.values()), **cont,
-            "foreign_frames": {"frames": sum(st.foreign.values()), "by_cob_id": by_id(st.foreign)},
-            "interference": {"frames": sum(st.interference.values()), "by_cob_id": by_id(st.interference),
-                             "first_period": st.first_interference_period},
-            "after_loop_frames": st.after_loop_frames,
-            "non_finite_values": dict(st.non_finite),
-            "plant_missed_commands": _num(dec.sdo.plant.get("Run control", "missed_commands")),
-            "plant_late_commands": _num(dec.sdo.plant.get("Run control", "late_commands")),
-            "drive_lost_measurements": _num(dec.sdo.drive.get("Drive status", "lost_measurements")),
-            "drive_late_measurements": _num(dec.sdo.drive.get("Drive status", "late_measurements")),
-            "bits_per_period_worst_case": bits_total / n, "bus_load_1Mbit_at_Ts": bits_total / n / 1e6 / ts}
+    return {
+        "frames": st.frames,
+        "frames_per_period": st.frames / n,
+        "lost_frames": sum(cont.values()),
+        **cont,
+        "foreign_frames": {"frames": sum(st.foreign.values()), "by_cob_id": by_id(st.foreign)},
+        "interference": {
+            "frames": sum(st.interference.values()),
+            "by_cob_id": by_id(st.interference),
+            "first_period": st.first_interference_period,
+        },
+        "after_loop_frames": st.after_loop_frames,
+        "non_finite_values": dict(st.non_finite),
+        "plant_missed_commands": _num(dec.sdo.plant.get("Run control", "missed_commands")),
+        "plant_late_commands": _num(dec.sdo.plant.get("Run control", "late_commands")),
+        "drive_lost_measurements": _num(dec.sdo.drive.get("Drive status", "lost_measurements")),
+        "drive_late_measurements": _num(dec.sdo.drive.get("Drive status", "late_measurements")),
+        "bits_per_period_worst_case": bits_total / n,
+        "bus_load_1Mbit_at_Ts": bits_total / n / 1e6 / ts,
+    }
 
 
 def frame_bits(frames: np.ndarray) -> int:
@@ -140,8 +185,9 @@ def frame_bits(frames: np.ndarray) -> int:
     return int(sum(int(c) * classic_frame_bits(d) for d, c in enumerate(counts)))
 
 
-def verdict(flags: dict[str, Any], expect: tuple[str, ...],
-            first: dict[str, int | None] | None = None) -> tuple[str, int, bool]:
+def verdict(
+    flags: dict[str, Any], expect: tuple[str, ...], first: dict[str, int | None] | None = None
+) -> tuple[str, int, bool]:
     """(status, exit code, expected) from the flags a run raised: the one that happened first (a
     divergence that trips, then sends NaN, is "diverged"); at the same period, PRIORITY's order."""
     first = first or {}
@@ -156,13 +202,17 @@ def verdict(flags: dict[str, Any], expect: tuple[str, ...],
 def format_table(summary: dict[str, Any]) -> str:
     """The step table; the tuning column (You 2019's online tuning) only for that controller."""
     tuned = summary.get("identified", {}).get("controller") == "deadbeat_you2019"
-    lines = [f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}"
-             + (f"{'tuning':>8}" if tuned else "")]
+    lines = [
+        f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}"
+        + (f"{'tuning':>8}" if tuned else "")
+    ]
     for s in summary["steps"]:
         settle = "-" if s["periods_to_settle"] is None else str(s["periods_to_settle"])
-        lines.append(f"{s['signal']:<8}{s['at_period']:>7}{s['from_A']:>7.2f}->{s['to_A']:<6.2f}{settle:>8}"
-                     f"{s['overshoot_A']:>9.3f} A {s['overshoot_pct']:>4.1f}%{s['steady_state_error_A']:>11.2e}"
-                     + (f"{('on' if s.get('tuning_on') else 'off'):>8}" if tuned else ""))
+        lines.append(
+            f"{s['signal']:<8}{s['at_period']:>7}{s['from_A']:>7.2f}->{s['to_A']:<6.2f}{settle:>8}"
+            f"{s['overshoot_A']:>9.3f} A {s['overshoot_pct']:>4.1f}%{s['steady_state_error_A']:>11.2e}"
+            + (f"{('on' if s.get('tuning_on') else 'off'):>8}" if tuned else "")
+        )
     if not summary["steps"]:
         lines.append("(no reference step in this run)")
     return "\n".join(lines)

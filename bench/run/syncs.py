@@ -31,8 +31,7 @@ def plant_field(layout: BusLayout, name: str, fmt: str) -> tuple[int, int] | Non
     return None
 
 
-def starts_loop(buf: np.ndarray, at: int, sync_cob_id: int, overflow: int, meas: tuple[int, int] | None
-                ) -> bool | None:
+def starts_loop(buf: np.ndarray, at: int, sync_cob_id: int, overflow: int, meas: tuple[int, int] | None) -> bool | None:
     """Is the SYNC at buf[at] the plant's first (the loop's start)? Judged as genuine_syncs judges every
     later one, with the layout as configured so far (meas: COB-ID and byte offset of the plant's
     sync_counter): the plant's next measurement carries its counter, and no SYNC nearer to that
@@ -46,14 +45,14 @@ def starts_loop(buf: np.ndarray, at: int, sync_cob_id: int, overflow: int, meas:
         return True
     cob = buf["cob_id"]
     end = at + 1 + START_LOOKAHEAD
-    after = np.flatnonzero((cob[at + 1:end] == meas[0]) & (buf["dlc"][at + 1:end] > meas[1]))
+    after = np.flatnonzero((cob[at + 1 : end] == meas[0]) & (buf["dlc"][at + 1 : end] > meas[1]))
     if len(after) == 0:
         return None if len(buf) < end else False
     m = at + 1 + int(after[0])
     counter = int(buf["data"][m, meas[1]])
     if int(buf["data"][at, 0]) != counter:
         return False
-    between = np.flatnonzero((cob[at + 1:m] == sync_cob_id) & (buf["dlc"][at + 1:m] == 1))
+    between = np.flatnonzero((cob[at + 1 : m] == sync_cob_id) & (buf["dlc"][at + 1 : m] == 1))
     return not (buf["data"][at + 1 + between, 0] == counter).any()
 
 

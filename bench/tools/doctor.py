@@ -42,33 +42,60 @@ def collect() -> tuple[list[Check], str]:
     """All checks, and the way CAN work will run here ('host', 'vm' or 'none')."""
     checks: list[Check] = []
     af = canbus.probe_af_can()
-    checks.append(Check("kernel CAN (AF_CAN)", af.af_can, af.detail,
-                        "" if af.af_can else "none on this kernel: the VM fallback below provides real SocketCAN",
-                        optional=True))
+    checks.append(
+        Check(
+            "kernel CAN (AF_CAN)",
+            af.af_can,
+            af.detail,
+            "" if af.af_can else "none on this kernel: the VM fallback below provides real SocketCAN",
+            optional=True,
+        )
+    )
     state = canbus.interface_state("vcan0")
-    checks.append(Check("vcan0 on the host", state == "up", state or "absent",
-                        "" if state == "up" or not af.af_can else
-                        "sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && sudo ip link set up vcan0",
-                        optional=True))
+    checks.append(
+        Check(
+            "vcan0 on the host",
+            state == "up",
+            state or "absent",
+            ""
+            if state == "up" or not af.af_can
+            else "sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && sudo ip link set up vcan0",
+            optional=True,
+        )
+    )
     vm_items = vm.readiness()
     vm_ok = all(ok for _, ok, _ in vm_items)
     for what, ok, detail in vm_items:
-        checks.append(Check(f"VM fallback: {what}", ok, detail if ok else "missing",
-                            "" if ok else detail, optional=af.af_can))
+        checks.append(
+            Check(f"VM fallback: {what}", ok, detail if ok else "missing", "" if ok else detail, optional=af.af_can)
+        )
     for dist in ("python-can", "canopen", "rerun-sdk", "numpy", "matplotlib", "virtme-ng"):
         ver = _py_version(dist)
-        checks.append(Check(dist, ver is not None, ver or "not installed",
-                            "" if ver else f"make setup  (installs the pinned {dist} into .venv)"))
+        checks.append(
+            Check(
+                dist,
+                ver is not None,
+                ver or "not installed",
+                "" if ver else f"make setup  (installs the pinned {dist} into .venv)",
+            )
+        )
     for label, cmd, optional, pkg in (
         ("gcc", ["gcc", "--version"], False, "gcc"),
         ("clang (fuzzing)", ["clang", "--version"], True, "clang libclang-rt-14-dev"),
-        ("arm-none-eabi-gcc (Cortex-M4F build)", ["arm-none-eabi-gcc", "--version"], True,
-         "gcc-arm-none-eabi libnewlib-arm-none-eabi"),
+        (
+            "arm-none-eabi-gcc (Cortex-M4F build)",
+            ["arm-none-eabi-gcc", "--version"],
+            True,
+            "gcc-arm-none-eabi libnewlib-arm-none-eabi",
+        ),
         ("candump (can-utils)", ["candump", "-h"], True, "can-utils"),
     ):
         ver = _version(cmd) if label != "candump (can-utils)" else shutil.which("candump")
-        checks.append(Check(label, ver is not None, ver or "not found", "" if ver else f"apt-get install {pkg}",
-                            optional=optional))
+        checks.append(
+            Check(
+                label, ver is not None, ver or "not found", "" if ver else f"apt-get install {pkg}", optional=optional
+            )
+        )
     built = (BIN / "can_pingpong").exists()
     checks.append(Check("C build", built, str(BIN) if built else "not built", "" if built else f"make -C {REPO} all"))
     if canbus.host_has_vcan():
@@ -93,8 +120,10 @@ def report() -> int:
     if mode == "host":
         print("CAN work runs on the host's own SocketCAN (vcan0).")
     elif mode == "vm":
-        print("The host kernel has no usable SocketCAN: CAN work runs in the virtme-ng VM fallback "
-              "(ready; `bench vm -- CMD` runs CMD next to a real vcan0).")
+        print(
+            "The host kernel has no usable SocketCAN: CAN work runs in the virtme-ng VM fallback "
+            "(ready; `bench vm -- CMD` runs CMD next to a real vcan0)."
+        )
     else:
         print("No SocketCAN and no VM fallback: run `make setup` to install the fallback.")
     problems = [c for c in checks if not c.ok and not c.optional]

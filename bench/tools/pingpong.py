@@ -25,8 +25,9 @@ class PingPongResult:
 def run_pingpong(iface: str = "vcan0", count: int = 1000) -> PingPongResult:
     """Start an echo process and a ping process on `iface`; both must exit cleanly."""
     exe = str(binary("can_pingpong"))
-    echo = subprocess.Popen([exe, "echo", iface, str(count)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+    echo = subprocess.Popen(
+        [exe, "echo", iface, str(count)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
     try:
         time.sleep(0.2)  # let the echo process bind before the first ping
         ping = subprocess.run([exe, "ping", iface, str(count)], capture_output=True, text=True, timeout=600)
@@ -35,11 +36,12 @@ def run_pingpong(iface: str = "vcan0", count: int = 1000) -> PingPongResult:
         if echo.poll() is None:
             echo.kill()
     if ping.returncode != 0 or echo.returncode != 0:
-        raise RuntimeError(f"ping-pong failed: ping rc {ping.returncode}: {ping.stdout}{ping.stderr}; "
-                           f"echo rc {echo.returncode}: {echo_out}")
+        raise RuntimeError(
+            f"ping-pong failed: ping rc {ping.returncode}: {ping.stdout}{ping.stderr}; "
+            f"echo rc {echo.returncode}: {echo_out}"
+        )
     m = re.search(r"(\d+) frames sent, (\d+) answers verified, (\d+) bad", ping.stdout)
     r = re.search(r"median (\d+) p99 (\d+) .*; (\d+) round trips/s", ping.stdout)
     if not m or not r:
         raise RuntimeError(f"unexpected ping output: {ping.stdout!r}")
-    return PingPongResult(int(m[1]), int(m[2]), int(m[3]), float(r[1]), float(r[2]), float(r[3]),
-                          echo_out, ping.stdout)
+    return PingPongResult(int(m[1]), int(m[2]), int(m[3]), float(r[1]), float(r[2]), float(r[3]), echo_out, ping.stdout)

@@ -54,8 +54,8 @@ class FrameUse:
     what: str
     data_bytes: int
     per_period: float  # frames per control period (trace PDOs may be decimated)
-    bits: int          # worst-case bits of one frame on the wire
-    time_s: float      # worst-case wire time of one frame
+    bits: int  # worst-case bits of one frame on the wire
+    time_s: float  # worst-case wire time of one frame
 
 
 @dataclass
@@ -99,8 +99,15 @@ def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1) -> list[tuple[str, i
     return out
 
 
-def make_plan(bitrate: float, ts_s: float, fd: bool = False, data_bitrate: float | None = None,
-              max_load: float = 0.8, trace_pdos: int = 0, trace_decimation: int = 1) -> Plan:
+def make_plan(
+    bitrate: float,
+    ts_s: float,
+    fd: bool = False,
+    data_bitrate: float | None = None,
+    max_load: float = 0.8,
+    trace_pdos: int = 0,
+    trace_decimation: int = 1,
+) -> Plan:
     if bitrate <= 0 or bitrate > 1e6 + 1e-9 and not fd:
         raise ValueError(f"--bitrate must be in (0, 1e6] bit/s for classic CAN, got {bitrate:g}")
     if fd and (data_bitrate is None or data_bitrate <= 0 or data_bitrate > 12e6):
@@ -113,7 +120,9 @@ def make_plan(bitrate: float, ts_s: float, fd: bool = False, data_bitrate: float
     for what, n, per in pdo_set(trace_pdos, trace_decimation):
         if fd:
             nominal, data = fd_frame_bits(n)
-            plan.frames.append(FrameUse(what, n, per, nominal + data, nominal / bitrate + data / (data_bitrate or bitrate)))
+            plan.frames.append(
+                FrameUse(what, n, per, nominal + data, nominal / bitrate + data / (data_bitrate or bitrate))
+            )
         else:
             bits = classic_frame_bits(n)
             plan.frames.append(FrameUse(what, n, per, bits, bits / bitrate))
@@ -123,35 +132,48 @@ def make_plan(bitrate: float, ts_s: float, fd: bool = False, data_bitrate: float
     plan.fits = plan.bus_load <= max_load
     plan.fastest_period_s = plan.time_per_period_s / max_load
     if not plan.fits:
-        plan.advice.append(f"the PDO set needs {plan.time_per_period_s * 1e6:.1f} us of bus time per period: "
-                           f"{plan.bus_load * 100:.0f}% of Ts = {ts_s * 1e6:.1f} us (limit {max_load * 100:.0f}%)")
+        plan.advice.append(
+            f"the PDO set needs {plan.time_per_period_s * 1e6:.1f} us of bus time per period: "
+            f"{plan.bus_load * 100:.0f}% of Ts = {ts_s * 1e6:.1f} us (limit {max_load * 100:.0f}%)"
+        )
         plan.advice.append(f"real time on this bus needs Ts >= {plan.fastest_period_s * 1e6:.1f} us")
-        plan.advice.append("or run lockstep (the default): the plant waits for each command, so any period "
-                           "is emulated exactly, only slower than real time")
+        plan.advice.append(
+            "or run lockstep (the default): the plant waits for each command, so any period "
+            "is emulated exactly, only slower than real time"
+        )
         if not fd:
             fd_plan = make_plan(bitrate, ts_s, True, 5e6, max_load, trace_pdos, trace_decimation)
-            plan.advice.append(f"or CAN FD at {bitrate / 1e6:g}/5 Mbit/s: {fd_plan.time_per_period_s * 1e6:.1f} us "
-                               f"per period ({'fits' if fd_plan.fits else 'still does not fit'}; fastest "
-                               f"{fd_plan.fastest_period_s * 1e6:.1f} us)")
+            plan.advice.append(
+                f"or CAN FD at {bitrate / 1e6:g}/5 Mbit/s: {fd_plan.time_per_period_s * 1e6:.1f} us "
+                f"per period ({'fits' if fd_plan.fits else 'still does not fit'}; fastest "
+                f"{fd_plan.fastest_period_s * 1e6:.1f} us)"
+            )
         if fd:
-            plan.advice.append("with CAN FD, per-frame overhead dominates: map the plant's two measurement "
-                               "PDOs into one 12-byte frame (PDO re-mapping by SDO)")
+            plan.advice.append(
+                "with CAN FD, per-frame overhead dominates: map the plant's two measurement "
+                "PDOs into one 12-byte frame (PDO re-mapping by SDO)"
+            )
         if trace_pdos:
             plan.advice.append("or fewer / more decimated trace PDOs (--trace-pdos, --trace-decimation)")
     return plan
 
 
 def format_plan(plan: Plan) -> str:
-    lines = [f"bus: {'CAN FD' if plan.fd else 'classic CAN'} {plan.bitrate / 1e6:g} Mbit/s"
-             + (f", data phase {plan.data_bitrate / 1e6:g} Mbit/s" if plan.fd and plan.data_bitrate else "")
-             + f"; control period Ts = {plan.ts_s * 1e6:.2f} us",
-             "frames per period (worst-case bit stuffing):"]
+    lines = [
+        f"bus: {'CAN FD' if plan.fd else 'classic CAN'} {plan.bitrate / 1e6:g} Mbit/s"
+        + (f", data phase {plan.data_bitrate / 1e6:g} Mbit/s" if plan.fd and plan.data_bitrate else "")
+        + f"; control period Ts = {plan.ts_s * 1e6:.2f} us",
+        "frames per period (worst-case bit stuffing):",
+    ]
     for f in plan.frames:
-        lines.append(f"  {f.what:<28} {f.data_bytes:2d} bytes x {f.per_period:g}  {f.bits:4d} bits  "
-                     f"{f.time_s * 1e6:7.2f} us")
+        lines.append(
+            f"  {f.what:<28} {f.data_bytes:2d} bytes x {f.per_period:g}  {f.bits:4d} bits  {f.time_s * 1e6:7.2f} us"
+        )
     lines.append(f"bits per period: {plan.bits_per_period:.0f}")
     lines.append(f"bus time per period: {plan.time_per_period_s * 1e6:.2f} us; bus load {plan.bus_load * 100:.1f}%")
-    lines.append(f"fits in real time: {'yes' if plan.fits else 'NO'} (max load {plan.max_load * 100:.0f}%); "
-                 f"fastest period: {plan.fastest_period_s * 1e6:.2f} us")
+    lines.append(
+        f"fits in real time: {'yes' if plan.fits else 'NO'} (max load {plan.max_load * 100:.0f}%); "
+        f"fastest period: {plan.fastest_period_s * 1e6:.2f} us"
+    )
     lines += [f"  - {a}" for a in plan.advice]
     return "\n".join(lines)

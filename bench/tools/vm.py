@@ -60,7 +60,7 @@ def find_kernel() -> tuple[Path, str] | None:
     """Newest /boot/vmlinuz-* whose modules include vcan.ko."""
     candidates = []
     for image in Path("/boot").glob("vmlinuz-*"):
-        ver = image.name[len("vmlinuz-"):]
+        ver = image.name[len("vmlinuz-") :]
         mod_dir = Path("/lib/modules") / ver / "kernel" / "drivers" / "net" / "can"
         if any(mod_dir.glob("vcan.ko*")) and os.access(image, os.R_OK):
             candidates.append((image, ver))
@@ -78,13 +78,15 @@ def readiness() -> list[tuple[str, bool, str]]:
     """(what, ok, detail or fix) for every piece the VM fallback needs."""
     items: list[tuple[str, bool, str]] = []
     vng = vng_path()
-    items.append(("virtme-ng (vng)", vng is not None,
-                  str(vng) if vng else "pip install virtme-ng==1.42 (make setup does it)"))
+    items.append(
+        ("virtme-ng (vng)", vng is not None, str(vng) if vng else "pip install virtme-ng==1.42 (make setup does it)")
+    )
     qemu = shutil.which("qemu-system-x86_64")
     items.append(("qemu-system-x86_64", qemu is not None, qemu or "apt-get install qemu-system-x86"))
     kern = find_kernel()
-    items.append(("kernel with vcan.ko", kern is not None,
-                  f"{kern[0]}" if kern else "apt-get install linux-image-amd64"))
+    items.append(
+        ("kernel with vcan.ko", kern is not None, f"{kern[0]}" if kern else "apt-get install linux-image-amd64")
+    )
     busybox = shutil.which("busybox")
     items.append(("busybox (initramfs)", busybox is not None, busybox or "apt-get install busybox-static"))
     return items
@@ -112,25 +114,28 @@ def _guest_script(cmd: list[str], cwd: Path, status_file: Path, interfaces: tupl
     ]
     up = ["modprobe -a vcan can_raw can_bcm 2>/dev/null || modprobe -a vcan can_raw || exit 90"]
     for name in interfaces:
-        up.append(f"ip link add dev {name} type vcan && ip link set {name} txqueuelen 4000 && "
-                  f"ip link set up {name} || {{ echo 'bench vm: cannot create {name}' >&2; "
-                  f"echo 91 > {status_file}; exit 91; }}")
-    return "\n".join([
-        "#!/bin/sh",
-        *up,
-        *env_lines,
-        f"cd {shlex.quote(str(cwd))} || exit 92",
-        " ".join(shlex.quote(c) for c in cmd),
-        f"echo $? > {shlex.quote(str(status_file))}",
-        # Whatever the command left running in the background must not keep the VM alive.
-        "sync",
-        "(poweroff -f || echo o > /proc/sysrq-trigger) >/dev/null 2>&1",
-        "",
-    ])
+        up.append(
+            f"ip link add dev {name} type vcan && ip link set {name} txqueuelen 4000 && "
+            f"ip link set up {name} || {{ echo 'bench vm: cannot create {name}' >&2; "
+            f"echo 91 > {status_file}; exit 91; }}"
+        )
+    return "\n".join(
+        [
+            "#!/bin/sh",
+            *up,
+            *env_lines,
+            f"cd {shlex.quote(str(cwd))} || exit 92",
+            " ".join(shlex.quote(c) for c in cmd),
+            f"echo $? > {shlex.quote(str(status_file))}",
+            # Whatever the command left running in the background must not keep the VM alive.
+            "sync",
+            "(poweroff -f || echo o > /proc/sysrq-trigger) >/dev/null 2>&1",
+            "",
+        ]
+    )
 
 
-def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None = None,
-              stdout: object = None) -> int:
+def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None = None, stdout: object = None) -> int:
     """Boot the VM, bring up the vcan interfaces, run `cmd` in `cwd`, return its exit status.
 
     Output of the command is streamed to `stdout` (default: sys.stdout) while it runs.
@@ -155,8 +160,18 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     if not cwd.is_relative_to(REPO):
         rwdirs.add(cwd)
     rwdirs.update(_check_path(p) for p in opts.rwdirs)
-    argv = [str(vng), "--run", str(kern[0]), "--user", "root", "--cpus", str(opts.cpus),
-            "--memory", opts.memory, "--force-9p"]
+    argv = [
+        str(vng),
+        "--run",
+        str(kern[0]),
+        "--user",
+        "root",
+        "--cpus",
+        str(opts.cpus),
+        "--memory",
+        opts.memory,
+        "--force-9p",
+    ]
     if not opts.kvm:
         argv.append("--disable-kvm")
     for d in sorted(rwdirs):
@@ -166,8 +181,14 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])
     out = stdout if stdout is not None else sys.stdout
     # QEMU reopens its stdout: give it a pipe (never a file) and an open stdin.
-    with subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                          stderr=subprocess.STDOUT, env=env, start_new_session=True) as proc:
+    with subprocess.Popen(
+        argv,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        env=env,
+        start_new_session=True,
+    ) as proc:
         assert proc.stdout is not None
         deadline = time.monotonic() + opts.timeout_s
         expired = threading.Event()
@@ -204,16 +225,17 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
             return 124
     watchdog.cancel()
     if not status_file.exists():
-        sys.stderr.write("bench vm: the guest ended without reporting the command's status "
-                         "(killed by a signal, or the guest kernel failed); see the output above\n")
+        sys.stderr.write(
+            "bench vm: the guest ended without reporting the command's status "
+            "(killed by a signal, or the guest kernel failed); see the output above\n"
+        )
         return 255
     status = int(status_file.read_text().strip() or "255")
     shutil.rmtree(job, ignore_errors=True)
     return status
 
 
-def run_here_or_in_vm(cmd: list[str], interfaces: tuple[str, ...] = ("vcan0",),
-                      timeout_s: float = 3600.0) -> int:
+def run_here_or_in_vm(cmd: list[str], interfaces: tuple[str, ...] = ("vcan0",), timeout_s: float = 3600.0) -> int:
     """Run `cmd` on the host when it has vcan, else inside the VM; return its status."""
     from ..canbus import host_has_vcan
 

@@ -19,19 +19,54 @@ from ..run.signals import unit_of
 
 # Bus bookkeeping, not signals of the loop: in the summary, not in the overview.
 BOOKKEEPING = {"sync_counter", "sample_index"}
-STYLE = Style(background="white", plot_background="white", font_family="DejaVu Sans, sans-serif",
-              title_font_size=13, label_font_size=10, major_label_font_size=10, legend_font_size=10,
-              colors=("#000000", "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
-                      "#7f7f7f", "#17becf"))
+STYLE = Style(
+    background="white",
+    plot_background="white",
+    font_family="DejaVu Sans, sans-serif",
+    title_font_size=13,
+    label_font_size=10,
+    major_label_font_size=10,
+    legend_font_size=10,
+    colors=(
+        "#000000",
+        "#1f77b4",
+        "#d62728",
+        "#2ca02c",
+        "#ff7f0e",
+        "#9467bd",
+        "#8c564b",
+        "#e377c2",
+        "#7f7f7f",
+        "#17becf",
+    ),
+)
 
 
 def _chart(title: str, x_title: str, y_title: str, width: int = 760, height: int = 330) -> pygal.XY:
-    return pygal.XY(title=title, x_title=x_title, y_title=y_title, width=width, height=height, style=STYLE,
-                    show_dots=False, stroke_style={"width": 1.4}, js=[], disable_xml_declaration=True,
-                    legend_at_bottom=True, legend_at_bottom_columns=4, truncate_legend=-1, x_labels_major_count=8,
-                    show_minor_x_labels=False, y_labels_major_count=6, show_minor_y_labels=False,
-                    print_values=False, allow_interruptions=True, dynamic_print_values=False,
-                    value_formatter=lambda v: f"{v:.4g}", x_value_formatter=lambda v: f"{v:.4g}")
+    return pygal.XY(
+        title=title,
+        x_title=x_title,
+        y_title=y_title,
+        width=width,
+        height=height,
+        style=STYLE,
+        show_dots=False,
+        stroke_style={"width": 1.4},
+        js=[],
+        disable_xml_declaration=True,
+        legend_at_bottom=True,
+        legend_at_bottom_columns=4,
+        truncate_legend=-1,
+        x_labels_major_count=8,
+        show_minor_x_labels=False,
+        y_labels_major_count=6,
+        show_minor_y_labels=False,
+        print_values=False,
+        allow_interruptions=True,
+        dynamic_print_values=False,
+        value_formatter=lambda v: f"{v:.4g}",
+        x_value_formatter=lambda v: f"{v:.4g}",
+    )
 
 
 def _pts(x: np.ndarray, y: np.ndarray, steps: bool = False) -> list[tuple[float, float | None]]:
@@ -54,12 +89,15 @@ def _svg(*charts: pygal.XY) -> str:
         parts.append(body)
         y += h
         width = max(width, w)
-    return (f'<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" '
-            f'width="{width}" height="{y}" viewBox="0 0 {width} {y}">' + "".join(parts) + "</svg>\n")
+    return (
+        f'<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" '
+        f'width="{width}" height="{y}" viewBox="0 0 {width} {y}">' + "".join(parts) + "</svg>\n"
+    )
 
 
-def step_plots(out: Path, windows: list[dict[str, Any]], steps: list[dict[str, Any]], title: str,
-               limit: int = 12) -> list[Path]:
+def step_plots(
+    out: Path, windows: list[dict[str, Any]], steps: list[dict[str, Any]], title: str, limit: int = 12
+) -> list[Path]:
     """One figure per reference step (the first `limit`): the sampled current against its reference,
     and the voltage command below it."""
     paths = []
@@ -70,9 +108,12 @@ def step_plots(out: Path, windows: list[dict[str, Any]], steps: list[dict[str, A
             continue
         k = w["period"] - p
         settle = s["periods_to_settle"]
-        cur = _chart(f"{title}: {sig} {s['from_A']:.3g} -> {s['to_A']:.3g} A at period {p}: settles in "
-                     f"{'never' if settle is None else settle} periods, overshoot {s['overshoot_A']:.3g} A",
-                     "", "current (A)")
+        cur = _chart(
+            f"{title}: {sig} {s['from_A']:.3g} -> {s['to_A']:.3g} A at period {p}: settles in "
+            f"{'never' if settle is None else settle} periods, overshoot {s['overshoot_A']:.3g} A",
+            "",
+            "current (A)",
+        )
         cur.add(f"{sig}* (A)", _pts(k, w[f"{sig}_ref_A"], steps=True))
         cur.add(f"{sig} sampled (A)", _pts(k, w[f"{sig}_A"]), show_dots=True, dots_size=2)
         charts = [cur]
@@ -101,8 +142,14 @@ def _coarser(start: np.ndarray, lo: np.ndarray, hi: np.ndarray, points: int) -> 
             return (start[:n:k], np.nanmin(lo[:n].reshape(-1, k), axis=1), np.nanmax(hi[:n].reshape(-1, k), axis=1))
 
 
-def overview_plot(out: Path, envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], title: str,
-                  ts_s: float, name: str = "overview.svg", max_panels: int = 8) -> Path | None:
+def overview_plot(
+    out: Path,
+    envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    title: str,
+    ts_s: float,
+    name: str = "overview.svg",
+    max_panels: int = 8,
+) -> Path | None:
     """Every traced signal over the whole run, one panel per unit (as in the Rerun view): the min and
     the max over each bucket of periods (equal where a bucket is one period); references as lines."""
     by_unit: dict[str, list[str]] = {}

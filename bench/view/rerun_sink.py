@@ -43,16 +43,45 @@ PORT_OPTIONS = {"web": "--web-port", "grpc": "--grpc-port"}
 
 # A readable view name per unit (the quantity plotted); any other unit is named by itself.
 QUANTITY_OF_UNIT: dict[str, str] = {
-    "A": "currents", "V": "voltages", "V/A": "gains", "H": "inductances", "Ω": "resistances",
-    "A²": "squared currents", "Wb": "flux linkages", "rad": "angles", "rad/s": "speeds",
-    "rad/s²": "accelerations", "N·m": "torques", "kg·m²": "inertias", "Hz": "frequencies",
-    "J": "energies", "s": "times", "Ω/(V·s)": "adaptation gains", "H/(V·s)": "adaptation gains",
+    "A": "currents",
+    "V": "voltages",
+    "V/A": "gains",
+    "H": "inductances",
+    "Ω": "resistances",
+    "A²": "squared currents",
+    "Wb": "flux linkages",
+    "rad": "angles",
+    "rad/s": "speeds",
+    "rad/s²": "accelerations",
+    "N·m": "torques",
+    "kg·m²": "inertias",
+    "Hz": "frequencies",
+    "J": "energies",
+    "s": "times",
+    "Ω/(V·s)": "adaptation gains",
+    "H/(V·s)": "adaptation gains",
 }
 # Order of the views: currents and voltages on top (large), the others in a grid below in this
 # order, then any unit not listed here alphabetically.
 TOP_UNITS = ("A", "V")
-GRID_ORDER = ("V/A", "H", "Ω", "A²", "Wb", "rad", "rad/s", "rad/s²", "N·m", "kg·m²", "Hz", "J", "s",
-              "Ω/(V·s)", "H/(V·s)", "1")
+GRID_ORDER = (
+    "V/A",
+    "H",
+    "Ω",
+    "A²",
+    "Wb",
+    "rad",
+    "rad/s",
+    "rad/s²",
+    "N·m",
+    "kg·m²",
+    "Hz",
+    "J",
+    "s",
+    "Ω/(V·s)",
+    "H/(V·s)",
+    "1",
+)
 
 
 class ServeError(RuntimeError):
@@ -117,6 +146,7 @@ def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
 
 # --- serving (once per process) ------------------------------------------------------------------
 
+
 def _web_url(web_port: int, grpc_port: int) -> str:
     proxy = f"rerun+http://localhost:{grpc_port}/proxy"
     return f"http://localhost:{web_port}/?url={urllib.parse.quote(proxy, safe=':/')}"
@@ -147,8 +177,10 @@ def _listening(port: int, within_s: float) -> bool:
 
 def _port_in_use(what: str, port: int) -> ServeError:
     label = {"web": "web viewer (HTTP)", "grpc": "gRPC"}[what]
-    return ServeError(f"rerun: {label} port {port} is already in use (another bench or viewer still serving?); "
-                      f"choose another with {PORT_OPTIONS[what]} (RerunSink {what}_port=)")
+    return ServeError(
+        f"rerun: {label} port {port} is already in use (another bench or viewer still serving?); "
+        f"choose another with {PORT_OPTIONS[what]} (RerunSink {what}_port=)"
+    )
 
 
 @dataclass
@@ -169,15 +201,19 @@ def _serve(name: str, web_port: int, grpc_port: int, memory_limit: str) -> tuple
     global _SERVED
     if _SERVED is not None:
         if (_SERVED.web_port, _SERVED.grpc_port) != (web_port, grpc_port):
-            raise ServeError(f"rerun: this process already serves the web viewer at {_SERVED.url} "
-                             f"(web port {_SERVED.web_port}, gRPC port {_SERVED.grpc_port}); it serves once per "
-                             f"process, so it cannot also serve on web port {web_port}, gRPC port {grpc_port}")
+            raise ServeError(
+                f"rerun: this process already serves the web viewer at {_SERVED.url} "
+                f"(web port {_SERVED.web_port}, gRPC port {_SERVED.grpc_port}); it serves once per "
+                f"process, so it cannot also serve on web port {web_port}, gRPC port {grpc_port}"
+            )
         live = rr.RecordingStream(APPLICATION_ID, recording_id=name)
         live.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
         return live, _SERVED.url
     if web_port == grpc_port:
-        raise ServeError(f"rerun: the web viewer and the gRPC server need two ports, both were given {web_port}; "
-                         f"change {PORT_OPTIONS['web']} or {PORT_OPTIONS['grpc']}")
+        raise ServeError(
+            f"rerun: the web viewer and the gRPC server need two ports, both were given {web_port}; "
+            f"change {PORT_OPTIONS['web']} or {PORT_OPTIONS['grpc']}"
+        )
     # rerun only logs (does not raise) when the gRPC port is taken: check both ports first.
     for what, port in (("grpc", grpc_port), ("web", web_port)):
         if not _port_free(port):
@@ -213,14 +249,22 @@ def _display() -> bool:
 
 # --- the sink ------------------------------------------------------------------------------------
 
+
 class RerunSink:
     """Chunks of a run to an .rrd file (full rate) and optionally a live viewer (every
     `live_decimate`-th period): `live="spawn"` a native viewer (when a display exists),
     `live="serve"` the web viewer served from this process at `url`."""
 
-    def __init__(self, name: str, rrd: Path | None, live: Literal["none", "spawn", "serve"] = "none",
-                 live_decimate: int = 1, web_port: int = 9090, grpc_port: int = 9876,
-                 memory_limit: str = "1GiB") -> None:
+    def __init__(
+        self,
+        name: str,
+        rrd: Path | None,
+        live: Literal["none", "spawn", "serve"] = "none",
+        live_decimate: int = 1,
+        web_port: int = 9090,
+        grpc_port: int = 9876,
+        memory_limit: str = "1GiB",
+    ) -> None:
         global _SAID_NO_DISPLAY
         if live not in ("none", "spawn", "serve"):
             raise ValueError(f"live must be 'none', 'spawn' or 'serve', not {live!r}")
@@ -244,8 +288,11 @@ class RerunSink:
         elif live == "spawn":
             if not _display():
                 if not _SAID_NO_DISPLAY:
-                    print("rerun: no display (DISPLAY/WAYLAND_DISPLAY unset): no viewer spawned"
-                          + (f"; the recording is saved to {self.rrd}" if self.rrd else ""), flush=True)
+                    print(
+                        "rerun: no display (DISPLAY/WAYLAND_DISPLAY unset): no viewer spawned"
+                        + (f"; the recording is saved to {self.rrd}" if self.rrd else ""),
+                        flush=True,
+                    )
                     _SAID_NO_DISPLAY = True
             else:
                 saved = f"; the recording is saved to {self.rrd}" if self.rrd else ""
@@ -253,8 +300,15 @@ class RerunSink:
                 try:
                     # Not connect=True: a viewer that died at start (no usable display) would leave the
                     # stream buffering the whole run for a connection that never comes.
-                    rr.spawn(port=grpc_port, connect=False, memory_limit=memory_limit, server_memory_limit=memory_limit,
-                             hide_welcome_screen=True, executable_path=_viewer_executable(), recording=live_rec)
+                    rr.spawn(
+                        port=grpc_port,
+                        connect=False,
+                        memory_limit=memory_limit,
+                        server_memory_limit=memory_limit,
+                        hide_welcome_screen=True,
+                        executable_path=_viewer_executable(),
+                        recording=live_rec,
+                    )
                 except Exception as exc:  # noqa: BLE001 - the .rrd still gets everything
                     first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
                     print(f"rerun: no viewer spawned ({first_line}){saved}", flush=True)
@@ -263,8 +317,11 @@ class RerunSink:
                         live_rec.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
                         self.live = live_rec
                     else:
-                        print(f"rerun: the spawned viewer is not listening on port {grpc_port} "
-                              f"(it failed to start, see above){saved}", flush=True)
+                        print(
+                            f"rerun: the spawned viewer is not listening on port {grpc_port} "
+                            f"(it failed to start, see above){saved}",
+                            flush=True,
+                        )
 
         # The file last: a refused serve leaves no empty .rrd behind.
         self.file: rr.RecordingStream | None = None
@@ -297,7 +354,9 @@ class RerunSink:
             print(f"rerun: {message}", file=sys.stderr, flush=True)
 
     @staticmethod
-    def _send(rec: rr.RecordingStream, columns: list[tuple[str, np.ndarray]], period: np.ndarray, t_s: np.ndarray) -> None:
+    def _send(
+        rec: rr.RecordingStream, columns: list[tuple[str, np.ndarray]], period: np.ndarray, t_s: np.ndarray
+    ) -> None:
         times = [rr.TimeColumn("period", sequence=period), rr.TimeColumn("sim_time", duration=t_s)]
         for path, values in columns:
             rec.send_columns(path, indexes=times, columns=rr.Scalars.columns(scalars=values))
@@ -321,8 +380,10 @@ class RerunSink:
                 continue
             col = np.asarray(col)
             if col.shape != (n,) or not (np.issubdtype(col.dtype, np.number) or col.dtype == np.bool_):
-                self._warn_once("shape:" + sig.name, f"signal {sig.name} ({col.dtype}, shape {col.shape}) is not "
-                                f"{n} numbers; not logged")
+                self._warn_once(
+                    "shape:" + sig.name,
+                    f"signal {sig.name} ({col.dtype}, shape {col.shape}) is not {n} numbers; not logged",
+                )
                 continue
             columns.append((self._paths[sig.name], col.astype(np.float64, copy=False)))
         for name in chunk.keys() - self._paths.keys() - set(TIMELINES):
@@ -337,8 +398,12 @@ class RerunSink:
             first = (-self._rows_seen) % self.live_decimate
             sl = slice(first, None, self.live_decimate)
             if first < n:
-                self._send(self.live, [(p, np.ascontiguousarray(v[sl])) for p, v in columns],
-                           np.ascontiguousarray(period[sl]), np.ascontiguousarray(t_s[sl]))
+                self._send(
+                    self.live,
+                    [(p, np.ascontiguousarray(v[sl])) for p, v in columns],
+                    np.ascontiguousarray(period[sl]),
+                    np.ascontiguousarray(t_s[sl]),
+                )
         self._rows_seen += n
 
     def end(self, summary: dict[str, Any] | None = None) -> None:

@@ -35,8 +35,9 @@ class _Proc:
     def __init__(self, role: str) -> None:
         r, w = os.pipe()
         self.role = role
-        self.proc = subprocess.Popen([sys.executable, "-m", "bench.view.worker", role, str(w)],
-                                     stdin=subprocess.PIPE, pass_fds=(w,))
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "bench.view.worker", role, str(w)], stdin=subprocess.PIPE, pass_fds=(w,)
+        )
         os.close(w)
         self._replies = os.fdopen(r, "rb")
         self._queue: queue.Queue[tuple[Any, ...] | None] = queue.Queue(maxsize=8)
@@ -105,10 +106,27 @@ def _take(role: str) -> _Proc:
 class ViewWorker:
     """The bench's side: a Sink whose chunks go to the rerun process; `finish` hands the plots over."""
 
-    def __init__(self, name: str, folder: Path, live: str = "none", live_decimate: int = 1, web_port: int = 9090,
-                 grpc_port: int = 9876, rrd: bool = True, serve_for: float | None = None) -> None:
-        self.spec = {"name": name, "folder": str(folder), "live": live, "live_decimate": live_decimate,
-                     "web_port": web_port, "grpc_port": grpc_port, "rrd": rrd, "serve_for": serve_for}
+    def __init__(
+        self,
+        name: str,
+        folder: Path,
+        live: str = "none",
+        live_decimate: int = 1,
+        web_port: int = 9090,
+        grpc_port: int = 9876,
+        rrd: bool = True,
+        serve_for: float | None = None,
+    ) -> None:
+        self.spec = {
+            "name": name,
+            "folder": str(folder),
+            "live": live,
+            "live_decimate": live_decimate,
+            "web_port": web_port,
+            "grpc_port": grpc_port,
+            "rrd": rrd,
+            "serve_for": serve_for,
+        }
         self.rerun = _take("rerun")
         self.plots = _take("plots")
         self.rerun.send("spec", self.spec)
@@ -135,8 +153,10 @@ class ViewWorker:
     def finish(self, result: Any, title: str) -> None:
         """Hand over what the plots need; both processes finish while the caller writes its own files."""
         self.rerun.send("finish", {"summary": result.summary})
-        self.plots.send("finish", {"summary": result.summary, "windows": result.step_windows,
-                                   "envelopes": result.envelopes, "title": title})
+        self.plots.send(
+            "finish",
+            {"summary": result.summary, "windows": result.step_windows, "envelopes": result.envelopes, "title": title},
+        )
         self.rerun.close_input()
         self.plots.close_input()
 
@@ -167,8 +187,14 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
 
     folder = Path(spec["folder"])
     try:
-        sink = RerunSink(spec["name"], folder / "run.rrd" if spec["rrd"] else None, live=spec["live"],
-                         live_decimate=spec["live_decimate"], web_port=spec["web_port"], grpc_port=spec["grpc_port"])
+        sink = RerunSink(
+            spec["name"],
+            folder / "run.rrd" if spec["rrd"] else None,
+            live=spec["live"],
+            live_decimate=spec["live_decimate"],
+            web_port=spec["web_port"],
+            grpc_port=spec["grpc_port"],
+        )
     except Exception as exc:  # noqa: BLE001 - the bench reports it
         reply(error=str(exc))
         return 2

@@ -16,10 +16,11 @@ only when R Ts / L -> 0; the Table 1 motor has R Ts / L = 0.349.
 
 Usage: .venv/bin/python docs/analysis/zhao2022_stability.py
 """
+
 import numpy as np
 
-R, L, TS = 48.9, 14e-3, 100e-6          # Zhao 2022 Table 1, 10 kHz
-W_RATED = 5 * 367.72 * np.pi / 180       # electrical rad/s
+R, L, TS = 48.9, 14e-3, 100e-6  # Zhao 2022 Table 1, 10 kHz
+W_RATED = 5 * 367.72 * np.pi / 180  # electrical rad/s
 
 
 def q_exact(Rp, Lp, R0, L0, w=0.0):

@@ -20,22 +20,19 @@
 #include <stdint.h>
 
 typedef struct {
-  float Kp_q_V_A, Ki_q_V_As, Kp_d_V_A, Ki_d_V_As;
-  float integ_q_V, integ_d_V;
-  float v_q_raw_V, v_d_raw_V;
-  float e_q_A, e_d_A;
-  float i_q_A, i_d_A, R_hat_ohm;
+    float Kp_q_V_A, Ki_q_V_As, Kp_d_V_A, Ki_d_V_As;
+    float integ_q_V, integ_d_V;
+    float v_q_raw_V, v_d_raw_V;
+    float e_q_A, e_d_A;
+    float i_q_A, i_d_A, R_hat_ohm;
 } pi_current_state_t;
 
-void pi_current_design(float pi_bandwidth_Hz, pi_current_state_t *st,
-                       float R_hat_ohm, float Ld_hat_H, float Lq_hat_H);
+void pi_current_design(float pi_bandwidth_Hz, pi_current_state_t *st, float R_hat_ohm, float Ld_hat_H, float Lq_hat_H);
 void pi_current_reset(pi_current_state_t *st);
 /* Decoupled controller voltage (feed-forward added by the caller). */
-void pi_current_step(pi_current_state_t *st, float id_ref_A, float iq_ref_A,
-                     float id_A, float iq_A, float Ts_s, float *v_d_V,
-                     float *v_q_V);
+void pi_current_step(pi_current_state_t *st, float id_ref_A, float iq_ref_A, float id_A, float iq_A, float Ts_s,
+                     float *v_d_V, float *v_q_V);
 /* Anti-windup: called with the decoupled voltage actually applied. */
-void pi_current_commit(pi_current_state_t *st, float v_d_applied_V,
-                       float v_q_applied_V);
+void pi_current_commit(pi_current_state_t *st, float v_d_applied_V, float v_q_applied_V);
 
 #endif

@@ -17,30 +17,28 @@
 #include <stdint.h>
 
 typedef struct {
-  float Ts_s;        /* default 100e-6 */
-  float psi_hat_Wb;  /* flux linkage used in the output vector */
-  float lambda;      /* forgetting factor, default 0.995 */
-  float P0_x, P0_y;  /* initial covariance diagonal, default 1e-2, 1e-4 */
+    float Ts_s;       /* default 100e-6 */
+    float psi_hat_Wb; /* flux linkage used in the output vector */
+    float lambda;     /* forgetting factor, default 0.995 */
+    float P0_x, P0_y; /* initial covariance diagonal, default 1e-2, 1e-4 */
 } yao2020_rls_config_t;
 
 typedef struct {
-  float x_hat, y_hat;          /* theta_est */
-  float P11, P12, P22;         /* symmetric covariance */
-  float R_hat_ohm, L_hat_H;    /* Yao 2020 Eq. 48 */
-  float eps_d, eps_q;          /* Yao 2020 Eq. 46 estimation error */
-  float i_d, i_q, v_d, v_q, w; /* previous sample (k-1) */
-  uint8_t primed;
-  uint32_t n_updates;
+    float x_hat, y_hat;          /* theta_est */
+    float P11, P12, P22;         /* symmetric covariance */
+    float R_hat_ohm, L_hat_H;    /* Yao 2020 Eq. 48 */
+    float eps_d, eps_q;          /* Yao 2020 Eq. 46 estimation error */
+    float i_d, i_q, v_d, v_q, w; /* previous sample (k-1) */
+    uint8_t primed;
+    uint32_t n_updates;
 } yao2020_rls_state_t;
 
 void yao2020_rls_default_config(yao2020_rls_config_t *cfg);
 /* Starts from R0/L0 (theta = [x(R0,L0) y(R0,L0)]). */
-void yao2020_rls_init(const yao2020_rls_config_t *cfg, yao2020_rls_state_t *st,
-                      float R0_ohm, float L0_H);
+void yao2020_rls_init(const yao2020_rls_config_t *cfg, yao2020_rls_state_t *st, float R0_ohm, float L0_H);
 /* Sample k: measured i(k), the voltage v(k) applied over [k, k+1] (frame of
  * theta(k)) and w(k). Runs Yao 2020 Eq. 46 with i(k), i(k-1), v(k-1), w(k-1). */
-void yao2020_rls_update(const yao2020_rls_config_t *cfg,
-                        yao2020_rls_state_t *st, float id_A, float iq_A,
-                        float vd_V, float vq_V, float w_rad_s);
+void yao2020_rls_update(const yao2020_rls_config_t *cfg, yao2020_rls_state_t *st, float id_A, float iq_A, float vd_V,
+                        float vq_V, float w_rad_s);
 
 #endif

@@ -27,78 +27,75 @@
 
 #include "dq_math.h"
 
-int zhao2022_incremental_init(const zhao2022_incremental_config_t *cfg,
-                              zhao2022_incremental_state_t *st) {
-  memset(st, 0, sizeof(*st));
-  if (!(cfg->L_hat_H > 0.0f) || !(cfg->Ts_s > 0.0f) ||
-      !(cfg->R_hat_ohm >= 0.0f)) {
-    return -1;
-  }
-  /* Zhao 2022 Eq. 22/23: coefficients of (i* - i(k-2)) and (i(k) - i(k-2)) */
-  st->K1_V_A = cfg->R_hat_ohm + cfg->L_hat_H / cfg->Ts_s;
-  st->K2_V_A = 2.0f * cfg->L_hat_H / cfg->Ts_s;
-  st->L_hat_H = cfg->L_hat_H;
-  st->Vmax_V = cfg->Vmax_V;
-  return 0;
+int zhao2022_incremental_init(const zhao2022_incremental_config_t *cfg, zhao2022_incremental_state_t *st)
+{
+    memset(st, 0, sizeof(*st));
+    if (!(cfg->L_hat_H > 0.0f) || !(cfg->Ts_s > 0.0f) || !(cfg->R_hat_ohm >= 0.0f)) {
+        return -1;
+    }
+    /* Zhao 2022 Eq. 22/23: coefficients of (i* - i(k-2)) and (i(k) - i(k-2)) */
+    st->K1_V_A = cfg->R_hat_ohm + cfg->L_hat_H / cfg->Ts_s;
+    st->K2_V_A = 2.0f * cfg->L_hat_H / cfg->Ts_s;
+    st->L_hat_H = cfg->L_hat_H;
+    st->Vmax_V = cfg->Vmax_V;
+    return 0;
 }
 
-void zhao2022_incremental_reset(zhao2022_incremental_state_t *st) {
-  st->i_d_hist_A[0] = st->i_d_hist_A[1] = 0.0f;
-  st->i_q_hist_A[0] = st->i_q_hist_A[1] = 0.0f;
-  for (int n = 0; n < 3; ++n) {
-    st->u_d_hist_V[n] = 0.0f;
-    st->u_q_hist_V[n] = 0.0f;
-  }
-  st->v_d_raw_V = st->v_q_raw_V = 0.0f;
-  st->v_d_V = st->v_q_V = 0.0f;
-  st->limited = 0u;
-  st->n_steps = 0u;
+void zhao2022_incremental_reset(zhao2022_incremental_state_t *st)
+{
+    st->i_d_hist_A[0] = st->i_d_hist_A[1] = 0.0f;
+    st->i_q_hist_A[0] = st->i_q_hist_A[1] = 0.0f;
+    for (int n = 0; n < 3; ++n) {
+        st->u_d_hist_V[n] = 0.0f;
+        st->u_q_hist_V[n] = 0.0f;
+    }
+    st->v_d_raw_V = st->v_q_raw_V = 0.0f;
+    st->v_d_V = st->v_q_V = 0.0f;
+    st->limited = 0u;
+    st->n_steps = 0u;
 }
 
-void zhao2022_incremental_step(zhao2022_incremental_state_t *st, float id_ref_A,
-                               float iq_ref_A, float id_A,
-                               float iq_A, float omega_e_rad_s, float *v_d_V,
-                               float *v_q_V) {
-  const float id_km2 = st->i_d_hist_A[1];
-  const float iq_km2 = st->i_q_hist_A[1];
-  const float wL = omega_e_rad_s * st->L_hat_H;
+void zhao2022_incremental_step(zhao2022_incremental_state_t *st, float id_ref_A, float iq_ref_A, float id_A, float iq_A,
+                               float omega_e_rad_s, float *v_d_V, float *v_q_V)
+{
+    const float id_km2 = st->i_d_hist_A[1];
+    const float iq_km2 = st->i_q_hist_A[1];
+    const float wL = omega_e_rad_s * st->L_hat_H;
 
-  /* Zhao 2022 Eq. 23 (d axis):
-   * ud(k+1) = (R + L/Ts)(id* - id(k-2)) - 2L/Ts (id(k) - id(k-2))
-   *           - ud(k) + ud(k-2) + ud(k-1) - w L (iq* - iq(k-2)) */
-  float vd = zhao2022_incremental_law(st->K1_V_A, st->K2_V_A, id_ref_A, id_A,
-                                      id_km2, st->u_d_hist_V[0],
-                                      st->u_d_hist_V[1], st->u_d_hist_V[2]) -
-             wL * (iq_ref_A - iq_km2);
-  /* Zhao 2022 Eq. 22 (q axis):
-   * uq(k+1) = (R + L/Ts)(iq* - iq(k-2)) - 2L/Ts (iq(k) - iq(k-2))
-   *           - uq(k) + uq(k-2) + uq(k-1) + w L (id* - id(k-2)) */
-  float vq = zhao2022_incremental_law(st->K1_V_A, st->K2_V_A, iq_ref_A, iq_A,
-                                      iq_km2, st->u_q_hist_V[0],
-                                      st->u_q_hist_V[1], st->u_q_hist_V[2]) +
-             wL * (id_ref_A - id_km2);
-  st->v_d_raw_V = vd;
-  st->v_q_raw_V = vq;
+    /* Zhao 2022 Eq. 23 (d axis):
+     * ud(k+1) = (R + L/Ts)(id* - id(k-2)) - 2L/Ts (id(k) - id(k-2))
+     *           - ud(k) + ud(k-2) + ud(k-1) - w L (iq* - iq(k-2)) */
+    float vd = zhao2022_incremental_law(st->K1_V_A, st->K2_V_A, id_ref_A, id_A, id_km2, st->u_d_hist_V[0],
+                                        st->u_d_hist_V[1], st->u_d_hist_V[2]) -
+               wL * (iq_ref_A - iq_km2);
+    /* Zhao 2022 Eq. 22 (q axis):
+     * uq(k+1) = (R + L/Ts)(iq* - iq(k-2)) - 2L/Ts (iq(k) - iq(k-2))
+     *           - uq(k) + uq(k-2) + uq(k-1) + w L (id* - id(k-2)) */
+    float vq = zhao2022_incremental_law(st->K1_V_A, st->K2_V_A, iq_ref_A, iq_A, iq_km2, st->u_q_hist_V[0],
+                                        st->u_q_hist_V[1], st->u_q_hist_V[2]) +
+               wL * (id_ref_A - id_km2);
+    st->v_d_raw_V = vd;
+    st->v_q_raw_V = vq;
 
-  /* Zhao 2022 Sec. 5.1: the command is restricted to the inverter's
-   * voltage circle (radial scaling keeps the direction). */
-  st->limited = dq_limit_voltage_radial(&vd, &vq, st->Vmax_V);
+    /* Zhao 2022 Sec. 5.1: the command is restricted to the inverter's
+     * voltage circle (radial scaling keeps the direction). */
+    st->limited = dq_limit_voltage_radial(&vd, &vq, st->Vmax_V);
 
-  /* shift the histories: u(k+1) becomes the next step's u(k) */
-  st->u_d_hist_V[2] = st->u_d_hist_V[1];
-  st->u_d_hist_V[1] = st->u_d_hist_V[0];
-  st->u_d_hist_V[0] = vd;
-  st->u_q_hist_V[2] = st->u_q_hist_V[1];
-  st->u_q_hist_V[1] = st->u_q_hist_V[0];
-  st->u_q_hist_V[0] = vq;
-  st->i_d_hist_A[1] = st->i_d_hist_A[0];
-  st->i_d_hist_A[0] = id_A;
-  st->i_q_hist_A[1] = st->i_q_hist_A[0];
-  st->i_q_hist_A[0] = iq_A;
+    /* shift the histories: u(k+1) becomes the next step's u(k) */
+    st->u_d_hist_V[2] = st->u_d_hist_V[1];
+    st->u_d_hist_V[1] = st->u_d_hist_V[0];
+    st->u_d_hist_V[0] = vd;
+    st->u_q_hist_V[2] = st->u_q_hist_V[1];
+    st->u_q_hist_V[1] = st->u_q_hist_V[0];
+    st->u_q_hist_V[0] = vq;
+    st->i_d_hist_A[1] = st->i_d_hist_A[0];
+    st->i_d_hist_A[0] = id_A;
+    st->i_q_hist_A[1] = st->i_q_hist_A[0];
+    st->i_q_hist_A[0] = iq_A;
 
-  st->v_d_V = vd;
-  st->v_q_V = vq;
-  st->n_steps++;
-  *v_d_V = vd;
-  *v_q_V = vq;
+    st->v_d_V = vd;
+    st->v_q_V = vq;
+    st->n_steps++;
+    *v_d_V = vd;
+    *v_q_V = vq;
 }

@@ -31,44 +31,41 @@
 #include <stdint.h>
 
 typedef struct {
-  float R_hat_ohm;  /* controller resistance R0 (Zhao 2022 Table 1: 48.9) */
-  float L_hat_H;    /* controller inductance L0 = Ld = Lq (Table 1: 14e-3) */
-  float Ts_s;       /* current-control period (Zhao 2022 Sec. 5: 100e-6) */
-  float Vmax_V;     /* radius of the dq voltage circle; <= 0: no limit */
+    float R_hat_ohm; /* controller resistance R0 (Zhao 2022 Table 1: 48.9) */
+    float L_hat_H;   /* controller inductance L0 = Ld = Lq (Table 1: 14e-3) */
+    float Ts_s;      /* current-control period (Zhao 2022 Sec. 5: 100e-6) */
+    float Vmax_V;    /* radius of the dq voltage circle; <= 0: no limit */
 } zhao2022_incremental_config_t;
 
 typedef struct {
-  /* gains derived from the config by zhao2022_incremental_init() */
-  float K1_V_A;       /* R0 + L0/Ts   (Zhao 2022 Eq. 22/23, first term) */
-  float K2_V_A;       /* 2 L0/Ts      (Zhao 2022 Eq. 22/23, second term) */
-  float L_hat_H;      /* L0 for the w L0 cross term */
-  float Vmax_V;
-  /* current history: [0] = i(k-1), [1] = i(k-2) */
-  float i_d_hist_A[2], i_q_hist_A[2];
-  /* applied-voltage history: [0] = u(k), [1] = u(k-1), [2] = u(k-2)
-   * (= commands returned at k-1, k-2, k-3) */
-  float u_d_hist_V[3], u_q_hist_V[3];
-  /* trace of the last step */
-  float v_d_raw_V, v_q_raw_V; /* Zhao 2022 Eq. 22/23 before the limit */
-  float v_d_V, v_q_V;         /* returned (limited) command u(k+1) */
-  uint8_t limited;            /* 1 when the last command was limited */
-  uint32_t n_steps;
+    /* gains derived from the config by zhao2022_incremental_init() */
+    float K1_V_A;  /* R0 + L0/Ts   (Zhao 2022 Eq. 22/23, first term) */
+    float K2_V_A;  /* 2 L0/Ts      (Zhao 2022 Eq. 22/23, second term) */
+    float L_hat_H; /* L0 for the w L0 cross term */
+    float Vmax_V;
+    /* current history: [0] = i(k-1), [1] = i(k-2) */
+    float i_d_hist_A[2], i_q_hist_A[2];
+    /* applied-voltage history: [0] = u(k), [1] = u(k-1), [2] = u(k-2)
+     * (= commands returned at k-1, k-2, k-3) */
+    float u_d_hist_V[3], u_q_hist_V[3];
+    /* trace of the last step */
+    float v_d_raw_V, v_q_raw_V; /* Zhao 2022 Eq. 22/23 before the limit */
+    float v_d_V, v_q_V;         /* returned (limited) command u(k+1) */
+    uint8_t limited;            /* 1 when the last command was limited */
+    uint32_t n_steps;
 } zhao2022_incremental_state_t;
 
 /* Zhao 2022 Eq. 22 (one axis, no cross term), exposed for tests:
  *   u(k+1) = K1 (i* - i(k-2)) - K2 (i(k) - i(k-2)) - u(k) + u(k-1) + u(k-2) */
-static inline float zhao2022_incremental_law(float K1_V_A, float K2_V_A,
-                                             float i_ref_A, float i_k_A,
-                                             float i_km2_A, float u_k_V,
-                                             float u_km1_V, float u_km2_V) {
-  return K1_V_A * (i_ref_A - i_km2_A) - K2_V_A * (i_k_A - i_km2_A) - u_k_V +
-         u_km1_V + u_km2_V;
+static inline float zhao2022_incremental_law(float K1_V_A, float K2_V_A, float i_ref_A, float i_k_A, float i_km2_A,
+                                             float u_k_V, float u_km1_V, float u_km2_V)
+{
+    return K1_V_A * (i_ref_A - i_km2_A) - K2_V_A * (i_k_A - i_km2_A) - u_k_V + u_km1_V + u_km2_V;
 }
 
 /* Computes the gains and resets the history.  Returns 0, or -1 when
  * L_hat_H <= 0, Ts_s <= 0 or R_hat_ohm < 0 (state then zeroed, gains 0). */
-int zhao2022_incremental_init(const zhao2022_incremental_config_t *cfg,
-                              zhao2022_incremental_state_t *st);
+int zhao2022_incremental_init(const zhao2022_incremental_config_t *cfg, zhao2022_incremental_state_t *st);
 
 /* Clears the current and voltage histories (keeps the gains). */
 void zhao2022_incremental_reset(zhao2022_incremental_state_t *st);
@@ -76,9 +73,7 @@ void zhao2022_incremental_reset(zhao2022_incremental_state_t *st);
 /* One current period.  Inputs: references id*, iq* [A] (the paper's
  * i_dref/i_qref, wanted at k+2), measured id(k), iq(k) [A], electrical speed
  * w [rad/s].  Output: dq command u(k+1) [V], limited to Vmax (radially). */
-void zhao2022_incremental_step(zhao2022_incremental_state_t *st, float id_ref_A,
-                               float iq_ref_A, float id_A,
-                               float iq_A, float omega_e_rad_s, float *v_d_V,
-                               float *v_q_V);
+void zhao2022_incremental_step(zhao2022_incremental_state_t *st, float id_ref_A, float iq_ref_A, float id_A, float iq_A,
+                               float omega_e_rad_s, float *v_d_V, float *v_q_V);
 
 #endif

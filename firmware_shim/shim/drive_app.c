@@ -10,15 +10,9 @@
 
 /* ------------------------------------------------------------------ OD access */
 
-static od_drive_mfr_t *mfr_of(const co_node_t *node)
-{
-    return &((od_drive_ram_t *)node->od->ram)->mfr;
-}
+static od_drive_mfr_t *mfr_of(const co_node_t *node) { return &((od_drive_ram_t *)node->od->ram)->mfr; }
 
-static int is_finite_f(float x)
-{
-    return (x - x) == 0.0f; /* false for NaN and +-inf */
-}
+static int is_finite_f(float x) { return (x - x) == 0.0f; /* false for NaN and +-inf */ }
 
 /* The drive's parameter records -> drive_config_t, one row per EDS entry (the
  * lists od_drive_fields.h generates; the config's fields carry the EDS names). */
@@ -94,8 +88,14 @@ static uint32_t trace_config_from_od(const od_drive_mfr_t *m, trace_config_t *tc
     if (t->trigger_signal >= (uint8_t)TRACE_SIG_COUNT) return CO_ABORT_PARAM_INCOMPAT;
     if ((uint32_t)t->pretrigger_samples >= TRACE_BUFFER_SAMPLES / n) return CO_ABORT_PARAM_INCOMPAT;
     memset(tc, 0, sizeof *tc);
-    tc->signal_0 = s[0]; tc->signal_1 = s[1]; tc->signal_2 = s[2]; tc->signal_3 = s[3];
-    tc->signal_4 = s[4]; tc->signal_5 = s[5]; tc->signal_6 = s[6]; tc->signal_7 = s[7];
+    tc->signal_0 = s[0];
+    tc->signal_1 = s[1];
+    tc->signal_2 = s[2];
+    tc->signal_3 = s[3];
+    tc->signal_4 = s[4];
+    tc->signal_5 = s[5];
+    tc->signal_6 = s[6];
+    tc->signal_7 = s[7];
     tc->trigger_signal = t->trigger_signal;
     tc->trigger_edge = edge_from_od(t->trigger_edge);
     tc->trigger_level = t->trigger_level;
@@ -141,7 +141,10 @@ static void trace_linearise(drive_app_t *app)
             uint8_t b[4];
             memcpy(b, &r->buffer[i], 4);
             const uint8_t s0 = b[0], s1 = b[1];
-            b[0] = b[3]; b[1] = b[2]; b[2] = s1; b[3] = s0;
+            b[0] = b[3];
+            b[1] = b[2];
+            b[2] = s1;
+            b[3] = s0;
             memcpy(&r->buffer[i], b, 4);
         }
     }
@@ -217,8 +220,7 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
     case OD_DRIVE_TRACE_IDX:
         m->x2300_Trace.state = app->trace.status;
         m->x2300_Trace.captured_bytes = trace_size_bytes(&app->trace);
-        m->x2300_Trace.trigger_row =
-            app->trace.status == (uint8_t)TRACE_DONE ? trace_trigger_index(&app->trace) : 0u;
+        m->x2300_Trace.trigger_row = app->trace.status == (uint8_t)TRACE_DONE ? trace_trigger_index(&app->trace) : 0u;
         break;
     case OD_DRIVE_TRACE_BUFFER_IDX: {
         co_domain_t *dm = &m->x2301_trace_buffer;
@@ -240,8 +242,7 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
 
 static void emcy_send(drive_app_t *app, uint16_t code, const uint8_t msef[5])
 {
-    if (app->node)
-        co_emcy_raise(app->node, code, (uint8_t)(CO_ERR_REG_COMMUNICATION | CO_ERR_REG_MANUFACTURER), msef);
+    if (app->node) co_emcy_raise(app->node, code, (uint8_t)(CO_ERR_REG_COMMUNICATION | CO_ERR_REG_MANUFACTURER), msef);
 }
 
 /* While a measurement is being handled the EMCYs wait until the command
@@ -280,8 +281,8 @@ static void count_lost(drive_app_t *app, uint32_t missing, uint16_t sample_index
 {
     app->lost += missing;
     const uint16_t m16 = missing > 0xFFFFu ? 0xFFFFu : (uint16_t)missing;
-    const uint8_t msef[5] = {(uint8_t)sample_index, (uint8_t)(sample_index >> 8), (uint8_t)m16,
-                             (uint8_t)(m16 >> 8), sync_counter};
+    const uint8_t msef[5] = {(uint8_t)sample_index, (uint8_t)(sample_index >> 8), (uint8_t)m16, (uint8_t)(m16 >> 8),
+                             sync_counter};
     meas_error(app, DRIVE_EMCY_MEAS_LOST, msef);
 }
 
@@ -352,8 +353,8 @@ void drive_app_current_step(drive_app_t *app)
     if (is_finite_f(r->position_ref_rad)) d->sp.position_ref_rad = r->position_ref_rad;
 
 #undef r
-    app->open_loop = (uint8_t)(m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP ||
-                               mode == OD_DRIVE_MODE_OPEN_LOOP);
+    app->open_loop =
+        (uint8_t)(m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP || mode == OD_DRIVE_MODE_OPEN_LOOP);
     if (app->open_loop) {
         open_loop_step(app, m);
     } else {
@@ -424,8 +425,7 @@ static void on_measurement(drive_app_t *app, co_node_t *node)
 
 /* ------------------------------------------------------------------ hooks */
 
-static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e, const uint8_t *data,
-                             uint32_t len)
+static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
 {
     drive_app_t *app = (drive_app_t *)user;
     const uint16_t idx = e->index;
@@ -469,16 +469,19 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
             return trace_config_from_od(&cand, &tc);
         }
         case OD_DRIVE_TRACE_TRIGGER_SIGNAL_SUB:
-        case OD_DRIVE_TRACE_SIGNAL_1_SUB: case OD_DRIVE_TRACE_SIGNAL_2_SUB:
-        case OD_DRIVE_TRACE_SIGNAL_3_SUB: case OD_DRIVE_TRACE_SIGNAL_4_SUB:
-        case OD_DRIVE_TRACE_SIGNAL_5_SUB: case OD_DRIVE_TRACE_SIGNAL_6_SUB:
-        case OD_DRIVE_TRACE_SIGNAL_7_SUB: case OD_DRIVE_TRACE_SIGNAL_8_SUB:
-            return v >= (uint8_t)TRACE_SIG_COUNT ? CO_ABORT_VALUE_HIGH : 0u;
+        case OD_DRIVE_TRACE_SIGNAL_1_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_2_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_3_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_4_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_5_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_6_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_7_SUB:
+        case OD_DRIVE_TRACE_SIGNAL_8_SUB: return v >= (uint8_t)TRACE_SIG_COUNT ? CO_ABORT_VALUE_HIGH : 0u;
         default: return 0;
         }
     }
-    if (idx == OD_DRIVE_LIVE_TRACE_IDX && (e->subindex == OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB ||
-                                           e->subindex == OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB))
+    if (idx == OD_DRIVE_LIVE_TRACE_IDX &&
+        (e->subindex == OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB || e->subindex == OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB))
         return data[0] >= (uint8_t)TRACE_SIG_COUNT ? CO_ABORT_VALUE_HIGH : 0u;
     return 0;
 }
@@ -491,15 +494,17 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
     if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
         const uint8_t cmd = m->x2206_yao_2020_dpcc.ident_command;
         m->x2206_yao_2020_dpcc.ident_command = 0u; /* a command, not a state */
-        if (cmd == 1u) (void)drive_yao_ident_start(&app->drv);
-        else if (cmd == 2u) drive_yao_ident_abort(&app->drv);
+        if (cmd == 1u)
+            (void)drive_yao_ident_start(&app->drv);
+        else if (cmd == 2u)
+            drive_yao_ident_abort(&app->drv);
         return;
     }
-    const int is_config = idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_ONLINE_TUNING_IDX ||
-                          idx == OD_DRIVE_OUTER_LOOPS_IDX || idx == OD_DRIVE_YAO_2020_DPCC_IDX ||
-                          (idx == OD_DRIVE_REFERENCES_IDX &&
-                           (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
-                            e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));
+    const int is_config =
+        idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_ONLINE_TUNING_IDX || idx == OD_DRIVE_OUTER_LOOPS_IDX ||
+        idx == OD_DRIVE_YAO_2020_DPCC_IDX ||
+        (idx == OD_DRIVE_REFERENCES_IDX && (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
+                                            e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));
     if (is_config) { /* the one config-change path: copy, and recompute at the next step if it changed */
         drive_config_t c = app->drv.cfg;
         od_to_config(m, &c, c.controller);

@@ -77,9 +77,9 @@ enum {
 #define DRIVE_APP_PENDING_EMCY 4u
 
 typedef struct {
-    drive_t drv;               /* firmware core */
-    trace_recorder_t trace;    /* oscilloscope buffer, exposed as 0x2301 */
-    co_node_t *node;           /* set by drive_app_bind */
+    drive_t drv;            /* firmware core */
+    trace_recorder_t trace; /* oscilloscope buffer, exposed as 0x2301 */
+    co_node_t *node;        /* set by drive_app_bind */
 
     /* last inputs / output of the current step */
     drive_meas_t meas;
@@ -89,14 +89,14 @@ typedef struct {
     uint32_t current_steps;
     uint32_t lost;
     uint32_t late;
-    uint32_t emcy_raised;      /* EMCY 0xFF01/0xFF02 raised */
+    uint32_t emcy_raised; /* EMCY 0xFF01/0xFF02 raised */
 
     /* measurement sequencing */
-    uint8_t rpdo1_fresh;       /* RPDO1 seen, waiting for its RPDO2 */
-    uint8_t have_last;         /* last_sample_index valid */
+    uint8_t rpdo1_fresh; /* RPDO1 seen, waiting for its RPDO2 */
+    uint8_t have_last;   /* last_sample_index valid */
     uint16_t last_sample_index;
-    uint8_t old_run;           /* consecutive duplicate/old sample_index */
-    uint8_t sync_seen;         /* a SYNC was received since OPERATIONAL */
+    uint8_t old_run;   /* consecutive duplicate/old sample_index */
+    uint8_t sync_seen; /* a SYNC was received since OPERATIONAL */
     uint8_t last_sync_counter;
     uint8_t meas_error_active; /* an 0xFF01/0xFF02 error is active */
 

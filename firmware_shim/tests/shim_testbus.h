@@ -35,15 +35,9 @@ static inline void inject(uint16_t cob, uint8_t dlc, const uint8_t *d)
     CHECK_TRUE(testbus_inject(&g_tb, cob, dlc, d) == 0);
 }
 
-static inline void deliver(void)
-{
-    testbus_step(&g_tb);
-}
+static inline void deliver(void) { testbus_step(&g_tb); }
 
-static inline const co_frame_t *find(uint16_t cob, int nth)
-{
-    return testbus_find(&g_tb, cob, nth);
-}
+static inline const co_frame_t *find(uint16_t cob, int nth) { return testbus_find(&g_tb, cob, nth); }
 
 /* A fresh drive at t = 1000 us, booted and started (NMT), every exchange step_us long. */
 static inline void setup(int64_t step_us)
@@ -92,10 +86,7 @@ static inline const co_frame_t *sample_ex(const drive_meas_t *m, uint16_t k, int
     return find(COB_CMD, 0);
 }
 
-static inline const co_frame_t *sample(const drive_meas_t *m, uint16_t k)
-{
-    return sample_ex(m, k, 1, 1);
-}
+static inline const co_frame_t *sample(const drive_meas_t *m, uint16_t k) { return sample_ex(m, k, 1, 1); }
 
 /* 1 if f is a command frame carrying exactly (v_alpha_V, v_beta_V). */
 static inline int cmd_is(const co_frame_t *f, float v_alpha_V, float v_beta_V)
@@ -118,10 +109,7 @@ static inline uint32_t sdo_write_f32(uint16_t idx, uint8_t sub, float v)
     return sdo_download_raw(idx, sub, b, 4);
 }
 
-static inline uint32_t sdo_write_u8(uint16_t idx, uint8_t sub, uint8_t v)
-{
-    return sdo_download_raw(idx, sub, &v, 1);
-}
+static inline uint32_t sdo_write_u8(uint16_t idx, uint8_t sub, uint8_t v) { return sdo_download_raw(idx, sub, &v, 1); }
 
 static inline uint32_t sdo_write_u16(uint16_t idx, uint8_t sub, uint16_t v)
 {

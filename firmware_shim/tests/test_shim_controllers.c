@@ -116,12 +116,18 @@ static void run_controller(uint8_t od_ctrl)
     /* direct cores, configured from the same values */
     yao2020_dpcc_config_t ycfg;
     yao2020_dpcc_default_config(&ycfg);
-    ycfg.Ts_s = kTs; ycfg.R_hat_ohm = kR; ycfg.L_hat_H = kL; ycfg.psi_hat_Wb = kPsi; ycfg.Vmax_V = kVmax;
+    ycfg.Ts_s = kTs;
+    ycfg.R_hat_ohm = kR;
+    ycfg.L_hat_H = kL;
+    ycfg.psi_hat_Wb = kPsi;
+    ycfg.Vmax_V = kVmax;
     static yao2020_dpcc_state_t yst;
     yao2020_dpcc_init(&ycfg, &yst);
     yao2020_rls_config_t rcfg;
     yao2020_rls_default_config(&rcfg);
-    rcfg.Ts_s = kTs; rcfg.psi_hat_Wb = kPsi; rcfg.lambda = 0.995f;
+    rcfg.Ts_s = kTs;
+    rcfg.psi_hat_Wb = kPsi;
+    rcfg.lambda = 0.995f;
     yao2020_rls_state_t rls;
     yao2020_rls_init(&rcfg, &rls, kR, kL);
     zhao2022_incremental_config_t icfg = {kR, kL, kTs, kVmax};
@@ -163,8 +169,10 @@ static void run_controller(uint8_t od_ctrl)
             vb = yc.v_beta_V;
         } else {
             float vd, vq;
-            if (od_ctrl == 4u) zhao2022_incremental_step(&ist, 0.0f, 2.0f, id, iq, w, &vd, &vq);
-            else zhao2022_predictive_step(&est, 0.0f, 2.0f, id, iq, w, &vd, &vq);
+            if (od_ctrl == 4u)
+                zhao2022_incremental_step(&ist, 0.0f, 2.0f, id, iq, w, &vd, &vq);
+            else
+                zhao2022_predictive_step(&est, 0.0f, 2.0f, id, iq, w, &vd, &vq);
             const float thc = th + 1.5f * w * kTs;
             dq_inv_park(vd, vq, cosf(thc), sinf(thc), &va, &vb);
         }
@@ -173,14 +181,13 @@ static void run_controller(uint8_t od_ctrl)
     CHECK_TRUE(n_same_drive == N);
     CHECK_TRUE(n_same_core == N);
     if (od_ctrl == 3u) {
-      CHECK_TRUE(g_app.drv.yao.id_state == yst.id_state &&
-                 yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
-      CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
-      CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
-      CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
-      CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
-      CHECK_TRUE(g_app.drv.yao.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
-      CHECK_TRUE(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
+        CHECK_TRUE(g_app.drv.yao.id_state == yst.id_state && yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
+        CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
+        CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
+        CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
+        CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
+        CHECK_TRUE(g_app.drv.yao.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
+        CHECK_TRUE(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
     }
     if (od_ctrl == 4u) {
         CHECK_TRUE(testbus_same_f32(sdo_read_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K1_V_A_SUB), ist.K1_V_A));
@@ -200,12 +207,14 @@ static void test_selection_rules(void)
     CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
     /* salient model: the single-inductance laws are refused */
     CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 2.27e-3f) == 0);
-    for (uint8_t c = 3u; c <= 5u; ++c) CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, c) == CO_ABORT_INVALID_VALUE);
+    for (uint8_t c = 3u; c <= 5u; ++c)
+        CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, c) == CO_ABORT_INVALID_VALUE);
     CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 6u) == CO_ABORT_VALUE_HIGH);
     /* online tuning (You 2019) stays reserved to controller 2 */
     CHECK_TRUE(sdo_write_f32(C_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 4.46e-3f) == 0);
     CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 5u) == 0);
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1u) == CO_ABORT_PARAM_INCOMPAT);
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1u) ==
+               CO_ABORT_PARAM_INCOMPAT);
 
     /* back to You 2019: commands bit-identical to a fresh You 2019 drive */
     CHECK_TRUE(sdo_write_u8(C_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2u) == 0);
@@ -224,7 +233,8 @@ static void test_selection_rules(void)
     }
     CHECK_TRUE(same == 50);
     printf("selection rules: salient model refused (0x06090030) for 3-5, 6 above range; back to You 2019: %d/50 "
-           "bit-identical\n", same);
+           "bit-identical\n",
+           same);
 }
 
 int main(void)

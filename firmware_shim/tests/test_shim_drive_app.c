@@ -158,8 +158,9 @@ static void test_lost_late(void)
     g_app.last_sample_index = 65535u; /* jump the sequence there */
     CHECK_TRUE(sample(&m, 0) != NULL);
     CHECK_TRUE(g_app.lost == 7u && g_app.late == 3u);
-    printf("(b) lost = %u (gaps 1 + 5 + 1), late = %u (RPDO1 alone, RPDO2 alone, duplicate), EMCY 0xFF01/0xFF02 + reset\n",
-           (unsigned)g_app.lost, (unsigned)g_app.late);
+    printf(
+        "(b) lost = %u (gaps 1 + 5 + 1), late = %u (RPDO1 alone, RPDO2 alone, duplicate), EMCY 0xFF01/0xFF02 + reset\n",
+        (unsigned)g_app.lost, (unsigned)g_app.late);
 }
 
 /* ------------------------------------------------------------------ (c) */
@@ -195,7 +196,7 @@ static void test_sdo_gains(void)
     CHECK_TRUE(testbus_same_f32(g_app.drv.db.K1q_V_A, K1_before)); /* not before the next step */
 
     ref.cfg.Lq_hat_H = Lq_new; /* the same mismatch knob, written directly ... */
-    drive_apply_config(&ref); /* ... through the one config-change path */
+    drive_apply_config(&ref);  /* ... through the one config-change path */
     const co_frame_t *f = sample(&m, 5);
     drive_current_step(&ref, &m, &c);
     CHECK_TRUE(cmd_is(f, c.v_alpha_V, c.v_beta_V));
@@ -211,15 +212,20 @@ static void test_sdo_gains(void)
     CHECK_TRUE(sdo_write_f32(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, NAN) == CO_ABORT_INVALID_VALUE);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 5) == CO_ABORT_INVALID_VALUE);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_DEADTIME_COMP_ENABLE_SUB, 1) == 0);
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_ESTIMATOR_ENABLE_SUB, 0) == CO_ABORT_PARAM_INCOMPAT);
-    CHECK_TRUE(sdo_write_f32(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_PI_BANDWIDTH_HZ_SUB, 5000.0f) == CO_ABORT_PARAM_INCOMPAT);
-    CHECK_TRUE(sdo_write_f32(OD_DRIVE_OUTER_LOOPS_IDX, OD_DRIVE_OUTER_LOOPS_POSITION_BANDWIDTH_HZ_SUB, 200.0f) == CO_ABORT_PARAM_INCOMPAT);
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_ESTIMATOR_ENABLE_SUB, 0) ==
+               CO_ABORT_PARAM_INCOMPAT);
+    CHECK_TRUE(sdo_write_f32(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_PI_BANDWIDTH_HZ_SUB, 5000.0f) ==
+               CO_ABORT_PARAM_INCOMPAT);
+    CHECK_TRUE(sdo_write_f32(OD_DRIVE_OUTER_LOOPS_IDX, OD_DRIVE_OUTER_LOOPS_POSITION_BANDWIDTH_HZ_SUB, 200.0f) ==
+               CO_ABORT_PARAM_INCOMPAT);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 1) == 0); /* PI */
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1) == CO_ABORT_PARAM_INCOMPAT);
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1) ==
+               CO_ABORT_PARAM_INCOMPAT);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 2) == 0); /* deadbeat */
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ENABLE_SUB, 1) == 0);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 1) == CO_ABORT_PARAM_INCOMPAT);
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_AVERAGE_M_SUB, 17) == CO_ABORT_VALUE_HIGH);
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_AVERAGE_M_SUB, 17) ==
+               CO_ABORT_VALUE_HIGH);
 
     /* a non-watched field (memory reading) reaches the core through drive_apply_config */
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LIMITED_MEMORY_SUB, 1) == 0);
@@ -227,7 +233,8 @@ static void test_sdo_gains(void)
     CHECK_TRUE(g_app.drv.cfg.deadtime_comp_enable == 1u && g_app.drv.cfg.ident.enable == 1u);
     CHECK_TRUE(sample(&m, 6) != NULL);
     CHECK_TRUE(g_app.drv.st.dirty == 0u);
-    printf("(c) SDO 23 00 22 06 Lq_hat = %.3g H: K1 %.3f -> %.3f V/A at the next step (bit-identical to the core); aborts OK\n",
+    printf("(c) SDO 23 00 22 06 Lq_hat = %.3g H: K1 %.3f -> %.3f V/A at the next step (bit-identical to the core); "
+           "aborts OK\n",
            (double)Lq_new, (double)K1_before, (double)K1_after);
 }
 
@@ -245,7 +252,8 @@ static void test_trace(void)
     const uint16_t pre = 100;
     const float level = 0.5f;
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_SIGNAL_COUNT_SUB, TR_CH) == 0);
-    for (uint8_t i = 0; i < TR_CH; ++i) CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, (uint8_t)(OD_DRIVE_TRACE_SIGNAL_1_SUB + i), sigs[i]) == 0);
+    for (uint8_t i = 0; i < TR_CH; ++i)
+        CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, (uint8_t)(OD_DRIVE_TRACE_SIGNAL_1_SUB + i), sigs[i]) == 0);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_TRIGGER_SIGNAL_SUB, TRACE_SIG_I_A) == 0);
     CHECK_TRUE(sdo_write_f32(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_TRIGGER_LEVEL_SUB, level) == 0);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_TRIGGER_EDGE_SUB, 1) == 0); /* rising */
@@ -285,21 +293,23 @@ static void test_trace(void)
     const int first = trig_step - pre;
     for (uint32_t row = 0; n > 0 && row < depth; ++row)
         for (int c = 0; c < TR_CH; ++c)
-            if (!testbus_same_f32(testbus_get_f32(&g_up[(row * TR_CH + (uint32_t)c) * 4u]), g_sig[first + (int)row][c])) ++mism;
+            if (!testbus_same_f32(testbus_get_f32(&g_up[(row * TR_CH + (uint32_t)c) * 4u]), g_sig[first + (int)row][c]))
+                ++mism;
     CHECK_TRUE(mism == 0);
-    CHECK_TRUE(testbus_get_f32(&g_up[(pre * TR_CH) * 4u]) >= level && testbus_get_f32(&g_up[((pre - 1u) * TR_CH) * 4u]) < level);
+    CHECK_TRUE(testbus_get_f32(&g_up[(pre * TR_CH) * 4u]) >= level &&
+               testbus_get_f32(&g_up[((pre - 1u) * TR_CH) * 4u]) < level);
     /* a second upload gives the same bytes (linearised once, in place) */
     static uint8_t again[TRACE_BUFFER_SAMPLES * 4 + 16];
     uint32_t segs2 = 0;
     CHECK_TRUE(sdo_upload_segmented(OD_DRIVE_TRACE_BUFFER_IDX, 0, again, sizeof again, &segs2) == n &&
-          memcmp(again, g_up, (size_t)bytes) == 0);
+               memcmp(again, g_up, (size_t)bytes) == 0);
     /* re-arm: buffer empty until done again */
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_STATE_SUB, 1) == 0);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_CAPTURED_BYTES_SUB) == 0u);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_STATE_SUB, 0) == 0);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_STATE_SUB) == 0u);
-    printf("(d) trace %d ch x %u rows, trigger at step %d (pre %u): %ld bytes in %u SDO segments, %d mismatches\n", TR_CH,
-           (unsigned)depth, trig_step, (unsigned)pre, n, (unsigned)segs, mism);
+    printf("(d) trace %d ch x %u rows, trigger at step %d (pre %u): %ld bytes in %u SDO segments, %d mismatches\n",
+           TR_CH, (unsigned)depth, trig_step, (unsigned)pre, n, (unsigned)segs, mism);
 }
 
 /* ------------------------------------------------------------------ (e) */
@@ -330,12 +340,13 @@ static void test_rpdo3_refs(void)
         }
         const co_frame_t *f = sample(&m, (uint16_t)k);
         drive_current_step(&ref, &m, &c);
-        if (cmd_is(f, c.v_alpha_V, c.v_beta_V))
-            ++identical;
-        CHECK_TRUE(testbus_same_f32(g_app.drv.st.iq_ref_A, iq_refs[k / 10]) && testbus_same_f32(g_app.drv.st.id_ref_A, id_refs[k / 10]));
+        if (cmd_is(f, c.v_alpha_V, c.v_beta_V)) ++identical;
+        CHECK_TRUE(testbus_same_f32(g_app.drv.st.iq_ref_A, iq_refs[k / 10]) &&
+                   testbus_same_f32(g_app.drv.st.id_ref_A, id_refs[k / 10]));
     }
     CHECK_TRUE(identical == 40);
-    CHECK_TRUE(testbus_same_f32(sdo_read_f32(OD_DRIVE_DRIVE_STATUS_IDX, OD_DRIVE_DRIVE_STATUS_IQ_REF_ACTIVE_A_SUB), 0.5f));
+    CHECK_TRUE(
+        testbus_same_f32(sdo_read_f32(OD_DRIVE_DRIVE_STATUS_IDX, OD_DRIVE_DRIVE_STATUS_IQ_REF_ACTIVE_A_SUB), 0.5f));
     /* a NaN by PDO (no range check on PDOs) is ignored */
     uint8_t d[8];
     testbus_put_f32(&d[0], NAN);
@@ -379,7 +390,10 @@ static void test_open_loop_and_live(void)
 
     /* live trace TPDO2: disabled by default, enabled by clearing bit 31 of 0x1801:01 */
     int live = 0;
-    for (int k = 21; k < 37; ++k) { sample(&m, (uint16_t)k); live += find(COB_LIVE, 0) != NULL; }
+    for (int k = 21; k < 37; ++k) {
+        sample(&m, (uint16_t)k);
+        live += find(COB_LIVE, 0) != NULL;
+    }
     CHECK_TRUE(live == 0);
     CHECK_TRUE(sdo_write_u32(0x1801, 1, COB_LIVE) == 0);
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_LIVE_TRACE_IDX, OD_DRIVE_LIVE_TRACE_DECIMATION_SUB, 4) == 0);
@@ -395,8 +409,9 @@ static void test_open_loop_and_live(void)
         }
     }
     CHECK_TRUE(live == 4 && order_ok);
-    printf("(f) open loop: 21/21 commands = inverse Park of (3, 12) V; live TPDO2: %d frames in 16 steps (decimation 4)\n",
-           live);
+    printf(
+        "(f) open loop: 21/21 commands = inverse Park of (3, 12) V; live TPDO2: %d frames in 16 steps (decimation 4)\n",
+        live);
 }
 
 int main(void)

@@ -24,11 +24,10 @@ double plant_inverter_deadtime_phase_error_V(const plant_config_t *c, double i_p
     return -Vdt * g;
 }
 
-void plant_inverter_modulation_limit(const plant_config_t *c, double *v_alpha_V,
-                                     double *v_beta_V)
+void plant_inverter_modulation_limit(const plant_config_t *c, double *v_alpha_V, double *v_beta_V)
 {
     const double va = *v_alpha_V, vb = *v_beta_V;
-    const double r = c->Vdc_V / PLANT_SQRT3;  /* inscribed circle radius */
+    const double r = c->Vdc_V / PLANT_SQRT3; /* inscribed circle radius */
     double scale = 1.0;
     if (c->mod_limit == PLANT_MOD_CIRCLE) {
         const double m2 = va * va + vb * vb;
@@ -67,8 +66,7 @@ void plant_inverter_prepare(plant_state_t *s, const plant_config_t *c)
 
 /* A broken model state is a trip whatever the level: every comparison with
  * NaN is false, so a level alone would never see it. */
-void plant_inverter_check_trip(plant_state_t *s, const plant_config_t *c, double ia_A,
-                               double ib_A, double ic_A)
+void plant_inverter_check_trip(plant_state_t *s, const plant_config_t *c, double ia_A, double ib_A, double ic_A)
 {
     if (s->tripped) {
         return;
@@ -81,8 +79,8 @@ void plant_inverter_check_trip(plant_state_t *s, const plant_config_t *c, double
     }
 }
 
-void plant_inverter_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V,
-                         double v_beta_V, double ia_A, double ib_A, double ic_A)
+void plant_inverter_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V, double ia_A,
+                         double ib_A, double ic_A)
 {
     /* An inverter cannot output a non-finite voltage: such a command (a
      * diverged controller whose float state overflowed) trips the bridge

@@ -11,7 +11,7 @@
 
 #include "plant_expm.h"
 
-#define PLANT_RESYNC_PERIODS 1024u   /* recompute cos/sin(theta_e) from theta_m */
+#define PLANT_RESYNC_PERIODS 1024u /* recompute cos/sin(theta_e) from theta_m */
 #define PLANT_RK4_MAX_SUBSTEPS 100000u
 
 /* ===================================================================== */
@@ -59,8 +59,7 @@ double plant_machine_kinetic_energy_J(const plant_state_t *s, const plant_config
 double plant_machine_torque_Nm(const plant_state_t *s, const plant_config_t *c)
 {
     const double id = s->id_A, iq = s->iq_A;
-    return 1.5 * (double)c->pole_pairs *
-           ((c->Ld_H * id + c->psi_Wb) * iq - plant_machine_psi_q_Wb(c, iq) * id);
+    return 1.5 * (double)c->pole_pairs * ((c->Ld_H * id + c->psi_Wb) * iq - plant_machine_psi_q_Wb(c, iq) * id);
 }
 
 void plant_machine_energy_reset(plant_state_t *s, const plant_config_t *c)
@@ -97,7 +96,7 @@ static double wrap_2pi(double x, int64_t *revs)
         if (revs != NULL) {
             *revs += (int64_t)n;
         }
-        if (x >= PLANT_TWO_PI) {   /* rounding guard */
+        if (x >= PLANT_TWO_PI) { /* rounding guard */
             x -= PLANT_TWO_PI;
         }
         if (x < 0.0) {
@@ -107,8 +106,7 @@ static double wrap_2pi(double x, int64_t *revs)
     return x;
 }
 
-void plant_machine_set_mech(plant_state_t *s, const plant_config_t *c,
-                            double theta_m_rad, double omega_m_rad_s)
+void plant_machine_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s)
 {
     s->theta_m_rad = wrap_2pi(theta_m_rad, NULL);
     if (c->mech_mode == PLANT_MECH_FREE) {
@@ -175,8 +173,8 @@ static int prepare_exact(plant_state_t *s, const plant_config_t *c, double w_e)
     A[1 * 5 + 3] = 1.0 / Lq;
     A[1 * 5 + 4] = -w_e * psi / Lq;
     if (c->hold_frame == PLANT_HOLD_STATOR) {
-        A[2 * 5 + 3] = w_e;    /* d vd/dt =  w vq */
-        A[3 * 5 + 2] = -w_e;   /* d vq/dt = -w vd */
+        A[2 * 5 + 3] = w_e;  /* d vd/dt =  w vq */
+        A[3 * 5 + 2] = -w_e; /* d vq/dt = -w vd */
     }
     for (int i = 0; i < 25; ++i) {
         AT[i] = A[i] * Ts;
@@ -194,8 +192,8 @@ static int prepare_exact(plant_state_t *s, const plant_config_t *c, double w_e)
     memset(Qin, 0, sizeof(Qin));
     memset(Qcu, 0, sizeof(Qcu));
     memset(Qme, 0, sizeof(Qme));
-    Qin[0 * 5 + 2] = Qin[2 * 5 + 0] = 0.75;    /* 1.5 vd id */
-    Qin[1 * 5 + 3] = Qin[3 * 5 + 1] = 0.75;    /* 1.5 vq iq */
+    Qin[0 * 5 + 2] = Qin[2 * 5 + 0] = 0.75; /* 1.5 vd id */
+    Qin[1 * 5 + 3] = Qin[3 * 5 + 1] = 0.75; /* 1.5 vq iq */
     Qcu[0] = Qcu[1 * 5 + 1] = 1.5 * R;
     /* Te*omega_m = 1.5 w_e (psi iq + (Ld - Lq) id iq) */
     Qme[1 * 5 + 4] = Qme[4 * 5 + 1] = 0.75 * w_e * psi;
@@ -255,8 +253,8 @@ enum { Y_ID, Y_IQ, Y_C, Y_S, Y_TH, Y_W, Y_EIN, Y_ECU, Y_EME, Y_EFR, Y_ELD, Y_N }
 
 typedef struct {
     const plant_config_t *c;
-    double va, vb;      /* applied, stator frame */
-    double vd0, vq0;    /* rotor-hold values */
+    double va, vb;   /* applied, stator frame */
+    double vd0, vq0; /* rotor-hold values */
     double p;
     bool rotor_hold;
     bool free_mech;
@@ -307,8 +305,7 @@ static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
     dy[Y_EME] = Te * wm;
 }
 
-static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb,
-                     double vd0, double vq0)
+static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
 {
     rk_ctx_t k;
     k.c = c;
@@ -391,7 +388,7 @@ static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, do
 {
     const double ce = s->cos_e, se = s->sin_e;
     const double x0 = s->id_A, x1 = s->iq_A, x2 = vd0, x3 = vq0;
-    const double (*P)[5] = s->phi;
+    const double(*P)[5] = s->phi;
     s->id_A = P[0][0] * x0 + P[0][1] * x1 + P[0][2] * x2 + P[0][3] * x3 + P[0][4];
     s->iq_A = P[1][0] * x0 + P[1][1] * x1 + P[1][2] * x2 + P[1][3] * x3 + P[1][4];
     /* energy integrals: exact quadratic forms in the start state (m: the upper triangle, row by row) */
@@ -430,8 +427,7 @@ static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, do
     }
 }
 
-void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V,
-                        double v_beta_V)
+void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V)
 {
     const double va = v_alpha_V, vb = v_beta_V;
     const double ce = s->cos_e, se = s->sin_e;

@@ -16,8 +16,7 @@
 
 /* Phase currents of the present state (inverse Park, amplitude-invariant
  * inverse Clarke). */
-static inline void plant_machine_phase_currents(const plant_state_t *s, double *ia_A,
-                                                double *ib_A, double *ic_A)
+static inline void plant_machine_phase_currents(const plant_state_t *s, double *ia_A, double *ib_A, double *ic_A)
 {
     const double ial = s->cos_e * s->id_A - s->sin_e * s->iq_A;
     const double ibe = s->sin_e * s->id_A + s->cos_e * s->iq_A;
@@ -37,8 +36,7 @@ void plant_machine_energy_reset(plant_state_t *s, const plant_config_t *c);
 double plant_machine_energy_residual_J(const plant_state_t *s, const plant_config_t *c);
 
 /* theta_m is wrapped to [0, 2pi); omega only matters in FREE mode. */
-void plant_machine_set_mech(plant_state_t *s, const plant_config_t *c,
-                            double theta_m_rad, double omega_m_rad_s);
+void plant_machine_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s);
 
 /* For a validated c: speed from the mechanics mode, angle wrap and the
  * discretization cache.  Returns PLANT_OK or PLANT_ERR_EXPM. */
@@ -46,7 +44,6 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c);
 
 /* Advance the machine one period Ts with the applied voltage
  * (v_alpha_V, v_beta_V) held in the frame of c->hold_frame. */
-void plant_machine_step(plant_state_t *s, const plant_config_t *c,
-                        double v_alpha_V, double v_beta_V);
+void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V);
 
 #endif

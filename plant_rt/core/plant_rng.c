@@ -13,10 +13,7 @@ static uint64_t splitmix64(uint64_t *x)
     return z ^ (z >> 31);
 }
 
-static inline uint64_t rotl64(uint64_t x, int k)
-{
-    return (x << k) | (x >> (64 - k));
-}
+static inline uint64_t rotl64(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
 
 void plant_rng_seed(plant_rng_t *r, uint64_t seed)
 {
@@ -46,10 +43,7 @@ uint64_t plant_rng_next_u64(plant_rng_t *r)
     return result;
 }
 
-double plant_rng_uniform(plant_rng_t *r)
-{
-    return (double)(plant_rng_next_u64(r) >> 11) * 0x1.0p-53;
-}
+double plant_rng_uniform(plant_rng_t *r) { return (double)(plant_rng_next_u64(r) >> 11) * 0x1.0p-53; }
 
 double plant_rng_gauss(plant_rng_t *r)
 {

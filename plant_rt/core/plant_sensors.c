@@ -8,8 +8,7 @@
 
 #include <math.h>
 
-static double adc_convert(plant_rng_t *rng, const plant_config_t *c, double i_true,
-                          double offset)
+static double adc_convert(plant_rng_t *rng, const plant_config_t *c, double i_true, double offset)
 {
     double x = i_true + offset;
     if (c->adc_noise_std_A > 0.0) {
@@ -28,8 +27,8 @@ static double adc_convert(plant_rng_t *rng, const plant_config_t *c, double i_tr
     return x;
 }
 
-void plant_sensors_sample(plant_rng_t *rng, const plant_config_t *c, double ia_A,
-                          double ib_A, double theta_m_rad, plant_meas_t *m)
+void plant_sensors_sample(plant_rng_t *rng, const plant_config_t *c, double ia_A, double ib_A, double theta_m_rad,
+                          plant_meas_t *m)
 {
     m->i_a_A = (float)adc_convert(rng, c, ia_A, c->adc_offset_a_A);
     m->i_b_A = (float)adc_convert(rng, c, ib_A, c->adc_offset_b_A);

@@ -15,7 +15,7 @@
 /* The measured fields of *m (i_a_A, i_b_A, theta_m_rad, encoder_count) from
  * the true phase currents and mechanical angle ([0, 2pi)); consumes two
  * draws of rng when the noise is on (phase a first). */
-void plant_sensors_sample(plant_rng_t *rng, const plant_config_t *c, double ia_A,
-                          double ib_A, double theta_m_rad, plant_meas_t *m);
+void plant_sensors_sample(plant_rng_t *rng, const plant_config_t *c, double ia_A, double ib_A, double theta_m_rad,
+                          plant_meas_t *m);
 
 #endif

@@ -44,8 +44,8 @@ void plant_config_defaults(plant_config_t *c)
     c->Lq_H = 1e-3;
     c->psi_Wb = 0.01;
     c->pole_pairs = 1;
-    c->sat_I_A = 1.0;          /* only used when sat_enable */
-    c->sat_Lq_inf_H = 0.5e-3;  /* only used when sat_enable */
+    c->sat_I_A = 1.0;         /* only used when sat_enable */
+    c->sat_Lq_inf_H = 0.5e-3; /* only used when sat_enable */
     c->mech_mode = PLANT_MECH_LOCKED;
     c->J_kgm2 = 1e-4;
     c->B_Nm_per_rad_s = 0.0;
@@ -80,12 +80,28 @@ void plant_init(plant_state_t *s, const plant_config_t *c)
 
 static int validate(const plant_config_t *c)
 {
-    const double vals[] = {
-        c->Ts_s, c->R_ohm, c->Ld_H, c->Lq_H, c->psi_Wb, c->sat_I_A,
-        c->sat_Lq_inf_H, c->J_kgm2, c->B_Nm_per_rad_s, c->T_load_Nm,
-        c->omega_imposed_rad_s, c->Vdc_V, c->t_dead_s, c->Ts_pwm_s,
-        c->deadtime_I_sat_A, c->adc_lsb_A, c->adc_offset_a_A, c->adc_offset_b_A,
-        c->adc_noise_std_A, c->adc_full_scale_A, c->I_trip_A, c->rk4_h_rel};
+    const double vals[] = {c->Ts_s,
+                           c->R_ohm,
+                           c->Ld_H,
+                           c->Lq_H,
+                           c->psi_Wb,
+                           c->sat_I_A,
+                           c->sat_Lq_inf_H,
+                           c->J_kgm2,
+                           c->B_Nm_per_rad_s,
+                           c->T_load_Nm,
+                           c->omega_imposed_rad_s,
+                           c->Vdc_V,
+                           c->t_dead_s,
+                           c->Ts_pwm_s,
+                           c->deadtime_I_sat_A,
+                           c->adc_lsb_A,
+                           c->adc_offset_a_A,
+                           c->adc_offset_b_A,
+                           c->adc_noise_std_A,
+                           c->adc_full_scale_A,
+                           c->I_trip_A,
+                           c->rk4_h_rel};
     for (size_t i = 0; i < sizeof(vals) / sizeof(vals[0]); ++i) {
         if (!isfinite(vals[i])) {
             return PLANT_ERR_NONFINITE;
@@ -110,19 +126,16 @@ static int validate(const plant_config_t *c)
         c->mech_mode != PLANT_MECH_IMPOSED_SPEED) {
         return PLANT_ERR_MECH;
     }
-    if (c->B_Nm_per_rad_s < 0.0 || c->J_kgm2 < 0.0 ||
-        (c->mech_mode == PLANT_MECH_FREE && !(c->J_kgm2 > 0.0))) {
+    if (c->B_Nm_per_rad_s < 0.0 || c->J_kgm2 < 0.0 || (c->mech_mode == PLANT_MECH_FREE && !(c->J_kgm2 > 0.0))) {
         return PLANT_ERR_MECH;
     }
-    if (c->mod_limit != PLANT_MOD_NONE && c->mod_limit != PLANT_MOD_SVPWM_HEX &&
-        c->mod_limit != PLANT_MOD_CIRCLE) {
+    if (c->mod_limit != PLANT_MOD_NONE && c->mod_limit != PLANT_MOD_SVPWM_HEX && c->mod_limit != PLANT_MOD_CIRCLE) {
         return PLANT_ERR_ENUM;
     }
     if (c->hold_frame != PLANT_HOLD_STATOR && c->hold_frame != PLANT_HOLD_ROTOR) {
         return PLANT_ERR_ENUM;
     }
-    if (c->Vdc_V < 0.0 ||
-        ((c->mod_limit != PLANT_MOD_NONE || c->t_dead_s > 0.0) && !(c->Vdc_V > 0.0))) {
+    if (c->Vdc_V < 0.0 || ((c->mod_limit != PLANT_MOD_NONE || c->t_dead_s > 0.0) && !(c->Vdc_V > 0.0))) {
         return PLANT_ERR_VDC;
     }
     if (c->t_dead_s < 0.0 || c->Ts_pwm_s < 0.0 || c->deadtime_I_sat_A < 0.0) {
@@ -134,12 +147,10 @@ static int validate(const plant_config_t *c)
             return PLANT_ERR_DEADTIME;
         }
     }
-    if (c->sat_enable &&
-        (!(c->sat_I_A > 0.0) || !(c->sat_Lq_inf_H > 0.0) || c->sat_Lq_inf_H > c->Lq_H)) {
+    if (c->sat_enable && (!(c->sat_I_A > 0.0) || !(c->sat_Lq_inf_H > 0.0) || c->sat_Lq_inf_H > c->Lq_H)) {
         return PLANT_ERR_SAT;
     }
-    if (c->adc_lsb_A < 0.0 || c->adc_noise_std_A < 0.0 || c->adc_full_scale_A < 0.0 ||
-        c->encoder_lines > 100000000u) {
+    if (c->adc_lsb_A < 0.0 || c->adc_noise_std_A < 0.0 || c->adc_full_scale_A < 0.0 || c->encoder_lines > 100000000u) {
         return PLANT_ERR_SENSOR;
     }
     if (c->I_trip_A < 0.0) {
@@ -173,10 +184,7 @@ int plant_prepare(plant_state_t *s, const plant_config_t *c)
 /* helpers                                                                */
 /* ===================================================================== */
 
-void plant_clear_trip(plant_state_t *s)
-{
-    s->tripped = false;
-}
+void plant_clear_trip(plant_state_t *s) { s->tripped = false; }
 
 void plant_set_currents(plant_state_t *s, double id_A, double iq_A)
 {
@@ -184,26 +192,16 @@ void plant_set_currents(plant_state_t *s, double id_A, double iq_A)
     s->iq_A = iq_A;
 }
 
-void plant_set_mech(plant_state_t *s, const plant_config_t *c,
-                    double theta_m_rad, double omega_m_rad_s)
+void plant_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s)
 {
     plant_machine_set_mech(s, c, theta_m_rad, omega_m_rad_s);
 }
 
-double plant_torque_Nm(const plant_state_t *s, const plant_config_t *c)
-{
-    return plant_machine_torque_Nm(s, c);
-}
+double plant_torque_Nm(const plant_state_t *s, const plant_config_t *c) { return plant_machine_torque_Nm(s, c); }
 
-double plant_psi_q_Wb(const plant_config_t *c, double iq_A)
-{
-    return plant_machine_psi_q_Wb(c, iq_A);
-}
+double plant_psi_q_Wb(const plant_config_t *c, double iq_A) { return plant_machine_psi_q_Wb(c, iq_A); }
 
-double plant_Lq_inc_H(const plant_config_t *c, double iq_A)
-{
-    return plant_machine_Lq_inc_H(c, iq_A);
-}
+double plant_Lq_inc_H(const plant_config_t *c, double iq_A) { return plant_machine_Lq_inc_H(c, iq_A); }
 
 double plant_magnetic_energy_J(const plant_state_t *s, const plant_config_t *c)
 {
@@ -215,10 +213,7 @@ double plant_kinetic_energy_J(const plant_state_t *s, const plant_config_t *c)
     return plant_machine_kinetic_energy_J(s, c);
 }
 
-void plant_energy_reset(plant_state_t *s, const plant_config_t *c)
-{
-    plant_machine_energy_reset(s, c);
-}
+void plant_energy_reset(plant_state_t *s, const plant_config_t *c) { plant_machine_energy_reset(s, c); }
 
 double plant_energy_residual_J(const plant_state_t *s, const plant_config_t *c)
 {
@@ -230,8 +225,7 @@ double plant_deadtime_phase_error_V(const plant_config_t *c, double i_phase_A)
     return plant_inverter_deadtime_phase_error_V(c, i_phase_A);
 }
 
-void plant_modulation_limit(const plant_config_t *c, double *v_alpha_V,
-                            double *v_beta_V)
+void plant_modulation_limit(const plant_config_t *c, double *v_alpha_V, double *v_beta_V)
 {
     plant_inverter_modulation_limit(c, v_alpha_V, v_beta_V);
 }
@@ -240,20 +234,19 @@ void plant_modulation_limit(const plant_config_t *c, double *v_alpha_V,
 /* step / sample                                                          */
 /* ===================================================================== */
 
-void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V,
-                double v_beta_V)
+void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V)
 {
     if (s->status != PLANT_OK) {
         return;
     }
     double ia, ib, ic;
-    plant_machine_phase_currents(s, &ia, &ib, &ic);  /* at the start of the period */
+    plant_machine_phase_currents(s, &ia, &ib, &ic); /* at the start of the period */
     plant_inverter_check_trip(s, c, ia, ib, ic);
     plant_inverter_step(s, c, v_alpha_V, v_beta_V, ia, ib, ic);
     plant_machine_step(s, c, s->v_app_alpha_V, s->v_app_beta_V);
     s->k++;
     s->t_s = (double)s->k * c->Ts_s;
-    plant_machine_phase_currents(s, &ia, &ib, &ic);  /* at its end */
+    plant_machine_phase_currents(s, &ia, &ib, &ic); /* at its end */
     plant_inverter_check_trip(s, c, ia, ib, ic);
 }
 

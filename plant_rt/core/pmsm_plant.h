@@ -66,52 +66,52 @@
 /* ---- error codes returned by plant_prepare ---------------------------- */
 enum {
     PLANT_OK = 0,
-    PLANT_ERR_NULL = -1,        /* NULL pointer */
-    PLANT_ERR_NONFINITE = -2,   /* NaN/Inf in a parameter */
-    PLANT_ERR_TS = -3,          /* Ts_s <= 0 */
-    PLANT_ERR_R = -4,           /* R_ohm < 0 */
-    PLANT_ERR_L = -5,           /* Ld_H <= 0 or Lq_H <= 0 */
-    PLANT_ERR_POLES = -6,       /* pole_pairs < 1 */
-    PLANT_ERR_PSI = -7,         /* psi_Wb < 0 */
-    PLANT_ERR_MECH = -8,        /* bad mode, J <= 0 in FREE, B < 0 */
-    PLANT_ERR_VDC = -9,         /* Vdc <= 0 while modulation limit/dead time on */
-    PLANT_ERR_DEADTIME = -10,   /* t_dead < 0, t_dead >= Ts_pwm, I_sat < 0 */
-    PLANT_ERR_SAT = -11,        /* saturation: I_sat <= 0 or Lq_inf not in (0, Lq] */
-    PLANT_ERR_SENSOR = -12,     /* negative LSB/noise/full scale */
-    PLANT_ERR_TRIP = -13,       /* I_trip < 0 */
-    PLANT_ERR_RK4 = -14,        /* rk4_h_rel not in (0, 1] */
-    PLANT_ERR_EXPM = -15,       /* matrix exponential failed (overflow) */
-    PLANT_ERR_ENUM = -16        /* modulation/hold enum out of range */
+    PLANT_ERR_NULL = -1,      /* NULL pointer */
+    PLANT_ERR_NONFINITE = -2, /* NaN/Inf in a parameter */
+    PLANT_ERR_TS = -3,        /* Ts_s <= 0 */
+    PLANT_ERR_R = -4,         /* R_ohm < 0 */
+    PLANT_ERR_L = -5,         /* Ld_H <= 0 or Lq_H <= 0 */
+    PLANT_ERR_POLES = -6,     /* pole_pairs < 1 */
+    PLANT_ERR_PSI = -7,       /* psi_Wb < 0 */
+    PLANT_ERR_MECH = -8,      /* bad mode, J <= 0 in FREE, B < 0 */
+    PLANT_ERR_VDC = -9,       /* Vdc <= 0 while modulation limit/dead time on */
+    PLANT_ERR_DEADTIME = -10, /* t_dead < 0, t_dead >= Ts_pwm, I_sat < 0 */
+    PLANT_ERR_SAT = -11,      /* saturation: I_sat <= 0 or Lq_inf not in (0, Lq] */
+    PLANT_ERR_SENSOR = -12,   /* negative LSB/noise/full scale */
+    PLANT_ERR_TRIP = -13,     /* I_trip < 0 */
+    PLANT_ERR_RK4 = -14,      /* rk4_h_rel not in (0, 1] */
+    PLANT_ERR_EXPM = -15,     /* matrix exponential failed (overflow) */
+    PLANT_ERR_ENUM = -16      /* modulation/hold enum out of range */
 };
 
 /* the values of the EDS (ValueNames of Motor model.mech_mode, Inverter.mod_limit / hold_frame) */
 typedef enum {
-    PLANT_MECH_FREE = OD_PLANT_MECH_MODE_FREE,          /* J domega/dt = Te - B omega - T_load */
-    PLANT_MECH_LOCKED = OD_PLANT_MECH_MODE_LOCKED,        /* omega = 0, theta held */
+    PLANT_MECH_FREE = OD_PLANT_MECH_MODE_FREE,                  /* J domega/dt = Te - B omega - T_load */
+    PLANT_MECH_LOCKED = OD_PLANT_MECH_MODE_LOCKED,              /* omega = 0, theta held */
     PLANT_MECH_IMPOSED_SPEED = OD_PLANT_MECH_MODE_IMPOSED_SPEED /* dynamometer holds omega_imposed_rad_s */
 } plant_mech_mode_t;
 
 typedef enum {
-    PLANT_MOD_NONE = OD_PLANT_MOD_LIMIT_NONE,       /* command applied as is */
-    PLANT_MOD_SVPWM_HEX = OD_PLANT_MOD_LIMIT_HEXAGON,  /* clip to hexagon, vertices 2/3 Vdc */
-    PLANT_MOD_CIRCLE = OD_PLANT_MOD_LIMIT_CIRCLE /* clip to circle of radius Vdc/sqrt(3) */
+    PLANT_MOD_NONE = OD_PLANT_MOD_LIMIT_NONE,         /* command applied as is */
+    PLANT_MOD_SVPWM_HEX = OD_PLANT_MOD_LIMIT_HEXAGON, /* clip to hexagon, vertices 2/3 Vdc */
+    PLANT_MOD_CIRCLE = OD_PLANT_MOD_LIMIT_CIRCLE      /* clip to circle of radius Vdc/sqrt(3) */
 } plant_mod_limit_t;
 
 typedef enum {
-    PLANT_HOLD_STATOR = OD_PLANT_HOLD_FRAME_STATOR,  /* real inverter: alpha-beta command constant */
-    PLANT_HOLD_ROTOR = OD_PLANT_HOLD_FRAME_ROTOR /* idealised model: dq command constant (for comparison) */
+    PLANT_HOLD_STATOR = OD_PLANT_HOLD_FRAME_STATOR, /* real inverter: alpha-beta command constant */
+    PLANT_HOLD_ROTOR = OD_PLANT_HOLD_FRAME_ROTOR    /* idealised model: dq command constant (for comparison) */
 } plant_hold_frame_t;
 
 /* ---- parameters ------------------------------------------------------- */
 typedef struct {
     /* timing (every block) */
-    double Ts_s;                  /* plant period = SYNC/current-loop period */
+    double Ts_s; /* plant period = SYNC/current-loop period */
 
     /* motor (plant_machine) */
-    double R_ohm;                 /* phase resistance */
+    double R_ohm; /* phase resistance */
     double Ld_H;
-    double Lq_H;                  /* unsaturated q inductance (Lq0) */
-    double psi_Wb;                /* magnet flux linkage (peak, per phase) */
+    double Lq_H;   /* unsaturated q inductance (Lq0) */
+    double psi_Wb; /* magnet flux linkage (peak, per phase) */
     int32_t pole_pairs;
 
     /* q-axis saturation (off by default).  Flux-linkage model:
@@ -122,15 +122,15 @@ typedef struct {
      * d axis stays linear.  Torque uses the flux form
      * Te = 1.5 p (psi_d iq - psi_q id), psi_d = Ld id + psi. */
     bool sat_enable;
-    double sat_I_A;               /* current where L_inc drop is half of (Lq - Lq_inf) */
-    double sat_Lq_inf_H;          /* incremental inductance at |iq| -> inf */
+    double sat_I_A;      /* current where L_inc drop is half of (Lq - Lq_inf) */
+    double sat_Lq_inf_H; /* incremental inductance at |iq| -> inf */
 
     /* mechanics (plant_machine) */
     plant_mech_mode_t mech_mode;
     double J_kgm2;
-    double B_Nm_per_rad_s;        /* viscous friction */
-    double T_load_Nm;             /* constant load torque (opposes positive Te) */
-    double omega_imposed_rad_s;   /* mechanical speed in IMPOSED_SPEED mode */
+    double B_Nm_per_rad_s;      /* viscous friction */
+    double T_load_Nm;           /* constant load torque (opposes positive Te) */
+    double omega_imposed_rad_s; /* mechanical speed in IMPOSED_SPEED mode */
 
     /* inverter (plant_inverter; hold_frame is applied by plant_machine) */
     double Vdc_V;
@@ -140,17 +140,17 @@ typedef struct {
      * from the phase currents at the start of the period (deadtime_I_sat_A = 0
      * gives a hard sign()).  Off when t_dead_s == 0. */
     double t_dead_s;
-    double Ts_pwm_s;              /* PWM carrier period; 0 -> use Ts_s */
+    double Ts_pwm_s; /* PWM carrier period; 0 -> use Ts_s */
     double deadtime_I_sat_A;
     plant_hold_frame_t hold_frame;
 
     /* sensors (plant_sensors) */
-    double adc_lsb_A;             /* 0 = no quantization */
+    double adc_lsb_A; /* 0 = no quantization */
     double adc_offset_a_A;
     double adc_offset_b_A;
-    double adc_noise_std_A;       /* 0 = no noise */
-    double adc_full_scale_A;      /* 0 = no clipping, else clip to +-FS */
-    uint32_t encoder_lines;       /* 0 = ideal angle; else 4*lines counts/rev */
+    double adc_noise_std_A;  /* 0 = no noise */
+    double adc_full_scale_A; /* 0 = no clipping, else clip to +-FS */
+    uint32_t encoder_lines;  /* 0 = ideal angle; else 4*lines counts/rev */
     uint64_t rng_seed;
 
     /* protection (plant_inverter): the trip latches (applied voltage 0 from
@@ -158,26 +158,26 @@ typedef struct {
      * I_trip_A, and - even with the level off - on a non-finite voltage
      * command or phase current (a broken model state cannot be integrated
      * further).  The presets set a level derived from the motor (presets.c). */
-    double I_trip_A;              /* over-current level, peak phase A; 0 = off */
+    double I_trip_A; /* over-current level, peak phase A; 0 = off */
 
     /* numerics of the RK4 path (FREE mechanics or saturation; plant_machine) */
-    double rk4_h_rel;             /* max h*lambda per sub-step (default 0.02) */
-    uint32_t rk4_min_substeps;    /* default 1 */
+    double rk4_h_rel;          /* max h*lambda per sub-step (default 0.02) */
+    uint32_t rk4_min_substeps; /* default 1 */
 } plant_config_t;
 
 /* ---- measurements (what the drive sees + truth for tracing) ----------- */
 typedef struct {
     /* as measured */
-    float i_a_A;                  /* ADC phase a */
-    float i_b_A;                  /* ADC phase b */
-    float theta_m_rad;            /* encoder (quantized, [0, 2pi)) */
-    int32_t encoder_count;        /* [0, 4*lines) or -1 when ideal */
+    float i_a_A;           /* ADC phase a */
+    float i_b_A;           /* ADC phase b */
+    float theta_m_rad;     /* encoder (quantized, [0, 2pi)) */
+    int32_t encoder_count; /* [0, 4*lines) or -1 when ideal */
     /* truth */
     double i_a_true_A, i_b_true_A, i_c_true_A;
     double i_alpha_A, i_beta_A;
     double id_A, iq_A;
-    double theta_m_true_rad;      /* [0, 2pi) */
-    double theta_e_rad;           /* [0, 2pi) */
+    double theta_m_true_rad; /* [0, 2pi) */
+    double theta_e_rad;      /* [0, 2pi) */
     double omega_m_rad_s;
     double torque_Nm;
     double t_s;
@@ -201,16 +201,16 @@ typedef struct {
     /* electrical, rotor frame (plant_machine) */
     double id_A, iq_A;
     /* mechanical (plant_machine) */
-    double theta_m_rad;           /* [0, 2pi) */
+    double theta_m_rad; /* [0, 2pi) */
     int64_t revolutions;
     double omega_m_rad_s;
-    double cos_e, sin_e;          /* of theta_e = p*theta_m */
+    double cos_e, sin_e; /* of theta_e = p*theta_m */
     /* time */
     uint64_t k;
     double t_s;
     /* inverter trace of the last step (plant_inverter) */
-    double v_lim_alpha_V, v_lim_beta_V;   /* command after modulation limit */
-    double v_app_alpha_V, v_app_beta_V;   /* actually applied (dead time, trip) */
+    double v_lim_alpha_V, v_lim_beta_V; /* command after modulation limit */
+    double v_app_alpha_V, v_app_beta_V; /* actually applied (dead time, trip) */
     bool tripped;
     /* energy (plant_machine) */
     plant_energy_t energy;
@@ -219,17 +219,17 @@ typedef struct {
 
     /* ---- discretization cache (written by plant_prepare; plant_machine
      * but for Vdt_V, plant_inverter) ---- */
-    int status;                   /* result of the last plant_prepare */
-    bool exact;                   /* exact matrix-exponential path */
-    double phi[2][5];             /* rows id, iq of expm(A Ts) */
-    double q_in[15], q_cu[15], q_mech[15];  /* packed upper x'Mx weights */
-    double rot_c, rot_s;          /* cos/sin(w Ts) */
-    double dtheta_m;              /* omega_m * Ts */
-    uint32_t resync;              /* steps since cos/sin resync */
-    double Vdt_V;                 /* dead-time error magnitude */
-    double lam_base;              /* R/Lmin (+ electromech. freq in FREE) */
+    int status;                            /* result of the last plant_prepare */
+    bool exact;                            /* exact matrix-exponential path */
+    double phi[2][5];                      /* rows id, iq of expm(A Ts) */
+    double q_in[15], q_cu[15], q_mech[15]; /* packed upper x'Mx weights */
+    double rot_c, rot_s;                   /* cos/sin(w Ts) */
+    double dtheta_m;                       /* omega_m * Ts */
+    uint32_t resync;                       /* steps since cos/sin resync */
+    double Vdt_V;                          /* dead-time error magnitude */
+    double lam_base;                       /* R/Lmin (+ electromech. freq in FREE) */
     double Lmin_H;
-    uint32_t last_substeps;       /* RK4 sub-steps used in the last period */
+    uint32_t last_substeps; /* RK4 sub-steps used in the last period */
 } plant_state_t;
 
 /* Fill defaults: generic 1 ohm / 1 mH / 10 mWb motor, Ts = 100 us, LOCKED,
@@ -251,15 +251,13 @@ int plant_prepare(plant_state_t *s, const plant_config_t *c);
 void plant_sample(plant_state_t *s, const plant_config_t *c, plant_meas_t *m);
 /* Advance one period Ts with (v_alpha_V, v_beta_V) held in the stator frame
  * (peak phase voltage vector, amplitude-invariant Clarke). */
-void plant_step(plant_state_t *s, const plant_config_t *c,
-                double v_alpha_V, double v_beta_V);
+void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V);
 void plant_clear_trip(plant_state_t *s);
 
 /* Helpers for tests / bench set-up. */
 void plant_set_currents(plant_state_t *s, double id_A, double iq_A);
 /* theta_m is wrapped to [0, 2pi); omega only matters in FREE mode. */
-void plant_set_mech(plant_state_t *s, const plant_config_t *c,
-                    double theta_m_rad, double omega_m_rad_s);
+void plant_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s);
 double plant_torque_Nm(const plant_state_t *s, const plant_config_t *c);
 double plant_psi_q_Wb(const plant_config_t *c, double iq_A);
 double plant_Lq_inc_H(const plant_config_t *c, double iq_A);
@@ -272,7 +270,6 @@ double plant_energy_residual_J(const plant_state_t *s, const plant_config_t *c);
 /* Per-phase dead-time voltage error for a phase current (exposed for tests). */
 double plant_deadtime_phase_error_V(const plant_config_t *c, double i_phase_A);
 /* Apply the modulation limit of c to a command in place. */
-void plant_modulation_limit(const plant_config_t *c, double *v_alpha_V,
-                            double *v_beta_V);
+void plant_modulation_limit(const plant_config_t *c, double *v_alpha_V, double *v_beta_V);
 
 #endif

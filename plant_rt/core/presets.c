@@ -26,10 +26,7 @@ typedef void (*preset_fill_fn)(plant_config_t *c);
 #define PRESET_TRIP_RATED_FACTOR 3.0
 #define PRESET_TRIP_BUS_MARGIN 1.5
 
-static double trip_from_rated(double I_rated_A)
-{
-    return PRESET_TRIP_RATED_FACTOR * I_rated_A;
-}
+static double trip_from_rated(double I_rated_A) { return PRESET_TRIP_RATED_FACTOR * I_rated_A; }
 
 static double trip_from_bus(const plant_config_t *c)
 {
@@ -172,29 +169,18 @@ typedef struct {
 
 static const preset_entry_t k_presets[] = {
     {"you2019", "You, Huang, Yang, Energies 2019, Tables A1/A2 (file 000)", fill_you2019},
-    {"yao2020_low", "Yao et al., IEEE TIE 2020, Table I + Table III (file 001)",
-     fill_yao2020_low},
-    {"yao2020_high", "Yao et al., IEEE TIE 2020, Table II + Table III (file 001)",
-     fill_yao2020_high},
+    {"yao2020_low", "Yao et al., IEEE TIE 2020, Table I + Table III (file 001)", fill_yao2020_low},
+    {"yao2020_high", "Yao et al., IEEE TIE 2020, Table II + Table III (file 001)", fill_yao2020_high},
     {"zhao2022", "Zhao et al., Machines 2022, Tables 1/2 (file 003)", fill_zhao2022},
 };
 
 #define PRESET_N (sizeof(k_presets) / sizeof(k_presets[0]))
 
-size_t plant_preset_count(void)
-{
-    return PRESET_N;
-}
+size_t plant_preset_count(void) { return PRESET_N; }
 
-const char *plant_preset_name(size_t i)
-{
-    return (i < PRESET_N) ? k_presets[i].name : NULL;
-}
+const char *plant_preset_name(size_t i) { return (i < PRESET_N) ? k_presets[i].name : NULL; }
 
-const char *plant_preset_source(size_t i)
-{
-    return (i < PRESET_N) ? k_presets[i].source : NULL;
-}
+const char *plant_preset_source(size_t i) { return (i < PRESET_N) ? k_presets[i].source : NULL; }
 
 int plant_preset_load(const char *name, plant_config_t *c)
 {

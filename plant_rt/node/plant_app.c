@@ -15,7 +15,8 @@
 
 /* Motor model, Inverter and Sensors (0x2000-0x2002) <-> plant_config_t: the rows are the EDS's
  * own lists (od_plant.h), the fields of plant_config_t carry the EDS names. */
-#define PLANT_ROW(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_config_t, record, field),
+#define PLANT_ROW(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_config_t, record, field),
 /* one list a line (clang-format would run the macro lists together) */
 /* clang-format off */
 static const co_field_map_t config_rows[] = {
@@ -32,10 +33,7 @@ void plant_app_config_from_od(plant_config_t *c)
     co_field_map_to_core(config_rows, N_CONFIG_ROWS, &M, c);
 }
 
-void plant_app_config_to_od(const plant_config_t *c)
-{
-    co_field_map_to_od(config_rows, N_CONFIG_ROWS, &M, c);
-}
+void plant_app_config_to_od(const plant_config_t *c) { co_field_map_to_od(config_rows, N_CONFIG_ROWS, &M, c); }
 
 /* ------------------------------------------------------------------ helpers */
 
@@ -105,10 +103,7 @@ void plant_app_init(plant_app_t *app)
     model_reset(app);
 }
 
-void plant_app_bind(plant_app_t *app, co_node_t *node)
-{
-    app->node = node;
-}
+void plant_app_bind(plant_app_t *app, co_node_t *node) { app->node = node; }
 
 bool plant_app_running(const plant_app_t *app)
 {
@@ -121,15 +116,9 @@ bool plant_app_realtime_mode(const plant_app_t *app)
     return M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME;
 }
 
-int64_t plant_app_period_ns(const plant_app_t *app)
-{
-    return (int64_t)llround(app->cfg.Ts_s * 1e9);
-}
+int64_t plant_app_period_ns(const plant_app_t *app) { return (int64_t)llround(app->cfg.Ts_s * 1e9); }
 
-static int64_t period_us(const plant_app_t *app)
-{
-    return (int64_t)llround(app->cfg.Ts_s * 1e6);
-}
+static int64_t period_us(const plant_app_t *app) { return (int64_t)llround(app->cfg.Ts_s * 1e6); }
 
 /* The RPDO that carries the voltage command (maps 0x2102). */
 static const co_pdo_t *cmd_rpdo(const plant_app_t *app)
@@ -286,9 +275,7 @@ static void hook_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
             app->owed = 0;      /* start the command accounting afresh */
             app->late_timeout_streak = 0;
             break;
-        case OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB:
-            M.x2003_run_control.state = plant_app_running(app) ? 1u : 0u;
-            break;
+        case OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB: M.x2003_run_control.state = plant_app_running(app) ? 1u : 0u; break;
         default: break;
         }
     }
@@ -335,7 +322,8 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     ++app->syncs;
     app->last_sync_us = now;
     app->wait_start_us = now;
-    app->sched_us[app->k % PLANT_APP_SCHED_RING] = M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME ? app->tick_sched_us : now;
+    app->sched_us[app->k % PLANT_APP_SCHED_RING] =
+        M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME ? app->tick_sched_us : now;
     app->cmd_ready = false;
     app->cmd_seen = false;
     app->late_in_period = false;
@@ -415,10 +403,7 @@ static const co_hooks_t k_hooks = {
     .on_hb_timeout = hook_on_hb_timeout,
 };
 
-const co_hooks_t *plant_app_hooks(void)
-{
-    return &k_hooks;
-}
+const co_hooks_t *plant_app_hooks(void) { return &k_hooks; }
 
 /* ------------------------------------------------------------------ drivers */
 
@@ -450,8 +435,8 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
          * hold then changes them exactly between two periods. The announcement: 0x2003:09 = 0 and
          * every event-driven TPDO is sent once (map 0x2003 period_index/state into one to be told). */
         int64_t left = command_wait_left_us(app, now_us);
-        bool settled = app->node->nmt != CO_NMT_OPERATIONAL || !app->started || app->cmd_ready ||
-                       app->paused || left == 0;
+        bool settled =
+            app->node->nmt != CO_NMT_OPERATIONAL || !app->started || app->cmd_ready || app->paused || left == 0;
         app->paused = settled;
         if (!settled) return left;
         if (M.x2003_run_control.state != 0u) {

@@ -76,37 +76,37 @@ typedef struct {
     co_node_t *node;
 
     /* model */
-    plant_config_t cfg;       /* applied configuration */
+    plant_config_t cfg; /* applied configuration */
     plant_state_t state;
-    plant_meas_t meas;        /* sample of the last SYNC */
-    plant_config_t scratch_cfg;   /* SDO validation (not in the per-period path) */
+    plant_meas_t meas;          /* sample of the last SYNC */
+    plant_config_t scratch_cfg; /* SDO validation (not in the per-period path) */
     plant_state_t scratch_state;
-    bool cfg_dirty;           /* OD 0x2000-0x2002 changed: apply at the next SYNC */
-    bool reseed;              /* rng_seed written: re-seed at the next SYNC */
+    bool cfg_dirty; /* OD 0x2000-0x2002 changed: apply at the next SYNC */
+    bool reseed;    /* rng_seed written: re-seed at the next SYNC */
     uint32_t config_applies;
-    uint32_t config_errors;   /* pending change rejected by plant_prepare at the SYNC (should stay 0) */
+    uint32_t config_errors; /* pending change rejected by plant_prepare at the SYNC (should stay 0) */
 
     /* periods */
-    bool started;             /* SYNC 0 happened */
-    uint64_t k;               /* index of the last sample */
+    bool started;                         /* SYNC 0 happened */
+    uint64_t k;                           /* index of the last sample */
     double v_held_alpha_V, v_held_beta_V; /* command held over [k, k+1] */
     int64_t last_sync_us;
-    int64_t wait_start_us;    /* lockstep: command timeout counts from here */
-    bool paused;              /* not running at the last poll (holding / not operational) */
+    int64_t wait_start_us; /* lockstep: command timeout counts from here */
+    bool paused;           /* not running at the last poll (holding / not operational) */
     uint32_t syncs;
 
     /* command tracking (lockstep and real time) */
-    bool cmd_ready;           /* the command for the current period arrived */
-    bool cmd_seen;            /* the buffered RPDO has been accounted for */
-    int64_t cmd_seen_rx_us;   /* its reception time */
-    bool late_in_period;      /* a command classified late arrived in this period */
-    uint32_t owed;            /* commands of missed periods that may still arrive */
+    bool cmd_ready;         /* the command for the current period arrived */
+    bool cmd_seen;          /* the buffered RPDO has been accounted for */
+    int64_t cmd_seen_rx_us; /* its reception time */
+    bool late_in_period;    /* a command classified late arrived in this period */
+    uint32_t owed;          /* commands of missed periods that may still arrive */
     uint32_t late_timeout_streak;
-    bool miss_flag;           /* status bit2 of the next sample */
-    uint32_t commands;        /* command frames seen */
+    bool miss_flag;    /* status bit2 of the next sample */
+    uint32_t commands; /* command frames seen */
 
     /* real time */
-    int64_t tick_sched_us;    /* deadline of the SYNC being produced */
+    int64_t tick_sched_us;                  /* deadline of the SYNC being produced */
     int64_t sched_us[PLANT_APP_SCHED_RING]; /* deadline of SYNC j at [j % ring] */
     uint32_t hist[PLANT_APP_HIST_BINS];
     uint8_t hist_bytes[PLANT_APP_HIST_BINS * 4u]; /* the DOMAIN 0x2006 buffer */

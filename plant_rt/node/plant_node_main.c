@@ -24,10 +24,9 @@
 #include "plant_app.h"
 
 #define EXIT_USAGE 64
-#define RT_GUARD_US 30          /* stop waiting for frames this long before a deadline */
-#define RT_SERVE_MIN_US 200      /* wait on the socket between deadlines only if this much time is left */
-#define IDLE_WAIT_US 10000      /* real-time mode while holding: frame wait slice */
-
+#define RT_GUARD_US 30      /* stop waiting for frames this long before a deadline */
+#define RT_SERVE_MIN_US 200 /* wait on the socket between deadlines only if this much time is left */
+#define IDLE_WAIT_US 10000  /* real-time mode while holding: frame wait slice */
 
 static plant_app_t g_app;
 static co_runtime_t g_rt;
@@ -143,7 +142,7 @@ static void realtime_loop(co_runtime_t *rt)
         int64_t now_us = now_ns / 1000;
         plant_app_realtime_tick(&g_app, now_us, (now_ns - deadline_ns) / 1000);
         co_node_tick(&rt->node, now_us);
-        deadline_ns += plant_app_period_ns(&g_app); /* Ts applied at this SYNC */
+        deadline_ns += plant_app_period_ns(&g_app);                                   /* Ts applied at this SYNC */
         if (deadline_ns < now_ns - 100 * period_ns) deadline_ns = now_ns + period_ns; /* far behind: re-grid */
     }
 }
@@ -169,7 +168,8 @@ int main(int argc, char **argv)
                     strcmp(argv[i], "--iface") == 0 ? "a SocketCAN interface name, e.g. vcan0" : "1..127");
             return EXIT_USAGE;
         } else {
-            fprintf(stderr, "plant_node: unknown option '%s' (allowed: --iface NAME, --node-id 1..127, --realtime, --help)\n",
+            fprintf(stderr,
+                    "plant_node: unknown option '%s' (allowed: --iface NAME, --node-id 1..127, --realtime, --help)\n",
                     argv[i]);
             return EXIT_USAGE;
         }

@@ -40,9 +40,9 @@ typedef struct {
 } ref_par_t;
 
 typedef struct {
-    long double psid, psiq;   /* flux linkages */
-    long double th_e;         /* electrical angle (unwrapped) */
-    long double wm;           /* mechanical speed */
+    long double psid, psiq; /* flux linkages */
+    long double th_e;       /* electrical angle (unwrapped) */
+    long double wm;         /* mechanical speed */
     long double e_in, e_cu, e_mech;
 } ref_state_t;
 
@@ -93,23 +93,20 @@ static inline long double ref_iq_of_psiq(const ref_par_t *r, long double psq)
     return iq;
 }
 
-static inline void ref_currents(const ref_par_t *r, const ref_state_t *s,
-                                long double *id, long double *iq)
+static inline void ref_currents(const ref_par_t *r, const ref_state_t *s, long double *id, long double *iq)
 {
     *id = (s->psid - r->psi) / r->Ld;
     *iq = ref_iq_of_psiq(r, s->psiq);
 }
 
-static inline void ref_set_currents(const ref_par_t *r, ref_state_t *s,
-                                    long double id, long double iq)
+static inline void ref_set_currents(const ref_par_t *r, ref_state_t *s, long double id, long double iq)
 {
     s->psid = r->Ld * id + r->psi;
     s->psiq = ref_psiq_of_iq(r, iq);
 }
 
-static inline void ref_deriv(const ref_par_t *r, const ref_state_t *s, long double va,
-                             long double vb, long double vd0, long double vq0,
-                             ref_state_t *d)
+static inline void ref_deriv(const ref_par_t *r, const ref_state_t *s, long double va, long double vb, long double vd0,
+                             long double vq0, ref_state_t *d)
 {
     long double id, iq;
     ref_currents(r, s, &id, &iq);
@@ -133,8 +130,7 @@ static inline void ref_deriv(const ref_par_t *r, const ref_state_t *s, long doub
     d->e_mech = Te * s->wm;
 }
 
-static inline void ref_axpy(ref_state_t *out, const ref_state_t *y, long double h,
-                            const ref_state_t *k)
+static inline void ref_axpy(ref_state_t *out, const ref_state_t *y, long double h, const ref_state_t *k)
 {
     out->psid = y->psid + h * k->psid;
     out->psiq = y->psiq + h * k->psiq;
@@ -147,8 +143,7 @@ static inline void ref_axpy(ref_state_t *out, const ref_state_t *y, long double 
 
 /* One period T with (va, vb) held in the stator frame (or, if rotor_hold, the
  * dq values at the period start held in the rotor frame). */
-static inline void ref_period(const ref_par_t *r, ref_state_t *s, double va_d,
-                              double vb_d, double T_d, int nsub)
+static inline void ref_period(const ref_par_t *r, ref_state_t *s, double va_d, double vb_d, double T_d, int nsub)
 {
     const long double va = (long double)va_d, vb = (long double)vb_d, T = (long double)T_d;
     const long double c0 = cosl(s->th_e), s0 = sinl(s->th_e);

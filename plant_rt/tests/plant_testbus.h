@@ -66,10 +66,7 @@ static inline void tb_on_frame(void *user, const co_frame_t *f, uint8_t sender, 
     }
 }
 
-static inline void tb_deliver(tb_t *tb)
-{
-    testbus_deliver(&tb->bus);
-}
+static inline void tb_deliver(tb_t *tb) { testbus_deliver(&tb->bus); }
 
 static inline void tb_init(tb_t *tb)
 {

@@ -19,10 +19,7 @@
 static tb_t g_tb;
 static tb_sample_t run_a[N_PER + 1], run_b[N_PER + 1];
 
-static float cmd_of(int j, int step)
-{
-    return (step && j >= K_STEP) ? V_STEP_V : 0.0f;
-}
+static float cmd_of(int j, int step) { return (step && j >= K_STEP) ? V_STEP_V : 0.0f; }
 
 static void run(tb_sample_t *out, int step)
 {

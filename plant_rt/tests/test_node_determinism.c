@@ -55,7 +55,8 @@ static void run(int which)
         tb_period(tb, va, vb);
     }
     CHECK(tb->n_smp == N_PER, "samples %u (one command taken as late after the skip)", (unsigned)tb->n_smp);
-    for (uint32_t j = 0; j < tb->n_smp; j += 50) printf("  k=%u i_a=%.4f i_b=%.4f\n", (unsigned)j, (double)tb->smp[j].ia, (double)tb->smp[j].ib);
+    for (uint32_t j = 0; j < tb->n_smp; j += 50)
+        printf("  k=%u i_a=%.4f i_b=%.4f\n", (unsigned)j, (double)tb->smp[j].ia, (double)tb->smp[j].ib);
     g_n[which] = tb->bus.n_rec;
     memcpy(g_rec[which], tb->bus.rec, sizeof(testbus_rec_t) * tb->bus.n_rec);
     printf("run %d: %u frames, %u SYNCs, missed %u, fnv64 %016llx, last i_a %.6f A\n", which, (unsigned)tb->bus.n_rec,

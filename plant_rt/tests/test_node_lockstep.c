@@ -9,10 +9,7 @@ static tb_t g_tb;
 
 #define RC (OD_PLANT.mfr.x2003_run_control)
 
-static const tb_sample_t *last(const tb_t *tb)
-{
-    return &tb->smp[tb->n_smp - 1u];
-}
+static const tb_sample_t *last(const tb_t *tb) { return &tb->smp[tb->n_smp - 1u]; }
 
 static void test_holds_and_timeout(void)
 {
@@ -91,8 +88,8 @@ static void test_holds_and_timeout(void)
         }
     }
     printf("dropped command: %u timeouts until resync (limit %u), missed %u, late %u\n",
-           (unsigned)(RC.missed_commands - miss0), (unsigned)PLANT_APP_RESYNC_PERIODS,
-           (unsigned)RC.missed_commands, (unsigned)RC.late_commands);
+           (unsigned)(RC.missed_commands - miss0), (unsigned)PLANT_APP_RESYNC_PERIODS, (unsigned)RC.missed_commands,
+           (unsigned)RC.late_commands);
     CHECK(RC.missed_commands - miss0 == 1u + PLANT_APP_RESYNC_PERIODS, "resync took %u timeouts",
           (unsigned)(RC.missed_commands - miss0));
 
@@ -191,7 +188,8 @@ static void test_realtime_tick(void)
           (unsigned)RC.late_commands);
     CHECK(RC.max_sync_lateness_us == 3, "max lateness");
     const co_domain_t *d = &OD_PLANT.mfr.x2006_lateness_histogram;
-    CHECK(d->data == tb->app.hist_bytes && d->size == 128 && d->data[4 * 13] == 2 && d->data[4 * 17] == 1, "DOMAIN 0x2006");
+    CHECK(d->data == tb->app.hist_bytes && d->size == 128 && d->data[4 * 13] == 2 && d->data[4 * 17] == 1,
+          "DOMAIN 0x2006");
 }
 
 int main(void)

@@ -20,10 +20,7 @@ static tb_t g_tb;
 #define RC (OD_PLANT.mfr.x2003_run_control)
 #define INV (OD_PLANT.mfr.x2001_Inverter)
 
-static const tb_sample_t *last(const tb_t *tb)
-{
-    return &tb->smp[tb->n_smp - 1u];
-}
+static const tb_sample_t *last(const tb_t *tb) { return &tb->smp[tb->n_smp - 1u]; }
 
 static void test_levels(void)
 {
@@ -59,8 +56,9 @@ static void test_nonfinite_command(void)
     tb_period(tb, 3.0f, 0.0f);
     const tb_sample_t *s = last(tb);
     printf("NaN command for sample %u, level off: sample %u status 0x%02x, trip_active %u, EMCY %u (%02x %02x), "
-           "i_a %.4f -> %.4f A\n", (unsigned)bad_k, (unsigned)s->index, s->status, (unsigned)RC.trip_active,
-           (unsigned)tb->n_emcy, tb->last_emcy[0], tb->last_emcy[1], (double)ia0, (double)s->ia);
+           "i_a %.4f -> %.4f A\n",
+           (unsigned)bad_k, (unsigned)s->index, s->status, (unsigned)RC.trip_active, (unsigned)tb->n_emcy,
+           tb->last_emcy[0], tb->last_emcy[1], (double)ia0, (double)s->ia);
     CHECK(s->index == bad_k + 2u && (s->status & PLANT_STATUS_TRIP), "status bit0 at the end of the bad period");
     CHECK(RC.trip_active == 1 && tb->n_emcy == 1 && tb->last_emcy[0] == 0x10 && tb->last_emcy[1] == 0x23,
           "trip_active / EMCY 0x2310");
@@ -81,7 +79,8 @@ static void test_nonfinite_command(void)
     for (int j = 0; j < 5; ++j) tb_period(tb, 3.0f, 0.0f);
     printf("after the clear, 3 V: i_a %.4f A, status 0x%02x\n", (double)last(tb)->ia, last(tb)->status);
     CHECK(RC.trip_active == 0 && !(last(tb)->status & PLANT_STATUS_TRIP) && tb->app.state.v_app_alpha_V > 0.0 &&
-              last(tb)->ia > 0.02f, "clear");
+              last(tb)->ia > 0.02f,
+          "clear");
 }
 
 int main(void)

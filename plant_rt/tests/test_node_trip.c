@@ -9,10 +9,7 @@ static tb_t g_tb;
 
 #define RC (OD_PLANT.mfr.x2003_run_control)
 
-static const tb_sample_t *last(const tb_t *tb)
-{
-    return &tb->smp[tb->n_smp - 1u];
-}
+static const tb_sample_t *last(const tb_t *tb) { return &tb->smp[tb->n_smp - 1u]; }
 
 int main(void)
 {
@@ -38,8 +35,8 @@ int main(void)
     for (int j = 0; j < 300; ++j) tb_period(tb, 30.0f, 0.0f);
     CHECK(tb->n_emcy == 1, "EMCY repeated");
     CHECK(RC.trip_active == 1 && (last(tb)->status & PLANT_STATUS_TRIP), "trip cleared by itself");
-    printf("300 periods later (command still 30 V): i_a = %.5f A, status 0x%02x, still latched\n",
-           (double)last(tb)->ia, last(tb)->status);
+    printf("300 periods later (command still 30 V): i_a = %.5f A, status 0x%02x, still latched\n", (double)last(tb)->ia,
+           last(tb)->status);
     CHECK(last(tb)->ia < 0.1f && last(tb)->ia > -0.1f, "current did not decay");
     /* writing 0 does nothing */
     tb_w_u8(tb, 0x2003, OD_PLANT_RUN_CONTROL_TRIP_CLEAR_SUB, 0);
@@ -57,7 +54,8 @@ int main(void)
     CHECK(!(last(tb)->status & PLANT_STATUS_TRIP) && !tb->app.state.tripped, "status bit0 after clear");
     for (int j = 0; j < 50; ++j) tb_period(tb, 1.0f, 0.0f);
     printf("after clear, 1 V command: inverter applies v_alpha = %.4f V (dead time included), i_a = %.4f A, "
-           "status 0x%02x\n", tb->app.state.v_app_alpha_V, (double)last(tb)->ia, last(tb)->status);
+           "status 0x%02x\n",
+           tb->app.state.v_app_alpha_V, (double)last(tb)->ia, last(tb)->status);
     CHECK(tb->app.state.v_app_alpha_V != 0.0, "inverter still off");
     return check_finish("test_node_trip");
 }

@@ -58,12 +58,11 @@ int main(void)
     }
     const double sa = sqrt(va / (NS - 1)), sb = sqrt(vb / (NS - 1));
     const double rho = cab / sqrt(va * vb), rho1 = lag / va;
-    const double bm = 5.0 * sigma / sqrt((double)NS), bs = 5.0 * sigma / sqrt(2.0 * NS),
-                 br = 5.0 / sqrt((double)NS);
-    printf("noise: N=%d, mean a %.6f (offset %.3f, bound +-%.2e), mean b %.6f (offset %.3f)\n", NS, ma,
-           oa, bm, mb, ob);
-    printf("noise: std a %.6f, std b %.6f (sigma %.4f, bound +-%.2e); corr(a,b) %.2e, lag-1 autocorr %.2e (bound %.2e)\n",
-           sa, sb, sigma, bs, rho, rho1, br);
+    const double bm = 5.0 * sigma / sqrt((double)NS), bs = 5.0 * sigma / sqrt(2.0 * NS), br = 5.0 / sqrt((double)NS);
+    printf("noise: N=%d, mean a %.6f (offset %.3f, bound +-%.2e), mean b %.6f (offset %.3f)\n", NS, ma, oa, bm, mb, ob);
+    printf(
+        "noise: std a %.6f, std b %.6f (sigma %.4f, bound +-%.2e); corr(a,b) %.2e, lag-1 autocorr %.2e (bound %.2e)\n",
+        sa, sb, sigma, bs, rho, rho1, br);
     CHECK(fabs(ma - oa) < bm && fabs(mb - ob) < bm, "means");
     CHECK(fabs(sa - sigma) < bs && fabs(sb - sigma) < bs, "std");
     CHECK(fabs(rho) < br && fabs(rho1) < br, "independence");
@@ -89,8 +88,8 @@ int main(void)
             ndiff++;
         }
     }
-    printf("determinism: same seed bit-identical: %s; different seed: %d of %d samples differ\n",
-           same ? "yes" : "NO", ndiff, NS);
+    printf("determinism: same seed bit-identical: %s; different seed: %d of %d samples differ\n", same ? "yes" : "NO",
+           ndiff, NS);
     CHECK(same, "same seed must be bit-identical");
     CHECK(ndiff > NS * 99 / 100, "different seed must differ");
 
@@ -117,7 +116,8 @@ int main(void)
             }
             plant_step(&s, &cq, 30.0, 0.0);
         }
-        printf("quantization LSB %.3f A: max |meas - true| %.6f A (bound LSB/2 + float eps), samples off the LSB grid: %.0f\n",
+        printf("quantization LSB %.3f A: max |meas - true| %.6f A (bound LSB/2 + float eps), samples off the LSB grid: "
+               "%.0f\n",
                cq.adc_lsb_A, emax, offgrid);
         CHECK(emax <= 0.5 * cq.adc_lsb_A + 1e-6, "quantization error bound");
         CHECK(emax > 0.4 * cq.adc_lsb_A, "quantization must be visible");

@@ -21,15 +21,31 @@ static void m_rnan(plant_config_t *c) { c->R_ohm = (double)NAN; }
 static void m_tsinf(plant_config_t *c) { c->Ts_s = (double)INFINITY; }
 static void m_pp0(plant_config_t *c) { c->pole_pairs = 0; }
 static void m_psineg(plant_config_t *c) { c->psi_Wb = -0.01; }
-static void m_jfree(plant_config_t *c) { c->mech_mode = PLANT_MECH_FREE; c->J_kgm2 = 0.0; }
+static void m_jfree(plant_config_t *c)
+{
+    c->mech_mode = PLANT_MECH_FREE;
+    c->J_kgm2 = 0.0;
+}
 static void m_bneg(plant_config_t *c) { c->B_Nm_per_rad_s = -1.0; }
 static void m_mode(plant_config_t *c) { c->mech_mode = (plant_mech_mode_t)7; }
-static void m_vdc(plant_config_t *c) { c->mod_limit = PLANT_MOD_CIRCLE; c->Vdc_V = 0.0; }
+static void m_vdc(plant_config_t *c)
+{
+    c->mod_limit = PLANT_MOD_CIRCLE;
+    c->Vdc_V = 0.0;
+}
 static void m_modenum(plant_config_t *c) { c->mod_limit = (plant_mod_limit_t)9; }
 static void m_dtlong(plant_config_t *c) { c->t_dead_s = 2.0 * c->Ts_s; }
 static void m_dtneg(plant_config_t *c) { c->t_dead_s = -1e-6; }
-static void m_sat_is(plant_config_t *c) { c->sat_enable = true; c->sat_I_A = 0.0; }
-static void m_sat_li(plant_config_t *c) { c->sat_enable = true; c->sat_Lq_inf_H = 2.0 * c->Lq_H; }
+static void m_sat_is(plant_config_t *c)
+{
+    c->sat_enable = true;
+    c->sat_I_A = 0.0;
+}
+static void m_sat_li(plant_config_t *c)
+{
+    c->sat_enable = true;
+    c->sat_Lq_inf_H = 2.0 * c->Lq_H;
+}
 static void m_adc(plant_config_t *c) { c->adc_noise_std_A = -0.1; }
 static void m_lsb(plant_config_t *c) { c->adc_lsb_A = -0.1; }
 static void m_trip(plant_config_t *c) { c->I_trip_A = -1.0; }
@@ -49,18 +65,33 @@ int main(void)
               d.hold_frame == PLANT_HOLD_STATOR,
           "defaults: all non-idealities off");
 
-    struct { const char *name; mutate_fn f; int code; } cases[] = {
-        {"Ts = 0", m_ts0, PLANT_ERR_TS},           {"Ts < 0", m_tsneg, PLANT_ERR_TS},
-        {"Ld = 0", m_ld0, PLANT_ERR_L},            {"Lq < 0", m_lqneg, PLANT_ERR_L},
-        {"R < 0", m_rneg, PLANT_ERR_R},            {"R = NaN", m_rnan, PLANT_ERR_NONFINITE},
-        {"Ts = inf", m_tsinf, PLANT_ERR_NONFINITE}, {"pole pairs 0", m_pp0, PLANT_ERR_POLES},
-        {"psi < 0", m_psineg, PLANT_ERR_PSI},      {"J = 0 in FREE", m_jfree, PLANT_ERR_MECH},
-        {"B < 0", m_bneg, PLANT_ERR_MECH},         {"mech mode 7", m_mode, PLANT_ERR_MECH},
-        {"limit with Vdc 0", m_vdc, PLANT_ERR_VDC}, {"mod enum 9", m_modenum, PLANT_ERR_ENUM},
-        {"t_dead >= T_pwm", m_dtlong, PLANT_ERR_DEADTIME}, {"t_dead < 0", m_dtneg, PLANT_ERR_DEADTIME},
-        {"sat I_sat 0", m_sat_is, PLANT_ERR_SAT},  {"sat Lq_inf > Lq", m_sat_li, PLANT_ERR_SAT},
-        {"noise < 0", m_adc, PLANT_ERR_SENSOR},    {"LSB < 0", m_lsb, PLANT_ERR_SENSOR},
-        {"I_trip < 0", m_trip, PLANT_ERR_TRIP},    {"rk4_h_rel 0", m_rk4, PLANT_ERR_RK4},
+    struct {
+        const char *name;
+        mutate_fn f;
+        int code;
+    } cases[] = {
+        {"Ts = 0", m_ts0, PLANT_ERR_TS},
+        {"Ts < 0", m_tsneg, PLANT_ERR_TS},
+        {"Ld = 0", m_ld0, PLANT_ERR_L},
+        {"Lq < 0", m_lqneg, PLANT_ERR_L},
+        {"R < 0", m_rneg, PLANT_ERR_R},
+        {"R = NaN", m_rnan, PLANT_ERR_NONFINITE},
+        {"Ts = inf", m_tsinf, PLANT_ERR_NONFINITE},
+        {"pole pairs 0", m_pp0, PLANT_ERR_POLES},
+        {"psi < 0", m_psineg, PLANT_ERR_PSI},
+        {"J = 0 in FREE", m_jfree, PLANT_ERR_MECH},
+        {"B < 0", m_bneg, PLANT_ERR_MECH},
+        {"mech mode 7", m_mode, PLANT_ERR_MECH},
+        {"limit with Vdc 0", m_vdc, PLANT_ERR_VDC},
+        {"mod enum 9", m_modenum, PLANT_ERR_ENUM},
+        {"t_dead >= T_pwm", m_dtlong, PLANT_ERR_DEADTIME},
+        {"t_dead < 0", m_dtneg, PLANT_ERR_DEADTIME},
+        {"sat I_sat 0", m_sat_is, PLANT_ERR_SAT},
+        {"sat Lq_inf > Lq", m_sat_li, PLANT_ERR_SAT},
+        {"noise < 0", m_adc, PLANT_ERR_SENSOR},
+        {"LSB < 0", m_lsb, PLANT_ERR_SENSOR},
+        {"I_trip < 0", m_trip, PLANT_ERR_TRIP},
+        {"rk4_h_rel 0", m_rk4, PLANT_ERR_RK4},
         {"hold enum 3", m_hold, PLANT_ERR_ENUM},
     };
     for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); ++i) {
@@ -92,7 +123,8 @@ int main(void)
         plant_config_t c;
         const char *n = plant_preset_name(i);
         CHECK(plant_preset_load(n, &c) == 0, "load %s", n);
-        printf("preset %-13s Ts %.0f us, Vdc %.0f V, R %.4g ohm, Ld %.4g H, Lq %.4g H, psi %.5g Wb, p %d, J %.4g, t_dead %.1f us, enc %u  [%s]\n",
+        printf("preset %-13s Ts %.0f us, Vdc %.0f V, R %.4g ohm, Ld %.4g H, Lq %.4g H, psi %.5g Wb, p %d, J %.4g, "
+               "t_dead %.1f us, enc %u  [%s]\n",
                n, c.Ts_s * 1e6, c.Vdc_V, c.R_ohm, c.Ld_H, c.Lq_H, c.psi_Wb, (int)c.pole_pairs, c.J_kgm2,
                c.t_dead_s * 1e6, c.encoder_lines, plant_preset_source(i));
         for (int mode = 0; mode < 3; ++mode) {

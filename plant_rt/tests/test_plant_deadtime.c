@@ -18,7 +18,7 @@ int main(void)
     plant_config_t c;
     CHECK(plant_preset_load("you2019", &c) == 0, "preset");
     plant_config_ideal(&c);
-    c.t_dead_s = 2e-6;   /* only dead time on */
+    c.t_dead_s = 2e-6; /* only dead time on */
     c.mech_mode = PLANT_MECH_LOCKED;
     const double Vdt = c.Vdc_V * c.t_dead_s / c.Ts_pwm_s;
     const double Is = c.deadtime_I_sat_A;
@@ -104,8 +104,8 @@ int main(void)
         for (int k = 0; k < 20000; ++k) {
             plant_step(&s, &c, V, 0.0);
         }
-        printf("locked rotor, v_alpha = %.1f V: steady i_a = %.9f A (expected %.9f A; without dead time %.4f A)\n",
-               V, s.id_A, Iexp, V / R);
+        printf("locked rotor, v_alpha = %.1f V: steady i_a = %.9f A (expected %.9f A; without dead time %.4f A)\n", V,
+               s.id_A, Iexp, V / R);
         CHECK(fabs(s.id_A - Iexp) < 1e-9, "steady state with dead time");
         CHECK(fabs(s.iq_A) < 1e-9, "no q current");
     }

@@ -44,7 +44,8 @@ static int run(double omega, uint32_t lines)
         nseen += seen[i];
     }
     free(seen);
-    printf("encoder %u lines, omega %.2f rad/s: %u of %u counts seen, theta_true - theta_meas in [%.3e, %.3e] rad (quantum %.3e), off-grid %.2e\n",
+    printf("encoder %u lines, omega %.2f rad/s: %u of %u counts seen, theta_true - theta_meas in [%.3e, %.3e] rad "
+           "(quantum %.3e), off-grid %.2e\n",
            lines, omega, nseen, cpr, emin, emax, q, offgrid);
     CHECK(nseen == cpr, "all counts");
     CHECK(emin > -1e-6 && emax < q + 1e-6, "quantization error bound");
@@ -76,7 +77,8 @@ int main(void)
     }
     /* angle after 100000 periods vs omega*t (mod 2 pi) */
     const double th = fmod(7.0 * 100000 * c.Ts_s, 2.0 * (double)T_PI);
-    printf("ideal encoder: max |theta_meas - theta_true| %.3e rad (float rounding); theta after 1e5 periods %.12f vs omega*t mod 2pi %.12f\n",
+    printf("ideal encoder: max |theta_meas - theta_true| %.3e rad (float rounding); theta after 1e5 periods %.12f vs "
+           "omega*t mod 2pi %.12f\n",
            e, s.theta_m_rad, th);
     CHECK(e < 1e-6, "ideal angle");
     CHECK(fabs(s.theta_m_rad - th) < 1e-9, "angle integration");

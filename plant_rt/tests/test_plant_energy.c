@@ -46,8 +46,7 @@ int main(void)
         const double dW = plant_magnetic_energy_J(&s, &cc) - e->W_mag0_J;
         const double r = plant_energy_residual_J(&s, &cc);
         printf("%s: in %.9f J, copper %.9f J, dW_mag %.3e J, mech %.9f J, residual %.3e J (%.3e of input)\n",
-               pass ? "locked" : "1000 rpm", e->in_J, e->copper_J, dW, e->mech_J, r,
-               fabs(r) / e->in_J);
+               pass ? "locked" : "1000 rpm", e->in_J, e->copper_J, dW, e->mech_J, r, fabs(r) / e->in_J);
         CHECK(e->in_J > 0.0 && e->copper_J > 0.0, "positive input/copper");
         CHECK(fabs(r) / e->in_J < 1e-10, "energy balance residual");
         if (pass == 1) {
@@ -89,7 +88,8 @@ int main(void)
         }
         const double rc = fabs(s.energy.copper_J - (double)ecu) / (double)ecu;
         const double ri = fabs(s.energy.in_J - (double)ein) / (double)ein;
-        printf("Ld=Lq closed form + Simpson: copper %.12f J (plant %.12f, rel %.2e), input %.12f J (plant %.12f, rel %.2e)\n",
+        printf("Ld=Lq closed form + Simpson: copper %.12f J (plant %.12f, rel %.2e), input %.12f J (plant %.12f, rel "
+               "%.2e)\n",
                (double)ecu, s.energy.copper_J, rc, (double)ein, s.energy.in_J, ri);
         CHECK(rc < 1e-9 && ri < 1e-9, "energy integrals vs closed form");
     }

@@ -10,8 +10,8 @@
 #include "plant_test_util.h"
 #include "presets.h"
 
-static void run_case(const char *label, plant_config_t *c, double theta_m0, int nper,
-                     double vmax, double *err_i, double *err_e)
+static void run_case(const char *label, plant_config_t *c, double theta_m0, int nper, double vmax, double *err_i,
+                     double *err_e)
 {
     plant_state_t s;
     plant_init(&s, c);
@@ -57,11 +57,10 @@ static void run_case(const char *label, plant_config_t *c, double theta_m0, int 
         eme = fabs(s.energy.mech_J);
     }
     *err_e = fmax(ein, fmax(ecu, eme));
-    printf("%s: %d periods, peak |i| %.3f A, max current error %.3e (relative)\n", label,
-           nper, imax, *err_i);
+    printf("%s: %d periods, peak |i| %.3f A, max current error %.3e (relative)\n", label, nper, imax, *err_i);
     printf("%s: energy in %.6e J (ref %.6e), copper %.6e J (ref %.6e), mech %.6e J (ref %.6e); max rel err %.3e\n",
-           label, s.energy.in_J, (double)rs.e_in, s.energy.copper_J, (double)rs.e_cu,
-           s.energy.mech_J, (double)rs.e_mech, *err_e);
+           label, s.energy.in_J, (double)rs.e_in, s.energy.copper_J, (double)rs.e_cu, s.energy.mech_J,
+           (double)rs.e_mech, *err_e);
 }
 
 int main(void)

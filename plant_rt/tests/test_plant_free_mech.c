@@ -44,7 +44,8 @@ int main(void)
             ew = fmax(ew, fabs(s.omega_m_rad_s - w) / w0);
             eth = fmax(eth, fabs(th_p - th) / fabs(th));
         }
-        printf("closed-form coast-down (5000 periods, w %.1f -> %.3f rad/s): max rel speed err %.3e, angle err %.3e, revolutions %lld\n",
+        printf("closed-form coast-down (5000 periods, w %.1f -> %.3f rad/s): max rel speed err %.3e, angle err %.3e, "
+               "revolutions %lld\n",
                w0, s.omega_m_rad_s, ew, eth, (long long)s.revolutions);
         CHECK(ew < 1e-9, "speed closed form");
         CHECK(eth < 1e-9, "angle closed form");
@@ -90,7 +91,8 @@ int main(void)
             const double th_p = s.theta_m_rad + 2.0 * (double)T_PI * (double)s.revolutions;
             eth = fmax(eth, fabs(th_p - (double)(rs.th_e / 5.0L)));
         }
-        printf("coupled FREE run, h_rel %.3f (<= %u sub-steps): current err %.3e rel (peak %.2f A), speed err %.3e rel (peak %.1f rad/s), angle err %.3e rad\n",
+        printf("coupled FREE run, h_rel %.3f (<= %u sub-steps): current err %.3e rel (peak %.2f A), speed err %.3e rel "
+               "(peak %.1f rad/s), angle err %.3e rad\n",
                cc.rk4_h_rel, maxsub, ei / imax, imax, ew / wmax, wmax, eth);
         if (pass == 0) {
             err_def = fmax(ei / imax, ew / wmax);
@@ -102,8 +104,8 @@ int main(void)
             const double el = plant_energy_residual_J(&s, &cc);
             const double dke = plant_kinetic_energy_J(&s, &cc) - e->W_kin0_J;
             const double em = e->mech_J - dke - e->friction_J - e->load_J;
-            printf("energy: in %.6f J, copper %.6f J, mech %.6f J, dKE %.6f J, friction %.6f J, load %.6f J\n",
-                   e->in_J, e->copper_J, e->mech_J, dke, e->friction_J, e->load_J);
+            printf("energy: in %.6f J, copper %.6f J, mech %.6f J, dKE %.6f J, friction %.6f J, load %.6f J\n", e->in_J,
+                   e->copper_J, e->mech_J, dke, e->friction_J, e->load_J);
             printf("energy: electrical residual %.3e J (%.3e of input), mechanical residual %.3e J (%.3e of |mech|)\n",
                    el, fabs(el) / e->in_J, em, fabs(em) / fabs(e->mech_J));
             CHECK(fabs(el) / e->in_J < 1e-7, "electrical balance");

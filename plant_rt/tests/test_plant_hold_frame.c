@@ -52,7 +52,8 @@ int main(void)
         const double dvd = (m11 - 1.0) * vd0 + m12 * vq0;
         const double dvq = -m12 * vd0 + (m11 - 1.0) * vq0;
         const double pred = hypot(cs.Ts_s * dvd / cs.Ld_H, cs.Ts_s * dvq / cs.Lq_H);
-        printf("A. one period from rest (v = [%g, %g] V): |i_stator - i_rotor| = %.4e A (predicted %.4e A), %.3f %% of |i| = %.4f A\n",
+        printf("A. one period from rest (v = [%g, %g] V): |i_stator - i_rotor| = %.4e A (predicted %.4e A), %.3f %% of "
+               "|i| = %.4f A\n",
                va, vb, di, pred, 100.0 * rel, hypot(sr.id_A, sr.iq_A));
         CHECK(di > 0.8 * pred && di < 1.25 * pred, "one-period difference %.4e vs %.4e", di, pred);
     }
@@ -60,13 +61,13 @@ int main(void)
     /* ---- B: steady state with a constant dq command ---- */
     {
         const double R = cs.R_ohm, Ld = cs.Ld_H, Lq = cs.Lq_H, psi = cs.psi_Wb;
-        const double idr = 0.0, iqr = 1.0;  /* design point of the dq command */
+        const double idr = 0.0, iqr = 1.0; /* design point of the dq command */
         const double Vd = R * idr - w * Lq * iqr;
         const double Vq = R * iqr + w * Ld * idr + w * psi;
         plant_state_t ss, sr;
         plant_init(&ss, &cs);
         plant_init(&sr, &cr);
-        const int N = 4000;  /* 4000 * 55 us = 69 tau */
+        const int N = 4000; /* 4000 * 55 us = 69 tau */
         for (int k = 0; k < N; ++k) {
             plant_state_t *st[2] = {&ss, &sr};
             const plant_config_t *cf[2] = {&cs, &cr};
@@ -87,7 +88,8 @@ int main(void)
         const double a = R, b = -w * Lq, cc = w * Ld, d = R, det = a * d - b * cc;
         const double dId = (d * dVd - b * dVq) / det, dIq = (-cc * dVd + a * dVq) / det;
         const double pred = hypot(dId, dIq);
-        printf("B. stator-hold steady state: id %.6f A, iq %.6f A; |difference| = %.4f A = %.2f %% of 1 A (predicted %.4f A)\n",
+        printf("B. stator-hold steady state: id %.6f A, iq %.6f A; |difference| = %.4f A = %.2f %% of 1 A (predicted "
+               "%.4f A)\n",
                ss.id_A, ss.iq_A, meas, 100.0 * meas / hypot(idr, iqr), pred);
         printf("   relative to rated 4 A: %.2f %%\n", 100.0 * meas / 4.0);
         CHECK(meas > 0.5 * pred && meas < 2.0 * pred, "steady-state difference %.4e vs %.4e", meas, pred);

@@ -37,8 +37,8 @@ int main(void)
         ec = fmax(ec, fabs(hypot(va, vb) - rc));
         eang = fmax(eang, fabs(va * sin(phi) - vb * cos(phi)));
     }
-    printf("hexagon: |v| from %.4f V (expect %.4f) to %.4f V (expect %.4f), max boundary err %.3e V\n",
-           rmin, rc, rmax, 2.0 * c.Vdc_V / 3.0, eh);
+    printf("hexagon: |v| from %.4f V (expect %.4f) to %.4f V (expect %.4f), max boundary err %.3e V\n", rmin, rc, rmax,
+           2.0 * c.Vdc_V / 3.0, eh);
     printf("circle: max radius err %.3e V; max angle deviation (cross product) %.3e V\n", ec, eang);
     CHECK(eh < 1e-9, "hexagon boundary");
     CHECK(ec < 1e-9, "circle boundary");
@@ -46,7 +46,11 @@ int main(void)
     CHECK(fabs(rmax - 200.0) < 1e-9 && fabs(rmin - rc) < 1e-6, "hexagon extremes");
 
     /* inside points are untouched; 190 V on the a axis: inside hex, outside circle */
-    struct { double va, vb; int mode; double ea, eb; } cases[] = {
+    struct {
+        double va, vb;
+        int mode;
+        double ea, eb;
+    } cases[] = {
         {150.0, -20.0, PLANT_MOD_SVPWM_HEX, 150.0, -20.0},
         {150.0, -20.0, PLANT_MOD_CIRCLE, 150.0, -20.0},
         {190.0, 0.0, PLANT_MOD_SVPWM_HEX, 190.0, 0.0},
@@ -60,10 +64,9 @@ int main(void)
         plant_init(&s, &c);
         CHECK(s.status == 0, "prepare");
         plant_step(&s, &c, cases[i].va, cases[i].vb);
-        printf("mode %d: command (%.1f, %.1f) -> applied (%.6f, %.6f)\n", cases[i].mode, cases[i].va,
-               cases[i].vb, s.v_app_alpha_V, s.v_app_beta_V);
-        CHECK(fabs(s.v_app_alpha_V - cases[i].ea) < 1e-9 && fabs(s.v_app_beta_V - cases[i].eb) < 1e-9,
-              "case %zu", i);
+        printf("mode %d: command (%.1f, %.1f) -> applied (%.6f, %.6f)\n", cases[i].mode, cases[i].va, cases[i].vb,
+               s.v_app_alpha_V, s.v_app_beta_V);
+        CHECK(fabs(s.v_app_alpha_V - cases[i].ea) < 1e-9 && fabs(s.v_app_beta_V - cases[i].eb) < 1e-9, "case %zu", i);
     }
     return check_finish("test_plant_modulation");
 }

@@ -14,8 +14,7 @@
 #include "plant_test_util.h"
 #include "presets.h"
 
-static double run_vs_ref(plant_config_t *c, double theta_m0, int nper, double *resid_rel,
-                         unsigned *substeps)
+static double run_vs_ref(plant_config_t *c, double theta_m0, int nper, double *resid_rel, unsigned *substeps)
 {
     plant_state_t s;
     plant_init(&s, c);
@@ -80,8 +79,8 @@ int main(void)
     }
     printf("model: max |dpsi/di - L_inc|/Lq = %.3e, max |W_q - int i dpsi| (rel) = %.3e\n", e_l, e_w);
     printf("model: L_inc(0) = %.6e H (Lq %.6e), L_inc(I_sat) = %.6e H (expected %.6e), L_inc(4 A) = %.4f Lq\n",
-           plant_Lq_inc_H(&c, 0.0), c.Lq_H, plant_Lq_inc_H(&c, c.sat_I_A),
-           0.5 * (c.Lq_H + c.sat_Lq_inf_H), plant_Lq_inc_H(&c, 4.0) / c.Lq_H);
+           plant_Lq_inc_H(&c, 0.0), c.Lq_H, plant_Lq_inc_H(&c, c.sat_I_A), 0.5 * (c.Lq_H + c.sat_Lq_inf_H),
+           plant_Lq_inc_H(&c, 4.0) / c.Lq_H);
     CHECK(e_l < 1e-6, "L_inc vs dpsi/di");
     CHECK(e_w < 1e-9, "W_q vs quadrature");
     CHECK(fabs(plant_Lq_inc_H(&c, 0.0) - c.Lq_H) < 1e-15, "L_inc(0)");
@@ -127,8 +126,8 @@ int main(void)
             plant_step(&b, &cn, 0.0, 100.0);
         }
         const double rel = (a.iq_A - b.iq_A) / b.iq_A;
-        printf("q step 100 V, 10 periods: iq saturated %.4f A vs linear %.4f A (+%.2f %%)\n",
-               a.iq_A, b.iq_A, 100.0 * rel);
+        printf("q step 100 V, 10 periods: iq saturated %.4f A vs linear %.4f A (+%.2f %%)\n", a.iq_A, b.iq_A,
+               100.0 * rel);
         CHECK(rel > 0.05, "saturation should raise the current");
     }
     return check_finish("test_plant_saturation");

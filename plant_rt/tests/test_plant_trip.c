@@ -63,8 +63,8 @@ static void test_preset_levels(void)
         const double stall = 2.0 * c.Vdc_V / 3.0 / c.R_ohm;
         printf("preset %-12s I_trip %.6g A (%s); hexagon-vertex stall current 2/3 Vdc/R = %.4g A\n", k[i].name,
                c.I_trip_A, k[i].rule, stall);
-        CHECK(fabs(c.I_trip_A - k[i].expect_A) <= 1e-12 * k[i].expect_A, "%s: I_trip %.17g, expected %.17g",
-              k[i].name, c.I_trip_A, k[i].expect_A);
+        CHECK(fabs(c.I_trip_A - k[i].expect_A) <= 1e-12 * k[i].expect_A, "%s: I_trip %.17g, expected %.17g", k[i].name,
+              c.I_trip_A, k[i].expect_A);
         plant_config_t ci = c;
         plant_config_ideal(&ci);
         CHECK(ci.I_trip_A == 0.0, "%s: plant_config_ideal keeps the trip", k[i].name);
@@ -88,8 +88,7 @@ static void test_preset_levels(void)
         } else {
             /* bus-derived level: the bridge cannot reach it in steady state ... */
             int kt = run_locked(&c, 10.0 * c.Vdc_V, n, &ia); /* clipped to the vertex 2/3 Vdc */
-            printf("  hexagon vertex (command 10 Vdc, clipped) held %d periods: trip at %d, i_a %.5g A\n", n, kt,
-                   ia);
+            printf("  hexagon vertex (command 10 Vdc, clipped) held %d periods: trip at %d, i_a %.5g A\n", n, kt, ia);
             CHECK(kt == 0 && fabs(ia - stall) < 1e-6 * stall, "%s: the bridge's stall current trips", k[i].name);
             /* ... a command beyond the bridge (no modulation limit) trips it */
             plant_config_t cn = c;
@@ -121,8 +120,8 @@ static void nonfinite_case(const char *what, plant_config_t c, double va, double
     int finite = isfinite(s.id_A) && isfinite(s.iq_A) && isfinite(m.i_a_true_A) && isfinite(m.i_b_true_A) &&
                  isfinite((double)m.i_a_A) && isfinite((double)m.i_b_A) && isfinite(s.energy.in_J);
     printf("%-44s tripped %d, applied (%g, %g) V, i_dq (%.5f, %.5f) A = a tripped step: %d, finite %d\n", what,
-           (int)s.tripped, s.v_app_alpha_V, s.v_app_beta_V, s.id_A, s.iq_A,
-           s.id_A == r.id_A && s.iq_A == r.iq_A, finite);
+           (int)s.tripped, s.v_app_alpha_V, s.v_app_beta_V, s.id_A, s.iq_A, s.id_A == r.id_A && s.iq_A == r.iq_A,
+           finite);
     CHECK(s.tripped && m.tripped, "%s: no trip on a non-finite command", what);
     CHECK(s.v_app_alpha_V == 0.0 && s.v_app_beta_V == 0.0, "%s: voltage applied", what);
     CHECK(finite, "%s: the model state is not finite", what);
@@ -177,8 +176,8 @@ static void test_nonfinite(void)
         plant_step(&s, &c, 3.0, 1.0);
         plant_meas_t m;
         plant_sample(&s, &c, &m);
-        printf("non-finite current state: tripped %d, meas.tripped %d, applied %g V\n", (int)s.tripped,
-               (int)m.tripped, s.v_app_alpha_V);
+        printf("non-finite current state: tripped %d, meas.tripped %d, applied %g V\n", (int)s.tripped, (int)m.tripped,
+               s.v_app_alpha_V);
         CHECK(s.tripped && m.tripped && s.v_app_alpha_V == 0.0, "NaN current does not trip");
         plant_clear_trip(&s);
         plant_step(&s, &c, 3.0, 1.0);
@@ -212,8 +211,7 @@ int main(void)
     }
     plant_meas_t m;
     plant_sample(&s, &c, &m);
-    printf("trip at period %d (expected %d), i_a = %.6f A, meas.tripped = %d\n", ktrip, kexp, s.id_A,
-           (int)m.tripped);
+    printf("trip at period %d (expected %d), i_a = %.6f A, meas.tripped = %d\n", ktrip, kexp, s.id_A, (int)m.tripped);
     CHECK(ktrip == kexp, "trip instant");
     CHECK(m.tripped, "trip flag in measurement");
     /* clear above threshold -> re-trips at the start of the next period,
@@ -223,8 +221,8 @@ int main(void)
     plant_clear_trip(&s);
     CHECK(!s.tripped, "cleared");
     plant_step(&s, &c, V, 0.0);
-    printf("clear at %.4f A (> I_trip), one step: tripped again = %d, applied %.1f V\n", i_clear,
-           (int)s.tripped, s.v_app_alpha_V);
+    printf("clear at %.4f A (> I_trip), one step: tripped again = %d, applied %.1f V\n", i_clear, (int)s.tripped,
+           s.v_app_alpha_V);
     CHECK(s.tripped && s.v_app_alpha_V == 0.0, "re-trip when cleared above threshold");
     /* zero voltage, exponential decay */
     double i0 = s.id_A, emax = 0.0;
@@ -233,8 +231,8 @@ int main(void)
         CHECK(s.v_app_alpha_V == 0.0 && s.v_app_beta_V == 0.0, "zero voltage while tripped");
         emax = fmax(emax, fabs(s.id_A - i0 * pow(a, k)));
     }
-    printf("while tripped: current decays as exp(-t R/Ld), max err %.3e A, i = %.4f A after 50 more periods\n",
-           emax, s.id_A);
+    printf("while tripped: current decays as exp(-t R/Ld), max err %.3e A, i = %.4f A after 50 more periods\n", emax,
+           s.id_A);
     CHECK(emax < 1e-12, "decay");
     while (s.id_A > 1.0) {
         plant_step(&s, &c, V, 0.0);
@@ -259,8 +257,8 @@ int main(void)
         }
         plant_meas_t m2;
         plant_sample(&s2, &c, &m2);
-        printf("phase-b case: trip at period %d (expected %d), i_b = %.4f A, i_a = %.4f A\n", kt, kexp,
-               m2.i_b_true_A, m2.i_a_true_A);
+        printf("phase-b case: trip at period %d (expected %d), i_b = %.4f A, i_a = %.4f A\n", kt, kexp, m2.i_b_true_A,
+               m2.i_a_true_A);
         CHECK(kt == kexp, "phase b trip instant");
     }
     /* trip disabled */

@@ -41,7 +41,7 @@ static double run(plant_state_t *s, const plant_config_t *c, long n, int with_sa
     double acc = 0.0;
     const double V = 10.0;
     double ca = 1.0, sa = 0.0;
-    const double dc = 0.9999998, ds = 0.00063245553;  /* slow rotation, |.|~1 */
+    const double dc = 0.9999998, ds = 0.00063245553; /* slow rotation, |.|~1 */
     const double t0 = now_s();
     for (long k = 0; k < n; ++k) {
         if (with_sample) {
@@ -69,9 +69,8 @@ static void bench(const char *label, plant_config_t *c, long n)
     (void)run(&s, c, n / 10, 1); /* warm-up */
     const double ns_step = run(&s, c, n, 0);
     const double ns_both = run(&s, c, n, 1);
-    printf("%-44s step: %7.1f ns/period (%6.2f M/s)   sample+step: %7.1f ns (%6.2f M/s)  [rk4 substeps %u]\n",
-           label, ns_step, 1e3 / ns_step, ns_both, 1e3 / ns_both,
-           s.exact ? 0u : s.last_substeps);
+    printf("%-44s step: %7.1f ns/period (%6.2f M/s)   sample+step: %7.1f ns (%6.2f M/s)  [rk4 substeps %u]\n", label,
+           ns_step, 1e3 / ns_step, ns_both, 1e3 / ns_both, s.exact ? 0u : s.last_substeps);
 }
 
 int main(int argc, char **argv)
@@ -125,9 +124,10 @@ int main(int argc, char **argv)
     const long rss1 = rss_pages();
     (void)run(&s, &cn, 1000000L, 1);
     const long rss2 = rss_pages();
-    printf("resident memory (pages): after warm-up %ld, after 10^6 periods %ld, after 2*10^6 periods %ld (growth %ld)\n",
-           rss0, rss1, rss2, rss2 - rss0);
-    printf("sizeof(plant_state_t) = %zu bytes, sizeof(plant_config_t) = %zu bytes\n",
-           sizeof(plant_state_t), sizeof(plant_config_t));
+    printf(
+        "resident memory (pages): after warm-up %ld, after 10^6 periods %ld, after 2*10^6 periods %ld (growth %ld)\n",
+        rss0, rss1, rss2, rss2 - rss0);
+    printf("sizeof(plant_state_t) = %zu bytes, sizeof(plant_config_t) = %zu bytes\n", sizeof(plant_state_t),
+           sizeof(plant_config_t));
     return 0;
 }

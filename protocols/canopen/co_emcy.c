@@ -16,22 +16,16 @@ void co_emcy_init(co_emcy_t *em, const co_od_t *od, co_tx_t *tx)
     em->tx = tx;
 }
 
-void co_emcy_set_sending(co_emcy_t *em, bool pre_or_operational)
-{
-    em->sending = pre_or_operational;
-}
+void co_emcy_set_sending(co_emcy_t *em, bool pre_or_operational) { em->sending = pre_or_operational; }
 
-void co_emcy_forget_active(co_emcy_t *em)
-{
-    em->n_active = 0;
-}
+void co_emcy_forget_active(co_emcy_t *em) { em->n_active = 0; }
 
 static void emcy_send(co_emcy_t *em, uint16_t code, const uint8_t msef[5])
 {
     uint32_t cob = co_od_get_u32(em->od, IDX_EMCY_COBID, 0);
     if ((cob & COB_INVALID) || !em->sending) return;
-    uint8_t d[8] = {(uint8_t)code, (uint8_t)(code >> 8), (uint8_t)co_od_get_u32(em->od, IDX_ERROR_REGISTER, 0),
-                    0, 0, 0, 0, 0};
+    uint8_t d[8] = {
+        (uint8_t)code, (uint8_t)(code >> 8), (uint8_t)co_od_get_u32(em->od, IDX_ERROR_REGISTER, 0), 0, 0, 0, 0, 0};
     if (msef) memcpy(&d[3], msef, 5);
     co_tx_send(em->tx, (uint16_t)(cob & 0x7FFu), d, 8);
 }

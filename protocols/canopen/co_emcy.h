@@ -36,8 +36,8 @@
 typedef struct {
     const co_od_t *od;
     co_tx_t *tx;
-    bool sending;                         /* NMT pre-operational or operational */
-    uint16_t active[CO_EMCY_MAX_ACTIVE];  /* error codes raised and not cleared */
+    bool sending;                        /* NMT pre-operational or operational */
+    uint16_t active[CO_EMCY_MAX_ACTIVE]; /* error codes raised and not cleared */
     uint8_t n_active;
 } co_emcy_t;
 

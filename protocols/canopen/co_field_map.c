@@ -28,16 +28,36 @@ static value_t get(const void *p, uint8_t kind, uint8_t size)
         v.u = b ? 1u : 0u;
     } else if (kind == CO_FM_SINT) {
         int64_t s = 0;
-        if (size == 1) { int8_t x; memcpy(&x, p, 1); s = x; }
-        else if (size == 2) { int16_t x; memcpy(&x, p, 2); s = x; }
-        else if (size == 4) { int32_t x; memcpy(&x, p, 4); s = x; }
-        else memcpy(&s, p, 8);
+        if (size == 1) {
+            int8_t x;
+            memcpy(&x, p, 1);
+            s = x;
+        } else if (size == 2) {
+            int16_t x;
+            memcpy(&x, p, 2);
+            s = x;
+        } else if (size == 4) {
+            int32_t x;
+            memcpy(&x, p, 4);
+            s = x;
+        } else
+            memcpy(&s, p, 8);
         v.u = (uint64_t)s;
     } else {
-        if (size == 1) { uint8_t x; memcpy(&x, p, 1); v.u = x; }
-        else if (size == 2) { uint16_t x; memcpy(&x, p, 2); v.u = x; }
-        else if (size == 4) { uint32_t x; memcpy(&x, p, 4); v.u = x; }
-        else memcpy(&v.u, p, 8);
+        if (size == 1) {
+            uint8_t x;
+            memcpy(&x, p, 1);
+            v.u = x;
+        } else if (size == 2) {
+            uint16_t x;
+            memcpy(&x, p, 2);
+            v.u = x;
+        } else if (size == 4) {
+            uint32_t x;
+            memcpy(&x, p, 4);
+            v.u = x;
+        } else
+            memcpy(&v.u, p, 8);
     }
     if (!v.real) v.d = kind == CO_FM_SINT ? (double)(int64_t)v.u : (double)v.u;
     return v;

@@ -44,10 +44,7 @@ int co_membus_tx(void *user, const co_frame_t *frame)
     return enqueue(port->bus, frame, port->index);
 }
 
-int co_membus_inject(co_membus_t *bus, const co_frame_t *frame)
-{
-    return enqueue(bus, frame, CO_MEMBUS_EXTERNAL);
-}
+int co_membus_inject(co_membus_t *bus, const co_frame_t *frame) { return enqueue(bus, frame, CO_MEMBUS_EXTERNAL); }
 
 uint32_t co_membus_deliver(co_membus_t *bus, int64_t now_us)
 {

@@ -32,10 +32,7 @@ static void refresh_cache(co_node_t *node)
     node->c_cycle_us = co_od_get_u32(node->od, IDX_CYCLE_PERIOD, 0);
 }
 
-static bool operational(const co_node_t *node)
-{
-    return node->nmt == CO_NMT_OPERATIONAL;
-}
+static bool operational(const co_node_t *node) { return node->nmt == CO_NMT_OPERATIONAL; }
 
 /* Every change of node->nmt goes through here: the services that depend on it learn it. */
 static void enter_nmt_state(co_node_t *node, co_nmt_state_t s)
@@ -140,10 +137,7 @@ void co_emcy_raise(co_node_t *node, uint16_t code, uint8_t err_reg_bits, const u
     co_emcy_report_error(&node->emcy, code, err_reg_bits, msef);
 }
 
-void co_emcy_clear(co_node_t *node, uint16_t code)
-{
-    co_emcy_clear_error(&node->emcy, code);
-}
+void co_emcy_clear(co_node_t *node, uint16_t code) { co_emcy_clear_error(&node->emcy, code); }
 
 void co_tpdo_request(co_node_t *node, uint8_t pdo)
 {
@@ -195,7 +189,7 @@ static uint32_t sync_check_write(const co_node_t *node, const co_od_entry_t *e, 
     }
     if (e->index == IDX_SYNC_COBID) {
         uint32_t v = (uint32_t)data[0] | (uint32_t)data[1] << 8 | (uint32_t)data[2] << 16 | (uint32_t)data[3] << 24;
-        if (v & 0x20000000u) return CO_ABORT_INVALID_VALUE; /* 29-bit identifiers not supported */
+        if (v & 0x20000000u) return CO_ABORT_INVALID_VALUE;      /* 29-bit identifiers not supported */
         if (co_cob_restricted(v)) return CO_ABORT_INVALID_VALUE; /* bit 30 = producer; always in use */
     }
     return 0;
@@ -351,8 +345,7 @@ int64_t co_node_next_event_us(const co_node_t *node, int64_t now_us, int64_t max
 {
     int64_t next = now_us + max_us;
     if (node->c_hb_ms && node->hb_next_us < next) next = node->hb_next_us;
-    if (node->sync_timer_enabled && node->c_cycle_us && node->sync_next_us < next)
-        next = node->sync_next_us;
+    if (node->sync_timer_enabled && node->c_cycle_us && node->sync_next_us < next) next = node->sync_next_us;
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) next = co_tpdo_next_event(&node->tpdo[i], next);
     next = co_sdo_server_next_event(&node->sdo, next);
     for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {

@@ -77,31 +77,31 @@ struct co_node {
     const co_od_t *od;
     uint8_t node_id;
     co_nmt_state_t nmt;
-    co_tx_t tx;                /* the driver's transmit callback and the frame counters */
+    co_tx_t tx; /* the driver's transmit callback and the frame counters */
     co_hooks_t hooks;
     void *user;
     int64_t now_us;
 
     /* Communication parameters read on every frame, cached from the OD after a reset and
      * after every SDO write (the OD stays the single place they are stored). */
-    uint32_t c_sync_cob;       /* 0x1005 */
-    uint8_t c_sync_overflow;   /* 0x1019 */
-    uint16_t c_hb_ms;          /* 0x1017 */
-    uint32_t c_cycle_us;       /* 0x1006 */
+    uint32_t c_sync_cob;     /* 0x1005 */
+    uint8_t c_sync_overflow; /* 0x1019 */
+    uint16_t c_hb_ms;        /* 0x1017 */
+    uint32_t c_cycle_us;     /* 0x1006 */
 
     /* Heartbeat producer */
     int64_t hb_next_us;
     co_hb_consumer_t hb[CO_HB_CONSUMERS];
 
     /* SYNC */
-    uint8_t sync_counter;      /* last counter produced or consumed */
-    bool sync_timer_enabled;   /* produce SYNC from 0x1006 in co_node_tick (real-time mode) */
+    uint8_t sync_counter;    /* last counter produced or consumed */
+    bool sync_timer_enabled; /* produce SYNC from 0x1006 in co_node_tick (real-time mode) */
     int64_t sync_next_us;
-    uint32_t syncs;            /* SYNC events processed */
+    uint32_t syncs; /* SYNC events processed */
 
     /* Services, wired to this node by co_node_init. */
     co_emcy_t emcy;
-    co_pdo_env_t pdo_env;      /* what the PDOs share: OD, tx, EMCY, the hooks' adapters */
+    co_pdo_env_t pdo_env; /* what the PDOs share: OD, tx, EMCY, the hooks' adapters */
     co_pdo_t rpdo[CO_NUM_PDO];
     co_pdo_t tpdo[CO_NUM_PDO];
     co_sdo_server_t sdo;

@@ -37,7 +37,10 @@ const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t subin
         uint32_t k = ((uint32_t)e->index << 8) | e->subindex;
         if (e->index == index && index_exists) *index_exists = 1;
         if (k == key) return e;
-        if (k < key) lo = mid + 1; else hi = mid - 1;
+        if (k < key)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
     }
     if (index_exists && !*index_exists) {
         /* The binary search may not have touched the index: look at the insertion point. */

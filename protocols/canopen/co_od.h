@@ -82,9 +82,9 @@ typedef struct {
 typedef struct {
     const co_od_entry_t *entries; /* sorted by (index, subindex) */
     uint16_t count;
-    void *ram;                /* the generated RAM struct (communication part first) */
-    const void *defaults;     /* its EDS default values */
-    size_t comm_size;         /* bytes of the communication part (0x1000-0x1FFF) */
+    void *ram;            /* the generated RAM struct (communication part first) */
+    const void *defaults; /* its EDS default values */
+    size_t comm_size;     /* bytes of the communication part (0x1000-0x1FFF) */
     size_t total_size;
 } co_od_t;
 

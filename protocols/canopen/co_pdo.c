@@ -78,7 +78,10 @@ void co_pdo_configure(co_pdo_t *p)
         p->entry[i] = e;
         bytes += co_dt_size(e->datatype);
     }
-    if (bytes > 8u) { count = 0; bytes = 0; }
+    if (bytes > 8u) {
+        count = 0;
+        bytes = 0;
+    }
     p->count = (uint8_t)count;
     p->bytes = (uint8_t)bytes;
     p->valid = !(cob & COB_INVALID) && !(cob & COB_EXTENDED) && count > 0u;
@@ -88,8 +91,8 @@ void co_pdo_configure(co_pdo_t *p)
     p->started = p->sync_start == 0u;
 }
 
-static uint32_t check_comm_write(const co_pdo_t *p, const co_od_entry_t *e, const uint8_t *data,
-                                 uint32_t sync_cob_id, uint32_t cob)
+static uint32_t check_comm_write(const co_pdo_t *p, const co_od_entry_t *e, const uint8_t *data, uint32_t sync_cob_id,
+                                 uint32_t cob)
 {
     const co_od_t *od = p->link.env->od;
     bool pdo_valid = !(cob & COB_INVALID);
@@ -101,8 +104,7 @@ static uint32_t check_comm_write(const co_pdo_t *p, const co_od_entry_t *e, cons
         if (pdo_valid && !(v & COB_INVALID) && ((v ^ cob) & 0x7FFu)) return CO_ABORT_INVALID_VALUE;
         if (!(v & COB_INVALID)) {
             /* Restricted identifiers (CiA 301) and the SYNC identifier. */
-            if (co_cob_restricted(v) || (v & 0x7FFu) == (sync_cob_id & 0x7FFu))
-                return CO_ABORT_INVALID_VALUE;
+            if (co_cob_restricted(v) || (v & 0x7FFu) == (sync_cob_id & 0x7FFu)) return CO_ABORT_INVALID_VALUE;
             if (co_od_get_u32(od, p->link.map_index, 0) == 0u) return 0; /* valid but empty: allowed, sends nothing */
         }
         return 0;
@@ -112,8 +114,7 @@ static uint32_t check_comm_write(const co_pdo_t *p, const co_od_entry_t *e, cons
         if (t <= 240u || t >= 254u) return 0;
         return CO_ABORT_INVALID_VALUE; /* 241-251 reserved; 252/253 (RTR-only) not supported */
     }
-    case 3: /* inhibit time: only while the PDO does not exist */
-        return pdo_valid ? CO_ABORT_UNSUPPORTED : 0;
+    case 3: /* inhibit time: only while the PDO does not exist */ return pdo_valid ? CO_ABORT_UNSUPPORTED : 0;
     default: return 0;
     }
 }
@@ -130,7 +131,7 @@ static uint32_t check_map_write(const co_pdo_t *p, const co_od_entry_t *e, const
         uint8_t newc = data[0];
         if (newc > CO_PDO_MAX_MAPPED) return CO_ABORT_MAP_LEN;
         uint32_t bytes = 0;
-        for (uint8_t i = 0; i < newc; ++i) {                /* step d) */
+        for (uint8_t i = 0; i < newc; ++i) { /* step d) */
             const co_od_entry_t *m = NULL;
             uint32_t a = resolve(od, co_od_get_u32(od, mapi, (uint8_t)(i + 1u)), is_tpdo, &m);
             if (a) return a == CO_ABORT_NO_SUB ? CO_ABORT_NO_OBJECT : a;
@@ -139,11 +140,11 @@ static uint32_t check_map_write(const co_pdo_t *p, const co_od_entry_t *e, const
         if (bytes > 8u) return CO_ABORT_MAP_LEN;
         return 0;
     }
-    if (count != 0u) return CO_ABORT_UNSUPPORTED;           /* step b) not done */
+    if (count != 0u) return CO_ABORT_UNSUPPORTED; /* step b) not done */
     uint32_t v = le32(data);
-    if (v == 0u) return 0;                                  /* clearing an entry */
+    if (v == 0u) return 0; /* clearing an entry */
     const co_od_entry_t *m = NULL;
-    uint32_t a = resolve(od, v, is_tpdo, &m);               /* step c) */
+    uint32_t a = resolve(od, v, is_tpdo, &m); /* step c) */
     if (a) return a == CO_ABORT_NO_SUB ? CO_ABORT_NO_OBJECT : a;
     return 0;
 }
@@ -258,8 +259,10 @@ void co_tpdo_request_event(co_pdo_t *p, bool operational, int64_t now_us)
 {
     if (!p->valid || !operational) return;
     if (p->trans_type >= 254u) {
-        if (inhibit_elapsed(p, now_us)) tpdo_send(p, operational, now_us);
-        else p->pending = true;
+        if (inhibit_elapsed(p, now_us))
+            tpdo_send(p, operational, now_us);
+        else
+            p->pending = true;
     } else if (p->trans_type == 0u) {
         p->pending = true; /* acyclic synchronous: goes out at the next SYNC */
     }
@@ -287,9 +290,12 @@ void co_tpdo_on_sync(co_pdo_t *p, uint8_t counter, bool operational, int64_t now
 void co_tpdo_tick(co_pdo_t *p, bool operational, int64_t now_us)
 {
     if (!p->valid || p->trans_type < 254u) return;
-    if (p->pending && inhibit_elapsed(p, now_us)) tpdo_send(p, operational, now_us);
-    else if (p->next_event_us && now_us >= p->next_event_us) tpdo_send(p, operational, now_us);
-    else if (!p->next_event_us && p->event_ms) p->next_event_us = now_us + (int64_t)p->event_ms * 1000;
+    if (p->pending && inhibit_elapsed(p, now_us))
+        tpdo_send(p, operational, now_us);
+    else if (p->next_event_us && now_us >= p->next_event_us)
+        tpdo_send(p, operational, now_us);
+    else if (!p->next_event_us && p->event_ms)
+        p->next_event_us = now_us + (int64_t)p->event_ms * 1000;
 }
 
 int64_t co_tpdo_next_event(const co_pdo_t *p, int64_t next_us)

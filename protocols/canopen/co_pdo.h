@@ -22,8 +22,8 @@
 /* What the PDOs of one node share. */
 typedef struct {
     const co_od_t *od;
-    co_tx_t *tx;          /* TPDOs are sent through it */
-    co_emcy_t *emcy;      /* RPDO length errors and deadline misses are reported to it */
+    co_tx_t *tx;     /* TPDOs are sent through it */
+    co_emcy_t *emcy; /* RPDO length errors and deadline misses are reported to it */
     /* Application callbacks (optional), given ctx back. */
     void (*pre_read)(void *ctx, const co_od_entry_t *e); /* a mapped value is about to be sent: refresh it */
     void (*on_rpdo)(void *ctx, uint8_t pdo);             /* an RPDO wrote the OD */
@@ -33,9 +33,9 @@ typedef struct {
 /* Where a PDO sits; kept when it is re-configured. */
 typedef struct {
     const co_pdo_env_t *env;
-    uint16_t comm_index;   /* 0x1400 + n (RPDO) or 0x1800 + n (TPDO) */
-    uint16_t map_index;    /* 0x1600 + n or 0x1A00 + n */
-    uint8_t number;        /* n, 0-based */
+    uint16_t comm_index; /* 0x1400 + n (RPDO) or 0x1800 + n (TPDO) */
+    uint16_t map_index;  /* 0x1600 + n or 0x1A00 + n */
+    uint8_t number;      /* n, 0-based */
     bool is_tpdo;
 } co_pdo_link_t;
 
@@ -44,21 +44,21 @@ typedef struct {
     const co_od_entry_t *entry[CO_PDO_MAX_MAPPED];
     uint8_t count;
     uint8_t bytes;
-    bool valid;            /* COB-ID valid and mapping resolved */
+    bool valid; /* COB-ID valid and mapping resolved */
     uint16_t cob_id;
     uint8_t trans_type;
-    uint8_t sync_start;    /* cached from the communication parameter (sub 6) */
-    uint16_t event_ms;     /* cached sub 5 */
-    uint16_t inhibit_100us;/* cached sub 3 */
+    uint8_t sync_start;     /* cached from the communication parameter (sub 6) */
+    uint16_t event_ms;      /* cached sub 5 */
+    uint16_t inhibit_100us; /* cached sub 3 */
     /* TPDO */
     uint8_t sync_count;
-    bool pending;          /* event requested (or type 0 waiting for SYNC) */
-    bool started;          /* SYNC start value reached */
+    bool pending; /* event requested (or type 0 waiting for SYNC) */
+    bool started; /* SYNC start value reached */
     int64_t last_tx_us;
     int64_t next_event_us;
     /* RPDO */
     uint8_t rx_buf[8];
-    bool rx_buffered;      /* synchronous RPDO waiting for the next SYNC */
+    bool rx_buffered; /* synchronous RPDO waiting for the next SYNC */
     int64_t last_rx_us;
     bool deadline_armed;
     bool deadline_reported;

@@ -6,8 +6,8 @@
 
 #include <string.h>
 
-void co_sdo_server_init(co_sdo_server_t *s, const co_od_t *od, co_tx_t *tx, uint8_t node_id,
-                        co_sdo_write_fn write, co_sdo_pre_read_fn pre_read, void *ctx)
+void co_sdo_server_init(co_sdo_server_t *s, const co_od_t *od, co_tx_t *tx, uint8_t node_id, co_sdo_write_fn write,
+                        co_sdo_pre_read_fn pre_read, void *ctx)
 {
     memset(s, 0, sizeof *s);
     s->od = od;
@@ -19,20 +19,17 @@ void co_sdo_server_init(co_sdo_server_t *s, const co_od_t *od, co_tx_t *tx, uint
     s->ctx = ctx;
 }
 
-void co_sdo_server_reset(co_sdo_server_t *s)
-{
-    memset(&s->transfer, 0, sizeof s->transfer);
-}
+void co_sdo_server_reset(co_sdo_server_t *s) { memset(&s->transfer, 0, sizeof s->transfer); }
 
 static void put_u32(uint8_t *p, uint32_t v)
 {
-    p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); p[2] = (uint8_t)(v >> 16); p[3] = (uint8_t)(v >> 24);
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
 }
 
-static void sdo_send(co_sdo_server_t *s, const uint8_t d[8])
-{
-    co_tx_send(s->tx, s->tx_cob_id, d, 8);
-}
+static void sdo_send(co_sdo_server_t *s, const uint8_t d[8]) { co_tx_send(s->tx, s->tx_cob_id, d, 8); }
 
 static void sdo_abort(co_sdo_server_t *s, uint16_t index, uint8_t sub, uint32_t code)
 {
@@ -69,8 +66,14 @@ static void upload_initiate(co_sdo_server_t *s, uint16_t index, uint8_t sub, int
 {
     uint32_t abort = 0;
     const co_od_entry_t *e = lookup(s, index, sub, &abort);
-    if (!e) { sdo_abort(s, index, sub, abort); return; }
-    if (!(e->flags & CO_ODF_READ)) { sdo_abort(s, index, sub, CO_ABORT_WRITE_ONLY); return; }
+    if (!e) {
+        sdo_abort(s, index, sub, abort);
+        return;
+    }
+    if (!(e->flags & CO_ODF_READ)) {
+        sdo_abort(s, index, sub, CO_ABORT_WRITE_ONLY);
+        return;
+    }
     if (s->pre_read) s->pre_read(s->ctx, e);
     uint32_t size = co_od_value_size(e);
     uint8_t d[8] = {0, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};
@@ -92,7 +95,10 @@ static void upload_segment(co_sdo_server_t *s, const uint8_t *req, int64_t now_u
 {
     co_sdo_transfer_t *t = &s->transfer;
     uint8_t toggle = (uint8_t)((req[0] >> 4) & 1u);
-    if (toggle != t->toggle) { sdo_abort(s, t->index, t->subindex, CO_ABORT_TOGGLE); return; }
+    if (toggle != t->toggle) {
+        sdo_abort(s, t->index, t->subindex, CO_ABORT_TOGGLE);
+        return;
+    }
     uint8_t d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     uint32_t n = co_od_read_raw(t->entry, t->offset, &d[1], 7);
     /* A value that shrank under the transfer (domain refreshed) ends it early. */
@@ -109,18 +115,30 @@ static void download_initiate(co_sdo_server_t *s, const uint8_t *req, uint16_t i
 {
     uint32_t abort = 0;
     const co_od_entry_t *e = lookup(s, index, sub, &abort);
-    if (!e) { sdo_abort(s, index, sub, abort); return; }
-    if (!(e->flags & CO_ODF_WRITE)) { sdo_abort(s, index, sub, CO_ABORT_READ_ONLY); return; }
+    if (!e) {
+        sdo_abort(s, index, sub, abort);
+        return;
+    }
+    if (!(e->flags & CO_ODF_WRITE)) {
+        sdo_abort(s, index, sub, CO_ABORT_READ_ONLY);
+        return;
+    }
     uint8_t cs = req[0];
     bool expedited = (cs & 0x02u) != 0u;
     bool size_ind = (cs & 0x01u) != 0u;
     uint32_t fixed = co_dt_size(e->datatype);
     if (expedited) {
         /* Without a size indication the length is only known for fixed-size types. */
-        if (!size_ind && !fixed) { sdo_abort(s, index, sub, CO_ABORT_TYPE_MISMATCH); return; }
+        if (!size_ind && !fixed) {
+            sdo_abort(s, index, sub, CO_ABORT_TYPE_MISMATCH);
+            return;
+        }
         uint32_t len = size_ind ? 4u - ((cs >> 2) & 3u) : fixed;
         abort = s->write(s->ctx, e, &req[4], len);
-        if (abort) { sdo_abort(s, index, sub, abort); return; }
+        if (abort) {
+            sdo_abort(s, index, sub, abort);
+            return;
+        }
         uint8_t d[8] = {0x60, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};
         sdo_send(s, d);
         s->transfer.state = CO_SDO_IDLE;
@@ -128,12 +146,21 @@ static void download_initiate(co_sdo_server_t *s, const uint8_t *req, uint16_t i
     }
     uint32_t size = (uint32_t)req[4] | (uint32_t)req[5] << 8 | (uint32_t)req[6] << 16 | (uint32_t)req[7] << 24;
     uint32_t cap = CO_SDO_BUF;
-    if (fixed) cap = fixed;
-    else if (e->datatype == CO_DT_VISIBLE_STRING) cap = e->size;
-    else if (e->datatype == CO_DT_DOMAIN) cap = ((const co_domain_t *)e->data)->capacity;
+    if (fixed)
+        cap = fixed;
+    else if (e->datatype == CO_DT_VISIBLE_STRING)
+        cap = e->size;
+    else if (e->datatype == CO_DT_DOMAIN)
+        cap = ((const co_domain_t *)e->data)->capacity;
     if (size_ind) {
-        if (size > cap) { sdo_abort(s, index, sub, CO_ABORT_TOO_LONG); return; }
-        if (fixed && size < fixed) { sdo_abort(s, index, sub, CO_ABORT_TOO_SHORT); return; }
+        if (size > cap) {
+            sdo_abort(s, index, sub, CO_ABORT_TOO_LONG);
+            return;
+        }
+        if (fixed && size < fixed) {
+            sdo_abort(s, index, sub, CO_ABORT_TOO_SHORT);
+            return;
+        }
     }
     if (e->datatype == CO_DT_DOMAIN && !((const co_domain_t *)e->data)->data) {
         sdo_abort(s, index, sub, CO_ABORT_DATA_LOCAL);
@@ -148,7 +175,10 @@ static void download_segment(co_sdo_server_t *s, const uint8_t *req, int64_t now
 {
     co_sdo_transfer_t *t = &s->transfer;
     uint8_t toggle = (uint8_t)((req[0] >> 4) & 1u);
-    if (toggle != t->toggle) { sdo_abort(s, t->index, t->subindex, CO_ABORT_TOGGLE); return; }
+    if (toggle != t->toggle) {
+        sdo_abort(s, t->index, t->subindex, CO_ABORT_TOGGLE);
+        return;
+    }
     uint32_t n = 7u - ((req[0] >> 1) & 7u);
     bool last = (req[0] & 1u) != 0u;
     const co_od_entry_t *e = t->entry;
@@ -181,7 +211,10 @@ static void download_segment(co_sdo_server_t *s, const uint8_t *req, int64_t now
         } else {
             abort = s->write(s->ctx, e, t->buf, t->offset);
         }
-        if (abort) { sdo_abort(s, t->index, t->subindex, abort); return; }
+        if (abort) {
+            sdo_abort(s, t->index, t->subindex, abort);
+            return;
+        }
         t->state = CO_SDO_IDLE;
     }
     uint8_t d[8] = {(uint8_t)(0x20u | (toggle << 4)), 0, 0, 0, 0, 0, 0, 0};
@@ -201,14 +234,18 @@ void co_sdo_server_process(co_sdo_server_t *s, const co_frame_t *request, int64_
     case 1: download_initiate(s, req, index, sub, now_us); break;
     case 2: upload_initiate(s, index, sub, now_us); break;
     case 0:
-        if (t->state == CO_SDO_DOWNLOAD) download_segment(s, req, now_us);
-        else sdo_abort(s, t->index, t->subindex, CO_ABORT_CMD);
+        if (t->state == CO_SDO_DOWNLOAD)
+            download_segment(s, req, now_us);
+        else
+            sdo_abort(s, t->index, t->subindex, CO_ABORT_CMD);
         break;
     case 3:
-        if (t->state == CO_SDO_UPLOAD) upload_segment(s, req, now_us);
-        else sdo_abort(s, t->index, t->subindex, CO_ABORT_CMD);
+        if (t->state == CO_SDO_UPLOAD)
+            upload_segment(s, req, now_us);
+        else
+            sdo_abort(s, t->index, t->subindex, CO_ABORT_CMD);
         break;
-    case 4: t->state = CO_SDO_IDLE; break; /* abort from the client: no answer */
+    case 4: t->state = CO_SDO_IDLE; break;                  /* abort from the client: no answer */
     default: sdo_abort(s, index, sub, CO_ABORT_CMD); break; /* 5, 6: block transfer; 7: invalid */
     }
 }

@@ -18,11 +18,7 @@
 #define CO_SDO_BUF 64u
 #define CO_SDO_SERVER_TIMEOUT_US 1000000u
 
-typedef enum {
-    CO_SDO_IDLE = 0,
-    CO_SDO_DOWNLOAD,
-    CO_SDO_UPLOAD
-} co_sdo_state_t;
+typedef enum { CO_SDO_IDLE = 0, CO_SDO_DOWNLOAD, CO_SDO_UPLOAD } co_sdo_state_t;
 
 /* The transfer in progress. */
 typedef struct {
@@ -31,7 +27,7 @@ typedef struct {
     uint16_t index;
     uint8_t subindex;
     uint8_t toggle;
-    uint32_t size;      /* total bytes (indicated or known) */
+    uint32_t size; /* total bytes (indicated or known) */
     bool size_known;
     uint32_t offset;
     uint8_t buf[CO_SDO_BUF];
@@ -46,17 +42,17 @@ typedef void (*co_sdo_pre_read_fn)(void *ctx, const co_od_entry_t *e);
 typedef struct {
     const co_od_t *od;
     co_tx_t *tx;
-    uint16_t tx_cob_id;     /* 0x580 + node-ID */
+    uint16_t tx_cob_id; /* 0x580 + node-ID */
     uint32_t timeout_us;
     co_sdo_write_fn write;
     co_sdo_pre_read_fn pre_read;
     void *ctx;
     co_sdo_transfer_t transfer;
-    uint32_t aborts;        /* abort frames sent */
+    uint32_t aborts; /* abort frames sent */
 } co_sdo_server_t;
 
-void co_sdo_server_init(co_sdo_server_t *s, const co_od_t *od, co_tx_t *tx, uint8_t node_id,
-                        co_sdo_write_fn write, co_sdo_pre_read_fn pre_read, void *ctx);
+void co_sdo_server_init(co_sdo_server_t *s, const co_od_t *od, co_tx_t *tx, uint8_t node_id, co_sdo_write_fn write,
+                        co_sdo_pre_read_fn pre_read, void *ctx);
 
 /* Reset: a transfer in progress is dropped without an answer. */
 void co_sdo_server_reset(co_sdo_server_t *s);

@@ -18,6 +18,9 @@ int co_tx_send(co_tx_t *tx, uint16_t cob_id, const uint8_t *data, uint8_t dlc)
     f.dlc = dlc;
     if (dlc) memcpy(f.data, data, dlc);
     int r = tx->fn ? tx->fn(tx->user, &f) : -1;
-    if (r == 0) ++tx->frames; else ++tx->errors;
+    if (r == 0)
+        ++tx->frames;
+    else
+        ++tx->errors;
     return r;
 }

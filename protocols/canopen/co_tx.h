@@ -10,10 +10,10 @@
 #include "co_frame.h"
 
 typedef struct {
-    co_tx_fn fn;       /* NULL: every send fails */
+    co_tx_fn fn; /* NULL: every send fails */
     void *user;
-    uint32_t frames;   /* frames the driver accepted */
-    uint32_t errors;   /* frames it refused */
+    uint32_t frames; /* frames the driver accepted */
+    uint32_t errors; /* frames it refused */
 } co_tx_t;
 
 void co_tx_init(co_tx_t *tx, co_tx_fn fn, void *user);

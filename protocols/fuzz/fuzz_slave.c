@@ -45,7 +45,8 @@ static void on_reset(void *user, co_node_t *node, int comm_only)
     OD_PLANT.mfr.x2006_lateness_histogram.capacity = 0;
 }
 
-static uint8_t g_before[sizeof(od_drive_ram_t) > sizeof(od_plant_ram_t) ? sizeof(od_drive_ram_t) : sizeof(od_plant_ram_t)];
+static uint8_t
+    g_before[sizeof(od_drive_ram_t) > sizeof(od_plant_ram_t) ? sizeof(od_drive_ram_t) : sizeof(od_plant_ram_t)];
 
 static int is_rpdo(const co_node_t *n, uint16_t id)
 {
@@ -59,8 +60,8 @@ static int valid_sdo_answer(const co_frame_t *f)
     uint8_t scs = (uint8_t)(f->data[0] >> 5);
     if (f->dlc != 8) return 0;
     if (scs == 4) {
-        uint32_t code = (uint32_t)f->data[4] | (uint32_t)f->data[5] << 8 | (uint32_t)f->data[6] << 16 |
-                        (uint32_t)f->data[7] << 24;
+        uint32_t code =
+            (uint32_t)f->data[4] | (uint32_t)f->data[5] << 8 | (uint32_t)f->data[6] << 16 | (uint32_t)f->data[7] << 24;
         return (code >> 24) == 0x05 || (code >> 24) == 0x06 || (code >> 24) == 0x08;
     }
     return scs <= 3;
@@ -89,8 +90,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         memcpy(f.data, r + 3, 8);
         uint16_t cob = (uint16_t)(f.cob_id & 0x7FFu);
         uint32_t sync_cob = co_od_get_u32(od, 0x1005, 0) & 0x7FFu;
-        int relevant = cob == 0 || cob == sync_cob || cob == 0x600u + id || is_rpdo(&node, cob) ||
-                       (cob > 0x700u && cob <= 0x77Fu);
+        int relevant =
+            cob == 0 || cob == sync_cob || cob == 0x600u + id || is_rpdo(&node, cob) || (cob > 0x700u && cob <= 0x77Fu);
         if (f.cob_id & CO_FRAME_RTR) relevant = 0;
         co_nmt_state_t st = node.nmt;
         memcpy(g_before, od->ram, ram);

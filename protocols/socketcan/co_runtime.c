@@ -38,8 +38,8 @@ int co_runtime_parse_args(int argc, char **argv, const char **iface, uint8_t *no
     return i;
 }
 
-int co_runtime_open(co_runtime_t *rt, const char *iface, const co_od_t *od, uint8_t node_id,
-                    const co_hooks_t *hooks, const co_runtime_app_t *app, void *user)
+int co_runtime_open(co_runtime_t *rt, const char *iface, const co_od_t *od, uint8_t node_id, const co_hooks_t *hooks,
+                    const co_runtime_app_t *app, void *user)
 {
     memset(rt, 0, sizeof *rt);
     rt->fd = co_socketcan_open(iface, 4 << 20);

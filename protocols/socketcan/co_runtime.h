@@ -38,8 +38,8 @@ struct co_runtime {
 int co_runtime_parse_args(int argc, char **argv, const char **iface, uint8_t *node_id);
 
 /* Open the socket and initialise the node (boot-up is sent). Returns 0 or -1. */
-int co_runtime_open(co_runtime_t *rt, const char *iface, const co_od_t *od, uint8_t node_id,
-                    const co_hooks_t *hooks, const co_runtime_app_t *app, void *user);
+int co_runtime_open(co_runtime_t *rt, const char *iface, const co_od_t *od, uint8_t node_id, const co_hooks_t *hooks,
+                    const co_runtime_app_t *app, void *user);
 
 /* Run until stopped by a signal or by the app. Returns 0 on a clean stop, 1 on a bus error. */
 int co_runtime_run(co_runtime_t *rt);

@@ -18,8 +18,10 @@ int co_socketcan_open(const char *ifname, int rcvbuf_bytes)
 {
     int fd = socket(PF_CAN, SOCK_RAW, CAN_RAW);
     if (fd < 0) {
-        fprintf(stderr, "socket(PF_CAN): %s (errno %d): this kernel has no SocketCAN; "
-                        "run inside `bench vm -- ...`\n", strerror(errno), errno);
+        fprintf(stderr,
+                "socket(PF_CAN): %s (errno %d): this kernel has no SocketCAN; "
+                "run inside `bench vm -- ...`\n",
+                strerror(errno), errno);
         return -1;
     }
     struct ifreq ifr;

@@ -69,8 +69,8 @@ static void sweep(const char *name, const co_od_t *od, uint8_t id)
                   (unsigned)a);
         } else {
             ++refused;
-            CHECK(a == CO_ABORT_NO_MAP, "%s: 0x%04X:%02X is PDOMapping=0 but got 0x%08X", name, e->index,
-                  e->subindex, (unsigned)a);
+            CHECK(a == CO_ABORT_NO_MAP, "%s: 0x%04X:%02X is PDOMapping=0 but got 0x%08X", name, e->index, e->subindex,
+                  (unsigned)a);
         }
     }
     printf("%s: %d manufacturer entries mappable (accepted), %d not (refused with 0x06040041)\n", name, accepted,

@@ -91,19 +91,28 @@ int main(int argc, char **argv)
         } else if (strncmp(line, "node ", 5) == 0) {
             char node[16];
             unsigned id;
-            if (sscanf(line + 5, "%15s %x", node, &id) != 2) { printf("bad node line\n"); return 1; }
+            if (sscanf(line + 5, "%15s %x", node, &id) != 2) {
+                printf("bad node line\n");
+                return 1;
+            }
             start(&c, node, id);
         } else if (strncmp(line, "nmt operational", 15) == 0) {
             co_nmt_command(&c.tb.node, CO_NMT_CS_START);
         } else if (line[0] == '>') {
             flush_check(&c);
             co_frame_t f;
-            if (parse_frame(line + 2, &f)) { printf("bad frame '%s'\n", line); return 1; }
+            if (parse_frame(line + 2, &f)) {
+                printf("bad frame '%s'\n", line);
+                return 1;
+            }
             testbus_send(&c.tb, f.cob_id, f.dlc, f.data);
             g_now = c.tb.now_us;
         } else if (line[0] == '<') {
             co_frame_t want;
-            if (parse_frame(line + 2, &want)) { printf("bad frame '%s'\n", line); return 1; }
+            if (parse_frame(line + 2, &want)) {
+                printf("bad frame '%s'\n", line);
+                return 1;
+            }
             char wb[64], gb[64];
             fmt(&want, wb, sizeof wb);
             ++frames_checked;

@@ -21,7 +21,10 @@
 
 static void put_u32(uint8_t *p, uint32_t v)
 {
-    p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); p[2] = (uint8_t)(v >> 16); p[3] = (uint8_t)(v >> 24);
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
 }
 static uint32_t get_u32(const uint8_t *p)
 {
@@ -39,7 +42,10 @@ static int run_echo(int fd, uint32_t n)
     while (answered < n) {
         co_frame_t f;
         int r = co_socketcan_recv(fd, &f, 10 * 1000 * 1000, NULL);
-        if (r == 0) { fprintf(stderr, "echo: timeout after %u frames\n", answered); return 2; }
+        if (r == 0) {
+            fprintf(stderr, "echo: timeout after %u frames\n", answered);
+            return 2;
+        }
         if (r < 0) return 2;
         if (f.cob_id != PING_ID || f.dlc != 8) continue;
         uint32_t seq = get_u32(f.data);
@@ -64,11 +70,18 @@ static int run_ping(int fd, uint32_t n)
         put_u32(p.data, seq);
         put_u32(p.data + 4, ~seq);
         int64_t t0 = co_socketcan_now_us();
-        if (co_socketcan_send(&fd, &p) != 0) { free(rtt); return 2; }
+        if (co_socketcan_send(&fd, &p) != 0) {
+            free(rtt);
+            return 2;
+        }
         for (;;) {
             co_frame_t a;
             int r = co_socketcan_recv(fd, &a, 5 * 1000 * 1000, NULL);
-            if (r <= 0) { fprintf(stderr, "ping: no answer to seq %u\n", seq); free(rtt); return 2; }
+            if (r <= 0) {
+                fprintf(stderr, "ping: no answer to seq %u\n", seq);
+                free(rtt);
+                return 2;
+            }
             if (a.cob_id != ECHO_ID) continue;
             if (a.dlc != 8 || get_u32(a.data) != seq || get_u32(a.data + 4) != seq * 2654435761u) {
                 fprintf(stderr, "ping: bad answer to seq %u: dlc %u seq %u\n", seq, a.dlc, get_u32(a.data));
@@ -84,9 +97,9 @@ static int run_ping(int fd, uint32_t n)
     qsort(rtt, n, sizeof *rtt, cmp_i64);
     printf("ping: %u frames sent, %u answers verified, %u bad\n", n, ok, bad);
     if (n) {
-        printf("ping: rtt_us min %lld median %lld p99 %lld max %lld; %.0f round trips/s\n",
-               (long long)rtt[0], (long long)rtt[n / 2], (long long)rtt[(n * 99) / 100],
-               (long long)rtt[n - 1], total > 0 ? 1e6 * n / (double)total : 0.0);
+        printf("ping: rtt_us min %lld median %lld p99 %lld max %lld; %.0f round trips/s\n", (long long)rtt[0],
+               (long long)rtt[n / 2], (long long)rtt[(n * 99) / 100], (long long)rtt[n - 1],
+               total > 0 ? 1e6 * n / (double)total : 0.0);
     }
     free(rtt);
     return (bad == 0 && ok == n) ? 0 : 1;

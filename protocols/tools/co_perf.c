@@ -31,7 +31,10 @@ static double now_s(void)
 int main(int argc, char **argv)
 {
     long n = argc > 1 ? atol(argv[1]) : 2000000L;
-    if (n <= 0) { fprintf(stderr, "N must be a positive integer\n"); return 64; }
+    if (n <= 0) {
+        fprintf(stderr, "N must be a positive integer\n");
+        return 64;
+    }
     static co_node_t drive, plant;
     co_node_init(&drive, &od_drive, 0x20, tx, NULL, NULL, NULL, 0);
     co_node_init(&plant, &od_plant, 0x10, tx, NULL, NULL, NULL, 0);
@@ -40,7 +43,10 @@ int main(int argc, char **argv)
     /* The drive's RPDO1 (event-driven, 2 x REAL32). */
     co_frame_t rpdo = {.cob_id = 0x220, .dlc = 8, .data = {0, 0, 0x80, 0x3F, 0, 0, 0, 0x40}};
     double t0 = now_s();
-    for (long i = 0; i < n; ++i) { rpdo.data[0] = (uint8_t)i; co_node_process(&drive, &rpdo, i); }
+    for (long i = 0; i < n; ++i) {
+        rpdo.data[0] = (uint8_t)i;
+        co_node_process(&drive, &rpdo, i);
+    }
     double t_rpdo = (now_s() - t0) / (double)n * 1e9;
 
     /* Plant: synchronous RPDO then SYNC (actuation + 2 synchronous TPDOs). */

@@ -45,7 +45,10 @@ static int64_t now_ns(void)
 
 static void put_u32(uint8_t *p, uint32_t v)
 {
-    p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); p[2] = (uint8_t)(v >> 16); p[3] = (uint8_t)(v >> 24);
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
 }
 static uint32_t get_u32(const uint8_t *p)
 {
@@ -81,7 +84,10 @@ static int run_drive(int fd, uint32_t n, uint32_t extra)
     while (answered < n) {
         co_frame_t f;
         int r = co_socketcan_recv(fd, &f, 10 * 1000 * 1000, NULL);
-        if (r == 0) { fprintf(stderr, "drive: timeout after %u periods\n", answered); return 2; }
+        if (r == 0) {
+            fprintf(stderr, "drive: timeout after %u periods\n", answered);
+            return 2;
+        }
         if (r < 0) return 2;
         if (f.cob_id == SYNC_ID) {
             if (f.dlc != 1 || f.data[0] != sync_counter(expect_k)) ++errors;
@@ -137,10 +143,19 @@ static int run_plant(int fd, uint32_t n, uint32_t extra)
         for (;;) {
             co_frame_t a;
             int r = co_socketcan_recv(fd, &a, 2 * 1000 * 1000, NULL);
-            if (r <= 0) { fprintf(stderr, "plant: no command for period %u\n", k); free(rtt); return 2; }
-            if (a.cob_id != CMD_ID) { ++other; continue; }
-            if (a.dlc != 8 || get_f32(a.data) != (float)(uint16_t)k) ++bad;
-            else ++ok;
+            if (r <= 0) {
+                fprintf(stderr, "plant: no command for period %u\n", k);
+                free(rtt);
+                return 2;
+            }
+            if (a.cob_id != CMD_ID) {
+                ++other;
+                continue;
+            }
+            if (a.dlc != 8 || get_f32(a.data) != (float)(uint16_t)k)
+                ++bad;
+            else
+                ++ok;
             break;
         }
         rtt[k] = now_ns() - t0;
@@ -152,9 +167,8 @@ static int run_plant(int fd, uint32_t n, uint32_t extra)
            (unsigned long long)other, (unsigned long long)n * extra);
     printf("lockstep_floor: periods %u frames_per_period %u wall_s %.6f periods_per_s %.1f "
            "rtt_us mean %.1f min %.1f median %.1f p99 %.1f max %.1f\n",
-           n, 4u + extra, 1e-9 * (double)total, 1e9 * (double)n / (double)total, mean / 1e3,
-           (double)rtt[0] / 1e3, (double)rtt[n / 2] / 1e3, (double)rtt[((uint64_t)n * 99u) / 100u] / 1e3,
-           (double)rtt[n - 1] / 1e3);
+           n, 4u + extra, 1e-9 * (double)total, 1e9 * (double)n / (double)total, mean / 1e3, (double)rtt[0] / 1e3,
+           (double)rtt[n / 2] / 1e3, (double)rtt[((uint64_t)n * 99u) / 100u] / 1e3, (double)rtt[n - 1] / 1e3);
     free(rtt);
     return (bad == 0 && ok == n) ? 0 : 1;
 }

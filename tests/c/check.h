@@ -29,15 +29,9 @@ static int g_check_failures = 0;
 
 #define CHECK_TRUE(cond) CHECK(cond, "%s", #cond)
 
-static inline int check_failures(void)
-{
-    return g_check_failures;
-}
+static inline int check_failures(void) { return g_check_failures; }
 
-static inline int check_exit_code(void)
-{
-    return g_check_failures ? 1 : 0;
-}
+static inline int check_exit_code(void) { return g_check_failures ? 1 : 0; }
 
 static inline int check_finish(const char *name)
 {

@@ -40,7 +40,7 @@
 typedef struct {
     double R_ohm, Ld_H, Lq_H, psi_Wb;
     double pole_pairs;
-    double Ts_s;             /* current-loop period */
+    double Ts_s; /* current-loop period */
     double J_kgm2, B_Nm_s_rad, T_load_Nm;
     double Vdc_V;
     double omega_m_rated_rad_s; /* the preset's imposed (rated) mechanical speed, 0 if none */
@@ -73,11 +73,11 @@ static inline motor_params_t motor_params_preset(const char *name)
 typedef struct {
     motor_params_t par;
     double id_A, iq_A;
-    double theta_m_rad;          /* not wrapped */
+    double theta_m_rad; /* not wrapped */
     double omega_m_rad_s;
     double v_alpha_pend_V, v_beta_pend_V; /* command waiting for its interval (stator frame) */
-    int free_speed;              /* 1: integrate the mechanics, 0: omega_m fixed */
-    int n_sub;                   /* RK4 sub-steps per period */
+    int free_speed;                       /* 1: integrate the mechanics, 0: omega_m fixed */
+    int n_sub;                            /* RK4 sub-steps per period */
 } motor_t;
 
 static inline void motor_init(motor_t *m, const motor_params_t *par)
@@ -116,10 +116,9 @@ static inline void motor_advance(motor_t *m, double v_alpha_V, double v_beta_V)
         double k1d, k1q, k1w, k2d, k2q, k2w, k3d, k3q, k3w, k4d, k4q, k4w;
         const double t0 = m->theta_m_rad, w0 = m->omega_m_rad_s, d0 = m->id_A, q0 = m->iq_A;
         motor_deriv(m, t0, w0, d0, q0, &k1d, &k1q, &k1w);
-        motor_deriv(m, t0 + 0.5 * h * w0, w0 + 0.5 * h * k1w, d0 + 0.5 * h * k1d, q0 + 0.5 * h * k1q, &k2d, &k2q,
-                    &k2w);
-        motor_deriv(m, t0 + 0.5 * h * (w0 + 0.5 * h * k1w), w0 + 0.5 * h * k2w, d0 + 0.5 * h * k2d,
-                    q0 + 0.5 * h * k2q, &k3d, &k3q, &k3w);
+        motor_deriv(m, t0 + 0.5 * h * w0, w0 + 0.5 * h * k1w, d0 + 0.5 * h * k1d, q0 + 0.5 * h * k1q, &k2d, &k2q, &k2w);
+        motor_deriv(m, t0 + 0.5 * h * (w0 + 0.5 * h * k1w), w0 + 0.5 * h * k2w, d0 + 0.5 * h * k2d, q0 + 0.5 * h * k2q,
+                    &k3d, &k3q, &k3w);
         motor_deriv(m, t0 + h * (w0 + 0.5 * h * k2w), w0 + h * k3w, d0 + h * k3d, q0 + h * k3q, &k4d, &k4q, &k4w);
         m->id_A = d0 + h / 6.0 * (k1d + 2 * k2d + 2 * k3d + k4d);
         m->iq_A = q0 + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q);
@@ -132,8 +131,8 @@ static inline void motor_advance(motor_t *m, double v_alpha_V, double v_beta_V)
 
 /* ------------------------------------------------------------------ exact discrete (ZOH) */
 /* Phi, Gam of the round-rotor model for (R, L, Ts, w_e); Gam = Ts/L in the limit a Ts -> 0. */
-static inline void motor_zoh_coeffs(double R_ohm, double L_H, double Ts_s, double omega_e_rad_s,
-                                    double complex *Phi, double complex *Gam)
+static inline void motor_zoh_coeffs(double R_ohm, double L_H, double Ts_s, double omega_e_rad_s, double complex *Phi,
+                                    double complex *Gam)
 {
     const double complex a = R_ohm / L_H + MOTOR_IM * omega_e_rad_s;
     *Phi = cexp(-a * Ts_s);

@@ -46,7 +46,7 @@ typedef struct {
     testbus_rec_t rec[TESTBUS_MAX_REC];
     uint32_t n_rec;
     uint32_t n_lost;
-    bool sdo_got;    /* an SDO response of the node arrived (reset by the SDO client) */
+    bool sdo_got; /* an SDO response of the node arrived (reset by the SDO client) */
     uint8_t sdo_resp[8];
     testbus_frame_fn on_frame;
     void *on_frame_user;
@@ -76,10 +76,7 @@ static inline float testbus_get_f32(const uint8_t *p)
     return v;
 }
 
-static inline bool testbus_same_f32(float a, float b)
-{
-    return memcmp(&a, &b, sizeof a) == 0;
-}
+static inline bool testbus_same_f32(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
 
 /* ------------------------------------------------------------------ bus */
 static inline void testbus_sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us)
@@ -102,8 +99,8 @@ static inline void testbus_sink(void *user, const co_frame_t *f, uint8_t sender,
 
 /* The node on a fresh bus at now_us (not delivered yet: bind the app, then testbus_deliver or
  * testbus_step sends the boot-up).  hooks/app may be NULL (the bare slave). */
-static inline void testbus_init(testbus_t *tb, const co_od_t *od, uint8_t node_id, const co_hooks_t *hooks,
-                                void *app, int64_t now_us, int64_t step_us)
+static inline void testbus_init(testbus_t *tb, const co_od_t *od, uint8_t node_id, const co_hooks_t *hooks, void *app,
+                                int64_t now_us, int64_t step_us)
 {
     memset(tb, 0, sizeof *tb);
     tb->node_id = node_id;
@@ -116,10 +113,7 @@ static inline void testbus_init(testbus_t *tb, const co_od_t *od, uint8_t node_i
 }
 
 /* Forget the recorded frames. */
-static inline void testbus_clear(testbus_t *tb)
-{
-    tb->n_rec = 0;
-}
+static inline void testbus_clear(testbus_t *tb) { tb->n_rec = 0; }
 
 /* Queue a frame from the test (delivered by the next testbus_deliver); returns co_membus_inject's result. */
 static inline int testbus_inject(testbus_t *tb, uint32_t cob_id, uint8_t dlc, const uint8_t *data)
@@ -133,10 +127,7 @@ static inline int testbus_inject(testbus_t *tb, uint32_t cob_id, uint8_t dlc, co
 }
 
 /* Deliver everything queued (and what it causes) at now_us. */
-static inline uint32_t testbus_deliver(testbus_t *tb)
-{
-    return co_membus_deliver(&tb->bus, tb->now_us);
-}
+static inline uint32_t testbus_deliver(testbus_t *tb) { return co_membus_deliver(&tb->bus, tb->now_us); }
 
 /* Advance the time by step_us and deliver. */
 static inline uint32_t testbus_step(testbus_t *tb)
@@ -195,8 +186,7 @@ static inline uint32_t testbus_sdo_request(testbus_t *tb, const uint8_t req[8], 
 }
 
 /* SDO download of len bytes: expedited up to 4, else segmented. */
-static inline uint32_t testbus_sdo_download(testbus_t *tb, uint16_t index, uint8_t sub, const void *data,
-                                            uint32_t len)
+static inline uint32_t testbus_sdo_download(testbus_t *tb, uint16_t index, uint8_t sub, const void *data, uint32_t len)
 {
     const uint8_t *p = (const uint8_t *)data;
     uint8_t d[8] = {0, (uint8_t)index, (uint8_t)(index >> 8), sub, 0, 0, 0, 0};

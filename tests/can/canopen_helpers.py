@@ -49,7 +49,7 @@ class Capture(can.Listener):
 class Target:
     """One C node process under test and the canopen master talking to it."""
 
-    kind: str           # 'plant' or 'drive' (which EDS)
+    kind: str  # 'plant' or 'drive' (which EDS)
     node_id: int
     net: canopen.Network
     node: canopen.RemoteNode

@@ -10,8 +10,10 @@ def vcan0() -> str:
     """The name of an up vcan interface; fails (never skips) when there is none."""
     af = probe_af_can()
     if not af.af_can:
-        pytest.fail(f"CAN test without SocketCAN ({af.detail}): run it through scripts/run_tests.sh "
-                    "or `bench vm -- pytest tests/can`")
+        pytest.fail(
+            f"CAN test without SocketCAN ({af.detail}): run it through scripts/run_tests.sh "
+            "or `bench vm -- pytest tests/can`"
+        )
     state = interface_state("vcan0")
     if state != "up":
         pytest.fail(f"vcan0 is {state or 'absent'}: create it (ip link add dev vcan0 type vcan; ip link set up vcan0)")

@@ -13,8 +13,12 @@ from bench.paths import binary
 
 def test_python_can_to_c_echo(vcan0: str) -> None:
     n = 50
-    echo = subprocess.Popen([str(binary("can_pingpong")), "echo", vcan0, str(n)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    echo = subprocess.Popen(
+        [str(binary("can_pingpong")), "echo", vcan0, str(n)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         time.sleep(0.3)
         with can.Bus(interface="socketcan", channel=vcan0, receive_own_messages=False) as bus:
@@ -41,8 +45,12 @@ def test_python_can_to_c_echo(vcan0: str) -> None:
 def test_python_can_sees_frames_of_a_c_process(vcan0: str) -> None:
     """A C process sends; python-can receives the exact frames (ids, DLC, bytes)."""
     with can.Bus(interface="socketcan", channel=vcan0) as bus:
-        pinger = subprocess.Popen([str(binary("can_pingpong")), "ping", vcan0, "3"],
-                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        pinger = subprocess.Popen(
+            [str(binary("can_pingpong")), "ping", vcan0, "3"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
         try:
             for seq in range(3):
                 msg = bus.recv(timeout=5.0)

@@ -29,8 +29,16 @@ def target(request: pytest.FixtureRequest, vcan0: str) -> Iterator[Target]:
         yield t
 
 
-FIXED_SIZE = {datatypes.UNSIGNED8: 1, datatypes.UNSIGNED16: 2, datatypes.UNSIGNED32: 4, datatypes.INTEGER8: 1,
-              datatypes.INTEGER16: 2, datatypes.INTEGER32: 4, datatypes.REAL32: 4, datatypes.BOOLEAN: 1}
+FIXED_SIZE = {
+    datatypes.UNSIGNED8: 1,
+    datatypes.UNSIGNED16: 2,
+    datatypes.UNSIGNED32: 4,
+    datatypes.INTEGER8: 1,
+    datatypes.INTEGER16: 2,
+    datatypes.INTEGER32: 4,
+    datatypes.REAL32: 4,
+    datatypes.BOOLEAN: 1,
+}
 
 
 def leaf_variables(od) -> list[ODVariable]:  # type: ignore[no-untyped-def]
@@ -75,8 +83,11 @@ def test_reset_node_restores_manufacturer_defaults(target: Target) -> None:
     t = target
     od = t.node.object_dictionary
     # pick a REAL32 manufacturer parameter with a default and a range from the EDS
-    cands = [v for v in leaf_variables(od) if v.index >= 0x2000 and v.data_type == datatypes.REAL32
-             and v.writable and v.default not in (None, 0.0)]
+    cands = [
+        v
+        for v in leaf_variables(od)
+        if v.index >= 0x2000 and v.data_type == datatypes.REAL32 and v.writable and v.default not in (None, 0.0)
+    ]
     var = cands[0]
     t.node.sdo.download(var.index, var.subindex, struct.pack("<f", var.default * 0.5))
     assert t.node.sdo.upload(var.index, var.subindex) == struct.pack("<f", var.default * 0.5)
@@ -106,8 +117,13 @@ def test_sdo_read_every_object(target: Target) -> None:
             assert len(data) % 4 == 0, f"{var.qualname}: domain of {len(data)} bytes"
             if t.proc.name == "co_testnode":  # its domains hold a known pattern
                 assert data == bytes((i * 7 + 3) & 0xFF for i in range(len(data))) and len(data) > 0
-        if var.index < 0x1400 and var.data_type != datatypes.DOMAIN and var.default is not None \
-                and var.access_type in ("ro", "const") and var.index not in (0x1001, 0x1003):
+        if (
+            var.index < 0x1400
+            and var.data_type != datatypes.DOMAIN
+            and var.default is not None
+            and var.access_type in ("ro", "const")
+            and var.index not in (0x1001, 0x1003)
+        ):
             assert var.decode_raw(data) == var.default, var.qualname
     print(f"{t.kind}: {n} objects read")
     assert n > 60
@@ -129,7 +145,9 @@ def test_sdo_write_every_writable_object(target: Target) -> None:
                 t.node.sdo[var.index][3].raw = 0
             assert exc.value.code == 0x06010000
             continue
-        sdo_var = t.node.sdo[var.index] if isinstance(od[var.index], ODVariable) else t.node.sdo[var.index][var.subindex]
+        sdo_var = (
+            t.node.sdo[var.index] if isinstance(od[var.index], ODVariable) else t.node.sdo[var.index][var.subindex]
+        )
         if var.data_type == datatypes.VISIBLE_STRING:
             old = sdo_var.raw
             sdo_var.raw = old  # segmented when longer than 4 bytes
@@ -148,8 +166,11 @@ def test_sdo_write_every_writable_object(target: Target) -> None:
 def test_sdo_write_real32_in_range_takes_effect(target: Target) -> None:
     t = target
     od = t.node.object_dictionary
-    cands = [v for v in leaf_variables(od) if v.index >= 0x2000 and v.data_type == datatypes.REAL32
-             and v.writable and v.default not in (None, 0.0)]
+    cands = [
+        v
+        for v in leaf_variables(od)
+        if v.index >= 0x2000 and v.data_type == datatypes.REAL32 and v.writable and v.default not in (None, 0.0)
+    ]
     for var in cands[:10]:
         value = var.default * 1.25
         t.node.sdo.download(var.index, var.subindex, struct.pack("<f", value))
@@ -173,35 +194,54 @@ def test_every_abort_code(target: Target) -> None:
 
     ro = od["Device type"]
     wo = next((v for v in leaf_variables(od) if v.access_type == "wo"), None)
-    u8 = next(v for v in leaf_variables(od) if v.index >= 0x2000 and v.data_type == datatypes.UNSIGNED8
-              and v.writable and v.max is not None)
-    f32 = next(v for v in leaf_variables(od) if v.index >= 0x2000 and v.data_type == datatypes.REAL32 and v.writable
-               and v.default not in (None, 0.0))
-    hi_lim = next(v for v in leaf_variables(od) if v.index >= 0x2000 and v.writable and v.max is not None
-                  and v.data_type == datatypes.UNSIGNED8 and v.max < 255)
-    lo_lim = next(v for v in leaf_variables(od) if v.index >= 0x2000 and v.writable and v.min is not None
-                  and v.min > 0 and v.data_type in (datatypes.UNSIGNED8, datatypes.UNSIGNED16))
+    u8 = next(
+        v
+        for v in leaf_variables(od)
+        if v.index >= 0x2000 and v.data_type == datatypes.UNSIGNED8 and v.writable and v.max is not None
+    )
+    f32 = next(
+        v
+        for v in leaf_variables(od)
+        if v.index >= 0x2000 and v.data_type == datatypes.REAL32 and v.writable and v.default not in (None, 0.0)
+    )
+    hi_lim = next(
+        v
+        for v in leaf_variables(od)
+        if v.index >= 0x2000 and v.writable and v.max is not None and v.data_type == datatypes.UNSIGNED8 and v.max < 255
+    )
+    lo_lim = next(
+        v
+        for v in leaf_variables(od)
+        if v.index >= 0x2000
+        and v.writable
+        and v.min is not None
+        and v.min > 0
+        and v.data_type in (datatypes.UNSIGNED8, datatypes.UNSIGNED16)
+    )
     string = next(v for v in leaf_variables(od) if v.data_type == datatypes.VISIBLE_STRING and v.writable)
 
     def idx(v: ODVariable) -> bytes:
         return struct.pack("<HB", v.index, v.subindex)
 
     expect(0x06020000, b"\x40" + struct.pack("<HB", 0x3FFF, 0) + b"\0" * 4, "object does not exist")
-    expect(0x06090011, b"\x40" + struct.pack("<HB", od["Identity object"].index, 0x33) + b"\0" * 4,
-           "sub-index does not exist")
+    expect(
+        0x06090011,
+        b"\x40" + struct.pack("<HB", od["Identity object"].index, 0x33) + b"\0" * 4,
+        "sub-index does not exist",
+    )
     expect(0x06010002, b"\x23" + idx(ro) + _u32(1), "write to read-only")
     if wo is not None:
         expect(0x06010001, b"\x40" + idx(wo) + b"\0" * 4, "read of write-only")
     expect(0x06070010, b"\x22" + idx(string) + b"abcd", "expedited without size into a string")
     expect(0x06070012, b"\x23" + idx(u8) + _u32(1), "4 bytes into UNSIGNED8")
-    expect(0x06070013, b"\x2B" + idx(f32) + b"\0\0\0\0", "2 bytes into REAL32")
+    expect(0x06070013, b"\x2b" + idx(f32) + b"\0\0\0\0", "2 bytes into REAL32")
     tpdo1_tt = od[0x1800][2]
-    expect(0x06090030, b"\x2F" + idx(tpdo1_tt) + bytes([245, 0, 0, 0]), "reserved transmission type")
-    expect(0x06090031, b"\x2F" + idx(hi_lim) + bytes([hi_lim.max + 1, 0, 0, 0]), "above HighLimit")
+    expect(0x06090030, b"\x2f" + idx(tpdo1_tt) + bytes([245, 0, 0, 0]), "reserved transmission type")
+    expect(0x06090031, b"\x2f" + idx(hi_lim) + bytes([hi_lim.max + 1, 0, 0, 0]), "above HighLimit")
     fmt = "<B" if lo_lim.data_type == datatypes.UNSIGNED8 else "<H"
     cs = 0x2F if fmt == "<B" else 0x2B
     expect(0x06090032, bytes([cs]) + idx(lo_lim) + struct.pack(fmt, lo_lim.min - 1).ljust(4, b"\0"), "below LowLimit")
-    expect(0x05040001, b"\xE0" + idx(ro) + b"\0" * 4, "invalid command specifier")
+    expect(0x05040001, b"\xe0" + idx(ro) + b"\0" * 4, "invalid command specifier")
     # toggle bit: segmented upload, first segment request with toggle 1
     ans = t.raw_sdo(b"\x40" + idx(od["Manufacturer device name"]) + b"\0" * 4)
     assert ans is not None and ans[0] == 0x41
@@ -218,20 +258,39 @@ def test_every_abort_code(target: Target) -> None:
     period = t.node.sdo["Communication cycle period"]
     old = period.raw
     period.raw = 1000
-    expect(0x08000022, b"\x2F" + idx(od["Synchronous counter overflow value"]) + bytes([100, 0, 0, 0]),
-           "0x1019 written while 0x1006 != 0")
+    expect(
+        0x08000022,
+        b"\x2f" + idx(od["Synchronous counter overflow value"]) + bytes([100, 0, 0, 0]),
+        "0x1019 written while 0x1006 != 0",
+    )
     period.raw = old
     print(f"{t.kind}: abort codes provoked: " + ", ".join(f"0x{c:08X}" for c in sorted(codes)))
-    need = {0x06020000, 0x06090011, 0x06010002, 0x06070010, 0x06070012, 0x06070013, 0x06090030,
-            0x06090031, 0x06090032, 0x05040001, 0x05030000, 0x05040000, 0x08000022}
+    need = {
+        0x06020000,
+        0x06090011,
+        0x06010002,
+        0x06070010,
+        0x06070012,
+        0x06070013,
+        0x06090030,
+        0x06090031,
+        0x06090032,
+        0x05040001,
+        0x05030000,
+        0x05040000,
+        0x08000022,
+    }
     if wo is not None:
         need.add(0x06010001)
     assert need <= set(codes)
 
 
 def _mappable_tx_vars(od, n: int) -> list[ODVariable]:  # type: ignore[no-untyped-def]
-    out = [v for v in leaf_variables(od) if v.pdo_mappable and v.readable and v.index >= 0x2000
-           and v.data_type == datatypes.REAL32]
+    out = [
+        v
+        for v in leaf_variables(od)
+        if v.pdo_mappable and v.readable and v.index >= 0x2000 and v.data_type == datatypes.REAL32
+    ]
     return out[:n]
 
 
@@ -294,7 +353,7 @@ def test_pdo_remap_aborts(target: Target) -> None:
     cob = t.node.sdo[0x1801][1].raw
     # PDO valid: changing the mapping is refused (step a of CiA 301 not done)
     t.node.sdo[0x1801][1].raw = cob & ~0x80000000
-    assert code(b"\x2F" + struct.pack("<HB", mapping.index, 0) + b"\0\0\0\0") == 0x06010000
+    assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + b"\0\0\0\0") == 0x06010000
     # invalidate, count 0
     t.node.sdo[0x1801][1].raw = cob | 0x80000000
     t.node.sdo[0x1A01][0].raw = 0
@@ -305,12 +364,12 @@ def test_pdo_remap_aborts(target: Target) -> None:
     f = _mappable_tx_vars(od, 3)
     for i in range(3):
         t.node.sdo[0x1A01][i + 1].raw = (f[i].index << 16) | (f[i].subindex << 8) | 32
-    assert code(b"\x2F" + struct.pack("<HB", mapping.index, 0) + bytes([3, 0, 0, 0])) == 0x06040042  # 96 bits
-    assert code(b"\x2F" + struct.pack("<HB", mapping.index, 0) + bytes([9, 0, 0, 0])) == 0x06040042
+    assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + bytes([3, 0, 0, 0])) == 0x06040042  # 96 bits
+    assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + bytes([9, 0, 0, 0])) == 0x06040042
     t.node.sdo[0x1A01][0].raw = 2  # 64 bits: accepted
     assert t.node.sdo[0x1A01][0].raw == 2
     # COB-ID change while valid is refused
-    t.node.sdo[0x1801][1].raw = (cob & 0x7FF)
+    t.node.sdo[0x1801][1].raw = cob & 0x7FF
     assert code(b"\x23" + struct.pack("<HB", comm.index, 1) + _u32(0x3F0)) == 0x06090030
     t.node.nmt.send_command(0x82)  # reset communication restores the EDS mapping
     time.sleep(0.1)

@@ -16,8 +16,9 @@ SCENARIO = REPO / "tests" / "scenarios" / "parity.toml"
 
 
 def bench(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "bench.cli", *args], capture_output=True, text=True, cwd=REPO,
-                          timeout=900)
+    return subprocess.run(
+        [sys.executable, "-m", "bench.cli", *args], capture_output=True, text=True, cwd=REPO, timeout=900
+    )
 
 
 def test_run_over_vcan_equals_direct_and_replays(vcan0: str, tmp_path: Path) -> None:

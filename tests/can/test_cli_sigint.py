@@ -18,9 +18,26 @@ def _alive(pattern: str) -> list[str]:
 
 def test_sigint_mid_run_leaves_no_orphan(vcan0: str, tmp_path: Path) -> None:
     out = tmp_path / "long"
-    proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(REPO / "scenarios" / "you2019_step.toml"),
-                             "--bus", vcan0, "--out", str(out), "--no-viewer", "--set", "scenario.periods=5000000"],
-                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(REPO / "scenarios" / "you2019_step.toml"),
+            "--bus",
+            vcan0,
+            "--out",
+            str(out),
+            "--no-viewer",
+            "--set",
+            "scenario.periods=5000000",
+        ],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not _alive("build/bin/plant_node"):
         time.sleep(0.5)

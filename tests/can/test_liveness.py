@@ -51,14 +51,14 @@ def _same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
 
 # ---------------------------------------------------------------------------------------- load
 
+
 def test_lockstep_under_cpu_load_is_bit_identical(vcan0: str, tmp_path: Path) -> None:
     sc = load(TUNE, ["scenario.periods=3000"])
     direct = run_scenario(sc, RunOptions(bus="direct"), keep_trace=True)
     quiet = run_scenario(sc, RunOptions(bus=vcan0, out=tmp_path / "quiet"), keep_trace=True)
     # Busy loops at the nodes' priority, twice as many as there are CPUs: the nodes, the master and the
     # recorder get a third of a CPU each, the loop runs several times slower; nothing else may change.
-    hogs = [subprocess.Popen(["sh", "-c", "while :; do :; done"])
-            for _ in range(2 * (os.cpu_count() or 1))]
+    hogs = [subprocess.Popen(["sh", "-c", "while :; do :; done"]) for _ in range(2 * (os.cpu_count() or 1))]
     try:
         loaded = run_scenario(sc, RunOptions(bus=vcan0, out=tmp_path / "loaded"), keep_trace=True)
     finally:
@@ -76,10 +76,28 @@ def test_lockstep_under_cpu_load_is_bit_identical(vcan0: str, tmp_path: Path) ->
 
 # ---------------------------------------------------------------------------------------- liveness
 
+
 def _start_long_run(out: Path) -> subprocess.Popen[str]:
-    proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "vcan0", "--out", str(out),
-                             "--no-viewer", "--set", "scenario.periods=5000000"],
-                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(STEP),
+            "--bus",
+            "vcan0",
+            "--out",
+            str(out),
+            "--no-viewer",
+            "--set",
+            "scenario.periods=5000000",
+        ],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not (out.with_name(out.name + ".partial") / "candump.log").exists():
         time.sleep(0.2)
@@ -88,8 +106,7 @@ def _start_long_run(out: Path) -> subprocess.Popen[str]:
     return proc
 
 
-@pytest.mark.parametrize("node,how", [("drive", signal.SIGKILL), ("plant", signal.SIGKILL),
-                                      ("drive", signal.SIGSTOP)])
+@pytest.mark.parametrize("node,how", [("drive", signal.SIGKILL), ("plant", signal.SIGKILL), ("drive", signal.SIGSTOP)])
 def test_a_lost_node_is_named_at_once(vcan0: str, tmp_path: Path, node: str, how: signal.Signals) -> None:
     out = tmp_path / f"{node}-{how.name}"
     proc = _start_long_run(out)
@@ -115,15 +132,19 @@ def test_a_lost_node_is_named_at_once(vcan0: str, tmp_path: Path, node: str, how
 
 # ---------------------------------------------------------------------------------------- foreign frames
 
+
 def _cangen(*args: str) -> subprocess.Popen[bytes]:
     return subprocess.Popen(["cangen", "vcan0", *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
-@pytest.mark.parametrize("flood", [
-    ("-I", "080", "-L", "0", "-g", "2"),                            # fake SYNCs, no counter
-    ("-I", "080", "-L", "1", "-D", "r", "-g", "2"),                 # fake SYNCs with a random counter
-    ("-I", "r", "-L", "r", "-D", "r", "-g", "0.2"),                 # random identifiers, lengths, data
-])
+@pytest.mark.parametrize(
+    "flood",
+    [
+        ("-I", "080", "-L", "0", "-g", "2"),  # fake SYNCs, no counter
+        ("-I", "080", "-L", "1", "-D", "r", "-g", "2"),  # fake SYNCs with a random counter
+        ("-I", "r", "-L", "r", "-D", "r", "-g", "0.2"),  # random identifiers, lengths, data
+    ],
+)
 def test_foreign_frames_never_pass_for_a_clean_run(vcan0: str, tmp_path: Path, flood: tuple[str, ...]) -> None:
     sc = load(TUNE, ["scenario.periods=3000"])
     gen = _cangen(*flood)
@@ -176,10 +197,27 @@ def test_a_flood_after_the_loop_changes_nothing(vcan0: str, tmp_path: Path) -> N
 
 # ---------------------------------------------------------------------------------------- bad buses
 
+
 def test_a_bus_that_does_not_exist_is_named_before_anything_starts(vcan0: str, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "nonexistent0", "--out",
-                          str(out), "--no-viewer"], capture_output=True, text=True, cwd=REPO, timeout=120)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(STEP),
+            "--bus",
+            "nonexistent0",
+            "--out",
+            str(out),
+            "--no-viewer",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
     assert res.returncode == 2, res.stderr
     assert "nonexistent0" in res.stderr and f"{vcan0} (up)" in res.stderr  # the buses that exist
     assert list(tmp_path.iterdir()) == []

@@ -18,16 +18,27 @@ PERIODS = 150
 def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
     # In real time a command that misses its period is late or lost (counted below): the run may end
     # frames_lost in a VM, which cannot pace sub-ms work reliably.
-    raw = {"scenario": {"name": "realtime-slow", "periods": PERIODS, "timing": "realtime",
-                        "expect": ["ok", "frames_lost"]},
-           "motor": {"preset": "you2019", "mech_mode": "locked"},
-           "drive": {"Ts_s": TS_S, "t_dead_s": 0.0, "encoder_lines": 0},
-           # bandwidths the drive accepts at a 10 ms period (it refuses those beyond its sampling limits:
-           # PI below 1/(6 Ts), estimator below 1/(2 Ts))
-           # (position before speed: the drive keeps position bandwidth < speed bandwidth at every write)
-           "controller": {"controller": "deadbeat_you2019", "estimator_bandwidth_Hz": 20.0, "pi_bandwidth_Hz": 10.0,
-                          "position_bandwidth_Hz": 0.5, "speed_bandwidth_Hz": 3.0},
-           "events": [{"at_period": 50, "references": {"iq_ref_A": 1.0}}]}
+    raw = {
+        "scenario": {
+            "name": "realtime-slow",
+            "periods": PERIODS,
+            "timing": "realtime",
+            "expect": ["ok", "frames_lost"],
+        },
+        "motor": {"preset": "you2019", "mech_mode": "locked"},
+        "drive": {"Ts_s": TS_S, "t_dead_s": 0.0, "encoder_lines": 0},
+        # bandwidths the drive accepts at a 10 ms period (it refuses those beyond its sampling limits:
+        # PI below 1/(6 Ts), estimator below 1/(2 Ts))
+        # (position before speed: the drive keeps position bandwidth < speed bandwidth at every write)
+        "controller": {
+            "controller": "deadbeat_you2019",
+            "estimator_bandwidth_Hz": 20.0,
+            "pi_bandwidth_Hz": 10.0,
+            "position_bandwidth_Hz": 0.5,
+            "speed_bandwidth_Hz": 3.0,
+        },
+        "events": [{"at_period": 50, "references": {"iq_ref_A": 1.0}}],
+    }
     run = run_raw(raw, vcan0, keep_frames=True)
     frames = run.frames
     assert frames is not None

@@ -26,8 +26,21 @@ def runs(tmp_path_factory: pytest.TempPathFactory, vcan0: str) -> dict[str, tupl
     return out
 
 
-SIGNALS = ("i_a_A", "i_b_A", "theta_m_rad", "sample_index", "status", "v_alpha_V", "v_beta_V", "det_A2", "K1_hat_V_A",
-           "K1_active_V_A", "L_hat_H", "iq_A", "id_A")
+SIGNALS = (
+    "i_a_A",
+    "i_b_A",
+    "theta_m_rad",
+    "sample_index",
+    "status",
+    "v_alpha_V",
+    "v_beta_V",
+    "det_A2",
+    "K1_hat_V_A",
+    "K1_active_V_A",
+    "L_hat_H",
+    "iq_A",
+    "id_A",
+)
 
 
 def test_lockstep_over_vcan_equals_direct_bit_for_bit(runs) -> None:  # type: ignore[no-untyped-def]

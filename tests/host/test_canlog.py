@@ -164,7 +164,7 @@ def test_parse_stops_before_partial_line() -> None:
     assert out["t_us"][:2].tolist() == [1700000000000001, 1700000000000002]
     assert out["dlc"][:2].tolist() == [1, 2] and out["data"][1][:3].tolist() == [0x22, 0x33, 0]
     assert (out["sender"][:2] == 255).all() and (out["seq"][:2] == 0).all()
-    rest = buf[consumed.value:] + b"03) can0 7FF#\n"
+    rest = buf[consumed.value :] + b"03) can0 7FF#\n"
     n = lib.hil_log_parse(rest, len(rest), out.ctypes.data, 4, ctypes.byref(consumed), ctypes.byref(skipped))
     assert (n, consumed.value) == (1, len(rest))
     assert (out["cob_id"][0], out["dlc"][0], out["t_us"][0]) == (0x7FF, 0, 1700000000000003)
@@ -275,8 +275,12 @@ MIXED = """\
 (1700000000.000008) vcan0 124#
    (1700000000.000009)   can1   7FF#0102030405060708   R\r
 """
-MIXED_VALID = [(1700000000_000001, 0x123, b"\x11\x22"), (1700000000_000007, 0x1FF, b"\xaa\xbb"),
-               (1700000000_000008, 0x124, b""), (1700000000_000009, 0x7FF, bytes(range(1, 9)))]
+MIXED_VALID = [
+    (1700000000_000001, 0x123, b"\x11\x22"),
+    (1700000000_000007, 0x1FF, b"\xaa\xbb"),
+    (1700000000_000008, 0x124, b""),
+    (1700000000_000009, 0x7FF, bytes(range(1, 9))),
+]
 MIXED_SKIPPED = 5  # extended, error, 2 remote, FD of 12 bytes
 
 
@@ -298,13 +302,29 @@ def test_skipped_like_python_can(tmp_path: Path) -> None:
 
 
 MALFORMED = [
-    b"garbage", b"(", b"()", b"(1700000000.000001)", b"(1700000000.000001) vcan0", b"(x.1) vcan0 123#11",
-    b"(.000001) vcan0 123#11", b"(1700000000.000001 vcan0 123#11", b"1700000000.000001 vcan0 123#11",
-    b"(1700000000.000001)vcan0 123#11", b"(1700000000.000001) vcan0 123#1", b"(1700000000.000001) vcan0 123#1G",
-    b"(1700000000.000001) vcan0 800#11", b"(1700000000.000001) vcan0 1234#11", b"(1700000000.000001) vcan0 #11",
-    b"(1700000000.000001) vcan0 123", b"(1700000000.000001) vcan0 123#112233445566778899",
-    b"(1700000000.000001) vcan0 123## ", b"(1700000000.000001) vcan0 123#11 X", b"(1700000000.000001) vcan0 123#11 R T",
-    b"(99999999999999999999.000001) vcan0 123#11", b"(1700000000.000001) vcan0 1 2#11", b"\x00\xff\x80(\x01",
+    b"garbage",
+    b"(",
+    b"()",
+    b"(1700000000.000001)",
+    b"(1700000000.000001) vcan0",
+    b"(x.1) vcan0 123#11",
+    b"(.000001) vcan0 123#11",
+    b"(1700000000.000001 vcan0 123#11",
+    b"1700000000.000001 vcan0 123#11",
+    b"(1700000000.000001)vcan0 123#11",
+    b"(1700000000.000001) vcan0 123#1",
+    b"(1700000000.000001) vcan0 123#1G",
+    b"(1700000000.000001) vcan0 800#11",
+    b"(1700000000.000001) vcan0 1234#11",
+    b"(1700000000.000001) vcan0 #11",
+    b"(1700000000.000001) vcan0 123",
+    b"(1700000000.000001) vcan0 123#112233445566778899",
+    b"(1700000000.000001) vcan0 123## ",
+    b"(1700000000.000001) vcan0 123#11 X",
+    b"(1700000000.000001) vcan0 123#11 R T",
+    b"(99999999999999999999.000001) vcan0 123#11",
+    b"(1700000000.000001) vcan0 1 2#11",
+    b"\x00\xff\x80(\x01",
 ]
 SILENT = [b"", b"   \r", b"# a comment", b"  ; another comment"]  # skipped without being counted
 
@@ -313,10 +333,18 @@ def test_garbage(tmp_path: Path) -> None:
     """Malformed lines and random bytes: no crash, each malformed line counted, the valid lines
     between them still read."""
     rng = np.random.default_rng(3)
-    valid = [b"(1700000000.%06d) vcan0 %03X#%s" % (i, i * 7, bytes([i] * (i % 9)).hex().upper().encode())
-             for i in range(len(MALFORMED) + 1)]
-    body = b"".join(v + b"\n" + m + b"\n" + SILENT[i % len(SILENT)] + b"\n"
-                    for i, (v, m) in enumerate(zip(valid, MALFORMED, strict=False))) + valid[-1] + b"\n"
+    valid = [
+        b"(1700000000.%06d) vcan0 %03X#%s" % (i, i * 7, bytes([i] * (i % 9)).hex().upper().encode())
+        for i in range(len(MALFORMED) + 1)
+    ]
+    body = (
+        b"".join(
+            v + b"\n" + m + b"\n" + SILENT[i % len(SILENT)] + b"\n"
+            for i, (v, m) in enumerate(zip(valid, MALFORMED, strict=False))
+        )
+        + valid[-1]
+        + b"\n"
+    )
     path = tmp_path / "bad.log"
     path.write_bytes(body)
     expect = [(1700000000_000000 + i, i * 7, bytes([i] * (i % 9))) for i in range(len(valid))]
@@ -325,8 +353,10 @@ def test_garbage(tmp_path: Path) -> None:
         check_valid(np.concatenate(list(it)), expect)
         assert it.skipped == len(MALFORMED)
     # random bytes (no '\n' in them) between valid lines: one skipped line each
-    blobs = [rng.integers(0, 256, int(rng.integers(1, 300)), dtype=np.uint8).tobytes().replace(b"\n", b"x")
-             for _ in range(50)]
+    blobs = [
+        rng.integers(0, 256, int(rng.integers(1, 300)), dtype=np.uint8).tobytes().replace(b"\n", b"x")
+        for _ in range(50)
+    ]
     blobs = [b if b.strip(b" \t\r\v\f") else b"x" for b in blobs]
     blobs = [b"x" + b if b.lstrip(b" \t\r\v\f")[:1] in (b"#", b";") else b for b in blobs]
     body = b"".join(valid[i % len(valid)] + b"\n" + b + b"\n" for i, b in enumerate(blobs))
@@ -360,8 +390,9 @@ def test_random_buffers_never_crash() -> None:
                 buf[p] = int(rng.integers(0, 256))
             buf = bytes(buf[: int(rng.integers(0, len(buf) + 1))])
         else:
-            buf = rng.choice(np.frombuffer(b"()#.0123456789ABCDEFRrT \t\n\r\x00xyz", dtype=np.uint8),
-                             int(rng.integers(0, 400))).tobytes()
+            buf = rng.choice(
+                np.frombuffer(b"()#.0123456789ABCDEFRrT \t\n\r\x00xyz", dtype=np.uint8), int(rng.integers(0, 400))
+            ).tobytes()
         cap = int(rng.integers(1, 65))
         n = lib.hil_log_parse(buf, len(buf), out.ctypes.data, cap, ctypes.byref(consumed), ctypes.byref(skipped))
         assert n <= cap and consumed.value <= len(buf)

@@ -39,8 +39,14 @@ def test_vm_without_command_is_a_usage_error() -> None:
 
 def test_vm_returns_the_command_status() -> None:
     """`bench vm -- true` exits 0, `bench vm -- sh -c 'exit 3'` exits 3, with a real vcan0 inside."""
-    ok = run("vm", "--", "sh", "-c", "ip -d link show vcan0 | grep -q 'vcan' && cat /sys/class/net/vcan0/operstate",
-             timeout=600)
+    ok = run(
+        "vm",
+        "--",
+        "sh",
+        "-c",
+        "ip -d link show vcan0 | grep -q 'vcan' && cat /sys/class/net/vcan0/operstate",
+        timeout=600,
+    )
     assert ok.returncode == 0, ok.stdout + ok.stderr
     bad = run("vm", "--", "sh", "-c", "exit 3", timeout=600)
     assert bad.returncode == 3, bad.stdout + bad.stderr

@@ -45,22 +45,28 @@ def test_run_direct_writes_every_result(tmp_path: Path) -> None:
 
 def test_set_overrides_change_the_run(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer",
-                "--set", "controller.L_hat_ratio=1.2")
+    res = bench(
+        "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer", "--set", "controller.L_hat_ratio=1.2"
+    )
     assert res.returncode == 0, res.stderr
     step = json.loads((out / "summary.json").read_text())["steps"][0]
     assert step["overshoot_pct"] > 10.0  # L_hat = 1.2 L overshoots (You 2019 Fig. 14)
 
 
-@pytest.mark.parametrize("content, needle", [
-    ("[scenario]\nname='x'\nperiods=10\n[controller]\nfoo=1\n", "unknown key 'controller.foo'"),
-    ("[scenario]\nname='x'\nperiods=10\n[motor]\nR_ohm=5000\n", "motor.R_ohm = 5000 is out of range: allowed"),
-    ("[scenario]\nname='x'\nperiods=10\n[drive]\nmod_limit='square'\n", "expected one of none, hexagon, circle"),
-    ("[scenario]\nname='x'\nperiods=0\n", "scenario.periods = 0"),
-    ("[scenario\nname='x'\n", "not valid TOML"),
-    ("[scenario]\nname='x'\nperiods=10\n[[events]]\nat_period=50\nreferences={iq_ref_A=1.0}\n",
-     "events[0].at_period = 50: expected an integer in 0 .. 9"),
-])
+@pytest.mark.parametrize(
+    "content, needle",
+    [
+        ("[scenario]\nname='x'\nperiods=10\n[controller]\nfoo=1\n", "unknown key 'controller.foo'"),
+        ("[scenario]\nname='x'\nperiods=10\n[motor]\nR_ohm=5000\n", "motor.R_ohm = 5000 is out of range: allowed"),
+        ("[scenario]\nname='x'\nperiods=10\n[drive]\nmod_limit='square'\n", "expected one of none, hexagon, circle"),
+        ("[scenario]\nname='x'\nperiods=0\n", "scenario.periods = 0"),
+        ("[scenario\nname='x'\n", "not valid TOML"),
+        (
+            "[scenario]\nname='x'\nperiods=10\n[[events]]\nat_period=50\nreferences={iq_ref_A=1.0}\n",
+            "events[0].at_period = 50: expected an integer in 0 .. 9",
+        ),
+    ],
+)
 def test_bad_scenario_is_refused_before_anything_starts(tmp_path: Path, content: str, needle: str) -> None:
     path = tmp_path / "bad.toml"
     path.write_text(content)
@@ -72,15 +78,18 @@ def test_bad_scenario_is_refused_before_anything_starts(tmp_path: Path, content:
 
 
 def test_bad_override_names_the_key(tmp_path: Path) -> None:
-    res = bench("run", str(STEP), "--bus", "direct", "--out", str(tmp_path / "o"),
-                "--set", "controller.L_hat_ratio=500")
+    res = bench(
+        "run", str(STEP), "--bus", "direct", "--out", str(tmp_path / "o"), "--set", "controller.L_hat_ratio=500"
+    )
     assert res.returncode == 2 and "controller.L_hat_ratio" in res.stderr and "0.01 .. 100" in res.stderr
 
 
 def test_replay_of_an_asc_log_gives_the_same_traces(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    assert bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer",
-                 "--log-format", "asc").returncode == 0
+    assert (
+        bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer", "--log-format", "asc").returncode
+        == 0
+    )
     res = bench("replay", str(out / "bus.asc"), "--no-viewer")
     assert res.returncode == 0, res.stderr
     a, b = np.load(out / "traces.npy"), np.load(out / "replay" / "traces.npy")
@@ -98,23 +107,48 @@ def test_replay_refuses_a_file_that_is_not_a_log(tmp_path: Path) -> None:
 
 def test_sweep_grid_table_and_heatmap(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    res = bench("sweep", str(STEP), "--grid", "controller.L_hat_ratio=0.5,1.0", "--grid",
-                "controller.R_hat_ratio=1.0,1.5", "--jobs", "2", "--out", str(out))
+    res = bench(
+        "sweep",
+        str(STEP),
+        "--grid",
+        "controller.L_hat_ratio=0.5,1.0",
+        "--grid",
+        "controller.R_hat_ratio=1.0,1.5",
+        "--jobs",
+        "2",
+        "--out",
+        str(out),
+    )
     assert res.returncode == 0, res.stderr
     rows = (out / "sweep.csv").read_text().strip().splitlines()
     assert len(rows) == 5
     table = {tuple(r.split(",")[:2]): r.split(",")[2] for r in rows[1:]}
-    assert table[("1.0", "1.0")] == "2"            # matched: deadbeat
-    assert int(table[("0.5", "1.0")]) > 5          # L_hat = 0.5 L: slow
+    assert table[("1.0", "1.0")] == "2"  # matched: deadbeat
+    assert int(table[("0.5", "1.0")]) > 5  # L_hat = 0.5 L: slow
     assert (out / "heatmap_periods_to_settle.png").stat().st_size > 0
 
 
 def test_sigint_mid_run_stops_cleanly(tmp_path: Path) -> None:
     """Ctrl-C during a long direct run: exit 130, no result folder pretending to be complete."""
     out = tmp_path / "long"
-    proc = subprocess.Popen([*BENCH, "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer",
-                             "--set", "scenario.periods=20000000"], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            *BENCH,
+            "run",
+            str(STEP),
+            "--bus",
+            "direct",
+            "--out",
+            str(out),
+            "--no-viewer",
+            "--set",
+            "scenario.periods=20000000",
+        ],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     time.sleep(4.0)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
@@ -125,14 +159,18 @@ def test_sigint_mid_run_stops_cleanly(tmp_path: Path) -> None:
 
 def test_trace_table_selects_the_traced_signals(tmp_path: Path) -> None:
     path = tmp_path / "trace.toml"
-    path.write_text(STEP.read_text() + '\n[trace]\npdo3 = ["Drive status.iq_ref_active_A", "Drive status.speed_rad_s"]\n')
+    path.write_text(
+        STEP.read_text() + '\n[trace]\npdo3 = ["Drive status.iq_ref_active_A", "Drive status.speed_rad_s"]\n'
+    )
     out = tmp_path / "run"
     res = bench("run", str(path), "--bus", "direct", "--out", str(out), "--no-viewer")
     assert res.returncode == 0, res.stderr
     tr = np.load(out / "traces.npy")
     assert tr["drive_iq_ref_active_A"][-2] == 1.0 and "det_A2" not in tr.dtype.names  # last: sent at the next SYNC
     bad = tmp_path / "bad.toml"
-    bad.write_text(STEP.read_text() + '\n[trace]\npdo3 = ["Controller.Ts_s", "Drive status.iq_A", "Drive status.id_A"]\n')
+    bad.write_text(
+        STEP.read_text() + '\n[trace]\npdo3 = ["Controller.Ts_s", "Drive status.iq_A", "Drive status.id_A"]\n'
+    )
     res = bench("run", str(bad), "--bus", "direct", "--out", str(tmp_path / "b"))
     assert res.returncode == 2 and "trace.pdo3" in res.stderr
 
@@ -149,8 +187,18 @@ def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None
     assert res.returncode == 0, res.stderr
     a = json.loads((out / "summary.json").read_text())
     b = json.loads((alone / "replay" / "summary.json").read_text())
-    for key in ("status", "periods", "Ts_s", "steps", "identified", "plant", "controller", "counters", "settings",
-                "bus_stats"):
+    for key in (
+        "status",
+        "periods",
+        "Ts_s",
+        "steps",
+        "identified",
+        "plant",
+        "controller",
+        "counters",
+        "settings",
+        "bus_stats",
+    ):
         assert a[key] == b[key], key
     assert any(s["tuning_on"] for s in a["steps"]) and not all(s["tuning_on"] for s in a["steps"])
     assert a["identified"]["K1_bar_V_A"] is not None

@@ -18,22 +18,39 @@ def test_eds_loads_in_canopen_without_warnings(node: str, caplog: pytest.LogCapt
     with caplog.at_level(logging.WARNING):
         od = canopen.import_od(str(EDS_DIR / f"{node}.eds"), node_id=1)
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING], caplog.text
-    for index in (0x1000, 0x1001, 0x1003, 0x1005, 0x1008, 0x1014, 0x1016, 0x1017, 0x1018, 0x1019,
-                  0x1400, 0x1600, 0x1800, 0x1A00):
+    for index in (
+        0x1000,
+        0x1001,
+        0x1003,
+        0x1005,
+        0x1008,
+        0x1014,
+        0x1016,
+        0x1017,
+        0x1018,
+        0x1019,
+        0x1400,
+        0x1600,
+        0x1800,
+        0x1A00,
+    ):
         assert index in od, f"{node}.eds lacks 0x{index:04X}"
     assert od.device_information.product_name
 
 
 def test_generated_object_dictionaries_are_current() -> None:
-    res = subprocess.run([sys.executable, str(REPO / "protocols" / "gen_od.py"), "--check"],
-                         capture_output=True, text=True)
+    res = subprocess.run(
+        [sys.executable, str(REPO / "protocols" / "gen_od.py"), "--check"], capture_output=True, text=True
+    )
     assert res.returncode == 0, res.stderr
 
 
 def test_generator_stands_on_its_own() -> None:
     """protocols/gen_od.py needs `canopen` only: it runs with the bench made unimportable."""
-    code = ("import runpy, sys; sys.modules['bench'] = None; sys.argv = ['gen_od.py', '--check']; "
-            f"runpy.run_path({str(REPO / 'protocols' / 'gen_od.py')!r}, run_name='__main__')")
+    code = (
+        "import runpy, sys; sys.modules['bench'] = None; sys.argv = ['gen_od.py', '--check']; "
+        f"runpy.run_path({str(REPO / 'protocols' / 'gen_od.py')!r}, run_name='__main__')"
+    )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
 
@@ -54,7 +71,7 @@ def test_generator_and_bench_read_the_same_float_limits_and_value_names(node: st
     od = canopen.import_od(str(path))
     n = names = 0
     for obj in od.values():
-        for var in ([obj] if isinstance(obj, canopen.objectdictionary.ODVariable) else obj.values()):
+        for var in [obj] if isinstance(obj, canopen.objectdictionary.ODVariable) else obj.values():
             if var.data_type == canopen.objectdictionary.datatypes.REAL32:
                 assert gen.float_limits(raw, var) == float_limits(path, var), var.name
                 n += 1
@@ -74,8 +91,9 @@ def test_generator_detects_a_stale_file(tmp_path) -> None:  # type: ignore[no-un
     shutil.copy(gen, backup)
     try:
         gen.write_text(gen.read_text() + "/* edited by hand */\n")
-        res = subprocess.run([sys.executable, str(REPO / "protocols" / "gen_od.py"), "--check"],
-                             capture_output=True, text=True)
+        res = subprocess.run(
+            [sys.executable, str(REPO / "protocols" / "gen_od.py"), "--check"], capture_output=True, text=True
+        )
         assert res.returncode == 1 and "stale" in res.stderr
     finally:
         shutil.copy(backup, gen)
@@ -104,5 +122,5 @@ def test_cia301_details(node: str) -> None:
     for var in tpdos:
         assert var.default & 0x40000000, f"{node}.eds {var.index:04X}sub1 = {var.default:#x}: RTR allowed"
     text = (EDS_DIR / f"{node}.eds").read_text()
-    bad = [ln for ln in text.splitlines() if ln.startswith("Description=") and "=" in ln[len("Description="):]]
+    bad = [ln for ln in text.splitlines() if ln.startswith("Description=") and "=" in ln[len("Description=") :]]
     assert not bad, bad[:3]

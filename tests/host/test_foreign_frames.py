@@ -22,8 +22,9 @@ PLANT, DRIVE = 0x10, 0x20
 @pytest.fixture(scope="module")
 def clean() -> tuple[RunResult, np.ndarray]:
     fc = FrameCollector()
-    res = run_scenario(load(REPO / "scenarios/you2019_step.toml"), RunOptions(bus="direct"), frame_sinks=[fc],
-                       keep_trace=True)
+    res = run_scenario(
+        load(REPO / "scenarios/you2019_step.toml"), RunOptions(bus="direct"), frame_sinks=[fc], keep_trace=True
+    )
     fc.close()
     assert res.status == "ok"
     return res, fc.frames
@@ -33,7 +34,7 @@ def _decode(frames: np.ndarray, chunk: int = 337) -> RunResult:
     tc = TraceCollector()
     pipe = Pipeline(PLANT, DRIVE, [tc])
     for i in range(0, len(frames), chunk):  # chunk edges fall anywhere, also between a SYNC and its PDOs
-        pipe.feed(frames[i:i + chunk])
+        pipe.feed(frames[i : i + chunk])
     res = pipe.finish("spliced", "test")
     res.trace = tc.trace
     return res
@@ -69,8 +70,11 @@ def _same_traces(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
 def test_unrelated_identifiers_are_counted_and_harmless(clean: tuple[RunResult, np.ndarray]) -> None:
     ref, frames = clean
     rng = np.random.default_rng(1)
-    used = {0x000, 0x080} | {b + n for b in (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x600, 0x700)
-                             for n in (PLANT, DRIVE)} | {0x210}
+    used = (
+        {0x000, 0x080}
+        | {b + n for b in (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x600, 0x700) for n in (PLANT, DRIVE)}
+        | {0x210}
+    )
     ids = np.array([i for i in range(0x800) if i not in used])
     extra = _random(rng, 3000, rng.choice(ids, 3000))
     lo, hi = _loop_span(frames)

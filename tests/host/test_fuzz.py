@@ -35,8 +35,9 @@ def test_past_findings_stay_fixed() -> None:
     assert build.returncode == 0, build.stderr
     regs = sorted((REPO / "protocols" / "fuzz" / "regressions").glob("*"))
     assert regs
-    res = subprocess.run([str(BUILD / "fuzz" / "fuzz_slave"), *map(str, regs)], capture_output=True, text=True,
-                         timeout=120)
+    res = subprocess.run(
+        [str(BUILD / "fuzz" / "fuzz_slave"), *map(str, regs)], capture_output=True, text=True, timeout=120
+    )
     assert res.returncode == 0, res.stderr[-2000:]
 
 
@@ -54,10 +55,20 @@ def test_fuzz_slave_bounded_run_is_clean() -> None:
     artifacts = BUILD / "fuzz" / "artifacts"
     shutil.rmtree(artifacts, ignore_errors=True)
     artifacts.mkdir()
-    res = subprocess.run([str(BUILD / "fuzz" / "fuzz_slave"), f"-max_total_time={FUZZ_SECONDS}",
-                          "-rss_limit_mb=2048", "-max_len=600", "-print_final_stats=1",
-                          f"-artifact_prefix={artifacts}/", str(corpus)],
-                         capture_output=True, text=True, timeout=FUZZ_SECONDS + 120)
+    res = subprocess.run(
+        [
+            str(BUILD / "fuzz" / "fuzz_slave"),
+            f"-max_total_time={FUZZ_SECONDS}",
+            "-rss_limit_mb=2048",
+            "-max_len=600",
+            "-print_final_stats=1",
+            f"-artifact_prefix={artifacts}/",
+            str(corpus),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=FUZZ_SECONDS + 120,
+    )
     tail = res.stderr[-3000:]
     runs = re.search(r"Done (\d+) runs", res.stderr)
     execs = re.search(r"stat::number_of_executed_units:\s*(\d+)", res.stderr)

@@ -45,7 +45,7 @@ def test_follower_decodes_a_growing_log_once(tmp_path: Path) -> None:
     last = follower.drain(final=True)
     seen += len(last)
     pipe.feed(last)
-    assert seen == len(frames.frames)              # every frame once
+    assert seen == len(frames.frames)  # every frame once
     assert max(per_poll) < len(frames.frames) / 4  # a poll returns the new frames, not the whole log
     res = pipe.finish(sc.name, "vcan0")
     assert res.summary["steps"] == ref.summary["steps"]

@@ -33,8 +33,9 @@ def _untouched(d: Path) -> None:
     assert sorted(p.name for p in d.rglob("*")) == ["data.bin", "notes.txt", "sub"]
 
 
-@pytest.mark.parametrize("cmd", [["run", str(STEP), "--bus", "direct", "--no-viewer"],
-                                 ["reproduce", "--paper", "000", "--bus", "direct"]])
+@pytest.mark.parametrize(
+    "cmd", [["run", str(STEP), "--bus", "direct", "--no-viewer"], ["reproduce", "--paper", "000", "--bus", "direct"]]
+)
 def test_a_non_empty_out_is_refused_and_untouched(tmp_path: Path, cmd: list[str]) -> None:
     d = _user_folder(tmp_path)
     res = subprocess.run([*BENCH, *cmd, "--out", str(d)], capture_output=True, text=True, timeout=120, cwd=REPO)
@@ -62,8 +63,9 @@ def _run_with_sigints(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, presses: 
     return rc, out
 
 
-def test_one_ctrl_c_while_writing_waits_for_the_results(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                         capfd: pytest.CaptureFixture[str]) -> None:
+def test_one_ctrl_c_while_writing_waits_for_the_results(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+) -> None:
     rc, out = _run_with_sigints(tmp_path, monkeypatch, 1)
     assert rc == 0
     for name in ("summary.json", "traces.npy", "bus.log", "run.rrd", "overview.svg"):
@@ -72,8 +74,9 @@ def test_one_ctrl_c_while_writing_waits_for_the_results(tmp_path: Path, monkeypa
     assert "finishing its results" in capfd.readouterr().err
 
 
-def test_two_ctrl_c_while_writing_keep_the_complete_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                        capfd: pytest.CaptureFixture[str]) -> None:
+def test_two_ctrl_c_while_writing_keep_the_complete_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+) -> None:
     rc, out = _run_with_sigints(tmp_path, monkeypatch, 2)
     assert rc == 130
     for name in ("summary.json", "traces.npy", "bus.log"):  # the run's data, whole
@@ -87,9 +90,24 @@ def test_two_ctrl_c_while_writing_keep_the_complete_run(tmp_path: Path, monkeypa
 
 def test_a_refused_value_names_the_limit_and_leaves_nothing(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run([*BENCH, "run", str(STEP), "--bus", "direct", "--no-viewer", "--out", str(out),
-                          "--set", "controller.pi_bandwidth_Hz=50000"], capture_output=True, text=True, timeout=120,
-                         cwd=REPO)
+    res = subprocess.run(
+        [
+            *BENCH,
+            "run",
+            str(STEP),
+            "--bus",
+            "direct",
+            "--no-viewer",
+            "--out",
+            str(out),
+            "--set",
+            "controller.pi_bandwidth_Hz=50000",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
     assert res.returncode == 2, res.stderr
     assert "pi_bandwidth_Hz = 50000" in res.stderr and "1/(6 Ts) = 3030.3" in res.stderr, res.stderr
     assert list(tmp_path.iterdir()) == []
@@ -99,8 +117,13 @@ def test_a_bus_the_host_cannot_have_is_refused_before_anything_starts(tmp_path: 
     from bench.canbus import probe_af_can
 
     out = tmp_path / "run"
-    res = subprocess.run([*BENCH, "run", str(STEP), "--bus", "nonexistent0", "--no-viewer", "--out", str(out)],
-                         capture_output=True, text=True, timeout=120, cwd=REPO)
+    res = subprocess.run(
+        [*BENCH, "run", str(STEP), "--bus", "nonexistent0", "--no-viewer", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
     assert res.returncode == 2, res.stderr
     assert "nonexistent0" in res.stderr
     if not probe_af_can().af_can:  # this host: the VM supplies virtual buses only, and says so

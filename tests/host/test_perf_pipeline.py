@@ -17,8 +17,15 @@ from bench.tools.perf.common import measure
 from bench.tools.perf.pipeline import TARGETS, Sizes, pipeline, target_rows
 from bench.tools.perf.report import format_report
 
-TINY = Sizes(one_second_periods=2000, repetitions=1, whole_periods=2000, api_periods=(2000,), loop_periods=2000,
-             live_periods_per_update=200, peers=False)
+TINY = Sizes(
+    one_second_periods=2000,
+    repetitions=1,
+    whole_periods=2000,
+    api_periods=(2000,),
+    loop_periods=2000,
+    live_periods_per_update=200,
+    peers=False,
+)
 
 
 def positive(x: Any) -> bool:
@@ -28,8 +35,18 @@ def positive(x: Any) -> bool:
 def test_pipeline_section_smallest_path(tmp_path: Path) -> None:
     res = pipeline(TINY, work=tmp_path)
     json.dumps(res)  # the section is JSON as it stands
-    assert {"sizes", "scenario", "one_second", "whole", "live_follow", "loop", "api", "api_rss_growth", "gem",
-            "targets"} <= res.keys()
+    assert {
+        "sizes",
+        "scenario",
+        "one_second",
+        "whole",
+        "live_follow",
+        "loop",
+        "api",
+        "api_rss_growth",
+        "gem",
+        "targets",
+    } <= res.keys()
     assert list(tmp_path.iterdir()) == []  # every run's folder removed
 
     for key in ("one_second", "whole"):
@@ -51,8 +68,15 @@ def test_pipeline_section_smallest_path(tmp_path: Path) -> None:
 
     api = res["api"]["2000"]
     assert api["periods"] == 2000 and api["status"] == "ok"
-    for k in ("api_wall_s", "run_wall_s", "periods_per_s", "run_periods_per_s", "over_loop", "process_wall_s",
-              "peak_rss_kB"):
+    for k in (
+        "api_wall_s",
+        "run_wall_s",
+        "periods_per_s",
+        "run_periods_per_s",
+        "over_loop",
+        "process_wall_s",
+        "peak_rss_kB",
+    ):
         assert positive(api[k]), k
     assert {"traces.npy", "summary.json"} <= api["bytes"].keys()
     assert res["api_rss_growth"] is None  # no 10^7 run on this path
@@ -75,14 +99,19 @@ def test_pipeline_section_smallest_path(tmp_path: Path) -> None:
 
 def test_target_rows_judge_each_target_by_its_direction() -> None:
     """met/not met from given numbers (no measurement here)."""
-    res = {"sizes": {"one_second_periods": 18_182, "whole_periods": 1_000_000, "api_periods": [1_000_000, 10_000_000]},
-           "one_second": {"wall_s": {"median": 1.2}},
-           "whole": {"wall_s": {"median": 6.0}, "peak_rss_kB": 300 * 1024},
-           "api": {"1000000": {"over_loop": 0.6, "periods_per_s": 600_000.0, "peak_rss_kB": 100_000},
-                   "10000000": {"over_loop": 0.6, "periods_per_s": 600_000.0, "peak_rss_kB": 100_500}},
-           "api_rss_growth": {"ratio": 1.005},
-           "gem": {"sim_periods_per_s": 4000.0}, "api_over_gem": 150.0,
-           "live_follow": {"late_over_early": 1.1}}
+    res = {
+        "sizes": {"one_second_periods": 18_182, "whole_periods": 1_000_000, "api_periods": [1_000_000, 10_000_000]},
+        "one_second": {"wall_s": {"median": 1.2}},
+        "whole": {"wall_s": {"median": 6.0}, "peak_rss_kB": 300 * 1024},
+        "api": {
+            "1000000": {"over_loop": 0.6, "periods_per_s": 600_000.0, "peak_rss_kB": 100_000},
+            "10000000": {"over_loop": 0.6, "periods_per_s": 600_000.0, "peak_rss_kB": 100_500},
+        },
+        "api_rss_growth": {"ratio": 1.005},
+        "gem": {"sim_periods_per_s": 4000.0},
+        "api_over_gem": 150.0,
+        "live_follow": {"late_over_early": 1.1},
+    }
     rows = {r["key"]: r for r in target_rows(res)}
     assert rows["one_second_wall_s"]["met"] is True
     assert rows["whole_1e6_wall_s"]["met"] is False and rows["whole_1e6_wall_s"]["ratio"] == pytest.approx(1.2)
@@ -94,10 +123,15 @@ def test_target_rows_judge_each_target_by_its_direction() -> None:
 
 
 def test_target_rows_leave_failed_parts_unjudged() -> None:
-    res = {"sizes": {"one_second_periods": 18_182, "whole_periods": 1_000_000, "api_periods": [1_000_000]},
-           "one_second": {"error": "RuntimeError: x"}, "whole": {"error": "RuntimeError: y"},
-           "api": {"error": "RuntimeError: z"}, "api_rss_growth": None, "gem": {"unavailable": "no Python 3.12"},
-           "live_follow": {"error": "FileNotFoundError"}}
+    res = {
+        "sizes": {"one_second_periods": 18_182, "whole_periods": 1_000_000, "api_periods": [1_000_000]},
+        "one_second": {"error": "RuntimeError: x"},
+        "whole": {"error": "RuntimeError: y"},
+        "api": {"error": "RuntimeError: z"},
+        "api_rss_growth": None,
+        "gem": {"unavailable": "no Python 3.12"},
+        "live_follow": {"error": "FileNotFoundError"},
+    }
     rows = target_rows(res)
     assert all(r["met"] is None and r["measured"] is None for r in rows)
     assert {r["key"]: r for r in rows}["api_over_gem"]["note"] == "no Python 3.12"

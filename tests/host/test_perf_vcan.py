@@ -29,8 +29,11 @@ def test_recorder_check_of_a_complete_log(tmp_path: Path) -> None:
     rec = recorder_check(tmp_path)
     assert rec["periods_expected"] == rec["syncs_recorded"] == periods
     assert rec["lost_frames"] == 0 and rec["frames_out_of_time_order_in_log"] == 0
-    assert rec["loop_frames_recorded"] == rec["loop_frames_expected"] == periods * rec["frames_per_period"][
-        "pdos_plus_sync"]
+    assert (
+        rec["loop_frames_recorded"]
+        == rec["loop_frames_expected"]
+        == periods * rec["frames_per_period"]["pdos_plus_sync"]
+    )
     assert rec["continuity"] == rec["continuity_in_log_order"]
     assert all(v == 0 for v in rec["continuity"].values())
     assert rec["frames_total"] > rec["loop_frames_recorded"]  # the SDO configuration is in the log too

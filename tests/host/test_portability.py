@@ -25,9 +25,21 @@ GENERATED = REPO / "protocols" / "generated"
 # the EDS's names, defaults and enumerations as plain C (protocols/gen_od.py): the core's one generated input
 PLAIN_GENERATED = {"od_drive_fields.h"}
 SOURCES = sorted(CORE.glob("*.c"))
-ARM_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2", "-std=c11",
-             "-Wall", "-Wextra", "-Werror", "-Wshadow", "-Wstrict-prototypes", "-Wdouble-promotion",
-             "-Wfloat-conversion"]
+ARM_FLAGS = [
+    "-mcpu=cortex-m4",
+    "-mthumb",
+    "-mfpu=fpv4-sp-d16",
+    "-mfloat-abi=hard",
+    "-O2",
+    "-std=c11",
+    "-Wall",
+    "-Wextra",
+    "-Werror",
+    "-Wshadow",
+    "-Wstrict-prototypes",
+    "-Wdouble-promotion",
+    "-Wfloat-conversion",
+]
 ALLOWED_SYSTEM_HEADERS = {"stdint.h", "stdbool.h", "stddef.h", "math.h", "string.h"}
 INCLUDE_RE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]', re.M)
 
@@ -47,8 +59,12 @@ def test_core_sources_exist() -> None:
 def test_builds_for_cortex_m4f_without_warnings(src: Path, tmp_path: Path) -> None:
     gcc, size = _tool("arm-none-eabi-gcc"), _tool("arm-none-eabi-size")
     obj = tmp_path / (src.stem + ".o")
-    res = subprocess.run([gcc, *ARM_FLAGS, f"-I{CORE}", f"-I{GENERATED}", "-c", str(src), "-o", str(obj)],
-                         capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [gcc, *ARM_FLAGS, f"-I{CORE}", f"-I{GENERATED}", "-c", str(src), "-o", str(obj)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 0, f"{src.name} does not build for the Cortex-M4F:\n{res.stderr}"
     assert res.stderr.strip() == "", f"{src.name}: compiler output:\n{res.stderr}"
     out = subprocess.run([size, "-B", str(obj)], capture_output=True, text=True, timeout=60, check=True).stdout
@@ -66,8 +82,10 @@ def test_no_os_headers(path: Path) -> None:
             bad.append(f"<{name}>")
         elif kind == '"' and name not in local:
             bad.append(f'"{name}" (not a header of firmware_shim/core)')
-    assert not bad, f"{path.name} includes {', '.join(bad)}; the core may use only " \
-                    f"{sorted(ALLOWED_SYSTEM_HEADERS)}, its own headers and {sorted(PLAIN_GENERATED)}"
+    assert not bad, (
+        f"{path.name} includes {', '.join(bad)}; the core may use only "
+        f"{sorted(ALLOWED_SYSTEM_HEADERS)}, its own headers and {sorted(PLAIN_GENERATED)}"
+    )
 
 
 @pytest.mark.parametrize("name", sorted(PLAIN_GENERATED))

@@ -66,6 +66,7 @@ def test_each_claim_shows_its_own_runs(run_root: Path) -> None:
 
 def test_several_results_without_their_runs_get_no_figure(run_root: Path) -> None:
     """A function whose results do not say their runs: no figure rather than another claim's."""
+
     def two_results(bus: str) -> list[ClaimResult]:
         run_raw(y.base("you2019-two-results"), bus)
         return [ClaimResult("You 2019", f"t-{i}", "-", "-", 0, 0, "-", True) for i in range(2)]

@@ -15,16 +15,29 @@ import pytest
 from bench.paths import BUILD, REPO
 
 OUT = BUILD / "reproduce-ci"
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--allow-file-access-from-files"]
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--allow-file-access-from-files",
+]
 
 
 @pytest.fixture(scope="module")
 def report() -> Path:
     shutil.rmtree(OUT, ignore_errors=True)
-    res = subprocess.run([sys.executable, "-m", "bench.cli", "reproduce", "--paper", "all", "--bus", "vcan0",
-                          "--out", str(OUT)], cwd=REPO, capture_output=True, text=True, timeout=3600)
+    res = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "reproduce", "--paper", "all", "--bus", "vcan0", "--out", str(OUT)],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=3600,
+    )
     print(res.stdout[-6000:])
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     (OUT / "reproduce.log").write_text(res.stdout)
@@ -75,15 +88,35 @@ def _chromium() -> str:
 
 def test_html_report_renders_without_broken_images(report: Path, tmp_path: Path) -> None:
     url = (report / "report.html").resolve().as_uri()
-    dom = subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'ud1'}",
-                          "--virtual-time-budget=10000", "--dump-dom", url],
-                         capture_output=True, text=True, timeout=180)
+    dom = subprocess.run(
+        [
+            _chromium(),
+            *CHROMIUM_FLAGS,
+            f"--user-data-dir={tmp_path / 'ud1'}",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+            url,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     body = next((line for line in dom.stdout.splitlines() if "<body" in line), "")
     assert 'data-broken-images="0"' in body, body or dom.stderr[-2000:]
     n_images = int(body.split('data-images="')[1].split('"')[0])
     assert n_images >= 10
     shot = report / "screenshot.png"
-    res = subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'ud2'}",
-                          "--window-size=1200,1800", f"--screenshot={shot}", url],
-                         capture_output=True, text=True, timeout=180)
+    res = subprocess.run(
+        [
+            _chromium(),
+            *CHROMIUM_FLAGS,
+            f"--user-data-dir={tmp_path / 'ud2'}",
+            "--window-size=1200,1800",
+            f"--screenshot={shot}",
+            url,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert shot.exists() and shot.stat().st_size > 10000, res.stderr[-2000:]

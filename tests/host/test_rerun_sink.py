@@ -90,8 +90,14 @@ def read_blueprint_views(path: Path) -> list[dict[str, str]]:
     for ent, f in fields.items():
         if ent.startswith("/view/") and not ent.endswith("/ViewContents"):
             queries = fields.get(ent + "/ViewContents", {}).get("ViewContents:query", ["$origin/**"])
-            views.append({"class": f["ViewBlueprint:class_identifier"][0], "name": f["ViewBlueprint:display_name"][0],
-                          "origin": f["ViewBlueprint:space_origin"][0], "queries": queries})
+            views.append(
+                {
+                    "class": f["ViewBlueprint:class_identifier"][0],
+                    "name": f["ViewBlueprint:display_name"][0],
+                    "origin": f["ViewBlueprint:space_origin"][0],
+                    "queries": queries,
+                }
+            )
     return views
 
 
@@ -115,9 +121,21 @@ def free_port() -> int:
 
 # --- the .rrd --------------------------------------------------------------------------------------
 
+
 def test_unit_slugs_and_view_names():
     assert [unit_slug(u) for u in ("A", "V", "V/A", "H", "Ω", "A²", "rad/s", "1", "rad/s²", "N·m", "Ω/(V·s)")] == [
-        "A", "V", "V_per_A", "H", "ohm", "A2", "rad_per_s", "count_or_ratio", "rad_per_s2", "N_m", "ohm_per_V_s"]
+        "A",
+        "V",
+        "V_per_A",
+        "H",
+        "ohm",
+        "A2",
+        "rad_per_s",
+        "count_or_ratio",
+        "rad_per_s2",
+        "N_m",
+        "ohm_per_V_s",
+    ]
     assert view_name("A") == "currents (A)" and view_name("1") == "counts and ratios"
     assert view_name("furlong") == "furlong"
     assert entity_path(SignalInfo.of("Yao_2020_DPCC_R_hat_ohm", "x")) == "/ohm/Yao_2020_DPCC_R_hat_ohm"
@@ -197,12 +215,19 @@ def test_missing_and_undeclared_columns_do_not_crash(tmp_path, capsys):
 
 # --- serving ---------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
     """The one serve-mode sink of this test process (serving happens once per process)."""
     web, grpc = free_port(), free_port()
-    sink = RerunSink("served", tmp_path_factory.mktemp("serve") / "run.rrd", live="serve", live_decimate=10,
-                     web_port=web, grpc_port=grpc)
+    sink = RerunSink(
+        "served",
+        tmp_path_factory.mktemp("serve") / "run.rrd",
+        live="serve",
+        live_decimate=10,
+        web_port=web,
+        grpc_port=grpc,
+    )
     yield sink, web, grpc
     sink.close()
 
@@ -246,8 +271,11 @@ def test_served_grpc_stream_holds_the_decimated_run(served, tmp_path):
         for chunk in chunks_of(make_run(2000, first_period=0), [1000, 555, 445]):
             sink.write(chunk)
         sink.end()
-    proc = subprocess.Popen([str(rerun_cli), "download", "-o", str(tmp_path), f"rerun+http://127.0.0.1:{grpc}/proxy"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [str(rerun_cli), "download", "-o", str(tmp_path), f"rerun+http://127.0.0.1:{grpc}/proxy"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     got: dict = {}
     try:
         deadline = time.monotonic() + 20
@@ -283,10 +311,25 @@ def test_second_serving_sink_reuses_same_ports_and_refuses_others(served, tmp_pa
 def test_headless_chromium_loads_the_served_page(served):  # chromium: installed by scripts/setup.sh
     sink, _, _ = served
     with tempfile.TemporaryDirectory() as profile:
-        r = subprocess.run(["/usr/bin/chromium", "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                            "--no-first-run", "--disable-background-networking", "--disable-component-update",
-                            "--disable-sync", f"--user-data-dir={profile}", "--dump-dom", sink.url],
-                           capture_output=True, text=True, timeout=20)
+        r = subprocess.run(
+            [
+                "/usr/bin/chromium",
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                f"--user-data-dir={profile}",
+                "--dump-dom",
+                sink.url,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=20,
+        )
     assert r.returncode == 0, r.stderr[-2000:]
     assert 'id="the_canvas_id"' in r.stdout and "re_viewer.js" in r.stdout
 
@@ -311,8 +354,14 @@ print("no error")
 @pytest.mark.parametrize("which,option", [("grpc", "--grpc-port"), ("web", "--web-port")])
 def test_port_in_use_is_one_clear_error(which, option):
     # A fresh process: this one already serves (once per process).
-    r = subprocess.run([sys.executable, "-c", PORT_CONFLICT, which], capture_output=True, text=True, timeout=60,
-                       cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)})
+    r = subprocess.run(
+        [sys.executable, "-c", PORT_CONFLICT, which],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
     assert r.returncode == 3, r.stdout + r.stderr
     message, port_line = r.stdout.strip().splitlines()
     port = port_line.split()[1]
@@ -334,4 +383,3 @@ def test_spawn_without_display_says_so_once_and_keeps_the_file(tmp_path, monkeyp
         s.write({"period": p, "t_s": p * 1e-4, "iq_A": p * 1.0})
         s.close()
     assert all(set(read_recording(tmp_path / f"{i}.rrd")) == {"/A/iq_A"} for i in range(2))
-

@@ -22,10 +22,30 @@ def free_port() -> int:
 
 def test_serve_prints_the_browser_address_and_keeps_serving(tmp_path: Path) -> None:
     web, grpc = free_port(), free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(REPO / "scenarios" / "you2019_step.toml"),
-                             "--bus", "direct", "--out", str(tmp_path / "r"), "--serve", "--serve-for", "6",
-                             "--web-port", str(web), "--grpc-port", str(grpc)],
-                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(REPO / "scenarios" / "you2019_step.toml"),
+            "--bus",
+            "direct",
+            "--out",
+            str(tmp_path / "r"),
+            "--serve",
+            "--serve-for",
+            "6",
+            "--web-port",
+            str(web),
+            "--grpc-port",
+            str(grpc),
+        ],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     assert proc.stdout is not None
     lines: list[str] = []
     url = None

@@ -25,11 +25,13 @@ STEP = REPO / "scenarios" / "you2019_step.toml"
 
 def zhao(ratio: float, **head: Any) -> dict[str, Any]:
     """Zhao 2022 incremental deadbeat at L/L0 = ratio, 10 kHz, locked rotor, an iq step of 0.1 A."""
-    return {"scenario": {"name": f"zhao-{ratio}", "periods": 1500, **head},
-            "motor": {"preset": "zhao2022", "mech_mode": "locked"},
-            "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "adc_noise_std_A": 0.0, "adc_lsb_A": 0.0},
-            "controller": {"controller": "incremental_zhao2022", "Vmax_V": 28.0 / 3 ** 0.5, "L_hat_ratio": 1 / ratio},
-            "events": [{"at_period": 20, "references": {"iq_ref_A": 0.1}}]}
+    return {
+        "scenario": {"name": f"zhao-{ratio}", "periods": 1500, **head},
+        "motor": {"preset": "zhao2022", "mech_mode": "locked"},
+        "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "adc_noise_std_A": 0.0, "adc_lsb_A": 0.0},
+        "controller": {"controller": "incremental_zhao2022", "Vmax_V": 28.0 / 3**0.5, "L_hat_ratio": 1 / ratio},
+        "events": [{"at_period": 20, "references": {"iq_ref_A": 0.1}}],
+    }
 
 
 def test_unstable_loop_is_diverged_and_a_stable_one_is_ok() -> None:
@@ -74,7 +76,7 @@ def frames() -> np.ndarray:
 def _pipe(frames: np.ndarray) -> Any:
     p = Pipeline(0x10, 0x20)
     for i in range(0, len(frames), 333):
-        p.feed(frames[i:i + 333])
+        p.feed(frames[i : i + 333])
     return p.finish("t", "direct")
 
 
@@ -106,9 +108,26 @@ def test_missing_frames_are_lost(frames: np.ndarray) -> None:
 
 
 def test_cli_exit_code_is_the_status(tmp_path: Path) -> None:
-    res = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "direct", "--no-viewer",
-                          "--out", str(tmp_path / "r"), "--set", "drive.I_trip_A=0.5"], capture_output=True, text=True,
-                         cwd=REPO, timeout=300)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(STEP),
+            "--bus",
+            "direct",
+            "--no-viewer",
+            "--out",
+            str(tmp_path / "r"),
+            "--set",
+            "drive.I_trip_A=0.5",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=300,
+    )
     assert res.returncode == 3, res.stderr
     assert "TRIPPED" in res.stdout and (tmp_path / "r" / "summary.json").exists()
 

@@ -38,12 +38,27 @@ pdo4 = {pdo4}
 """
 
 CASES = {
-    "you2019": ("you2019", "deadbeat_you2019", "enable = 1",
-                ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"], ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]),
-    "yao2020": ("yao2020_low", "dpcc_yao2020", "observer_enable = 1\nR_hat_ratio = 1.5",
-                ["Yao 2020 DPCC.R_hat_ohm", "Yao 2020 DPCC.L_hat_H"], ["Yao 2020 DPCC.p_hat_d_A", "Yao 2020 DPCC.p_hat_q_A"]),
-    "zhao2022": ("zhao2022", "incremental_zhao2022", "Vmax_V = 16.0",
-                 ["Zhao 2022.K1_V_A", "Zhao 2022.K2_V_A"], ["Zhao 2022.limited"]),
+    "you2019": (
+        "you2019",
+        "deadbeat_you2019",
+        "enable = 1",
+        ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"],
+        ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"],
+    ),
+    "yao2020": (
+        "yao2020_low",
+        "dpcc_yao2020",
+        "observer_enable = 1\nR_hat_ratio = 1.5",
+        ["Yao 2020 DPCC.R_hat_ohm", "Yao 2020 DPCC.L_hat_H"],
+        ["Yao 2020 DPCC.p_hat_d_A", "Yao 2020 DPCC.p_hat_q_A"],
+    ),
+    "zhao2022": (
+        "zhao2022",
+        "incremental_zhao2022",
+        "Vmax_V = 16.0",
+        ["Zhao 2022.K1_V_A", "Zhao 2022.K2_V_A"],
+        ["Zhao 2022.limited"],
+    ),
 }
 
 
@@ -51,11 +66,19 @@ CASES = {
 def test_every_signal_of_the_controller_is_in_the_recording(tmp_path: Path, case: str) -> None:
     preset, controller, extra, pdo3, pdo4 = CASES[case]
     path = tmp_path / f"{case}.toml"
-    path.write_text(SCENARIO.format(name=case, preset=preset, controller=controller, extra=extra,
-                                    pdo3=json.dumps(pdo3), pdo4=json.dumps(pdo4)))
+    path.write_text(
+        SCENARIO.format(
+            name=case, preset=preset, controller=controller, extra=extra, pdo3=json.dumps(pdo3), pdo4=json.dumps(pdo4)
+        )
+    )
     out = tmp_path / "run"
-    res = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(path), "--bus", "direct", "--no-viewer",
-                          "--out", str(out)], capture_output=True, text=True, cwd=REPO, timeout=300)
+    res = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "run", str(path), "--bus", "direct", "--no-viewer", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=300,
+    )
     assert res.returncode == 0, res.stdout + res.stderr
     tr = np.load(out / "traces.npy")
     rec = read_recording(out / "run.rrd")

@@ -111,9 +111,9 @@ def bare_equation_refs(segment: str) -> list[str]:
         if starts_with_paper:
             continue
         before = [p.end() for p in PAPER_RE.finditer(segment, 0, m.start())]
-        if before and len(segment[before[-1]:m.start()].split()) <= WORDS_BETWEEN:
+        if before and len(segment[before[-1] : m.start()].split()) <= WORDS_BETWEEN:
             continue
-        bad.append(" ".join(segment[max(0, m.start() - 40):m.end() + 12].split()))
+        bad.append(" ".join(segment[max(0, m.start() - 40) : m.end() + 12].split()))
     return bad
 
 
@@ -131,40 +131,48 @@ def file_violations(path: Path) -> list[str]:
 
 
 # ------------------------------------------------------------------ the scanner itself
-@pytest.mark.parametrize("src", [
-    "/* Eq. 5 */",
-    "x = 1; /* Zhao 2022 */ y = 2; /* (Eq. 5) */",  # the paper of another comment does not count
-    "/* the law of Yao 2020, here written in the rotor frame with the rotation of one period, Eq. 12 */",
-    "/* law.c - the law of the paper, here written in the rotor frame (Eq. 12) */",
-    "// ud(k) from Eq. 5\n",
-    'printf("update (Eq. 28-32): %f\\n", t);',
-])
+@pytest.mark.parametrize(
+    "src",
+    [
+        "/* Eq. 5 */",
+        "x = 1; /* Zhao 2022 */ y = 2; /* (Eq. 5) */",  # the paper of another comment does not count
+        "/* the law of Yao 2020, here written in the rotor frame with the rotation of one period, Eq. 12 */",
+        "/* law.c - the law of the paper, here written in the rotor frame (Eq. 12) */",
+        "// ud(k) from Eq. 5\n",
+        'printf("update (Eq. 28-32): %f\\n", t);',
+    ],
+)
 def test_scanner_flags_a_bare_c_reference(src: str) -> None:
     assert len([b for _, s in c_segments(src) for b in bare_equation_refs(s)]) == 1, src
 
 
-@pytest.mark.parametrize("src", [
-    "/* Zhao 2022 Eq. 5 */",
-    "/* You 2019 Eq. 8/9 with the identified model gains */",
-    "/* Yao 2020 Eqs. 13-15 */",
-    "/* (Zhao 2022 Eq. 22/23) */",
-    "/* Yao 2020 Definition 1 (Eq. 30) and Definition 2 (Eq. 31). */",
-    "/* You 2019 Sec. 3.2: the estimator,\n * with the PI of Eq. 8 (q) and Eq. 9 (d),\n"
-    " * and many more words before Eq. 7 */",
-    "// Zhao 2022: the d axis\n// ud(k+1) = ... (Eq. 23)\n",
-    "/* zhao2022_incremental.c - Zhao 2022 incremental deadbeat controller,\n * many words later:\n * Eq. 14-23 */",
-    'printf("update (You 2019 Eq. 28-32): %f\\n", t);',
-    'const char *s = "Yao 2020 " "Eq. 46";',
-    "x = 1; /* no equation here */",
-])
+@pytest.mark.parametrize(
+    "src",
+    [
+        "/* Zhao 2022 Eq. 5 */",
+        "/* You 2019 Eq. 8/9 with the identified model gains */",
+        "/* Yao 2020 Eqs. 13-15 */",
+        "/* (Zhao 2022 Eq. 22/23) */",
+        "/* Yao 2020 Definition 1 (Eq. 30) and Definition 2 (Eq. 31). */",
+        "/* You 2019 Sec. 3.2: the estimator,\n * with the PI of Eq. 8 (q) and Eq. 9 (d),\n"
+        " * and many more words before Eq. 7 */",
+        "// Zhao 2022: the d axis\n// ud(k+1) = ... (Eq. 23)\n",
+        "/* zhao2022_incremental.c - Zhao 2022 incremental deadbeat controller,\n * many words later:\n * Eq. 14-23 */",
+        'printf("update (You 2019 Eq. 28-32): %f\\n", t);',
+        'const char *s = "Yao 2020 " "Eq. 46";',
+        "x = 1; /* no equation here */",
+    ],
+)
 def test_scanner_accepts_a_named_c_reference(src: str) -> None:
     assert [b for _, s in c_segments(src) for b in bare_equation_refs(s)] == [], src
 
 
 def test_scanner_on_python() -> None:
     bad = 'x = 1  # Eq. 4\nlabel = "update (Eq. 28-32)"\n"""Doc: the law\nof Eq. 22."""\n'
-    good = ('x = 1  # Zhao 2022 Eq. 4\nlabel = ("Yao 2020 "\n         "Eq. 46-48")\n'
-            '# You 2019: many words in this comment before\n# it refers to Eq. 22\n"""You 2019 law,\n\nEq. 5."""\n')
+    good = (
+        'x = 1  # Zhao 2022 Eq. 4\nlabel = ("Yao 2020 "\n         "Eq. 46-48")\n'
+        '# You 2019: many words in this comment before\n# it refers to Eq. 22\n"""You 2019 law,\n\nEq. 5."""\n'
+    )
     assert len([b for _, s in py_segments(bad) for b in bare_equation_refs(s)]) == 3
     assert [b for _, s in py_segments(good) for b in bare_equation_refs(s)] == []
 
@@ -179,29 +187,37 @@ def test_every_equation_reference_names_its_paper() -> None:
     files = scanned_files()
     assert any(p.suffix == ".py" for p in files) and any(p.suffix == ".c" for p in files)
     bad = [v for p in files for v in file_violations(p)]
-    assert not bad, (f"{len(bad)} equation reference(s) without the paper's name "
-                     f"({', '.join(PAPERS)}) a few words before or at the start of the comment:\n"
-                     + "\n".join(bad))
+    assert not bad, (
+        f"{len(bad)} equation reference(s) without the paper's name "
+        f"({', '.join(PAPERS)}) a few words before or at the start of the comment:\n" + "\n".join(bad)
+    )
 
 
 def eds_segments(text: str) -> list[tuple[int, str]]:
     """(line, text) of every Description of an EDS file (what users read in a tool or the scenario errors)."""
-    return [(i, line[len("Description="):]) for i, line in enumerate(text.splitlines(), 1)
-            if line.startswith("Description=")]
+    return [
+        (i, line[len("Description=") :])
+        for i, line in enumerate(text.splitlines(), 1)
+        if line.startswith("Description=")
+    ]
 
 
 def test_every_eds_description_names_its_paper() -> None:
-    bad = [f"{path.relative_to(REPO)}:{line}: ...{ctx}..."
-           for path in sorted((REPO / "protocols" / "eds").glob("*.eds"))
-           for line, seg in eds_segments(path.read_text()) for ctx in bare_equation_refs(seg)]
+    bad = [
+        f"{path.relative_to(REPO)}:{line}: ...{ctx}..."
+        for path in sorted((REPO / "protocols" / "eds").glob("*.eds"))
+        for line, seg in eds_segments(path.read_text())
+        for ctx in bare_equation_refs(seg)
+    ]
     assert not bad, "EDS descriptions with an equation reference that names no paper:\n" + "\n".join(bad)
     assert len(bare_equation_refs("Description=det-weighted average K1 (Eq. 28), V/A")) == 1  # the check bites
 
 
 # ------------------------------------------------------------------ file name = prefix
 def global_functions(obj: Path) -> list[str]:
-    out = subprocess.run([shutil.which("nm") or "nm", "--defined-only", str(obj)], capture_output=True,
-                         text=True, check=True).stdout
+    out = subprocess.run(
+        [shutil.which("nm") or "nm", "--defined-only", str(obj)], capture_output=True, text=True, check=True
+    ).stdout
     return sorted(f[2] for f in (line.split() for line in out.splitlines()) if len(f) == 3 and f[1] == "T")
 
 
@@ -209,8 +225,9 @@ def compile_object(src: Path, tmp: Path) -> Path:
     cc = shutil.which("cc") or shutil.which("gcc")
     assert cc, "no C compiler"
     obj = tmp / (src.stem + ".o")
-    subprocess.run([cc, "-std=c11", "-O2", f"-I{CORE}", "-c", str(src), "-o", str(obj)], check=True,
-                   capture_output=True, text=True)
+    subprocess.run(
+        [cc, "-std=c11", "-O2", f"-I{CORE}", "-c", str(src), "-o", str(obj)], check=True, capture_output=True, text=True
+    )
     return obj
 
 
@@ -272,16 +289,20 @@ def test_paper_file_defines_only_its_prefix(src: Path, tmp_path: Path) -> None:
 
 def test_prefix_check_catches_a_foreign_name(tmp_path: Path) -> None:
     src = tmp_path / "zhao2022_incremental.c"
-    src.write_text("static int helper(int x) { return x + 1; }\n"
-                   "int zhao2022_incremental_ok(int x) { return helper(x); }\n"
-                   "int bilinear_incremental_step(int x) { return x; }\n")
+    src.write_text(
+        "static int helper(int x) { return x + 1; }\n"
+        "int zhao2022_incremental_ok(int x) { return helper(x); }\n"
+        "int bilinear_incremental_step(int x) { return x; }\n"
+    )
     assert misnamed_functions(src, tmp_path) == ["bilinear_incremental_step"]
     hdr = tmp_path / "zhao2022_incremental.h"
-    hdr.write_text("#ifndef X_H\n#define X_H\n/* bilinear_incremental_step(x) in a comment */\n"
-                   "typedef struct {\n  float K1_V_A;\n} zhao2022_incremental_state_t;\n"
-                   "typedef struct {\n  float R;\n} bilinear_incremental_config_t;\n"
-                   "void zhao2022_incremental_reset(zhao2022_incremental_state_t *st);\n"
-                   "static inline float bilinear_incremental_law(float a,\n    float b) { return helper(a) + b; }\n"
-                   "static inline float zhao2022_incremental_law2(float a) {\n  if (a > 0) {\n    return g(a);\n  }\n"
-                   "  return 0;\n}\n#endif\n")
+    hdr.write_text(
+        "#ifndef X_H\n#define X_H\n/* bilinear_incremental_step(x) in a comment */\n"
+        "typedef struct {\n  float K1_V_A;\n} zhao2022_incremental_state_t;\n"
+        "typedef struct {\n  float R;\n} bilinear_incremental_config_t;\n"
+        "void zhao2022_incremental_reset(zhao2022_incremental_state_t *st);\n"
+        "static inline float bilinear_incremental_law(float a,\n    float b) { return helper(a) + b; }\n"
+        "static inline float zhao2022_incremental_law2(float a) {\n  if (a > 0) {\n    return g(a);\n  }\n"
+        "  return 0;\n}\n#endif\n"
+    )
     assert misnamed_header_names(hdr) == ["bilinear_incremental_config_t", "bilinear_incremental_law"]

@@ -33,7 +33,9 @@ def c_sources() -> list[Path]:
 def _ruff() -> str:
     ruff = Path(sys.executable).parent / "ruff"
     if not ruff.is_file():
-        pytest.fail(f"{ruff} not found: pip install -e . in the venv (ruff is pinned in pyproject.toml), or `make setup`")
+        pytest.fail(
+            f"{ruff} not found: pip install -e . in the venv (ruff is pinned in pyproject.toml), or `make setup`"
+        )
     return str(ruff)
 
 
@@ -44,7 +46,9 @@ def _clang_format() -> str:
     out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=60, check=True).stdout
     m = re.search(r"clang-format version (\d+)\.", out)
     if m is None or int(m.group(1)) != CLANG_FORMAT_MAJOR:
-        pytest.fail(f"clang-format {CLANG_FORMAT_MAJOR} expected (Debian 12: apt-get install clang-format), found: {out}")
+        pytest.fail(
+            f"clang-format {CLANG_FORMAT_MAJOR} expected (Debian 12: apt-get install clang-format), found: {out}"
+        )
     return path
 
 

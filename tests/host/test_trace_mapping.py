@@ -50,8 +50,15 @@ def _configure_zhao(plant: canopen.RemoteNode, drive: canopen.RemoteNode, iq_ref
     plant.sdo["Motor preset"].raw = "zhao2022"
     ctl = drive.sdo["Controller"]
     ctl["controller"].raw = INCREMENTAL_ZHAO2022
-    for name, value in (("R_hat_ohm", R), ("Ld_hat_H", L), ("Lq_hat_H", L), ("psi_hat_Wb", 1.4213 / 7.5),
-                        ("Vmax_V", VMAX), ("Ts_s", TS), ("pole_pairs", PP)):
+    for name, value in (
+        ("R_hat_ohm", R),
+        ("Ld_hat_H", L),
+        ("Lq_hat_H", L),
+        ("psi_hat_Wb", 1.4213 / 7.5),
+        ("Vmax_V", VMAX),
+        ("Ts_s", TS),
+        ("pole_pairs", PP),
+    ):
         ctl[name].raw = value
     drive.sdo["References"]["iq_ref_A"].raw = iq_ref_A
     for n in (plant, drive):
@@ -164,8 +171,10 @@ def test_diverging_zhao2022_loop_trips_at_the_preset_level(nodes) -> None:  # ty
     ia, ib, status, v_mag, trip_active = _run_diverging(hil, plant, drive, 600, None)
     assert abs(plant.sdo["Inverter"]["I_trip_A"].raw - 28.0 / 48.9) < 1e-6  # the preset's level (presets.c)
     k = int(np.argmax(status & 1))
-    print(f"trip bit from sample {k}; max |i| before {np.max(np.abs(np.r_[ia[:k], ib[:k]])):.3f} A; "
-          f"|v*| up to {np.max(v_mag[:k]):.1f} V; i_a at the end {ia[-1]:.2e} A")
+    print(
+        f"trip bit from sample {k}; max |i| before {np.max(np.abs(np.r_[ia[:k], ib[:k]])):.3f} A; "
+        f"|v*| up to {np.max(v_mag[:k]):.1f} V; i_a at the end {ia[-1]:.2e} A"
+    )
     assert trip_active == 1 and 0 < k < 200 and (status[k:] & 1).all()
     assert np.isfinite(ia).all() and np.isfinite(ib).all() and np.isfinite(v_mag[: k + 1]).all()
     assert abs(ia[-1]) < 1e-3 and abs(ib[-1]) < 1e-3  # the bridge is off: the current decays

@@ -49,8 +49,10 @@ class Responder(threading.Thread):
                 continue
             _, want = self.steps.pop(0)
             if got != want:
-                self.errors.append(f"master sent {got.cob_id:03X}#{got.data.hex().upper()}, "
-                                   f"vector says {want.cob_id:03X}#{want.data.hex().upper()}")
+                self.errors.append(
+                    f"master sent {got.cob_id:03X}#{got.data.hex().upper()}, "
+                    f"vector says {want.cob_id:03X}#{want.data.hex().upper()}"
+                )
             while self.steps and self.steps[0][0] == "<":
                 _, reply = self.steps.pop(0)
                 self.bus.send(can.Message(arbitration_id=reply.cob_id, data=reply.data, is_extended_id=False))
@@ -104,18 +106,24 @@ def drive_vector(name: str, net: canopen.Network, node: canopen.RemoteNode) -> N
         assert od["Device type"].access_type == "ro"
         assert _abort(node, lambda: node.sdo.download(od["Device type"].index, 0, b"\0\0\0\0")) == 0x06010002
     elif name == "sdo_abort_value_too_high":
+
         def write() -> None:
             motor["R_ohm"].raw = 2000.0
+
         assert _abort(node, write) == 0x06090031
     elif name == "sdo_abort_length_too_long":
         pp = od["Motor model"]["pole_pairs"]
-        assert _abort(node, lambda: node.sdo.download(pp.index, pp.subindex, struct.pack("<I", 5), force_segment=False)) \
+        assert (
+            _abort(node, lambda: node.sdo.download(pp.index, pp.subindex, struct.pack("<I", 5), force_segment=False))
             == 0x06070012
+        )
     elif name == "sdo_segmented_upload_string":
         assert node.sdo["Manufacturer device name"].raw == od["Manufacturer device name"].default
     elif name == "sdo_abort_restricted_sync_cobid":
+
         def write() -> None:
             node.sdo["COB-ID SYNC message"].raw = node.sdo.rx_cobid  # 0x600 + node-ID
+
         assert _abort(node, write) == 0x06090030
     elif name == "nmt_start_and_rpdo_references":
         node.nmt.send_command(0x01)
@@ -140,8 +148,10 @@ def drive_vector(name: str, net: canopen.Network, node: canopen.RemoteNode) -> N
 
 # Vectors python canopen cannot produce (it never sends a bad toggle bit or an invalid
 # command specifier): their request bytes are checked by the C replay only.
-C_ONLY = {"sdo_abort_toggle_bit": "canopen never sends a wrong toggle bit",
-          "sdo_abort_invalid_command_specifier": "canopen never sends command specifier 7"}
+C_ONLY = {
+    "sdo_abort_toggle_bit": "canopen never sends a wrong toggle bit",
+    "sdo_abort_invalid_command_specifier": "canopen never sends command specifier 7",
+}
 
 
 @pytest.mark.parametrize("name", sorted(VECTORS))

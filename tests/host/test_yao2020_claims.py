@@ -12,9 +12,13 @@ from bench.claims import ClaimResult
 from bench.claims import yao2020 as y
 
 EXPECTED = {  # claim_id: verdict as computed on the bench
-    "yao2020-1a": "reproduced", "yao2020-1b": "reproduced", "yao2020-1c": "reproduced",
-    "yao2020-2": "reproduced", "yao2020-3": "reproduced",
-    "yao2020-4-psi0.8": "reproduced", "yao2020-4-psi1.2": "reproduced",
+    "yao2020-1a": "reproduced",
+    "yao2020-1b": "reproduced",
+    "yao2020-1c": "reproduced",
+    "yao2020-2": "reproduced",
+    "yao2020-3": "reproduced",
+    "yao2020-4-psi0.8": "reproduced",
+    "yao2020-4-psi1.2": "reproduced",
 }
 
 

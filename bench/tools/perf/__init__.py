@@ -35,27 +35,53 @@ from typing import Any
 
 from .common import PERF_DIR, VM_LOCKSTEP_PERIODS, VM_LONG_BUDGET_S, machine, section
 
-SECTIONS = ("plant_core", "closed_loop", "firmware", "yao2020_identification", "cortex_m4", "canopen",
-            "sweep_scaling", "rerun_live", "pipeline", "vcan")
+SECTIONS = (
+    "plant_core",
+    "closed_loop",
+    "firmware",
+    "yao2020_identification",
+    "cortex_m4",
+    "canopen",
+    "sweep_scaling",
+    "rerun_live",
+    "pipeline",
+    "vcan",
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from .common import TARGET_LONG_PERIODS
 
     p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--quick", action="store_true",
-                   help="skip the vcan part (no VM boot); pipeline section at 10^5 periods, once, no 10^7, no peers")
-    p.add_argument("--only", default=None, metavar="SECTION[,SECTION...]",
-                   help=f"run only these sections ({', '.join(SECTIONS)})")
-    p.add_argument("--repetitions", type=int, default=None,
-                   help="whole-process runs of the 1 s scenario in the pipeline section (default 5; --quick 1)")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="skip the vcan part (no VM boot); pipeline section at 10^5 periods, once, no 10^7, no peers",
+    )
+    p.add_argument(
+        "--only", default=None, metavar="SECTION[,SECTION...]", help=f"run only these sections ({', '.join(SECTIONS)})"
+    )
+    p.add_argument(
+        "--repetitions",
+        type=int,
+        default=None,
+        help="whole-process runs of the 1 s scenario in the pipeline section (default 5; --quick 1)",
+    )
     p.add_argument("--no-peers", action="store_true", help="pipeline section without the peer simulator")
-    p.add_argument("--lockstep-periods", type=int, default=VM_LOCKSTEP_PERIODS,
-                   help=f"periods of the real lockstep loop and of the floor over vcan (default {VM_LOCKSTEP_PERIODS})")
-    p.add_argument("--long-budget-s", type=float, default=VM_LONG_BUDGET_S,
-                   help="wall-time budget of the long frame-continuity run in the VM "
-                        f"(periods = measured rate x budget, at most {TARGET_LONG_PERIODS}; "
-                        f"default {VM_LONG_BUDGET_S:.0f})")
+    p.add_argument(
+        "--lockstep-periods",
+        type=int,
+        default=VM_LOCKSTEP_PERIODS,
+        help=f"periods of the real lockstep loop and of the floor over vcan (default {VM_LOCKSTEP_PERIODS})",
+    )
+    p.add_argument(
+        "--long-budget-s",
+        type=float,
+        default=VM_LONG_BUDGET_S,
+        help="wall-time budget of the long frame-continuity run in the VM "
+        f"(periods = measured rate x budget, at most {TARGET_LONG_PERIODS}; "
+        f"default {VM_LONG_BUDGET_S:.0f})",
+    )
     p.add_argument("--save", type=Path, default=PERF_DIR / "perf.json", help="also write the JSON here")
     p.add_argument("--inside-vm", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -74,10 +100,18 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
         sizes.repetitions = max(1, args.repetitions)
     if args.no_peers:
         sizes.peers = False
-    return {"plant_core": plant_core, "closed_loop": closed_loop, "firmware": firmware,
-            "yao2020_identification": yao2020_identification_cost, "cortex_m4": cortex_m4,
-            "canopen": canopen_cost, "sweep_scaling": sweep_scaling, "rerun_live": rerun_live,
-            "pipeline": lambda: pipeline(sizes, note=note), "vcan": lambda: vcan(args)}
+    return {
+        "plant_core": plant_core,
+        "closed_loop": closed_loop,
+        "firmware": firmware,
+        "yao2020_identification": yao2020_identification_cost,
+        "cortex_m4": cortex_m4,
+        "canopen": canopen_cost,
+        "sweep_scaling": sweep_scaling,
+        "rerun_live": rerun_live,
+        "pipeline": lambda: pipeline(sizes, note=note),
+        "vcan": lambda: vcan(args),
+    }
 
 
 def main(args: argparse.Namespace) -> int:

@@ -50,10 +50,15 @@ def api(periods: int, folder: Path) -> dict[str, Any]:
     (folder / "summary.json").write_text(json.dumps(res.summary, indent=2, default=_json_default))
     wall = time.perf_counter() - t0
     timing = res.summary.get("timing", {})
-    return {"periods": int(res.summary["periods"]), "status": res.status, "api_wall_s": wall,
-            "run_wall_s": timing.get("run_wall_s"), "periods_per_s": res.summary["periods"] / wall,
-            "run_periods_per_s": res.summary["periods"] / timing["run_wall_s"] if timing.get("run_wall_s") else None,
-            "bytes": {p.name: p.stat().st_size for p in sorted(folder.iterdir())}}
+    return {
+        "periods": int(res.summary["periods"]),
+        "status": res.status,
+        "api_wall_s": wall,
+        "run_wall_s": timing.get("run_wall_s"),
+        "periods_per_s": res.summary["periods"] / wall,
+        "run_periods_per_s": res.summary["periods"] / timing["run_wall_s"] if timing.get("run_wall_s") else None,
+        "bytes": {p.name: p.stat().st_size for p in sorted(folder.iterdir())},
+    }
 
 
 def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
@@ -84,8 +89,12 @@ def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
         st = sess.statuses()
     finally:
         sess.close()
-    res = {"periods": periods, "run_wall_s": run_wall, "periods_per_s": periods / run_wall,
-           "plant_missed_commands": st.get("plant.Run control.missed_commands")}
+    res = {
+        "periods": periods,
+        "run_wall_s": run_wall,
+        "periods_per_s": periods / run_wall,
+        "plant_missed_commands": st.get("plant.Run control.missed_commands"),
+    }
     if recorded:
         res["frames"] = frames
     return res

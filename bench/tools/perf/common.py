@@ -67,7 +67,7 @@ class Measured:
 
     returncode: int
     wall_s: float
-    peak_rss_kB: int   # ru_maxrss of that process and the descendants it waited for (wait4)
+    peak_rss_kB: int  # ru_maxrss of that process and the descendants it waited for (wait4)
     stdout: str
     stderr: str
 
@@ -96,8 +96,9 @@ with open(res, "w") as r:
 """
 
 
-def measure(argv: list[str], timeout: float = 600.0, cwd: Path | None = None,
-            env: dict[str, str] | None = None) -> Measured:
+def measure(
+    argv: list[str], timeout: float = 600.0, cwd: Path | None = None, env: dict[str, str] | None = None
+) -> Measured:
     """Run argv to its end, as a user would: wall time from spawn to reaping and the peak RSS of
     that process alone (and of the children it waited for), through _LAUNCHER."""
     import json
@@ -105,8 +106,13 @@ def measure(argv: list[str], timeout: float = 600.0, cwd: Path | None = None,
 
     with tempfile.TemporaryDirectory(prefix="bench-perf-measure-") as td:
         out, err, res = (Path(td) / n for n in ("stdout", "stderr", "result.json"))
-        launcher = subprocess.Popen([sys.executable, "-c", _LAUNCHER, str(out), str(err), str(res), *argv],
-                                    stdin=subprocess.DEVNULL, cwd=cwd, env=env, start_new_session=True)
+        launcher = subprocess.Popen(
+            [sys.executable, "-c", _LAUNCHER, str(out), str(err), str(res), *argv],
+            stdin=subprocess.DEVNULL,
+            cwd=cwd,
+            env=env,
+            start_new_session=True,
+        )
         try:
             launcher.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -114,11 +120,18 @@ def measure(argv: list[str], timeout: float = 600.0, cwd: Path | None = None,
             launcher.wait()
             raise RuntimeError(f"{' '.join(argv)}: no end after {timeout:.0f} s") from None
         if launcher.returncode != 0 or not res.exists():
-            raise RuntimeError(f"could not run {' '.join(argv)} (launcher status {launcher.returncode}): "
-                               f"{err.read_text(errors='replace') if err.exists() else ''}")
+            raise RuntimeError(
+                f"could not run {' '.join(argv)} (launcher status {launcher.returncode}): "
+                f"{err.read_text(errors='replace') if err.exists() else ''}"
+            )
         r = json.loads(res.read_text())
-        return Measured(int(r["returncode"]), float(r["wall_s"]), int(r["maxrss_kB"]),
-                        out.read_text(errors="replace"), err.read_text(errors="replace"))
+        return Measured(
+            int(r["returncode"]),
+            float(r["wall_s"]),
+            int(r["maxrss_kB"]),
+            out.read_text(errors="replace"),
+            err.read_text(errors="replace"),
+        )
 
 
 def stats(values: list[float]) -> dict[str, Any]:

@@ -18,8 +18,18 @@ from typing import Any
 from ...paths import BUILD, REPO, binary
 from .common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, first_line, run, statm_pages
 
-ARM_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2", "-Wall", "-Wextra",
-             "-Werror", "-std=c11", "-c"]
+ARM_FLAGS = [
+    "-mcpu=cortex-m4",
+    "-mthumb",
+    "-mfpu=fpv4-sp-d16",
+    "-mfloat-abi=hard",
+    "-O2",
+    "-Wall",
+    "-Wextra",
+    "-Werror",
+    "-std=c11",
+    "-c",
+]
 
 # Sizes of the runs (kept short: 2 shared cores).
 PLANT_PERF_PERIODS = 2_000_000
@@ -30,8 +40,10 @@ CALLGRIND_STEPS = (20_000, 40_000)
 
 
 # ---------------------------------------------------------------------- plant core
-PLANT_RE = re.compile(r"^(?P<label>.+?)\s+step:\s+(?P<step>[\d.]+) ns/period.*?sample\+step:\s+(?P<both>[\d.]+) ns"
-                      r".*\[rk4 substeps (?P<sub>\d+)\]")
+PLANT_RE = re.compile(
+    r"^(?P<label>.+?)\s+step:\s+(?P<step>[\d.]+) ns/period.*?sample\+step:\s+(?P<both>[\d.]+) ns"
+    r".*\[rk4 substeps (?P<sub>\d+)\]"
+)
 
 
 def plant_core() -> dict[str, Any]:
@@ -41,20 +53,36 @@ def plant_core() -> dict[str, Any]:
         m = PLANT_RE.match(line)
         if m:
             step, both = float(m["step"]), float(m["both"])
-            cases.append({"case": m["label"].strip(), "step_ns": step, "step_Mps": 1e3 / step,
-                          "sample_step_ns": both, "sample_step_Mps": 1e3 / both, "rk4_substeps": int(m["sub"]),
-                          "meets_target": 1e3 / both >= TARGET_PLANT_MPS})
-    mem = re.search(r"after warm-up (\d+), after 10\^6 periods (\d+), after 2\*10\^6 periods (\d+) \(growth (-?\d+)\)",
-                    out)
-    res: dict[str, Any] = {"periods_per_case": PLANT_PERF_PERIODS, "target_Mps": TARGET_PLANT_MPS, "cases": cases,
-                           "metric": "sample+step (what one SYNC costs the plant)"}
+            cases.append(
+                {
+                    "case": m["label"].strip(),
+                    "step_ns": step,
+                    "step_Mps": 1e3 / step,
+                    "sample_step_ns": both,
+                    "sample_step_Mps": 1e3 / both,
+                    "rk4_substeps": int(m["sub"]),
+                    "meets_target": 1e3 / both >= TARGET_PLANT_MPS,
+                }
+            )
+    mem = re.search(
+        r"after warm-up (\d+), after 10\^6 periods (\d+), after 2\*10\^6 periods (\d+) \(growth (-?\d+)\)", out
+    )
+    res: dict[str, Any] = {
+        "periods_per_case": PLANT_PERF_PERIODS,
+        "target_Mps": TARGET_PLANT_MPS,
+        "cases": cases,
+        "metric": "sample+step (what one SYNC costs the plant)",
+    }
     if mem:
-        res["rss_pages"] = {"warm": int(mem[1]), "after_1e6": int(mem[2]), "after_2e6": int(mem[3]),
-                            "growth": int(mem[4])}
+        res["rss_pages"] = {
+            "warm": int(mem[1]),
+            "after_1e6": int(mem[2]),
+            "after_2e6": int(mem[3]),
+            "growth": int(mem[4]),
+        }
     if not cases:
         raise RuntimeError(f"unexpected plant_perf output: {out!r}")
     return res
-
 
 
 # ---------------------------------------------------------------------- closed loop in-process
@@ -71,10 +99,16 @@ def closed_loop() -> dict[str, Any]:
     lib.hil_core_loop_iq_A.restype = ctypes.c_double
     lib.hil_core_loop_ns(CORE_LOOP_PERIODS // 10)  # warm-up
     ns = min(lib.hil_core_loop_ns(CORE_LOOP_PERIODS) for _ in range(2))
-    bare = {"periods": CORE_LOOP_PERIODS, "ns_per_period": ns, "Mperiods_per_s": 1e3 / ns,
-            "iq_end_A": lib.hil_core_loop_iq_A(), "iq_ref_A": 1.0, "target_Mps": TARGET_LOOP_MPS,
-            "meets_target": 1e3 / ns >= TARGET_LOOP_MPS,
-            "what": "plant_sample -> drive_current_step -> plant_step, You 2019 ideal, locked rotor, deadbeat"}
+    bare = {
+        "periods": CORE_LOOP_PERIODS,
+        "ns_per_period": ns,
+        "Mperiods_per_s": 1e3 / ns,
+        "iq_end_A": lib.hil_core_loop_iq_A(),
+        "iq_ref_A": 1.0,
+        "target_Mps": TARGET_LOOP_MPS,
+        "meets_target": 1e3 / ns >= TARGET_LOOP_MPS,
+        "what": "plant_sample -> drive_current_step -> plant_step, You 2019 ideal, locked rotor, deadbeat",
+    }
 
     # Direct mode: both node apps + CANopen slave + in-process bus; configured by SDO only
     # for NMT start and the reference (everything else at the EDS defaults).
@@ -105,28 +139,42 @@ def closed_loop() -> dict[str, Any]:
     finally:
         net.disconnect()
     page_kB = os.sysconf("SC_PAGE_SIZE") / 1024
-    direct = {"periods": ran, "wall_s": wall, "ns_per_period": 1e9 * wall / ran, "periods_per_s": ran / wall,
-              "Mperiods_per_s": ran / wall / 1e6, "target_Mps": TARGET_LOOP_MPS,
-              "meets_target": ran / wall / 1e6 >= TARGET_LOOP_MPS,
-              "drive_current_steps": steps, "plant_missed_commands": missed,
-              "what": "plant_app + drive_app + CANopen slave on co_membus (libhil.so), 4 frames/period, no recorder"}
-    memory = {"periods": ran + ran2, "warm_up_periods": warm, "page_kB": page_kB,
-              "rss_pages": {"before": rss0, "after_1e6": rss1, "after_2e6": rss2},
-              "vm_size_pages": {"before": size0, "after_1e6": size1, "after_2e6": size2},
-              "rss_growth_kB_over_1e6": (rss1 - rss0) * page_kB, "rss_growth_kB_over_2e6": (rss2 - rss0) * page_kB,
-              "rss_growth_kB_second_1e6": (rss2 - rss1) * page_kB,
-              # Flat: nothing over the second 10^6 periods (the first may still fault in a few
-              # rarely used code pages of libm/libhil, which are file-backed and bounded).
-              "flat": rss2 == rss1 and rss1 - rss0 <= 4}
+    direct = {
+        "periods": ran,
+        "wall_s": wall,
+        "ns_per_period": 1e9 * wall / ran,
+        "periods_per_s": ran / wall,
+        "Mperiods_per_s": ran / wall / 1e6,
+        "target_Mps": TARGET_LOOP_MPS,
+        "meets_target": ran / wall / 1e6 >= TARGET_LOOP_MPS,
+        "drive_current_steps": steps,
+        "plant_missed_commands": missed,
+        "what": "plant_app + drive_app + CANopen slave on co_membus (libhil.so), 4 frames/period, no recorder",
+    }
+    memory = {
+        "periods": ran + ran2,
+        "warm_up_periods": warm,
+        "page_kB": page_kB,
+        "rss_pages": {"before": rss0, "after_1e6": rss1, "after_2e6": rss2},
+        "vm_size_pages": {"before": size0, "after_1e6": size1, "after_2e6": size2},
+        "rss_growth_kB_over_1e6": (rss1 - rss0) * page_kB,
+        "rss_growth_kB_over_2e6": (rss2 - rss0) * page_kB,
+        "rss_growth_kB_second_1e6": (rss2 - rss1) * page_kB,
+        # Flat: nothing over the second 10^6 periods (the first may still fault in a few
+        # rarely used code pages of libm/libhil, which are file-backed and bounded).
+        "flat": rss2 == rss1 and rss1 - rss0 <= 4,
+    }
     return {"bare_cores": bare, "direct_mode": direct, "memory": memory}
 
 
 # ---------------------------------------------------------------------- firmware
-DRIVE_PERF_KEYS = {"deadbeat current step": "deadbeat_step_ns",
-                   "deadbeat + identification step": "deadbeat_ident_step_ns",
-                   "PI current step": "pi_step_ns",
-                   "identification sample (You 2019 Eq. 24-27, per call)": "ident_sample_ns",
-                   "identification update (You 2019 Eq. 28-32)": "ident_update_ns"}
+DRIVE_PERF_KEYS = {
+    "deadbeat current step": "deadbeat_step_ns",
+    "deadbeat + identification step": "deadbeat_ident_step_ns",
+    "PI current step": "pi_step_ns",
+    "identification sample (You 2019 Eq. 24-27, per call)": "ident_sample_ns",
+    "identification update (You 2019 Eq. 28-32)": "ident_update_ns",
+}
 
 
 def _parse_drive_perf(out: str) -> dict[str, float]:
@@ -144,22 +192,31 @@ def _callgrind(steps: int, tmp: Path) -> dict[str, Any]:
     drive_perf.c, in call order: deadbeat, deadbeat + identification, PI; then the
     identification average and the per-sample update of bench_average)."""
     cg = tmp / f"callgrind.{steps}"
-    run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={cg}", str(binary("drive_perf")), str(steps)],
-         timeout=300)
+    run(
+        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={cg}", str(binary("drive_perf")), str(steps)],
+        timeout=300,
+    )
     ann = run(["callgrind_annotate", "--inclusive=yes", "--auto=yes", str(cg)], timeout=120)
     total = int(re.search(r"^([\d,]+) \(100\.0%\)\s+PROGRAM TOTALS", ann, re.M)[1].replace(",", ""))  # type: ignore[index]
     sections = re.split(r"^-- Auto-annotated source: ", ann, flags=re.M)
     # A file can appear twice (absolute and relative debug path); take the one with the call sites.
     cands = [s for s in sections[1:] if s.splitlines() and s.splitlines()[0].strip().endswith("drive_perf.c")]
     src = max(cands, key=lambda s: len(re.findall(r"=> \S+:bench \(1x\)", s)), default="")
-    bench_calls = [int(m[1].replace(",", "")) for m in re.finditer(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:bench \(1x\)",
-                                                                   src, re.M)]
+    bench_calls = [
+        int(m[1].replace(",", "")) for m in re.finditer(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:bench \(1x\)", src, re.M)
+    ]
     avg = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:you2019_identification_average \(", src, re.M)
     smp = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+=> \S+:you2019_identification_sample \(", src, re.M)
     if len(bench_calls) != 3 or not avg or not smp:
         raise RuntimeError("cannot find drive_perf's call sites in callgrind_annotate's output")
-    return {"total": total, "deadbeat": bench_calls[0], "deadbeat_ident": bench_calls[1], "pi": bench_calls[2],
-            "ident_update": int(avg[1].replace(",", "")), "ident_sample": int(smp[1].replace(",", ""))}
+    return {
+        "total": total,
+        "deadbeat": bench_calls[0],
+        "deadbeat_ident": bench_calls[1],
+        "pi": bench_calls[2],
+        "ident_update": int(avg[1].replace(",", "")),
+        "ident_sample": int(smp[1].replace(",", "")),
+    }
 
 
 def firmware() -> dict[str, Any]:
@@ -174,7 +231,7 @@ def firmware() -> dict[str, Any]:
         res["callgrind"] = {
             "step_counts": [n1, n2],
             "method": "Ir(n2) - Ir(n1) over (n2 - n1) steps, inclusive counts of drive_perf's call sites; "
-                      "includes drive_perf's own first-order plant and set-point lines (a few instructions)",
+            "includes drive_perf's own first-order plant and set-point lines (a few instructions)",
             "instructions_per_step": {
                 "deadbeat": (b["deadbeat"] - a["deadbeat"]) / d,
                 "deadbeat_ident": (b["deadbeat_ident"] - a["deadbeat_ident"]) / d,
@@ -214,9 +271,12 @@ def yao2020_identification_cost() -> dict[str, Any]:
         a = _fn_inclusive(n1, "yao2020_perf", fns, Path(td))
         b = _fn_inclusive(n2, "yao2020_perf", fns, Path(td))
     per = {fn: (b[fn] - a[fn]) / (n2 - n1) for fn in fns}
-    return {"step_counts": [n1, n2], "instructions_per_call": per,
-            "rls_over_proposed": per["yao2020_rls_update"] / per["yao2020_identification_update"],
-            "paper_us_on_150MHz_DSP": {"proposed": 0.313, "rls": 18.9, "ratio": 18.9 / 0.313}}
+    return {
+        "step_counts": [n1, n2],
+        "instructions_per_call": per,
+        "rls_over_proposed": per["yao2020_rls_update"] / per["yao2020_identification_update"],
+        "paper_us_on_150MHz_DSP": {"proposed": 0.313, "rls": 18.9, "ratio": 18.9 / 0.313},
+    }
 
 
 # ---------------------------------------------------------------------- Cortex-M4F
@@ -229,8 +289,9 @@ def cortex_m4() -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as td:
         for src in sorted(core.glob("*.c")):
             obj = Path(td) / (src.stem + ".o")
-            r = subprocess.run([gcc, *ARM_FLAGS, f"-I{core}", str(src), "-o", str(obj)], capture_output=True,
-                               text=True, timeout=120)
+            r = subprocess.run(
+                [gcc, *ARM_FLAGS, f"-I{core}", str(src), "-o", str(obj)], capture_output=True, text=True, timeout=120
+            )
             if r.returncode != 0:
                 raise RuntimeError(f"arm-none-eabi-gcc failed on {src.name}: {r.stderr}")
             objs.append(obj)
@@ -241,5 +302,4 @@ def cortex_m4() -> dict[str, Any]:
         if len(f) >= 6:
             rows.append({"object": Path(f[5]).name, "text": int(f[0]), "data": int(f[1]), "bss": int(f[2])})
     total = {k: sum(r[k] for r in rows) for k in ("text", "data", "bss")}
-    return {"compiler": first_line([gcc, "--version"]), "flags": " ".join(ARM_FLAGS), "objects": rows,
-            "total": total}
+    return {"compiler": first_line([gcc, "--version"]), "flags": " ".join(ARM_FLAGS), "objects": rows, "total": total}

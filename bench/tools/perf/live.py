@@ -48,8 +48,10 @@ def rerun_live(periods: int = 1_000_000, signals: int = 16) -> dict[str, Any]:
     16 signals, logged with send_columns in batches, at full rate and decimated by 10, with a 1 GiB cap."""
     out = {}
     for decimate in (1, 10):
-        r = run([sys.executable, "-c", _RERUN_CHILD, str(periods), str(signals), "10000", str(decimate), "1GiB"],
-                timeout=600)
+        r = run(
+            [sys.executable, "-c", _RERUN_CHILD, str(periods), str(signals), "10000", str(decimate), "1GiB"],
+            timeout=600,
+        )
         out[f"decimate_{decimate}"] = json.loads(r.strip().splitlines()[-1])
     return {"periods": periods, "signals": signals, "server_memory_limit": "1GiB", **out}
 
@@ -103,14 +105,23 @@ def live_follow(log: Path, periods_per_update: int = 1000, periods: int | None =
     # time) is full, and the first update's configuration traffic is behind. Late = the last tenth.
     n = len(times)
     tenth = max(1, n // 10)
-    early = sorted(times[tenth:2 * tenth] or times[:1])
+    early = sorted(times[tenth : 2 * tenth] or times[:1])
     late = sorted(times[-tenth:])
     e, l_ = early[len(early) // 2], late[len(late) // 2]
-    return {"log_bytes": size, "periods": int(res.summary["periods"]), "updates": n, "block_bytes": block,
-            "early_updates": [tenth, 2 * tenth], "late_updates": [max(0, n - tenth), n],
-            "periods_per_update": periods_per_update, "update_ms_early_median": e * 1e3,
-            "update_ms_late_median": l_ * 1e3, "update_ms_max": max(times) * 1e3 if times else None,
-            "late_over_early": l_ / e if e > 0 else None,
-            "us_per_period_late": l_ * 1e6 / periods_per_update, "wall_s": wall,
-            "what": "append ~periods_per_update periods of candump log, then LogFollower.drain -> Pipeline.feed "
-                    "-> traces.npy + run.rrd (RerunSink, no viewer), timed per update"}
+    return {
+        "log_bytes": size,
+        "periods": int(res.summary["periods"]),
+        "updates": n,
+        "block_bytes": block,
+        "early_updates": [tenth, 2 * tenth],
+        "late_updates": [max(0, n - tenth), n],
+        "periods_per_update": periods_per_update,
+        "update_ms_early_median": e * 1e3,
+        "update_ms_late_median": l_ * 1e3,
+        "update_ms_max": max(times) * 1e3 if times else None,
+        "late_over_early": l_ / e if e > 0 else None,
+        "us_per_period_late": l_ * 1e6 / periods_per_update,
+        "wall_s": wall,
+        "what": "append ~periods_per_update periods of candump log, then LogFollower.drain -> Pipeline.feed "
+        "-> traces.npy + run.rrd (RerunSink, no viewer), timed per update",
+    }

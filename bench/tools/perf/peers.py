@@ -32,10 +32,17 @@ def ensure_venv(say: Callable[[str], None]) -> tuple[Path | None, str | None]:
     probe = [str(py), "-c", "import gym_electric_motor"]
     if py.exists() and subprocess.run(probe, capture_output=True, timeout=120).returncode == 0:
         return py, None
-    say(f"peers: {PEERS_VENV.name} is missing or incomplete: installing it with {PEERS_SH.relative_to(REPO)} "
-        "(Python 3.12, gym-electric-motor, motulator; a few minutes)")
-    r = subprocess.run(["bash", str(PEERS_SH)], capture_output=True, text=True, timeout=1800,
-                       env={**os.environ, "PEERS_VENV": str(PEERS_VENV)})
+    say(
+        f"peers: {PEERS_VENV.name} is missing or incomplete: installing it with {PEERS_SH.relative_to(REPO)} "
+        "(Python 3.12, gym-electric-motor, motulator; a few minutes)"
+    )
+    r = subprocess.run(
+        ["bash", str(PEERS_SH)],
+        capture_output=True,
+        text=True,
+        timeout=1800,
+        env={**os.environ, "PEERS_VENV": str(PEERS_VENV)},
+    )
     if r.returncode != 0 or not py.exists():
         tail = " ".join((r.stderr or r.stdout).strip().splitlines()[-3:])
         return None, f"scripts/peers.sh failed (status {r.returncode}): {tail}"
@@ -60,12 +67,18 @@ def gem(reps: int = 3, say: Callable[[str], None] | None = None) -> dict[str, An
     sim = [o["periods_per_s"] for _, o in runs]
     last = runs[-1][1]
     periods = int(last["n_periods"])
-    return {"simulator": last.get("simulator"), "solver": last.get("solver"), "speed": last.get("speed"),
-            "periods": periods, "repetitions": len(runs), "wall_s": stats(walls),
-            "peak_rss_kB": max(m.peak_rss_kB for m, _ in runs),
-            "sim_wall_s": stats([o["sim_wall_s"] for _, o in runs]),
-            "setup_s": stats([o["setup_s"] for _, o in runs]),
-            "sim_periods_per_s": stats(sim)["median"],
-            "periods_per_s_whole_process": periods / stats(walls)["median"],
-            "iq_final_A": last.get("iq_final"),
-            "command": f".peers-venv/bin/python {script} --speed standstill --solver dopri5"}
+    return {
+        "simulator": last.get("simulator"),
+        "solver": last.get("solver"),
+        "speed": last.get("speed"),
+        "periods": periods,
+        "repetitions": len(runs),
+        "wall_s": stats(walls),
+        "peak_rss_kB": max(m.peak_rss_kB for m, _ in runs),
+        "sim_wall_s": stats([o["sim_wall_s"] for _, o in runs]),
+        "setup_s": stats([o["setup_s"] for _, o in runs]),
+        "sim_periods_per_s": stats(sim)["median"],
+        "periods_per_s_whole_process": periods / stats(walls)["median"],
+        "iq_final_A": last.get("iq_final"),
+        "command": f".peers-venv/bin/python {script} --speed standstill --solver dopri5",
+    }

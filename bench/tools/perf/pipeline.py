@@ -21,6 +21,7 @@ from .common import measure, stats
 SCENARIO = REPO / "scenarios" / "you2019_step.toml"
 ONE_SECOND_PERIODS = 18_182  # 1.0 s of You 2019's Ts = 55 us
 
+
 def _target(label: str, unit: str, target: float, le: bool, was: float | None, what: str) -> dict[str, Any]:
     return {"label": label, "unit": unit, "target": target, "le": le, "was": was, "what": what}
 
@@ -28,33 +29,68 @@ def _target(label: str, unit: str, target: float, le: bool, was: float | None, w
 # Targets (docs/BENCHMARKS.md; reported, never asserted). "was": before the run pipeline's rewrite.
 TARGETS: dict[str, dict[str, Any]] = {
     "one_second_wall_s": _target(
-        "1 s scenario, whole process, median", "s", 1.5, True, 6.0,
-        "1 s scenario (18,182 periods), whole `bench run --bus direct --no-viewer` process, median wall s"),
+        "1 s scenario, whole process, median",
+        "s",
+        1.5,
+        True,
+        6.0,
+        "1 s scenario (18,182 periods), whole `bench run --bus direct --no-viewer` process, median wall s",
+    ),
     "whole_1e6_wall_s": _target(
-        "10^6 periods, whole process, all outputs", "s", 5.0, True, 41.0,
-        "10^6 periods, whole `bench run` process with traces, summary, plots, .rrd and CAN log, wall s"),
+        "10^6 periods, whole process, all outputs",
+        "s",
+        5.0,
+        True,
+        41.0,
+        "10^6 periods, whole `bench run` process with traces, summary, plots, .rrd and CAN log, wall s",
+    ),
     "whole_1e6_peak_rss_MB": _target(
-        "peak RSS, 10^6, whole process", "MB", 400.0, True, 1100.0,
-        "10^6 periods, whole `bench run` process, peak RSS MB"),
+        "peak RSS, 10^6, whole process",
+        "MB",
+        400.0,
+        True,
+        1100.0,
+        "10^6 periods, whole `bench run` process, peak RSS MB",
+    ),
     "api_over_loop": _target(
-        "API 10^6 (summary+traces) / loop rate", "x", 0.5, False, 0.022,
-        "10^6 periods via run_scenario with summary + traces.npy, periods/s / the loop's own periods/s"),
+        "API 10^6 (summary+traces) / loop rate",
+        "x",
+        0.5,
+        False,
+        0.022,
+        "10^6 periods via run_scenario with summary + traces.npy, periods/s / the loop's own periods/s",
+    ),
     "api_over_gem": _target(
-        "API 10^6 periods/s / gym-electric-motor", "x", 100.0, False, 5.9,
-        "10^6 periods via run_scenario, periods/s / gym-electric-motor's periods/s (its loop, same 1 s scenario)"),
+        "API 10^6 periods/s / gym-electric-motor",
+        "x",
+        100.0,
+        False,
+        5.9,
+        "10^6 periods via run_scenario, periods/s / gym-electric-motor's periods/s (its loop, same 1 s scenario)",
+    ),
     "api_rss_1e7_over_1e6": _target(
-        "peak RSS 10^7 / 10^6 (API)", "x", 1.02, True, None,
-        "peak RSS of run_scenario at 10^7 periods / at 10^6 ('no larger'; 2% measurement slack)"),
+        "peak RSS 10^7 / 10^6 (API)",
+        "x",
+        1.02,
+        True,
+        None,
+        "peak RSS of run_scenario at 10^7 periods / at 10^6 ('no larger'; 2% measurement slack)",
+    ),
     "live_update_growth": _target(
-        "VM live view: late / early update", "x", 1.5, True, None,
-        "VM live view: median update late in a run / early in it (O(new periods) per update: ~1)"),
+        "VM live view: late / early update",
+        "x",
+        1.5,
+        True,
+        None,
+        "VM live view: median update late in a run / early in it (O(new periods) per update: ~1)",
+    ),
 }
 
 
 @dataclass
 class Sizes:
     one_second_periods: int = ONE_SECOND_PERIODS
-    repetitions: int = 5            # whole-process runs of the 1 s scenario (and up to 3 of the peer)
+    repetitions: int = 5  # whole-process runs of the 1 s scenario (and up to 3 of the peer)
     whole_periods: int = 1_000_000  # whole process, every output
     api_periods: tuple[int, ...] = (1_000_000, 10_000_000)
     loop_periods: int = 1_000_000
@@ -77,13 +113,28 @@ def _bytes(folder: Path) -> dict[str, int]:
 
 def whole_run(periods: int, out: Path) -> dict[str, Any]:
     """One `bench run ... --bus direct --no-viewer` process to its end (fresh out folder)."""
-    argv = [*bench_command(), "run", str(SCENARIO), "--bus", "direct", "--no-viewer", "--set",
-            f"scenario.periods={periods}", "--out", str(out)]
+    argv = [
+        *bench_command(),
+        "run",
+        str(SCENARIO),
+        "--bus",
+        "direct",
+        "--no-viewer",
+        "--set",
+        f"scenario.periods={periods}",
+        "--out",
+        str(out),
+    ]
     m = measure(argv, timeout=1800, cwd=REPO).check(f"bench run ({periods} periods)")
     summary = json.loads((out / "summary.json").read_text())
-    return {"wall_s": m.wall_s, "peak_rss_kB": m.peak_rss_kB, "status": summary["status"],
-            "periods": summary["periods"], "loop_run_wall_s": summary.get("timing", {}).get("run_wall_s"),
-            "bytes": _bytes(out)}
+    return {
+        "wall_s": m.wall_s,
+        "peak_rss_kB": m.peak_rss_kB,
+        "status": summary["status"],
+        "periods": summary["periods"],
+        "loop_run_wall_s": summary.get("timing", {}).get("run_wall_s"),
+        "bytes": _bytes(out),
+    }
 
 
 def whole_runs(periods: int, reps: int, tmp: Path, keep_last: bool = False) -> dict[str, Any]:
@@ -94,13 +145,19 @@ def whole_runs(periods: int, reps: int, tmp: Path, keep_last: bool = False) -> d
         if not (keep_last and k == reps - 1):
             shutil.rmtree(out, ignore_errors=True)
     walls = [r["wall_s"] for r in runs]
-    return {"periods": periods, "repetitions": reps, "wall_s": stats(walls),
-            "peak_rss_kB": max(r["peak_rss_kB"] for r in runs), "status": runs[-1]["status"],
-            "loop_run_wall_s": runs[-1]["loop_run_wall_s"], "bytes": runs[-1]["bytes"],
-            "total_bytes": sum(runs[-1]["bytes"].values()),
-            "periods_per_s_whole_process": periods / stats(walls)["median"],
-            "command": f"bench run {SCENARIO.relative_to(REPO)} --bus direct --no-viewer "
-                       f"--set scenario.periods={periods} --out TMP"}
+    return {
+        "periods": periods,
+        "repetitions": reps,
+        "wall_s": stats(walls),
+        "peak_rss_kB": max(r["peak_rss_kB"] for r in runs),
+        "status": runs[-1]["status"],
+        "loop_run_wall_s": runs[-1]["loop_run_wall_s"],
+        "bytes": runs[-1]["bytes"],
+        "total_bytes": sum(runs[-1]["bytes"].values()),
+        "periods_per_s_whole_process": periods / stats(walls)["median"],
+        "command": f"bench run {SCENARIO.relative_to(REPO)} --bus direct --no-viewer "
+        f"--set scenario.periods={periods} --out TMP",
+    }
 
 
 def _child(mode: str, periods: int, folder: Path | None = None) -> dict[str, Any]:
@@ -133,8 +190,9 @@ def _rss_ratio(api: dict[str, Any]) -> dict[str, Any] | None:
     return None
 
 
-def pipeline(sizes: Sizes | None = None, work: Path | None = None,
-             note: Callable[[str], None] | None = None) -> dict[str, Any]:
+def pipeline(
+    sizes: Sizes | None = None, work: Path | None = None, note: Callable[[str], None] | None = None
+) -> dict[str, Any]:
     """The section. `work`: where the runs write (a temporary folder, removed, by default)."""
     from .live import live_follow
     from .peers import gem
@@ -142,8 +200,10 @@ def pipeline(sizes: Sizes | None = None, work: Path | None = None,
     sizes = sizes or Sizes()
     say = note or (lambda msg: None)
     tmp = Path(tempfile.mkdtemp(prefix="bench-perf-pipeline-", dir=work))
-    res: dict[str, Any] = {"sizes": {**asdict(sizes), "api_periods": list(sizes.api_periods)},
-                           "scenario": str(SCENARIO.relative_to(REPO))}
+    res: dict[str, Any] = {
+        "sizes": {**asdict(sizes), "api_periods": list(sizes.api_periods)},
+        "scenario": str(SCENARIO.relative_to(REPO)),
+    }
     errors: dict[str, str] = {}
 
     def part(name: str, what: str, fn: Callable[[], Any]) -> Any:
@@ -157,19 +217,32 @@ def pipeline(sizes: Sizes | None = None, work: Path | None = None,
         return res[name]
 
     try:
-        part("one_second", f"1 s scenario, whole process x{sizes.repetitions}",
-             lambda: whole_runs(sizes.one_second_periods, sizes.repetitions, tmp))
-        part("whole", f"{sizes.whole_periods:,} periods, whole process, every output",
-             lambda: whole_runs(sizes.whole_periods, 1, tmp, keep_last=True))
+        part(
+            "one_second",
+            f"1 s scenario, whole process x{sizes.repetitions}",
+            lambda: whole_runs(sizes.one_second_periods, sizes.repetitions, tmp),
+        )
+        part(
+            "whole",
+            f"{sizes.whole_periods:,} periods, whole process, every output",
+            lambda: whole_runs(sizes.whole_periods, 1, tmp, keep_last=True),
+        )
         log = tmp / f"run-{sizes.whole_periods}-0" / "bus.log"
-        part("live_follow", "VM live view cost per update (following that run's log)",
-             lambda: live_follow(log, sizes.live_periods_per_update, sizes.whole_periods))
+        part(
+            "live_follow",
+            "VM live view cost per update (following that run's log)",
+            lambda: live_follow(log, sizes.live_periods_per_update, sizes.whole_periods),
+        )
         shutil.rmtree(log.parent, ignore_errors=True)
-        loop = part("loop", f"the loop alone, {sizes.loop_periods:,} periods",
-                    lambda: _child("loop", sizes.loop_periods))
+        loop = part(
+            "loop", f"the loop alone, {sizes.loop_periods:,} periods", lambda: _child("loop", sizes.loop_periods)
+        )
         loop_rate = loop["loop"]["periods_per_s"] if "loop" in loop else None
-        api = part("api", f"run_scenario with summary + traces, {', '.join(f'{n:,}' for n in sizes.api_periods)} "
-                   "periods", lambda: api_runs(sizes, tmp, loop_rate))
+        api = part(
+            "api",
+            f"run_scenario with summary + traces, {', '.join(f'{n:,}' for n in sizes.api_periods)} periods",
+            lambda: api_runs(sizes, tmp, loop_rate),
+        )
         res["api_rss_growth"] = _rss_ratio(api)
         if sizes.peers:
             part("gem", "gym-electric-motor on the 1 s scenario", lambda: gem(min(sizes.repetitions, 3), say))
@@ -193,10 +266,19 @@ def _row(key: str, measured: float | None, note: str = "") -> dict[str, Any]:
     met = None
     if measured is not None:
         met = measured <= t["target"] if t["le"] else measured >= t["target"]
-    return {"key": key, "label": t["label"], "unit": t["unit"], "what": t["what"], "target": t["target"],
-            "op": "<=" if t["le"] else ">=",
-            "measured": measured, "ratio": None if measured is None else measured / t["target"],
-            "was": t["was"], "met": met, "note": note}
+    return {
+        "key": key,
+        "label": t["label"],
+        "unit": t["unit"],
+        "what": t["what"],
+        "target": t["target"],
+        "op": "<=" if t["le"] else ">=",
+        "measured": measured,
+        "ratio": None if measured is None else measured / t["target"],
+        "was": t["was"],
+        "met": met,
+        "note": note,
+    }
 
 
 def target_rows(res: dict[str, Any]) -> list[dict[str, Any]]:
@@ -207,8 +289,13 @@ def target_rows(res: dict[str, Any]) -> list[dict[str, Any]]:
     rows = []
     one = res.get("one_second", {})
     one_ok = sizes["one_second_periods"] == ONE_SECOND_PERIODS
-    rows.append(_row("one_second_wall_s", one.get("wall_s", {}).get("median") if one_ok else None,
-                     "" if one_ok else f"{sizes['one_second_periods']} periods, not 18,182"))
+    rows.append(
+        _row(
+            "one_second_wall_s",
+            one.get("wall_s", {}).get("median") if one_ok else None,
+            "" if one_ok else f"{sizes['one_second_periods']} periods, not 18,182",
+        )
+    )
     whole = res.get("whole", {})
     rows.append(_row("whole_1e6_wall_s", whole.get("wall_s", {}).get("median") if full else None, size_note))
     rss = whole.get("peak_rss_kB")
@@ -217,13 +304,19 @@ def target_rows(res: dict[str, Any]) -> list[dict[str, Any]]:
     api_full = "1000000" in api
     a6 = api.get("1000000") or (next((v for k, v in api.items() if k != "error"), None))
     off = f"at {a6['periods']:,} periods" if a6 and not api_full else ""
-    rows.append(_row("api_over_loop", a6.get("over_loop") if a6 and api_full else None,
-                     f"{off}: {a6['over_loop']:.3f}" if off and a6 and a6.get("over_loop") else ""))
+    rows.append(
+        _row(
+            "api_over_loop",
+            a6.get("over_loop") if a6 and api_full else None,
+            f"{off}: {a6['over_loop']:.3f}" if off and a6 and a6.get("over_loop") else "",
+        )
+    )
     gem = res.get("gem") or {}
     ratio = res.get("api_over_gem")
     why = gem.get("skipped") or gem.get("unavailable") or gem.get("error") or ""
-    rows.append(_row("api_over_gem", ratio if api_full else None,
-                     why or (f"{off}: {ratio:.3g}x" if off and ratio else "")))
+    rows.append(
+        _row("api_over_gem", ratio if api_full else None, why or (f"{off}: {ratio:.3g}x" if off and ratio else ""))
+    )
     g = res.get("api_rss_growth")
     rows.append(_row("api_rss_1e7_over_1e6", g["ratio"] if g else None, "" if g else "10^7 not run"))
     lf = res.get("live_follow") or {}

@@ -27,8 +27,10 @@ import numpy as np
 from ...paths import REPO, binary
 from .common import PERF_DIR, TARGET_LONG_PERIODS, TARGET_VCAN_RATIO
 
-FLOOR_RE = (r"periods (\d+) frames_per_period (\d+) wall_s ([\d.]+) periods_per_s ([\d.]+) "
-            r"rtt_us mean ([\d.]+) min ([\d.]+) median ([\d.]+) p99 ([\d.]+) max ([\d.]+)")
+FLOOR_RE = (
+    r"periods (\d+) frames_per_period (\d+) wall_s ([\d.]+) periods_per_s ([\d.]+) "
+    r"rtt_us mean ([\d.]+) min ([\d.]+) median ([\d.]+) p99 ([\d.]+) max ([\d.]+)"
+)
 
 
 # ---------------------------------------------------------------------- inside the VM
@@ -42,14 +44,16 @@ def _floor(iface: str, periods: int, extra: int, record: Path | None) -> dict[st
         fh = open(record, "wb")  # noqa: SIM115 - closed below
         rec = subprocess.Popen(["candump", "-L", "-r", str(8 << 20), iface], stdout=fh, stderr=subprocess.DEVNULL)
         time.sleep(0.3)
-    drive = subprocess.Popen([exe, "drive", iface, str(periods), str(extra)], stdout=subprocess.PIPE,
-                             stderr=subprocess.STDOUT, text=True)
+    drive = subprocess.Popen(
+        [exe, "drive", iface, str(periods), str(extra)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
     try:
         assert drive.stdout is not None
         if drive.stdout.readline().strip() != "ready":
             raise RuntimeError("lockstep_floor drive did not start")
-        plant = subprocess.run([exe, "plant", iface, str(periods), str(extra)], capture_output=True, text=True,
-                               timeout=600)
+        plant = subprocess.run(
+            [exe, "plant", iface, str(periods), str(extra)], capture_output=True, text=True, timeout=600
+        )
         drive_out, _ = drive.communicate(timeout=30)
     finally:
         if drive.poll() is None:
@@ -62,13 +66,24 @@ def _floor(iface: str, periods: int, extra: int, record: Path | None) -> dict[st
             fh.close()
     m = re.search(FLOOR_RE, plant.stdout)
     if plant.returncode != 0 or drive.returncode != 0 or not m:
-        raise RuntimeError(f"lockstep_floor failed: plant rc {plant.returncode} {plant.stdout}{plant.stderr}; "
-                           f"drive rc {drive.returncode} {drive_out}")
-    res: dict[str, Any] = {"periods": int(m[1]), "frames_per_period": int(m[2]), "wall_s": float(m[3]),
-                           "periods_per_s": float(m[4]),
-                           "rtt_us": {"mean": float(m[5]), "min": float(m[6]), "median": float(m[7]),
-                                      "p99": float(m[8]), "max": float(m[9])},
-                           "recorder": record is not None}
+        raise RuntimeError(
+            f"lockstep_floor failed: plant rc {plant.returncode} {plant.stdout}{plant.stderr}; "
+            f"drive rc {drive.returncode} {drive_out}"
+        )
+    res: dict[str, Any] = {
+        "periods": int(m[1]),
+        "frames_per_period": int(m[2]),
+        "wall_s": float(m[3]),
+        "periods_per_s": float(m[4]),
+        "rtt_us": {
+            "mean": float(m[5]),
+            "min": float(m[6]),
+            "median": float(m[7]),
+            "p99": float(m[8]),
+            "max": float(m[9]),
+        },
+        "recorder": record is not None,
+    }
     if record is not None:
         with open(record, "rb") as f:
             res["frames_recorded"] = sum(1 for _ in f)
@@ -93,8 +108,12 @@ def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
     wall = time.monotonic() - t0
     meta = {"periods": sc.periods, "run_wall_s": run_wall}
     (keep / "perf_capture.json").write_text(json.dumps(meta))
-    return {**meta, "wall_s": wall, "periods_per_s": sc.periods / run_wall if run_wall > 0 else None,
-            "dir": str(keep.relative_to(REPO))}
+    return {
+        **meta,
+        "wall_s": wall,
+        "periods_per_s": sc.periods / run_wall if run_wall > 0 else None,
+        "dir": str(keep.relative_to(REPO)),
+    }
 
 
 def _unrecorded(sc: Any, iface: str) -> dict[str, Any]:
@@ -111,10 +130,16 @@ def _unrecorded(sc: Any, iface: str) -> dict[str, Any]:
         st = sess.statuses()
     finally:
         sess.close()
-    return {"periods": sc.periods, "run_wall_s": run_wall, "wall_s": time.monotonic() - t0,
-            "periods_per_s": sc.periods / run_wall if run_wall > 0 else None,
-            "counters": {"plant_missed_commands": st.get("plant.Run control.missed_commands"),
-                         "drive_current_steps": st.get("drive.Drive status.current_steps")}}
+    return {
+        "periods": sc.periods,
+        "run_wall_s": run_wall,
+        "wall_s": time.monotonic() - t0,
+        "periods_per_s": sc.periods / run_wall if run_wall > 0 else None,
+        "counters": {
+            "plant_missed_commands": st.get("plant.Run control.missed_commands"),
+            "drive_current_steps": st.get("drive.Drive status.current_steps"),
+        },
+    }
 
 
 def inside_vm(args: argparse.Namespace) -> int:
@@ -145,8 +170,12 @@ def inside_vm(args: argparse.Namespace) -> int:
     step("lockstep_unrecorded", lambda: _unrecorded(base, iface))
     rate = (res["lockstep"].get("periods_per_s") or 0) if isinstance(res.get("lockstep"), dict) else 0
     long_n = max(1000, int(min(TARGET_LONG_PERIODS, max(n, rate * args.long_budget_s)) // 1000 * 1000))
-    res["long_choice"] = {"periods": long_n, "budget_s": args.long_budget_s, "measured_rate": rate,
-                          "target_periods": TARGET_LONG_PERIODS}
+    res["long_choice"] = {
+        "periods": long_n,
+        "budget_s": args.long_budget_s,
+        "measured_rate": rate,
+        "target_periods": TARGET_LONG_PERIODS,
+    }
     long_sc = load(scenario, [f"scenario.periods={long_n}", "scenario.name=you2019-step-long"])
     step("long", lambda: _capture(long_sc, iface, PERF_DIR / "vm_long"))
     shutil.rmtree(tmp, ignore_errors=True)
@@ -206,17 +235,22 @@ def recorder_check(d: Path) -> dict[str, Any]:
     per_period = [p.cob_id for p in layout.pdos if not (p.node == "plant" and p.pdo == f"TPDO{HOLD_TPDO}")]
     cobs = [layout.sync_cob_id, *per_period]
     keys = ("sync_counter_gaps", "missing_measurements", "missing_commands", "sample_index_mismatches")
-    return {"periods_expected": periods, "syncs_recorded": int(res.summary["periods"]),
-            "frames_total": int(bs["frames"]),
-            "loop_frames_recorded": int(sum(count.by_cob[c] for c in cobs)),
-            "loop_frames_expected": periods * len(cobs),
-            "frames_per_period": {"pdos_plus_sync": len(cobs),
-                                  "by_cob_id": {f"0x{c:03X}": int(count.by_cob[c]) for c in cobs}},
-            "continuity": {k: int(bs[k]) for k in keys},
-            "continuity_in_log_order": {k: int(in_log_order[k]) for k in keys},
-            "frames_out_of_time_order_in_log": count.late,
-            "plant_missed_commands": bs["plant_missed_commands"],
-            "lost_frames": int(bs["lost_frames"]) + max(0, periods - int(res.summary["periods"]))}
+    return {
+        "periods_expected": periods,
+        "syncs_recorded": int(res.summary["periods"]),
+        "frames_total": int(bs["frames"]),
+        "loop_frames_recorded": int(sum(count.by_cob[c] for c in cobs)),
+        "loop_frames_expected": periods * len(cobs),
+        "frames_per_period": {
+            "pdos_plus_sync": len(cobs),
+            "by_cob_id": {f"0x{c:03X}": int(count.by_cob[c]) for c in cobs},
+        },
+        "continuity": {k: int(bs[k]) for k in keys},
+        "continuity_in_log_order": {k: int(in_log_order[k]) for k in keys},
+        "frames_out_of_time_order_in_log": count.late,
+        "plant_missed_commands": bs["plant_missed_commands"],
+        "lost_frames": int(bs["lost_frames"]) + max(0, periods - int(res.summary["periods"])),
+    }
 
 
 def vcan(args: argparse.Namespace) -> dict[str, Any]:
@@ -225,8 +259,18 @@ def vcan(args: argparse.Namespace) -> dict[str, Any]:
 
     out = PERF_DIR / "vm.json"
     out.unlink(missing_ok=True)
-    cmd = [sys.executable, "-m", "bench.tools.perf", "--inside-vm", "--out", str(out), "--lockstep-periods",
-           str(args.lockstep_periods), "--long-budget-s", str(args.long_budget_s)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "bench.tools.perf",
+        "--inside-vm",
+        "--out",
+        str(out),
+        "--lockstep-periods",
+        str(args.lockstep_periods),
+        "--long-budget-s",
+        str(args.long_budget_s),
+    ]
     PERF_DIR.mkdir(parents=True, exist_ok=True)
     console = PERF_DIR / "vm_console.log"
     t0 = time.monotonic()
@@ -236,8 +280,11 @@ def vcan(args: argparse.Namespace) -> dict[str, Any]:
             rc = subprocess.call(cmd, cwd=REPO, stdout=fh, stderr=subprocess.STDOUT)
         else:
             rc = run_in_vm(cmd, VmOptions(timeout_s=600), cwd=REPO, stdout=fh)
-    res: dict[str, Any] = {"where": where, "wall_s_including_boot": time.monotonic() - t0,
-                           "console_log": str(console.relative_to(REPO))}
+    res: dict[str, Any] = {
+        "where": where,
+        "wall_s_including_boot": time.monotonic() - t0,
+        "console_log": str(console.relative_to(REPO)),
+    }
     if rc != 0 or not out.exists():
         res["error"] = f"the vcan helper failed (status {rc}); see {console}"
         return res
