@@ -163,7 +163,14 @@ def test_foreign_frames_never_pass_for_a_clean_run(vcan0: str, tmp_path: Path, f
         assert ref.trace is not None and res.trace is not None
         _same(res.trace, ref.trace)
     else:
-        assert res.status in ("interference", "node_lost", "frames_lost"), (res.status, bs)
+        # Never a clean run. Random identifiers reach the nodes too, and a frame a node acts on can change the
+        # physics so that the currents diverge before the decoder sees a second frame in a period (one CI run in
+        # the VM ended "diverged" at a segment boundary; its log was lost with the guest): any status
+        # but "ok" is a true verdict here; naming every such run "interference" is left open (issue 15).
+        assert res.status in ("interference", "node_lost", "frames_lost", "diverged", "tripped", "non_finite"), (
+            res.status,
+            bs,
+        )
     if res.status in ("ok", "interference"):
         assert res.summary["periods"] == 3000  # no foreign SYNC made a period
     _no_process_left()
