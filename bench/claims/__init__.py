@@ -142,6 +142,6 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
         raise RuntimeError(
             f"run {sc.name} on {bus} ended {res.status} (expected {', '.join(sc.expect)}): "
             f"flags {s['status_flags']}, lost frames {s['bus_stats']['lost_frames']}, "
-            f"periods {s['periods']} of {sc.periods}"
+            f"periods {s['periods']} of {sc.periods}; interference {s['bus_stats']['interference']}"
         )
     return Run(res, res.trace, out, collector.frames if collector is not None else None)

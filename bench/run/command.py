@@ -152,6 +152,10 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     try:
         sc = load(args.scenario, args.overrides)
         _check_args(args)
+        if args.bus == "direct" and sc.timing == "realtime":
+            from .pipeline import DIRECT_IS_LOCKSTEP
+
+            raise ScenarioError(DIRECT_IS_LOCKSTEP)
     except ScenarioError as exc:
         print(f"bench run: {exc}", file=sys.stderr)
         return 2, None, None

@@ -354,6 +354,10 @@ class Decoder:
                         # the period's own command is the last one
                         last = np.r_[per[1:] != per[:-1], True]
                         pos, per = pos[last], per[last]
+                    elif realtime and pdo.node == "drive":
+                        # real time: a synchronous drive TPDO sent late for its SYNC lands after the next SYNC;
+                        # it is the earlier row's (the drive sends one per SYNC, in order), not a foreign frame
+                        pos, per = _late_to_own_row(pos, per, r0)
                     else:
                         # a PDO twice in a period that holds the next period's sample: the SYNC between them
                         # was lost (frames_lost), not a foreign frame (a synchronous drive TPDO is one behind)
@@ -479,3 +483,21 @@ class Decoder:
             wrong = si[good] != (out["period"][good] % 65536)
             self.stats.sample_index_mismatches += int(wrong.sum())
             self._lost(out["period"][good][wrong])
+
+
+def _late_to_own_row(pos: np.ndarray, per: np.ndarray, r0: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frames of one periodic PDO in bus order, `per` non-decreasing: c frames in one row are that row's
+    (the last) and the c-1 rows before it, late. A row claimed twice keeps its later frame. Only real time:
+    in lockstep the drive answers a SYNC before the next one is sent, so a second frame is foreign."""
+    start = np.r_[True, per[1:] != per[:-1]]
+    group = np.cumsum(start) - 1
+    size = np.bincount(group)
+    first = np.flatnonzero(start)
+    j = np.arange(len(per)) - first[group]  # index within its row's group
+    own = per - (size[group] - 1 - j)
+    keep = np.r_[own[1:] != own[:-1], True] & (own >= r0)  # rows before r0 were emitted with the last chunk
+    # own is non-decreasing only within a group; a later group may reclaim a row: keep its (later) frame
+    order = np.argsort(own[keep], kind="stable")
+    o_pos, o_per = pos[keep][order], own[keep][order]
+    last = np.r_[o_per[1:] != o_per[:-1], True]
+    return o_pos[last], o_per[last]

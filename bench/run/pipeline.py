@@ -292,6 +292,12 @@ class Pipeline:
         )
 
 
+DIRECT_IS_LOCKSTEP = (
+    "scenario.timing = realtime needs a CAN bus (--bus vcan0, can0, ...): the direct bus calls both nodes in "
+    "one process, period by period, so it runs lockstep only"
+)
+
+
 def run_scenario(
     sc: Scenario,
     opts: RunOptions | None = None,
@@ -308,6 +314,8 @@ def run_scenario(
     from .sources import CandumpSource, DirectSource, ListenerSource
 
     opts = opts or RunOptions()
+    if opts.bus == "direct" and sc.timing == "realtime":
+        raise ValueError(DIRECT_IS_LOCKSTEP)
     sinks = list(sinks or [])
     collector = TraceCollector() if keep_trace else None
     if collector is not None:

@@ -208,3 +208,53 @@ def test_a_lost_plant_frame_is_a_lost_frame_not_interference(clean: tuple[RunRes
     res = _decode(np.delete(frames, pos[len(pos) // 2]))
     assert res.status == "frames_lost", (res.status, res.summary["bus_stats"])
     assert res.summary["bus_stats"]["interference"]["frames"] == 0
+
+
+def _as_realtime(frames: np.ndarray) -> np.ndarray:
+    """The same frames as if the master had written Run control.mode = 1 (real time) to the plant."""
+    from bench import eds
+
+    var = eds.load("plant")["Run control"]["mode"]
+    f = frames.copy()
+    req = np.flatnonzero(
+        (f["cob_id"] == 0x600 + PLANT)
+        & (f["data"][:, 1] == var.index & 0xFF)
+        & (f["data"][:, 2] == var.index >> 8)
+        & (f["data"][:, 3] == var.subindex)
+    )
+    assert len(req) == 1
+    f["data"][req[0], 4] = 1
+    return f
+
+
+def test_a_drive_late_for_its_sync_in_real_time_is_late_not_interference(
+    clean: tuple[RunResult, np.ndarray],
+) -> None:
+    # Real time in a slow VM: the drive answers SYNC k after SYNC k+1 and the plant's measurements of k+1.
+    # Its synchronous TPDOs then share a period with the next ones; they are the earlier row's, not foreign.
+    res0, frames = clean
+    f = _as_realtime(frames)
+    lo, hi = _loop_span(f)
+    sync = np.flatnonzero(f["cob_id"] == 0x080)
+    sync = sync[(sync >= lo) & (sync < hi)]
+    k = len(sync) // 2
+    span = np.arange(sync[k], sync[k + 1])
+    drive = span[f["sender"][span] == 1]
+    assert len(drive) == 3  # two synchronous trace TPDOs and the command
+    after = sync[k + 1] + 3  # after SYNC k+1 and the plant's two measurements
+    assert set(f["sender"][sync[k + 1] : after]) == {0}
+    order = np.r_[np.arange(0, drive[0]), np.arange(drive[-1] + 1, after), drive, np.arange(after, len(f))]
+    res = _decode(f[order])
+    bs = res.summary["bus_stats"]
+    assert bs["interference"]["frames"] == 0, bs["interference"]
+    assert res.status == "frames_lost"  # the command came after the next SYNC: late, missing in its period
+    assert bs["lost_frames"] == 1, bs
+    tr0, tr = res0.trace, res.trace
+    assert tr0 is not None and tr is not None
+    late = np.zeros(len(tr["period"]), dtype=bool)
+    late[k] = True
+    for name in tr0:
+        if np.isnan(tr[name][late]).all() and not np.isnan(tr0[name][late]).all():
+            np.testing.assert_array_equal(tr[name][~late], tr0[name][~late], err_msg=name)  # the command
+        else:
+            np.testing.assert_array_equal(tr[name], tr0[name], err_msg=name)  # trace TPDOs in their own rows
