@@ -25,7 +25,7 @@ EOF
 
 # ---------------------------------------------------------------- Debian packages
 PKGS=(gcc make clang libclang-rt-14-dev clang-format can-utils valgrind gcc-arm-none-eabi
-      libnewlib-arm-none-eabi iproute2 kmod chromium)
+      libnewlib-arm-none-eabi qemu-system-arm iproute2 kmod chromium)
 if have_host_can; then
     log "host kernel has SocketCAN: no VM fallback needed"
 else
