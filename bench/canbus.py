@@ -8,11 +8,13 @@ micro-VM of :mod:`bench.tools.vm`.
 from __future__ import annotations
 
 import errno
+import json
 import os
 import socket
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -87,3 +89,96 @@ def host_has_vcan(name: str = "vcan0") -> bool:
     except RuntimeError:
         return False
     return True
+
+
+# ------------------------------------------------------------------ CAN controllers (link type `can`)
+DEFAULT_BITRATE = 1_000_000  # the loop's frames at Ts = 100 us need most of a 1 Mbit/s bus (summary: bus_load)
+RESTART_MS = 100  # a controller that went bus-off restarts by itself after this long (ip ... restart-ms)
+
+
+class LinkError(RuntimeError):
+    """A CAN link the bench cannot use as it is; the message says what it needs."""
+
+
+def link_info(name: str) -> dict[str, Any] | None:
+    """What the kernel reports of a network interface (`ip -details -statistics -json link show`): its kind
+    (can, vcan, slcan...), whether it is up, and for a CAN controller its state, bit rate and error counters.
+    None when there is no such interface or iproute2 cannot tell."""
+    try:
+        proc = subprocess.run(
+            ["ip", "-details", "-statistics", "-json", "link", "show", name], capture_output=True, text=True
+        )
+    except OSError:
+        return None
+    if proc.returncode != 0:
+        return None
+    try:
+        link = json.loads(proc.stdout)[0]
+    except (ValueError, IndexError):
+        return None
+    info = link.get("linkinfo", {})
+    data = info.get("info_data", {})
+    xstats = info.get("info_xstats", {})
+    stats = link.get("stats64", {})
+    out: dict[str, Any] = {
+        "kind": info.get("info_kind", "can" if link.get("link_type") == "can" else link.get("link_type")),
+        "up": "UP" in link.get("flags", []),
+        "operstate": link.get("operstate"),
+        "rx_frames": stats.get("rx", {}).get("packets"),
+        "tx_frames": stats.get("tx", {}).get("packets"),
+        "rx_errors": stats.get("rx", {}).get("errors"),
+        "tx_errors": stats.get("tx", {}).get("errors"),
+        "rx_dropped": stats.get("rx", {}).get("dropped"),
+        "tx_dropped": stats.get("tx", {}).get("dropped"),
+    }
+    if out["kind"] == "can":
+        berr = data.get("berr_counter", {})
+        out.update(
+            {
+                "state": data.get("state"),
+                "bitrate": data.get("bittiming", {}).get("bitrate"),
+                "restart_ms": data.get("restart_ms"),
+                "berr_tx": berr.get("tx"),
+                "berr_rx": berr.get("rx"),
+                **{k: xstats.get(k) for k in ("restarts", "bus_error", "error_warning", "error_passive", "bus_off")},
+                "arbitration_lost": xstats.get("arbitration_lost"),
+            }
+        )
+    return out
+
+
+def prepare_can_link(name: str, bitrate: int | None) -> str:
+    """Bring a CAN controller up at its bit rate, as `ip link set NAME type can bitrate B restart-ms 100` and
+    `ip link set NAME up` do (root or CAP_NET_ADMIN). A link already up is left as it is, unless it runs at
+    another bit rate than asked. Virtual links (vcan, vxcan, slcan) have no bit rate: nothing to do.
+    Returns what was done; raises LinkError saying what is needed."""
+    info = link_info(name)
+    if info is None:
+        raise LinkError(f"{name}: no such network interface")
+    if info["kind"] != "can":
+        return f"{name}: {info['kind']} link, no bit rate"
+    have = info.get("bitrate")
+    if info["up"]:
+        if bitrate is not None and have and have != bitrate:
+            raise LinkError(
+                f"{name} is up at {have} bit/s, not the --bitrate {bitrate} asked; every node on a bus runs at "
+                f"one rate: drop --bitrate, or set it: ip link set {name} down && ip link set {name} type can "
+                f"bitrate {bitrate} restart-ms {RESTART_MS} && ip link set {name} up"
+            )
+        return f"{name}: up at {have} bit/s, {info.get('state')}"
+    rate = bitrate or have or DEFAULT_BITRATE
+    cmds = [
+        ["ip", "link", "set", name, "type", "can", "bitrate", str(rate), "restart-ms", str(RESTART_MS)],
+        ["ip", "link", "set", name, "up"],
+    ]
+    for cmd in cmds:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            why = proc.stderr.strip() or f"exit {proc.returncode}"
+            rights = "" if os.geteuid() == 0 else " (as root or with CAP_NET_ADMIN)"
+            raise LinkError(
+                f"{name} is down and cannot be brought up by this user: `{' '.join(cmd)}` said: {why}. "
+                f"Bring it up{rights}: sudo {' '.join(cmds[0])} && sudo {' '.join(cmds[1])}; or run the bench "
+                "as root"
+            )
+    return f"{name}: brought up at {rate} bit/s" + ("" if bitrate else " (default)" if not have else "")

@@ -29,7 +29,11 @@ def _cmd_vm(args: argparse.Namespace) -> int:
         kvm=args.kvm,
         interfaces=tuple(args.iface or ["vcan0"]),
         rwdirs=[Path(p) for p in args.rwdir or []],
+        can_controllers=args.can_controllers,
     )
+    if not 0 <= args.can_controllers <= 4:
+        print(f"bench vm: --can-controllers = {args.can_controllers}: 0 .. 4", file=sys.stderr)
+        return 64
     try:
         return run_in_vm(cmd, opts)
     except VmError as exc:
@@ -67,7 +71,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
-    from .run.command import capture_only
+    from .run.vm_run import capture_only
 
     return capture_only(args)
 
@@ -149,6 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--kvm", action="store_true", help="use KVM acceleration (off by default: it fails on many hosts)")
     v.add_argument("--iface", action="append", help="vcan interface to create (repeatable; default vcan0)")
     v.add_argument("--rwdir", action="append", help="extra host directory shared read-write (repeatable)")
+    v.add_argument(
+        "--can-controllers",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also attach N emulated CAN controllers (QEMU kvaser_pci, SJA1000) on one emulated bus: can0 .. "
+        "can{N-1}, link type can, down until given a bit rate (0 .. 4; default 0)",
+    )
     v.add_argument("cmd", nargs=argparse.REMAINDER, help="-- CMD [ARGS...]")
     v.set_defaults(func=_cmd_vm)
 
@@ -198,6 +210,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("scenario", type=Path)
     c.add_argument("--set", dest="overrides", action="append", default=[])
     c.add_argument("--bus", default="vcan0")
+    c.add_argument("--drive-bus", default=None)
+    c.add_argument("--bitrate", type=int, default=None)
     c.add_argument("--out", type=Path, required=True)
     c.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10)
     c.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20)

@@ -10,7 +10,6 @@ NAME.failed; an existing folder is never touched. The exit status is the run's v
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shutil
 import sys
@@ -20,10 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from ..scenario import Scenario, ScenarioError, load
+from .buses import bus_problem
 from .canlog import LOG_FORMATS
 from .outputs import Outputs, print_result
-
-CAPTURE_REFUSED = 65  # `bench capture` in the VM: a node refused a value of the scenario (EX_DATAERR)
+from .vm_run import run_in_vm_capture
 
 
 def default_out(sc: Scenario) -> Path:
@@ -53,7 +52,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="python-can interface for the bench's master (default socketcan; the C nodes always use SocketCAN)",
     )
     p.add_argument("--channel", dest="bus", default=argparse.SUPPRESS, help="alias of --bus for python-can users")
-    p.add_argument("--bitrate", type=int, default=None, help="bit rate for interfaces that need one")
+    p.add_argument(
+        "--drive-bus",
+        default=None,
+        metavar="NAME",
+        help="the drive node's own interface, another adapter on the same bus (a lab bench with two USB "
+        "adapters: --bus can0 --drive-bus can1 puts the plant, master and recorder on can0 and the drive on "
+        "can1; on hosts without CAN the VM supplies can0/can1 as emulated Kvaser PCIcan controllers on one "
+        "emulated bus); default: the drive is on --bus",
+    )
+    p.add_argument(
+        "--bitrate",
+        type=int,
+        default=None,
+        help="bit rate of a CAN controller link the bench brings up (ip link set canX type can bitrate ...; "
+        "default 1000000 when the link has none); a link already up keeps its rate",
+    )
     p.add_argument("--fd", action="store_true", help="open the bus as CAN FD (python-can fd=True)")
     p.add_argument("--data-bitrate", type=int, default=None, help="CAN FD data-phase bit rate")
     p.add_argument("--no-plant", action="store_true", help="do not start the C plant (a physical plant is on the bus)")
@@ -110,39 +124,6 @@ def _check_args(args: argparse.Namespace) -> None:
             raise ScenarioError(f"--{port.replace('_', '-')} = {getattr(args, port)}: a port is 1 .. 65535")
 
 
-def _bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
-    """(what is wrong with --bus, whether the VM supplies it)."""
-    import re
-
-    from ..canbus import can_interfaces, host_has_vcan, interface_state, probe_af_can
-
-    if args.bus == "direct" or args.interface != "socketcan":
-        return None, False
-    virtual = re.fullmatch(r"vcan\d{1,3}", args.bus) is not None
-    if not probe_af_can().af_can:
-        if virtual:
-            return None, True  # the VM creates it
-        return (
-            f"--bus {args.bus}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
-            "only (--bus vcan0, vcan1, ...), or use --bus direct"
-        ), False
-    if virtual and host_has_vcan(args.bus):  # a vcan is made when missing (as root); a real bus never is
-        return None, False
-    state = interface_state(args.bus)
-    cans = can_interfaces()
-    buses = ", ".join(f"{n} ({s})" for n, s in cans) or "none"
-    if state is not None and args.bus not in {n for n, _ in cans}:
-        return f"--bus {args.bus}: a network interface, but not a CAN one; the CAN interfaces here: {buses}", False
-    if not virtual and state == "up":
-        return None, False
-    if state is None:
-        return (
-            f"--bus {args.bus}: no such CAN interface; this machine has: {buses}"
-            + ("" if virtual else "; or use --bus direct or a vcan name")
-        ), False
-    return f"--bus {args.bus}: the interface is {state} (bring it up: ip link set {args.bus} up)", False
-
-
 def run(args: argparse.Namespace) -> int:
     return execute(args)[0]
 
@@ -159,7 +140,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     except ScenarioError as exc:
         print(f"bench run: {exc}", file=sys.stderr)
         return 2, None, None
-    problem, in_vm = _bus_problem(args)
+    problem, in_vm = bus_problem(args)
     if problem:
         print(f"bench run: {problem}", file=sys.stderr)
         return 2, None, None
@@ -181,7 +162,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     try:
         outputs = Outputs(partial, sc, args)
         if in_vm:
-            result = _run_in_vm(args, sc, partial, outputs)
+            result = run_in_vm_capture(args, sc, partial, outputs)
         else:
             result = _run_here(args, sc, partial, outputs)
     except KeyboardInterrupt:
@@ -193,9 +174,10 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     except Exception as exc:  # noqa: BLE001 - report every failure the same way
         if outputs is not None:
             outputs.abort()
+        from ..canbus import LinkError
         from .session import SettingRefused
 
-        if isinstance(exc, SettingRefused):  # bad input: said, and nothing left behind
+        if isinstance(exc, SettingRefused | LinkError):  # bad input or a link not usable: said, nothing left
             print(f"bench run: {exc}", file=sys.stderr)
             shutil.rmtree(partial, ignore_errors=True)
             return 2, None, None
@@ -273,158 +255,15 @@ def _discard(partial: Path, out: Path) -> None:
         print(f"bench run: what was recorded is in {failed}", file=sys.stderr)
 
 
-def _run_options(args: argparse.Namespace, out: Path) -> Any:
-    from .session import RunOptions
-
-    return RunOptions(
-        bus=args.bus,
-        interface=args.interface,
-        bitrate=args.bitrate,
-        fd=args.fd,
-        data_bitrate=args.data_bitrate,
-        plant_id=args.plant_id,
-        drive_id=args.drive_id,
-        start_plant=not args.no_plant,
-        start_drive=not args.no_drive,
-        out=out,
-    )
-
-
 def _run_here(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
     from .pipeline import run_scenario
+    from .session import run_options
 
     with outputs.progress(sc.periods, "run") as bar:
         return run_scenario(
             sc,
-            _run_options(args, partial),
+            run_options(args, partial),
             sinks=outputs.sinks,
             frame_sinks=outputs.frame_sinks,
             progress=lambda done, total: bar.update(done - bar.n),
         )
-
-
-def _run_in_vm(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
-    """The bus half runs in the VM (`bench capture`: nodes, master, candump); the host follows
-    candump's log on the shared folder and feeds the same pipeline as it grows (live view included)."""
-    import uuid
-
-    from ..paths import REPO
-    from ..tools.vm import VmOptions, run_in_vm
-    from .pipeline import Pipeline
-    from .sources import LogFollower
-
-    # The guest's /tmp is its own: stage the capture in the repository (always shared with the VM).
-    stage = REPO / "build" / "capture" / uuid.uuid4().hex[:12]
-    stage.mkdir(parents=True)
-    pipe = Pipeline(args.plant_id, args.drive_id, outputs.sinks, outputs.frame_sinks, sc.expect)
-    follower = LogFollower(stage / "candump.log")
-    stop = threading.Event()
-    errors: list[BaseException] = []
-
-    def follow() -> None:
-        try:
-            while not stop.wait(0.5):
-                pipe.feed(follower.drain())
-                bar.update(pipe.periods - bar.n)
-        except BaseException as exc:  # noqa: BLE001 - reported by the main thread
-            errors.append(exc)
-
-    cmd = [
-        sys.executable,
-        "-m",
-        "bench.cli",
-        "capture",
-        str(args.scenario.resolve()),
-        "--bus",
-        args.bus,
-        "--out",
-        str(stage),
-        "--plant-id",
-        str(args.plant_id),
-        "--drive-id",
-        str(args.drive_id),
-    ]
-    for o in args.overrides:
-        cmd += ["--set", o]
-    print(
-        "bench run: host kernel has no SocketCAN; the bus runs inside the virtme-ng VM (boot ~20 s); "
-        "the host decodes candump's log as it grows",
-        flush=True,
-    )
-    t0 = time.monotonic()
-    try:
-        with outputs.progress(sc.periods, "run (VM)") as bar:
-            th = threading.Thread(target=follow, daemon=True, name="bench-follow")
-            th.start()
-            try:
-                rc = run_in_vm(cmd, VmOptions(timeout_s=3600, interfaces=(args.bus,)), stdout=_Quiet())
-            finally:
-                stop.set()
-                th.join()
-            if errors:
-                raise errors[0]
-            if rc == CAPTURE_REFUSED:
-                from .session import SettingRefused
-
-                raise SettingRefused("a node refused a value of the scenario (the line above says which)")
-            if rc != 0:
-                raise RuntimeError(f"the capture inside the VM failed with status {rc}")
-            pipe.feed(follower.drain(final=True))
-            bar.update(pipe.periods - bar.n)
-        if not (stage / "capture.json").exists():
-            raise RuntimeError("the capture inside the VM ended without saying how (no capture.json)")
-        cap = json.loads((stage / "capture.json").read_text())
-        (stage / "capture.json").unlink(missing_ok=True)
-    finally:  # what was recorded goes with the run (NAME.failed when it failed)
-        for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
-            shutil.move(str(f), partial / f.name)
-        stage.rmdir()
-    return pipe.finish(
-        sc.name,
-        args.bus,
-        {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)},
-        cap.get("stopped"),
-    )
-
-
-class _Quiet:
-    """The VM's console: only the guest command's own lines that matter reach the user."""
-
-    def write(self, text: str) -> None:
-        for line in text.splitlines():
-            if line.startswith(("bench ", "Traceback", "RuntimeError", "  File", "Error", "error")):
-                sys.stderr.write(line + "\n")
-
-    def flush(self) -> None:
-        sys.stderr.flush()
-
-
-def capture_only(args: argparse.Namespace) -> int:
-    """`bench capture` (run inside the VM): configure, run and record candump.log; no decoding
-    (the host does it). Writes capture.json with the run's wall time."""
-    from .pipeline import capture_to_log
-    from .session import RunOptions
-
-    try:
-        sc = load(args.scenario, args.overrides)
-    except ScenarioError as exc:
-        print(f"bench capture: {exc}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
-    opts = RunOptions(bus=args.bus, plant_id=args.plant_id, drive_id=args.drive_id, out=args.out)
-    from .session import SettingRefused
-
-    try:
-        run_wall, stopped = capture_to_log(sc, opts)
-    except SettingRefused as exc:  # bad input: the host exits 2
-        print(f"bench capture: {exc}", file=sys.stderr)
-        return CAPTURE_REFUSED
-    except Exception as exc:  # noqa: BLE001 - one line the host shows (the VM's console is filtered)
-        print(f"bench capture: FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return 1
-    (args.out / "capture.json").write_text(json.dumps({"run_wall_s": run_wall, "pid": os.getpid(), "stopped": stopped}))
-    if stopped:
-        print(f"bench capture: stopped: {stopped['message']}")
-    else:
-        print(f"bench capture: {sc.periods} periods in {run_wall:.2f} s")
-    return 0

@@ -175,9 +175,15 @@ class Pipeline:
         self._tail = {n: joined[n][-before:] for n in names}
 
     def finish(
-        self, scenario: str, bus: str, wall: dict[str, float] | None = None, stopped: dict[str, Any] | None = None
+        self,
+        scenario: str,
+        bus: str,
+        wall: dict[str, float] | None = None,
+        stopped: dict[str, Any] | None = None,
+        links: dict[str, dict[str, Any]] | None = None,
     ) -> RunResult:
-        """`stopped`: the run ended before its last period (LoopStopped.to_dict(): a node lost, a stall)."""
+        """`stopped`: the run ended before its last period (LoopStopped.to_dict(): a node lost, a stall);
+        `links`: each SocketCAN interface's kernel report before and after the run (Session.links)."""
         self._rows(self.dec.finish())
         dec = self.dec
         steps = [m.to_dict() for sig, _, _ in STEP_SIGNALS for m in self.steps[sig].finish()]
@@ -275,6 +281,8 @@ class Pipeline:
             ],
             "bus_stats": bstats,
             "timing": timing,
+            # each SocketCAN interface (kind, state, bit rate, error counters) before and after the run
+            "can_links": links or {},
         }
         for s in self.sinks:
             s.end(summary)
@@ -332,6 +340,7 @@ def run_scenario(
         if opts.bus != "direct" and opts.interface == "socketcan" and opts.record:
             if opts.out is None:
                 raise ValueError("a run over SocketCAN needs opts.out for candump's log")
+            sess.prepare_links()
             source = CandumpSource(opts.bus, opts.out / "candump.log")
         sess.open()
         if sess.hil is not None and opts.record:
@@ -363,21 +372,22 @@ def run_scenario(
         pipe.feed(source.drain(final=True))
         if hasattr(source, "cleanup"):
             source.cleanup()
-    res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped)
+    res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped, sess.links)
     if collector is not None:
         res.trace = collector.trace
     return res
 
 
-def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any] | None]:
+def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any] | None, dict[str, dict[str, Any]]]:
     """The bus half of a run only: nodes, master and candump's log in `opts.out`; no decoding
-    (inside the VM, where Python is slow, the host decodes the log). Returns the loop's wall time
-    and, when the loop ended early, why (LoopStopped.to_dict())."""
+    (inside the VM, where Python is slow, the host decodes the log). Returns the loop's wall time,
+    when the loop ended early why (LoopStopped.to_dict()), and the interfaces' state (Session.links)."""
     from .sources import CandumpSource
 
     assert opts.out is not None
-    source = CandumpSource(opts.bus, opts.out / "candump.log", follow=False)
     sess = Session(sc, opts)
+    sess.prepare_links()
+    source = CandumpSource(opts.bus, opts.out / "candump.log", follow=False)
     stopped: dict[str, Any] | None = None
     try:
         sess.open()
@@ -394,7 +404,7 @@ def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any
         sess.close()
         source.stop()
         source.cleanup()
-    return run_wall, stopped
+    return run_wall, stopped, sess.links
 
 
 def replay_log(

@@ -18,11 +18,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import can
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoError
 
+from ..canbus import link_info, prepare_can_link
 from ..eds import load as load_od
 from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
@@ -50,6 +52,9 @@ class RunOptions:
     data_bitrate: int | None = None
     plant_id: int = 0x10
     drive_id: int = 0x20
+    # the drive's own interface when it sits on another adapter of the same bus (a lab bench with two USB
+    # adapters: plant, master and recorder on can0, the drive on can1); None: the drive is on `bus`
+    drive_bus: str | None = None
     start_plant: bool = True  # start the C plant process (False: a physical plant/drive is on the bus)
     start_drive: bool = True  # start the C drive process (False: a physical drive implements drive.eds)
     out: Path | None = None  # where the node processes' output goes (None: nowhere)
@@ -62,6 +67,23 @@ class RunOptions:
     # (10 heartbeats: load in a VM must not look like a dead node)
     heartbeat_timeout_ms: int = 1000
     stall_s: float = 10.0  # both nodes alive, the period index still for this long: a frame was lost
+
+
+def run_options(args: Any, out: Path) -> RunOptions:
+    """RunOptions from the command line of `bench run` or `bench capture` (which has fewer options)."""
+    return RunOptions(
+        bus=args.bus,
+        drive_bus=getattr(args, "drive_bus", None),
+        interface=getattr(args, "interface", "socketcan"),
+        bitrate=getattr(args, "bitrate", None),
+        fd=getattr(args, "fd", False),
+        data_bitrate=getattr(args, "data_bitrate", None),
+        plant_id=args.plant_id,
+        drive_id=args.drive_id,
+        start_plant=not getattr(args, "no_plant", False),
+        start_drive=not getattr(args, "no_drive", False),
+        out=out,
+    )
 
 
 def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
@@ -91,9 +113,19 @@ class Session:
         self._hold_cob = 0
         self._period = 0
         self.liveness: Liveness | None = None
-        self.stopped: LoopStopped | None = None
+        # each SocketCAN interface of the run: what the kernel reports of it before and after (canbus.link_info)
+        self.links: dict[str, dict[str, Any]] = {}
 
     # ---------------------------------------------------------------- bus
+    def prepare_links(self) -> None:
+        """CAN controllers up at their bit rate (canbus.prepare_can_link), their state before the run noted;
+        before anything listens on them (the recorder). Once per session."""
+        if self.links or self.opts.bus == "direct" or self.opts.interface != "socketcan":
+            return
+        for name in dict.fromkeys((self.opts.bus, self.opts.drive_bus or self.opts.bus)):
+            prepare_can_link(name, self.opts.bitrate)
+            self.links[name] = {"before": link_info(name)}
+
     def open(self) -> None:
         out = self.opts.out
         if self.opts.bus == "direct":
@@ -104,6 +136,8 @@ class Session:
             def log(name: str) -> Path | None:
                 return None if out is None else out / f"{name}.out"
 
+            drive_bus = self.opts.drive_bus or self.opts.bus
+            self.prepare_links()
             self.node_procs: dict[str, NodeProcess] = {}
             if self.opts.start_plant:
                 self.node_procs["plant"] = NodeProcess(
@@ -111,7 +145,7 @@ class Session:
                 )
             if self.opts.start_drive:
                 self.node_procs["drive"] = NodeProcess(
-                    "drive_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
+                    "drive_node", ["--iface", drive_bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
                 )
             for proc in self.node_procs.values():
                 self.procs.append(proc.start())
@@ -170,6 +204,8 @@ class Session:
                 pass
             for p in self.procs:
                 p.stop()
+            for name, rec in self.links.items():
+                rec["after"] = link_info(name)
 
     # ---------------------------------------------------------------- NMT
     def reset_nodes(self) -> None:
@@ -460,7 +496,6 @@ class Session:
         lost = self.liveness.check()
         if lost is not None:
             lost.at_period = index if index >= 0 else None
-            self.stopped = lost
             raise lost
 
     def run(self, progress: PROGRESS | None = None, tick: Callable[[], None] | None = None) -> float:

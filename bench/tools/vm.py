@@ -45,6 +45,10 @@ class VmOptions:
     kvm: bool = False
     interfaces: tuple[str, ...] = ("vcan0",)
     rwdirs: list[Path] = field(default_factory=list)
+    # emulated CAN controllers on one emulated CAN bus (QEMU kvaser_pci: a Kvaser PCIcan, SJA1000), driven by
+    # the guest's kvaser_pci driver as can0, can1, ... (link type `can`, down: the bench sets the bit rate)
+    can_controllers: int = 0
+    qemu_opts: list[str] = field(default_factory=list)  # more QEMU options (e.g. a serial port)
 
 
 def vng_path() -> Path | None:
@@ -99,7 +103,15 @@ def _check_path(p: Path) -> Path:
     return p
 
 
-def _guest_script(cmd: list[str], cwd: Path, status_file: Path, interfaces: tuple[str, ...]) -> str:
+def can_bus_qemu_opts(controllers: int) -> list[str]:
+    """QEMU options of `controllers` Kvaser PCIcan cards on one emulated CAN bus (QEMU docs/system/devices/
+    can.rst): a frame one sends reaches the others, as on a bus with two USB adapters."""
+    return ["-object can-bus,id=canbus0"] + ["-device kvaser_pci,canbus=canbus0"] * controllers
+
+
+def _guest_script(
+    cmd: list[str], cwd: Path, status_file: Path, interfaces: tuple[str, ...], can_controllers: int = 0
+) -> str:
     env_lines = []
     path = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "/usr/bin:/bin")])
     env_lines.append(f"export PATH={shlex.quote(path)}")
@@ -113,6 +125,13 @@ def _guest_script(cmd: list[str], cwd: Path, status_file: Path, interfaces: tupl
         "mkdir -p /tmp/vmhome/.cache /tmp/vmhome/mpl",
     ]
     up = ["modprobe -a vcan can_raw can_bcm 2>/dev/null || modprobe -a vcan can_raw || exit 90"]
+    if can_controllers:
+        last = f"can{can_controllers - 1}"
+        up.append(
+            "modprobe -a kvaser_pci can_raw && for i in $(seq 50); do [ -e /sys/class/net/"
+            f"{last} ] && break; sleep 0.1; done; [ -e /sys/class/net/{last} ] || {{ echo 'bench vm: "
+            f"the emulated CAN controllers did not appear ({last})' >&2; echo 93 > {status_file}; exit 93; }}"
+        )
     for name in interfaces:
         up.append(
             f"ip link add dev {name} type vcan && ip link set {name} txqueuelen 4000 && "
@@ -155,7 +174,7 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     job.mkdir(parents=True, exist_ok=True)
     status_file = job / "status"
     script = job / "job.sh"
-    script.write_text(_guest_script(cmd, cwd, status_file, opts.interfaces))
+    script.write_text(_guest_script(cmd, cwd, status_file, opts.interfaces, opts.can_controllers))
     rwdirs = {_check_path(REPO)}
     if not cwd.is_relative_to(REPO):
         rwdirs.add(cwd)
@@ -176,6 +195,8 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
         argv.append("--disable-kvm")
     for d in sorted(rwdirs):
         argv += ["--rwdir", str(d)]
+    for o in (can_bus_qemu_opts(opts.can_controllers) if opts.can_controllers else []) + opts.qemu_opts:
+        argv.append(f"--qemu-opts={o}")  # with "=": the value starts with "-"
     argv += ["--exec", f"sh {script}"]
     env = dict(os.environ)
     env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])

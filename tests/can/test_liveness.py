@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_proc import pids, start_long_run
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
@@ -31,15 +32,10 @@ NODES = ("build/bin/plant_node", "build/bin/drive_node", "candump -L", "cangen")
 HEARTBEAT_TIMEOUT_S = RunOptions().heartbeat_timeout_ms / 1000
 
 
-def _pids(pattern: str) -> list[int]:
-    res = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
-    return [int(p) for p in res.stdout.split()]
-
-
 def _no_process_left() -> None:
     time.sleep(0.5)
     for name in NODES:
-        assert not _pids(name), f"{name} still running"
+        assert not pids(name), f"{name} still running"
 
 
 def _same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
@@ -78,26 +74,7 @@ def test_lockstep_under_cpu_load_is_bit_identical(vcan0: str, tmp_path: Path) ->
 
 
 def _start_long_run(out: Path) -> subprocess.Popen[str]:
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "bench.cli",
-            "run",
-            str(STEP),
-            "--bus",
-            "vcan0",
-            "--out",
-            str(out),
-            "--no-viewer",
-            "--set",
-            "scenario.periods=5000000",
-        ],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = start_long_run(out, "--bus", "vcan0")
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not (out.with_name(out.name + ".partial") / "candump.log").exists():
         time.sleep(0.2)
@@ -110,10 +87,10 @@ def _start_long_run(out: Path) -> subprocess.Popen[str]:
 def test_a_lost_node_is_named_at_once(vcan0: str, tmp_path: Path, node: str, how: signal.Signals) -> None:
     out = tmp_path / f"{node}-{how.name}"
     proc = _start_long_run(out)
-    pids = _pids(f"build/bin/{node}_node")
-    assert len(pids) == 1
+    node_pids = pids(f"build/bin/{node}_node")
+    assert len(node_pids) == 1
     t_kill = time.time()
-    os.kill(pids[0], how)
+    os.kill(node_pids[0], how)
     stdout, stderr = proc.communicate(timeout=600)
     assert proc.returncode == EXIT_CODES["node_lost"] == 8, stdout + stderr
     summary = json.loads((out / "summary.json").read_text())

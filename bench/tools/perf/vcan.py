@@ -102,7 +102,7 @@ def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
         shutil.rmtree(keep)
     keep.mkdir(parents=True)
     t0 = time.monotonic()
-    run_wall, stopped = capture_to_log(sc, RunOptions(bus=iface, out=keep))
+    run_wall, stopped, _ = capture_to_log(sc, RunOptions(bus=iface, out=keep))
     if stopped:
         raise RuntimeError(f"the perf run stopped early: {stopped['message']}")
     wall = time.monotonic() - t0

@@ -1,0 +1,72 @@
+"""Which buses a run asks for (--bus, --drive-bus) and whether this host, or the VM, can give them:
+what is wrong is said with the fix (the bad option, what the machine has, the command that would help)."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+VM_CAN = re.compile(r"can[0-3]")  # the emulated controllers the VM can supply
+VCAN = re.compile(r"vcan\d{1,3}")
+
+
+def bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
+    """(what is wrong with --bus / --drive-bus, whether the VM supplies them)."""
+    from ..canbus import probe_af_can
+
+    if args.drive_bus is not None:
+        if args.bus == "direct":
+            return "--drive-bus needs a CAN bus (--bus can0 --drive-bus can1); the direct bus has no interfaces", False
+        if args.no_drive:
+            return "--drive-bus names the drive node's interface; with --no-drive the bench starts no drive", False
+    if args.bus == "direct" or args.interface != "socketcan":
+        return None, False
+    names = list(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
+    if not probe_af_can().af_can:
+        bad = [n for n in names if not (VCAN.fullmatch(n) or VM_CAN.fullmatch(n))]
+        if bad:
+            opt = "--bus" if bad[0] == args.bus else "--drive-bus"
+            return (
+                f"{opt} {bad[0]}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
+                "(vcan0, vcan1, ...) and emulated CAN controllers on one bus (can0 .. can3), or use --bus direct"
+            ), False
+        if len(names) == 2 and not all(VM_CAN.fullmatch(n) for n in names):
+            return (
+                f"--bus {args.bus} --drive-bus {args.drive_bus}: in the VM only the emulated controllers can0 .. "
+                "can3 share one bus (vcan interfaces are separate buses)"
+            ), False
+        return None, True
+    for n in names:
+        problem = _host_link_problem(n, "--bus" if n == args.bus else "--drive-bus", args.bitrate)
+        if problem:
+            return problem, False
+    return None, False
+
+
+def _host_link_problem(name: str, opt: str, bitrate: int | None) -> str | None:
+    """What stops this user from running on the host's interface `name`, or None."""
+    import os
+
+    from ..canbus import DEFAULT_BITRATE, RESTART_MS, can_interfaces, host_has_vcan, link_info
+
+    if VCAN.fullmatch(name) and host_has_vcan(name):  # a vcan is made when missing (as root)
+        return None
+    info = link_info(name)
+    cans = can_interfaces()
+    buses = ", ".join(f"{n} ({s})" for n, s in cans) or "none"
+    if info is None:
+        return f"{opt} {name}: no such CAN interface; this machine has: {buses}; or use --bus direct or a vcan name"
+    if name not in {n for n, _ in cans}:
+        return f"{opt} {name}: a network interface, but not a CAN one; the CAN interfaces here: {buses}"
+    if info["up"]:
+        return None
+    if info["kind"] != "can":
+        return f"{opt} {name}: the interface is down (bring it up: ip link set {name} up)"
+    if os.geteuid() != 0:  # the bench brings a controller up itself only with the rights to
+        rate = bitrate or info.get("bitrate") or DEFAULT_BITRATE
+        return (
+            f"{opt} {name}: the CAN controller is down and configuring it needs root (CAP_NET_ADMIN): "
+            f"sudo ip link set {name} type can bitrate {rate} restart-ms {RESTART_MS} && "
+            f"sudo ip link set {name} up; or run the bench as root (it does this itself)"
+        )
+    return None

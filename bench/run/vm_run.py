@@ -1,0 +1,177 @@
+"""`bench run` on a host without SocketCAN: the bus half runs in the virtme-ng VM (`bench capture`: nodes,
+master, candump), the host decodes candump's log on the shared folder as it grows."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from ..scenario import Scenario, ScenarioError, load
+from .buses import VM_CAN
+from .outputs import Outputs
+
+CAPTURE_REFUSED = 65  # `bench capture` in the VM: a node refused a value of the scenario (EX_DATAERR)
+CAPTURE_LINK = 66  # `bench capture` in the VM: a CAN link could not be set up (canbus.LinkError)
+
+
+def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
+    """The bus half runs in the VM (`bench capture`: nodes, master, candump); the host follows
+    candump's log on the shared folder and feeds the same pipeline as it grows (live view included)."""
+    import uuid
+
+    from ..paths import REPO
+    from ..tools.vm import run_in_vm
+    from .pipeline import Pipeline
+    from .sources import LogFollower
+
+    # The guest's /tmp is its own: stage the capture in the repository (always shared with the VM).
+    stage = REPO / "build" / "capture" / uuid.uuid4().hex[:12]
+    stage.mkdir(parents=True)
+    pipe = Pipeline(args.plant_id, args.drive_id, outputs.sinks, outputs.frame_sinks, sc.expect)
+    follower = LogFollower(stage / "candump.log")
+    stop = threading.Event()
+    errors: list[BaseException] = []
+
+    def follow() -> None:
+        try:
+            while not stop.wait(0.5):
+                pipe.feed(follower.drain())
+                bar.update(pipe.periods - bar.n)
+        except BaseException as exc:  # noqa: BLE001 - reported by the main thread
+            errors.append(exc)
+
+    cmd = [
+        sys.executable,
+        "-m",
+        "bench.cli",
+        "capture",
+        str(args.scenario.resolve()),
+        "--bus",
+        args.bus,
+        "--out",
+        str(stage),
+        "--plant-id",
+        str(args.plant_id),
+        "--drive-id",
+        str(args.drive_id),
+    ]
+    if args.drive_bus:
+        cmd += ["--drive-bus", args.drive_bus]
+    if args.bitrate:
+        cmd += ["--bitrate", str(args.bitrate)]
+    for o in args.overrides:
+        cmd += ["--set", o]
+    print(
+        "bench run: host kernel has no SocketCAN; the bus runs inside the virtme-ng VM (boot ~20 s); "
+        "the host decodes candump's log as it grows",
+        flush=True,
+    )
+    t0 = time.monotonic()
+    try:
+        with outputs.progress(sc.periods, "run (VM)") as bar:
+            th = threading.Thread(target=follow, daemon=True, name="bench-follow")
+            th.start()
+            try:
+                rc = run_in_vm(cmd, vm_options(args), stdout=_Quiet())
+            finally:
+                stop.set()
+                th.join()
+            if errors:
+                raise errors[0]
+            if rc == CAPTURE_REFUSED:
+                from .session import SettingRefused
+
+                raise SettingRefused("a node refused a value of the scenario (the line above says which)")
+            if rc == CAPTURE_LINK:
+                from ..canbus import LinkError
+
+                raise LinkError("a CAN link in the VM could not be set up (the line above says why)")
+            if rc != 0:
+                raise RuntimeError(f"the capture inside the VM failed with status {rc}")
+            pipe.feed(follower.drain(final=True))
+            bar.update(pipe.periods - bar.n)
+        if not (stage / "capture.json").exists():
+            raise RuntimeError("the capture inside the VM ended without saying how (no capture.json)")
+        cap = json.loads((stage / "capture.json").read_text())
+        (stage / "capture.json").unlink(missing_ok=True)
+    finally:  # what was recorded goes with the run (NAME.failed when it failed)
+        for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
+            shutil.move(str(f), partial / f.name)
+        stage.rmdir()
+    return pipe.finish(
+        sc.name,
+        args.bus,
+        {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)},
+        cap.get("stopped"),
+        cap.get("links"),
+    )
+
+
+def vm_options(args: argparse.Namespace) -> Any:
+    """The VM for this run's buses: vcanN are made in it; canN are emulated CAN controllers (Kvaser PCIcan,
+    SJA1000) on one emulated bus, as many as the highest canN asks."""
+    from ..tools.vm import VmOptions
+
+    names = tuple(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
+    cans = [int(n[3:]) for n in names if VM_CAN.fullmatch(n)]
+    return VmOptions(
+        timeout_s=3600,
+        interfaces=tuple(n for n in names if not VM_CAN.fullmatch(n)),
+        can_controllers=max(cans) + 1 if cans else 0,
+    )
+
+
+class _Quiet:
+    """The VM's console: only the guest command's own lines that matter reach the user."""
+
+    def write(self, text: str) -> None:
+        for line in text.splitlines():
+            if line.startswith(("bench ", "Traceback", "RuntimeError", "  File", "Error", "error")):
+                sys.stderr.write(line + "\n")
+
+    def flush(self) -> None:
+        sys.stderr.flush()
+
+
+def capture_only(args: argparse.Namespace) -> int:
+    """`bench capture` (run inside the VM): configure, run and record candump.log; no decoding
+    (the host does it). Writes capture.json with the run's wall time."""
+    from .pipeline import capture_to_log
+    from .session import run_options
+
+    try:
+        sc = load(args.scenario, args.overrides)
+    except ScenarioError as exc:
+        print(f"bench capture: {exc}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    opts = run_options(args, args.out)
+    from ..canbus import LinkError
+    from .session import SettingRefused
+
+    try:
+        run_wall, stopped, links = capture_to_log(sc, opts)
+    except SettingRefused as exc:  # bad input: the host exits 2
+        print(f"bench capture: {exc}", file=sys.stderr)
+        return CAPTURE_REFUSED
+    except LinkError as exc:
+        print(f"bench capture: {exc}", file=sys.stderr)
+        return CAPTURE_LINK
+    except Exception as exc:  # noqa: BLE001 - one line the host shows (the VM's console is filtered)
+        print(f"bench capture: FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    (args.out / "capture.json").write_text(
+        json.dumps({"run_wall_s": run_wall, "pid": os.getpid(), "stopped": stopped, "links": links})
+    )
+    if stopped:
+        print(f"bench capture: stopped: {stopped['message']}")
+    else:
+        print(f"bench capture: {sc.periods} periods in {run_wall:.2f} s")
+    return 0

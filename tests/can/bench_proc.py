@@ -1,0 +1,32 @@
+"""`bench run` as a user starts it, in a child process, for the CAN tests that act on a running loop
+(kill or freeze a node, take a link down, Ctrl-C), and the processes such a run may leave behind."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from bench.paths import REPO
+
+STEP = REPO / "scenarios" / "you2019_step.toml"
+NODES = ("build/bin/plant_node", "build/bin/drive_node", "candump -L")
+
+
+def start_long_run(out: Path, *bus_args: str) -> subprocess.Popen[str]:
+    """`bench run` of You 2019's step scenario for 5 * 10^6 periods (longer than any test waits) on the
+    buses given (e.g. "--bus", "vcan0"), results in `out`."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "run", str(STEP), *bus_args, "--out", str(out), "--no-viewer"]
+        + ["--set", "scenario.periods=5000000"],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def pids(pattern: str) -> list[int]:
+    """Processes whose command line contains `pattern` (pgrep -f)."""
+    res = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
+    return [int(p) for p in res.stdout.split()]

@@ -1,0 +1,45 @@
+"""What `bench run` says about the buses asked for (--bus, --drive-bus) before anything starts: the bad
+option, what this machine (or its VM) has, and the fix. The runs themselves: tests/can."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from bench.canbus import probe_af_can
+from bench.run.buses import bus_problem
+from bench.run.vm_run import vm_options
+
+HOST_CAN = probe_af_can().af_can
+
+
+def _args(bus: str, drive_bus: str | None = None, no_drive: bool = False) -> argparse.Namespace:
+    return argparse.Namespace(bus=bus, drive_bus=drive_bus, no_drive=no_drive, interface="socketcan", bitrate=None)
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (_args("direct", "can1"), "--drive-bus needs a CAN bus"),
+        (_args("can0", "can1", no_drive=True), "with --no-drive the bench starts no drive"),
+        (_args("can9") if not HOST_CAN else _args("nosuchcan9"), "can9"),
+    ],
+)
+def test_a_bus_that_cannot_be_had_is_named(args: argparse.Namespace, needle: str) -> None:
+    problem, in_vm = bus_problem(args)
+    assert problem is not None and needle in problem, problem
+    assert not in_vm
+
+
+def test_the_vm_supplies_vcan_buses_and_emulated_controllers_on_one_bus() -> None:
+    if HOST_CAN:  # the host's own interfaces are used: nothing to ask of the VM
+        assert bus_problem(_args("direct")) == (None, False)
+        return
+    assert bus_problem(_args("vcan0")) == (None, True)
+    assert bus_problem(_args("can0", "can1")) == (None, True)
+    problem, _ = bus_problem(_args("vcan0", "can1"))
+    assert problem is not None and "share one bus" in problem
+    opts = vm_options(_args("can0", "can1"))
+    assert opts.can_controllers == 2 and opts.interfaces == ()
+    assert vm_options(_args("vcan1")).interfaces == ("vcan1",) and vm_options(_args("vcan1")).can_controllers == 0
