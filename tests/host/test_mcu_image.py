@@ -167,10 +167,11 @@ def test_commands_match_the_host_build(mcu_result: Result, host_result: Result) 
     assert all(volts <= 0.005 * vmax for ctrl, (_, volts, _) in diff.items() if ctrl != 1), diff
 
 
-@pytest.mark.xfail(reason="newlib's float libm (sinf, cosf, expf, logf) is not glibc's: ULP differences", strict=False)
-def test_commands_bit_identical_to_the_host_build(mcu_result: Result, host_result: Result) -> None:
-    diff = command_differences(mcu_result, host_result)
-    assert all(n == 0 for n, _, _ in diff.values()), diff
+def test_the_open_loop_is_bit_identical_to_the_host_build(mcu_result: Result, host_result: Result) -> None:
+    # where the arithmetic is the same (no libm call: newlib's sinf/cosf/expf/logf are not glibc's), the
+    # answers are the same bits
+    n, volts, _ = command_differences(mcu_result, host_result)[0]
+    assert n == 0, f"open loop: {n} commands differ, largest {volts:.3g} V"
 
 
 def test_step_cost_is_published(mcu_result: Result, host_result: Result) -> None:
