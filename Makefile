@@ -16,7 +16,7 @@ CFLAGS_CORE := $(CSTD) $(OPT) $(WARN) -fPIC
 CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
 CFLAGS_HOST := $(CSTD) $(OPT) $(WARN) -D_GNU_SOURCE -fPIC
 INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
-       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Itests/c
+       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Itests/c
 
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
@@ -41,7 +41,36 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node)
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup fuzz format
+.PHONY: all clean demo test setup fuzz format mcu
+
+# The drive firmware as a bare-metal Cortex-M4F image (QEMU mps2-an386; docs/PORTING.md):
+# the portable CANopen slave, drive app and cores, the port layer (firmware_shim/port)
+# and the board (firmware_shim/mcu/mps2_an386).  Part of `all` when arm-none-eabi-gcc is
+# installed (scripts/setup.sh).  -ffp-contract=off: no fused multiply-add, so the image
+# computes what the host build computes (also the default of -std=c11; said explicitly).
+MCU_CC    := arm-none-eabi-gcc
+MCU_DIR   := firmware_shim/mcu/mps2_an386
+MCU_BUILD := $(BUILD)/mcu
+MCU_ARCH  := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
+MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off \
+              -ffunction-sections -fdata-sections -ffreestanding -fno-common
+MCU_INC   := $(INC) -I$(MCU_DIR)
+MCU_SRC   := $(CO_SRC) $(FW_SRC) firmware_shim/shim/drive_app.c $(wildcard firmware_shim/port/*.c) \
+             $(wildcard $(MCU_DIR)/*.c)
+MCU_OBJ   := $(patsubst %.c,$(MCU_BUILD)/obj/%.o,$(MCU_SRC))
+MCU_ELF   := $(MCU_BUILD)/drive_mcu.elf
+HAVE_MCU_CC := $(shell command -v $(MCU_CC) 2>/dev/null)
+
+mcu: $(MCU_ELF) $(MCU_BUILD)/drive_mcu.bin
+$(MCU_BUILD)/obj/%.o: %.c
+	@mkdir -p $(@D)
+	$(MCU_CC) $(MCU_CFLAGS) $(MCU_INC) -MMD -MP -c $< -o $@
+$(MCU_ELF): $(MCU_OBJ) $(MCU_DIR)/mps2_an386.ld
+	$(MCU_CC) $(MCU_ARCH) -T $(MCU_DIR)/mps2_an386.ld -nostartfiles --specs=nano.specs --specs=nosys.specs \
+	    -Wl,--gc-sections -Wl,-Map=$(MCU_BUILD)/drive_mcu.map $(MCU_OBJ) -lm -o $@
+	arm-none-eabi-size $@
+$(MCU_BUILD)/drive_mcu.bin: $(MCU_ELF)
+	arm-none-eabi-objcopy -O binary $< $@
 
 # libFuzzer harness of the CANopen slave (clang, ASan + UBSan).
 FUZZ_CFLAGS := -std=c11 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(WARN)
@@ -50,7 +79,7 @@ $(BUILD)/fuzz/fuzz_slave: protocols/fuzz/fuzz_slave.c $(CO_SRC) $(wildcard proto
 	@mkdir -p $(@D)
 	clang $(FUZZ_CFLAGS) $(INC) protocols/fuzz/fuzz_slave.c $(CO_SRC) -o $@
 all: $(LIBCO) $(LIBSCAN) $(PROTO_TOOLS) $(PROTO_TESTS) $(PLANT_TOOLS) $(PLANT_TESTS) \
-     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB)
+     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB) $(if $(HAVE_MCU_CC),mcu)
 
 setup:
 	@bash scripts/setup.sh
@@ -118,6 +147,10 @@ $(BUILD)/tests/plant_test_node_%: plant_rt/tests/test_node_%.c plant_rt/node/pla
 $(BUILD)/bin/%: firmware_shim/tools/%.c $(LIBFW)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
+# The SLCAN codec of the port layer (portable, host-tested).
+$(BUILD)/tests/fw_test_slcan: firmware_shim/tests/test_slcan.c firmware_shim/port/slcan.c
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_FW) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $^ -o $@
 $(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW) $(LIBPLANT)
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBFW) $(LIBPLANT) -lm -o $@

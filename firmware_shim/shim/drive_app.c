@@ -217,6 +217,17 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
 #undef s
         break;
     }
+    case OD_DRIVE_STEP_COST_IDX: {
+#define c (&m->x2208_step_cost)
+        c->step_cycles_last = (float)app->step_cycles_last;
+        c->step_cycles_max = (float)app->step_cycles_max;
+        c->step_cycles_mean =
+            app->steps_measured == 0u ? 0.0f : (float)app->step_cycles_sum / (float)app->steps_measured;
+        c->cycle_clock_Hz = app->cycles_fn == NULL ? 0u : app->cycle_clock_Hz;
+        c->steps_measured = app->steps_measured;
+#undef c
+        break;
+    }
     case OD_DRIVE_TRACE_IDX:
         m->x2300_Trace.state = app->trace.status;
         m->x2300_Trace.captured_bytes = trace_size_bytes(&app->trace);
@@ -293,6 +304,22 @@ static void reset_sequencing(drive_app_t *app)
     app->sync_seen = 0u;
 }
 
+/* ------------------------------------------------------------------ step cost */
+
+static void reset_step_cost(drive_app_t *app)
+{
+    app->step_cycles_last = app->step_cycles_max = app->steps_measured = 0u;
+    app->step_cycles_sum = 0u;
+}
+
+static void count_step_cost(drive_app_t *app, uint32_t cycles)
+{
+    app->step_cycles_last = cycles;
+    if (cycles > app->step_cycles_max) app->step_cycles_max = cycles;
+    app->step_cycles_sum += cycles;
+    ++app->steps_measured;
+}
+
 /* ------------------------------------------------------------------ current step */
 
 static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
@@ -355,11 +382,17 @@ void drive_app_current_step(drive_app_t *app)
 #undef r
     app->open_loop =
         (uint8_t)(m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP || mode == OD_DRIVE_MODE_OPEN_LOOP);
+    if (m->x2200_Controller.controller != app->cost_controller) {
+        reset_step_cost(app);
+        app->cost_controller = m->x2200_Controller.controller;
+    }
+    const uint32_t c0 = app->cycles_fn != NULL ? app->cycles_fn(app->cycles_user) : 0u;
     if (app->open_loop) {
         open_loop_step(app, m);
     } else {
         drive_current_step(d, &app->meas, &app->cmd);
     }
+    if (app->cycles_fn != NULL) count_step_cost(app, app->cycles_fn(app->cycles_user) - c0);
     ++app->current_steps;
 
     m->x2102_voltage_command.v_alpha_V = app->cmd.v_alpha_V;
@@ -593,6 +626,7 @@ static void hk_on_reset(void *user, co_node_t *node, int communication_only)
         app->open_loop = 0u;
         app->trace_linear = 0u;
         app->live_count = 0u;
+        reset_step_cost(app);
         memset(&app->meas, 0, sizeof app->meas);
         memset(&app->cmd, 0, sizeof app->cmd);
     }
@@ -628,6 +662,14 @@ void drive_app_init(drive_app_t *app)
 }
 
 void drive_app_bind(drive_app_t *app, co_node_t *node) { app->node = node; }
+
+void drive_app_set_cycle_counter(drive_app_t *app, drive_app_cycles_fn fn, void *user, uint32_t clock_Hz)
+{
+    app->cycles_fn = fn;
+    app->cycles_user = user;
+    app->cycle_clock_Hz = clock_Hz;
+    reset_step_cost(app);
+}
 
 void drive_app_load_config(drive_app_t *app)
 {

@@ -8,6 +8,7 @@
  *   drive_app_init(&app);                                   // before co_node_init
  *   co_node_init(&node, &od_drive, id, tx, tx_user, drive_app_hooks(), &app, now);
  *   drive_app_bind(&app, &node);                            // after
+ *   drive_app_set_cycle_counter(&app, fn, user, clock_Hz);  // optional, any time
  *
  * Data flow (docs/ARCHITECTURE.md):
  *   plant TPDO1 {i_a_A, i_b_A}            -> RPDO1 -> 0x2100:01/02
@@ -76,6 +77,11 @@ enum {
 
 #define DRIVE_APP_PENDING_EMCY 4u
 
+/* A free-running cycle counter of the target (wraps modulo 2^32): DWT CYCCNT,
+ * SysTick, clock_gettime in ns.  Read before and after every current step; the
+ * difference is published in 0x2208 Step cost. */
+typedef uint32_t (*drive_app_cycles_fn)(void *user);
+
 typedef struct {
     drive_t drv;            /* firmware core */
     trace_recorder_t trace; /* oscilloscope buffer, exposed as 0x2301 */
@@ -114,6 +120,16 @@ typedef struct {
 
     /* live trace (TPDO2) decimation counter */
     uint16_t live_count;
+
+    /* step cost (0x2208): NULL counter -> all 0 */
+    drive_app_cycles_fn cycles_fn;
+    void *cycles_user;
+    uint32_t cycle_clock_Hz;
+    uint32_t step_cycles_last;
+    uint32_t step_cycles_max;
+    uint64_t step_cycles_sum;
+    uint32_t steps_measured;
+    uint8_t cost_controller; /* 0x2200:01 of the steps measured (a new one resets the statistics) */
 } drive_app_t;
 
 /* Hooks for co_node_init (user = drive_app_t *). */
@@ -124,6 +140,11 @@ void drive_app_init(drive_app_t *app);
 
 /* After co_node_init: remembers the node. */
 void drive_app_bind(drive_app_t *app, co_node_t *node);
+
+/* The target's cycle counter and its frequency for 0x2208 Step cost (fn NULL:
+ * none, the entries read 0).  The statistics restart with it, at an NMT reset
+ * node and when 0x2200:01 selects another controller. */
+void drive_app_set_cycle_counter(drive_app_t *app, drive_app_cycles_fn fn, void *user, uint32_t clock_Hz);
 
 /* Run one current step on the measurement held in 0x2100 (what the RPDO2 hook
  * does; public for drivers that receive the measurement otherwise). */

@@ -264,6 +264,12 @@ static const od_drive_ram_t defaults = {
     .mfr.x2207_zhao_2022.K2_V_A = 0.0f,
     .mfr.x2207_zhao_2022.G_V_A = 0.0f,
     .mfr.x2207_zhao_2022.limited = 0x0u,
+    .mfr.x2208_step_cost.highest_sub_index_supported = 0x5u,
+    .mfr.x2208_step_cost.step_cycles_last = 0.0f,
+    .mfr.x2208_step_cost.step_cycles_max = 0.0f,
+    .mfr.x2208_step_cost.step_cycles_mean = 0.0f,
+    .mfr.x2208_step_cost.cycle_clock_Hz = 0x0u,
+    .mfr.x2208_step_cost.steps_measured = 0x0u,
     .mfr.x2300_Trace.highest_sub_index_supported = 0x11u,
     .mfr.x2300_Trace.state = 0x0u,
     .mfr.x2300_Trace.trigger_signal = 0x0u,
@@ -551,6 +557,12 @@ static const co_od_entry_t entries[] = {
     {0x2207u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A, {.i = 0}, {.i = 0}}, /* K2_V_A */
     {0x2207u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.G_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.G_V_A, {.i = 0}, {.i = 0}}, /* G_V_A */
     {0x2207u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.limited), &OD_DRIVE.mfr.x2207_zhao_2022.limited, {.i = 0}, {.i = 0}}, /* limited */
+    {0x2208u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.highest_sub_index_supported), &OD_DRIVE.mfr.x2208_step_cost.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2208u, 0x01u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.step_cycles_last), &OD_DRIVE.mfr.x2208_step_cost.step_cycles_last, {.i = 0}, {.i = 0}}, /* step_cycles_last */
+    {0x2208u, 0x02u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.step_cycles_max), &OD_DRIVE.mfr.x2208_step_cost.step_cycles_max, {.i = 0}, {.i = 0}}, /* step_cycles_max */
+    {0x2208u, 0x03u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.step_cycles_mean), &OD_DRIVE.mfr.x2208_step_cost.step_cycles_mean, {.i = 0}, {.i = 0}}, /* step_cycles_mean */
+    {0x2208u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.cycle_clock_Hz), &OD_DRIVE.mfr.x2208_step_cost.cycle_clock_Hz, {.i = 0}, {.i = 0}}, /* cycle_clock_Hz */
+    {0x2208u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.steps_measured), &OD_DRIVE.mfr.x2208_step_cost.steps_measured, {.i = 0}, {.i = 0}}, /* steps_measured */
     {0x2300u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported), &OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2300u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.state), &OD_DRIVE.mfr.x2300_Trace.state, {.i = 0}, {.i = 3}}, /* state */
     {0x2300u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_signal), &OD_DRIVE.mfr.x2300_Trace.trigger_signal, {.i = 0}, {.i = 63}}, /* trigger_signal */

@@ -374,6 +374,16 @@ typedef struct {
     uint8_t limited;
 } od_drive_zhao_2022_t;
 
+/* 0x2208 Step cost */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float step_cycles_last;
+    float step_cycles_max;
+    float step_cycles_mean;
+    uint32_t cycle_clock_Hz;
+    uint32_t steps_measured;
+} od_drive_step_cost_t;
+
 /* 0x2300 Trace */
 typedef struct {
     uint8_t highest_sub_index_supported;
@@ -449,6 +459,7 @@ typedef struct {
     char x2205_drive_label[33];
     od_drive_yao_2020_dpcc_t x2206_yao_2020_dpcc;
     od_drive_zhao_2022_t x2207_zhao_2022;
+    od_drive_step_cost_t x2208_step_cost;
     od_drive_trace_t x2300_Trace;
     co_domain_t x2301_trace_buffer;
     od_drive_live_trace_t x2302_live_trace;
@@ -752,6 +763,13 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_ZHAO_2022_K2_V_A_SUB 0x02u
 #define OD_DRIVE_ZHAO_2022_G_V_A_SUB 0x03u
 #define OD_DRIVE_ZHAO_2022_LIMITED_SUB 0x04u
+#define OD_DRIVE_STEP_COST_IDX 0x2208u
+#define OD_DRIVE_STEP_COST_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_LAST_SUB 0x01u
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_MAX_SUB 0x02u
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_MEAN_SUB 0x03u
+#define OD_DRIVE_STEP_COST_CYCLE_CLOCK_HZ_SUB 0x04u
+#define OD_DRIVE_STEP_COST_STEPS_MEASURED_SUB 0x05u
 #define OD_DRIVE_TRACE_IDX 0x2300u
 #define OD_DRIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_TRACE_STATE_SUB 0x01u

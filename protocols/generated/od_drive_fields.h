@@ -274,6 +274,21 @@
 #define OD_DRIVE_ZHAO_2022_LIMITED_DEFAULT 0u
 
 
+/* 0x2208 Step cost, status: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_STEP_COST_STATUS(X) \
+    X(0x2208u, 0x01u, x2208_step_cost, step_cycles_last, 0.0f) \
+    X(0x2208u, 0x02u, x2208_step_cost, step_cycles_max, 0.0f) \
+    X(0x2208u, 0x03u, x2208_step_cost, step_cycles_mean, 0.0f) \
+    X(0x2208u, 0x04u, x2208_step_cost, cycle_clock_Hz, 0u) \
+    X(0x2208u, 0x05u, x2208_step_cost, steps_measured, 0u)
+
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_LAST_DEFAULT 0.0f
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_MAX_DEFAULT 0.0f
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_MEAN_DEFAULT 0.0f
+#define OD_DRIVE_STEP_COST_CYCLE_CLOCK_HZ_DEFAULT 0u
+#define OD_DRIVE_STEP_COST_STEPS_MEASURED_DEFAULT 0u
+
+
 /* 0x2300 Trace, parameters: X(index, subindex, record, field, EDS default) */
 #define OD_DRIVE_TRACE_PARAMS(X) \
     X(0x2300u, 0x01u, x2300_Trace, state, 0u) \
