@@ -211,6 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--set", dest="overrides", action="append", default=[])
     c.add_argument("--bus", default="vcan0")
     c.add_argument("--drive-bus", default=None)
+    c.add_argument("--drive", choices=("node", "mcu"), default="node")
+    c.add_argument("--drive-tty", default=None)
     c.add_argument("--bitrate", type=int, default=None)
     c.add_argument("--out", type=Path, required=True)
     c.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10)

@@ -19,28 +19,41 @@ def bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
             return "--drive-bus needs a CAN bus (--bus can0 --drive-bus can1); the direct bus has no interfaces", False
         if args.no_drive:
             return "--drive-bus names the drive node's interface; with --no-drive the bench starts no drive", False
+    if getattr(args, "drive", "node") == "mcu":  # through the VM, whose serial port joins the image's UART
+        problem = _mcu_problem(args)
+        if problem:
+            return problem, False
+        problem = _vm_problem(args, "--drive mcu runs in the VM (its serial port joins the image's UART)")
+        return problem, problem is None
     if args.bus == "direct" or args.interface != "socketcan":
         return None, False
     names = list(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
     if not probe_af_can().af_can:
-        bad = [n for n in names if not (VCAN.fullmatch(n) or VM_CAN.fullmatch(n))]
-        if bad:
-            opt = "--bus" if bad[0] == args.bus else "--drive-bus"
-            return (
-                f"{opt} {bad[0]}: this host's kernel has no SocketCAN; the VM fallback supplies virtual buses "
-                "(vcan0, vcan1, ...) and emulated CAN controllers on one bus (can0 .. can3), or use --bus direct"
-            ), False
-        if len(names) == 2 and not all(VM_CAN.fullmatch(n) for n in names):
-            return (
-                f"--bus {args.bus} --drive-bus {args.drive_bus}: in the VM only the emulated controllers can0 .. "
-                "can3 share one bus (vcan interfaces are separate buses)"
-            ), False
-        return None, True
+        problem = _vm_problem(args, "this host's kernel has no SocketCAN")
+        return problem, problem is None
     for n in names:
         problem = _host_link_problem(n, "--bus" if n == args.bus else "--drive-bus", args.bitrate)
         if problem:
             return problem, False
     return None, False
+
+
+def _vm_problem(args: argparse.Namespace, why: str) -> str | None:
+    """What the VM cannot supply of the buses asked for, or None."""
+    names = list(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
+    bad = [n for n in names if not (VCAN.fullmatch(n) or VM_CAN.fullmatch(n))]
+    if bad:
+        opt = "--bus" if bad[0] == args.bus else "--drive-bus"
+        return (
+            f"{opt} {bad[0]}: {why}; the VM supplies virtual buses (vcan0, vcan1, ...) and emulated CAN "
+            "controllers on one bus (can0 .. can3)" + ("" if "mcu" in why else ", or use --bus direct")
+        )
+    if len(names) == 2 and not all(VM_CAN.fullmatch(n) for n in names):
+        return (
+            f"--bus {args.bus} --drive-bus {args.drive_bus}: in the VM only the emulated controllers can0 .. can3 "
+            "share one bus (vcan interfaces are separate buses)"
+        )
+    return None
 
 
 def _host_link_problem(name: str, opt: str, bitrate: int | None) -> str | None:
@@ -69,4 +82,23 @@ def _host_link_problem(name: str, opt: str, bitrate: int | None) -> str | None:
             f"sudo ip link set {name} type can bitrate {rate} restart-ms {RESTART_MS} && "
             f"sudo ip link set {name} up; or run the bench as root (it does this itself)"
         )
+    return None
+
+
+def _mcu_problem(args: argparse.Namespace) -> str | None:
+    """What stops `--drive mcu` (the Cortex-M4F image over SLCAN) here, or None."""
+    import shutil
+
+    from ..eds import load
+
+    if args.bus == "direct" or args.interface != "socketcan":
+        return "--drive mcu reaches the image over a SocketCAN bus: use --bus vcan0 (or can0 --drive-bus can1)"
+    if getattr(args, "no_drive", False):
+        return "--drive mcu starts the drive image; with --no-drive the bench starts no drive"
+    node_id = load("drive").node_id or 0x20
+    if args.drive_id != node_id:
+        return f"--drive mcu: the image is node 0x{node_id:02X} (drive.eds), not --drive-id 0x{args.drive_id:02X}"
+    for tool, pkg in (("qemu-system-arm", "qemu-system-arm"), ("arm-none-eabi-gcc", "gcc-arm-none-eabi")):
+        if shutil.which(tool) is None:
+            return f"--drive mcu needs {tool}: apt-get install {pkg} (or make setup)"
     return None

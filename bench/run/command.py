@@ -62,6 +62,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "emulated bus); default: the drive is on --bus",
     )
     p.add_argument(
+        "--drive",
+        choices=("node", "mcu"),
+        default="node",
+        help="the drive firmware as: 'node', the Linux process build/bin/drive_node (default); 'mcu', the same "
+        "sources built for a Cortex-M4F (make mcu) running under qemu-system-arm (mps2-an386), its CAN over "
+        "its UART in SLCAN, joined to the bus by slcand and can-gw (processor in the loop; docs/PORTING.md)",
+    )
+    p.add_argument(
         "--bitrate",
         type=int,
         default=None,

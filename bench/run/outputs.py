@@ -195,6 +195,15 @@ def print_result(out: Path, result: Any) -> None:
     if emcy:
         shown = ", ".join(f"{e['node']} {e['code']} at period {e['period']}" for e in emcy[:6])
         print(f"EMCY: {len(emcy)}{'+' if len(emcy) >= 100 else ''}: {shown}{' ...' if len(emcy) > 6 else ''}")
+    cost = s.get("step_cost")
+    if cost:
+        print(
+            f"drive step cost ({cost['controller']}, {cost['steps_measured']} steps): mean "
+            f"{cost['step_cycles_mean']:.0f}, max {cost['step_cycles_max']:.0f} ticks of its "
+            f"{cost['cycle_clock_Hz']:,} Hz counter ({cost['step_mean_s'] * 1e6:.2f} / "
+            f"{cost['step_max_s'] * 1e6:.2f} us; on the QEMU image, -icount shift=0: "
+            f"{cost['step_mean_s'] * 1e9:.0f} / {cost['step_max_s'] * 1e9:.0f} instructions)"
+        )
     t = s.get("timing", {})
     if t.get("periods_per_s"):
         print(

@@ -26,7 +26,16 @@ from .session import RunOptions, Session
 from .signals import SignalInfo
 from .sinks import Sink, TraceCollector
 from .stats import STEP_SIGNALS, Envelope, StepTracker
-from .summary import SCHEMA_VERSION, bus_stats, divergence_bound_A, frame_bits, identified, plant_values, verdict
+from .summary import (
+    SCHEMA_VERSION,
+    bus_stats,
+    divergence_bound_A,
+    frame_bits,
+    identified,
+    plant_values,
+    step_cost,
+    verdict,
+)
 
 FrameSink = Any  # has write(frames) and close()
 Progress = Callable[[int, int], None]
@@ -252,6 +261,7 @@ class Pipeline:
             "Ts_s": dec.ts_s,
             "steps": steps,
             "identified": identified(dec),
+            "step_cost": step_cost(dec),
             "plant": plant,
             "controller": {
                 n: ctl.get("Controller", n)

@@ -30,7 +30,8 @@ from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
 from .liveness import Liveness, LoopStopped
 from .nodes import NodeProcess
-from .summary import END_READS, PLANT_VALUES
+from .slcan_bridge import SlcanBridge
+from .summary import END_READS, PLANT_VALUES, STEP_COST
 
 PROGRESS = Callable[[int, int], None]
 
@@ -55,6 +56,10 @@ class RunOptions:
     # the drive's own interface when it sits on another adapter of the same bus (a lab bench with two USB
     # adapters: plant, master and recorder on can0, the drive on can1); None: the drive is on `bus`
     drive_bus: str | None = None
+    # the drive: "node" (the Linux process build/bin/drive_node) or "mcu" (the Cortex-M4F image under QEMU,
+    # reached over SLCAN on `drive_tty`, joined to the drive's bus by the kernel: bench/run/slcan_bridge.py)
+    drive: str = "node"
+    drive_tty: str | None = None
     start_plant: bool = True  # start the C plant process (False: a physical plant/drive is on the bus)
     start_drive: bool = True  # start the C drive process (False: a physical drive implements drive.eds)
     out: Path | None = None  # where the node processes' output goes (None: nowhere)
@@ -83,6 +88,8 @@ def run_options(args: Any, out: Path) -> RunOptions:
         start_plant=not getattr(args, "no_plant", False),
         start_drive=not getattr(args, "no_drive", False),
         out=out,
+        drive=getattr(args, "drive", "node"),
+        drive_tty=getattr(args, "drive_tty", None),
     )
 
 
@@ -95,7 +102,7 @@ class Session:
         self.sc = sc
         self.opts = opts
         self.hil: Hil | None = None
-        self.procs: list[NodeProcess] = []
+        self.procs: list[NodeProcess | SlcanBridge] = []
         self.net = canopen.Network()
         # The OD objects read once per process (bench/eds.py), shared with the decoder's SDO follower.
         self.plant = canopen.RemoteNode(opts.plant_id, load_od("plant", opts.plant_id))
@@ -138,12 +145,16 @@ class Session:
 
             drive_bus = self.opts.drive_bus or self.opts.bus
             self.prepare_links()
-            self.node_procs: dict[str, NodeProcess] = {}
+            self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}
             if self.opts.start_plant:
                 self.node_procs["plant"] = NodeProcess(
                     "plant_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)], log("plant_node")
                 )
-            if self.opts.start_drive:
+            if self.opts.start_drive and self.opts.drive == "mcu":
+                if self.opts.drive_tty is None:
+                    raise ValueError("RunOptions.drive = 'mcu' needs drive_tty (the image's serial line)")
+                self.node_procs["drive"] = SlcanBridge(self.opts.drive_tty, drive_bus, log=log("slcand"))
+            elif self.opts.start_drive:
                 self.node_procs["drive"] = NodeProcess(
                     "drive_node", ["--iface", drive_bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
                 )
@@ -536,7 +547,8 @@ class Session:
         if self.liveness is not None:
             self.liveness.disarm()
         out: dict[str, float] = {}
-        for node_name, obj, names in END_READS:
+        reads = END_READS + ((STEP_COST,) if self.opts.drive == "mcu" else ())
+        for node_name, obj, names in reads:
             node = self.plant if node_name == "plant" else self.drive
             for name in names:
                 out[f"{node_name}.{obj}.{name}"] = _read(node.sdo[obj][name])

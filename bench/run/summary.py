@@ -80,6 +80,13 @@ END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ),
     *{(("drive", obj, subs)) for _, obj, subs in CONTROLLER_RESULTS.values()},
 )
+# the drive's cost of one current step (0x2208, counted by the target's cycle counter around every step);
+# read at the end of runs whose drive is the MCU image (bench run --drive mcu)
+STEP_COST = (
+    "drive",
+    "Step cost",
+    ("step_cycles_last", "step_cycles_max", "step_cycles_mean", "cycle_clock_Hz", "steps_measured"),
+)
 PLANT_VALUES = (
     ("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode", "omega_imposed_rad_s")),
     ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")),
@@ -91,6 +98,23 @@ def _num(v: float | None) -> float | int | None:
     if v is None:
         return None
     return int(v) if float(v).is_integer() and abs(v) < 2**53 else float(v)
+
+
+def step_cost(dec: Decoder) -> dict[str, Any] | None:
+    """The drive's step cost as read at the end of the run (None when it was not read, or has no counter):
+    cycles of its counter and, from its clock, seconds. On the QEMU image (-icount shift=0) one second of
+    virtual time is 10^9 instructions (bench/mcu.py)."""
+    _, obj, names = STEP_COST
+    v = {n: dec.sdo.drive.get(obj, n) for n in names}
+    clock = v["cycle_clock_Hz"]
+    if not clock or v["step_cycles_mean"] is None:
+        return None
+    return {
+        **{n: _num(x) for n, x in v.items()},
+        "controller": CONTROLLER_NAMES.get(int(dec.sdo.drive.get("Controller", "controller") or 0)),
+        "step_mean_s": float(v["step_cycles_mean"]) / float(clock),
+        "step_max_s": float(v["step_cycles_max"] or 0) / float(clock),
+    }
 
 
 def identified(dec: Decoder) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from .outputs import Outputs
 
 CAPTURE_REFUSED = 65  # `bench capture` in the VM: a node refused a value of the scenario (EX_DATAERR)
 CAPTURE_LINK = 66  # `bench capture` in the VM: a CAN link could not be set up (canbus.LinkError)
+GUEST_TTY = "/dev/ttyS1"  # the VM's second 16550 (ttyS0 is virtme-ng's console): the MCU image's UART0
 
 
 def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
@@ -64,6 +65,19 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
     ]
     if args.drive_bus:
         cmd += ["--drive-bus", args.drive_bus]
+    mcu = None
+    vm = vm_options(args)
+    if getattr(args, "drive", "node") == "mcu":
+        # The image runs on the host (qemu-system-arm, not nested in the VM's emulation); its UART0 is a local
+        # TCP server that the VM's second serial port joins: ttyS1 in the guest, where slcand attaches it.
+        from ..mcu import McuImage
+
+        mcu = McuImage()
+        port = mcu.start()
+        vm.qemu_opts.append(
+            f"-chardev socket,id=slcan,host=127.0.0.1,port={port},nodelay=on -device isa-serial,chardev=slcan"
+        )
+        cmd += ["--drive", "mcu", "--drive-tty", GUEST_TTY]
     if args.bitrate:
         cmd += ["--bitrate", str(args.bitrate)]
     for o in args.overrides:
@@ -79,7 +93,7 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
             th = threading.Thread(target=follow, daemon=True, name="bench-follow")
             th.start()
             try:
-                rc = run_in_vm(cmd, vm_options(args), stdout=_Quiet())
+                rc = run_in_vm(cmd, vm, stdout=_Quiet())
             finally:
                 stop.set()
                 th.join()
@@ -102,6 +116,9 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
         cap = json.loads((stage / "capture.json").read_text())
         (stage / "capture.json").unlink(missing_ok=True)
     finally:  # what was recorded goes with the run (NAME.failed when it failed)
+        if mcu is not None:
+            (stage / "drive_mcu.out").write_text(mcu.console())
+            mcu.stop()
         for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
             shutil.move(str(f), partial / f.name)
         stage.rmdir()
