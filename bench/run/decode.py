@@ -354,18 +354,18 @@ class Decoder:
                         # the period's own command is the last one
                         last = np.r_[per[1:] != per[:-1], True]
                         pos, per = pos[last], per[last]
-                    elif realtime and pdo.node == "drive":
-                        # real time: a synchronous drive TPDO sent late for its SYNC lands after the next SYNC;
-                        # it is the earlier row's (the drive sends one per SYNC, in order), not a foreign frame
-                        pos, per = _late_to_own_row(pos, per, r0)
                     else:
                         # a PDO twice in a period that holds the next period's sample: the SYNC between them
                         # was lost (frames_lost), not a foreign frame (a synchronous drive TPDO is one behind)
                         shift = 1 if pdo.node == "drive" and pdo.trans_type <= 240 else 0
                         lost = dup & np.isin(per + shift, misaligned)
+                        drop = np.zeros_like(dup)
+                        if shift:
+                            per, dup, drop = _late_to_free_row(per, dup & ~lost, r0)
+                            dup |= lost
                         self._interfere(cob_id, per[dup & ~lost])
                         self._lost(per[lost])
-                        pos, per = pos[~dup], per[~dup]
+                        pos, per = pos[~(dup | drop)], per[~(dup | drop)]
             per = per - r0
             vals = np.ascontiguousarray(data[pos, : dt.itemsize]).view(dt).reshape(-1)
             got = np.zeros(n, dtype=bool)
@@ -485,19 +485,25 @@ class Decoder:
             self._lost(out["period"][good][wrong])
 
 
-def _late_to_own_row(pos: np.ndarray, per: np.ndarray, r0: int) -> tuple[np.ndarray, np.ndarray]:
-    """Frames of one periodic PDO in bus order, `per` non-decreasing: c frames in one row are that row's
-    (the last) and the c-1 rows before it, late. A row claimed twice keeps its later frame. Only real time:
-    in lockstep the drive answers a SYNC before the next one is sent, so a second frame is foreign."""
-    start = np.r_[True, per[1:] != per[:-1]]
-    group = np.cumsum(start) - 1
-    size = np.bincount(group)
-    first = np.flatnonzero(start)
-    j = np.arange(len(per)) - first[group]  # index within its row's group
-    own = per - (size[group] - 1 - j)
-    keep = np.r_[own[1:] != own[:-1], True] & (own >= r0)  # rows before r0 were emitted with the last chunk
-    # own is non-decreasing only within a group; a later group may reclaim a row: keep its (later) frame
-    order = np.argsort(own[keep], kind="stable")
-    o_pos, o_per = pos[keep][order], own[keep][order]
-    last = np.r_[o_per[1:] != o_per[:-1], True]
-    return o_pos[last], o_per[last]
+def _late_to_free_row(per: np.ndarray, dup: np.ndarray, r0: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A synchronous drive TPDO that arrives after the next SYNC is late, not foreign, when the row before
+    has none of its own: a transport that reorders (SLCAN through a kernel on several CPUs, a controller
+    that sends by priority: the command before the trace TPDOs, and the plant answers the command with the
+    next SYNC at once), or a drive late for its SYNC in real time. `per`: the rows of one PDO's frames in
+    bus order; `dup[i]`: frame i shares its row with frame i-1. Of such a pair the earlier frame moves to
+    the row before when that row is free (before r0 it was emitted with the last chunk: the frame is
+    dropped). Returns the new rows, the duplicates left (interference) and the frames dropped."""
+    drop = np.zeros_like(dup)
+    second = np.flatnonzero(dup)
+    if len(second) == 0:
+        return per, dup, drop
+    first = second - 1
+    row = per[first] - 1
+    free = ~np.isin(row, per) & ~dup[first]  # the row before has no frame, and it is a pair, not three
+    per, dup = per.copy(), dup.copy()
+    move, gone = first[free & (row >= r0)], first[free & (row < r0)]
+    per[move] -= 1
+    dup[move + 1] = False
+    dup[gone + 1] = False
+    drop[gone] = True
+    return per, dup, drop

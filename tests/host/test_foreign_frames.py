@@ -258,3 +258,30 @@ def test_a_drive_late_for_its_sync_in_real_time_is_late_not_interference(
             np.testing.assert_array_equal(tr[name][~late], tr0[name][~late], err_msg=name)  # the command
         else:
             np.testing.assert_array_equal(tr[name], tr0[name], err_msg=name)  # trace TPDOs in their own rows
+
+
+def test_a_trace_tpdo_reordered_after_the_next_sync_is_late_not_interference(
+    clean: tuple[RunResult, np.ndarray],
+) -> None:
+    # Lockstep through a transport that reorders (SLCAN in a kernel on two CPUs; a controller sending by
+    # priority): the drive's trace TPDO of SYNC k arrives after its command and after SYNC k+1. Its row is
+    # free: it is that row's, the trace is unchanged, the run clean. A second frame where the row before
+    # has its own stays interference.
+    res0, frames = clean
+    lo, hi = _loop_span(frames)
+    sync = np.flatnonzero(frames["cob_id"] == 0x080)
+    sync = sync[(sync >= lo) & (sync < hi)]
+    k = len(sync) // 2
+    span = np.arange(sync[k], sync[k + 1])
+    tpdo = span[frames["cob_id"][span] == 0x4A0]
+    assert len(tpdo) == 1
+    order = np.r_[
+        np.arange(0, tpdo[0]), np.arange(tpdo[0] + 1, sync[k + 1] + 1), tpdo, np.arange(sync[k + 1] + 1, len(frames))
+    ]
+    res = _decode(frames[order])
+    assert res.status == "ok", res.summary["bus_stats"]
+    assert res.summary["bus_stats"]["interference"]["frames"] == 0
+    assert res0.trace is not None and res.trace is not None
+    _same_traces(res.trace, res0.trace)
+    extra = np.insert(frames, sync[k + 1] + 1, frames[tpdo])  # a copy after SYNC k+1: row k has its own
+    assert _decode(extra).summary["bus_stats"]["interference"]["by_cob_id"] == {"0x4A0": 1}
