@@ -8,6 +8,9 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 slaves on the in-process bus, target >= 5 M periods/s) with its resident memory over
                 10^6 periods; firmware (drive_perf ns per step, instructions per step under callgrind);
                 Yao 2020 identification vs RLS (callgrind); Cortex-M4F sizes (arm-none-eabi-gcc)
+* mcu           the drive firmware as the Cortex-M4F image in the loop (`bench run --drive mcu`, one VM boot
+                per run): instructions per current step per controller (Yao 2020's identification and RLS
+                beside the paper's DSP times), loop rate, flash and RAM of the image
 * canopen_cost  co_perf ns per frame
 * sweep         `bench sweep` on 1 process vs all cores
 * live          Rerun's served live buffer for 10^6 periods x 16 signals; the VM live view's cost per update
@@ -19,7 +22,7 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 no stack), and a longer run whose every frame is checked from the SYNC counters
 * report        format_report
 
-`bench perf --json` prints the same as JSON; `--quick` skips the vcan part and shrinks the pipeline
+`bench perf --json` prints the same as JSON; `--quick` skips the vcan and mcu parts and shrinks the pipeline
 section (10^5 periods, one repetition, no 10^7, no peers). Inside the VM the helper
 `python -m bench.tools.perf --inside-vm --out FILE` runs.
 """
@@ -41,6 +44,7 @@ SECTIONS = (
     "firmware",
     "yao2020_identification",
     "cortex_m4",
+    "mcu",
     "canopen",
     "sweep_scaling",
     "rerun_live",
@@ -56,7 +60,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--quick",
         action="store_true",
-        help="skip the vcan part (no VM boot); pipeline section at 10^5 periods, once, no 10^7, no peers",
+        help="skip the vcan and mcu parts (no VM boot); pipeline section at 10^5 periods, once, no 10^7, no peers",
     )
     p.add_argument(
         "--only", default=None, metavar="SECTION[,SECTION...]", help=f"run only these sections ({', '.join(SECTIONS)})"
@@ -91,6 +95,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
     from .canopen_cost import canopen_cost
     from .cores import closed_loop, cortex_m4, firmware, plant_core, yao2020_identification_cost
     from .live import rerun_live
+    from .mcu import mcu_in_the_loop
     from .pipeline import Sizes, pipeline
     from .sweep import sweep_scaling
     from .vcan import vcan
@@ -106,6 +111,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
         "firmware": firmware,
         "yao2020_identification": yao2020_identification_cost,
         "cortex_m4": cortex_m4,
+        "mcu": mcu_in_the_loop,
         "canopen": canopen_cost,
         "sweep_scaling": sweep_scaling,
         "rerun_live": rerun_live,
@@ -144,8 +150,8 @@ def main(args: argparse.Namespace) -> int:
     for name in SECTIONS:
         if name not in only:
             continue
-        if name == "vcan" and args.quick:
-            res["vcan"] = None
+        if name in ("vcan", "mcu") and args.quick:
+            res[name] = None
             continue
         note("vcan (one VM boot, ~2 min)" if name == "vcan" else name)
         res[name] = section(fns[name])

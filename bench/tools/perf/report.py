@@ -156,6 +156,28 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
         tot = cm["total"]
         L.append(f"  {'total':<26}{tot['text']:>8}{tot['data']:>8}{tot['bss']:>8}")
 
+    mc = L.sec(r, "mcu", "the drive firmware as the Cortex-M4F image in the loop (bench run --drive mcu)")
+    if mc:
+        img = mc["image"]
+        L.append(
+            f"  image: flash {img['flash_bytes']:,} B (text {img['text']:,} + data {img['data']:,}), static RAM "
+            f"{img['ram_bytes']:,} B (data + bss {img['bss']:,})"
+        )
+        L.append(f"  {'drive':<56}{'instr/step':>11}{'max':>7}{'periods/s':>11}{'command':>9}")
+        for run in mc["runs"].values():
+            L.append(
+                f"  {run['what']:<56}{run['instructions_mean']:>11.0f}{run['instructions_max']:>7.0f}"
+                f"{run['loop_periods_per_s'] or 0:>11.0f}{run['whole_command_s'] or 0:>8.0f}s"
+            )
+        y = mc["yao2020_identification_vs_rls"]
+        L.append(
+            f"  Yao 2020 on the M4F image: identification {y['identification_instructions']:.0f}, RLS "
+            f"{y['rls_instructions']:.0f} instructions per step ({y['rls_over_identification'] or 0:.1f}x); "
+            f"the paper's DSP: {y['paper_identification_cycles']:.0f} vs {y['paper_rls_cycles']:.0f} cycles "
+            f"({y['paper_rls_over_identification']:.0f}x)"
+        )
+        L.append(f"  ({mc['note']})")
+
     co = L.sec(r, "canopen", "CANopen frame handling (co_perf, in-process)")
     if co:
         for k, v in co.items():
