@@ -290,7 +290,10 @@ def cortex_m4() -> dict[str, Any]:
         for src in sorted(core.glob("*.c")):
             obj = Path(td) / (src.stem + ".o")
             r = subprocess.run(
-                [gcc, *ARM_FLAGS, f"-I{core}", str(src), "-o", str(obj)], capture_output=True, text=True, timeout=120
+                [gcc, *ARM_FLAGS, f"-I{core}", f"-I{REPO / 'protocols' / 'generated'}", str(src), "-o", str(obj)],
+                capture_output=True,
+                text=True,
+                timeout=120,
             )
             if r.returncode != 0:
                 raise RuntimeError(f"arm-none-eabi-gcc failed on {src.name}: {r.stderr}")
