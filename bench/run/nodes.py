@@ -8,6 +8,7 @@ import subprocess
 import time
 from pathlib import Path
 from types import TracebackType
+from typing import Any
 
 from ..paths import binary
 
@@ -36,23 +37,30 @@ class NodeProcess:
     def stop(self, timeout_s: float = 5.0) -> int | None:
         if self.proc is None:
             return None
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            self.proc.send_signal(signal.SIGCONT)  # a frozen (SIGSTOP) node gets its SIGTERM at once
-            try:
-                self.proc.wait(timeout=timeout_s)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        if self._log_fh:
-            self._log_fh.close()
-        return self.proc.returncode
+        return end_process(self.proc, self._log_fh, timeout_s, wake=True)
 
     def __enter__(self) -> NodeProcess:
         return self.start()
 
     def __exit__(self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None) -> None:
         self.stop()
+
+
+def end_process(proc: subprocess.Popen[bytes], log_fh: Any, timeout_s: float, wake: bool = False) -> int:
+    """SIGTERM (and SIGCONT when `wake`: a frozen (SIGSTOP) process gets its SIGTERM at once), SIGKILL after
+    `timeout_s`; closes its log file; returns its exit status."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        if wake:
+            proc.send_signal(signal.SIGCONT)
+        try:
+            proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    if log_fh:
+        log_fh.close()
+    return proc.returncode
 
 
 def wait_until(pred, timeout_s: float, step_s: float = 0.01) -> bool:  # type: ignore[no-untyped-def]

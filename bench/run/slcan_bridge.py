@@ -10,10 +10,11 @@ Written by hand because python-can's slcan interface would put Python in the per
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import time
 from pathlib import Path
+
+from .nodes import end_process
 
 SLCAN_SPEED = "8"  # slcand -s8: 1 Mbit/s as the adapter announces it (the image's SLCAN ignores the rate)
 UART_BAUD = "115200"  # the emulated 16550's highest rate; QEMU does not pace the line by it
@@ -70,13 +71,4 @@ class SlcanBridge:
         self._rules = []
         if self.proc is None:
             return None
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)  # slcand closes the channel ('C') and detaches the tty
-            try:
-                self.proc.wait(timeout=timeout_s)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        if self._log_fh:
-            self._log_fh.close()
-        return self.proc.returncode
+        return end_process(self.proc, self._log_fh, timeout_s)  # slcand closes the channel ('C'), detaches the tty
