@@ -16,12 +16,14 @@ CFLAGS_CORE := $(CSTD) $(OPT) $(WARN) -fPIC
 CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
 CFLAGS_HOST := $(CSTD) $(OPT) $(WARN) -D_GNU_SOURCE -fPIC
 INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
-       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Itests/c
+       -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Iprotocols/faults -Itests/c
 
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
 PLANT_SRC := $(wildcard plant_rt/core/*.c)
 FW_SRC    := $(wildcard firmware_shim/core/*.c)
+# The fault injector between the plant's and the drive's side (portable core + its rule text).
+FAULT_SRC := protocols/faults/fault_injector.c protocols/faults/fault_rules.c
 
 obj = $(patsubst %.c,$(BUILD)/obj/%.o,$(1))
 
@@ -38,7 +40,7 @@ PLANT_TESTS := $(patsubst plant_rt/tests/%.c,$(BUILD)/tests/plant_%,$(wildcard p
 FW_TOOLS    := $(patsubst firmware_shim/tools/%.c,$(BUILD)/bin/%,$(wildcard firmware_shim/tools/*.c))
 FW_TESTS    := $(patsubst firmware_shim/tests/%.c,$(BUILD)/tests/fw_%,$(wildcard firmware_shim/tests/test_*.c))
 NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
-               $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node)
+               $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node) $(BUILD)/bin/fault_gateway
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
 .PHONY: all clean demo test setup fuzz format mcu
@@ -161,8 +163,12 @@ $(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $
 $(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
 	$(CC) $^ -lm -o $@
+# The fault injector as a SocketCAN gateway process (side a <-> side b).
+$(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $(LIBSCAN)
+	@mkdir -p $(@D) $(BUILD)/deps
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(FAULT_SRC) $(LIBSCAN) -o $@
 HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(wildcard plant_rt/node/plant_app.c) \
-           $(wildcard firmware_shim/shim/drive_app.c) $(wildcard bench/direct/*.c)
+           $(wildcard firmware_shim/shim/drive_app.c) $(wildcard bench/direct/*.c) $(FAULT_SRC)
 $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
 	$(CC) -shared $^ -lm -o $@

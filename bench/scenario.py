@@ -34,6 +34,11 @@ Layout (every key optional except where noted)::
     pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"]    # at most 8 bytes each); default below
     pdo4 = ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]
 
+    [[faults]]                   # faults on purpose (bench/faults/spec.py): drop, delay, duplicate,
+    kind = "drop"                # corrupt, reorder frames; silence_heartbeat, freeze, kill, reset nodes
+    frame = "drive.TPDO1"
+    at_period = 200
+
     [[events]]                   # applied before the current step of period `at_period`
     at_period = 100
     references = { iq_ref_A = 1.0 }
@@ -55,6 +60,7 @@ from typing import Any
 from canopen.objectdictionary import datatypes
 
 from .eds import Param, params
+from .faults.spec import Fault, FaultError, parse_faults
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
@@ -114,6 +120,7 @@ class Scenario:
     events: list[Event] = field(default_factory=list)
     trace: dict[int, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_TRACE))
     expect: tuple[str, ...] = ("ok",)
+    faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/faults/spec.py)
     raw: dict[str, Any] = field(default_factory=dict)
 
     def event_periods(self) -> list[int]:
@@ -186,7 +193,7 @@ def apply_overrides(raw: dict[str, Any], overrides: list[str], where: str) -> di
 
 
 def parse(raw: dict[str, Any], where: str) -> Scenario:
-    allowed_top = {"scenario", "events", "trace", *SECTION_OBJECTS}
+    allowed_top = {"scenario", "events", "faults", "trace", *SECTION_OBJECTS}
     for key in raw:
         if key not in allowed_top:
             raise ScenarioError(f"{where}: unknown table [{key}]; allowed: {', '.join(sorted(allowed_top))}")
@@ -266,6 +273,10 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     sc.events.sort(key=lambda e: e.at_period)
     if "trace" in raw:
         sc.trace = _trace(where, raw["trace"])
+    try:
+        sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed)
+    except FaultError as exc:
+        raise ScenarioError(str(exc)) from None
     return sc
 
 

@@ -14,6 +14,8 @@
 #include "co_membus.h"
 #include "co_node.h"
 #include "drive_app.h"
+#include "fault_injector.h"
+#include "fault_rules.h"
 #include "od_drive.h"
 #include "od_plant.h"
 #include "plant_app.h"
@@ -21,7 +23,14 @@
 #include "hil_frame.h" /* hil_frame_t, 24 bytes; numpy dtype FRAME_DTYPE */
 
 #define MASTER_Q 1024u
+#define FROZEN_Q 4096u    /* frames waiting for a frozen node (a socket buffer's worth) */
+#define STALL_US 10000000 /* simulated time without a SYNC after which hil_run gives up */
+#define TICK_MAX_US 10000 /* node timers are looked at least this often (simulated) */
+#define SIDE_OF(port) ((port) == H.drive_port ? FI_SIDE_B : FI_SIDE_A)
 
+/* The two sides of the fault injector (fault_injector.h): side A = the plant, the master and the
+ * recorder; side B = the drive. Without fault rules every frame passes at once, in order: the
+ * frames and their order are those of one bus. */
 static struct {
     co_membus_t bus;
     co_node_t plant_node, drive_node;
@@ -37,14 +46,23 @@ static struct {
     uint32_t mq_head, mq_tail;
     uint64_t mq_dropped;
     int running;
+    fi_t fi;
+    uint8_t cur_side;        /* side of the frame being passed through the injector */
+    uint8_t frozen[2];       /* per side: the node neither runs nor hears (frames queue) */
+    uint8_t killed[2];       /* per side: the node is gone */
+    co_frame_t fz[FROZEN_Q]; /* frames for the frozen node */
+    uint32_t fz_n;
+    uint64_t fz_dropped;
+    int64_t next_tick_us[2]; /* when the nodes' timers next need a look */
 } H;
 
-static void sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us)
+static co_node_t *node_of(uint8_t side) { return side == FI_SIDE_B ? &H.drive_node : &H.plant_node; }
+
+static void record(const co_frame_t *f, uint8_t sender)
 {
-    (void)user;
     hil_frame_t r;
     memset(&r, 0, sizeof r);
-    r.t_us = (uint64_t)now_us;
+    r.t_us = (uint64_t)H.now_us;
     r.seq = H.seq++;
     r.cob_id = (uint16_t)(f->cob_id & 0x7FFu);
     r.dlc = f->dlc;
@@ -66,11 +84,85 @@ static void sink(void *user, const co_frame_t *f, uint8_t sender, int64_t now_us
     }
 }
 
+static void hear(uint8_t side, const co_frame_t *f)
+{
+    if (H.killed[side]) return;
+    if (H.frozen[side]) {
+        if (H.fz_n < FROZEN_Q)
+            H.fz[H.fz_n++] = *f;
+        else
+            ++H.fz_dropped;
+        return;
+    }
+    co_node_process(node_of(side), f, H.now_us);
+}
+
+/* The injector's output: a frame arrives on side `to`. */
+static void emit(void *user, const co_frame_t *f, uint8_t to)
+{
+    (void)user;
+    if (to == FI_SIDE_A) {
+        /* from the drive, or made by the injector (an NMT reset of a node fault) */
+        record(f, H.cur_side == FI_SIDE_B ? (uint8_t)H.drive_port : CO_MEMBUS_EXTERNAL);
+        hear(FI_SIDE_A, f);
+    } else {
+        hear(FI_SIDE_B, f);
+    }
+}
+
+static void node_fault(void *user, uint8_t side, uint8_t kind, int on)
+{
+    (void)user;
+    if (kind == FI_KILL) {
+        H.killed[side] = 1u;
+        return;
+    }
+    H.frozen[side] = (uint8_t)on;
+    if (!on) { /* thawed: what it was sent meanwhile, in order, before anything new */
+        for (uint32_t i = 0; i < H.fz_n && !H.killed[side]; ++i) co_node_process(node_of(side), &H.fz[i], H.now_us);
+        H.fz_n = 0;
+        H.next_tick_us[side] = H.now_us;
+    }
+}
+
+/* Every frame queued on the in-process bus, through the injector to the other side. */
+static void deliver(void)
+{
+    co_membus_t *b = &H.bus;
+    while (b->head != b->tail) {
+        uint32_t slot = b->head % CO_MEMBUS_QUEUE;
+        co_frame_t f = b->queue[slot];
+        uint8_t sender = b->sender[slot];
+        ++b->head;
+        ++b->frames;
+        uint8_t side = sender == CO_MEMBUS_EXTERNAL ? FI_SIDE_A : (uint8_t)SIDE_OF(sender);
+        if (side == FI_SIDE_A) {
+            record(&f, sender);
+            if (sender == CO_MEMBUS_EXTERNAL) hear(FI_SIDE_A, &f); /* the master's frame reaches the plant */
+        }
+        H.cur_side = side;
+        fi_frame(&H.fi, &f, side, H.now_us);
+    }
+}
+
+/* The nodes' timers (heartbeats, consumers, SDO timeouts) on simulated time, when due. */
+static void tick(void)
+{
+    for (uint8_t s = 0; s < 2u; ++s) {
+        if (H.killed[s] || H.frozen[s] || H.now_us < H.next_tick_us[s]) continue;
+        co_node_tick(node_of(s), H.now_us);
+        H.next_tick_us[s] = H.now_us + co_node_next_event_us(node_of(s), H.now_us, TICK_MAX_US);
+    }
+    fi_tick(&H.fi, H.now_us);
+    deliver();
+}
+
 int hil_open(uint8_t plant_id, uint8_t drive_id)
 {
     memset(&H, 0, sizeof H);
     H.now_us = 0;
-    co_membus_init(&H.bus, sink, NULL);
+    co_membus_init(&H.bus, NULL, NULL);
+    fi_init(&H.fi, emit, node_fault, NULL);
     H.plant_port = co_membus_port(&H.bus);
     H.drive_port = co_membus_port(&H.bus);
     plant_app_init(&H.plant);
@@ -83,9 +175,22 @@ int hil_open(uint8_t plant_id, uint8_t drive_id)
                  &H.drive, H.now_us);
     drive_app_bind(&H.drive, &H.drive_node);
     co_membus_attach(&H.bus, H.drive_port, &H.drive_node);
-    co_membus_deliver(&H.bus, H.now_us);
+    deliver();
     return 0;
 }
+
+/* Fault rules (fault_rules.h text); before the run. Returns the rules added or -1 (message in err). */
+int hil_faults(const char *text, char *err, uint32_t err_len) { return fi_parse_rules(&H.fi, text, err, err_len); }
+
+/* The injector's log: copies up to max events, returns how many there are in all. */
+uint32_t hil_fault_log(fi_event_t *out, uint32_t max)
+{
+    uint32_t n = H.fi.n_log < max ? H.fi.n_log : max;
+    if (out != NULL && n != 0u) memcpy(out, H.fi.log, n * sizeof *out);
+    return H.fi.n_log;
+}
+uint32_t hil_fault_event_size(void) { return (uint32_t)sizeof(fi_event_t); }
+uint64_t hil_fault_overflows(void) { return H.fi.log_overflow + H.fi.held_overflow + H.fz_dropped; }
 
 /* Recorder: every frame on the bus goes into the caller's buffer (no allocation here). */
 void hil_set_recorder(hil_frame_t *buf, uint32_t capacity)
@@ -108,7 +213,7 @@ int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
     f.dlc = dlc > 8 ? 8 : dlc;
     memcpy(f.data, data, f.dlc);
     if (co_membus_inject(&H.bus, &f) != 0) return -1;
-    co_membus_deliver(&H.bus, H.now_us);
+    deliver();
     return 0;
 }
 
@@ -121,18 +226,38 @@ int hil_recv(hil_frame_t *out)
 }
 
 /* Run the lockstep loop until the plant holds (run_periods exhausted) or max_periods
- * SYNCs were produced. Returns the SYNCs produced. */
+ * SYNCs were produced. Returns the SYNCs produced. Simulated time advances by Ts per SYNC, and
+ * while the plant waits (a command that did not come: its timeout 0x2003:04, the nodes'
+ * heartbeat consumers, frames the injector holds) to the next thing that can happen; after
+ * STALL_US of simulated time without a SYNC the loop gives up (the caller names the stall). */
 uint32_t hil_run(uint32_t max_periods)
 {
     uint32_t n = 0;
+    int64_t idle_since = H.now_us;
     H.running = 1;
     while (n < max_periods) {
-        uint32_t before = H.plant.syncs;
-        plant_app_poll(&H.plant, H.now_us);
-        co_membus_deliver(&H.bus, H.now_us);
-        if (H.plant.syncs == before) break; /* holding, stopped, or waiting (cannot happen in-process) */
-        ++n;
-        H.now_us += plant_app_period_ns(&H.plant) / 1000;
+        const uint32_t before = H.plant.syncs;
+        const int plant_up = !H.killed[FI_SIDE_A] && !H.frozen[FI_SIDE_A];
+        const int64_t wish = plant_up ? plant_app_poll(&H.plant, H.now_us) : -1;
+        deliver();
+        if (H.plant.syncs != before) {
+            ++n;
+            H.now_us += plant_app_period_ns(&H.plant) / 1000;
+            idle_since = H.now_us;
+            tick();
+            continue;
+        }
+        if (plant_up && wish < 0 && !plant_app_running(&H.plant)) break; /* holding: the segment is over */
+        /* waiting: on to the next event */
+        int64_t next = wish > 0 ? H.now_us + wish : INT64_MAX;
+        for (uint8_t s = 0; s < 2u; ++s)
+            if (!H.killed[s] && !H.frozen[s] && H.next_tick_us[s] < next)
+                next = H.next_tick_us[s] > H.now_us ? H.next_tick_us[s] : H.now_us + 1;
+        const int64_t rel = fi_next_release_us(&H.fi);
+        if (rel >= 0 && rel < next) next = rel > H.now_us ? rel : H.now_us + 1;
+        if (next == INT64_MAX || next - idle_since > STALL_US) break;
+        H.now_us = next;
+        tick();
     }
     H.running = 0;
     return n;

@@ -26,6 +26,21 @@ class _Frame(ctypes.Structure):
     ]
 
 
+class FaultEvent(ctypes.Structure):
+    """fi_event_t (protocols/faults/fault_injector.h): one action of the fault injector."""
+
+    _fields_ = [
+        ("period", ctypes.c_int64),
+        ("t_us", ctypes.c_int64),
+        ("rule", ctypes.c_uint16),
+        ("kind", ctypes.c_uint8),
+        ("side", ctypes.c_uint8),
+        ("cob_id", ctypes.c_uint16),
+        ("dlc", ctypes.c_uint8),
+        ("data", ctypes.c_uint8 * 8),
+    ]
+
+
 class Hil:
     """The in-process plant + drive (one per process: the C side holds them in statics)."""
 
@@ -46,10 +61,34 @@ class Hil:
         self.lib.hil_record_dropped.restype = ctypes.c_uint64
         self.lib.hil_now_us.restype = ctypes.c_int64
         self.lib.hil_plant_period.restype = ctypes.c_uint64
+        self.lib.hil_faults.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
+        self.lib.hil_fault_log.argtypes = [ctypes.POINTER(FaultEvent), ctypes.c_uint32]
+        self.lib.hil_fault_log.restype = ctypes.c_uint32
+        self.lib.hil_fault_overflows.restype = ctypes.c_uint64
         assert self.lib.hil_frame_size() == FRAME_DTYPE.itemsize
+        assert self.lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
         self._rec: np.ndarray | None = None
         with self._lock:
             self.lib.hil_open(plant_id, drive_id)
+
+    def set_faults(self, rules: str) -> int:
+        """The fault injector's rules (protocols/faults/fault_rules.h text), before the run."""
+        err = ctypes.create_string_buffer(256)
+        with self._lock:
+            n = self.lib.hil_faults(rules.encode(), err, len(err))
+        if n < 0:
+            raise ValueError(err.value.decode())
+        return int(n)
+
+    def fault_log(self) -> tuple[list[tuple[int, int, int, int, int, int, bytes]], int]:
+        """Every action of the injector: (period, t_us, rule, kind, side, cob_id, data), and how many
+        could not be kept (log full, hold queue full, a frozen node's queue full)."""
+        with self._lock:
+            total = self.lib.hil_fault_log(None, 0)
+            buf = (FaultEvent * max(1, total))()
+            self.lib.hil_fault_log(buf, total)
+            lost = int(self.lib.hil_fault_overflows())
+        return [(e.period, e.t_us, e.rule, e.kind, e.side, e.cob_id, bytes(e.data[: e.dlc])) for e in buf[:total]], lost
 
     def send(self, cob_id: int, data: bytes) -> None:
         with self._lock:

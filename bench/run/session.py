@@ -26,6 +26,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoEr
 
 from ..canbus import link_info, prepare_can_link
 from ..eds import load as load_od
+from ..faults import rules_text
 from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
 from .liveness import Liveness, LoopStopped
@@ -137,6 +138,8 @@ class Session:
         out = self.opts.out
         if self.opts.bus == "direct":
             self.hil = Hil(self.opts.plant_id, self.opts.drive_id)
+            if self.sc.faults:
+                self.hil.set_faults(rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id))
             self.net.bus = DirectBus(self.hil)
         else:
 
