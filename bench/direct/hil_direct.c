@@ -225,6 +225,39 @@ int hil_recv(hil_frame_t *out)
     return 1;
 }
 
+/* Nodes that are no longer in the loop: bit 0 the plant, bit 1 the drive (killed by a fault, or out
+ * of OPERATIONAL: reset, stopped). */
+uint32_t hil_nodes_down(void)
+{
+    uint32_t down = 0;
+    for (uint8_t s = 0; s < 2u; ++s)
+        if (H.killed[s] || node_of(s)->nmt != CO_NMT_OPERATIONAL) down |= 1u << s;
+    return down;
+}
+
+/* The node's state: 0xFF killed, else its NMT state (co_nmt_state_t). */
+uint32_t hil_node_state(uint32_t side)
+{
+    return H.killed[side & 1u] ? 0xFFu : (uint32_t)node_of((uint8_t)(side & 1u))->nmt;
+}
+
+/* After a node was lost: simulated time goes on for `us` with the nodes' timers only (no new period),
+ * so that the survivor's reaction (its heartbeat consumer) is recorded as on a bus. */
+void hil_linger(int64_t us)
+{
+    const int64_t end = H.now_us + us;
+    H.running = 1;
+    while (H.now_us < end) {
+        int64_t next = end;
+        for (uint8_t s = 0; s < 2u; ++s)
+            if (!H.killed[s] && !H.frozen[s] && H.next_tick_us[s] < next)
+                next = H.next_tick_us[s] > H.now_us ? H.next_tick_us[s] : H.now_us + 1;
+        H.now_us = next;
+        tick();
+    }
+    H.running = 0;
+}
+
 /* Run the lockstep loop until the plant holds (run_periods exhausted) or max_periods
  * SYNCs were produced. Returns the SYNCs produced. Simulated time advances by Ts per SYNC, and
  * while the plant waits (a command that did not come: its timeout 0x2003:04, the nodes'
@@ -240,6 +273,7 @@ uint32_t hil_run(uint32_t max_periods)
         const int plant_up = !H.killed[FI_SIDE_A] && !H.frozen[FI_SIDE_A];
         const int64_t wish = plant_up ? plant_app_poll(&H.plant, H.now_us) : -1;
         deliver();
+        if (hil_nodes_down() != 0u) break; /* a node killed, reset or stopped: the caller names it */
         if (H.plant.syncs != before) {
             ++n;
             H.now_us += plant_app_period_ns(&H.plant) / 1000;

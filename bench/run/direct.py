@@ -65,6 +65,10 @@ class Hil:
         self.lib.hil_fault_log.argtypes = [ctypes.POINTER(FaultEvent), ctypes.c_uint32]
         self.lib.hil_fault_log.restype = ctypes.c_uint32
         self.lib.hil_fault_overflows.restype = ctypes.c_uint64
+        self.lib.hil_nodes_down.restype = ctypes.c_uint32
+        self.lib.hil_node_state.argtypes = [ctypes.c_uint32]
+        self.lib.hil_node_state.restype = ctypes.c_uint32
+        self.lib.hil_linger.argtypes = [ctypes.c_int64]
         assert self.lib.hil_frame_size() == FRAME_DTYPE.itemsize
         assert self.lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
         self._rec: np.ndarray | None = None
@@ -124,6 +128,20 @@ class Hil:
     def run(self, max_periods: int) -> int:
         with self._lock:
             return int(self.lib.hil_run(max_periods))
+
+    def nodes_down(self) -> dict[str, int]:
+        """The nodes out of the loop: name -> 0xFF killed, else its NMT state (not OPERATIONAL)."""
+        with self._lock:
+            down = self.lib.hil_nodes_down()
+            return {n: int(self.lib.hil_node_state(i)) for i, n in enumerate(("plant", "drive")) if down >> i & 1}
+
+    def linger(self, seconds: float) -> None:
+        """Simulated time goes on with the nodes' timers only (after a node was lost)."""
+        with self._lock:
+            self.lib.hil_linger(int(seconds * 1e6))
+
+    def period(self) -> int:
+        return int(self.lib.hil_plant_period())
 
     def now_s(self) -> float:
         return self.lib.hil_now_us() * 1e-6

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from ..faults.report import StatusWatch
+from ..faults.report import build as fault_report
 from ..scenario import Scenario
 from .decode import Decoder
 from .liveness import LoopStopped
@@ -102,6 +104,7 @@ class Pipeline:
         self._windows: list[dict[str, Any]] = []
         self._open_windows: list[dict[str, Any]] = []
         self._seen: set[tuple[int, str]] = set()
+        self.status = StatusWatch()  # the plant's status bits per period (held, missed, trip)
 
     @property
     def periods(self) -> int:
@@ -137,6 +140,8 @@ class Pipeline:
             self.max_phase_A = max(self.max_phase_A, float(a.max()))
             if self.bound_A is not None and self.first_beyond_bound_period is None and a.max() > self.bound_A:
                 self.first_beyond_bound_period = int(chunk["period"][int(np.argmax(a > self.bound_A))])
+        if "status" in chunk:
+            self.status.add(chunk["period"], chunk["status"])
         if self.first_trip_period is None and "status" in chunk:
             st = chunk["status"]
             hit = np.nonzero(np.isfinite(st) & (np.nan_to_num(st).astype(np.int64) & 1 == 1))[0]
@@ -190,9 +195,11 @@ class Pipeline:
         wall: dict[str, float] | None = None,
         stopped: dict[str, Any] | None = None,
         links: dict[str, dict[str, Any]] | None = None,
+        faults: tuple[list[Any], list[tuple[Any, ...]], int] | None = None,
     ) -> RunResult:
         """`stopped`: the run ended before its last period (LoopStopped.to_dict(): a node lost, a stall);
-        `links`: each SocketCAN interface's kernel report before and after the run (Session.links)."""
+        `links`: each SocketCAN interface's kernel report before and after the run (Session.links);
+        `faults`: the scenario's faults, the injector's log and how many actions it could not log."""
         self._rows(self.dec.finish())
         dec = self.dec
         steps = [m.to_dict() for sig, _, _ in STEP_SIGNALS for m in self.steps[sig].finish()]
@@ -294,6 +301,8 @@ class Pipeline:
             # each SocketCAN interface (kind, state, bit rate, error counters) before and after the run
             "can_links": links or {},
         }
+        if faults is not None:
+            summary["faults"] = fault_report(faults[0], faults[1], faults[2], dec.emcy, self.status)
         for s in self.sinks:
             s.end(summary)
         windows = [{**w["rows"], "at_period": np.int64(w["at"])} for w in sorted(self._windows, key=lambda w: w["at"])]
@@ -374,6 +383,8 @@ def run_scenario(
         except LoopStopped as exc:  # a verdict, not a failure: the frames so far are decoded and kept
             stopped = exc.to_dict()
             run_wall = time.monotonic() - t_run
+            if exc.status == "node_lost":
+                sess.linger()  # the other node's reaction (its heartbeat consumer) goes into the record
     finally:
         sess.close()
         if source is not None:
@@ -382,7 +393,10 @@ def run_scenario(
         pipe.feed(source.drain(final=True))
         if hasattr(source, "cleanup"):
             source.cleanup()
-    res = pipe.finish(sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped, sess.links)
+    injected = (sc.faults, *sess.fault_log()) if sc.faults else None
+    res = pipe.finish(
+        sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped, sess.links, injected
+    )
     if collector is not None:
         res.trace = collector.trace
     return res

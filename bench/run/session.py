@@ -12,6 +12,7 @@ returns nothing the frames do not also say (bench/run/sdo_log.py reads it back f
 from __future__ import annotations
 
 import queue
+import re
 import struct
 import threading
 import time
@@ -24,12 +25,14 @@ import can
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoError
 
-from ..canbus import link_info, prepare_can_link
+from ..canbus import ensure_vcan, link_info, prepare_can_link
 from ..eds import load as load_od
 from ..faults import rules_text
 from ..scenario import Scenario, Setting
 from .direct import DirectBus, Hil
-from .liveness import Liveness, LoopStopped
+from .buses import VCAN
+from .liveness import NMT_STATES, Liveness, LoopStopped
+from .gateway import FaultGateway
 from .nodes import NodeProcess
 from .slcan_bridge import SlcanBridge
 from .summary import END_READS, PLANT_VALUES, STEP_COST
@@ -121,16 +124,37 @@ class Session:
         self._hold_cob = 0
         self._period = 0
         self.liveness: Liveness | None = None
+        self.gateway: FaultGateway | None = None  # the fault injector between the buses (faults over SocketCAN)
         # each SocketCAN interface of the run: what the kernel reports of it before and after (canbus.link_info)
         self.links: dict[str, dict[str, Any]] = {}
 
     # ---------------------------------------------------------------- bus
+    def drive_side_bus(self) -> str:
+        """The drive's interface: --drive-bus, or with [[faults]] over SocketCAN a bus of its own joined to
+        the plant's by the fault gateway (vcanN -> vcanN+1 unless --drive-bus names another)."""
+        if not self.sc.faults or self.opts.bus == "direct":
+            return self.opts.drive_bus or self.opts.bus
+        name = self.opts.drive_bus
+        if name is None:
+            m = re.fullmatch(r"vcan(\d+)", self.opts.bus)
+            if m is None:
+                raise ValueError(
+                    f"[[faults]] over {self.opts.bus}: name the drive's own bus with --drive-bus (the fault gateway "
+                    "joins two buses; on one bus every node hears every frame and nothing can be injected)"
+                )
+            name = f"vcan{int(m.group(1)) + 1}"
+        if name == self.opts.bus:
+            raise ValueError(f"[[faults]]: --drive-bus {name} is the plant's bus; the fault gateway needs two buses")
+        return name
+
     def prepare_links(self) -> None:
         """CAN controllers up at their bit rate (canbus.prepare_can_link), their state before the run noted;
         before anything listens on them (the recorder). Once per session."""
         if self.links or self.opts.bus == "direct" or self.opts.interface != "socketcan":
             return
-        for name in dict.fromkeys((self.opts.bus, self.opts.drive_bus or self.opts.bus)):
+        for name in dict.fromkeys((self.opts.bus, self.drive_side_bus())):
+            if VCAN.fullmatch(name) and self.sc.faults:
+                ensure_vcan(name)
             prepare_can_link(name, self.opts.bitrate)
             self.links[name] = {"before": link_info(name)}
 
@@ -146,7 +170,7 @@ class Session:
             def log(name: str) -> Path | None:
                 return None if out is None else out / f"{name}.out"
 
-            drive_bus = self.opts.drive_bus or self.opts.bus
+            drive_bus = self.drive_side_bus()
             self.prepare_links()
             self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}
             if self.opts.start_plant:
@@ -163,6 +187,14 @@ class Session:
                 )
             for proc in self.node_procs.values():
                 self.procs.append(proc.start())
+            if self.sc.faults:
+                pids = {n: p.proc.pid for n, p in self.node_procs.items() if isinstance(p, NodeProcess) and p.proc}
+                if out is None:
+                    raise ValueError(
+                        "a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)"
+                    )
+                rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
+                self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids).start()
             # The master only needs SDO answers, NMT error control and EMCY: filtering in the kernel keeps
             # the PDO stream (thousands of frames per second) out of this process's socket, which a slow
             # Python (the VM) could not drain, and which the recorder records anyway.
@@ -218,6 +250,8 @@ class Session:
                 pass
             for p in self.procs:
                 p.stop()
+            if self.gateway is not None:
+                self.gateway.stop()  # after the nodes: it writes its log of actions
             for name, rec in self.links.items():
                 rec["after"] = link_info(name)
 
@@ -440,7 +474,41 @@ class Session:
         if tick:
             tick()
         if ran[0] != n:
-            raise RuntimeError(f"direct run stopped after {ran[0]} of {n} periods")
+            self._direct_stopped(ran[0], n)
+
+    def _direct_stopped(self, ran: int, n: int) -> None:
+        """Why the in-process loop stopped early, named as the liveness monitor names it on a bus: a node
+        killed or out of OPERATIONAL (a fault), or a stall (simulated time ran on without a period)."""
+        assert self.hil is not None
+        at = self.hil.period()
+        down = self.hil.nodes_down()
+        for name, state in down.items():
+            nid = self.opts.plant_id if name == "plant" else self.opts.drive_id
+            how = "was killed" if state == 0xFF else f"left OPERATIONAL: it is {NMT_STATES.get(state, hex(state))}"
+            raise LoopStopped(
+                "node_lost",
+                f"the {name} (node 0x{nid:02X}) {how} at period {at}",
+                node=name,
+                node_id=nid,
+                at_period=at,
+                detected_after_s=0.0,
+                details={"cause": "killed" if state == 0xFF else "left_operational"},
+            )
+        raise LoopStopped(
+            "frames_lost",
+            f"the loop stalled at period {at} after {ran} of {n} periods: 10 s of simulated time without a "
+            "period (a frame of the loop was lost and nothing timed out: 0x2003:04 command_timeout_us is 0)",
+            at_period=at,
+        )
+
+    def linger(self) -> None:
+        """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
+        fires after the consumer time): the consumer time plus a margin, simulated in direct mode."""
+        wait = self.opts.heartbeat_timeout_ms / 1000.0 + 0.3
+        if self.hil is not None:
+            self.hil.linger(wait)  # its frames go with the final drain of the recorder
+        else:
+            time.sleep(wait)
 
     def _run_segment(self, n: int, target_index: int, tick: Callable[[], None] | None) -> None:
         rc = self.plant.sdo["Run control"]
@@ -544,6 +612,15 @@ class Session:
             if progress:
                 progress(start, sc.periods)
         return time.monotonic() - t0
+
+    def fault_log(self) -> tuple[list[tuple[Any, ...]], int]:
+        """The fault injector's actions (period, t_us, rule, kind, side, cob_id, data) and how many it could
+        not log; after the run (direct: from the in-process injector; a bus: from the gateway's log)."""
+        if self.hil is not None:
+            return self.hil.fault_log()
+        if self.gateway is not None:
+            return self.gateway.events()
+        return [], 0
 
     def statuses(self) -> dict[str, float]:
         """Counters and identified values, read by SDO (so they are in the log too)."""

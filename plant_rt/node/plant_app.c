@@ -265,8 +265,9 @@ static void hook_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
                 plant_clear_trip(&app->state);
                 if (M.x2003_run_control.trip_active) {
                     M.x2003_run_control.trip_active = 0u;
-                    co_emcy_clear(node, PLANT_EMCY_OVERCURRENT);
+                    co_emcy_clear(node, app->drive_lost ? PLANT_EMCY_DRIVE_LOST : PLANT_EMCY_OVERCURRENT);
                 }
+                app->drive_lost = false;
             }
             M.x2003_run_control.trip_clear = 0u;
             break;
@@ -298,6 +299,7 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     int64_t now = node->now_us;
 
     /* 1. integrate [k-1, k] with the command held over it */
+    const bool k_was_started = app->started;
     if (app->started) {
         plant_step(&app->state, &app->cfg, app->v_held_alpha_V, app->v_held_beta_V);
         ++app->k;
@@ -310,8 +312,14 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     if (app->state.tripped && !M.x2003_run_control.trip_active) {
         M.x2003_run_control.trip_active = 1u;
         uint8_t msef[5] = {(uint8_t)app->k, (uint8_t)(app->k >> 8), 0, 0, 0};
-        co_emcy_raise(node, PLANT_EMCY_OVERCURRENT, CO_ERR_REG_CURRENT, msef);
+        if (app->drive_lost)
+            co_emcy_raise(node, PLANT_EMCY_DRIVE_LOST, CO_ERR_REG_COMMUNICATION, msef);
+        else
+            co_emcy_raise(node, PLANT_EMCY_OVERCURRENT, CO_ERR_REG_CURRENT, msef);
     }
+    /* a held period: no command frame since the previous SYNC (the first sample has none to hold) */
+    const bool held = k_was_started && app->commands == app->commands_at_sync;
+    app->commands_at_sync = app->commands;
     /* 3. actuate the received command: held in the stator frame over [k, k+1] */
     app->v_held_alpha_V = (double)M.x2102_voltage_command.v_alpha_V;
     app->v_held_beta_V = (double)M.x2102_voltage_command.v_beta_V;
@@ -334,6 +342,7 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     if (M.x2003_run_control.trip_active) status |= PLANT_STATUS_TRIP;
     if (*rp == 0u) status |= PLANT_STATUS_HOLDING;
     if (app->miss_flag) status |= PLANT_STATUS_MISSED;
+    if (held) status |= PLANT_STATUS_HELD;
     app->miss_flag = false;
 
     M.x2100_Measurement.i_a_A = app->meas.i_a_A;
@@ -378,18 +387,23 @@ static void hook_on_reset(void *user, co_node_t *node, int communication_only)
 }
 
 /* The drive's heartbeat (0x1016) timed out: the drive is dead or silent; the stack has sent EMCY
- * 0x8130 with the drive's node-ID. In real time the plant stops the loop (run_periods = 0, holding)
- * instead of applying the last command for ever. In lockstep it applies nothing without a command
- * anyway: it keeps waiting, so that a drive only starved of CPU for a while (its heartbeat then
- * comes back and the EMCY is reset) leaves the run unchanged; the master judges the drive. */
+ * 0x8130 with the drive's node-ID.
+ * Real time: what a real inverter does when its controller is gone: it switches to zero voltage at
+ * once (the trip latch: all phases on one rail, an active short circuit, the usual safe state of a
+ * PMSM inverter: at speed it keeps the back-EMF from charging the DC link through the diodes) and
+ * time goes on, the machine coasting or braking; EMCY 0xFF10, status TRIP, latched until
+ * 0x2003:07 trip_clear. The SYNCs go on, so the bench sees the currents decay.
+ * Lockstep: simulated time advances only with commands, so a silent drive stops it: the plant keeps
+ * waiting (with 0x2003:04 command_timeout_us it holds the last command instead); a drive starved of
+ * CPU for a while (its heartbeat then comes back and the EMCY is reset) leaves the run unchanged,
+ * and the master judges the drive. */
 static void hook_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
 {
     plant_app_t *app = user_app(user, node);
     (void)node_id;
-    if (M.x2003_run_control.mode != OD_PLANT_MODE_REALTIME) return;
-    M.x2003_run_control.run_periods = 0u;
-    M.x2003_run_control.state = 0u;
-    app->paused = true;
+    if (M.x2003_run_control.mode != OD_PLANT_MODE_REALTIME || !app->started) return;
+    app->drive_lost = true;
+    app->state.tripped = true;
 }
 
 static const co_hooks_t k_hooks = {

@@ -50,11 +50,14 @@
 
 /* EMCY error code of the over-current trip (CiA 301: 0x23xx current, device output side). */
 #define PLANT_EMCY_OVERCURRENT 0x2310u
+/* EMCY of the inverter switched off because the drive was lost (real time; manufacturer specific). */
+#define PLANT_EMCY_DRIVE_LOST 0xFF10u
 
 /* Bits of 0x2100:05 status. */
 #define PLANT_STATUS_TRIP 0x01u    /* over-current trip latched */
 #define PLANT_STATUS_HOLDING 0x02u /* run_periods reached 0 at this sample: the plant holds */
 #define PLANT_STATUS_MISSED 0x04u  /* the period before this sample ended without its command */
+#define PLANT_STATUS_HELD 0x08u    /* no command frame came since the previous SYNC: the one before is held */
 
 /* Real-time arrival histogram (0x2006): bin i counts commands whose arrival
  * minus the next SYNC deadline is in [i*10 - 160, i*10 - 150) us; bin 0 also
@@ -102,8 +105,10 @@ typedef struct {
     bool late_in_period;    /* a command classified late arrived in this period */
     uint32_t owed;          /* commands of missed periods that may still arrive */
     uint32_t late_timeout_streak;
-    bool miss_flag;    /* status bit2 of the next sample */
-    uint32_t commands; /* command frames seen */
+    bool miss_flag;            /* status bit2 of the next sample */
+    uint32_t commands;         /* command frames seen */
+    uint32_t commands_at_sync; /* ... at the last SYNC (PLANT_STATUS_HELD) */
+    bool drive_lost;           /* the trip latched because the drive's heartbeat was lost (EMCY 0xFF10) */
 
     /* real time */
     int64_t tick_sched_us;                  /* deadline of the SYNC being produced */
