@@ -34,7 +34,8 @@ LIBFW    := $(BUILD)/libfw.a
 
 # Executables: tools and unit tests of each component.
 PROTO_TOOLS := $(patsubst protocols/tools/%.c,$(BUILD)/bin/%,$(wildcard protocols/tools/*.c))
-PROTO_TESTS := $(patsubst protocols/tests/%.c,$(BUILD)/tests/protocols_%,$(wildcard protocols/tests/test_*.c))
+PROTO_TESTS := $(patsubst protocols/tests/%.c,$(BUILD)/tests/protocols_%,$(wildcard protocols/tests/test_*.c)) \
+               $(BUILD)/tests/protocols_test_fault_injector
 PLANT_TOOLS := $(patsubst plant_rt/tools/%.c,$(BUILD)/bin/%,$(wildcard plant_rt/tools/*.c))
 PLANT_TESTS := $(patsubst plant_rt/tests/%.c,$(BUILD)/tests/plant_%,$(wildcard plant_rt/tests/test_*.c))
 FW_TOOLS    := $(patsubst firmware_shim/tools/%.c,$(BUILD)/bin/%,$(wildcard firmware_shim/tools/*.c))
@@ -43,7 +44,7 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node) $(BUILD)/bin/fault_gateway
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup fuzz format mcu
+.PHONY: all clean demo test setup fuzz format mcu sanitize
 
 # The drive firmware as a bare-metal Cortex-M4F image (QEMU mps2-an386; docs/PORTING.md):
 # the portable CANopen slave, drive app and cores, the port layer (firmware_shim/port)
@@ -80,8 +81,25 @@ fuzz: $(BUILD)/fuzz/fuzz_slave
 $(BUILD)/fuzz/fuzz_slave: protocols/fuzz/fuzz_slave.c $(CO_SRC) $(wildcard protocols/canopen/*.h)
 	@mkdir -p $(@D)
 	clang $(FUZZ_CFLAGS) $(INC) protocols/fuzz/fuzz_slave.c $(CO_SRC) -o $@
+# The node processes and the fault gateway with AddressSanitizer and UndefinedBehaviorSanitizer
+# (build/sanitize/bin; the bench uses them with BENCH_BIN_DIR=build/sanitize/bin): the fault tests run
+# them, so that a fault that drives a node into a bad memory access or undefined behaviour fails.
+SAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -O1 -g
+SAN_DIR   := $(BUILD)/sanitize/bin
+SAN_NODE_SRC := $(CO_SRC) $(SCAN_SRC)
+sanitize: $(SAN_DIR)/plant_node $(SAN_DIR)/drive_node $(SAN_DIR)/fault_gateway
+$(SAN_DIR)/plant_node: $(SAN_NODE_SRC) $(PLANT_SRC) $(wildcard plant_rt/node/*.c) $(wildcard plant_rt/*/*.h protocols/*/*.h)
+	@mkdir -p $(@D)
+	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -o $@
+$(SAN_DIR)/drive_node: $(SAN_NODE_SRC) $(FW_SRC) $(wildcard firmware_shim/shim/*.c) $(wildcard firmware_shim/*/*.h protocols/*/*.h)
+	@mkdir -p $(@D)
+	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -o $@
+$(SAN_DIR)/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) protocols/socketcan/co_socketcan.c $(wildcard protocols/*/*.h)
+	@mkdir -p $(@D)
+	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -o $@
+
 all: $(LIBCO) $(LIBSCAN) $(PROTO_TOOLS) $(PROTO_TESTS) $(PLANT_TOOLS) $(PLANT_TESTS) \
-     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB) $(if $(HAVE_MCU_CC),mcu)
+     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB) $(if $(HAVE_MCU_CC),mcu) sanitize
 
 setup:
 	@bash scripts/setup.sh
@@ -163,6 +181,10 @@ $(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $
 $(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
 	$(CC) $^ -lm -o $@
+# The injector's unit test, with the sanitizers (its hold queue and log are fixed arrays).
+$(BUILD)/tests/protocols_test_fault_injector: protocols/faults/tests/test_fault_injector.c $(FAULT_SRC)
+	@mkdir -p $(@D)
+	$(CC) $(CSTD) $(WARN) $(SAN_FLAGS) $(INC) $^ -o $@
 # The fault injector as a SocketCAN gateway process (side a <-> side b).
 $(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $(LIBSCAN)
 	@mkdir -p $(@D) $(BUILD)/deps

@@ -12,8 +12,11 @@ VECTORS_DIR = REPO / "protocols" / "vectors"
 
 
 def binary(name: str) -> Path:
-    """Path of a C executable built by `make`; a clear error if it is missing."""
-    path = BIN / name
+    """Path of a C executable built by `make`; a clear error if it is missing. BENCH_BIN_DIR chooses another
+    build of the node processes (build/sanitize/bin: ASan + UBSan, `make sanitize`)."""
+    import os
+
+    path = Path(os.environ.get("BENCH_BIN_DIR") or BIN) / name
     if not path.exists():
         raise FileNotFoundError(f"{path} is missing: run `make all` (or `make demo`) in {REPO}")
     return path

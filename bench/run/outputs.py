@@ -195,6 +195,10 @@ def print_result(out: Path, result: Any) -> None:
     if emcy:
         shown = ", ".join(f"{e['node']} {e['code']} at period {e['period']}" for e in emcy[:6])
         print(f"EMCY: {len(emcy)}{'+' if len(emcy) >= 100 else ''}: {shown}{' ...' if len(emcy) > 6 else ''}")
+    if s.get("faults"):
+        from ..faults.report import format_faults
+
+        print(format_faults(s["faults"]))
     cost = s.get("step_cost")
     if cost:
         print(

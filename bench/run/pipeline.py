@@ -424,6 +424,8 @@ def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any
         except LoopStopped as exc:
             stopped = exc.to_dict()
             run_wall = time.monotonic() - t_run
+            if exc.status == "node_lost":
+                sess.linger()
     finally:
         sess.close()
         source.stop()

@@ -122,12 +122,18 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
         for f in stage.iterdir():  # candump.log (-> bus.log) and the node processes' output
             shutil.move(str(f), partial / f.name)
         stage.rmdir()
+    injected = None
+    if sc.faults:  # the gateway's log of actions came with the capture
+        from .gateway import LOG_NAME, read_log
+
+        injected = (sc.faults, *read_log(partial / LOG_NAME))
     return pipe.finish(
         sc.name,
         args.bus,
         {"wall_s": time.monotonic() - t0, "run_wall_s": cap.get("run_wall_s", 0.0)},
         cap.get("stopped"),
         cap.get("links"),
+        injected,
     )
 
 

@@ -412,6 +412,8 @@ class RerunSink:
         if self._ended:
             return
         self._ended = True
+        if summary and summary.get("faults"):
+            self._fault_events(summary["faults"])
         if self.file is not None:
             self.file.flush()
             self.file.disconnect()  # writes the footer and closes the file
@@ -420,6 +422,32 @@ class RerunSink:
                 self.live.flush(timeout_sec=10.0)
             except Exception as exc:  # noqa: BLE001 - a slow viewer must not fail the run
                 print(f"rerun: live viewer did not take all data ({exc})", file=sys.stderr, flush=True)
+
+    def _fault_events(self, rep: dict[str, Any]) -> None:
+        """The faults injected and the nodes' reactions as text logs on the period timeline, in an events
+        panel added under the plots (the blueprint is sent again with it)."""
+        rows: list[tuple[int, str, str, str]] = []
+        for f in rep["injected"]:
+            for p in f["action_periods"]:
+                rows.append((p, "events/faults", f"fault {f['fault']}: {f['description']}", "WARN"))
+        for r in rep["reactions"]:
+            rows.append((r["period"], f"events/reactions/{r['node']}", f"{r['node']}: {r['what']}", "INFO"))
+        views = blueprint_for(self._signals)
+        panel = rrb.TextLogView(origin="/events", name="Faults and reactions")
+        bp = rrb.Blueprint(
+            rrb.Vertical(views.root_container, panel, row_shares=[4.0, 1.0]) if views.root_container else panel,
+            rrb.BlueprintPanel(state="collapsed"),
+            rrb.SelectionPanel(state="collapsed"),
+            rrb.TimePanel(state="collapsed", timeline="period"),
+            auto_views=False,
+        )
+        for rec in (self.file, self.live):
+            if rec is None:
+                continue
+            for period, path, text, level in sorted(rows):
+                rec.set_time("period", sequence=period)
+                rec.log(path, rr.TextLog(text, level=level))
+            rec.send_blueprint(bp, make_active=rec is self.live, make_default=True)
 
     def serve_until(self, seconds: float | None) -> None:
         """Keep the web viewer up after the run: until Ctrl-C (None) or for `seconds`."""

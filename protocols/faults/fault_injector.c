@@ -178,6 +178,7 @@ static int match(fi_t *fi, const co_frame_t *f, uint8_t from)
 void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us)
 {
     ++fi->frames_in;
+    if (fi->n_held) release(fi, due_time, &now_us, now_us); /* held in us and due: before what comes after */
     const int is_sync =
         from == FI_SIDE_A && (frame->cob_id & 0x7FFu) == fi->sync_cob && !(frame->cob_id & CO_FRAME_RTR);
     if (is_sync) {

@@ -1,0 +1,380 @@
+"""Fault checks in the style of `bench reproduce`: each injects one fault kind into a run of the
+loop, runs the same scenario without it, and judges the nodes' reaction against what a real drive
+and inverter must do. Every number is measured from the two runs (traces, the fault report, the
+EMCYs on the bus); the expectations are the bench's design (docs/FAULTS.md), each stated below.
+
+    from bench.faults.checks import run_checks
+    for c in run_checks("direct"): print(c.check_id, c.ok, c.measured)
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..claims import Run, run_raw
+
+STEP_AT = 20  # the iq step 0 -> 1 A of You 2019 Fig. 8
+# drive trace for the checks: its measurement counters and its safe state (drive.eds 0x2204, 0x2209)
+TRACE = {
+    "pdo3": ["Drive status.lost_measurements", "Drive status.late_measurements"],
+    "pdo4": ["Safe state.reason", "Safe state.non_finite_rejected"],
+}
+
+
+@dataclass
+class FaultCheck:
+    check_id: str
+    fault: str  # what was injected
+    expectation: str  # what a real drive / inverter must do
+    measured: dict[str, Any]
+    ok: bool
+    bus: str
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def base(name: str, periods: int = 120, **over: Any) -> dict[str, Any]:
+    """You 2019 (seed 000) deadbeat, locked rotor, the Fig. 8 step at period 20; the plant holds the last
+    command after 20 ms without one (lockstep)."""
+    raw: dict[str, Any] = {
+        "scenario": {"name": name, "periods": periods, "expect": ["ok"]},
+        "motor": {"preset": "you2019", "mech_mode": "locked"},
+        "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "command_timeout_us": 20000},
+        "controller": {"controller": "deadbeat_you2019", "Vmax_V": 139.0},
+        "events": [{"at_period": STEP_AT, "references": {"iq_ref_A": 1.0}}],
+        "trace": copy.deepcopy(TRACE),
+    }
+    for k, v in over.items():
+        raw.setdefault(k, {}).update(v) if isinstance(v, dict) else raw.__setitem__(k, v)
+    return raw
+
+
+def with_fault(raw: dict[str, Any], expect: list[str], *faults: dict[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(raw)
+    out["scenario"]["name"] += "-fault"
+    out["scenario"]["expect"] = expect
+    out["faults"] = list(faults)
+    return out
+
+
+def emcys(run: Run, code: int, node: str | None = None) -> list[dict[str, Any]]:
+    return [e for e in run.result.summary["emcy"] if int(e["code"], 16) == code and (node is None or e["node"] == node)]
+
+
+def held(run: Run) -> list[int]:
+    st = np.nan_to_num(run.tr["status"]).astype(np.int64)
+    return run.tr["period"][(st & 8) != 0].astype(int).tolist()
+
+
+def deviation_after(a: Run, b: Run, col: str, start: int) -> float:
+    pa, pb = a.tr["period"], b.tr["period"]
+    n = min(len(pa), len(pb))
+    m = pa[:n] >= start
+    return float(np.nanmax(np.abs(a.tr[col][:n][m] - b.tr[col][:n][m]))) if m.any() else float("nan")
+
+
+def _pair(raw: dict[str, Any], faulted: dict[str, Any], bus: str) -> tuple[Run, Run]:
+    return run_raw(raw, bus), run_raw(faulted, bus)
+
+
+def check_drop_command(bus: str) -> FaultCheck:
+    p = STEP_AT + 1  # the first command of the transient
+    raw = base("fc-drop-command")
+    clean, hit = _pair(
+        raw, with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "drive.TPDO1", "at_period": p}), bus
+    )
+    h = held(hit)
+    dev = deviation_after(hit, clean, "iq_A", p + 1 + 3)
+    peak = deviation_after(hit, clean, "iq_A", p + 1)
+    return FaultCheck(
+        "drop-command",
+        f"the drive's voltage command of period {p} dropped on the bus",
+        "the plant holds the last command for exactly one period (status bit 3) and the deadbeat loop is back "
+        "on the fault-free trace within 2 periods after it (|iq - iq_clean| < 1e-5 A)",
+        {"held_periods": h, "iq_peak_deviation_A": peak, "iq_deviation_after_recovery_A": dev},
+        h == [p + 1] and dev < 1e-5,
+        bus,
+    )
+
+
+def check_delay_command(bus: str) -> FaultCheck:
+    p = STEP_AT + 1
+    raw = base("fc-delay-command")
+    f = {"kind": "delay", "frame": "drive.TPDO1", "at_period": p, "delay_periods": 1}
+    clean, hit = _pair(raw, with_fault(raw, ["frames_lost", "ok"], f), bus)
+    h = held(hit)
+    late = hit.result.summary["counters"]["plant_late_commands"]
+    dev = deviation_after(hit, clean, "iq_A", p + 1 + 3)
+    return FaultCheck(
+        "delay-command",
+        f"the command of period {p} delayed by one period",
+        "it arrives after the SYNC it was meant for: the plant holds the last command for that one period, counts "
+        "the late command, never applies it (the next command has arrived by the following SYNC), and recovers",
+        {"held_periods": h, "plant_late_commands": late, "iq_deviation_after_recovery_A": dev},
+        h == [p + 1] and late is not None and late >= 1 and dev < 1e-5,
+        bus,
+    )
+
+
+def check_duplicate_measurement(bus: str) -> FaultCheck:
+    p = STEP_AT + 2
+    raw = base("fc-duplicate-measurement")
+    f = {"kind": "duplicate", "frame": "plant.TPDO2", "at_period": p}
+    clean, hit = _pair(raw, with_fault(raw, ["ok"], f), bus)
+    late = emcys(hit, 0xFF02, "drive")
+    same = all(np.array_equal(hit.tr[c], clean.tr[c], equal_nan=True) for c in ("iq_A", "id_A", "vd_V", "vq_V"))
+    return FaultCheck(
+        "duplicate-measurement",
+        f"the plant's sample frame (TPDO2, which triggers the current step) of period {p} sent twice",
+        "the drive steps once per sample: the second copy is counted late (EMCY 0xFF02, reason 3 duplicate), "
+        "and the currents and voltages are those of the fault-free run, bit for bit",
+        {"late_emcy_periods": [e["period"] for e in late], "traces_equal": same},
+        [e["period"] for e in late] == [p] and same and late[0]["data"][4:6] == "03",
+        bus,
+    )
+
+
+def check_reorder_measurement(bus: str) -> FaultCheck:
+    p = STEP_AT + 2
+    raw = base("fc-reorder-measurement")
+    f = {"kind": "reorder", "frame": "plant.TPDO1", "at_period": p}
+    clean, hit = _pair(raw, with_fault(raw, ["ok"], f), bus)
+    late = emcys(hit, 0xFF02, "drive")
+    dev = deviation_after(hit, clean, "iq_A", p + 3)
+    return FaultCheck(
+        "reorder-measurement",
+        f"the currents frame (TPDO1) of period {p} delivered after the sample frame (TPDO2)",
+        "the drive steps on the sample with the last currents it has and says so (EMCY 0xFF02, reason 2: "
+        "TPDO2 without a fresh TPDO1), then the late currents (reason 1); the loop recovers within 3 periods",
+        {
+            "late_emcy_periods": [e["period"] for e in late],
+            "late_reasons": [e["data"][4:6] for e in late],
+            "iq_deviation_after_recovery_A": dev,
+        },
+        bool(late) and late[0]["period"] == p and dev < 1e-5,
+        bus,
+    )
+
+
+def check_drop_sync(bus: str) -> FaultCheck:
+    p = STEP_AT + 5
+    raw = base("fc-drop-sync")
+    clean, hit = _pair(raw, with_fault(raw, ["ok"], {"kind": "drop", "frame": "SYNC", "at_period": p}), bus)
+    late = emcys(hit, 0xFF02, "drive")
+    same = all(np.array_equal(hit.tr[c], clean.tr[c], equal_nan=True) for c in ("iq_A", "vq_V"))
+    return FaultCheck(
+        "drop-sync",
+        f"the SYNC of period {p} lost on the drive's side",
+        "the drive notices the measurement belongs to a SYNC it did not see (EMCY 0xFF02, reason 4) and still "
+        "steps on it: the loop is unchanged",
+        {"late_emcy_periods": [e["period"] for e in late], "traces_equal": same},
+        [e["period"] for e in late] == [p] and same,
+        bus,
+    )
+
+
+def check_short_measurement(bus: str) -> FaultCheck:
+    p = STEP_AT + 5
+    raw = base("fc-short-measurement")
+    f = {"kind": "corrupt", "frame": "plant.TPDO1", "at_period": p, "dlc": 4}
+    clean, hit = _pair(raw, with_fault(raw, ["ok"], f), bus)
+    length = emcys(hit, 0x8210, "drive")
+    dev = deviation_after(hit, clean, "iq_A", p + 3)
+    return FaultCheck(
+        "short-measurement",
+        f"the currents frame of period {p} sent with DLC 4 instead of 8",
+        "the drive refuses the PDO (CiA 301 EMCY 0x8210, PDO not processed: length error), steps with the last "
+        "currents, and the loop recovers within 3 periods",
+        {"length_emcy_periods": [e["period"] for e in length], "iq_deviation_after_recovery_A": dev},
+        [e["period"] for e in length] == [p] and dev < 1e-5,
+        bus,
+    )
+
+
+def check_non_finite_measurement(bus: str) -> FaultCheck:
+    raw = base("fc-non-finite")
+    clean = run_raw(raw, bus)
+    # a period where i_b is in [1, 2) A: its float's exponent is 0x7F, and flipping bit 30 makes it 0xFF (inf/NaN)
+    ib = clean.tr["i_b_A"]
+    p = int(clean.tr["period"][np.flatnonzero((np.abs(ib) >= 1.0) & (np.abs(ib) < 2.0))[0]])
+    f = {"kind": "corrupt", "frame": "plant.TPDO1", "at_period": p, "bit": 62}
+    hit = run_raw(with_fault(raw, ["non_finite"], f), bus)
+    nf = emcys(hit, 0xFF05, "drive")
+    rejected = int(np.nanmax(hit.tr["drive_non_finite_rejected"]))
+    vq_ok = bool(np.all(np.isfinite(hit.tr["vq_V"][hit.tr["period"] >= p])))
+    dev = deviation_after(hit, clean, "iq_A", p + 3)
+    return FaultCheck(
+        "non-finite-measurement",
+        f"bit 30 of i_b_A flipped in the currents frame of period {p} (the value becomes non-finite)",
+        "the drive rejects the value (steps with the last good current), counts it (0x2209:06) and says so (EMCY "
+        "0xFF05); its commands stay finite and the loop recovers within 3 periods",
+        {
+            "non_finite_emcy_periods": [e["period"] for e in nf],
+            "rejected": rejected,
+            "commands_finite": vq_ok,
+            "iq_deviation_after_recovery_A": dev,
+        },
+        [e["period"] for e in nf] == [p] and rejected == 1 and vq_ok and dev < 1e-5,
+        bus,
+    )
+
+
+def check_measurement_timeout(bus: str) -> FaultCheck:
+    p, n = STEP_AT + 10, 6
+    raw = base("fc-meas-timeout")
+    f = {"kind": "drop", "frame": "plant.TPDO2", "at_period": p, "periods": n}
+    hit = run_raw(with_fault(raw, ["frames_lost"], f), bus)
+    safe = emcys(hit, 0xFF03, "drive")
+    tr = hit.tr
+    after = tr["period"] >= p + n
+    reason = tr["drive_reason"]
+    return FaultCheck(
+        "measurement-timeout",
+        f"the sample frame (TPDO2) dropped for {n} periods from period {p}",
+        "after 0x2209:01 meas_timeout_periods (3) SYNCs without a measurement the drive enters its safe state "
+        "(EMCY 0xFF03), commands zero voltage at once and keeps it (latched until 0x2209:05 clear)",
+        {
+            "safe_state_emcy_periods": [e["period"] for e in safe],
+            "vq_after_V": float(np.nanmax(np.abs(tr["vq_V"][after]))),
+            "reason_after": int(np.nanmax(reason[after])),
+        },
+        [e["period"] for e in safe] == [p + 2]
+        and float(np.nanmax(np.abs(tr["vq_V"][after]))) == 0.0
+        and int(np.nanmin(reason[after])) == 1,
+        bus,
+    )
+
+
+def check_freeze_drive(bus: str) -> FaultCheck:
+    p, n = STEP_AT + 10, 5
+    raw = base("fc-freeze-drive")
+    clean, hit = _pair(
+        raw, with_fault(raw, ["frames_lost"], {"kind": "freeze", "node": "drive", "at_period": p, "periods": n}), bus
+    )
+    h = held(hit)
+    return FaultCheck(
+        "freeze-drive",
+        f"the drive frozen for {n} periods from period {p} (it neither runs nor hears)",
+        f"the plant holds the last command for exactly those {n} periods (command timeout) and the loop goes on",
+        {"held_periods": h, "status": hit.result.status},
+        h == list(range(p + 1, p + 1 + n)),
+        bus,
+    )
+
+
+def _hb_raw(name: str) -> dict[str, Any]:
+    # long enough for heartbeats (100 ms) and the consumer time (1 s) on the loop's time: 40 000 x 55 us
+    return base(name, periods=40_000)
+
+
+def check_heartbeat_loss(bus: str) -> FaultCheck:
+    p = 5_000  # after the first heartbeats (monitoring starts at the first one, CiA 301)
+    raw = _hb_raw("fc-heartbeat-loss")
+    f = {"kind": "silence_heartbeat", "node": "plant", "at_period": p, "periods": 30_000}
+    hit = run_raw(with_fault(raw, ["ok"], f), bus)
+    ts = hit.result.summary["Ts_s"]
+    rep = hit.result.summary["faults"]["injected"][0]
+    safe = emcys(hit, 0xFF04, "drive")
+    first_drop = rep["first_period"]
+    # the last heartbeat the drive heard went out one producer time before the first one dropped
+    hb_s, consumer_s = 0.1, 1.0
+    react_s = (safe[0]["period"] - first_drop) * ts + hb_s if safe else None
+    tr = hit.tr
+    after = tr["period"] > (safe[0]["period"] if safe else 1 << 60)
+    return FaultCheck(
+        "heartbeat-loss",
+        f"the plant's heartbeat kept from the drive from period {p} for 30 000 periods",
+        "the drive's heartbeat consumer (0x1016, 1 s) times out: EMCY 0x8130 and its safe state (EMCY 0xFF04), "
+        "zero voltage, within the consumer time plus one period of the last heartbeat heard",
+        {
+            "safe_state_emcy_periods": [e["period"] for e in safe],
+            "reaction_s": react_s,
+            "bound_s": consumer_s + ts,
+            "vq_after_V": float(np.nanmax(np.abs(tr["vq_V"][after]))) if after.any() else None,
+        },
+        bool(safe)
+        and react_s is not None
+        and react_s <= consumer_s + ts
+        and after.any()
+        and float(np.nanmax(np.abs(tr["vq_V"][after]))) == 0.0,
+        bus,
+        {"Ts_s": ts, "first_dropped_heartbeat_period": first_drop},
+    )
+
+
+def check_kill(bus: str, node: str) -> FaultCheck:
+    p = 5_000
+    raw = _hb_raw(f"fc-kill-{node}")
+    hit = run_raw(with_fault(raw, ["node_lost"], {"kind": "kill", "node": node, "at_period": p}), bus)
+    s = hit.result.summary
+    other = "drive" if node == "plant" else "plant"
+    lost = emcys(hit, 0x8130, other)
+    safe = emcys(hit, 0xFF04, "drive") if node == "plant" else []
+    stopped = s["stopped"] or {}
+    ok = s["status"] == "node_lost" and stopped.get("node") == node and bool(lost)
+    if node == "plant":
+        ok = ok and bool(safe)
+    return FaultCheck(
+        f"kill-{node}",
+        f"the {node} killed at period {p}",
+        f"the bench names the {node} lost at once (node_lost, exit 8); the {other} reports the lost heartbeat "
+        "(EMCY 0x8130) after its consumer time"
+        + (
+            "; the drive enters its safe state (EMCY 0xFF04, zero voltage)"
+            if node == "plant"
+            else "; the plant keeps waiting in lockstep (simulated time stands still without commands)"
+        ),
+        {
+            "status": s["status"],
+            "stopped_node": stopped.get("node"),
+            "at_period": stopped.get("at_period"),
+            f"{other}_heartbeat_emcy": bool(lost),
+            "drive_safe_state_emcy": bool(safe),
+        },
+        ok,
+        bus,
+    )
+
+
+def check_reset_drive(bus: str) -> FaultCheck:
+    p = 5_000
+    raw = _hb_raw("fc-reset-drive")
+    hit = run_raw(with_fault(raw, ["node_lost"], {"kind": "reset", "node": "drive", "at_period": p}), bus)
+    s = hit.result.summary
+    stopped = s["stopped"] or {}
+    return FaultCheck(
+        "reset-drive",
+        f"an NMT reset-node for the drive at period {p} (its application restarts, as after a watchdog reset)",
+        "the drive boots to pre-operational with its defaults; the bench names it lost (left OPERATIONAL)",
+        {"status": s["status"], "stopped": stopped.get("message")},
+        s["status"] == "node_lost" and stopped.get("node") == "drive" and stopped.get("at_period") == p,
+        bus,
+    )
+
+
+CHECKS: dict[str, Callable[[str], FaultCheck]] = {
+    "drop-command": check_drop_command,
+    "delay-command": check_delay_command,
+    "duplicate-measurement": check_duplicate_measurement,
+    "reorder-measurement": check_reorder_measurement,
+    "drop-sync": check_drop_sync,
+    "short-measurement": check_short_measurement,
+    "non-finite-measurement": check_non_finite_measurement,
+    "measurement-timeout": check_measurement_timeout,
+    "freeze-drive": check_freeze_drive,
+    "heartbeat-loss": check_heartbeat_loss,
+    "kill-drive": lambda bus: check_kill(bus, "drive"),
+    "kill-plant": lambda bus: check_kill(bus, "plant"),
+    "reset-drive": check_reset_drive,
+}
+
+
+def run_checks(bus: str = "direct", only: list[str] | None = None) -> list[FaultCheck]:
+    return [CHECKS[c](bus) for c in (only or list(CHECKS))]
