@@ -29,10 +29,10 @@ from ..canbus import ensure_vcan, link_info, prepare_can_link
 from ..eds import load as load_od
 from ..faults import rules_text
 from ..scenario import Scenario, Setting
-from .direct import DirectBus, Hil
 from .buses import VCAN
-from .liveness import NMT_STATES, Liveness, LoopStopped
+from .direct import DirectBus, Hil
 from .gateway import FaultGateway
+from .liveness import NMT_STATES, Liveness, LoopStopped
 from .nodes import NodeProcess
 from .slcan_bridge import SlcanBridge
 from .summary import END_READS, PLANT_VALUES, STEP_COST
