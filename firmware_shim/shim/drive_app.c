@@ -228,6 +228,16 @@ static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
 #undef c
         break;
     }
+    case OD_DRIVE_SAFE_STATE_IDX: {
+#define z (&m->x2209_safe_state)
+        z->reason = app->safe_reason;
+        z->entries = app->safe_entries;
+        z->entered_at_sample = app->safe_entered_at_sample;
+        z->clear = 0u; /* a command, not a state */
+        z->non_finite_rejected = app->non_finite_rejected;
+#undef z
+        break;
+    }
     case OD_DRIVE_TRACE_IDX:
         m->x2300_Trace.state = app->trace.status;
         m->x2300_Trace.captured_bytes = trace_size_bytes(&app->trace);
@@ -302,6 +312,23 @@ static void reset_sequencing(drive_app_t *app)
     app->rpdo1_fresh = 0u;
     app->have_last = 0u;
     app->sync_seen = 0u;
+    app->meas_seen = 0u; /* the measurement timeout re-arms at the next measurement */
+    app->syncs_without_meas = 0u;
+}
+
+/* Non-finite measurement values of the step just run: EMCY 0xFF05 (after the
+ * command and the deferred EMCYs), cleared by the next step without any. */
+static void report_non_finite(drive_app_t *app, uint16_t sample_index)
+{
+    if (app->node == NULL) return;
+    if (app->non_finite_mask != 0u) {
+        const uint8_t msef[5] = {(uint8_t)sample_index, (uint8_t)(sample_index >> 8), app->non_finite_mask, 0, 0};
+        app->non_finite_active = 1u;
+        emcy_send(app, DRIVE_EMCY_NON_FINITE, msef);
+    } else if (app->non_finite_active) {
+        app->non_finite_active = 0u;
+        co_emcy_clear(app->node, DRIVE_EMCY_NON_FINITE);
+    }
 }
 
 /* ------------------------------------------------------------------ step cost */
@@ -322,23 +349,37 @@ static void count_step_cost(drive_app_t *app, uint32_t cycles)
 
 /* ------------------------------------------------------------------ current step */
 
-static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
+/* The core runs for the angle, the dq currents, the speed estimate and its
+ * bookkeeping; its controller output is discarded and its memory cleared (no
+ * wind-up, clean restart when the loop is closed again).  Returns the trace
+ * recorder, detached meanwhile: the caller samples it with its own voltages. */
+static trace_recorder_t *core_step_without_output(drive_app_t *app)
 {
     drive_t *d = &app->drv;
-    drive_state_t *s = &d->st;
-    /* The core runs for the angle, the dq currents, the speed estimate and its
-     * bookkeeping; its controller output is discarded and its memory cleared
-     * (no wind-up, clean restart when the loop is closed again). */
     trace_recorder_t *rec = d->trace;
     d->trace = NULL;
     drive_current_step(d, &app->meas, &app->cmd);
     d->trace = rec;
     drive_reset_controller_memory(d);
+    return rec;
+}
+
+static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
+{
+    drive_t *d = &app->drv;
+    drive_state_t *s = &d->st;
+    trace_recorder_t *rec = core_step_without_output(app);
 
     float vd = m->x2202_References.v_d_open_V;
     float vq = m->x2202_References.v_q_open_V;
-    if (!is_finite_f(vd)) vd = 0.0f;
-    if (!is_finite_f(vq)) vq = 0.0f;
+    if (!is_finite_f(vd)) {
+        vd = 0.0f;
+        ++app->non_finite_rejected;
+    }
+    if (!is_finite_f(vq)) {
+        vq = 0.0f;
+        ++app->non_finite_rejected;
+    }
     s->v_limited = dq_limit_voltage(&vd, &vq, d->cfg.Vmax_V, d->cfg.vlimit_radial);
     const float cs = cosf(s->theta_e_rad);
     const float sn = sinf(s->theta_e_rad);
@@ -358,26 +399,151 @@ static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
     app->cmd.v_beta_V = s->v_beta_V;
 }
 
-void drive_app_current_step(drive_app_t *app)
+/* ------------------------------------------------------------------ safe state */
+
+/* Zero voltage in the state and its trace signals: they show what the drive commanded. */
+static void zero_voltage(drive_t *d)
+{
+    drive_state_t *s = &d->st;
+    s->v_d_V = s->v_q_V = 0.0f;
+    s->v_d_star_V = s->v_q_star_V = 0.0f;
+    s->v_d_ff_V = s->v_q_ff_V = 0.0f;
+    s->v_alpha_V = s->v_beta_V = 0.0f;
+    s->v_limited = 0u;
+    s->signals[TRACE_SIG_VQ] = 0.0f;
+    s->signals[TRACE_SIG_VD] = 0.0f;
+    s->signals[TRACE_SIG_VQ_STAR] = 0.0f;
+    s->signals[TRACE_SIG_VD_STAR] = 0.0f;
+    s->signals[TRACE_SIG_V_ALPHA] = 0.0f;
+    s->signals[TRACE_SIG_V_BETA] = 0.0f;
+    s->signals[TRACE_SIG_V_LIMITED] = 0.0f;
+}
+
+/* Forget what the control built up while it did not act: the current
+ * controllers' memories and the outer loops' integrator and profile (restarted
+ * at the measured position), so that leaving the safe state starts cleanly. */
+static void clear_control_memory(drive_t *d)
+{
+    drive_reset_controller_memory(d);
+    d->outer.integ_A = 0.0f;
+    d->outer.iq_ref_A = 0.0f;
+    d->outer.pos_ref_rad = d->outer.theta_unwrapped_rad;
+    d->outer.vel_ref_rad_s = 0.0f;
+    d->st.signals[TRACE_SIG_POS_REF] = d->outer.pos_ref_rad;
+}
+
+/* A step in the safe state: the core runs (observers, speed estimate), the
+ * command is zero. */
+static void safe_step(drive_app_t *app)
+{
+    drive_t *d = &app->drv;
+    trace_recorder_t *rec = core_step_without_output(app);
+    clear_control_memory(d);
+    zero_voltage(d);
+    if (rec != NULL) trace_sample(rec, d->st.signals);
+    app->cmd.v_alpha_V = 0.0f;
+    app->cmd.v_beta_V = 0.0f;
+}
+
+static int heartbeat_lost(const co_node_t *node)
+{
+    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i)
+        if (node->hb[i].active && node->hb[i].timed_out) return 1;
+    return 0;
+}
+
+static uint16_t safe_emcy_code(uint8_t reason)
+{
+    return reason == (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST ? DRIVE_EMCY_SAFE_HEARTBEAT : DRIVE_EMCY_SAFE_MEAS_TIMEOUT;
+}
+
+static void enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason)
+{
+    if (app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE) return; /* latched: the first reason stays */
+    app->safe_reason = reason;
+    ++app->safe_entries;
+    const uint16_t si = app->have_good ? app->good_sample_index : 0u;
+    app->safe_entered_at_sample = si;
+    /* zero volts now: a plant still producing periods applies them at its next SYNC */
+    clear_control_memory(&app->drv);
+    zero_voltage(&app->drv);
+    app->cmd.v_alpha_V = 0.0f;
+    app->cmd.v_beta_V = 0.0f;
+    od_drive_mfr_t *m = mfr_of(node);
+    m->x2102_voltage_command.v_alpha_V = 0.0f;
+    m->x2102_voltage_command.v_beta_V = 0.0f;
+    co_tpdo_request(node, 0);
+    const uint8_t msef[5] = {(uint8_t)si, (uint8_t)(si >> 8), reason, 0, 0};
+    emcy_send(app, safe_emcy_code(reason), msef);
+}
+
+static void leave_safe_state(drive_app_t *app, co_node_t *node)
+{
+    const uint8_t reason = app->safe_reason;
+    if (reason == (uint8_t)OD_DRIVE_REASON_NONE) return;
+    app->safe_reason = (uint8_t)OD_DRIVE_REASON_NONE;
+    app->syncs_without_meas = 0u;
+    co_emcy_clear(node, safe_emcy_code(reason));
+}
+
+/* ------------------------------------------------------------------ current step (continued) */
+
+static void current_step(drive_app_t *app)
 {
     co_node_t *node = app->node;
     if (node == NULL) return;
     od_drive_mfr_t *m = mfr_of(node);
     drive_t *d = &app->drv;
 
-    app->meas.i_a_A = m->x2100_Measurement.i_a_A;
-    app->meas.i_b_A = m->x2100_Measurement.i_b_A;
-    app->meas.theta_m_rad = m->x2100_Measurement.theta_m_rad;
+    /* measurement: a non-finite field (PDOs bypass the EDS limits) is replaced
+     * by its last finite value */
+    uint8_t bad = 0u;
+#define x (&m->x2100_Measurement)
+    if (is_finite_f(x->i_a_A))
+        app->meas_good.i_a_A = x->i_a_A;
+    else
+        bad |= (uint8_t)DRIVE_NON_FINITE_I_A;
+    if (is_finite_f(x->i_b_A))
+        app->meas_good.i_b_A = x->i_b_A;
+    else
+        bad |= (uint8_t)DRIVE_NON_FINITE_I_B;
+    if (is_finite_f(x->theta_m_rad))
+        app->meas_good.theta_m_rad = x->theta_m_rad;
+    else
+        bad |= (uint8_t)DRIVE_NON_FINITE_THETA;
+    app->meas = app->meas_good;
+    app->non_finite_mask = bad;
+    if (bad == 0u) {
+        app->have_good = 1u;
+        app->good_sample_index = x->sample_index;
+    } else {
+        app->non_finite_rejected += (uint32_t)((bad & 1u) + ((bad >> 1) & 1u) + ((bad >> 2) & 1u));
+    }
+#undef x
 
     /* references (SDO or RPDO3 wrote them; PDO writes bypass the EDS limits:
-     * non-finite values are ignored) */
+     * non-finite values are ignored, and counted) */
 #define r (&m->x2202_References)
     const uint8_t mode = r->mode;
     d->sp.mode = mode <= (uint8_t)DRIVE_MODE_POSITION ? mode : (uint8_t)DRIVE_MODE_CURRENT;
-    if (is_finite_f(r->iq_ref_A)) d->sp.iq_ref_A = r->iq_ref_A;
-    if (is_finite_f(r->id_ref_A)) d->sp.id_ref_A = r->id_ref_A;
-    if (is_finite_f(r->speed_ref_rad_s)) d->sp.speed_ref_rad_s = r->speed_ref_rad_s;
-    if (is_finite_f(r->position_ref_rad)) d->sp.position_ref_rad = r->position_ref_rad;
+    uint32_t refs_bad = 0u;
+    if (is_finite_f(r->iq_ref_A))
+        d->sp.iq_ref_A = r->iq_ref_A;
+    else
+        ++refs_bad;
+    if (is_finite_f(r->id_ref_A))
+        d->sp.id_ref_A = r->id_ref_A;
+    else
+        ++refs_bad;
+    if (is_finite_f(r->speed_ref_rad_s))
+        d->sp.speed_ref_rad_s = r->speed_ref_rad_s;
+    else
+        ++refs_bad;
+    if (is_finite_f(r->position_ref_rad))
+        d->sp.position_ref_rad = r->position_ref_rad;
+    else
+        ++refs_bad;
+    app->non_finite_rejected += refs_bad;
 
 #undef r
     app->open_loop =
@@ -387,7 +553,9 @@ void drive_app_current_step(drive_app_t *app)
         app->cost_controller = m->x2200_Controller.controller;
     }
     const uint32_t c0 = app->cycles_fn != NULL ? app->cycles_fn(app->cycles_user) : 0u;
-    if (app->open_loop) {
+    if (app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE) {
+        safe_step(app);
+    } else if (app->open_loop) {
         open_loop_step(app, m);
     } else {
         drive_current_step(d, &app->meas, &app->cmd);
@@ -409,6 +577,13 @@ void drive_app_current_step(drive_app_t *app)
     }
 }
 
+void drive_app_current_step(drive_app_t *app)
+{
+    if (app->node == NULL) return;
+    current_step(app);
+    report_non_finite(app, mfr_of(app->node)->x2100_Measurement.sample_index);
+}
+
 static void on_measurement(drive_app_t *app, co_node_t *node)
 {
     od_drive_mfr_t *m = mfr_of(node);
@@ -418,6 +593,8 @@ static void on_measurement(drive_app_t *app, co_node_t *node)
     const uint8_t was_active = app->meas_error_active;
     app->defer_emcy = 1u;
     app->n_pending = 0u;
+    app->meas_seen = 1u;
+    app->syncs_without_meas = 0u;
 
     if (!app->rpdo1_fresh) count_late(app, DRIVE_LATE_RPDO2_WITHOUT_RPDO1, si, sc);
     app->rpdo1_fresh = 0u;
@@ -448,8 +625,9 @@ static void on_measurement(drive_app_t *app, co_node_t *node)
 
     const int clean = app->late == late0 && app->lost == lost0;
     if (clean) app->meas_error_active = 0u;
-    drive_app_current_step(app); /* command out first */
+    current_step(app); /* command out first */
     flush_emcy(app);
+    report_non_finite(app, si);
     if (clean && was_active) {
         co_emcy_clear(node, DRIVE_EMCY_MEAS_LOST);
         co_emcy_clear(node, DRIVE_EMCY_MEAS_LATE);
@@ -489,6 +667,13 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
             if (d->yao.primed == 0u || yao2020_identification_running(&d->yao))
                 return CO_ABORT_DATA_STATE; /* not run yet / already running */
         }
+        return 0;
+    }
+
+    if (idx == OD_DRIVE_SAFE_STATE_IDX && e->subindex == OD_DRIVE_SAFE_STATE_CLEAR_SUB) {
+        if (data[0] != 1u) return CO_ABORT_INVALID_VALUE;
+        if (app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE && heartbeat_lost(node))
+            return CO_ABORT_DATA_STATE; /* the cause persists */
         return 0;
     }
 
@@ -533,6 +718,11 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
             drive_yao_ident_abort(&app->drv);
         return;
     }
+    if (idx == OD_DRIVE_SAFE_STATE_IDX && e->subindex == OD_DRIVE_SAFE_STATE_CLEAR_SUB) {
+        m->x2209_safe_state.clear = 0u; /* a command, not a state */
+        leave_safe_state(app, node);
+        return;
+    }
     const int is_config =
         idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_ONLINE_TUNING_IDX || idx == OD_DRIVE_OUTER_LOOPS_IDX ||
         idx == OD_DRIVE_YAO_2020_DPCC_IDX ||
@@ -573,7 +763,6 @@ static void hk_pre_read(void *user, co_node_t *node, const co_od_entry_t *e)
 static void hk_on_sync(void *user, co_node_t *node, uint8_t counter)
 {
     drive_app_t *app = (drive_app_t *)user;
-    (void)node;
     if (app->rpdo1_fresh) {
         /* the currents of the previous sample never got their RPDO2 */
         app->rpdo1_fresh = 0u;
@@ -581,6 +770,12 @@ static void hk_on_sync(void *user, co_node_t *node, uint8_t counter)
     }
     app->sync_seen = 1u;
     app->last_sync_counter = counter;
+    /* measurement timeout: SYNCs since the last measurement */
+    if (node->nmt == CO_NMT_OPERATIONAL && app->meas_seen) {
+        if (app->syncs_without_meas < 0xFFFFu) ++app->syncs_without_meas;
+        const uint16_t n = mfr_of(node)->x2209_safe_state.meas_timeout_periods;
+        if (n != 0u && app->syncs_without_meas >= n) enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_MEAS_TIMEOUT);
+    }
 }
 
 static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
@@ -603,9 +798,17 @@ static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
 static void hk_on_nmt(void *user, co_node_t *node, co_nmt_state_t state)
 {
     drive_app_t *app = (drive_app_t *)user;
-    (void)node;
-    (void)state;
     reset_sequencing(app);
+    /* started while the plant's heartbeat is still lost: not a state to run in */
+    if (state == CO_NMT_OPERATIONAL && heartbeat_lost(node))
+        enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST);
+}
+
+static void hk_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    (void)node_id; /* the stack's EMCY 0x8130 names it */
+    if (node->nmt == CO_NMT_OPERATIONAL) enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST);
 }
 
 static void hk_on_reset(void *user, co_node_t *node, int communication_only)
@@ -623,6 +826,12 @@ static void hk_on_reset(void *user, co_node_t *node, int communication_only)
         drive_attach_trace(&app->drv, &app->trace);
         app->current_steps = app->lost = app->late = app->emcy_raised = 0u;
         app->meas_error_active = 0u;
+        app->safe_entries = 0u;
+        app->safe_entered_at_sample = 0u;
+        app->have_good = 0u;
+        app->good_sample_index = 0u;
+        app->non_finite_rejected = 0u;
+        memset(&app->meas_good, 0, sizeof app->meas_good);
         app->open_loop = 0u;
         app->trace_linear = 0u;
         app->live_count = 0u;
@@ -631,6 +840,10 @@ static void hk_on_reset(void *user, co_node_t *node, int communication_only)
         memset(&app->cmd, 0, sizeof app->cmd);
     }
     reset_sequencing(app);
+    /* both resets leave the safe state (the stack has forgotten the active EMCYs) */
+    app->safe_reason = (uint8_t)OD_DRIVE_REASON_NONE;
+    app->non_finite_mask = 0u;
+    app->non_finite_active = 0u;
     m->x2301_trace_buffer.data = (uint8_t *)app->trace.buffer;
     m->x2301_trace_buffer.size = 0u;
     m->x2301_trace_buffer.capacity = 0u;
@@ -644,7 +857,7 @@ static const co_hooks_t g_hooks = {
     .on_rpdo = hk_on_rpdo,
     .on_nmt = hk_on_nmt,
     .on_reset = hk_on_reset,
-    .on_hb_timeout = NULL,
+    .on_hb_timeout = hk_on_hb_timeout,
 };
 
 const co_hooks_t *drive_app_hooks(void) { return &g_hooks; }

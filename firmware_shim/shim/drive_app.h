@@ -53,6 +53,59 @@
  *   The first good measurement afterwards clears the error (EMCY 0x0000 when
  *   no other error is active).  A step still runs for an RPDO2 without a fresh
  *   RPDO1 (with the last currents), so the plant always gets a command.
+ *
+ * Non-finite values (0x2209:06 non_finite_rejected, counted once per step and
+ * field): PDOs bypass the EDS limits, so a NaN or +-inf can arrive.
+ *   measurement   i_a_A, i_b_A, theta_m_rad of 0x2100: the step runs with the
+ *                 last finite value of that field (0 before the first one);
+ *                 EMCY 0xFF05 after the command, error register bits generic +
+ *                 communication + manufacturer, MSEF = {sample_index LE16,
+ *                 fields (bit0 i_a_A, bit1 i_b_A, bit2 theta_m_rad), 0, 0};
+ *                 the next measurement with finite values clears it.
+ *   references    iq_ref_A, id_ref_A, speed_ref_rad_s, position_ref_rad of
+ *                 0x2202 keep their last finite value, v_d_open_V/v_q_open_V
+ *                 read 0 in the open loop (counted only there); no EMCY.
+ *
+ * Safe states (0x2209): a real drive's reaction to losing its communication.
+ * Without measurements or a live plant the drive cannot control the current,
+ * so it commands zero voltage and stays there until told otherwise (latched:
+ * a fault, not a glitch that heals itself).  This is the communication-loss
+ * reaction a CiA 402 drive configures in 0x6007 (abort connection option
+ * code); when the drive gets a CiA 402 profile, the safe state will become
+ * its Fault state (reaction 0x605E) and 0x2209:05 the fault-reset bit of the
+ * controlword; the codes and entries here stay as its manufacturer detail.
+ *   measurement timeout (reason 1)  0x2209:01 meas_timeout_periods SYNCs in a
+ *                     row without a measurement (RPDO2) in between, counted
+ *                     while OPERATIONAL from the first measurement of the run
+ *                     (the NMT state changing re-arms it); 0 off.  The SYNC
+ *                     comes before the measurement of its sample, so n SYNCs
+ *                     are n - 1 missing measurements (1 would enter at the
+ *                     first SYNC after every measurement).
+ *                     EMCY 0xFF03.
+ *   heartbeat lost    (reason 2)  a heartbeat consumer of 0x1016 (the plant)
+ *                     timed out while OPERATIONAL, or is still timed out when
+ *                     the node enters OPERATIONAL; the stack has sent EMCY
+ *                     0x8130 for the heartbeat itself, EMCY 0xFF04 is the
+ *                     drive's reaction.
+ *   Entering (the first reason is kept while the state lasts: a second cause
+ *   sends no EMCY of its own, the stack's 0x8130 still goes out): 0x2209:03
+ *   entries + 1, 0x2209:04 entered_at_sample = sample_index of the last
+ *   measurement with finite values (0 if none), 0x2102 = 0 V sent at once
+ *   (TPDO1: a plant still running applies zero volts), then the EMCY: error
+ *   register bits generic + communication + manufacturer (as 0xFF01), MSEF =
+ *   {entered_at_sample LE16, reason, 0, 0}.
+ *   In the safe state every measurement still runs a step (observers, speed
+ *   estimate, trace, one command per measurement for a plant in lockstep) but
+ *   the command is 0 V, and so are the voltages of the state and the trace
+ *   (v_d/q_V, v_d/q_star_V, v_alpha/beta_V, the feed-forward); the controller
+ *   memories (drive_reset_controller_memory) and the outer loops' integrator
+ *   and position profile (restarted at the measured position) are cleared at
+ *   entry and at every step, so leaving restarts the control without wind-up.
+ *   Leaving: 0x2209:05 clear = 1 (fault reset, reads back 0; abort 0x08000022
+ *   while a heartbeat consumer is still timed out, 0x06090030 for a value
+ *   other than 1), NMT reset node or reset communication.  NMT pre-operational
+ *   -> operational does not leave it.  Leaving clears the EMCY (EMCY 0x0000
+ *   when no other error is active), 0x2209:02 reason and the SYNC count.
  */
 #ifndef DRIVE_APP_H
 #define DRIVE_APP_H
@@ -66,6 +119,9 @@
 /* Manufacturer-specific EMCY codes (CiA 301 0xFF00-0xFFFF). */
 #define DRIVE_EMCY_MEAS_LOST 0xFF01u
 #define DRIVE_EMCY_MEAS_LATE 0xFF02u
+#define DRIVE_EMCY_SAFE_MEAS_TIMEOUT 0xFF03u /* safe state entered: measurement timeout */
+#define DRIVE_EMCY_SAFE_HEARTBEAT 0xFF04u    /* safe state entered: plant heartbeat lost */
+#define DRIVE_EMCY_NON_FINITE 0xFF05u        /* non-finite measurement value replaced */
 
 /* Reasons in byte 2 of the MSEF of DRIVE_EMCY_MEAS_LATE. */
 enum {
@@ -74,6 +130,12 @@ enum {
     DRIVE_LATE_DUPLICATE_OR_OLD = 3,
     DRIVE_LATE_SYNC_MISMATCH = 4
 };
+
+/* Fields in byte 2 of the MSEF of DRIVE_EMCY_NON_FINITE. */
+enum { DRIVE_NON_FINITE_I_A = 0x01, DRIVE_NON_FINITE_I_B = 0x02, DRIVE_NON_FINITE_THETA = 0x04 };
+
+/* The reasons of 0x2209:02 (and byte 2 of the MSEF of 0xFF03/0xFF04) are
+ * OD_DRIVE_REASON_NONE, _MEAS_TIMEOUT, _HEARTBEAT_LOST (od_drive_fields.h). */
 
 #define DRIVE_APP_PENDING_EMCY 4u
 
@@ -111,6 +173,21 @@ typedef struct {
     uint8_t n_pending;
     uint16_t pending_code[DRIVE_APP_PENDING_EMCY];
     uint8_t pending_msef[DRIVE_APP_PENDING_EMCY][5];
+
+    /* safe state (mirrored in 0x2209) */
+    uint8_t safe_reason; /* OD_DRIVE_REASON_*: NONE = not in the safe state */
+    uint32_t safe_entries;
+    uint16_t safe_entered_at_sample;
+    uint16_t syncs_without_meas; /* SYNCs since the last measurement (saturates) */
+    uint8_t meas_seen;           /* a measurement arrived since the NMT state changed */
+    uint8_t have_good;           /* good_sample_index valid */
+    uint16_t good_sample_index;  /* sample_index of the last step on finite measurement values */
+
+    /* non-finite values received by PDO */
+    drive_meas_t meas_good; /* last finite value of each measurement field */
+    uint32_t non_finite_rejected;
+    uint8_t non_finite_mask;   /* DRIVE_NON_FINITE_* replaced in the last step */
+    uint8_t non_finite_active; /* EMCY 0xFF05 active */
 
     /* open loop active in the last step (0x2200:01 = 0 or 0x2202:01 = 3) */
     uint8_t open_loop;

@@ -270,6 +270,13 @@ static const od_drive_ram_t defaults = {
     .mfr.x2208_step_cost.step_cycles_mean = 0.0f,
     .mfr.x2208_step_cost.cycle_clock_Hz = 0x0u,
     .mfr.x2208_step_cost.steps_measured = 0x0u,
+    .mfr.x2209_safe_state.highest_sub_index_supported = 0x6u,
+    .mfr.x2209_safe_state.meas_timeout_periods = 0x3u,
+    .mfr.x2209_safe_state.reason = 0x0u,
+    .mfr.x2209_safe_state.entries = 0x0u,
+    .mfr.x2209_safe_state.entered_at_sample = 0x0u,
+    .mfr.x2209_safe_state.clear = 0x0u,
+    .mfr.x2209_safe_state.non_finite_rejected = 0x0u,
     .mfr.x2300_Trace.highest_sub_index_supported = 0x11u,
     .mfr.x2300_Trace.state = 0x0u,
     .mfr.x2300_Trace.trigger_signal = 0x0u,
@@ -563,6 +570,13 @@ static const co_od_entry_t entries[] = {
     {0x2208u, 0x03u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.step_cycles_mean), &OD_DRIVE.mfr.x2208_step_cost.step_cycles_mean, {.i = 0}, {.i = 0}}, /* step_cycles_mean */
     {0x2208u, 0x04u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.cycle_clock_Hz), &OD_DRIVE.mfr.x2208_step_cost.cycle_clock_Hz, {.i = 0}, {.i = 0}}, /* cycle_clock_Hz */
     {0x2208u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.steps_measured), &OD_DRIVE.mfr.x2208_step_cost.steps_measured, {.i = 0}, {.i = 0}}, /* steps_measured */
+    {0x2209u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2209_safe_state.highest_sub_index_supported), &OD_DRIVE.mfr.x2209_safe_state.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2209u, 0x01u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2209_safe_state.meas_timeout_periods), &OD_DRIVE.mfr.x2209_safe_state.meas_timeout_periods, {.i = 0}, {.i = 1000}}, /* meas_timeout_periods */
+    {0x2209u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2209_safe_state.reason), &OD_DRIVE.mfr.x2209_safe_state.reason, {.i = 0}, {.i = 2}}, /* reason */
+    {0x2209u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2209_safe_state.entries), &OD_DRIVE.mfr.x2209_safe_state.entries, {.i = 0}, {.i = 0}}, /* entries */
+    {0x2209u, 0x04u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2209_safe_state.entered_at_sample), &OD_DRIVE.mfr.x2209_safe_state.entered_at_sample, {.i = 0}, {.i = 0}}, /* entered_at_sample */
+    {0x2209u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.mfr.x2209_safe_state.clear), &OD_DRIVE.mfr.x2209_safe_state.clear, {.i = 0}, {.i = 0}}, /* clear */
+    {0x2209u, 0x06u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2209_safe_state.non_finite_rejected), &OD_DRIVE.mfr.x2209_safe_state.non_finite_rejected, {.i = 0}, {.i = 0}}, /* non_finite_rejected */
     {0x2300u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported), &OD_DRIVE.mfr.x2300_Trace.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2300u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.state), &OD_DRIVE.mfr.x2300_Trace.state, {.i = 0}, {.i = 3}}, /* state */
     {0x2300u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2300_Trace.trigger_signal), &OD_DRIVE.mfr.x2300_Trace.trigger_signal, {.i = 0}, {.i = 63}}, /* trigger_signal */

@@ -384,6 +384,17 @@ typedef struct {
     uint32_t steps_measured;
 } od_drive_step_cost_t;
 
+/* 0x2209 Safe state */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint16_t meas_timeout_periods;
+    uint8_t reason;
+    uint32_t entries;
+    uint16_t entered_at_sample;
+    uint8_t clear;
+    uint32_t non_finite_rejected;
+} od_drive_safe_state_t;
+
 /* 0x2300 Trace */
 typedef struct {
     uint8_t highest_sub_index_supported;
@@ -460,6 +471,7 @@ typedef struct {
     od_drive_yao_2020_dpcc_t x2206_yao_2020_dpcc;
     od_drive_zhao_2022_t x2207_zhao_2022;
     od_drive_step_cost_t x2208_step_cost;
+    od_drive_safe_state_t x2209_safe_state;
     od_drive_trace_t x2300_Trace;
     co_domain_t x2301_trace_buffer;
     od_drive_live_trace_t x2302_live_trace;
@@ -770,6 +782,14 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_STEP_COST_STEP_CYCLES_MEAN_SUB 0x03u
 #define OD_DRIVE_STEP_COST_CYCLE_CLOCK_HZ_SUB 0x04u
 #define OD_DRIVE_STEP_COST_STEPS_MEASURED_SUB 0x05u
+#define OD_DRIVE_SAFE_STATE_IDX 0x2209u
+#define OD_DRIVE_SAFE_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_SAFE_STATE_MEAS_TIMEOUT_PERIODS_SUB 0x01u
+#define OD_DRIVE_SAFE_STATE_REASON_SUB 0x02u
+#define OD_DRIVE_SAFE_STATE_ENTRIES_SUB 0x03u
+#define OD_DRIVE_SAFE_STATE_ENTERED_AT_SAMPLE_SUB 0x04u
+#define OD_DRIVE_SAFE_STATE_CLEAR_SUB 0x05u
+#define OD_DRIVE_SAFE_STATE_NON_FINITE_REJECTED_SUB 0x06u
 #define OD_DRIVE_TRACE_IDX 0x2300u
 #define OD_DRIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_TRACE_STATE_SUB 0x01u

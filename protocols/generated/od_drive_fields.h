@@ -289,6 +289,26 @@
 #define OD_DRIVE_STEP_COST_STEPS_MEASURED_DEFAULT 0u
 
 
+/* 0x2209 Safe state, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_SAFE_STATE_PARAMS(X) \
+    X(0x2209u, 0x01u, x2209_safe_state, meas_timeout_periods, 3u) \
+    X(0x2209u, 0x05u, x2209_safe_state, clear, 0u)
+
+/* 0x2209 Safe state, status: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_SAFE_STATE_STATUS(X) \
+    X(0x2209u, 0x02u, x2209_safe_state, reason, 0u) \
+    X(0x2209u, 0x03u, x2209_safe_state, entries, 0u) \
+    X(0x2209u, 0x04u, x2209_safe_state, entered_at_sample, 0u) \
+    X(0x2209u, 0x06u, x2209_safe_state, non_finite_rejected, 0u)
+
+#define OD_DRIVE_SAFE_STATE_MEAS_TIMEOUT_PERIODS_DEFAULT 3u
+#define OD_DRIVE_SAFE_STATE_REASON_DEFAULT 0u
+#define OD_DRIVE_SAFE_STATE_ENTRIES_DEFAULT 0u
+#define OD_DRIVE_SAFE_STATE_ENTERED_AT_SAMPLE_DEFAULT 0u
+#define OD_DRIVE_SAFE_STATE_CLEAR_DEFAULT 0u
+#define OD_DRIVE_SAFE_STATE_NON_FINITE_REJECTED_DEFAULT 0u
+
+
 /* 0x2300 Trace, parameters: X(index, subindex, record, field, EDS default) */
 #define OD_DRIVE_TRACE_PARAMS(X) \
     X(0x2300u, 0x01u, x2300_Trace, state, 0u) \
@@ -364,6 +384,13 @@ enum {
     OD_DRIVE_MODE_SPEED = 1,
     OD_DRIVE_MODE_POSITION = 2,
     OD_DRIVE_MODE_OPEN_LOOP = 3
+};
+
+/* 0x2209:02 Safe state.reason */
+enum {
+    OD_DRIVE_REASON_NONE = 0,
+    OD_DRIVE_REASON_MEAS_TIMEOUT = 1,
+    OD_DRIVE_REASON_HEARTBEAT_LOST = 2
 };
 
 #endif /* OD_DRIVE_FIELDS_H */
