@@ -198,4 +198,4 @@ $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 clean:
 	rm -rf $(BUILD)
 
--include $(shell find $(BUILD)/obj $(BUILD)/deps -name '*.d' 2>/dev/null)
+-include $(shell find $(BUILD)/obj $(BUILD)/deps $(BUILD)/mcu/obj -name '*.d' 2>/dev/null)

@@ -112,6 +112,12 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return reproduce_main(args)
 
 
+def _cmd_faults(args: argparse.Namespace) -> int:
+    from .faults.command import main as faults_main
+
+    return faults_main(args)
+
+
 def _cmd_perf(args: argparse.Namespace) -> int:
     from .tools.perf import main as perf_main
 
@@ -266,6 +272,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     reproduce_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
+
+    from .faults.command import add_arguments as faults_args
+
+    fl = sub.add_parser(
+        "faults",
+        help="inject each fault kind into the loop and judge the nodes' reactions (safe states, held "
+        "commands, EMCYs, reaction times)",
+        description="Runs the fault checks: each injects one fault (a dropped, delayed, duplicated, corrupted or "
+        "reordered frame; a lost heartbeat; a frozen, killed or reset node) into the You 2019 loop, runs "
+        "the same scenario without it, and judges the reaction against what a real drive and inverter "
+        "must do (docs/FAULTS.md). Exit 0 when every check passes. To inject faults into your own "
+        "scenario, give it [[faults]] tables and use bench run.",
+    )
+    faults_args(fl)
+    fl.set_defaults(func=_cmd_faults)
 
     from .tools.perf import add_arguments as perf_args
 

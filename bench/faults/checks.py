@@ -84,22 +84,44 @@ def _pair(raw: dict[str, Any], faulted: dict[str, Any], bus: str) -> tuple[Run, 
     return run_raw(raw, bus), run_raw(faulted, bus)
 
 
+def recovery(hit: Run, clean: Run, held_at: int, step_A: float = 1.0) -> dict[str, Any]:
+    """How the loop comes back after the command held over period `held_at`: its effect shows in the sample
+    at held_at + 1; `periods_to_5pct` counts from there to the first sample from which |iq - iq_clean| stays
+    under 5 % of the step (a digital drive's correction lands one period after it sees the error: 2 at
+    best), and the time constant (periods) of what is left (a log-linear fit over 20 periods)."""
+    held_at += 1
+    p = hit.tr["period"]
+    d = np.abs(hit.tr["iq_A"] - clean.tr["iq_A"][: len(p)])
+    after = np.flatnonzero(p >= held_at)
+    big = after[d[after] >= 0.05 * step_A]
+    back = int(p[big[-1]] + 1) if len(big) else held_at
+    tail = np.flatnonzero((p >= back) & (p < back + 20) & (d > 1e-9))
+    tau = None
+    if len(tail) >= 5:
+        slope = np.polyfit(p[tail], np.log(d[tail]), 1)[0]
+        tau = float(-1.0 / slope) if slope < 0 else None
+    return {
+        "periods_to_5pct": back - held_at,
+        "peak_deviation_A": float(np.nanmax(d[after])),
+        "residual_A": float(d[np.flatnonzero(p == back)[0]]) if back in p else None,
+        "residual_time_constant_periods": tau,
+    }
+
+
 def check_drop_command(bus: str) -> FaultCheck:
-    p = STEP_AT + 1  # the first command of the transient
+    p = STEP_AT + 1  # the first command after the deadbeat step's large one
     raw = base("fc-drop-command")
-    clean, hit = _pair(
-        raw, with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "drive.TPDO1", "at_period": p}), bus
-    )
+    f = {"kind": "drop", "frame": "drive.TPDO1", "at_period": p}
+    clean, hit = _pair(raw, with_fault(raw, ["frames_lost"], f), bus)
     h = held(hit)
-    dev = deviation_after(hit, clean, "iq_A", p + 1 + 3)
-    peak = deviation_after(hit, clean, "iq_A", p + 1)
+    rec = recovery(hit, clean, p + 1)
     return FaultCheck(
         "drop-command",
-        f"the drive's voltage command of period {p} dropped on the bus",
-        "the plant holds the last command for exactly one period (status bit 3) and the deadbeat loop is back "
-        "on the fault-free trace within 2 periods after it (|iq - iq_clean| < 1e-5 A)",
-        {"held_periods": h, "iq_peak_deviation_A": peak, "iq_deviation_after_recovery_A": dev},
-        h == [p + 1] and dev < 1e-5,
+        f"the drive's voltage command of period {p} dropped on the bus (the one after the step's 83 V kick)",
+        "the plant holds the last command for exactly one period (status bit 3), and the deadbeat loop is within "
+        "5 % of the fault-free trace 2 periods after the held one",
+        {"held_periods": h, **rec},
+        h == [p + 1] and rec["periods_to_5pct"] <= 2,
         bus,
     )
 
@@ -111,14 +133,15 @@ def check_delay_command(bus: str) -> FaultCheck:
     clean, hit = _pair(raw, with_fault(raw, ["frames_lost", "ok"], f), bus)
     h = held(hit)
     late = hit.result.summary["counters"]["plant_late_commands"]
-    dev = deviation_after(hit, clean, "iq_A", p + 1 + 3)
+    rec = recovery(hit, clean, p + 1)
     return FaultCheck(
         "delay-command",
         f"the command of period {p} delayed by one period",
         "it arrives after the SYNC it was meant for: the plant holds the last command for that one period, counts "
-        "the late command, never applies it (the next command has arrived by the following SYNC), and recovers",
-        {"held_periods": h, "plant_late_commands": late, "iq_deviation_after_recovery_A": dev},
-        h == [p + 1] and late is not None and late >= 1 and dev < 1e-5,
+        "the late command, never applies it (the next command has arrived by the following SYNC); the loop is "
+        "within 5 % of the fault-free trace 2 periods after the held one",
+        {"held_periods": h, "plant_late_commands": late, **rec},
+        h == [p + 1] and late is not None and late >= 1 and rec["periods_to_5pct"] <= 2,
         bus,
     )
 
@@ -135,8 +158,12 @@ def check_duplicate_measurement(bus: str) -> FaultCheck:
         f"the plant's sample frame (TPDO2, which triggers the current step) of period {p} sent twice",
         "the drive steps once per sample: the second copy is counted late (EMCY 0xFF02, reason 3 duplicate), "
         "and the currents and voltages are those of the fault-free run, bit for bit",
-        {"late_emcy_periods": [e["period"] for e in late], "traces_equal": same},
-        [e["period"] for e in late] == [p] and same and late[0]["data"][4:6] == "03",
+        {
+            "late_emcy_periods": [e["period"] for e in late],
+            "late_reasons": [e["data"][4:6] for e in late],
+            "traces_equal": same,
+        },
+        {e["period"] for e in late} == {p} and same and "03" in [e["data"][4:6] for e in late],
         bus,
     )
 
@@ -200,14 +227,15 @@ def check_short_measurement(bus: str) -> FaultCheck:
 
 def check_non_finite_measurement(bus: str) -> FaultCheck:
     raw = base("fc-non-finite")
+    raw["events"][0]["references"]["iq_ref_A"] = 1.5  # i_b settles at 1.3 A (the rotor's angle)
     clean = run_raw(raw, bus)
     # a period where i_b is in [1, 2) A: its float's exponent is 0x7F, and flipping bit 30 makes it 0xFF (inf/NaN)
     ib = clean.tr["i_b_A"]
     p = int(clean.tr["period"][np.flatnonzero((np.abs(ib) >= 1.0) & (np.abs(ib) < 2.0))[0]])
     f = {"kind": "corrupt", "frame": "plant.TPDO1", "at_period": p, "bit": 62}
-    hit = run_raw(with_fault(raw, ["non_finite"], f), bus)
+    hit = run_raw(with_fault(raw, ["ok"], f), bus)  # the recorder (side a) sees the frame as the plant sent it
     nf = emcys(hit, 0xFF05, "drive")
-    rejected = int(np.nanmax(hit.tr["drive_non_finite_rejected"]))
+    rejected = int(np.nanmax(hit.tr["Safe_state_non_finite_rejected"]))
     vq_ok = bool(np.all(np.isfinite(hit.tr["vq_V"][hit.tr["period"] >= p])))
     dev = deviation_after(hit, clean, "iq_A", p + 3)
     return FaultCheck(
@@ -234,7 +262,7 @@ def check_measurement_timeout(bus: str) -> FaultCheck:
     safe = emcys(hit, 0xFF03, "drive")
     tr = hit.tr
     after = tr["period"] >= p + n
-    reason = tr["drive_reason"]
+    reason = tr["Safe_state_reason"]
     return FaultCheck(
         "measurement-timeout",
         f"the sample frame (TPDO2) dropped for {n} periods from period {p}",

@@ -34,6 +34,11 @@ def emcy_names() -> dict[int, str]:
     return out
 
 
+def emcy_codes(*names: str) -> list[int]:
+    """The codes of these #define names (lower case, without prefix)."""
+    return [c for c, n in emcy_names().items() if n in names]
+
+
 class StatusWatch:
     """The plant's status bits per period, as the trace chunks pass (only the periods that have one)."""
 

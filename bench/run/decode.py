@@ -87,6 +87,7 @@ class DecodeStats:
     first_non_finite_period: int | None = None
     missing_measurements: int = 0  # periods without one of the plant's synchronous measurement PDOs
     missing_commands: int = 0  # periods without the drive's command PDO
+    safe_state_commands: int = 0  # the drive's 0 V command sent at once on entering its safe state (drive_app.h)
 
 
 class Decoder:
@@ -349,7 +350,16 @@ class Decoder:
                 dup = np.r_[False, per[1:] == per[:-1]]
                 if dup.any():
                     is_cmd = pdo.node == "drive" and pdo.trans_type > 240
-                    if is_cmd and realtime:
+                    safe = self._safe_state_commands(buf, period_of, pos, per) if is_cmd else None
+                    if safe is not None and safe.any():
+                        # the drive entering its safe state sends 0 V at once, after the period's own command
+                        # (drive_app.h "Safe states"): that one is applied, the period's command is not
+                        st.safe_state_commands += int(safe.sum())
+                        keep = ~np.r_[safe[1:], False]
+                        pos, per, dup = pos[keep], per[keep], dup[keep] & ~safe[keep]
+                    if not dup.any():
+                        pass
+                    elif is_cmd and realtime:
                         # real time: a late command lands in the next period (the plant counts it late);
                         # the period's own command is the last one
                         last = np.r_[per[1:] != per[:-1], True]
@@ -420,6 +430,23 @@ class Decoder:
             st = self.stats
             if st.first_lost_period is None or first < st.first_lost_period:
                 st.first_lost_period = first
+
+    def _safe_state_commands(
+        self, buf: np.ndarray, period_of: np.ndarray, pos: np.ndarray, per: np.ndarray
+    ) -> np.ndarray:
+        """Of the drive's command frames `pos` (periods `per`), the second ones of a period that are the
+        drive's safe-state command: all zero (0 V) in a period whose drive EMCY says it entered its safe
+        state (0xFF03 measurement timeout, 0xFF04 plant heartbeat lost)."""
+        from ..faults.report import emcy_codes
+
+        codes = emcy_codes("safe_meas_timeout", "safe_heartbeat")
+        emcy = np.flatnonzero(buf["cob_id"] == 0x080 + self.sdo.drive.node_id)
+        if len(emcy) == 0:
+            return np.zeros(len(pos), dtype=bool)
+        code = buf["data"][emcy, 0].astype(np.int64) | (buf["data"][emcy, 1].astype(np.int64) << 8)
+        entered = period_of[emcy[np.isin(code, codes)]]
+        zero = ~buf["data"][pos].any(axis=1)
+        return np.r_[False, per[1:] == per[:-1]] & zero & np.isin(per, entered)
 
     def _interfere(self, cob_id: int, periods: np.ndarray) -> None:
         if len(periods) == 0:

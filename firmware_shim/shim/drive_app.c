@@ -599,8 +599,10 @@ static void on_measurement(drive_app_t *app, co_node_t *node)
     if (!app->rpdo1_fresh) count_late(app, DRIVE_LATE_RPDO2_WITHOUT_RPDO1, si, sc);
     app->rpdo1_fresh = 0u;
 
+    int duplicate = 0;
     if (app->have_last) {
         const uint16_t delta = (uint16_t)(si - app->last_sample_index);
+        duplicate = delta == 0u && app->old_run == 0u;
         if (delta == 0u || delta >= 0x8000u) {
             count_late(app, DRIVE_LATE_DUPLICATE_OR_OLD, si, sc);
             /* stay on the newest index; a restarted plant is followed after
@@ -625,6 +627,11 @@ static void on_measurement(drive_app_t *app, co_node_t *node)
 
     const int clean = app->late == late0 && app->lost == lost0;
     if (clean) app->meas_error_active = 0u;
+    if (duplicate) { /* the sample just answered, again: its command is out; a second step would advance the
+                      * controller's state twice and send the plant a second command */
+        flush_emcy(app);
+        return;
+    }
     current_step(app); /* command out first */
     flush_emcy(app);
     report_non_finite(app, si);

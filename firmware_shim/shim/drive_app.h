@@ -52,7 +52,10 @@
  *   These EMCYs go out right after the command of the same measurement.
  *   The first good measurement afterwards clears the error (EMCY 0x0000 when
  *   no other error is active).  A step still runs for an RPDO2 without a fresh
- *   RPDO1 (with the last currents), so the plant always gets a command.
+ *   RPDO1 (with the last currents), so the plant always gets a command; not for
+ *   a second copy of the sample just answered (same sample_index): its command
+ *   is out, and a second step would advance the controller twice and send the
+ *   plant two commands for one sample (its EMCY 0xFF02 still goes out).
  *
  * Non-finite values (0x2209:06 non_finite_rejected, counted once per step and
  * field): PDOs bypass the EDS limits, so a NaN or +-inf can arrive.
