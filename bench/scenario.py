@@ -21,7 +21,8 @@ Layout (every key optional except where noted)::
     Vdc_V = 300
     adc_noise_std_A = 0.0
 
-    [controller]                 # drive.eds "Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC"
+    [controller]                 # drive.eds "Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC",
+                                 # "Safe state" (meas_timeout_periods; clear = 1 in an event: a fault reset)
     controller = "deadbeat_you2019"
     L_hat_ratio = 0.5            # ratios to the plant's own values (R_hat_ratio, Ld_hat_ratio,
                                  # Lq_hat_ratio, L_hat_ratio = both, psi_hat_ratio)
@@ -65,7 +66,7 @@ from .faults.spec import Fault, FaultError, parse_faults
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
     "drive": ("plant", ("Inverter", "Sensors", "Run control")),
-    "controller": ("drive", ("Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC")),
+    "controller": ("drive", ("Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC", "Safe state")),
     "references": ("drive", ("References",)),
 }
 # Run-control entries the bench drives itself (scenario.timing sets the mode).

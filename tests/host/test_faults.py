@@ -1,0 +1,135 @@
+"""Faults on purpose in direct mode: every fault check, the [[faults]] table's errors, determinism, the
+report in summary.json and the events panel in Rerun, `bench faults` as a user runs it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+from bench.faults.checks import CHECKS, base, run_checks, with_fault
+from bench.paths import REPO
+from bench.run import RunOptions, run_scenario
+from bench.scenario import ScenarioError, load, parse
+
+SCEN = REPO / "scenarios" / "faults" / "you2019_drop_command.toml"
+
+
+@pytest.mark.parametrize("check", list(CHECKS))
+def test_fault_check_passes_in_direct_mode(check: str) -> None:
+    (c,) = run_checks("direct", [check])
+    assert c.ok, (c.expectation, c.measured)
+
+
+def test_a_check_fails_when_the_reaction_is_wrong() -> None:
+    """The checks can fail: with the drive's measurement timeout off (0x2209:01 = 0) there is no safe state."""
+    from bench.claims import run_raw
+
+    raw = base("fc-timeout-off")
+    raw["controller"]["meas_timeout_periods"] = 0
+    hit = run_raw(
+        with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "plant.TPDO2", "at_period": 30, "periods": 6}),
+        "direct",
+    )
+    assert not [e for e in hit.result.summary["emcy"] if e["code"] == "0xFF03"]
+
+
+@pytest.mark.parametrize(
+    ("fault", "message"),
+    [
+        ({"kind": "explode"}, "faults[0].kind = 'explode': expected one of drop, delay"),
+        ({"kind": "drop", "frame": "drive.TPDO9"}, "faults[0].frame = 'drive.TPDO9': expected one of SYNC"),
+        ({"kind": "drop"}, "name the frames with frame ="),
+        ({"kind": "drop", "frame": "SYNC", "at_period": 500}, "faults[0].at_period = 500: expected an integer in 0 .. 199"),
+        ({"kind": "drop", "frame": "SYNC", "probability": 1.5}, "probability = 1.5: expected a number in (0, 1]"),
+        ({"kind": "drop", "frame": "SYNC", "bit": 3}, "key 'bit' does not apply to kind 'drop'"),
+        ({"kind": "delay", "frame": "SYNC"}, "a delay needs exactly one of delay_periods"),
+        ({"kind": "delay", "frame": "SYNC", "delay_us": 300}, "delay_us: microseconds mean something only in real time"),
+        ({"kind": "corrupt", "frame": "SYNC", "bit": 64}, "faults[0].bit = 64: expected an integer in 0 .. 63"),
+        ({"kind": "freeze", "node": "plant", "periods": 3}, "freeze node = 'plant'"),
+        ({"kind": "kill", "node": "motor"}, "faults[0].node = 'motor': expected one of plant, drive"),
+        ({"kind": "drop", "cob_id": 0x190}, "with cob_id, say who sends the frames"),
+    ],
+)
+def test_a_bad_fault_is_named_before_anything_runs(fault: dict, message: str) -> None:
+    raw = {"scenario": {"name": "bad", "periods": 200}, "faults": [fault]}
+    with pytest.raises(ScenarioError) as exc:
+        parse(raw, "bad.toml")
+    assert message in str(exc.value), str(exc.value)
+
+
+def test_the_same_faults_give_the_same_run() -> None:
+    """A seeded probability hits the same frames in two runs, and the traces are equal bit for bit."""
+    raw = base("fc-random", periods=3000)
+    raw = with_fault(
+        raw, ["frames_lost"], {"kind": "drop", "frame": "drive.TPDO1", "probability": 0.01, "seed": 5}
+    )
+    sc = parse(raw, "<random>")
+    a = run_scenario(sc, RunOptions(bus="direct"), keep_trace=True)
+    b = run_scenario(parse(raw, "<random>"), RunOptions(bus="direct"), keep_trace=True)
+    fa, fb = a.summary["faults"]["injected"][0], b.summary["faults"]["injected"][0]
+    assert fa["action_periods"] == fb["action_periods"] and 10 <= fa["actions"] <= 50, fa
+    assert a.trace is not None and b.trace is not None
+    for col in a.trace:
+        assert np.array_equal(a.trace[col], b.trace[col], equal_nan=True), col
+    # every dropped command is one held period of the plant, at the next period
+    held = [r["period"] for r in a.summary["faults"]["reactions"] if r["what"] == "command held"]
+    assert held == [p + 1 for p in fa["action_periods"]][: len(held)]
+
+
+def test_bench_run_reports_the_faults_and_shows_them_in_rerun(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "run", str(SCEN), "--bus", "direct", "--out", str(out), "--no-viewer"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=300,
+    )
+    assert res.returncode == 0, res.stderr  # frames_lost, which the scenario expects
+    assert "fault 0: drop drive.TPDO1 at period 21: 1 action(s)" in res.stdout, res.stdout
+    s = json.loads((out / "summary.json").read_text())
+    f = s["faults"]["injected"][0]
+    assert f["first_period"] == 21 and f["held_periods"] == 1 and f["first_reaction"]["what"] == "command held"
+    assert f["reaction_periods"] == 1 and s["status"] == "frames_lost" and s["status_expected"]
+    texts = []
+    reader = RrdReader(out / "run.rrd")
+    for chunk in reader.stream(store=reader.recordings()[0]):
+        if chunk.entity_path.startswith("/events"):
+            b = chunk.to_record_batch()
+            col = [c for c in b.schema.names if c.endswith(":text")][0]
+            texts += [str(t) for t in b.column(col).flatten().to_pylist()]
+    assert any("fault 0: drop drive.TPDO1" in t for t in texts), texts
+    assert any("plant: command held" in t for t in texts), texts
+
+
+def test_bench_faults_cli(tmp_path: Path) -> None:
+    res = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "faults", "--only", "drop-command,kill-drive", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=300,
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "2 of 2 fault checks pass on bus direct" in res.stdout
+    data = json.loads((tmp_path / "faults.json").read_text())
+    assert [c["check_id"] for c in data["checks"]] == ["drop-command", "kill-drive"]
+    bad = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "faults", "--only", "drop-everything"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
+    assert bad.returncode == 2 and "unknown check 'drop-everything'" in bad.stderr
+
+
+def test_the_fault_scenario_file_loads() -> None:
+    sc = load(SCEN)
+    assert [f.kind for f in sc.faults] == ["drop"] and sc.faults[0].at_period == 21
