@@ -445,6 +445,7 @@ class Decoder:
             return np.zeros(len(pos), dtype=bool)
         code = buf["data"][emcy, 0].astype(np.int64) | (buf["data"][emcy, 1].astype(np.int64) << 8)
         entered = period_of[emcy[np.isin(code, codes)]]
+        entered = np.r_[entered, entered - 1]  # on a bus the EMCY, sent after the command, may follow the next SYNC
         zero = ~buf["data"][pos].any(axis=1)
         return np.r_[False, per[1:] == per[:-1]] & zero & np.isin(per, entered)
 

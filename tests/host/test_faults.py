@@ -45,11 +45,17 @@ def test_a_check_fails_when_the_reaction_is_wrong() -> None:
         ({"kind": "explode"}, "faults[0].kind = 'explode': expected one of drop, delay"),
         ({"kind": "drop", "frame": "drive.TPDO9"}, "faults[0].frame = 'drive.TPDO9': expected one of SYNC"),
         ({"kind": "drop"}, "name the frames with frame ="),
-        ({"kind": "drop", "frame": "SYNC", "at_period": 500}, "faults[0].at_period = 500: expected an integer in 0 .. 199"),
+        (
+            {"kind": "drop", "frame": "SYNC", "at_period": 500},
+            "faults[0].at_period = 500: expected an integer in 0 .. 199",
+        ),
         ({"kind": "drop", "frame": "SYNC", "probability": 1.5}, "probability = 1.5: expected a number in (0, 1]"),
         ({"kind": "drop", "frame": "SYNC", "bit": 3}, "key 'bit' does not apply to kind 'drop'"),
         ({"kind": "delay", "frame": "SYNC"}, "a delay needs exactly one of delay_periods"),
-        ({"kind": "delay", "frame": "SYNC", "delay_us": 300}, "delay_us: microseconds mean something only in real time"),
+        (
+            {"kind": "delay", "frame": "SYNC", "delay_us": 300},
+            "delay_us: microseconds mean something only in real time",
+        ),
         ({"kind": "corrupt", "frame": "SYNC", "bit": 64}, "faults[0].bit = 64: expected an integer in 0 .. 63"),
         ({"kind": "freeze", "node": "plant", "periods": 3}, "freeze node = 'plant'"),
         ({"kind": "kill", "node": "motor"}, "faults[0].node = 'motor': expected one of plant, drive"),
@@ -66,9 +72,7 @@ def test_a_bad_fault_is_named_before_anything_runs(fault: dict, message: str) ->
 def test_the_same_faults_give_the_same_run() -> None:
     """A seeded probability hits the same frames in two runs, and the traces are equal bit for bit."""
     raw = base("fc-random", periods=3000)
-    raw = with_fault(
-        raw, ["frames_lost"], {"kind": "drop", "frame": "drive.TPDO1", "probability": 0.01, "seed": 5}
-    )
+    raw = with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "drive.TPDO1", "probability": 0.01, "seed": 5})
     sc = parse(raw, "<random>")
     a = run_scenario(sc, RunOptions(bus="direct"), keep_trace=True)
     b = run_scenario(parse(raw, "<random>"), RunOptions(bus="direct"), keep_trace=True)
