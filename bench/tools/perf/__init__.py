@@ -20,9 +20,11 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 the same 1 s scenario); a table of the targets
 * vcan          ONE VM boot (or the host's vcan0): the real lockstep loop beside lockstep_floor (same frames,
                 no stack), and a longer run whose every frame is checked from the SYNC counters
+* soak          10^6 periods over vcan0 with the recorder (one VM boot): every frame checked (SYNC counters,
+                sample indices) and the resident memory of every process sampled once a second: flat or not
 * report        format_report
 
-`bench perf --json` prints the same as JSON; `--quick` skips the vcan and mcu parts and shrinks the pipeline
+`bench perf --json` prints the same as JSON; `--quick` skips the vcan, soak and mcu parts and shrinks the pipeline
 section (10^5 periods, one repetition, no 10^7, no peers). Inside the VM the helper
 `python -m bench.tools.perf --inside-vm --out FILE` runs.
 """
@@ -50,6 +52,7 @@ SECTIONS = (
     "rerun_live",
     "pipeline",
     "vcan",
+    "soak",
 )
 
 
@@ -86,6 +89,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         f"(periods = measured rate x budget, at most {TARGET_LONG_PERIODS}; "
         f"default {VM_LONG_BUDGET_S:.0f})",
     )
+    p.add_argument(
+        "--soak-periods",
+        type=int,
+        default=1_000_000,
+        help="periods of the soak run over vcan (default 10^6: every frame checked, memory of every process sampled)",
+    )
     p.add_argument("--save", type=Path, default=PERF_DIR / "perf.json", help="also write the JSON here")
     p.add_argument("--inside-vm", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -97,6 +106,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
     from .live import rerun_live
     from .mcu import mcu_in_the_loop
     from .pipeline import Sizes, pipeline
+    from .soak import soak
     from .sweep import sweep_scaling
     from .vcan import vcan
 
@@ -117,6 +127,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
         "rerun_live": rerun_live,
         "pipeline": lambda: pipeline(sizes, note=note),
         "vcan": lambda: vcan(args),
+        "soak": lambda: soak(args.soak_periods),
     }
 
 
@@ -150,7 +161,7 @@ def main(args: argparse.Namespace) -> int:
     for name in SECTIONS:
         if name not in only:
             continue
-        if name in ("vcan", "mcu") and args.quick:
+        if name in ("vcan", "mcu", "soak") and args.quick:
             res[name] = None
             continue
         note("vcan (one VM boot, ~2 min)" if name == "vcan" else name)

@@ -374,6 +374,9 @@ def format_report(r: dict[str, Any]) -> str:
     _cores(r, L)
     _pipeline(r, L)
     _vcan(r, L)
+    from .soak import format_soak
+
+    format_soak(r, L)
     L.append("")
     L.append(f"total wall time {r['wall_s']:.0f} s; JSON saved to {r.get('saved')}")
     return "\n".join(L)
