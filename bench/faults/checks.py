@@ -136,7 +136,7 @@ def check_drop_command(bus: str) -> FaultCheck:
         "drop-command",
         f"the drive's voltage command of period {p} dropped on the bus (the one after the step's 83 V kick)",
         "the plant holds the last command for exactly one period (status bit 3), and the deadbeat loop is within "
-        "5 % of the fault-free trace 2 periods after the held one",
+        "5 % of the fault-free trace 2 periods after the first sample that shows it",
         {"held_periods": h, **rec},
         h == [p + 1] and rec["periods_to_5pct"] <= 2,
         bus,
@@ -156,7 +156,7 @@ def check_delay_command(bus: str) -> FaultCheck:
         f"the command of period {p} delayed by one period",
         "it arrives after the SYNC it was meant for: the plant holds the last command for that one period, counts "
         "the late command, never applies it (the next command has arrived by the following SYNC); the loop is "
-        "within 5 % of the fault-free trace 2 periods after the held one",
+        "within 5 % of the fault-free trace 2 periods after the first sample that shows it",
         {"held_periods": h, "plant_late_commands": late, **rec},
         h == [p + 1] and late is not None and late >= 1 and rec["periods_to_5pct"] <= 2,
         bus,

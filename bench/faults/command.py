@@ -57,7 +57,7 @@ def main(args: argparse.Namespace) -> int:
     for c in results:
         print(f"{'pass' if c.ok else 'FAIL':<5} {c.check_id:<24} {c.fault}")
         print(f"      expected: {c.expectation}")
-        print(f"      measured: {', '.join(f'{k} {_fmt(v)}' for k, v in c.measured.items())}")
+        print(f"      measured: {', '.join(f'{k} {_fmt(v, k)}' for k, v in c.measured.items())}")
     failed = [c.check_id for c in results if not c.ok]
     print(
         f"\n{len(results) - len(failed)} of {len(results)} fault checks pass on bus {args.bus} "
@@ -71,9 +71,9 @@ def main(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _fmt(v: object) -> str:
+def _fmt(v: object, key: str = "") -> str:
     if isinstance(v, float):
-        return f"{v:.4g}"
+        return f"{v:.7g}" if key.endswith("_s") else f"{v:.4g}"
     if isinstance(v, list) and len(v) > 8:
         return f"[{', '.join(map(str, v[:8]))}, ... ({len(v)})]"
     return str(v)

@@ -183,7 +183,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         if outputs is not None:
             outputs.abort()
         from ..canbus import LinkError
-        from .session import SettingRefused
+        from .configure import SettingRefused
 
         if isinstance(exc, SettingRefused | LinkError):  # bad input or a link not usable: said, nothing left
             print(f"bench run: {exc}", file=sys.stderr)

@@ -28,23 +28,20 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoEr
 from ..canbus import ensure_vcan, link_info, prepare_can_link
 from ..eds import load as load_od
 from ..faults import rules_text
-from ..scenario import Scenario, Setting
+from ..scenario import Scenario
 from .buses import VCAN
+from .configure import Configurator
 from .direct import DirectBus, Hil
+from .direct_loop import DirectLoop
 from .gateway import FaultGateway
-from .liveness import NMT_STATES, Liveness, LoopStopped
+from .liveness import Liveness, LoopStopped
 from .nodes import NodeProcess
 from .slcan_bridge import SlcanBridge
-from .summary import END_READS, PLANT_VALUES, STEP_COST
+from .summary import END_READS, STEP_COST
 
 PROGRESS = Callable[[int, int], None]
 
 
-class SettingRefused(RuntimeError):
-    """A node refused a value of the scenario (SDO abort): bad input, named with the EDS's limits."""
-
-
-HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
 
 
@@ -97,11 +94,7 @@ def run_options(args: Any, out: Path) -> RunOptions:
     )
 
 
-def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
-    return node.sdo[obj] if sub is None else node.sdo[obj][sub]
-
-
-class Session:
+class Session(Configurator, DirectLoop):
     def __init__(self, sc: Scenario, opts: RunOptions) -> None:
         self.sc = sc
         self.opts = opts
@@ -279,146 +272,6 @@ class Session:
                     f"(is it on bus {self.opts.bus}?)"
                 )
 
-    # ---------------------------------------------------------------- configuration
-    def _write(self, var, value: float | int, what: str) -> None:  # type: ignore[no-untyped-def]
-        """One SDO write; a refusal names the scenario key, the value and the node's reason."""
-        try:
-            var.raw = value
-        except SdoAbortedError as exc:
-            raise SettingRefused(
-                f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
-                f"{var.od.qualname!r}) at period {self._period}: {exc}{self._limits(var)}"
-            ) from None
-
-    def _limits(self, var) -> str:  # type: ignore[no-untyped-def]
-        """What the EDS says the value must be: its range, its description, and a limit in Ts worked out."""
-        import re
-
-        od = var.od
-        parts = []
-        if od.min is not None or od.max is not None:
-            parts.append(
-                f"range {od.min if od.min is not None else '-inf'} .. {od.max if od.max is not None else 'inf'}"
-            )
-        if od.description:
-            parts.append(od.description)
-        m = re.search(r"1/\((\d+) Ts\)", od.description or "")
-        if m:
-            try:
-                node = self.drive if var.sdo_node is self.drive.sdo else self.plant
-                ts = float(
-                    node.sdo["Controller"]["Ts_s"].raw if node is self.drive else node.sdo["Inverter"]["Ts_s"].raw
-                )
-                parts.append(
-                    f"with the node's Ts_s = {ts:g} s now, 1/({m.group(1)} Ts) = {1.0 / (int(m.group(1)) * ts):.6g}"
-                )
-            except Exception:  # noqa: BLE001 - the message is still useful without it
-                pass
-        return ("; the EDS says: " + "; ".join(parts)) if parts else ""
-
-    def _apply(self, s: Setting) -> None:
-        self.applied.append((self._period, s.key, float(s.value)))
-        if s.param is None:  # ratio of a plant value
-            for drive_name, plant_name in s.ratio_of:
-                value = self.plant_values[plant_name] * float(s.value)
-                self._write(_entry(self.drive, "Controller", drive_name), value, f"{s.key} -> {drive_name}")
-            return
-        node = self.plant if s.param.node == "plant" else self.drive
-        self._write(_entry(node, s.param.obj, s.param.name), s.value, s.key)
-        if s.param.obj == "References":
-            self.references.append((self._period, s.param.name, float(s.value)))
-
-    def configure(self) -> None:
-        self._period = 0
-        sc, plant, drive = self.sc, self.plant, self.drive
-        self.configure_heartbeats()
-        if sc.preset:
-            plant.sdo["Motor preset"].raw = sc.preset
-        plant.sdo["Sensors"]["rng_seed"].raw = sc.seed
-        plant.sdo["Run control"]["mode"].raw = 0 if sc.timing == "lockstep" else 1
-        for s in sc.settings:
-            if s.param is not None and s.param.node == "plant":
-                self._apply(s)
-        # Read back by SDO, so that the log carries the plant the run had (bench/run/sdo_log.py).
-        for obj, names in PLANT_VALUES:
-            for name in names:
-                self.plant_values[name] = plant.sdo[obj][name].raw
-        # The controller starts from the plant's true values; the scenario's mismatch follows.
-        ctl = drive.sdo["Controller"]
-        for hat, true in (
-            ("R_hat_ohm", "R_ohm"),
-            ("Ld_hat_H", "Ld_H"),
-            ("Lq_hat_H", "Lq_H"),
-            ("psi_hat_Wb", "psi_Wb"),
-            ("J_hat_kgm2", "J_kgm2"),
-        ):
-            self._write(ctl[hat], self.plant_values[true], f"controller.{hat}")
-        explicit = {s.key for s in sc.settings}
-        for s in sc.settings:
-            if s.param is None or s.param.node == "drive":
-                self._apply(s)
-        # The controller runs at the plant's period with its pole pairs, unless the scenario says otherwise;
-        # written after the scenario's bandwidths, which the drive checks against Ts.
-        for name in ("Ts_s", "pole_pairs"):
-            if f"controller.{name}" not in explicit:
-                self._write(ctl[name], self.plant_values[name], f"controller.{name} (= the plant's {name})")
-        for e in sc.events:
-            if e.at_period == 0:
-                for s in e.settings:
-                    self._apply(s)
-        self.wire_pdos()
-
-    def configure_heartbeats(self) -> None:
-        """CiA 301 error control: each node produces a heartbeat (0x1017) and consumes the other's
-        (0x1016: a lost drive stops the plant, EMCY 0x8130 from either tells the bench)."""
-        hb, to = self.opts.heartbeat_ms, self.opts.heartbeat_timeout_ms
-        if not 0 < hb < to <= 0xFFFF:
-            raise ValueError(f"heartbeat {hb} ms, consumer time {to} ms: need 0 < heartbeat < consumer time <= 65535")
-        for node, other in ((self.plant, self.drive), (self.drive, self.plant)):
-            self._write(
-                node.sdo["Consumer heartbeat time"][1],
-                (other.id << 16) | to,
-                f"consumer heartbeat time of node 0x{other.id:02X}",
-            )
-            self._write(node.sdo["Producer heartbeat time"], hb, "producer heartbeat time")
-
-    def wire_pdos(self) -> None:
-        """Link the plant's measurement TPDOs to the drive's RPDOs and the drive's command
-        TPDO to the plant's RPDO (COB-IDs read from the nodes), and map the trace PDOs."""
-        plant, drive = self.plant, self.drive
-        plant.tpdo.read()
-        drive.tpdo.read()
-        drive.rpdo.read()
-        plant.rpdo.read()
-        for num in (1, 2):
-            m = drive.rpdo[num]
-            m.cob_id = plant.tpdo[num].cob_id
-            m.enabled = True
-            m.save()
-        m = plant.rpdo[1]
-        m.cob_id = drive.tpdo[1].cob_id
-        m.enabled = True
-        m.save()
-        # The plant's hold announcement: an event-driven TPDO carrying the run state, sent once when the
-        # plant holds with the last command in (plant_app.c). The master waits for it instead of polling.
-        m = plant.tpdo[HOLD_TPDO]
-        m.clear()
-        m.add_variable("Run control", "period_index")
-        m.add_variable("Run control", "state")
-        m.trans_type = 254
-        m.enabled = True
-        m.save()
-        self._hold_cob = m.cob_id
-        for num, signals in self.sc.trace.items():
-            m = drive.tpdo[num]
-            m.clear()
-            for sig in signals:
-                obj, sub = sig.split(".")
-                m.add_variable(obj, sub)
-            m.trans_type = 1  # synchronous: the values after step k-1, sent at SYNC k
-            m.enabled = True
-            m.save()
-
     # ---------------------------------------------------------------- run
     def _on_hold(self, cob_id: int, data: bytearray, ts: float) -> None:
         if len(data) != 5:  # a foreign frame on the announcement's identifier (the decoder counts it)
@@ -427,88 +280,6 @@ class Session:
         if state == 0:
             self._hold_index = index
             self._hold.set()
-
-    def _run_direct(self, n: int, tick: Callable[[], None] | None) -> None:
-        """The C loop in chunks on a thread of its own (ctypes releases the GIL), so that this thread
-        decodes chunk k (`tick`) while the loop runs chunk k+1: the two cores work at once. After each
-        chunk `on_direct_chunk` (the frame source) takes the recorded frames; it blocks while two chunks
-        wait, so memory stays bounded when decoding is the slower side."""
-        ready = threading.Event()
-        done = threading.Event()
-        stop = threading.Event()
-        errors: list[BaseException] = []
-        ran = [0]
-
-        def produce() -> None:
-            try:
-                while ran[0] < n and not stop.is_set():  # in chunks: bounded memory, Ctrl-C seen promptly
-                    assert self.hil is not None
-                    got = self.hil.run(min(self.opts.chunk_periods, n - ran[0]))
-                    if got == 0:
-                        break
-                    ran[0] += got
-                    if self.on_direct_chunk is not None:
-                        self.on_direct_chunk()
-                    ready.set()
-            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
-                errors.append(exc)
-            finally:
-                done.set()
-                ready.set()
-
-        th = threading.Thread(target=produce, daemon=True, name="bench-direct-loop")
-        th.start()
-        try:
-            while not done.is_set():
-                ready.wait(0.5)
-                ready.clear()
-                if tick:
-                    tick()
-        finally:
-            stop.set()
-            if self.on_direct_stop is not None:
-                self.on_direct_stop()
-            th.join()
-        if errors:
-            raise errors[0]
-        if tick:
-            tick()
-        if ran[0] != n:
-            self._direct_stopped(ran[0], n)
-
-    def _direct_stopped(self, ran: int, n: int) -> None:
-        """Why the in-process loop stopped early, named as the liveness monitor names it on a bus: a node
-        killed or out of OPERATIONAL (a fault), or a stall (simulated time ran on without a period)."""
-        assert self.hil is not None
-        at = self.hil.period()
-        down = self.hil.nodes_down()
-        for name, state in down.items():
-            nid = self.opts.plant_id if name == "plant" else self.opts.drive_id
-            how = "was killed" if state == 0xFF else f"left OPERATIONAL: it is {NMT_STATES.get(state, hex(state))}"
-            raise LoopStopped(
-                "node_lost",
-                f"the {name} (node 0x{nid:02X}) {how} at period {at}",
-                node=name,
-                node_id=nid,
-                at_period=at,
-                detected_after_s=0.0,
-                details={"cause": "killed" if state == 0xFF else "left_operational"},
-            )
-        raise LoopStopped(
-            "frames_lost",
-            f"the loop stalled at period {at} after {ran} of {n} periods: 10 s of simulated time without a "
-            "period (a frame of the loop was lost and nothing timed out: 0x2003:04 command_timeout_us is 0)",
-            at_period=at,
-        )
-
-    def linger(self) -> None:
-        """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
-        fires after the consumer time): the consumer time plus a margin, simulated in direct mode."""
-        wait = self.opts.heartbeat_timeout_ms / 1000.0 + 0.3
-        if self.hil is not None:
-            self.hil.linger(wait)  # its frames go with the final drain of the recorder
-        else:
-            time.sleep(wait)
 
     def _run_segment(self, n: int, target_index: int, tick: Callable[[], None] | None) -> None:
         rc = self.plant.sdo["Run control"]

@@ -100,7 +100,7 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
             if errors:
                 raise errors[0]
             if rc == CAPTURE_REFUSED:
-                from .session import SettingRefused
+                from .configure import SettingRefused
 
                 raise SettingRefused("a node refused a value of the scenario (the line above says which)")
             if rc == CAPTURE_LINK:
@@ -177,7 +177,7 @@ def capture_only(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     opts = run_options(args, args.out)
     from ..canbus import LinkError
-    from .session import SettingRefused
+    from .configure import SettingRefused
 
     try:
         run_wall, stopped, links = capture_to_log(sc, opts)

@@ -214,8 +214,8 @@ def recorder_check(d: Path) -> dict[str, Any]:
     `bench run` and `bench replay` do) and in candump's log order, SYNC-counter gaps, missing
     measurements and commands, per COB-ID counts against what the periods should have sent."""
     from ...run.canlog import read_frames
+    from ...run.configure import HOLD_TPDO
     from ...run.pipeline import Pipeline, replay_log
-    from ...run.session import HOLD_TPDO
 
     meta = json.loads((d / "perf_capture.json").read_text())
     periods = int(meta["periods"])

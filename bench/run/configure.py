@@ -1,0 +1,181 @@
+"""The SDO configuration of a run (part of Session): the scenario's settings written by their EDS names,
+each refusal named with the EDS's limits; heartbeats; the PDO wiring and the trace PDOs."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import canopen
+from canopen.sdo.exceptions import SdoAbortedError
+
+from ..scenario import Setting
+from .summary import PLANT_VALUES
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
+    from .session import RunOptions
+
+HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
+
+
+class SettingRefused(RuntimeError):
+    """A node refused a value of the scenario (SDO abort): bad input, named with the EDS's limits."""
+
+
+def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
+    return node.sdo[obj] if sub is None else node.sdo[obj][sub]
+
+
+class Configurator:
+    """Mixed into Session: uses its sc, opts, plant, drive, plant_values, references, applied, _period,
+    _hold_cob."""
+
+    sc: Scenario
+    opts: RunOptions
+    plant: canopen.RemoteNode
+    drive: canopen.RemoteNode
+    plant_values: dict[str, Any]
+    references: list[tuple[int, str, float]]
+    applied: list[tuple[int, str, float]]
+    _period: int
+    _hold_cob: int
+
+    # ---------------------------------------------------------------- configuration
+    def _write(self, var, value: float | int, what: str) -> None:  # type: ignore[no-untyped-def]
+        """One SDO write; a refusal names the scenario key, the value and the node's reason."""
+        try:
+            var.raw = value
+        except SdoAbortedError as exc:
+            raise SettingRefused(
+                f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
+                f"{var.od.qualname!r}) at period {self._period}: {exc}{self._limits(var)}"
+            ) from None
+
+    def _limits(self, var) -> str:  # type: ignore[no-untyped-def]
+        """What the EDS says the value must be: its range, its description, and a limit in Ts worked out."""
+        import re
+
+        od = var.od
+        parts = []
+        if od.min is not None or od.max is not None:
+            parts.append(
+                f"range {od.min if od.min is not None else '-inf'} .. {od.max if od.max is not None else 'inf'}"
+            )
+        if od.description:
+            parts.append(od.description)
+        m = re.search(r"1/\((\d+) Ts\)", od.description or "")
+        if m:
+            try:
+                node = self.drive if var.sdo_node is self.drive.sdo else self.plant
+                ts = float(
+                    node.sdo["Controller"]["Ts_s"].raw if node is self.drive else node.sdo["Inverter"]["Ts_s"].raw
+                )
+                parts.append(
+                    f"with the node's Ts_s = {ts:g} s now, 1/({m.group(1)} Ts) = {1.0 / (int(m.group(1)) * ts):.6g}"
+                )
+            except Exception:  # noqa: BLE001 - the message is still useful without it
+                pass
+        return ("; the EDS says: " + "; ".join(parts)) if parts else ""
+
+    def _apply(self, s: Setting) -> None:
+        self.applied.append((self._period, s.key, float(s.value)))
+        if s.param is None:  # ratio of a plant value
+            for drive_name, plant_name in s.ratio_of:
+                value = self.plant_values[plant_name] * float(s.value)
+                self._write(_entry(self.drive, "Controller", drive_name), value, f"{s.key} -> {drive_name}")
+            return
+        node = self.plant if s.param.node == "plant" else self.drive
+        self._write(_entry(node, s.param.obj, s.param.name), s.value, s.key)
+        if s.param.obj == "References":
+            self.references.append((self._period, s.param.name, float(s.value)))
+
+    def configure(self) -> None:
+        self._period = 0
+        sc, plant, drive = self.sc, self.plant, self.drive
+        self.configure_heartbeats()
+        if sc.preset:
+            plant.sdo["Motor preset"].raw = sc.preset
+        plant.sdo["Sensors"]["rng_seed"].raw = sc.seed
+        plant.sdo["Run control"]["mode"].raw = 0 if sc.timing == "lockstep" else 1
+        for s in sc.settings:
+            if s.param is not None and s.param.node == "plant":
+                self._apply(s)
+        # Read back by SDO, so that the log carries the plant the run had (bench/run/sdo_log.py).
+        for obj, names in PLANT_VALUES:
+            for name in names:
+                self.plant_values[name] = plant.sdo[obj][name].raw
+        # The controller starts from the plant's true values; the scenario's mismatch follows.
+        ctl = drive.sdo["Controller"]
+        for hat, true in (
+            ("R_hat_ohm", "R_ohm"),
+            ("Ld_hat_H", "Ld_H"),
+            ("Lq_hat_H", "Lq_H"),
+            ("psi_hat_Wb", "psi_Wb"),
+            ("J_hat_kgm2", "J_kgm2"),
+        ):
+            self._write(ctl[hat], self.plant_values[true], f"controller.{hat}")
+        explicit = {s.key for s in sc.settings}
+        for s in sc.settings:
+            if s.param is None or s.param.node == "drive":
+                self._apply(s)
+        # The controller runs at the plant's period with its pole pairs, unless the scenario says otherwise;
+        # written after the scenario's bandwidths, which the drive checks against Ts.
+        for name in ("Ts_s", "pole_pairs"):
+            if f"controller.{name}" not in explicit:
+                self._write(ctl[name], self.plant_values[name], f"controller.{name} (= the plant's {name})")
+        for e in sc.events:
+            if e.at_period == 0:
+                for s in e.settings:
+                    self._apply(s)
+        self.wire_pdos()
+
+    def configure_heartbeats(self) -> None:
+        """CiA 301 error control: each node produces a heartbeat (0x1017) and consumes the other's
+        (0x1016: a lost drive stops the plant, EMCY 0x8130 from either tells the bench)."""
+        hb, to = self.opts.heartbeat_ms, self.opts.heartbeat_timeout_ms
+        if not 0 < hb < to <= 0xFFFF:
+            raise ValueError(f"heartbeat {hb} ms, consumer time {to} ms: need 0 < heartbeat < consumer time <= 65535")
+        for node, other in ((self.plant, self.drive), (self.drive, self.plant)):
+            self._write(
+                node.sdo["Consumer heartbeat time"][1],
+                (other.id << 16) | to,
+                f"consumer heartbeat time of node 0x{other.id:02X}",
+            )
+            self._write(node.sdo["Producer heartbeat time"], hb, "producer heartbeat time")
+
+    def wire_pdos(self) -> None:
+        """Link the plant's measurement TPDOs to the drive's RPDOs and the drive's command
+        TPDO to the plant's RPDO (COB-IDs read from the nodes), and map the trace PDOs."""
+        plant, drive = self.plant, self.drive
+        plant.tpdo.read()
+        drive.tpdo.read()
+        drive.rpdo.read()
+        plant.rpdo.read()
+        for num in (1, 2):
+            m = drive.rpdo[num]
+            m.cob_id = plant.tpdo[num].cob_id
+            m.enabled = True
+            m.save()
+        m = plant.rpdo[1]
+        m.cob_id = drive.tpdo[1].cob_id
+        m.enabled = True
+        m.save()
+        # The plant's hold announcement: an event-driven TPDO carrying the run state, sent once when the
+        # plant holds with the last command in (plant_app.c). The master waits for it instead of polling.
+        m = plant.tpdo[HOLD_TPDO]
+        m.clear()
+        m.add_variable("Run control", "period_index")
+        m.add_variable("Run control", "state")
+        m.trans_type = 254
+        m.enabled = True
+        m.save()
+        self._hold_cob = m.cob_id
+        for num, signals in self.sc.trace.items():
+            m = drive.tpdo[num]
+            m.clear()
+            for sig in signals:
+                obj, sub = sig.split(".")
+                m.add_variable(obj, sub)
+            m.trans_type = 1  # synchronous: the values after step k-1, sent at SYNC k
+            m.enabled = True
+            m.save()

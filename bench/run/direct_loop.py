@@ -1,0 +1,106 @@
+"""The in-process loop of direct mode (part of Session): the C loop on a thread of its own in chunks,
+and why it stopped early, named as the liveness monitor names it on a bus."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from .liveness import NMT_STATES, LoopStopped
+
+if TYPE_CHECKING:
+    from .direct import Hil
+    from .session import RunOptions
+
+
+class DirectLoop:
+    """Mixed into Session: uses its hil, opts, on_direct_chunk, on_direct_stop."""
+
+    hil: Hil | None
+    opts: RunOptions
+    on_direct_chunk: Callable[[], None] | None
+    on_direct_stop: Callable[[], None] | None
+
+    def _run_direct(self, n: int, tick: Callable[[], None] | None) -> None:
+        """The C loop in chunks on a thread of its own (ctypes releases the GIL), so that this thread
+        decodes chunk k (`tick`) while the loop runs chunk k+1: the two cores work at once. After each
+        chunk `on_direct_chunk` (the frame source) takes the recorded frames; it blocks while two chunks
+        wait, so memory stays bounded when decoding is the slower side."""
+        ready = threading.Event()
+        done = threading.Event()
+        stop = threading.Event()
+        errors: list[BaseException] = []
+        ran = [0]
+
+        def produce() -> None:
+            try:
+                while ran[0] < n and not stop.is_set():  # in chunks: bounded memory, Ctrl-C seen promptly
+                    assert self.hil is not None
+                    got = self.hil.run(min(self.opts.chunk_periods, n - ran[0]))
+                    if got == 0:
+                        break
+                    ran[0] += got
+                    if self.on_direct_chunk is not None:
+                        self.on_direct_chunk()
+                    ready.set()
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
+                errors.append(exc)
+            finally:
+                done.set()
+                ready.set()
+
+        th = threading.Thread(target=produce, daemon=True, name="bench-direct-loop")
+        th.start()
+        try:
+            while not done.is_set():
+                ready.wait(0.5)
+                ready.clear()
+                if tick:
+                    tick()
+        finally:
+            stop.set()
+            if self.on_direct_stop is not None:
+                self.on_direct_stop()
+            th.join()
+        if errors:
+            raise errors[0]
+        if tick:
+            tick()
+        if ran[0] != n:
+            self._direct_stopped(ran[0], n)
+
+    def _direct_stopped(self, ran: int, n: int) -> None:
+        """Why the in-process loop stopped early, named as the liveness monitor names it on a bus: a node
+        killed or out of OPERATIONAL (a fault), or a stall (simulated time ran on without a period)."""
+        assert self.hil is not None
+        at = self.hil.period()
+        down = self.hil.nodes_down()
+        for name, state in down.items():
+            nid = self.opts.plant_id if name == "plant" else self.opts.drive_id
+            how = "was killed" if state == 0xFF else f"left OPERATIONAL: it is {NMT_STATES.get(state, hex(state))}"
+            raise LoopStopped(
+                "node_lost",
+                f"the {name} (node 0x{nid:02X}) {how} at period {at}",
+                node=name,
+                node_id=nid,
+                at_period=at,
+                detected_after_s=0.0,
+                details={"cause": "killed" if state == 0xFF else "left_operational"},
+            )
+        raise LoopStopped(
+            "frames_lost",
+            f"the loop stalled at period {at} after {ran} of {n} periods: 10 s of simulated time without a "
+            "period (a frame of the loop was lost and nothing timed out: 0x2003:04 command_timeout_us is 0)",
+            at_period=at,
+        )
+
+    def linger(self) -> None:
+        """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
+        fires after the consumer time): the consumer time plus a margin, simulated in direct mode."""
+        wait = self.opts.heartbeat_timeout_ms / 1000.0 + 0.3
+        if self.hil is not None:
+            self.hil.linger(wait)  # its frames go with the final drain of the recorder
+        else:
+            time.sleep(wait)
