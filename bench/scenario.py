@@ -275,7 +275,7 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     if "trace" in raw:
         sc.trace = _trace(where, raw["trace"])
     try:
-        sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed)
+        sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
     except FaultError as exc:
         raise ScenarioError(str(exc)) from None
     return sc

@@ -98,12 +98,12 @@ static void hear(uint8_t side, const co_frame_t *f)
 }
 
 /* The injector's output: a frame arrives on side `to`. */
-static void emit(void *user, const co_frame_t *f, uint8_t to)
+static void emit(void *user, const co_frame_t *f, uint8_t to, uint8_t from)
 {
     (void)user;
     if (to == FI_SIDE_A) {
-        /* from the drive, or made by the injector (an NMT reset of a node fault) */
-        record(f, H.cur_side == FI_SIDE_B ? (uint8_t)H.drive_port : CO_MEMBUS_EXTERNAL);
+        /* from the drive (also when released late), or made by the injector (an NMT reset) */
+        record(f, from == FI_SIDE_B ? (uint8_t)H.drive_port : CO_MEMBUS_EXTERNAL);
         hear(FI_SIDE_A, f);
     } else {
         hear(FI_SIDE_B, f);
@@ -140,7 +140,6 @@ static void deliver(void)
             record(&f, sender);
             if (sender == CO_MEMBUS_EXTERNAL) hear(FI_SIDE_A, &f); /* the master's frame reaches the plant */
         }
-        H.cur_side = side;
         fi_frame(&H.fi, &f, side, H.now_us);
     }
 }

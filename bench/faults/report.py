@@ -99,7 +99,7 @@ def build(
     return {
         "injected": per_fault,
         "actions": len(events),
-        "actions_not_logged": lost,
+        "actions_not_logged": lost,  # -1: the gateway's log is missing (it died): the actions are unknown
         "reactions": reactions[:MAX_LISTED],
         "reaction_counts": {
             "held_periods": status.counts["held"],

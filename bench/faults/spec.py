@@ -114,11 +114,26 @@ def frame_names() -> tuple[str, ...]:
     return ("SYNC", *pdos, "plant.heartbeat", "drive.heartbeat", "plant.EMCY", "drive.EMCY")
 
 
-def parse_faults(raw: Any, where: str, periods: int, timing: str, seed: int) -> list[Fault]:
+def max_rules() -> int:
+    """FI_MAX_RULES of protocols/faults/fault_injector.h (the injector's fixed rule table)."""
+    import re
+
+    from ..paths import REPO
+
+    text = (REPO / "protocols" / "faults" / "fault_injector.h").read_text()
+    m = re.search(r"#define\s+FI_MAX_RULES\s+(\d+)u", text)
+    return int(m.group(1)) if m else 0
+
+
+def parse_faults(
+    raw: Any, where: str, periods: int, timing: str, seed: int, event_periods: tuple[int, ...] = ()
+) -> list[Fault]:
     if raw is None:
         return []
     if not isinstance(raw, list):
         raise FaultError(f"{where}: faults must be an array of tables ([[faults]])")
+    if len(raw) > max_rules():
+        raise FaultError(f"{where}: {len(raw)} [[faults]] entries; the injector holds at most {max_rules()}")
     out = []
     for i, ent in enumerate(raw):
         w = f"{where}: faults[{i}]"
@@ -149,6 +164,20 @@ def parse_faults(raw: Any, where: str, periods: int, timing: str, seed: int) -> 
                     "plant would never be thawed; freeze the drive, or kill the plant"
                 )
             f["node"] = node
+            if kind == "freeze":
+                # the drive thaws at the SYNC of period at + periods: that period must come, and no event (written
+                # by SDO to the frozen drive, at the hold before its period) may fall inside
+                if at + span > periods - 1:
+                    raise FaultError(
+                        f"{w}: freeze from period {at} for {span} periods ends at {at + span}, after the run's last "
+                        f"period {periods - 1}: the drive would still be frozen when the bench reads its statuses"
+                    )
+                inside = [e for e in event_periods if at < e <= at + span]
+                if inside:
+                    raise FaultError(
+                        f"{w}: freeze from period {at} for {span} periods covers the event at period {inside[0]}: its "
+                        "settings go to the drive by SDO, which a frozen drive cannot answer; move one of them"
+                    )
         if kind == "delay":
             dp, du = ent.get("delay_periods"), ent.get("delay_us")
             if (dp is None) == (du is None):

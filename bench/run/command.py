@@ -59,7 +59,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="the drive node's own interface, another adapter on the same bus (a lab bench with two USB "
         "adapters: --bus can0 --drive-bus can1 puts the plant, master and recorder on can0 and the drive on "
         "can1; on hosts without CAN the VM supplies can0/can1 as emulated Kvaser PCIcan controllers on one "
-        "emulated bus); default: the drive is on --bus",
+        "emulated bus); default: the drive is on --bus. A scenario with [[faults]] puts the drive on a bus of "
+        "its own, joined to --bus by the fault gateway (docs/FAULTS.md): vcanN+1 for --bus vcanN",
     )
     p.add_argument(
         "--drive",

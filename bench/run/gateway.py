@@ -5,6 +5,7 @@ in-process bus, so a scenario's [[faults]] hit the same frames at the same perio
 from __future__ import annotations
 
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -62,13 +63,14 @@ def read_log(path: Path) -> tuple[list[tuple[Any, ...]], int]:
     not keep."""
     events: list[tuple[Any, ...]] = []
     lost = 0
-    if not path.exists():
-        return events, lost
+    if not path.exists():  # the gateway died or was killed before writing it: nothing is known
+        print(f"bench: {path} is missing: the fault gateway's actions are unknown", file=sys.stderr)
+        return events, -1
     for line in path.read_text().splitlines():
         if line.startswith("# frames_in"):
             f = line.split()
             vals = dict(zip(f[1::2], f[2::2], strict=False))
-            lost = int(vals.get("log_overflow", 0)) + int(vals.get("held_overflow", 0))
+            lost = sum(int(vals.get(k, 0)) for k in ("log_overflow", "held_overflow", "send_errors"))
             continue
         if not line or line.startswith("#"):
             continue

@@ -30,7 +30,7 @@ from ..eds import load as load_od
 from ..faults import rules_text
 from ..scenario import Scenario
 from .buses import VCAN
-from .configure import Configurator
+from .configure import Configurator, SettingRefused
 from .direct import DirectBus, Hil
 from .direct_loop import DirectLoop
 from .gateway import FaultGateway
@@ -131,14 +131,30 @@ class Session(Configurator, DirectLoop):
         if name is None:
             m = re.fullmatch(r"vcan(\d+)", self.opts.bus)
             if m is None:
-                raise ValueError(
+                raise SettingRefused(
                     f"[[faults]] over {self.opts.bus}: name the drive's own bus with --drive-bus (the fault gateway "
                     "joins two buses; on one bus every node hears every frame and nothing can be injected)"
                 )
             name = f"vcan{int(m.group(1)) + 1}"
         if name == self.opts.bus:
-            raise ValueError(f"[[faults]]: --drive-bus {name} is the plant's bus; the fault gateway needs two buses")
+            raise SettingRefused(
+                f"[[faults]]: --drive-bus {name} is the plant's bus; the fault gateway needs two buses"
+            )
         return name
+
+    def _check_node_faults(self) -> None:
+        """Over a bus the gateway freezes and kills node processes the bench started (their PIDs): a fault on a
+        node it did not start (--no-drive, a physical drive, the MCU image) is refused before anything starts."""
+        if self.opts.interface != "socketcan" and self.sc.faults:
+            raise SettingRefused("[[faults]] need SocketCAN (the fault gateway joins two SocketCAN interfaces)")
+        ours = {"plant": self.opts.start_plant, "drive": self.opts.start_drive and self.opts.drive == "node"}
+        for f in self.sc.faults:
+            if f.kind in ("freeze", "kill") and f.node is not None and not ours[f.node]:
+                raise SettingRefused(
+                    f"faults[{f.index}]: {f.kind} the {f.node}: over a bus the fault gateway stops or kills the "
+                    f"{f.node}'s process, and this run does not start one (a physical node, --no-{f.node} or "
+                    "--drive mcu); use reset or silence_heartbeat"
+                )
 
     def prepare_links(self) -> None:
         """CAN controllers up at their bit rate (canbus.prepare_can_link), their state before the run noted;
@@ -164,6 +180,7 @@ class Session(Configurator, DirectLoop):
                 return None if out is None else out / f"{name}.out"
 
             drive_bus = self.drive_side_bus()
+            self._check_node_faults()
             self.prepare_links()
             self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}
             if self.opts.start_plant:

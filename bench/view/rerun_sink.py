@@ -413,7 +413,10 @@ class RerunSink:
             return
         self._ended = True
         if summary and summary.get("faults"):
-            self._fault_events(summary["faults"])
+            try:
+                self._fault_events(summary["faults"])
+            except Exception as exc:  # noqa: BLE001 - the recording must still be closed
+                self._warn_once("faults", f"the fault events were not logged ({exc})")
         if self.file is not None:
             self.file.flush()
             self.file.disconnect()  # writes the footer and closes the file

@@ -91,6 +91,8 @@ static void model_reset(plant_app_t *app)
     app->v_held_alpha_V = 0.0;
     app->v_held_beta_V = 0.0;
     app->paused = true;
+    app->drive_lost = false;
+    app->trip_emcy = 0u;
     reset_tracking(app);
     hist_clear(app);
     attach_domain(app);
@@ -265,7 +267,7 @@ static void hook_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
                 plant_clear_trip(&app->state);
                 if (M.x2003_run_control.trip_active) {
                     M.x2003_run_control.trip_active = 0u;
-                    co_emcy_clear(node, app->drive_lost ? PLANT_EMCY_DRIVE_LOST : PLANT_EMCY_OVERCURRENT);
+                    co_emcy_clear(node, app->trip_emcy);
                 }
                 app->drive_lost = false;
             }
@@ -312,10 +314,8 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     if (app->state.tripped && !M.x2003_run_control.trip_active) {
         M.x2003_run_control.trip_active = 1u;
         uint8_t msef[5] = {(uint8_t)app->k, (uint8_t)(app->k >> 8), 0, 0, 0};
-        if (app->drive_lost)
-            co_emcy_raise(node, PLANT_EMCY_DRIVE_LOST, CO_ERR_REG_COMMUNICATION, msef);
-        else
-            co_emcy_raise(node, PLANT_EMCY_OVERCURRENT, CO_ERR_REG_CURRENT, msef);
+        app->trip_emcy = app->drive_lost ? PLANT_EMCY_DRIVE_LOST : PLANT_EMCY_OVERCURRENT;
+        co_emcy_raise(node, app->trip_emcy, app->drive_lost ? CO_ERR_REG_COMMUNICATION : CO_ERR_REG_CURRENT, msef);
     }
     /* a held period: no command frame since the previous SYNC (the first sample has none to hold) */
     const bool held = k_was_started && app->commands == app->commands_at_sync;

@@ -109,6 +109,7 @@ typedef struct {
     uint32_t commands;         /* command frames seen */
     uint32_t commands_at_sync; /* ... at the last SYNC (PLANT_STATUS_HELD) */
     bool drive_lost;           /* the trip latched because the drive's heartbeat was lost (EMCY 0xFF10) */
+    uint16_t trip_emcy;        /* the EMCY code the active trip raised (cleared with it) */
 
     /* real time */
     int64_t tick_sched_us;                  /* deadline of the SYNC being produced */

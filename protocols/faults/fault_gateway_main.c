@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/types.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "co_socketcan.h"
@@ -37,9 +38,10 @@ static void on_signal(int sig)
     g_stop = 1;
 }
 
-static void emit(void *user, const co_frame_t *f, uint8_t to)
+static void emit(void *user, const co_frame_t *f, uint8_t to, uint8_t from)
 {
     (void)user;
+    (void)from;
     if (co_socketcan_send(&g_fd[to], f) != 0) ++g_send_errors;
 }
 
@@ -177,10 +179,11 @@ int main(int argc, char **argv)
     while (!g_stop) {
         int64_t now = co_socketcan_now_us();
         int64_t rel = fi_next_release_us(&g_fi);
-        int timeout_ms = 100;
-        if (rel >= 0) timeout_ms = rel <= now ? 0 : (int)((rel - now + 999) / 1000);
+        int64_t wait_us = 100000;
+        if (rel >= 0) wait_us = rel <= now ? 0 : rel - now; /* microsecond delays: ppoll, not poll's ms */
+        struct timespec ts = {(time_t)(wait_us / 1000000), (long)(wait_us % 1000000) * 1000L};
         struct pollfd p[2] = {{g_fd[0], POLLIN, 0}, {g_fd[1], POLLIN, 0}};
-        int r = poll(p, 2, timeout_ms);
+        int r = ppoll(p, 2, &ts, NULL);
         if (r < 0 && errno != EINTR) break;
         for (uint8_t s = 0; s < 2u; ++s) {
             if (r <= 0 || !(p[s].revents & POLLIN)) continue;

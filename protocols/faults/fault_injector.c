@@ -53,7 +53,7 @@ static void log_event(fi_t *fi, uint16_t rule, uint8_t kind, uint8_t from, const
 static void out(fi_t *fi, const co_frame_t *f, uint8_t from)
 {
     ++fi->frames_out;
-    fi->emit(fi->user, f, (uint8_t)(from == FI_SIDE_A ? FI_SIDE_B : FI_SIDE_A));
+    fi->emit(fi->user, f, (uint8_t)(from == FI_SIDE_A ? FI_SIDE_B : FI_SIDE_A), from);
 }
 
 /* splitmix64's finaliser over (seed, rule, period, n-th match): the draw depends on nothing else. */
@@ -151,8 +151,8 @@ static void node_faults(fi_t *fi, int64_t now_us)
             log_event(fi, (uint16_t)i, FI_RESET, r->from, &nmt, now_us);
             ++fi->hits[i];
             fi->frames_out += 2u;
-            fi->emit(fi->user, &nmt, FI_SIDE_A);
-            fi->emit(fi->user, &nmt, FI_SIDE_B);
+            fi->emit(fi->user, &nmt, FI_SIDE_A, FI_FROM_INJECTOR);
+            fi->emit(fi->user, &nmt, FI_SIDE_B, FI_FROM_INJECTOR);
         }
     }
 }
@@ -212,7 +212,7 @@ void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us)
                 c.dlc = (uint8_t)r->dlc;
             } else if (r->bit < 8u * c.dlc) {
                 c.data[r->bit / 8u] ^= (uint8_t)(1u << (r->bit % 8u));
-            }
+            } /* a bit beyond the frame's data: sent unchanged (the log keeps the frame as it was) */
             out(fi, &c, from);
             break;
         }

@@ -90,8 +90,11 @@ typedef struct {
     int64_t release_us;     /* -1: not by time */
 } fi_held_t;
 
-/* Frame out to side `to` (the other side of its sender). */
-typedef void (*fi_emit_fn)(void *user, const co_frame_t *frame, uint8_t to);
+/* Frame out to side `to`; `from` is its sender's side, or FI_FROM_INJECTOR for a frame the injector
+ * made (the NMT reset of a node fault, sent to both sides). Must not call fi_frame (the injector may be
+ * walking its hold queue). */
+#define FI_FROM_INJECTOR 0xFFu
+typedef void (*fi_emit_fn)(void *user, const co_frame_t *frame, uint8_t to, uint8_t from);
 /* Node fault on the node of side `side`: kind FI_FREEZE (on = 1 freeze, 0 thaw) or FI_KILL. */
 typedef void (*fi_node_fn)(void *user, uint8_t side, uint8_t kind, int on);
 

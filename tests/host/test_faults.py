@@ -60,13 +60,25 @@ def test_a_check_fails_when_the_reaction_is_wrong() -> None:
         ({"kind": "freeze", "node": "plant", "periods": 3}, "freeze node = 'plant'"),
         ({"kind": "kill", "node": "motor"}, "faults[0].node = 'motor': expected one of plant, drive"),
         ({"kind": "drop", "cob_id": 0x190}, "with cob_id, say who sends the frames"),
+        ({"kind": "freeze", "node": "drive", "at_period": 195, "periods": 5}, "after the run's last period 199"),
+        ({"kind": "freeze", "node": "drive", "at_period": 48, "periods": 5}, "covers the event at period 50"),
     ],
 )
 def test_a_bad_fault_is_named_before_anything_runs(fault: dict, message: str) -> None:
-    raw = {"scenario": {"name": "bad", "periods": 200}, "faults": [fault]}
+    raw = {
+        "scenario": {"name": "bad", "periods": 200},
+        "events": [{"at_period": 50, "references": {"iq_ref_A": 1.0}}],
+        "faults": [fault],
+    }
     with pytest.raises(ScenarioError) as exc:
         parse(raw, "bad.toml")
     assert message in str(exc.value), str(exc.value)
+
+
+def test_more_faults_than_the_injector_holds_are_refused() -> None:
+    raw = {"scenario": {"name": "bad", "periods": 200}, "faults": [{"kind": "drop", "frame": "SYNC"}] * 33}
+    with pytest.raises(ScenarioError, match="33 \\[\\[faults\\]\\] entries; the injector holds at most 32"):
+        parse(raw, "bad.toml")
 
 
 def test_the_same_faults_give_the_same_run() -> None:

@@ -15,9 +15,10 @@ static struct {
     int frozen, killed;
 } g;
 
-static void emit(void *user, const co_frame_t *f, uint8_t to)
+static void emit(void *user, const co_frame_t *f, uint8_t to, uint8_t from)
 {
     (void)user;
+    (void)from;
     if (g.n < OUT_MAX) {
         g.f[g.n] = *f;
         g.to[g.n++] = to;
