@@ -57,11 +57,11 @@ class RssSampler(threading.Thread):
         super().__init__(daemon=True, name="soak-rss")
         self.every_s = every_s
         self.samples: dict[str, list[tuple[float, int]]] = {}
-        self._stop = threading.Event()
+        self._halt = threading.Event()
         self.t0 = time.monotonic()
 
     def run(self) -> None:
-        while not self._stop.wait(self.every_s):
+        while not self._halt.wait(self.every_s):
             t = time.monotonic() - self.t0
             for name, pid in _pids().items():
                 kb = _rss_kB(pid)
@@ -69,7 +69,7 @@ class RssSampler(threading.Thread):
                     self.samples.setdefault(name, []).append((t, kb))
 
     def stop(self) -> None:
-        self._stop.set()
+        self._halt.set()
         self.join()
 
 
