@@ -12,6 +12,9 @@
 
 static od_drive_mfr_t *mfr_of(const co_node_t *node) { return &((od_drive_ram_t *)node->od->ram)->mfr; }
 
+/* plant.eds 0x2100:05 status, bit 1: run_periods reached 0 at this sample, the plant holds */
+#define PLANT_STATUS_HOLDING_BIT 0x02u
+
 static int is_finite_f(float x) { return (x - x) == 0.0f; /* false for NaN and +-inf */ }
 
 /* The drive's parameter records -> drive_config_t, one row per EDS entry (the
@@ -593,7 +596,9 @@ static void on_measurement(drive_app_t *app, co_node_t *node)
     const uint8_t was_active = app->meas_error_active;
     app->defer_emcy = 1u;
     app->n_pending = 0u;
-    app->meas_seen = 1u;
+    /* the measurement timeout is armed by a measurement, and disarmed by one whose status says the plant
+     * holds (plant.eds 0x2100:05 bit 1, end of a run segment): SYNCs after that are not the plant's */
+    app->meas_seen = (m->x2100_Measurement.status & PLANT_STATUS_HOLDING_BIT) ? 0u : 1u;
     app->syncs_without_meas = 0u;
 
     if (!app->rpdo1_fresh) count_late(app, DRIVE_LATE_RPDO2_WITHOUT_RPDO1, si, sc);
@@ -678,8 +683,8 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
     }
 
     if (idx == OD_DRIVE_SAFE_STATE_IDX && e->subindex == OD_DRIVE_SAFE_STATE_CLEAR_SUB) {
-        if (data[0] != 1u) return CO_ABORT_INVALID_VALUE;
-        if (app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE && heartbeat_lost(node))
+        if (data[0] > 1u) return CO_ABORT_INVALID_VALUE; /* 0: no action (what a read gives back), 1: clear */
+        if (data[0] == 1u && app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE && heartbeat_lost(node))
             return CO_ABORT_DATA_STATE; /* the cause persists */
         return 0;
     }
@@ -726,8 +731,9 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
         return;
     }
     if (idx == OD_DRIVE_SAFE_STATE_IDX && e->subindex == OD_DRIVE_SAFE_STATE_CLEAR_SUB) {
+        const uint8_t v = m->x2209_safe_state.clear;
         m->x2209_safe_state.clear = 0u; /* a command, not a state */
-        leave_safe_state(app, node);
+        if (v == 1u) leave_safe_state(app, node);
         return;
     }
     const int is_config =

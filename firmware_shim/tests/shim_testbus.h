@@ -55,6 +55,8 @@ static inline void setup(int64_t step_us)
 }
 
 /* ------------------------------------------------------------------ scripted plant */
+static uint8_t g_meas_status = 0u; /* the plant status byte sample_ex sends (0x2100:05) */
+
 static inline uint8_t next_sync(void)
 {
     g_sync = (uint8_t)(g_sync >= 240u ? 1u : g_sync + 1u);
@@ -77,7 +79,7 @@ static inline const co_frame_t *sample_ex(const drive_meas_t *m, uint16_t k, int
     if (send2) {
         testbus_put_f32(&d[0], m->theta_m_rad);
         d[4] = sc;
-        d[5] = 0;
+        d[5] = g_meas_status;
         d[6] = (uint8_t)k;
         d[7] = (uint8_t)(k >> 8);
         inject(COB_MEAS2, 8, d);

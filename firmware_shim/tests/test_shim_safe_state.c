@@ -10,7 +10,7 @@
  *       the speed loop's integrator and iq reference stay 0 (no wind-up)
  *   (b) clear by SDO (0x2209:05 = 1): EMCY 0x0000, reason 0, the next command
  *       is non-zero and bit-identical to the reference core restarting from
- *       cleared memories; values other than 1 abort 0x06090030; the timeout
+ *       cleared memories; 0 is no action, values above 1 abort 0x06090030; the timeout
  *       re-arms; NMT pre-operational -> operational keeps the state, reset
  *       communication leaves it
  *   (c) meas_timeout_periods = 0 disables the timeout
@@ -220,8 +220,9 @@ static void test_meas_timeout_and_clear(void)
     deliver();
     CHECK_TRUE(g_tb.node.nmt == CO_NMT_OPERATIONAL && g_app.safe_reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
 
-    /* (b) clear: other values abort, 1 leaves (EMCY 0x0000: nothing else active) */
-    CHECK_TRUE(write_clear(0) == CO_ABORT_INVALID_VALUE);
+    /* (b) clear: 0 is no action (a read value written back), values above 1 abort, 1 leaves (EMCY 0x0000:
+     * nothing else active) */
+    CHECK_TRUE(write_clear(0) == 0);
     CHECK_TRUE(write_clear(2) == CO_ABORT_INVALID_VALUE);
     CHECK_TRUE(g_app.safe_reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
     CHECK_TRUE(write_clear(1) == 0);
@@ -336,6 +337,26 @@ static void test_timeout_disabled(void)
     CHECK_TRUE(sync_only() == 0u);
     CHECK_TRUE(sync_only() == 2u && count_emcy(DRIVE_EMCY_SAFE_MEAS_TIMEOUT, NULL, NULL) == 1);
     printf("(c) meas_timeout_periods 0: 50 SYNCs without a measurement, no safe state; 2: entered at the 2nd\n");
+}
+
+/* the plant holds (status bit 1 in its last sample): SYNCs after it (another producer's) arm nothing */
+static void test_holding_disarms(void)
+{
+    setup(STEP_US);
+    for (uint16_t k = 0; k < 3; ++k) {
+        const drive_meas_t m = meas_of(k);
+        g_meas_status = k == 2u ? 0x02u : 0u; /* the last sample of the segment: holding */
+        CHECK_TRUE(sample(&m, k) != NULL);
+    }
+    g_meas_status = 0u;
+    uint32_t sent = 0;
+    for (int i = 0; i < 10; ++i) sent += sync_only();
+    CHECK_TRUE(sent == 0u && g_app.safe_reason == 0u);
+    const drive_meas_t m = meas_of(3);
+    CHECK_TRUE(sample(&m, 3) != NULL); /* the next segment: armed again */
+    CHECK_TRUE(sync_only() == 0u && sync_only() == 0u);
+    CHECK_TRUE(sync_only() == 2u && g_app.safe_reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
+    printf("(c2) after a sample that says the plant holds: 10 SYNCs, no safe state; armed again by the next sample\n");
 }
 
 /* ------------------------------------------------------------------ (d) */
@@ -552,6 +573,7 @@ int main(void)
     test_meas_timeout_and_clear();
     test_speed_mode_no_windup();
     test_timeout_disabled();
+    test_holding_disarms();
     test_heartbeat_lost();
     test_non_finite();
     test_normal_run_unchanged();
