@@ -254,9 +254,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     sw = sub.add_parser(
         "sweep",
-        help="run a grid of scenario variants in direct mode on every core",
-        description="Example: bench sweep scenarios/you2019_step.toml "
-        "--grid controller.L_hat_ratio=0.5,1.0,1.2 --grid controller.R_hat_ratio=0.5,1.5",
+        help="robustness studies (grids, Monte Carlo, boundary search) in direct mode, on Dask",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Runs every point of a study as the scenario with --set overrides, in direct mode and in\n"
+        "memory, on an embedded Dask LocalCluster (all cores) or an existing cluster (--scheduler).\n"
+        "Rows stream to OUT/sweep.parquet; --resume continues a killed study.\n\n"
+        "Examples:\n"
+        "  bench sweep scenarios/you2019_step.toml --grid controller.L_hat_ratio=0.5:1.5:0.1 \\\n"
+        "      --grid controller.R_hat_ratio=0.5,1.0,1.5             # heat-map of two keys\n"
+        "  bench sweep scenarios/yao2020_identification.toml --sample controller.R_hat_ratio='normal(1,0.1)' \\\n"
+        "      --samples 500 --seed 7                                 # Monte Carlo: percentiles\n"
+        "  bench sweep scenarios/zhao2022_stability.toml --bisect controller.L_hat_ratio=1.25:1.6667 \\\n"
+        "      --until 'error_growth_per_period>=1'                   # Zhao 2022's stability boundary\n",
     )
     sweep_args(sw)
     sw.set_defaults(func=_cmd_sweep)

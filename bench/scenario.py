@@ -318,6 +318,12 @@ def load(path: Path, overrides: list[str] | None = None) -> Scenario:
         text = path.read_text()
     except OSError as exc:
         raise ScenarioError(f"{where}: cannot read: {exc.strerror}") from exc
+    return loads(text, where, overrides)
+
+
+def loads(text: str, where: str, overrides: list[str] | None = None) -> Scenario:
+    """A scenario from its TOML text (`where` names it in errors): what a sweep sends to its workers,
+    which may not share the file system."""
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -29,6 +29,7 @@ from .nodes import NodeProcess
 
 NMT_STATES = {0x00: "INITIALISING (boot-up)", 0x04: "STOPPED", 0x05: "OPERATIONAL", 0x7F: "PRE-OPERATIONAL"}
 EMCY_HEARTBEAT = 0x8130
+WATCH_S = 0.1  # how often the watcher thread judges
 
 
 @dataclass
@@ -94,6 +95,11 @@ class Liveness:
         self.grace_s = 2 * heartbeat_ms / 1000.0 + 0.2
         self._armed_at = 0.0
         self._lock = threading.Lock()
+        # judged in a thread of its own, every WATCH_S: the master's main thread may be busy for seconds
+        # (decoding what the recorder wrote, slower still in the VM) and must not delay the verdict
+        self._found: LoopStopped | None = None
+        self._watch_stop = threading.Event()
+        self._watcher: threading.Thread | None = None
         self._net = net
         self._subs: list[tuple[int, Any]] = []
         for name, nid in nodes.items():
@@ -105,6 +111,7 @@ class Liveness:
         self._subs.append((cob, cb))
 
     def close(self) -> None:
+        self.disarm()
         for cob, cb in self._subs:
             try:
                 self._net.unsubscribe(cob, cb)
@@ -144,10 +151,33 @@ class Liveness:
             for name in self.nodes:
                 self.last[name] = max(self.last.get(name, now), now)
             self.emcy_seen = len(self.emcy)
+            self._found = None
         self.armed = True
+        self._watch_stop.clear()
+        self._watcher = threading.Thread(target=self._watch, name="liveness", daemon=True)
+        self._watcher.start()
 
     def disarm(self) -> None:
         self.armed = False
+        self._watch_stop.set()
+        if self._watcher is not None and self._watcher is not threading.current_thread():
+            self._watcher.join(timeout=5)
+        self._watcher = None
+
+    def _watch(self) -> None:
+        while not self._watch_stop.wait(WATCH_S):
+            lost = self.check()
+            if lost is not None:
+                with self._lock:
+                    self._found = lost
+                return
+
+    def verdict(self) -> LoopStopped | None:
+        """The first sign of a lost node the watcher found (when it was found: `detected_at_unix`), or
+        what a look now finds."""
+        with self._lock:
+            found = self._found
+        return found if found is not None else self.check()
 
     def _who(self, name: str) -> str:
         return f"the {name} (node 0x{self.nodes[name]:02X})"

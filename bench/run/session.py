@@ -232,6 +232,10 @@ class Session(Configurator, DirectLoop):
             # the answer and fails on a short one (struct.error): a foreign frame there is dropped instead.
             self.net.unsubscribe(n.sdo.tx_cobid, n.sdo.on_response)
             self.net.subscribe(n.sdo.tx_cobid, _sdo_answers_only(n.sdo))
+            # canopen's EMCY consumer keeps every EMCY in an unbounded list, at a cost per frame: the decoder
+            # lists the EMCYs from the record and the liveness judge takes 0x8130 itself, so a node that
+            # floods EMCYs (one per foreign SYNC) must not slow the master's notifier thread with it
+            self.net.unsubscribe(0x80 + n.id, n.emcy.on_emcy)
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
             self.liveness = Liveness(
                 self.net,
@@ -363,7 +367,7 @@ class Session(Configurator, DirectLoop):
     def _check_alive(self, index: int) -> None:
         if self.liveness is None:
             return
-        lost = self.liveness.check()
+        lost = self.liveness.verdict()
         if lost is not None:
             lost.at_period = index if index >= 0 else None
             raise lost

@@ -1,4 +1,4 @@
-"""`bench run`, `bench replay` and `bench sweep` as a user runs them (subprocess), in direct mode."""
+"""`bench run` and `bench replay` as a user runs them (subprocess), in direct mode (`bench sweep`: test_sweep.py)."""
 
 from __future__ import annotations
 
@@ -103,29 +103,6 @@ def test_replay_refuses_a_file_that_is_not_a_log(tmp_path: Path) -> None:
     res = bench("replay", str(bogus), "--no-viewer")
     assert res.returncode == 2 and "x.log" in res.stderr
     assert not (tmp_path / "replay").exists()  # bad input: nothing written
-
-
-def test_sweep_grid_table_and_heatmap(tmp_path: Path) -> None:
-    out = tmp_path / "sweep"
-    res = bench(
-        "sweep",
-        str(STEP),
-        "--grid",
-        "controller.L_hat_ratio=0.5,1.0",
-        "--grid",
-        "controller.R_hat_ratio=1.0,1.5",
-        "--jobs",
-        "2",
-        "--out",
-        str(out),
-    )
-    assert res.returncode == 0, res.stderr
-    rows = (out / "sweep.csv").read_text().strip().splitlines()
-    assert len(rows) == 5
-    table = {tuple(r.split(",")[:2]): r.split(",")[2] for r in rows[1:]}
-    assert table[("1.0", "1.0")] == "2"  # matched: deadbeat
-    assert int(table[("0.5", "1.0")]) > 5  # L_hat = 0.5 L: slow
-    assert (out / "heatmap_periods_to_settle.png").stat().st_size > 0
 
 
 def test_sigint_mid_run_stops_cleanly(tmp_path: Path) -> None:

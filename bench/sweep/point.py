@@ -1,0 +1,113 @@
+"""One point of a study, run where a Dask worker (or the serial loop) runs it: the scenario with the
+point's overrides, in direct mode and in memory (no file written or read), reduced to one row.
+
+The row: the point's keys, the first iq step's metrics (bench/metrics.py), the run's status, the
+controller's identified values, the growth per period of the iq error's swing after the last
+reference change (stability: < 1 decays, > 1 grows), and the time the point took next to its loop's own time.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+STEP_METRICS = ("periods_to_settle", "overshoot_pct", "overshoot_A", "steady_state_error_A")
+# the float32 floor of the loop: an error envelope below this fraction of the step has decayed
+FLOOR = 1e-5
+
+
+class ErrorEnvelope:
+    """A sink that keeps iq_ref - iq per period (float32, 4 bytes a period) for the growth metric."""
+
+    def __init__(self) -> None:
+        self._parts: list[np.ndarray] = []
+
+    def begin(self, signals: Any, ctx: Any) -> None:
+        pass
+
+    def write(self, chunk: dict[str, np.ndarray]) -> None:
+        if "iq_A" in chunk and "iq_ref_A" in chunk:
+            self._parts.append((chunk["iq_ref_A"] - chunk["iq_A"]).astype(np.float32))
+
+    def end(self, summary: dict[str, Any]) -> None:
+        pass
+
+    def error(self) -> np.ndarray:
+        return np.concatenate(self._parts) if self._parts else np.zeros(0, np.float32)
+
+
+def growth_per_period(err: np.ndarray, last_change: int, step_A: float) -> float | None:
+    """Geometric growth per period of the iq error's swing after the last reference change, as the Zhao 2022
+    boundary claim measures it: the error's peak-to-peak over the window's last quarter against its second
+    quarter (a constant offset, e.g. from a resistance mismatch, swings by nothing). < 1: decays, > 1: grows;
+    0.0 when the swing is down at the loop's float32 floor; None when the window is too short."""
+    n = len(err) - last_change
+    if n < 16 or not math.isfinite(step_A) or step_A == 0.0:
+        return None
+    q = n // 4
+    w1 = err[last_change + q : last_change + 2 * q]
+    w2 = err[len(err) - q :]
+    if not (np.all(np.isfinite(w1)) and np.all(np.isfinite(w2))):
+        return math.inf
+    m1, m2 = float(np.ptp(w1)), float(np.ptp(w2))
+    if m2 < FLOOR * abs(step_A):
+        return 0.0
+    if m1 == 0.0:
+        return math.inf
+    span = (len(err) - q) - (last_change + q)
+    return float((m2 / m1) ** (1.0 / span))
+
+
+def _number(v: Any) -> float | None:
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return None
+    return float(v)
+
+
+def run_point(scenario_text: str, where: str, fixed: list[str], values: dict[str, str]) -> dict[str, Any]:
+    """Run one point; a point the scenario or a node refuses is a row with its reason, not the end of
+    the study."""
+    from ..run import RunOptions, run_scenario
+    from ..scenario import ScenarioError, loads
+    from .space import point_id
+
+    row: dict[str, Any] = {"point_id": point_id(values), **values}
+    t0 = time.perf_counter()
+    try:
+        sc = loads(scenario_text, where, [*fixed, *(f"{k}={v}" for k, v in values.items())])
+        env = ErrorEnvelope()
+        res = run_scenario(sc, RunOptions(bus="direct"), sinks=[env])
+    except (ScenarioError, ValueError, RuntimeError) as exc:
+        row.update(status="refused", reason=str(exc), point_s=time.perf_counter() - t0, worker_pid=os.getpid())
+        return row
+    s = res.summary
+    steps = [st for st in s["steps"] if st["signal"] == "iq"]
+    first = steps[0] if steps else {}
+    row.update({m: _number(first.get(m)) for m in STEP_METRICS})
+    last = steps[-1] if steps else None
+    row["error_growth_per_period"] = (
+        growth_per_period(env.error(), int(last["at_period"]), float(last["to_A"]) - float(last["from_A"]))
+        if last
+        else None
+    )
+    row["max_phase_current_A"] = _number(s.get("max_phase_current_A"))
+    row["status"] = s["status"]
+    row["reason"] = (s.get("stopped") or {}).get("message")
+    for k, v in s["identified"].items():
+        if _number(v) is not None:
+            row[f"identified.{k}"] = _number(v)
+    row["periods"] = int(s["periods"])
+    row["loop_s"] = float(s["timing"].get("run_wall_s") or 0.0)
+    row["point_s"] = time.perf_counter() - t0
+    row["worker_pid"] = os.getpid()
+    return row
+
+
+def run_batch(scenario_text: str, where: str, fixed: list[str], batch: list[dict[str, str]]) -> list[dict[str, Any]]:
+    """Several points in one task: a Dask task costs about a millisecond of scheduling; a batch keeps
+    that small next to short points."""
+    return [run_point(scenario_text, where, fixed, values) for values in batch]

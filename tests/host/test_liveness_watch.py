@@ -1,0 +1,66 @@
+"""The liveness verdict does not wait for the master's main thread: a node that falls silent while the
+main thread is busy (decoding, in the VM for seconds) is named when it happens, not when the thread is free."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from bench.run.liveness import Liveness
+
+
+class _Net:
+    """What Liveness needs of a canopen.Network: subscriptions, fed by hand."""
+
+    def __init__(self) -> None:
+        self.subs: dict[int, list[Any]] = {}
+
+    def subscribe(self, cob: int, cb: Any) -> None:
+        self.subs.setdefault(cob, []).append(cb)
+
+    def unsubscribe(self, cob: int, cb: Any) -> None:
+        self.subs[cob].remove(cb)
+
+    def heartbeat(self, node_id: int) -> None:
+        for cb in self.subs.get(0x700 + node_id, []):
+            cb(0x700 + node_id, bytearray([0x05]), time.time())
+
+
+def _busy(seconds: float) -> None:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:  # pure Python: holds the GIL as a decoder would
+        sum(range(1000))
+
+
+def test_a_silent_node_is_named_while_the_main_thread_is_busy() -> None:
+    net = _Net()
+    live = Liveness(net, {"plant": 0x10, "drive": 0x20}, {}, timeout_ms=300, heartbeat_ms=50)  # type: ignore[arg-type]
+    live.arm()
+    try:
+        # the plant keeps beating from the main thread's point of view only until it gets busy
+        net.heartbeat(0x10)
+        net.heartbeat(0x20)
+        t_silent = time.time()
+        _busy(3.0)
+        t_free = time.time()
+        lost = live.verdict()
+        assert lost is not None and lost.status == "node_lost"
+        assert lost.details["cause"] == "heartbeat_timeout"
+        # found by the watcher during the busy stretch, after the consumer time
+        assert t_silent + 0.3 <= lost.detected_at_unix < t_free
+    finally:
+        live.close()
+    assert not any(net.subs.values())
+
+
+def test_beating_nodes_are_not_named() -> None:
+    net = _Net()
+    live = Liveness(net, {"plant": 0x10}, {}, timeout_ms=300, heartbeat_ms=50)  # type: ignore[arg-type]
+    live.arm()
+    try:
+        for _ in range(20):
+            net.heartbeat(0x10)
+            time.sleep(0.05)
+        assert live.verdict() is None
+    finally:
+        live.close()
