@@ -8,7 +8,8 @@ both too (python `canopen` delivers the frames; the judgement is ours because ca
 - its heartbeat has not been seen for the consumer time (`heartbeat_timeout_ms`): dead or silent
   (frozen, unplugged, bus-off);
 - its heartbeat says it left OPERATIONAL (an NMT command from elsewhere, a reset);
-- the other node reports losing it (EMCY 0x8130 with its node-ID).
+- the other node reports losing it (EMCY 0x8130 with its node-ID), on interfaces where the master sees
+  EMCYs (over SocketCAN its kernel filter keeps them out: bench/run/session.py).
 
 In lockstep the plant waits for each command without a time limit (plant.eds 0x2003:04 = 0):
 load slows the loop, it never changes it. A loop whose nodes are both alive but whose period

@@ -205,13 +205,15 @@ class Session(Configurator, DirectLoop):
                     )
                 rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
                 self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids).start()
-            # The master only needs SDO answers, NMT error control and EMCY: filtering in the kernel keeps
-            # the PDO stream (thousands of frames per second) out of this process's socket, which a slow
-            # Python (the VM) could not drain, and which the recorder records anyway.
+            # The master only needs its nodes' SDO answers and heartbeats: filtering in the kernel keeps the
+            # PDO stream (thousands of frames per second) out of this process's socket, which a slow Python
+            # (the VM) could not drain, and which the recorder records anyway. EMCYs stay out too: a node
+            # may send hundreds a second (one per foreign SYNC), which left the master's notifier seconds
+            # behind in the VM (heartbeats and SDO answers queued behind them: a live node taken for lost);
+            # the decoder lists every EMCY from the record, and the heartbeats judge liveness.
             ids = (self.opts.plant_id, self.opts.drive_id)
             filters = [{"can_id": 0x580 + i, "can_mask": 0x7FF} for i in ids]
-            filters += [{"can_id": 0x080 + i, "can_mask": 0x7FF} for i in ids]
-            filters.append({"can_id": 0x700, "can_mask": 0x780})
+            filters += [{"can_id": 0x700 + i, "can_mask": 0x7FF} for i in ids]
             self.kernel_filters = filters if self.opts.interface == "socketcan" else None
             kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus}
             if self.kernel_filters is not None:
@@ -272,10 +274,13 @@ class Session(Configurator, DirectLoop):
     # ---------------------------------------------------------------- NMT
     def reset_nodes(self) -> None:
         booted: dict[int, bool] = {}
+        all_booted = threading.Event()  # set by the notifier (a bus) or at once (direct): no polling delay
 
         def on_boot(cob_id: int, data: bytearray, ts: float) -> None:
             if len(data) == 1 and data[0] == 0:
                 booted[cob_id - 0x700] = True
+                if all(booted.get(n.id) for n in (self.plant, self.drive)):
+                    all_booted.set()
 
         for n in (self.plant, self.drive):
             self.net.subscribe(0x700 + n.id, on_boot)
@@ -283,8 +288,7 @@ class Session(Configurator, DirectLoop):
         # Nodes just started announce themselves; a reset node announces again.
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x81)
-        while time.monotonic() < deadline and not all(booted.get(n.id) for n in (self.plant, self.drive)):
-            time.sleep(0.01)
+        all_booted.wait(timeout=max(0.0, deadline - time.monotonic()))
         for n in (self.plant, self.drive):
             self.net.unsubscribe(0x700 + n.id, on_boot)
             if not booted.get(n.id):

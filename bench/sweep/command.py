@@ -198,7 +198,7 @@ class Progress:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .engine import Engine, batches
+    from .engine import Engine, WorkerError, batches
     from .table import TableWriter, read_done
 
     try:
@@ -251,6 +251,11 @@ def main(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    except WorkerError as exc:
+        writer.flush()
+        engine.close()
+        print(f"bench sweep: {exc}; {writer.written} new points kept in {out} (--resume continues)", file=sys.stderr)
+        return 1
     except BaseException:
         writer.flush()
         engine.close()

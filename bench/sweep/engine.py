@@ -29,6 +29,10 @@ def batches(points: list[dict[str, str]], workers: int, max_batch: int = 16) -> 
     return [points[i : i + size] for i in range(0, len(points), size)]
 
 
+class WorkerError(RuntimeError):
+    """A worker that cannot run points at all (the sweep stops; its table keeps what is done)."""
+
+
 class Engine:
     """Runs batches of points and yields their rows as they complete."""
 
@@ -85,7 +89,14 @@ class Engine:
         futures = [self.client.submit(run_batch, scenario_text, where, fixed, b, pure=False) for b in todo]
         try:
             for fut in as_completed(futures):
-                yield fut.result()
+                try:
+                    rows = fut.result()
+                except (ImportError, OSError) as exc:  # a worker without the project, or without its C build
+                    raise WorkerError(
+                        f"a worker of {self.where} cannot run a point: {exc!r}; every worker needs this project "
+                        "installed and built (docs/SWEEPS.md)"
+                    ) from exc
+                yield rows
         finally:
             for f in futures:
                 f.cancel()

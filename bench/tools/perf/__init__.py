@@ -12,7 +12,7 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 per run): instructions per current step per controller (Yao 2020's identification and RLS
                 beside the paper's DSP times), loop rate, flash and RAM of the image
 * canopen_cost  co_perf ns per frame
-* sweep         `bench sweep` on 1 process vs all cores
+* sweep         `bench sweep` on Dask: 1,000 points on 1 and 2 workers, a 10^4-point study
 * live          Rerun's served live buffer for 10^6 periods x 16 signals; the VM live view's cost per update
 * pipeline      what the user waits for, side by side: whole `bench run` processes (1 s scenario, 10^6
                 periods with every output), run_scenario with a sweep's outputs at 10^6 / 10^7 periods
