@@ -89,9 +89,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     o.add_argument("--csv", action="store_true", help="also write sweep.csv")
     o.add_argument(
         "--metric",
-        choices=NUMERIC,
         default=None,
-        help="the heat-map's / histogram's metric (default periods_to_settle; with --bisect, the --until metric)",
+        metavar="METRIC",
+        help=f"the heat-map's / histogram's metric: {', '.join(NUMERIC)} or identified.* (default "
+        "periods_to_settle; with --bisect, the --until metric)",
     )
 
 
@@ -119,6 +120,8 @@ def _study(args: argparse.Namespace) -> tuple[Any, str, Space, tuple[str, float,
         raise SpaceError(f"{bis[0]}: a key is given twice (--grid/--sample/--bisect)")
     if args.tol is not None and not (bis and 0 < args.tol < bis[2] - bis[1]):
         raise SpaceError("--tol is for --bisect and must be > 0 and below HI-LO")
+    if args.metric is not None and args.metric not in NUMERIC and not args.metric.startswith("identified."):
+        raise SpaceError(f"--metric {args.metric}: allowed {', '.join(NUMERIC)}, identified.*")
     if not space.keys and not bis:
         raise SpaceError("nothing to sweep: give --grid, --sample or --bisect")
     if args.workers is not None and args.workers < 1:

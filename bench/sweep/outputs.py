@@ -78,7 +78,9 @@ def write_outputs(
     if space.samples:
         from .command import NUMERIC as M
 
-        summary["distributions"] = dist = distributions(rows, tuple(m for m in M if m not in ("loop_s", "point_s")))
+        ident = sorted({k for r in rows for k in r if k.startswith("identified.")})
+        metrics = tuple(m for m in M if m not in ("loop_s", "point_s", "periods")) + tuple(ident)
+        summary["distributions"] = dist = distributions(rows, metrics)
         print(format_distributions(dist))
         name = f"histogram_{metric}.png"
         if histogram(out / name, rows, metric, sc.name):
