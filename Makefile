@@ -58,7 +58,7 @@ MCU_ARCH  := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
 MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off \
               -ffunction-sections -fdata-sections -ffreestanding -fno-common
 MCU_INC   := $(INC) -I$(MCU_DIR)
-MCU_SRC   := $(CO_SRC) $(FW_SRC) firmware_shim/shim/drive_app.c $(wildcard firmware_shim/port/*.c) \
+MCU_SRC   := $(CO_SRC) $(FW_SRC) firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c $(wildcard firmware_shim/port/*.c) \
              $(wildcard $(MCU_DIR)/*.c)
 MCU_OBJ   := $(patsubst %.c,$(MCU_BUILD)/obj/%.o,$(MCU_SRC))
 MCU_ELF   := $(MCU_BUILD)/drive_mcu.elf
@@ -158,9 +158,9 @@ $(BUILD)/tests/plant_%: plant_rt/tests/%.c $(LIBPLANT)
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBPLANT) -lm -o $@
 # Tests of the node apps need the CANopen core and the portable app glue too.
 # The drive tests close the loop against the plant's own motor model (tests/c/motor_model.h): libplant.
-$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c firmware_shim/shim/drive_app.c $(LIBFW) $(LIBPLANT) $(LIBCO)
+$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c $(LIBFW) $(LIBPLANT) $(LIBCO)
 	@mkdir -p $(@D) $(BUILD)/deps
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< firmware_shim/shim/drive_app.c $(LIBFW) $(LIBPLANT) $(LIBCO) -lm -o $@
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c $(LIBFW) $(LIBPLANT) $(LIBCO) -lm -o $@
 $(BUILD)/tests/plant_test_node_%: plant_rt/tests/test_node_%.c plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO)
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO) -lm -o $@
@@ -190,7 +190,7 @@ $(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(FAULT_SRC) $(LIBSCAN) -o $@
 HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(wildcard plant_rt/node/plant_app.c) \
-           $(wildcard firmware_shim/shim/drive_app.c) $(wildcard bench/direct/*.c) $(FAULT_SRC)
+           $(wildcard firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c) $(wildcard bench/direct/*.c) $(FAULT_SRC)
 $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
 	$(CC) -shared $^ -lm -o $@

@@ -115,6 +115,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--grpc-port", type=int, default=9876, help="Rerun gRPC port for --serve (default 9876)")
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer (the .rrd is still saved)")
     p.add_argument("--live-decimate", type=int, default=1, help="send every Nth period to the live viewer")
+    from ..cia402.command import add_arguments as cia402_arguments
+
+    cia402_arguments(p)
 
 
 def _check_args(args: argparse.Namespace) -> None:
@@ -134,6 +137,10 @@ def _check_args(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "drive_profile", "hil") == "cia402":
+        from ..cia402.command import run as run_cia402
+
+        return run_cia402(args)
     return execute(args)[0]
 
 

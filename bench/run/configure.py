@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from .session import RunOptions
 
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
+OBJECT_DOES_NOT_EXIST = 0x06020000  # SDO abort code (CiA 301)
 
 
 class SettingRefused(RuntimeError):
@@ -24,6 +25,27 @@ class SettingRefused(RuntimeError):
 
 def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
     return node.sdo[obj] if sub is None else node.sdo[obj][sub]
+
+
+def enable_cia402(drive: canopen.RemoteNode) -> bool:
+    """CiA 402: the drive commands voltage only in OPERATION ENABLED (drive.eds 0x6040/0x6041): SWITCH ON
+    DISABLED -> READY TO SWITCH ON -> SWITCHED ON -> OPERATION ENABLED by SDO (controlword 6, 7, 15;
+    transitions 2, 3, 4), written in PRE-OPERATIONAL by the bench, so that no frame of a run changes.
+    A controller of drive.eds without CiA 402 (it answers "object does not exist") is left as it is:
+    returns False then."""
+    cw = drive.sdo["Controlword"]
+    try:
+        cw.raw = 0x06
+    except SdoAbortedError as exc:
+        if exc.code == OBJECT_DOES_NOT_EXIST:
+            return False
+        raise
+    cw.raw = 0x07
+    cw.raw = 0x0F
+    sw = int(drive.sdo["Statusword"].raw)
+    if sw & 0x6F != 0x27:
+        raise RuntimeError(f"the drive did not reach OPERATION ENABLED: statusword 0x{sw:04X}")
+    return True
 
 
 class Configurator:
@@ -88,6 +110,8 @@ class Configurator:
         self._write(_entry(node, s.param.obj, s.param.name), s.value, s.key)
         if s.param.obj == "References":
             self.references.append((self._period, s.param.name, float(s.value)))
+        if (s.param.node, s.param.obj, s.param.name) == ("drive", "Safe state", "clear") and int(s.value) == 1:
+            self._reenable_after_clear()
 
     def configure(self) -> None:
         self._period = 0
@@ -128,6 +152,22 @@ class Configurator:
                 for s in e.settings:
                     self._apply(s)
         self.wire_pdos()
+        self.enable_drive()
+
+    # ---------------------------------------------------------------- CiA 402
+    def enable_drive(self) -> None:
+        """CiA 402 enable before the run (enable_cia402); a refusal is named like a scenario's."""
+        try:
+            enable_cia402(self.drive)
+        except SdoAbortedError as exc:
+            raise SettingRefused(f"the drive refused the CiA 402 enable (controlword 6, 7, 15): {exc}") from None
+
+    def _reenable_after_clear(self) -> None:
+        """A scenario's fault reset (Safe state.clear = 1) leaves the CiA 402 FAULT for SWITCH ON DISABLED
+        (transition 15): the bench enables the drive again, so the control goes on as before the fault.
+        A clear that found no fault leaves the drive enabled, and nothing is written."""
+        if int(self.drive.sdo["Statusword"].raw) & 0x4F == 0x40:
+            self.enable_drive()
 
     def configure_heartbeats(self) -> None:
         """CiA 301 error control: each node produces a heartbeat (0x1017) and consumes the other's

@@ -402,6 +402,155 @@ static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
     app->cmd.v_beta_V = s->v_beta_V;
 }
 
+/* ------------------------------------------------------------------ CiA 402 (drive_app.h) */
+
+#define CIA402_INC_PER_RAD 10430.378f          /* 65536 increments per mechanical revolution / (2 pi) */
+#define CIA402_STOPPED_FRACTION_OF_RATED 0.02f /* quick stop done: |iq| <= 2 % of 0x6075 */
+
+static void zero_voltage(drive_t *d);
+static void clear_control_memory(drive_t *d);
+
+static int pdo_maps(const co_pdo_t *p, uint16_t index)
+{
+    for (uint8_t i = 0; i < p->count; ++i)
+        if (p->entry[i] != NULL && p->entry[i]->index == index) return 1;
+    return 0;
+}
+
+/* Every valid event-driven TPDO that maps the statusword or the mode shown goes out (state and mode
+ * changes, NMT start). */
+static void send_statusword(co_node_t *node)
+{
+    for (uint8_t n = 0; n < CO_NUM_PDO; ++n) {
+        const co_pdo_t *p = &node->tpdo[n];
+        if (p->valid && p->trans_type >= 254u &&
+            (pdo_maps(p, OD_DRIVE_STATUSWORD_IDX) || pdo_maps(p, OD_DRIVE_MODES_OF_OPERATION_DISPLAY_IDX)))
+            co_tpdo_request(node, n);
+    }
+}
+
+/* The state changed: the statusword follows; a power stage switched off commands 0 V at once. */
+static void cia402_changed(drive_app_t *app, co_node_t *node, int was_powered)
+{
+    od_drive_mfr_t *m = mfr_of(node);
+    m->x6041_Statusword = cia402_device_statusword(&app->cia402);
+    if (was_powered && !cia402_device_power_enabled(&app->cia402)) {
+        clear_control_memory(&app->drv);
+        zero_voltage(&app->drv);
+        app->cmd.v_alpha_V = 0.0f;
+        app->cmd.v_beta_V = 0.0f;
+        m->x2102_voltage_command.v_alpha_V = 0.0f;
+        m->x2102_voltage_command.v_beta_V = 0.0f;
+        co_tpdo_request(node, 0);
+    }
+    send_statusword(node);
+}
+
+static int heartbeat_lost(const co_node_t *node);
+static void leave_safe_state(drive_app_t *app, co_node_t *node);
+
+/* A controlword arrived (SDO or RPDO). */
+static void cia402_on_controlword(drive_app_t *app, co_node_t *node)
+{
+    const int was_powered = cia402_device_power_enabled(&app->cia402);
+    const uint8_t before = app->cia402.state;
+    if (!cia402_device_controlword(&app->cia402, mfr_of(node)->x6040_Controlword, !heartbeat_lost(node))) return;
+    if (before == (uint8_t)CIA402_FAULT) {
+        leave_safe_state(app, node); /* transition 15: the fault reset (sends the statusword) */
+        return;
+    }
+    cia402_changed(app, node, was_powered);
+}
+
+static void cia402_reset(drive_app_t *app, co_node_t *node)
+{
+    od_drive_mfr_t *m = mfr_of(node);
+    const cia402_config_t cfg = {.quick_stop_option = m->x605A_quick_stop_option_code};
+    cia402_device_init(&app->cia402, &cfg);
+    m->x6041_Statusword = cia402_device_statusword(&app->cia402);
+    m->x6061_modes_of_operation_display = m->x6060_modes_of_operation;
+    m->x603F_error_code = 0u;
+}
+
+/* The references of this step in the CiA 402 modes (the manufacturer mode -1 keeps 0x2202's):
+ * returns 0 when the step commands 0 V (no mode, or the power stage off). */
+static int cia402_references(drive_app_t *app, const od_drive_mfr_t *m)
+{
+    drive_t *d = &app->drv;
+    if (!cia402_device_power_enabled(&app->cia402)) return 0;
+    if (app->cia402.state == (uint8_t)CIA402_QUICK_STOP_ACTIVE) {
+        d->sp.mode = (uint8_t)DRIVE_MODE_CURRENT; /* quick stop: the current to zero */
+        d->sp.iq_ref_A = 0.0f;
+        d->sp.id_ref_A = 0.0f;
+        return 1;
+    }
+    switch (m->x6061_modes_of_operation_display) {
+    case CIA402_MODE_CST: {
+        const float Kt_Nm_A = 1.5f * d->cfg.pole_pairs * d->cfg.psi_hat_Wb;
+        int32_t t = m->x6071_target_torque;
+        const int32_t tmax = (int32_t)m->x6072_max_torque;
+        if (t > tmax) t = tmax;
+        if (t < -tmax) t = -tmax;
+        const float T_Nm = (float)t * 1e-3f * (float)m->x6076_motor_rated_torque * 1e-3f;
+        d->sp.mode = (uint8_t)DRIVE_MODE_CURRENT;
+        d->sp.iq_ref_A = Kt_Nm_A > 0.0f ? T_Nm / Kt_Nm_A : 0.0f;
+        d->sp.id_ref_A = 0.0f;
+        return 1;
+    }
+    case CIA402_MODE_MANUFACTURER_CURRENT: return 1;
+    default: return 0; /* 0: no mode */
+    }
+}
+
+static int16_t per_mille(float value, float rated)
+{
+    if (!(rated > 0.0f)) return 0;
+    float x = 1000.0f * value / rated;
+    if (!is_finite_f(x)) return 0;
+    if (x > 32767.0f) x = 32767.0f;
+    if (x < -32768.0f) x = -32768.0f;
+    return (int16_t)x;
+}
+
+static int32_t increments(float rad)
+{
+    float x = rad * CIA402_INC_PER_RAD;
+    if (!is_finite_f(x)) return 0;
+    if (x > 2147483520.0f) x = 2147483520.0f; /* the largest float below 2^31 */
+    if (x < -2147483648.0f) x = -2147483648.0f;
+    return (int32_t)x;
+}
+
+static void cia402_refresh(const drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
+{
+    const drive_t *d = &app->drv;
+    switch (index) {
+    case OD_DRIVE_STATUSWORD_IDX: m->x6041_Statusword = cia402_device_statusword(&app->cia402); break;
+    case OD_DRIVE_POSITION_ACTUAL_VALUE_IDX:
+        m->x6064_position_actual_value = increments(d->outer.theta_unwrapped_rad);
+        break;
+    case OD_DRIVE_VELOCITY_ACTUAL_VALUE_IDX: m->x606C_velocity_actual_value = increments(d->outer.omega_m_rad_s); break;
+    case OD_DRIVE_TORQUE_ACTUAL_VALUE_IDX:
+        m->x6077_torque_actual_value = per_mille(1.5f * d->cfg.pole_pairs * d->cfg.psi_hat_Wb * d->st.i_q_A,
+                                                 (float)m->x6076_motor_rated_torque * 1e-3f);
+        break;
+    case OD_DRIVE_CURRENT_ACTUAL_VALUE_IDX:
+        m->x6078_current_actual_value = per_mille(d->st.i_q_A, (float)m->x6075_motor_rated_current * 1e-3f);
+        break;
+    default: break;
+    }
+}
+
+/* Quick stop with option 1, 2: stopped when the last step's iq is within the band; SWITCH ON
+ * DISABLED then, before this step's command (which is 0 V). */
+static void cia402_check_stopped(drive_app_t *app, co_node_t *node)
+{
+    if (app->cia402.state != (uint8_t)CIA402_QUICK_STOP_ACTIVE) return;
+    const float band_A = CIA402_STOPPED_FRACTION_OF_RATED * (float)mfr_of(node)->x6075_motor_rated_current * 1e-3f;
+    const float iq = app->drv.st.i_q_A;
+    if (iq <= band_A && iq >= -band_A && cia402_device_stopped(&app->cia402)) cia402_changed(app, node, 0);
+}
+
 /* ------------------------------------------------------------------ safe state */
 
 /* Zero voltage in the state and its trace signals: they show what the drive commanded. */
@@ -478,6 +627,9 @@ static void enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason)
     co_tpdo_request(node, 0);
     const uint8_t msef[5] = {(uint8_t)si, (uint8_t)(si >> 8), reason, 0, 0};
     emcy_send(app, safe_emcy_code(reason), msef);
+    /* CiA 402: the fault reaction (0 V, above) is done: FAULT, with the EMCY code as the error code */
+    m->x603F_error_code = safe_emcy_code(reason);
+    if (cia402_device_fault(&app->cia402)) cia402_changed(app, node, 0);
 }
 
 static void leave_safe_state(drive_app_t *app, co_node_t *node)
@@ -487,6 +639,8 @@ static void leave_safe_state(drive_app_t *app, co_node_t *node)
     app->safe_reason = (uint8_t)OD_DRIVE_REASON_NONE;
     app->syncs_without_meas = 0u;
     co_emcy_clear(node, safe_emcy_code(reason));
+    mfr_of(node)->x603F_error_code = 0u;
+    if (cia402_device_fault_reset(&app->cia402)) cia402_changed(app, node, 0);
 }
 
 /* ------------------------------------------------------------------ current step (continued) */
@@ -555,9 +709,13 @@ static void current_step(drive_app_t *app)
         reset_step_cost(app);
         app->cost_controller = m->x2200_Controller.controller;
     }
+    /* CiA 402: a quick stop that has ended leaves before this command; then the mode's references */
+    cia402_check_stopped(app, node);
+    const int powered = cia402_references(app, m);
     const uint32_t c0 = app->cycles_fn != NULL ? app->cycles_fn(app->cycles_user) : 0u;
-    if (app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE) {
-        safe_step(app);
+    if (app->safe_reason != (uint8_t)OD_DRIVE_REASON_NONE || !powered ||
+        (app->open_loop && app->cia402.state == (uint8_t)CIA402_QUICK_STOP_ACTIVE)) {
+        safe_step(app); /* 0 V */
     } else if (app->open_loop) {
         open_loop_step(app, m);
     } else {
@@ -652,6 +810,16 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
 {
     drive_app_t *app = (drive_app_t *)user;
     const uint16_t idx = e->index;
+    if (idx == OD_DRIVE_MODES_OF_OPERATION_IDX && len == 1u) {
+        const int8_t mode = (int8_t)data[0];
+        return mode == CIA402_MODE_MANUFACTURER_CURRENT || mode == CIA402_MODE_NONE || mode == CIA402_MODE_CST
+                   ? 0u
+                   : CO_ABORT_INVALID_VALUE;
+    }
+    if (idx == OD_DRIVE_QUICK_STOP_OPTION_CODE_IDX && len == 2u) {
+        const int16_t code = (int16_t)(uint16_t)(data[0] | (data[1] << 8));
+        return code == 3 || code == 4 ? CO_ABORT_INVALID_VALUE : 0u; /* torque / voltage limit: not here */
+    }
     if (idx < OD_DRIVE_CONTROLLER_IDX || idx > OD_DRIVE_LIVE_TRACE_IDX) return 0;
     const uint32_t sz = co_dt_size(e->datatype);
     if (sz == 0u || len != sz) return 0; /* lengths already checked by the core */
@@ -721,6 +889,17 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
     drive_app_t *app = (drive_app_t *)user;
     od_drive_mfr_t *m = mfr_of(node);
     const uint16_t idx = e->index;
+    switch (idx) {
+    case OD_DRIVE_CONTROLWORD_IDX: cia402_on_controlword(app, node); return;
+    case OD_DRIVE_MODES_OF_OPERATION_IDX: /* in effect from the next step */
+        m->x6061_modes_of_operation_display = m->x6060_modes_of_operation;
+        send_statusword(node);
+        return;
+    case OD_DRIVE_QUICK_STOP_OPTION_CODE_IDX:
+        app->cia402.cfg.quick_stop_option = m->x605A_quick_stop_option_code;
+        return;
+    default: break;
+    }
     if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
         const uint8_t cmd = m->x2206_yao_2020_dpcc.ident_command;
         m->x2206_yao_2020_dpcc.ident_command = 0u; /* a command, not a state */
@@ -770,7 +949,10 @@ static void hk_pre_read(void *user, co_node_t *node, const co_od_entry_t *e)
 {
     drive_app_t *app = (drive_app_t *)user;
     if (e->index < OD_DRIVE_ONLINE_TUNING_IDX) return; /* fast path: 0x2102 of TPDO1 */
-    refresh(app, mfr_of(node), e->index);
+    if (e->index >= OD_DRIVE_ERROR_CODE_IDX)
+        cia402_refresh(app, mfr_of(node), e->index);
+    else
+        refresh(app, mfr_of(node), e->index);
 }
 
 static void hk_on_sync(void *user, co_node_t *node, uint8_t counter)
@@ -804,6 +986,8 @@ static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
         app->rpdo1_fresh = 1u;
     } else if (pdo == 1u) {
         on_measurement(app, node);
+    } else if (pdo_maps(&node->rpdo[pdo], OD_DRIVE_CONTROLWORD_IDX)) {
+        cia402_on_controlword(app, node); /* RPDO4 by default; the target torque is read by the next step */
     }
     /* pdo 2 (references): read by the next step */
 }
@@ -812,9 +996,15 @@ static void hk_on_nmt(void *user, co_node_t *node, co_nmt_state_t state)
 {
     drive_app_t *app = (drive_app_t *)user;
     reset_sequencing(app);
+    /* CiA 402: leaving OPERATIONAL disables the power stage (the "disable voltage" reaction of 0x6007) */
+    if (state != CO_NMT_OPERATIONAL) {
+        const int was_powered = cia402_device_power_enabled(&app->cia402);
+        if (cia402_device_disable_voltage(&app->cia402)) cia402_changed(app, node, was_powered);
+    }
     /* started while the plant's heartbeat is still lost: not a state to run in */
     if (state == CO_NMT_OPERATIONAL && heartbeat_lost(node))
         enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST);
+    if (state == CO_NMT_OPERATIONAL) send_statusword(node);
 }
 
 static void hk_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
@@ -853,8 +1043,10 @@ static void hk_on_reset(void *user, co_node_t *node, int communication_only)
         memset(&app->cmd, 0, sizeof app->cmd);
     }
     reset_sequencing(app);
-    /* both resets leave the safe state (the stack has forgotten the active EMCYs) */
+    /* both resets leave the safe state (the stack has forgotten the active EMCYs), and the
+     * CiA 402 state machine starts again in SWITCH ON DISABLED */
     app->safe_reason = (uint8_t)OD_DRIVE_REASON_NONE;
+    cia402_reset(app, node);
     app->non_finite_mask = 0u;
     app->non_finite_active = 0u;
     m->x2301_trace_buffer.data = (uint8_t *)app->trace.buffer;

@@ -69,14 +69,45 @@
  *                 0x2202 keep their last finite value, v_d_open_V/v_q_open_V
  *                 read 0 in the open loop (counted only there); no EMCY.
  *
+ * CiA 402 (0x603F-0x6502; cia402_device.h for the state machine): the node is
+ * a servo drive (0x1000 = 0x00020192).  It starts in SWITCH ON DISABLED and
+ * the power stage acts only in OPERATION ENABLED (and QUICK STOP ACTIVE, where
+ * the control takes iq to 0, id to 0); every other state commands 0 V, sent at
+ * once when the state is left while OPERATIONAL, and clears the controllers'
+ * memories at every step (a clean start at enable).  The bench's lockstep runs
+ * enable the drive by SDO (controlword 6, 7, 15) before NMT start.
+ *   0x6040 controlword   by SDO or by any RPDO that maps it (RPDO4 by default,
+ *                        not valid until a master enables it)
+ *   0x6041 statusword    every valid event-driven TPDO that maps it (TPDO3 by
+ *                        default) goes out at each state change and at NMT start
+ *   0x6060 modes          -1 manufacturer current mode (default: the id/iq
+ *                        references of 0x2202, the papers' runs), 10 cyclic
+ *                        synchronous torque (iq_ref = 0x6071 / 1000 x 0x6076 [mNm]
+ *                        / 1000 / (1.5 p psi_hat), clamped to +-0x6072, id_ref = 0),
+ *                        0 no mode (0 V); 0x6061 shows it
+ *   0x605A quick stop     0 -> SWITCH ON DISABLED at once; 1, 2 -> iq to 0, then
+ *                        SWITCH ON DISABLED before the command of the step that
+ *                        finds |iq| <= 2 % of 0x6075 (0 V in it); 5, 6 stay
+ *   actual values        0x6064/0x606C position/velocity (65536 increments per
+ *                        mechanical revolution), 0x6077 torque (1.5 p psi_hat iq per
+ *                        mille of 0x6076), 0x6078 iq per mille of 0x6075; refreshed
+ *                        on every read
+ *   faults               the safe states below are the 402 FAULT (transitions 13,
+ *                        14) with 0x603F = their EMCY code; a fault reset (rising
+ *                        edge of controlword bit 7, or 0x2209:05) is refused while
+ *                        the plant's heartbeat is still lost
+ *   NMT                  leaving OPERATIONAL while enabled: SWITCH ON DISABLED
+ *                        (the "disable voltage" reaction of 0x6007); a reset node
+ *                        or reset communication: SWITCH ON DISABLED
+ *
  * Safe states (0x2209): a real drive's reaction to losing its communication.
  * Without measurements or a live plant the drive cannot control the current,
  * so it commands zero voltage and stays there until told otherwise (latched:
  * a fault, not a glitch that heals itself).  This is the communication-loss
  * reaction a CiA 402 drive configures in 0x6007 (abort connection option
- * code); when the drive gets a CiA 402 profile, the safe state will become
- * its Fault state (reaction 0x605E) and 0x2209:05 the fault-reset bit of the
- * controlword; the codes and entries here stay as its manufacturer detail.
+ * code); it is the CiA 402 FAULT state (above), 0x2209:05 a fault reset
+ * like the controlword's bit 7; the codes and entries here stay as its
+ * manufacturer detail.
  *   measurement timeout (reason 1)  0x2209:01 meas_timeout_periods SYNCs in a
  *                     row without a measurement (RPDO2) in between, counted
  *                     while OPERATIONAL from the first measurement of the run
@@ -115,6 +146,7 @@
 
 #include <stdint.h>
 
+#include "cia402_device.h"
 #include "co_node.h"
 #include "drive_core.h"
 #include "trace_recorder.h"
@@ -194,6 +226,10 @@ typedef struct {
 
     /* open loop active in the last step (0x2200:01 = 0 or 0x2202:01 = 3) */
     uint8_t open_loop;
+
+    /* CiA 402 power drive system (0x6040/0x6041): only OPERATION ENABLED and QUICK STOP ACTIVE let
+     * the control act on the motor */
+    cia402_device_t cia402;
 
     /* trace buffer linearised in place for the DOMAIN upload */
     uint8_t trace_linear;

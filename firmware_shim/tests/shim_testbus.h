@@ -39,6 +39,18 @@ static inline void deliver(void) { testbus_step(&g_tb); }
 
 static inline const co_frame_t *find(uint16_t cob, int nth) { return testbus_find(&g_tb, cob, nth); }
 
+static inline uint32_t sdo_write_u16(uint16_t idx, uint8_t sub, uint16_t v);
+
+/* CiA 402: SWITCH ON DISABLED -> OPERATION ENABLED by SDO (controlword 6, 7, 15), as the bench does. */
+static inline void enable_drive(void)
+{
+    CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0006u) == 0);
+    CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0007u) == 0);
+    CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x000Fu) == 0);
+    CHECK_TRUE(g_app.cia402.state == CIA402_OPERATION_ENABLED);
+    testbus_clear(&g_tb);
+}
+
 /* A fresh drive at t = 1000 us, booted and started (NMT), every exchange step_us long. */
 static inline void setup(int64_t step_us)
 {
@@ -52,6 +64,7 @@ static inline void setup(int64_t step_us)
     inject(0x000, 2, start);
     deliver();
     CHECK_TRUE(g_tb.node.nmt == CO_NMT_OPERATIONAL);
+    enable_drive();
 }
 
 /* ------------------------------------------------------------------ scripted plant */

@@ -93,6 +93,16 @@ static uint32_t write_clear(uint8_t v)
     return sdo_write_u8(OD_DRIVE_SAFE_STATE_IDX, OD_DRIVE_SAFE_STATE_CLEAR_SUB, v);
 }
 
+/* After a fault reset: FAULT -> SWITCH ON DISABLED (transition 15, 0x603F = 0), then enabled
+ * again as a master does. */
+static void reenable(void)
+{
+    CHECK_TRUE(g_app.cia402.state == CIA402_SWITCH_ON_DISABLED);
+    CHECK_TRUE((sdo_read_u32(OD_DRIVE_STATUSWORD_IDX, 0) & 0x4Fu) == 0x40u);
+    CHECK_TRUE(sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == 0u);
+    enable_drive();
+}
+
 /* The reference core: a fresh drive with the node's defaults and iq_ref_A. */
 static void ref_init(drive_t *ref, float iq_ref_A)
 {
@@ -231,6 +241,7 @@ static void test_meas_timeout_and_clear(void)
     CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_CLEAR_SUB) == 0u);
     CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_ENTRIES_SUB) == 1u);
     CHECK_TRUE(sdo_read_u32(0x1001, 0) == 0u);
+    reenable(); /* CiA 402: the fault reset left FAULT for SWITCH ON DISABLED */
     /* the next step commands again: non-zero, the core restarting from cleared memories
      * (a lost sample gap, counted by 0xFF01, after the NMT transitions: none here) */
     identical = 0;
@@ -301,6 +312,7 @@ static void test_speed_mode_no_windup(void)
     }
     CHECK_TRUE(clean == 40);
     CHECK_TRUE(write_clear(1) == 0);
+    reenable(); /* CiA 402: the fault reset left FAULT for SWITCH ON DISABLED */
     int identical = 0;
     for (int i = 0; i < 16; ++i, ++k) {
         drive_current_step(&ref, &m, &c);
@@ -431,6 +443,7 @@ static void test_heartbeat_lost(void)
     CHECK_TRUE(write_clear(1) == 0);
     CHECK_TRUE(count_emcy(0x0000, NULL, NULL) == 1);
     CHECK_TRUE(sdo_read_u32(0x1001, 0) == 0u);
+    reenable(); /* CiA 402: the fault reset left FAULT for SWITCH ON DISABLED */
     /* running again (the lost SYNCs above make the next sample a gap: 0xFF01, not a safe state) */
     k = (uint16_t)(k + 5u);
     for (int i = 0; i < 3; ++i, ++k) {
@@ -524,6 +537,7 @@ static void test_non_finite(void)
     CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_ENTERED_AT_SAMPLE_SUB) == 7u);
     CHECK_TRUE(write_clear(1) == 0);
     CHECK_TRUE(count_emcy(0x0000, NULL, NULL) == 0); /* 0xFF05 of sample 8 is still active */
+    reenable();                                      /* CiA 402: the fault reset left FAULT for SWITCH ON DISABLED */
     k = (uint16_t)(k + 4u);
 
     /* references by RPDO3: a NaN iq_ref_A is ignored and counted at every step it is read */

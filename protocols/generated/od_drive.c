@@ -4,7 +4,7 @@
 od_drive_ram_t OD_DRIVE;
 
 static const od_drive_ram_t defaults = {
-    .comm.x1000_device_type = 0x0u,
+    .comm.x1000_device_type = 0x20192u,
     .comm.x1001_error_register = 0x0u,
     .comm.x1003_pre_defined_error_field.number_of_errors = 0x0u,
     .comm.x1003_pre_defined_error_field.standard_error_field_1 = 0x0u,
@@ -47,7 +47,7 @@ static const od_drive_ram_t defaults = {
     .comm.x1402_rpdo3_communication_parameter.event_timer = 0x0u,
     .comm.x1403_rpdo4_communication_parameter.highest_sub_index_supported = 0x5u,
     .comm.x1403_rpdo4_communication_parameter.cob_id_used_by_rpdo = 0x80000500u,
-    .comm.x1403_rpdo4_communication_parameter.transmission_type = 0xFEu,
+    .comm.x1403_rpdo4_communication_parameter.transmission_type = 0xFFu,
     .comm.x1403_rpdo4_communication_parameter.event_timer = 0x0u,
     .comm.x1600_rpdo1_mapping_parameter.number_of_mapped_objects = 0x2u,
     .comm.x1600_rpdo1_mapping_parameter.mapping_entry_1 = 0x21000120u,
@@ -76,9 +76,9 @@ static const od_drive_ram_t defaults = {
     .comm.x1602_rpdo3_mapping_parameter.mapping_entry_6 = 0x0u,
     .comm.x1602_rpdo3_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1602_rpdo3_mapping_parameter.mapping_entry_8 = 0x0u,
-    .comm.x1603_rpdo4_mapping_parameter.number_of_mapped_objects = 0x0u,
-    .comm.x1603_rpdo4_mapping_parameter.mapping_entry_1 = 0x0u,
-    .comm.x1603_rpdo4_mapping_parameter.mapping_entry_2 = 0x0u,
+    .comm.x1603_rpdo4_mapping_parameter.number_of_mapped_objects = 0x2u,
+    .comm.x1603_rpdo4_mapping_parameter.mapping_entry_1 = 0x60400010u,
+    .comm.x1603_rpdo4_mapping_parameter.mapping_entry_2 = 0x60710010u,
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_3 = 0x0u,
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_4 = 0x0u,
     .comm.x1603_rpdo4_mapping_parameter.mapping_entry_5 = 0x0u,
@@ -127,18 +127,18 @@ static const od_drive_ram_t defaults = {
     .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_6 = 0x0u,
     .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1A01_tpdo2_mapping_parameter.mapping_entry_8 = 0x0u,
-    .comm.x1A02_tpdo3_mapping_parameter.number_of_mapped_objects = 0x0u,
-    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_1 = 0x0u,
-    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_2 = 0x0u,
-    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_3 = 0x0u,
-    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_4 = 0x0u,
+    .comm.x1A02_tpdo3_mapping_parameter.number_of_mapped_objects = 0x4u,
+    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_1 = 0x60410010u,
+    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_2 = 0x60610008u,
+    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_3 = 0x60770010u,
+    .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_4 = 0x60780010u,
     .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_5 = 0x0u,
     .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_6 = 0x0u,
     .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1A02_tpdo3_mapping_parameter.mapping_entry_8 = 0x0u,
-    .comm.x1A03_tpdo4_mapping_parameter.number_of_mapped_objects = 0x0u,
-    .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_1 = 0x0u,
-    .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_2 = 0x0u,
+    .comm.x1A03_tpdo4_mapping_parameter.number_of_mapped_objects = 0x2u,
+    .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_1 = 0x60640020u,
+    .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_2 = 0x606C0020u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_3 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_4 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_5 = 0x0u,
@@ -301,6 +301,21 @@ static const od_drive_ram_t defaults = {
     .mfr.x2302_live_trace.live_signal_1 = 0x2u,
     .mfr.x2302_live_trace.live_signal_2 = 0x1u,
     .mfr.x2302_live_trace.decimation = 0x8u,
+    .mfr.x603F_error_code = 0x0u,
+    .mfr.x6040_Controlword = 0x0u,
+    .mfr.x6041_Statusword = 0x40u,
+    .mfr.x605A_quick_stop_option_code = 2,
+    .mfr.x6060_modes_of_operation = -1,
+    .mfr.x6061_modes_of_operation_display = -1,
+    .mfr.x6064_position_actual_value = 0,
+    .mfr.x606C_velocity_actual_value = 0,
+    .mfr.x6071_target_torque = 0,
+    .mfr.x6072_max_torque = 0x3E8u,
+    .mfr.x6075_motor_rated_current = 0xFA0u,
+    .mfr.x6076_motor_rated_torque = 0x4ECu,
+    .mfr.x6077_torque_actual_value = 0,
+    .mfr.x6078_current_actual_value = 0,
+    .mfr.x6502_supported_drive_modes = 0x10200u,
 };
 
 static const co_od_entry_t entries[] = {
@@ -602,6 +617,21 @@ static const co_od_entry_t entries[] = {
     {0x2302u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.live_signal_1), &OD_DRIVE.mfr.x2302_live_trace.live_signal_1, {.i = 0}, {.i = 63}}, /* live_signal_1 */
     {0x2302u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.live_signal_2), &OD_DRIVE.mfr.x2302_live_trace.live_signal_2, {.i = 0}, {.i = 63}}, /* live_signal_2 */
     {0x2302u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.decimation), &OD_DRIVE.mfr.x2302_live_trace.decimation, {.i = 1}, {.i = 65535}}, /* decimation */
+    {0x603Fu, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x603F_error_code), &OD_DRIVE.mfr.x603F_error_code, {.i = 0}, {.i = 0}}, /* Error code */
+    {0x6040u, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6040_Controlword), &OD_DRIVE.mfr.x6040_Controlword, {.i = 0}, {.i = 0}}, /* Controlword */
+    {0x6041u, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6041_Statusword), &OD_DRIVE.mfr.x6041_Statusword, {.i = 0}, {.i = 0}}, /* Statusword */
+    {0x605Au, 0x00u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x605A_quick_stop_option_code), &OD_DRIVE.mfr.x605A_quick_stop_option_code, {.i = 0}, {.i = 6}}, /* Quick stop option code */
+    {0x6060u, 0x00u, CO_DT_INTEGER8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x6060_modes_of_operation), &OD_DRIVE.mfr.x6060_modes_of_operation, {.i = -1}, {.i = 10}}, /* Modes of operation */
+    {0x6061u, 0x00u, CO_DT_INTEGER8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6061_modes_of_operation_display), &OD_DRIVE.mfr.x6061_modes_of_operation_display, {.i = 0}, {.i = 0}}, /* Modes of operation display */
+    {0x6064u, 0x00u, CO_DT_INTEGER32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6064_position_actual_value), &OD_DRIVE.mfr.x6064_position_actual_value, {.i = 0}, {.i = 0}}, /* Position actual value */
+    {0x606Cu, 0x00u, CO_DT_INTEGER32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x606C_velocity_actual_value), &OD_DRIVE.mfr.x606C_velocity_actual_value, {.i = 0}, {.i = 0}}, /* Velocity actual value */
+    {0x6071u, 0x00u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6071_target_torque), &OD_DRIVE.mfr.x6071_target_torque, {.i = 0}, {.i = 0}}, /* Target torque */
+    {0x6072u, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x6072_max_torque), &OD_DRIVE.mfr.x6072_max_torque, {.i = 0}, {.i = 3000}}, /* Max torque */
+    {0x6075u, 0x00u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x6075_motor_rated_current), &OD_DRIVE.mfr.x6075_motor_rated_current, {.i = 1}, {.i = 1000000}}, /* Motor rated current */
+    {0x6076u, 0x00u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x6076_motor_rated_torque), &OD_DRIVE.mfr.x6076_motor_rated_torque, {.i = 1}, {.i = 10000000}}, /* Motor rated torque */
+    {0x6077u, 0x00u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6077_torque_actual_value), &OD_DRIVE.mfr.x6077_torque_actual_value, {.i = 0}, {.i = 0}}, /* Torque actual value */
+    {0x6078u, 0x00u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6078_current_actual_value), &OD_DRIVE.mfr.x6078_current_actual_value, {.i = 0}, {.i = 0}}, /* Current actual value */
+    {0x6502u, 0x00u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x6502_supported_drive_modes), &OD_DRIVE.mfr.x6502_supported_drive_modes, {.i = 0}, {.i = 0}}, /* Supported drive modes */
 };
 
 const co_od_t od_drive = {entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_DRIVE, &defaults, sizeof(od_drive_comm_t), sizeof(od_drive_ram_t)};

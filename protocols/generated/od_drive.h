@@ -475,6 +475,21 @@ typedef struct {
     od_drive_trace_t x2300_Trace;
     co_domain_t x2301_trace_buffer;
     od_drive_live_trace_t x2302_live_trace;
+    uint16_t x603F_error_code;
+    uint16_t x6040_Controlword;
+    uint16_t x6041_Statusword;
+    int16_t x605A_quick_stop_option_code;
+    int8_t x6060_modes_of_operation;
+    int8_t x6061_modes_of_operation_display;
+    int32_t x6064_position_actual_value;
+    int32_t x606C_velocity_actual_value;
+    int16_t x6071_target_torque;
+    uint16_t x6072_max_torque;
+    uint32_t x6075_motor_rated_current;
+    uint32_t x6076_motor_rated_torque;
+    int16_t x6077_torque_actual_value;
+    int16_t x6078_current_actual_value;
+    uint32_t x6502_supported_drive_modes;
 } od_drive_mfr_t;
 
 /* The communication part comes first: a communication reset restores it alone. */
@@ -817,5 +832,20 @@ extern const co_od_t od_drive;
 #define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB 0x03u
 #define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB 0x04u
 #define OD_DRIVE_LIVE_TRACE_DECIMATION_SUB 0x05u
+#define OD_DRIVE_ERROR_CODE_IDX 0x603Fu
+#define OD_DRIVE_CONTROLWORD_IDX 0x6040u
+#define OD_DRIVE_STATUSWORD_IDX 0x6041u
+#define OD_DRIVE_QUICK_STOP_OPTION_CODE_IDX 0x605Au
+#define OD_DRIVE_MODES_OF_OPERATION_IDX 0x6060u
+#define OD_DRIVE_MODES_OF_OPERATION_DISPLAY_IDX 0x6061u
+#define OD_DRIVE_POSITION_ACTUAL_VALUE_IDX 0x6064u
+#define OD_DRIVE_VELOCITY_ACTUAL_VALUE_IDX 0x606Cu
+#define OD_DRIVE_TARGET_TORQUE_IDX 0x6071u
+#define OD_DRIVE_MAX_TORQUE_IDX 0x6072u
+#define OD_DRIVE_MOTOR_RATED_CURRENT_IDX 0x6075u
+#define OD_DRIVE_MOTOR_RATED_TORQUE_IDX 0x6076u
+#define OD_DRIVE_TORQUE_ACTUAL_VALUE_IDX 0x6077u
+#define OD_DRIVE_CURRENT_ACTUAL_VALUE_IDX 0x6078u
+#define OD_DRIVE_SUPPORTED_DRIVE_MODES_IDX 0x6502u
 
 #endif /* OD_DRIVE_H */

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bench_proc import NODES, pids, start_long_run
+from cia402_loop import DRIVE_ID, drive_with_motor
+from cia402_transitions import new_drive_402, walk
 
 from bench.canbus import LinkError, link_info, prepare_can_link
 from bench.paths import REPO
@@ -31,6 +33,7 @@ from bench.run.summary import EXIT_CODES
 from bench.scenario import load
 
 PARITY = REPO / "tests" / "scenarios" / "parity.toml"
+CIA402_CYCLE_S = 0.05  # as tests/can/test_cia402_vcan.py
 
 
 @pytest.fixture(scope="module")
@@ -159,3 +162,21 @@ def test_a_user_without_rights_is_told_the_commands(can_pair: tuple[str, str]) -
         assert f"sudo ip link set {name} type can bitrate" in res.stdout and "CAP_NET_ADMIN" in res.stdout, res.stdout
     finally:
         prepare_can_link(name, None)
+
+
+def test_base_node_402_walks_the_drive_over_can_controllers(can_pair: tuple[str, str]) -> None:
+    """The CiA 402 walk of tests/can/test_cia402_vcan.py with the master and the plant on can0, the drive on
+    can1: every frame of the state machine and the CST loop crosses the bus between two controllers."""
+    master_bus, drive_bus = can_pair
+    for name in can_pair:
+        prepare_can_link(name, None)
+    with drive_with_motor(master_bus, CIA402_CYCLE_S, new_drive_402(DRIVE_ID), drive_iface=drive_bus) as loop:
+        report = walk(loop, master_bus, CIA402_CYCLE_S)
+    print(report.text())
+    assert report.transitions_failed == [] and report.transitions_done >= 16, report.text()
+    assert report.torque_mean_per_mille == pytest.approx(250, rel=0.15), report.text()
+    assert max(t for t, _ in report.samples) - min(t for t, _ in report.samples) < 50, report.text()
+    assert report.fault_error_code == 0xFF03 and report.state_after_reset == "OPERATION ENABLED", report.text()
+    for name in can_pair:
+        info = link_info(name)
+        assert info is not None and info["state"] == "ERROR-ACTIVE", info

@@ -25,6 +25,7 @@ import pytest
 
 from bench.mcu import INSTRUCTIONS_PER_TICK, SYSCLK_HZ, McuImage
 from bench.paths import EDS_DIR
+from bench.run.configure import enable_cia402
 from bench.run.direct import DirectBus, Hil
 
 DRIVE_ID = 0x20  # OD_DRIVE_DEFAULT_NODE_ID: the image's node-ID
@@ -77,6 +78,7 @@ def run_master(bus: can.BusABC) -> Result:
         rpdo1, rpdo2, tpdo1 = node.rpdo[1], node.rpdo[2], node.tpdo[1]
         replies: queue.Queue[bytes] = queue.Queue()
         net.subscribe(tpdo1.cob_id, lambda _cob, data, _ts: replies.put(bytes(data)))
+        assert enable_cia402(node)  # CiA 402: the power stage acts in OPERATION ENABLED only
         node.nmt.state = "OPERATIONAL"
 
         k0 = 0

@@ -18,6 +18,7 @@ import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.paths import EDS_DIR
+from bench.run.configure import enable_cia402
 from bench.run.direct import DirectBus, Hil
 
 PLANT_ID, DRIVE_ID = 0x10, 0x20
@@ -61,6 +62,7 @@ def _configure_zhao(plant: canopen.RemoteNode, drive: canopen.RemoteNode, iq_ref
     ):
         ctl[name].raw = value
     drive.sdo["References"]["iq_ref_A"].raw = iq_ref_A
+    enable_cia402(drive)  # CiA 402: the power stage acts in OPERATION ENABLED only
     for n in (plant, drive):
         n.tpdo.read()
         n.rpdo.read()

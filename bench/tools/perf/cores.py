@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ...paths import BUILD, REPO, binary
+from ...run.configure import enable_cia402
 from .common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, YAO2020_DSP_US, first_line, run, statm_pages
 
 ARM_FLAGS = [
@@ -123,6 +124,7 @@ def closed_loop() -> dict[str, Any]:
         net.add_node(drive)
         total = DIRECT_PERIODS * 2 + DIRECT_PERIODS // 10
         plant.sdo["Run control"]["run_periods"].raw = total
+        enable_cia402(drive)  # CiA 402: the power stage acts in OPERATION ENABLED only
         for n in (plant, drive):
             n.nmt.send_command(0x01)
         drive.sdo["References"]["iq_ref_A"].raw = 1.0

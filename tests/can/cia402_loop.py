@@ -1,0 +1,121 @@
+"""The project's drive node as a CiA 402 device with its "motor" behind it, for the tests over a real bus:
+drive_node and plant_node started on one interface, the plant a SYNC consumer (0x1005 bit 30 clear: it
+produces no SYNC and samples at each SYNC it receives), the measurement and command PDOs wired as the
+bench wires them, the drive's PI tuned for a slow cycle. Whoever produces SYNC (the test, or the bench's
+CiA 402 master) paces the loop; no Python runs per period in the loop itself.
+
+Slow cycles because the tests run in the VM, which stalls processes up to ~150 ms: the plant's model is
+exact at any Ts (its discretisation), the drive's PI bandwidth is 1/(12 Ts)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import canopen
+
+from bench.paths import EDS_DIR
+from bench.run.nodes import NodeProcess
+
+PLANT_ID, DRIVE_ID = 0x10, 0x20
+RUN_FOREVER = 0xFFFFFFFF
+
+
+@dataclass
+class Loop:
+    net: canopen.Network
+    plant: canopen.RemoteNode
+    drive: canopen.RemoteNode
+    procs: tuple[NodeProcess, NodeProcess]
+
+
+def _wait_boot(net: canopen.Network, ids: tuple[int, ...], timeout_s: float = 15.0) -> None:
+    seen: set[int] = set()
+
+    def on_boot(cob_id: int, data: bytearray, ts: float) -> None:
+        if len(data) == 1 and data[0] == 0:
+            seen.add(cob_id - 0x700)
+
+    for i in ids:
+        net.subscribe(0x700 + i, on_boot)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not set(ids) <= seen:
+        time.sleep(0.02)
+    for i in ids:
+        net.unsubscribe(0x700 + i, on_boot)
+    missing = set(ids) - seen
+    assert not missing, f"no boot-up from node(s) {sorted(hex(i) for i in missing)}"
+
+
+def configure_motor(plant: canopen.RemoteNode, drive: canopen.RemoteNode, cycle_s: float) -> None:
+    """The plant as the drive's motor (SYNC consumer, locked rotor, running without end) and the drive's
+    current loop at the cycle (PI, bandwidth 1/(12 Ts), no estimator, measurement timeout 10 cycles); the
+    PDOs wired."""
+    sdo = plant.sdo
+    sdo["Motor preset"].raw = "you2019"
+    sdo["Motor model"]["mech_mode"].raw = 1  # locked (ValueNames free, locked, imposed_speed)
+    sdo["Inverter"]["Ts_s"].raw = cycle_s
+    # an ideal inverter: the preset's dead time (2 us at a 55 us PWM period: ~11 V against the current's
+    # sign) drives a slow PI into a limit cycle of +-7 A (seen in direct mode at 50 ms)
+    sdo["Inverter"]["t_dead_s"].raw = 0.0
+    sdo["COB-ID SYNC message"].raw = 0x80  # bit 30 clear: no SYNC of its own, it samples at the master's
+    sdo["Run control"]["mode"].raw = 0
+    sdo["Run control"]["run_periods"].raw = RUN_FOREVER
+    motor, ctl, outer = sdo["Motor model"], drive.sdo["Controller"], drive.sdo["Outer loops"]
+    ctl["controller"].raw = 1  # pi (drive.eds 0x2200:01 ValueNames)
+    # You 2019's current estimator predicts i(k+1) by forward Euler: unstable at Ts >> L/R (3 ms here)
+    ctl["estimator_enable"].raw = 0
+    bw = 1.0 / (12 * cycle_s)  # the bandwidths before Ts: each is checked against it (< 1/(6 Ts), 1/(2 Ts))
+    ctl["pi_bandwidth_Hz"].raw = max(1.0, bw)
+    ctl["estimator_bandwidth_Hz"].raw = max(1.0, bw)
+    ctl["speed_loop_divider"].raw = 1  # the speed loop's Nyquist (x the divider) and the cascade's order
+    outer["position_bandwidth_Hz"].raw = max(0.01, bw / 8)
+    outer["speed_bandwidth_Hz"].raw = max(0.1, bw / 2)
+    ctl["Ts_s"].raw = cycle_s
+    for hat, true in (("R_hat_ohm", "R_ohm"), ("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H"), ("psi_hat_Wb", "psi_Wb")):
+        ctl[hat].raw = motor[true].raw
+    drive.sdo["Safe state"]["meas_timeout_periods"].raw = 10
+    # plant TPDO1/2 -> drive RPDO1/2, drive TPDO1 -> plant RPDO1 (bench/run/configure.py wire_pdos)
+    for n in (plant, drive):
+        n.tpdo.read()
+        n.rpdo.read()
+    for num in (1, 2):
+        drive.rpdo[num].cob_id = plant.tpdo[num].cob_id
+        drive.rpdo[num].enabled = True
+        drive.rpdo[num].save()
+    plant.rpdo[1].cob_id = drive.tpdo[1].cob_id
+    plant.rpdo[1].enabled = True
+    plant.rpdo[1].save()
+
+
+@contextmanager
+def drive_with_motor(
+    iface: str, cycle_s: float, drive: canopen.RemoteNode | None = None, drive_iface: str | None = None
+) -> Iterator[Loop]:
+    """Both nodes started on `iface` (the drive on `drive_iface` if given: another controller on the same
+    bus), configured, the plant OPERATIONAL; the drive left in PRE-OPERATIONAL and SWITCH ON DISABLED for
+    the master under test (`drive`: a BaseNode402 to use as the drive's node)."""
+    net = canopen.Network()
+    net.connect(interface="socketcan", channel=iface, receive_own_messages=False)
+    plant = canopen.RemoteNode(PLANT_ID, str(EDS_DIR / "plant.eds"))
+    drive = drive or canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
+    for n in (plant, drive):
+        n.sdo.RESPONSE_TIMEOUT = 3.0
+        net.add_node(n)
+    procs = (
+        NodeProcess("plant_node", ["--iface", iface, "--node-id", str(PLANT_ID)]),
+        NodeProcess("drive_node", ["--iface", drive_iface or iface, "--node-id", str(DRIVE_ID)]),
+    )
+    try:
+        for p in procs:
+            p.start()
+        _wait_boot(net, (PLANT_ID, DRIVE_ID))
+        configure_motor(plant, drive, cycle_s)
+        plant.nmt.send_command(0x01)
+        yield Loop(net, plant, drive, procs)
+    finally:
+        for p in procs:
+            p.stop()
+        net.disconnect()

@@ -1,0 +1,151 @@
+"""`bench run --drive-profile cia402` over vcan0 against a CiA 402 drive it did not build (the stand-in of
+tests/can/cia402_standin.py: the drive node with the plant behind it on a bus of its own).
+
+Run in the VM: flock /tmp/vm.lock .venv/bin/bench vm --timeout 600 -- .venv/bin/pytest -q -p no:cacheprovider
+tests/can/test_cia402_master_vcan.py
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import canopen
+import pytest
+from bench_proc import pids
+from cia402_standin import DRIVE_ID, StandIn
+
+from bench.paths import EDS_DIR, REPO
+
+CYCLE_MS = 50  # the VM stalls processes up to ~150 ms
+STEP = REPO / "scenarios" / "you2019_step.toml"
+
+
+@pytest.fixture
+def standin(vcan0: str) -> Iterator[StandIn]:
+    with StandIn(CYCLE_MS / 1000, vcan0) as s:
+        yield s
+
+
+def bench(out: Path, *extra: str) -> list[str]:
+    return [
+        sys.executable,
+        "-m",
+        "bench.cli",
+        "run",
+        str(STEP),
+        "--bus",
+        "vcan0",
+        "--drive-profile",
+        "cia402",
+        "--cycle-ms",
+        str(CYCLE_MS),
+        "--out",
+        str(out),
+        *extra,
+    ]
+
+
+def wait_playing(proc: subprocess.Popen[bytes]) -> bytes:
+    """The bench's output up to its "playing" line (the drive is OPERATION ENABLED)."""
+    assert proc.stdout is not None
+    seen, deadline = b"", time.monotonic() + 90
+    while b"playing" not in seen and time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line and proc.poll() is not None:
+            break
+        seen += line
+    assert b"playing" in seen, seen + (proc.stderr.read() if proc.stderr else b"")
+    return seen
+
+
+def sdo_statusword() -> int:
+    net = canopen.Network()
+    net.connect(interface="socketcan", channel="vcan0")
+    try:
+        node = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
+        node.sdo.RESPONSE_TIMEOUT = 5.0
+        net.add_node(node)
+        return int(node.sdo[0x6041].raw)
+    finally:
+        net.disconnect()
+
+
+def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = subprocess.run(
+        bench(out, "--set", "scenario.periods=80"), cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "no lockstep" in res.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["lockstep"] is False and summary["final_state"] == "SWITCH ON DISABLED"
+    assert "OPERATION ENABLED" in summary["states_passed"]
+    step = [t for t in summary["tracking"] if t["target_permille"] == 250]
+    assert step and step[0]["mean_actual_permille"] is not None, summary["tracking"]
+    assert abs(step[0]["relative_error"]) <= 0.25, step
+    assert (out / "trace.csv").exists() and (out / "overview.png").exists() and (out / "bus.log").exists()
+    assert sdo_statusword() & 0x4F == 0x40
+    assert standin.alive()
+
+
+def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        bench(out, "--set", "scenario.periods=100000"), cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    try:
+        wait_playing(proc)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)  # a second Ctrl-C must not cut the cleanup short
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, (stdout, stderr)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["final_state"] == "SWITCH ON DISABLED"
+    from bench.cia402.record import decode_log, default_layout
+
+    trace = decode_log(out / "bus.log", default_layout(DRIVE_ID, CYCLE_MS / 1000))
+    last = [s for s in trace.state if s]
+    assert last and last[-1] == "SWITCH ON DISABLED", last[-5:]
+    assert sdo_statusword() & 0x4F == 0x40
+
+
+def test_sigkill_of_the_bench_faults_the_drive(standin: StandIn, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        bench(out, "--set", "scenario.periods=100000"), cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    try:
+        watches = b"does NOT watch" not in wait_playing(proc)
+        proc.kill()
+        proc.wait()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for pid in pids(f"candump -L -r {8 << 20} vcan0"):  # the killed bench's recorder
+            subprocess.run(["kill", str(pid)], check=False)
+    if not watches:
+        pytest.skip("the drive does not watch the bench's heartbeat")
+    time.sleep(2.0)  # 500 ms consumer time, SYNC and heartbeat stopped with the bench's socket
+    net = canopen.Network()
+    net.connect(interface="socketcan", channel="vcan0")
+    try:
+        node = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
+        node.sdo.RESPONSE_TIMEOUT = 5.0
+        net.add_node(node)
+        sw, code = int(node.sdo[0x6041].raw), int(node.sdo[0x603F].raw)
+    finally:
+        net.disconnect()
+    assert sw & 0x4F == 0x08 and code == 0xFF04, (hex(sw), hex(code))

@@ -1,0 +1,143 @@
+"""The CiA 402 master (`bench run --drive-profile cia402`) without a bus: the profile as CST targets,
+the cycle planner, refusals (exit 2, nothing written), decoding a candump log into the trace."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import struct
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from bench.cia402.plan import Frames, PlanError, bus_load, choose_cycle, ignored_keys, per_mille, targets
+from bench.cia402.record import decode_log, default_layout, state_name, states_passed, tracking, write_csv
+from bench.paths import REPO
+from bench.scenario import load
+
+STEP = REPO / "scenarios" / "you2019_step.toml"
+
+
+def parser() -> argparse.ArgumentParser:
+    from bench.run.command import add_arguments
+
+    p = argparse.ArgumentParser(prog="bench run")
+    add_arguments(p)
+    return p
+
+
+def test_profile_becomes_cst_targets() -> None:
+    sc = load(STEP)
+    segs = targets(sc, 4000, 1000)
+    assert [(s.start_cycle, s.end_cycle, s.per_mille) for s in segs] == [(0, 20, 0), (20, 200, 250)]
+    assert per_mille(1.0, 4000) == 250 and per_mille(-2.0, 1000) == -2000
+    with pytest.raises(PlanError, match="0x6072"):
+        targets(sc, 1000, 999)  # 1 A of 1 A rated = 1000 per mille > 999
+    with pytest.raises(PlanError, match="INT16"):
+        targets(sc, 10, None)  # 1 A of 10 mA = 100000 per mille
+    keys = ignored_keys(sc)
+    assert "motor.preset" in keys and "controller.controller" in keys and "drive.t_dead_s" in keys
+    assert not any("iq_ref_A" in k for k in keys)
+
+
+def test_cycle_planner() -> None:
+    assert choose_cycle(1_000_000, None)[0] == 0.001
+    assert choose_cycle(125_000, None)[0] == 0.005  # 2 ms would load the bus > 80 %
+    assert bus_load(Frames(), 0.002, 125_000) > 0.8
+    with pytest.raises(PlanError, match="no cycle"):
+        choose_cycle(20_000, None)
+    assert choose_cycle(20_000, 50)[0] == 0.05
+    for bad in (0.5, 2000.0):
+        with pytest.raises(PlanError, match="1 .. 1000 ms"):
+            choose_cycle(1_000_000, bad)
+    with pytest.raises(PlanError, match="load"):
+        choose_cycle(125_000, 1)
+
+
+@pytest.mark.parametrize(
+    "extra, why",
+    [
+        (["--drive-id", "0"], "node-ID"),
+        (["--drive-id", "0x7F"], "heartbeat"),
+        (["--cycle-ms", "0.2"], "1 .. 1000"),
+        (["--set", "references.iq_ref_A=5"], "0x6072"),  # 5 A of 4 A rated: 1250 > 1000 per mille
+        (["--drive-eds", "/nonexistent.eds"], "no such file"),
+        (["--bus", "direct"], "CAN bus"),
+    ],
+)
+def test_refusals_exit_2_and_write_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], why: str
+) -> None:
+    from bench.run.command import run
+
+    out = tmp_path / "out"
+    args = parser().parse_args([str(STEP), "--drive-profile", "cia402", "--out", str(out), *extra])
+    assert run(args) == 2
+    assert why in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_help_explains_the_profile() -> None:
+    text = parser().format_help()
+    assert "--drive-profile" in text and "no lockstep" in text and "0x1016" in text
+
+
+def test_state_names() -> None:
+    assert state_name(0x0040) == "SWITCH ON DISABLED"
+    assert state_name(0x0221) == "READY TO SWITCH ON"
+    assert state_name(0x0627) == "OPERATION ENABLED"
+    assert state_name(0x0008) == "FAULT"
+
+
+def _synthetic_log(path: Path, cycles: int, drop_sw_at: int) -> None:
+    """A run as the master and a drive with drive.eds' PDOs would put it on the bus."""
+    t = 1_700_000_000.0
+    msgs = []
+    for k in range(cycles):
+        target = 0 if k < 10 else 250
+        actual = 0 if k < 12 else 240
+        sw = 0x0040 if k < 3 else 0x0627
+        msgs.append(can.Message(timestamp=t, arbitration_id=0x520, data=struct.pack("<Hh", 0x0F, target)))
+        msgs.append(can.Message(timestamp=t + 2e-4, arbitration_id=0x80, data=[k % 240 + 1]))
+        if k != drop_sw_at:
+            data = struct.pack("<HbhH", sw, 10, actual, actual)
+            msgs.append(can.Message(timestamp=t + 4e-4, arbitration_id=0x3A0, data=data))
+        msgs.append(can.Message(timestamp=t + 5e-4, arbitration_id=0x4A0, data=struct.pack("<ii", 16384 * k, -65536)))
+        if k % 5 == 0:
+            msgs.append(can.Message(timestamp=t + 6e-4, arbitration_id=0x77F, data=[5]))
+        t += 0.01
+    with can.CanutilsLogWriter(str(path), channel="vcan0") as w:
+        for m in msgs:
+            m.is_extended_id = False
+            w.on_message_received(m)
+
+
+def test_decode_synthetic_log(tmp_path: Path) -> None:
+    log = tmp_path / "bus.log"
+    _synthetic_log(log, 40, drop_sw_at=20)
+    layout = default_layout(0x20, 0.01)
+    trace = decode_log(log, layout)
+    c = trace.columns
+    assert len(trace) == 40
+    assert trace.cycles_without_statusword == 1 and math.isnan(c["statusword"][20]) and trace.state[20] == ""
+    assert states_passed(trace) == ["SWITCH ON DISABLED", "OPERATION ENABLED"]
+    # the RPDO sent before SYNC k is cycle k's target
+    assert c["target_torque_permille"][10] == 250 and c["target_torque_permille"][9] == 0
+    assert math.isnan(c["target_torque_permille"][0])
+    assert c["torque_actual_Nm"][30] == pytest.approx(240 / 1000 * 1.26)
+    assert c["current_actual_A"][30] == pytest.approx(0.96)
+    assert c["position_rad"][3] == pytest.approx(3 * math.pi / 2)
+    assert c["velocity_rad_s"][5] == pytest.approx(-2 * math.pi)
+    assert np.all(c["mode_display"][~np.isnan(c["mode_display"])] == 10)
+    assert c["t_s"][1] == pytest.approx(0.01, abs=1e-6)
+    seg = tracking(trace)
+    assert [s["target_permille"] for s in seg] == [0, 250]
+    assert seg[1]["mean_actual_permille"] == pytest.approx(240) and seg[1]["relative_error"] == pytest.approx(-0.04)
+    write_csv(trace, tmp_path / "trace.csv")
+    rows = list(csv.DictReader(open(tmp_path / "trace.csv")))
+    assert len(rows) == 40 and rows[30]["state"] == "OPERATION ENABLED" and rows[20]["statusword"] == ""
+    json.dumps(layout.to_json())  # summary.json keeps the layout
