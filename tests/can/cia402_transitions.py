@@ -163,7 +163,7 @@ def _walk(loop, drive: canopen.BaseNode402, cycle_s: float, rep: Report) -> None
         drive.check_statusword()
         torque.append(int(drive.tpdo_values[0x6077]))
         current.append(int(drive.tpdo_values[0x6078]))
-    rep.samples = list(zip(torque, current))
+    rep.samples = list(zip(torque, current, strict=True))
     rep.torque_mean_per_mille = sum(torque) / len(torque)
     rep.current_mean_per_mille = sum(current) / len(current)
 
