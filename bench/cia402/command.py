@@ -77,6 +77,18 @@ def validate(args: argparse.Namespace) -> tuple[Scenario, float, float, list[Seg
         raise PlanError("--drive-id 0x7F is the bench's own heartbeat node-ID")
     if args.bus == "direct":
         raise PlanError("--drive-profile cia402 needs a CAN bus (--bus vcan0, can0, ...)")
+    lockstep_only = {
+        "--drive-bus": args.drive_bus is not None,
+        "--drive mcu": args.drive == "mcu",
+        "--serve": bool(args.serve),
+        "--fd": bool(args.fd),
+    }
+    given = [k for k, v in lockstep_only.items() if v]
+    if given:
+        raise PlanError(
+            f"{', '.join(given)}: options of the project's plant and drive nodes in lockstep, not of "
+            "--drive-profile cia402 (the bench and the drive share one classic CAN bus)"
+        )
     eds = args.drive_eds or eds_path("drive")
     if not eds.is_file():
         raise PlanError(f"--drive-eds {eds}: no such file")

@@ -67,6 +67,8 @@ def test_cycle_planner() -> None:
         (["--set", "references.iq_ref_A=5"], "0x6072"),  # 5 A of 4 A rated: 1250 > 1000 per mille
         (["--drive-eds", "/nonexistent.eds"], "no such file"),
         (["--bus", "direct"], "CAN bus"),
+        (["--drive-bus", "can1"], "--drive-bus"),
+        (["--drive", "mcu"], "--drive mcu"),
     ],
 )
 def test_refusals_exit_2_and_write_nothing(
