@@ -33,22 +33,8 @@ def standin(vcan0: str) -> Iterator[StandIn]:
 
 
 def bench(out: Path, *extra: str) -> list[str]:
-    return [
-        sys.executable,
-        "-m",
-        "bench.cli",
-        "run",
-        str(STEP),
-        "--bus",
-        "vcan0",
-        "--drive-profile",
-        "cia402",
-        "--cycle-ms",
-        str(CYCLE_MS),
-        "--out",
-        str(out),
-        *extra,
-    ]
+    opts = f"--bus vcan0 --drive-profile cia402 --cycle-ms {CYCLE_MS}".split()
+    return [sys.executable, "-m", "bench.cli", "run", str(STEP), *opts, "--out", str(out), *extra]
 
 
 def wait_playing(proc: subprocess.Popen[bytes]) -> bytes:
@@ -64,16 +50,21 @@ def wait_playing(proc: subprocess.Popen[bytes]) -> bytes:
     return seen
 
 
-def sdo_statusword() -> int:
+def read_drive(*indices: int) -> list[int]:
+    """The drive's objects read by SDO from a master of the test's own."""
     net = canopen.Network()
     net.connect(interface="socketcan", channel="vcan0")
     try:
         node = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
         node.sdo.RESPONSE_TIMEOUT = 5.0
         net.add_node(node)
-        return int(node.sdo[0x6041].raw)
+        return [int(node.sdo[i].raw) for i in indices]
     finally:
         net.disconnect()
+
+
+def sdo_statusword() -> int:
+    return read_drive(0x6041)[0]
 
 
 def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> None:
@@ -138,13 +129,5 @@ def test_sigkill_of_the_bench_faults_the_drive(standin: StandIn, tmp_path: Path)
             subprocess.run(["kill", str(pid)], check=False)
     assert watches, "the project's drive has a free 0x1016 entry: it must watch the bench's heartbeat"
     time.sleep(2.0)  # 500 ms consumer time, SYNC and heartbeat stopped with the bench's socket
-    net = canopen.Network()
-    net.connect(interface="socketcan", channel="vcan0")
-    try:
-        node = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
-        node.sdo.RESPONSE_TIMEOUT = 5.0
-        net.add_node(node)
-        sw, code = int(node.sdo[0x6041].raw), int(node.sdo[0x603F].raw)
-    finally:
-        net.disconnect()
+    sw, code = read_drive(0x6041, 0x603F)
     assert sw & 0x4F == 0x08 and code == 0xFF04, (hex(sw), hex(code))
