@@ -22,7 +22,7 @@ Layout (every key optional except where noted)::
     adc_noise_std_A = 0.0
 
     [controller]                 # drive.eds "Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC",
-                                 # "Safe state" (meas_timeout_periods; clear = 1 in an event: a fault reset)
+                                 # "Safe state" (meas_timeout_periods; clear = 1 in an event: fault reset + enable)
     controller = "deadbeat_you2019"
     L_hat_ratio = 0.5            # ratios to the plant's own values (R_hat_ratio, Ld_hat_ratio,
                                  # Lq_hat_ratio, L_hat_ratio = both, psi_hat_ratio)

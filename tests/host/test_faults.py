@@ -149,3 +149,21 @@ def test_bench_faults_cli(tmp_path: Path) -> None:
 def test_the_fault_scenario_file_loads() -> None:
     sc = load(SCEN)
     assert [f.kind for f in sc.faults] == ["drop"] and sc.faults[0].at_period == 21
+
+
+def test_a_fault_reset_event_enables_the_drive_again() -> None:
+    """CiA 402: a scenario's fault reset (controller.clear = 1) takes the drive from FAULT to SWITCH ON
+    DISABLED; the bench enables it again, so the control goes on as before the fault (without that, the
+    drive would command 0 V for the rest of the run and iq would decay)."""
+    from bench.claims import run_raw
+
+    raw = base("cia402-clear", periods=160)
+    raw["events"].append({"at_period": 60, "controller": {"clear": 1}})
+    hit = run_raw(
+        with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "plant.TPDO2", "at_period": 30, "periods": 6}),
+        "direct",
+    )
+    assert [e for e in hit.result.summary["emcy"] if e["code"] == "0xFF03"]  # the fault happened
+    p, iq = hit.tr["period"], hit.tr["iq_A"]
+    assert (np.diff(iq[(p >= 40) & (p < 60)]) < 0).all()  # 0 V in FAULT: the current decays (L/R = 58 Ts)
+    assert abs(iq[p >= 100] - 1.0).max() < 0.05, iq[p >= 100]  # back on the 1 A reference after the reset
