@@ -158,12 +158,16 @@ $(BUILD)/tests/plant_%: plant_rt/tests/%.c $(LIBPLANT)
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBPLANT) -lm -o $@
 # Tests of the node apps need the CANopen core and the portable app glue too.
 # The drive tests close the loop against the plant's own motor model (tests/c/motor_model.h): libplant.
-$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c $(LIBFW) $(LIBPLANT) $(LIBCO)
+# The apps are linked as objects (built with their own dependency files): one source per compile line,
+# so that -MF records the test's own headers (with several sources, gcc keeps the last one's only).
+SHIM_APP_OBJ  := $(call obj,firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c)
+PLANT_APP_OBJ := $(call obj,plant_rt/node/plant_app.c)
+$(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c $(SHIM_APP_OBJ) $(LIBFW) $(LIBPLANT) $(LIBCO)
 	@mkdir -p $(@D) $(BUILD)/deps
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c $(LIBFW) $(LIBPLANT) $(LIBCO) -lm -o $@
-$(BUILD)/tests/plant_test_node_%: plant_rt/tests/test_node_%.c plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO)
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(SHIM_APP_OBJ) $(LIBFW) $(LIBPLANT) $(LIBCO) -lm -o $@
+$(BUILD)/tests/plant_test_node_%: plant_rt/tests/test_node_%.c $(PLANT_APP_OBJ) $(LIBPLANT) $(LIBCO)
 	@mkdir -p $(@D) $(BUILD)/deps
-	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< plant_rt/node/plant_app.c $(LIBPLANT) $(LIBCO) -lm -o $@
+	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(PLANT_APP_OBJ) $(LIBPLANT) $(LIBCO) -lm -o $@
 $(BUILD)/bin/%: firmware_shim/tools/%.c $(LIBFW)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) $< $(LIBFW) -lm -o $@
