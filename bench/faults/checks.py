@@ -51,19 +51,32 @@ def _run(raw: dict[str, Any], bus: str) -> Run:
 
 
 def base(name: str, periods: int = 120, **over: Any) -> dict[str, Any]:
-    """You 2019 (seed 000) deadbeat, locked rotor, the Fig. 8 step at period 20; the plant holds the last
-    command after 200 ms without one (lockstep: long beside the drive's answer, ~0.1 ms, so that a busy
-    machine never turns into a held command over a bus; short beside the heartbeat consumer time, 1 s)."""
+    """You 2019 (seed 000) deadbeat, locked rotor, the Fig. 8 step at period 20. No command timeout
+    (0x2003:04 = 0): in lockstep the plant waits for every command as long as the drive is alive, so
+    that no load on the machine can turn a slow answer into a held command (the checks whose fault
+    removes a command from the loop set one: `with_command_timeout`)."""
     raw: dict[str, Any] = {
         "scenario": {"name": name, "periods": periods, "expect": ["ok"]},
         "motor": {"preset": "you2019", "mech_mode": "locked"},
-        "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "command_timeout_us": 200_000},
+        "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "command_timeout_us": 0},
         "controller": {"controller": "deadbeat_you2019", "Vmax_V": 139.0},
         "events": [{"at_period": STEP_AT, "references": {"iq_ref_A": 1.0}}],
         "trace": copy.deepcopy(TRACE),
     }
     for k, v in over.items():
         raw.setdefault(k, {}).update(v) if isinstance(v, dict) else raw.__setitem__(k, v)
+    return raw
+
+
+# The plant's command timeout for the checks that drop or hold back the loop's command: lockstep has
+# no other way to go on without it. Over a bus every period's answer must come within it, so it is far
+# beyond the drive's answer (~0.1 ms; a loaded machine or VM stalls a process for 100s of ms) and well
+# below the master's stall detection (10 s of no period: RunOptions.stall_s).
+COMMAND_TIMEOUT_US = 2_000_000
+
+
+def with_command_timeout(raw: dict[str, Any], timeout_us: int = COMMAND_TIMEOUT_US) -> dict[str, Any]:
+    raw["drive"]["command_timeout_us"] = timeout_us
     return raw
 
 
@@ -127,7 +140,7 @@ def recovery(hit: Run, clean: Run, held_at: int, step_A: float = 1.0) -> dict[st
 
 def check_drop_command(bus: str) -> FaultCheck:
     p = STEP_AT + 1  # the first command after the deadbeat step's large one
-    raw = base("fc-drop-command")
+    raw = with_command_timeout(base("fc-drop-command"))
     f = {"kind": "drop", "frame": "drive.TPDO1", "at_period": p}
     clean, hit = _pair(raw, with_fault(raw, ["frames_lost"], f), bus)
     h = held(hit)
@@ -145,20 +158,22 @@ def check_drop_command(bus: str) -> FaultCheck:
 
 def check_delay_command(bus: str) -> FaultCheck:
     p = STEP_AT + 1
-    raw = base("fc-delay-command")
+    raw = with_command_timeout(base("fc-delay-command"))
     f = {"kind": "delay", "frame": "drive.TPDO1", "at_period": p, "delay_periods": 1}
     clean, hit = _pair(raw, with_fault(raw, ["frames_lost", "ok"], f), bus)
     h = held(hit)
     late = hit.result.summary["counters"]["plant_late_commands"]
+    itf = hit.result.summary["bus_stats"]["interference"]["frames"]  # the late command is the drive's own frame
     rec = recovery(hit, clean, p + 1)
     return FaultCheck(
         "delay-command",
         f"the command of period {p} delayed by one period",
         "it arrives after the SYNC it was meant for: the plant holds the last command for that one period, counts "
-        "the late command, never applies it (the next command has arrived by the following SYNC); the loop is "
+        "the late command, never applies it (the next command has arrived by the following SYNC), and the late "
+        "frame is not taken for interference; the loop is "
         "within 5 % of the fault-free trace 2 periods after the first sample that shows it",
-        {"held_periods": h, "plant_late_commands": late, **rec},
-        h == [p + 1] and late is not None and late >= 1 and rec["periods_to_5pct"] <= 2,
+        {"held_periods": h, "plant_late_commands": late, "interference_frames": itf, **rec},
+        h == [p + 1] and late is not None and late >= 1 and itf == 0 and rec["periods_to_5pct"] <= 2,
         bus,
     )
 
@@ -273,7 +288,7 @@ def check_non_finite_measurement(bus: str) -> FaultCheck:
 
 def check_measurement_timeout(bus: str) -> FaultCheck:
     p, n = STEP_AT + 10, 6
-    raw = base("fc-meas-timeout")
+    raw = with_command_timeout(base("fc-meas-timeout"))
     f = {"kind": "drop", "frame": "plant.TPDO2", "at_period": p, "periods": n}
     hit = _run(with_fault(raw, ["frames_lost"], f), bus)
     safe = emcys(hit, 0xFF03, "drive")
@@ -298,8 +313,11 @@ def check_measurement_timeout(bus: str) -> FaultCheck:
 
 
 def check_freeze_drive(bus: str) -> FaultCheck:
-    p, n = STEP_AT + 10, 2  # 2 x the command timeout: well within the heartbeat consumer time
-    raw = base("fc-freeze-drive")
+    # n x the command timeout (plus up to one heartbeat period) well within the heartbeat consumer time (1 s)
+    # that the frozen drive's silence must not reach; each the longest it can be: a loaded machine's stall
+    # beyond it elsewhere in the run would hold a command the fault did not cause
+    p, n = STEP_AT + 10, 1
+    raw = with_command_timeout(base("fc-freeze-drive"), 600_000)
     clean, hit = _pair(
         raw, with_fault(raw, ["frames_lost"], {"kind": "freeze", "node": "drive", "at_period": p, "periods": n}), bus
     )

@@ -332,7 +332,12 @@ class Decoder:
         miss_meas = np.zeros(n, dtype=bool)
         miss_cmd = np.zeros(n, dtype=bool)
         misaligned = self._misaligned(buf, period_of, r0, r1)
-        realtime = self.sdo.plant.get("Run control", "mode") == 1
+        # a command may come after the SYNC it was meant for: in real time, and in lockstep with a command
+        # timeout (the plant held the last command and went on; 0x2003:04 > 0)
+        late_commands = (
+            self.sdo.plant.get("Run control", "mode") == 1
+            or int(self.sdo.plant.get("Run control", "command_timeout_us") or 0) > 0
+        )
         for cob_id, ps in st.pdos.items():
             pdo = ps.pdo
             pos = np.flatnonzero(cob == cob_id)
@@ -359,9 +364,10 @@ class Decoder:
                         pos, per, dup = pos[keep], per[keep], dup[keep] & ~safe[keep]
                     if not dup.any():
                         pass
-                    elif is_cmd and realtime:
-                        # real time: a late command lands in the next period (the plant counts it late);
-                        # the period's own command is the last one
+                    elif is_cmd and late_commands:
+                        # a late command lands in the next period (the plant counts it late, 0x2003 late_commands,
+                        # and never applies it): the drive's own frame, not interference; the period's own
+                        # command is the last one
                         last = np.r_[per[1:] != per[:-1], True]
                         pos, per = pos[last], per[last]
                     else:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -23,7 +24,14 @@ def start_long_run(out: Path, *bus_args: str) -> subprocess.Popen[str]:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=sigint_default,
     )
+
+
+def sigint_default() -> None:
+    """In the child: Ctrl-C as a terminal's default. A CI runner may start the suite with SIGINT ignored
+    (a shell's background job), which a child inherits: a test of Ctrl-C would then test nothing."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def pids(pattern: str) -> list[int]:

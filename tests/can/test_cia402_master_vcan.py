@@ -17,7 +17,7 @@ from pathlib import Path
 
 import canopen
 import pytest
-from bench_proc import pids
+from bench_proc import pids, sigint_default
 from cia402_standin import DRIVE_ID, StandIn
 
 from bench.paths import EDS_DIR, REPO
@@ -90,7 +90,11 @@ def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> 
 def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        bench(out, "--set", "scenario.periods=100000"), cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        bench(out, "--set", "scenario.periods=100000"),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        preexec_fn=sigint_default,
     )
     try:
         wait_playing(proc)
@@ -117,7 +121,11 @@ def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
 def test_sigkill_of_the_bench_faults_the_drive(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        bench(out, "--set", "scenario.periods=100000"), cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        bench(out, "--set", "scenario.periods=100000"),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        preexec_fn=sigint_default,
     )
     try:
         watches = b"does NOT watch" not in wait_playing(proc)

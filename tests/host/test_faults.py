@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from bench.faults.checks import CHECKS, base, run_checks, with_fault
+from bench.faults.checks import CHECKS, base, run_checks, with_command_timeout, with_fault
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.scenario import ScenarioError, load, parse
@@ -30,7 +30,7 @@ def test_a_check_fails_when_the_reaction_is_wrong() -> None:
     """The checks can fail: with the drive's measurement timeout off (0x2209:01 = 0) there is no safe state."""
     from bench.claims import run_raw
 
-    raw = base("fc-timeout-off")
+    raw = with_command_timeout(base("fc-timeout-off"))
     raw["controller"]["meas_timeout_periods"] = 0
     hit = run_raw(
         with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "plant.TPDO2", "at_period": 30, "periods": 6}),
@@ -83,7 +83,7 @@ def test_more_faults_than_the_injector_holds_are_refused() -> None:
 
 def test_the_same_faults_give_the_same_run() -> None:
     """A seeded probability hits the same frames in two runs, and the traces are equal bit for bit."""
-    raw = base("fc-random", periods=3000)
+    raw = with_command_timeout(base("fc-random", periods=3000))
     raw = with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "drive.TPDO1", "probability": 0.01, "seed": 5})
     sc = parse(raw, "<random>")
     a = run_scenario(sc, RunOptions(bus="direct"), keep_trace=True)
@@ -157,7 +157,7 @@ def test_a_fault_reset_event_enables_the_drive_again() -> None:
     drive would command 0 V for the rest of the run and iq would decay)."""
     from bench.claims import run_raw
 
-    raw = base("cia402-clear", periods=160)
+    raw = with_command_timeout(base("cia402-clear", periods=160))
     raw["events"].append({"at_period": 60, "controller": {"clear": 1}})
     hit = run_raw(
         with_fault(raw, ["frames_lost"], {"kind": "drop", "frame": "plant.TPDO2", "at_period": 30, "periods": 6}),
