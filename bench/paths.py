@@ -20,3 +20,21 @@ def binary(name: str) -> Path:
     if not path.exists():
         raise FileNotFoundError(f"{path} is missing: run `make all` (or `make demo`) in {REPO}")
     return path
+
+
+def lost_in_vm(path: Path) -> str | None:
+    """Inside the VM of `bench vm` (BENCH_IN_VM=1): why writing `path` would lose it - a folder the VM
+    does not share with the host is the guest's own (its /tmp too), gone when the VM powers off - or
+    None when it reaches the host (or when not in the VM)."""
+    import os
+
+    shared = os.environ.get("BENCH_VM_SHARED")
+    if os.environ.get("BENCH_IN_VM") != "1" or shared is None:
+        return None
+    dirs = [Path(d) for d in shared.split(os.pathsep) if d]
+    if any(path.resolve().is_relative_to(d) for d in dirs):
+        return None
+    return (
+        f"{path} is inside the VM's own file system and would be lost when it stops; write under a folder "
+        f"shared with the host ({', '.join(map(str, dirs))}; `bench vm --rwdir DIR` shares another)"
+    )

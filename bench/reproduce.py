@@ -323,6 +323,10 @@ def _figure_runs(out: Path, r: dict[str, Any]) -> tuple[str | None, list[str]]:
 def _refusal(path: Path, replaceable_report: bool = False) -> str | None:
     """Why `path` may not be written to: an existing non-empty folder (or a file). A previous report
     folder (report.json in it) may be replaced when `replaceable_report`."""
+    from .paths import lost_in_vm
+
+    if (lost := lost_in_vm(path)) is not None:
+        return lost
     if not path.exists():
         return None
     if not path.is_dir():

@@ -17,6 +17,7 @@ from types import FrameType
 from typing import Any
 
 from ..eds import eds_path
+from ..paths import lost_in_vm
 from ..scenario import Scenario, ScenarioError, load
 from . import NO_LOCKSTEP
 from .plan import PlanError, Segment, choose_cycle, ignored_keys, targets
@@ -104,6 +105,8 @@ def validate(args: argparse.Namespace) -> tuple[Scenario, float, float, list[Seg
     max_pm = int(od[0x6072].default) if 0x6072 in od and od[0x6072].default is not None else None
     segs = targets(sc, rated, max_pm)
     out = _out(args, sc)
+    if (lost := lost_in_vm(out)) is not None:
+        raise PlanError(f"--out {lost}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise PlanError(f"{out} exists and is not an empty folder; choose another --out")
     return sc, cycle_s, load_, segs, eds, out

@@ -24,6 +24,10 @@ CONSUMER_MS = 500
 CST = 10
 RPDO_WANT = (0x6040, 0x6071)
 TPDO_WANT = ((0x6041, 0x6061, 0x6077, 0x6078), (0x6064, 0x606C))
+# How long an SDO answer is waited for (python canopen's default is 0.3 s): a drive answers in a few ms,
+# but the master's own Python may be descheduled for longer on a loaded machine or in the CI's VM (~50x
+# slower), and a cleanup read that gives up too early reports a disabled drive as not seen disabled
+SDO_RESPONSE_TIMEOUT_S = 5.0
 
 
 class DriveRefused(RuntimeError):
@@ -39,6 +43,7 @@ class Node402(BaseNode402):
 
     def __init__(self, node_id: int, od: Any, cycle_s: float, slow: float = 50.0) -> None:
         super().__init__(node_id, od)
+        self.sdo.RESPONSE_TIMEOUT = SDO_RESPONSE_TIMEOUT_S
         self.TIMEOUT_RESET_FAULT = max(0.4 * slow, 20 * cycle_s)
         self.TIMEOUT_SWITCH_OP_MODE = max(0.5 * slow, 20 * cycle_s)
         self.TIMEOUT_SWITCH_STATE_FINAL = max(0.8 * slow, 80 * cycle_s)

@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..paths import lost_in_vm
 from .checks import CHECKS, run_checks
 
 
@@ -33,6 +34,9 @@ def main(args: argparse.Namespace) -> int:
     bad = [c for c in only or [] if c not in CHECKS]
     if bad:
         print(f"bench faults: unknown check {bad[0]!r}; the checks: {', '.join(CHECKS)}", file=sys.stderr)
+        return 2
+    if args.out is not None and (lost := lost_in_vm(args.out)) is not None:
+        print(f"bench faults: --out {lost}", file=sys.stderr)
         return 2
     if args.bus != "direct":
         from ..canbus import probe_af_can

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ..paths import lost_in_vm
 from ..scenario import Scenario, ScenarioError, load
 from .buses import bus_problem
 from .canlog import LOG_FORMATS
@@ -161,6 +162,9 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         print(f"bench run: {problem}", file=sys.stderr)
         return 2, None, None
     out: Path = args.out or default_out(sc)
+    if (lost := lost_in_vm(out)) is not None:
+        print(f"bench run: --out {lost}", file=sys.stderr)
+        return 2, None, None
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         print(f"bench run: {out} exists and is not an empty folder; choose another --out", file=sys.stderr)
         return 2, None, None

@@ -110,7 +110,12 @@ def can_bus_qemu_opts(controllers: int) -> list[str]:
 
 
 def _guest_script(
-    cmd: list[str], cwd: Path, status_file: Path, interfaces: tuple[str, ...], can_controllers: int = 0
+    cmd: list[str],
+    cwd: Path,
+    status_file: Path,
+    interfaces: tuple[str, ...],
+    can_controllers: int = 0,
+    shared: tuple[Path, ...] = (),
 ) -> str:
     env_lines = []
     path = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "/usr/bin:/bin")])
@@ -122,6 +127,8 @@ def _guest_script(
     env_lines += [
         "export HOME=/tmp/vmhome XDG_CACHE_HOME=/tmp/vmhome/.cache MPLCONFIGDIR=/tmp/vmhome/mpl",
         "export PYTHONDONTWRITEBYTECODE=1 BENCH_IN_VM=1",
+        # the folders that reach the host: a command's output elsewhere is refused (bench.paths.lost_in_vm)
+        f"export BENCH_VM_SHARED={shlex.quote(os.pathsep.join(map(str, shared)))}",
         "mkdir -p /tmp/vmhome/.cache /tmp/vmhome/mpl",
     ]
     up = ["modprobe -a vcan can_raw can_bcm 2>/dev/null || modprobe -a vcan can_raw || exit 90"]
@@ -174,11 +181,13 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     job.mkdir(parents=True, exist_ok=True)
     status_file = job / "status"
     script = job / "job.sh"
-    script.write_text(_guest_script(cmd, cwd, status_file, opts.interfaces, opts.can_controllers))
     rwdirs = {_check_path(REPO)}
     if not cwd.is_relative_to(REPO):
         rwdirs.add(cwd)
     rwdirs.update(_check_path(p) for p in opts.rwdirs)
+    script.write_text(
+        _guest_script(cmd, cwd, status_file, opts.interfaces, opts.can_controllers, tuple(sorted(rwdirs)))
+    )
     argv = [
         str(vng),
         "--run",

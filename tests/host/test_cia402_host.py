@@ -143,3 +143,44 @@ def test_decode_synthetic_log(tmp_path: Path) -> None:
     rows = list(csv.DictReader(open(tmp_path / "trace.csv")))
     assert len(rows) == 40 and rows[30]["state"] == "OPERATION ENABLED" and rows[20]["statusword"] == ""
     json.dumps(layout.to_json())  # summary.json keeps the layout
+
+
+def test_cleanup_waits_for_a_slow_sdo_answer() -> None:
+    """The master's way out reads the statusword by SDO: a drive (or the master's own Python, descheduled
+    on a loaded machine or in the VM) answering after 1 s is still read, and the drive seen disabled.
+    With python canopen's default 0.3 s (one retry) this read failed: 'NOT seen SWITCH ON DISABLED'."""
+    import threading
+
+    from bench.cia402.master import Master
+    from bench.paths import EDS_DIR
+
+    drive_id, channel = 0x20, "cia402-slow-sdo"
+    drive = can.Bus(interface="virtual", channel=channel)
+    stop = threading.Event()
+
+    def answer() -> None:  # expedited upload of 0x6041:00 = 0x0040 (SWITCH ON DISABLED), 1 s late
+        while not stop.is_set():
+            msg = drive.recv(0.1)
+            if msg is None or msg.arbitration_id != 0x600 + drive_id:
+                continue
+            if msg.data[0] & 0xE0 == 0x20:  # a download (controlword 0) is confirmed at once
+                ack = bytes([0x60, msg.data[1], msg.data[2], msg.data[3], 0, 0, 0, 0])
+                drive.send(can.Message(arbitration_id=0x580 + drive_id, data=ack, is_extended_id=False))
+                continue
+            if msg.data[0] & 0xE0 != 0x40 or stop.wait(1.0):
+                continue
+            data = bytes([0x4B, msg.data[1], msg.data[2], msg.data[3], 0x40, 0x00, 0x00, 0x00])
+            drive.send(can.Message(arbitration_id=0x580 + drive_id, data=data, is_extended_id=False))
+
+    th = threading.Thread(target=answer, daemon=True)
+    th.start()
+    master = Master(channel, "virtual", drive_id, EDS_DIR / "drive.eds", 0.01)
+    said: list[str] = []
+    try:
+        disabled, sw = master.shutdown(said.append)
+    finally:
+        stop.set()
+        master.close()
+        th.join()
+        drive.shutdown()
+    assert sw == 0x0040 and disabled, said

@@ -187,3 +187,26 @@ def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None
     assert ta.dtype == tb.dtype
     for name in ta.dtype.names:
         np.testing.assert_array_equal(ta[name], tb[name], err_msg=name)
+
+
+@pytest.mark.parametrize("cmd", ["run", "cia402", "faults", "reproduce"])
+def test_out_inside_the_vm_but_not_shared_is_refused(tmp_path: Path, cmd: str) -> None:
+    """Inside `bench vm` a folder the VM does not share with the host (its /tmp) is lost when it stops:
+    refused before anything runs (exit 2, the folder and the shared ones named), nothing written."""
+    import os
+
+    shared, private = tmp_path / "shared", tmp_path / "vm-own" / "out"
+    shared.mkdir()
+    argv = {
+        "run": ["run", str(STEP), "--bus", "direct", "--no-viewer"],
+        "cia402": ["run", str(STEP), "--bus", "vcan0", "--drive-profile", "cia402"],
+        "faults": ["faults", "--only", "drop-command"],
+        "reproduce": ["reproduce", "--paper", "000", "--bus", "direct"],
+    }[cmd]
+    env = {**os.environ, "BENCH_IN_VM": "1", "BENCH_VM_SHARED": f"{REPO}{os.pathsep}{shared}"}
+    res = subprocess.run(
+        [*BENCH, *argv, "--out", str(private)], capture_output=True, text=True, cwd=REPO, env=env, timeout=300
+    )
+    assert res.returncode == 2, (res.stdout, res.stderr)
+    assert f"{private} is inside the VM's own file system" in res.stderr and str(shared) in res.stderr, res.stderr
+    assert not (tmp_path / "vm-own").exists()
