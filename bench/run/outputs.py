@@ -227,7 +227,7 @@ def print_result(out: Path, result: Any) -> None:
             f"{s['divergence_bound_A']:.3g} A that the inverter can drive through the winding"
         ),
         "non_finite": f"non-finite values arrived in PDOs: {', '.join(nf)}",
-        "frames_lost": (s["stopped"]["message"] if s.get("stopped") else f"{bs['lost_frames']} frames lost"),
+        "frames_lost": (s["stopped"]["message"] if s.get("stopped") else _frames_lost(s)),
         "node_lost": (s.get("stopped") or {}).get("message", ""),
         "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
         f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
@@ -241,4 +241,27 @@ def print_result(out: Path, result: Any) -> None:
         print(f"status: {status.upper()}: {why} (exit {result.exit_code})")
     if status == "ok" and not result.expected:
         print(f"status: the scenario expected {', '.join(s['expect'])} (exit {result.exit_code})")
-    print(f"results in {out}/: summary.json, {TRACES_FILE}, bus.log, run.rrd, *.svg")
+    print(f"results in {out}/: {', '.join(_files_written(s))}")
+
+
+def _files_written(s: dict[str, Any]) -> list[str]:
+    """The files summary.json lists (what was written), summary.json first."""
+    files = s.get("files")
+    if not files:
+        return ["summary.json", TRACES_FILE, "bus.log", "run.rrd", "*.svg"]
+    names = [files.get("log"), files.get("traces"), *files.get("exports", []), files.get("recording")]
+    plots = files.get("plots") or []
+    shown = ["summary.json", *[n for n in names if n]]
+    return shown + (plots if len(plots) <= 3 else [f"{len(plots)} plots (*.svg)"])
+
+
+def _frames_lost(s: dict[str, Any]) -> str:
+    """Why frames_lost without a stop: frames missing from periods, and/or fewer periods than the master ran."""
+    bs, log = s["bus_stats"], s.get("log") or {}
+    parts = [f"{bs['lost_frames']} frames lost"] if bs["lost_frames"] else []
+    planned = bs.get("planned_periods")
+    if planned and s["periods"] != planned:
+        parts.append(f"{s['periods']} periods of the {planned} the master ran")
+    if log.get("truncated_line"):
+        parts.append(f"the log is truncated (it ends mid-line at line {log['truncated_line']})")
+    return "; ".join(parts) or f"{bs['lost_frames']} frames lost"
