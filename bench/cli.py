@@ -57,9 +57,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         plan = make_plan(
             args.bitrate, args.ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation
         )
-    except ValueError as exc:
+    except ValueError as exc:  # bad input: exit 2, as every command's
         print(f"bench plan: {exc}", file=sys.stderr)
-        return 64
+        return 2
     print(plan.to_json() if args.json else format_plan(plan))
     return 0
 
@@ -198,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--json", action="store_true", help="print one JSON object")
     pl.set_defaults(func=_cmd_plan)
 
-    from .run.command import add_arguments
+    from .run.command import add_arguments, exit_codes_help
 
     r = sub.add_parser(
         "run",
@@ -206,13 +206,14 @@ def build_parser() -> argparse.ArgumentParser:
         description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
         "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
         "every frame, and write summary.json, traces.npy, the CAN log, SVG plots and a "
-        "Rerun recording. The exit status is the run's verdict: 0 ok, 3 tripped, "
-        "4 diverged, 5 non-finite values, 6 frames lost, 7 expected status not reached "
-        "(1 failure, 2 bad input, 130 interrupted). Example: bench run scenarios/you2019_step.toml --bus direct",
+        f"Rerun recording. The exit status is the run's verdict: {exit_codes_help()}. "
+        "Example: bench run scenarios/you2019_step.toml --bus direct",
     )
     add_arguments(r)
     r.set_defaults(func=_cmd_run)
-    c = sub.add_parser("capture", help=argparse.SUPPRESS)
+    # internal (the VM half of a run over a VM's bus): no `help`, so argparse lists no entry for it (a
+    # help=argparse.SUPPRESS still lists "capture ==SUPPRESS==" in the command listing before Python 3.14)
+    c = sub.add_parser("capture")
     c.add_argument("scenario", type=Path)
     c.add_argument("--set", dest="overrides", action="append", default=[])
     c.add_argument("--bus", default="vcan0")
@@ -234,7 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
         "summary.json, SVG plots and a Rerun recording, as the run did: the PDO layout, "
         "the plant's parameters and every setting come from the SDO traffic in the log "
         "(the EDS defaults when it has none, said so). The exit status is the verdict, "
-        "as for bench run.",
+        f"as for bench run: {exit_codes_help()}.",
     )
     replay_args(rp)
     rp.set_defaults(func=_cmd_replay)

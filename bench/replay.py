@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -50,6 +51,10 @@ def main(args: argparse.Namespace) -> int:
     from .view.plots import overview_plot, step_plots
     from .view.rerun_sink import RerunSink
 
+    if args.log.is_dir():
+        hint = " (its CAN log is bus.log)" if (args.log / "bus.log").is_file() else ""
+        print(f"bench replay: {args.log}: is a directory, not a CAN log{hint}", file=sys.stderr)
+        return 2
     if not args.log.is_file():
         print(f"bench replay: {args.log}: no such file", file=sys.stderr)
         return 2
@@ -83,7 +88,7 @@ def main(args: argparse.Namespace) -> int:
 
     live = "serve" if args.serve else ("spawn" if not args.no_viewer and os.environ.get("DISPLAY") else "none")
     rerun = RerunSink(
-        args.log.stem,
+        args.log.name,
         out / "run.rrd",
         live=live,  # type: ignore[arg-type]
         web_port=args.web_port,
@@ -106,7 +111,7 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     s = res.summary
     if s["periods"] == 0:
-        return refuse(f"{args.log}: no SYNC found among {s['bus_stats']['frames']} frames: nothing to decode")
+        return refuse(f"{args.log}: {_nothing_to_decode(s)}")
     if s["log"]["sdo_transfers"] == 0:
         print(
             "bench replay: the log holds no SDO traffic (recorded after the configuration, or of another "
@@ -122,12 +127,45 @@ def main(args: argparse.Namespace) -> int:
         "plots": [p.name for p in plots] + ([ov.name] if ov else []),
     }
     (out / "summary.json").write_text(json.dumps(s, indent=2, default=str))
-    print(
-        f"bench replay: {s['bus_stats']['frames']} frames, {s['periods']} periods decoded; "
-        f"{s['log']['frames_skipped']} frames skipped (not 11-bit data frames)"
-    )
+    print(f"bench replay: {s['bus_stats']['frames']} frames, {s['periods']} periods decoded; {_left_out(s['log'])}")
     print_result(out, res)
     if args.serve:
         rerun.serve_until(args.serve_for)
     rerun.close()
     return res.exit_code
+
+
+def _left_out(log: dict[str, Any]) -> str:
+    """What the log held that was not decoded: skipped frames, unparsable lines, a cut last line."""
+    parts = [
+        f"{log['frames_skipped']} frames skipped (not 11-bit data frames"
+        + (f"; {log['extended_frames']} extended-ID" if log.get("extended_frames") else "")
+        + ")"
+    ]
+    if log.get("unparsable_lines"):
+        parts.append(
+            f"{log['unparsable_lines']} unparsable lines (no candump frame; the first at line "
+            f"{log['first_unparsable_line']})"
+        )
+    cut = log.get("truncated_line")
+    if cut:
+        parts.append(
+            f"the log is TRUNCATED: it ends mid-line at line {cut} (no end of line; "
+            + ("that line does not parse: dropped)" if log.get("truncated_line_dropped") else "its frame kept)")
+        )
+    return "; ".join(parts)
+
+
+def _nothing_to_decode(s: dict[str, Any]) -> str:
+    """Why a log gave no period: what it held instead."""
+    log, frames = s["log"], s["bus_stats"]["frames"]
+    if frames == 0 and log.get("extended_frames"):
+        what = (
+            f"it holds {log['extended_frames']} extended-ID (29-bit) frames and no 11-bit CANopen frame "
+            "(CANopen's PDOs, SYNC and SDOs use 11-bit identifiers)"
+        )
+    elif frames == 0:
+        what = "it holds no 11-bit CANopen frame"
+    else:
+        what = f"no SYNC found among its {frames} 11-bit frames"
+    return f"{what}: nothing to decode ({_left_out(log)})"

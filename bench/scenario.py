@@ -61,7 +61,7 @@ from typing import Any
 from canopen.objectdictionary import datatypes
 
 from .eds import Param, params
-from .faults.spec import Fault, FaultError, parse_faults
+from .faults.spec import Fault, FaultError, parse_faults, refuse_lockstep_stalls
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
@@ -276,9 +276,27 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         sc.trace = _trace(where, raw["trace"])
     try:
         sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
+        refuse_lockstep_stalls(sc.faults, where, timing, sc.expect, lambda k: _value_at(sc, COMMAND_TIMEOUT, k))
     except FaultError as exc:
         raise ScenarioError(str(exc)) from None
     return sc
+
+
+COMMAND_TIMEOUT = "drive.command_timeout_us"  # plant.eds 0x2003:04, set in the scenario's [drive]
+
+
+def _value_at(sc: Scenario, key: str, period: int) -> float:
+    """A setting's value in effect at a period: its EDS default, the scenario's, then its events' up to it."""
+    from .eds import load as load_od
+
+    section, name = key.split(".", 1)
+    p = _param_tables()[section][name]
+    var = load_od(p.node)[p.index]
+    value = float((var[p.subindex] if p.subindex else var).default or 0)
+    for s in [*sc.settings, *(s for e in sc.events if e.at_period <= period for s in e.settings)]:
+        if s.key == key:
+            value = float(s.value)
+    return value
 
 
 def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:

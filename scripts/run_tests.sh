@@ -11,6 +11,10 @@ PY=.venv/bin/python
 RES=build/test-results
 rm -rf "$RES"; mkdir -p "$RES"
 export PYTHONHASHSEED=0
+# The CAN phase runs ~20 minutes (in the VM): one line per test as it ends (-v: its name, PASSED/FAILED,
+# the share done), the slowest tests at the end, and pytest's summary line ("N passed in ...", which
+# .ci/run greps) still last. tests/host/test_progress.py runs pytest with these options.
+CAN_PYTEST_OPTS=(-v --durations=15 -p no:cacheprovider)
 
 echo "== host phase: pytest tests (without tests/can) =="
 $PY -m pytest tests --ignore=tests/can -m "not can" --junitxml="$RES/host.xml" -q "$@"
@@ -19,15 +23,15 @@ host_rc=$?
 echo "== CAN phase: pytest tests/can over real vcan0 =="
 if $PY -c 'from bench.canbus import host_has_vcan; import sys; sys.exit(0 if host_has_vcan() else 1)'; then
     echo "(host SocketCAN; the tests of CAN controllers (can0, can1 on one bus) run in the VM with emulated ones)"
-    $PY -m pytest tests/can --ignore=tests/can/test_can_controllers.py --junitxml="$RES/can.xml" -q \
-        -p no:cacheprovider "$@"
+    $PY -m pytest tests/can --ignore=tests/can/test_can_controllers.py --junitxml="$RES/can.xml" \
+        "${CAN_PYTEST_OPTS[@]}" "$@"
     can_rc=$?
     .venv/bin/bench vm --timeout 1200 --can-controllers 2 -- $PY -m pytest tests/can/test_can_controllers.py \
-        --junitxml="$RES/can_controllers.xml" -q -p no:cacheprovider "$@" || can_rc=1
+        --junitxml="$RES/can_controllers.xml" "${CAN_PYTEST_OPTS[@]}" "$@" || can_rc=1
 else
     echo "(host kernel has no SocketCAN: running the phase inside the virtme-ng VM)"
-    .venv/bin/bench vm --timeout 2400 --can-controllers 2 -- $PY -m pytest tests/can --junitxml="$RES/can.xml" -q \
-        -p no:cacheprovider "$@"
+    .venv/bin/bench vm --timeout 2400 --can-controllers 2 -- $PY -m pytest tests/can --junitxml="$RES/can.xml" \
+        "${CAN_PYTEST_OPTS[@]}" "$@"
     can_rc=$?
 fi
 

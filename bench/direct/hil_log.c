@@ -164,12 +164,29 @@ uint64_t hil_log_format(const hil_frame_t *f, uint32_t n, uint64_t t0_us, const 
 
 /* ------------------------------------------------------------------ parser */
 
+/* What hil_log_parse_counted saw in the lines it used (ctypes mirror: _LogCounts in
+ * bench/run/canlog.py). */
+typedef struct {
+    uint64_t lines;            /* lines used, each ended by '\n' */
+    uint64_t skipped;          /* frames that are not an 11-bit data frame of <= 8 bytes */
+    uint64_t extended;         /* of them, extended-ID (29-bit) data frames */
+    uint64_t unparsable;       /* lines that are no candump frame */
+    uint64_t first_unparsable; /* 1-based among the lines used; 0: none */
+} hil_log_counts_t;
+
 static int hexval(char c) { return (int)HEXV1[(unsigned char)c] - 1; }
 
 /* Largest whole seconds whose µs still fit in 64 bits. */
 #define SEC_MAX 18446744073708ull
 
-enum { LINE_FRAME, LINE_SKIP, LINE_SILENT };
+/* What a line is: an 11-bit data frame of <= 8 bytes (ours), an extended-ID (29-bit) data frame,
+ * another frame that is not ours (error, remote, CAN FD longer than 8 bytes), a line that is no
+ * candump frame at all (malformed: garbage, a cut line), or silent (blank, comment). */
+enum { LINE_FRAME, LINE_EXTENDED, LINE_OTHER, LINE_BAD, LINE_SILENT };
+
+/* CAN_ERR_FLAG of linux/can.h: candump writes error frames as 8 hex digits with it set. */
+#define HIL_CAN_ERR_FLAG 0x20000000u
+#define HIL_CAN_EFF_MASK 0x1FFFFFFFu
 
 /* One line [p, e) without its '\n'. LINE_FRAME fills *fr. */
 static int parse_line(const char *p, const char *e, hil_frame_t *fr)
@@ -180,14 +197,14 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
     if (*p == '#' || *p == ';') return LINE_SILENT; /* comment */
 
     /* (SECONDS.FRACTION) */
-    if (*p++ != '(') return LINE_SKIP;
+    if (*p++ != '(') return LINE_BAD;
     uint64_t sec = 0;
     unsigned nd = 0;
     while (p < e && *p >= '0' && *p <= '9') {
         sec = sec * 10u + (uint64_t)(*p++ - '0');
-        if (++nd > 14 || sec > SEC_MAX) return LINE_SKIP;
+        if (++nd > 14 || sec > SEC_MAX) return LINE_BAD;
     }
-    if (nd == 0) return LINE_SKIP;
+    if (nd == 0) return LINE_BAD;
     uint64_t us = 0;
     if (p < e && *p == '.') {
         ++p;
@@ -204,16 +221,16 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
         for (unsigned k = nf; k < 6; ++k) us *= 10u;
         us += (uint64_t)round_up;
     }
-    if (p >= e || *p++ != ')') return LINE_SKIP;
+    if (p >= e || *p++ != ')') return LINE_BAD;
     uint64_t t_us = sec * 1000000u + us; /* no overflow: sec <= SEC_MAX, us <= 1000000 */
 
     /* channel: one token */
-    if (p >= e || !is_space(*p)) return LINE_SKIP;
+    if (p >= e || !is_space(*p)) return LINE_BAD;
     while (p < e && is_space(*p)) ++p;
-    if (p >= e) return LINE_SKIP;
+    if (p >= e) return LINE_BAD;
     while (p < e && !is_space(*p)) ++p;
     while (p < e && is_space(*p)) ++p;
-    if (p >= e) return LINE_SKIP;
+    if (p >= e) return LINE_BAD;
 
     /* frame token [p, q) */
     const char *q = p;
@@ -222,32 +239,41 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
     const char *r = q;
     while (r < e && is_space(*r)) ++r;
     if (r < e) {
-        if (e - r != 1 || (*r != 'R' && *r != 'r' && *r != 'T' && *r != 't')) return LINE_SKIP;
+        if (e - r != 1 || (*r != 'R' && *r != 'r' && *r != 'T' && *r != 't')) return LINE_BAD;
     }
 
     /* identifier: 1..3 hex digits standard (as python-can: more than 3 digits = extended;
      * candump writes 3 or 8, error frames as 8 digits with CAN_ERR_FLAG) */
     const char *id0 = p;
-    unsigned id = 0;
+    uint32_t id = 0;
     while (p < q && *p != '#') {
         int v = hexval(*p++);
-        if (v < 0) return LINE_SKIP;
-        if (p - id0 <= 3) id = (id << 4) | (unsigned)v;
+        if (v < 0) return LINE_BAD;
+        if (p - id0 <= 8) id = (id << 4) | (uint32_t)v;
     }
     long nid = (long)(p - id0);
-    if (p >= q || nid == 0) return LINE_SKIP; /* no '#' or no identifier */
-    if (nid > 3) return LINE_SKIP;            /* extended / error frame: not ours */
-    if (id > 0x7FFu) return LINE_SKIP;
+    if (p >= q || nid == 0 || nid > 8) return LINE_BAD; /* no '#', no identifier, or too long */
+    int kind = LINE_FRAME;
+    if (nid > 3) { /* extended data frame, or an error frame: a frame, not ours */
+        if (id & HIL_CAN_ERR_FLAG) {
+            kind = LINE_OTHER;
+        } else {
+            if (id > HIL_CAN_EFF_MASK) return LINE_BAD;
+            kind = LINE_EXTENDED;
+        }
+    } else if (id > 0x7FFu) {
+        return LINE_BAD;
+    }
     ++p; /* '#' */
 
     int fd = 0;
     if (p < q && *p == '#') { /* CAN FD: ##<flags><data> */
         ++p;
-        if (p >= q || hexval(*p) < 0) return LINE_SKIP;
+        if (p >= q || hexval(*p) < 0) return LINE_BAD;
         ++p;
         fd = 1;
     }
-    if (!fd && p < q && (*p == 'R' || *p == 'r')) return LINE_SKIP; /* remote frame */
+    if (!fd && p < q && (*p == 'R' || *p == 'r')) return LINE_OTHER; /* remote frame */
 
     uint8_t data[64];
     unsigned dlc = 0;
@@ -257,14 +283,15 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
             ++p;
             continue;
         }
-        if (q - p < 2) return LINE_SKIP; /* odd number of hex digits */
+        if (q - p < 2) return LINE_BAD; /* odd number of hex digits */
         int hi = hexval(p[0]), lo = hexval(p[1]);
-        if (hi < 0 || lo < 0) return LINE_SKIP;
-        if (dlc >= max_bytes) return LINE_SKIP;
+        if (hi < 0 || lo < 0) return LINE_BAD;
+        if (dlc >= max_bytes) return LINE_BAD;
         data[dlc++] = (uint8_t)((hi << 4) | lo);
         p += 2;
     }
-    if (dlc > 8) return LINE_SKIP; /* CAN FD frame longer than classic CAN */
+    if (dlc > 8) return LINE_OTHER; /* CAN FD frame longer than classic CAN */
+    if (kind != LINE_FRAME) return kind;
 
     memset(fr, 0, sizeof *fr);
     fr->t_us = t_us;
@@ -279,14 +306,17 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
 /* Parses the complete lines of buf[0..len) (those ending in '\n'; a trailing partial line is
  * left: feed it again with more data, or with a '\n' appended at the end of the file) into
  * out[0..cap). Returns the frames written; *consumed = bytes of the lines used (stops early
- * when out is full), *skipped = lines that are not an 11-bit data frame of <= 8 bytes
- * (extended, error, remote, CAN FD longer than 8 bytes, malformed); blank lines and comment
- * lines ('#' or ';' first) are skipped silently. t_us = absolute µs of the time stamp,
- * seq = 0, sender = 255, data past dlc = 0. Never reads outside buf[0..len). */
-uint32_t hil_log_parse(const char *buf, uint64_t len, hil_frame_t *out, uint32_t cap, uint64_t *consumed,
-                       uint64_t *skipped)
+ * when out is full); *counts (may be NULL) = what the lines used were: lines, frames that are
+ * not an 11-bit data frame of <= 8 bytes (skipped: extended, error, remote, CAN FD longer than
+ * 8 bytes; of them `extended`: extended-ID data frames), and lines that are no candump frame
+ * (unparsable, the first of them 1-based among these lines); blank lines and comment lines
+ * ('#' or ';' first) count as lines only. t_us = absolute µs of the time stamp, seq = 0,
+ * sender = 255, data past dlc = 0. Never reads outside buf[0..len). */
+uint32_t hil_log_parse_counted(const char *buf, uint64_t len, hil_frame_t *out, uint32_t cap, uint64_t *consumed,
+                               hil_log_counts_t *counts)
 {
-    uint64_t used = 0, skip = 0;
+    hil_log_counts_t c = {0, 0, 0, 0, 0};
+    uint64_t used = 0;
     uint32_t n = 0;
     if (buf && out) {
         const char *p = buf;
@@ -294,16 +324,34 @@ uint32_t hil_log_parse(const char *buf, uint64_t len, hil_frame_t *out, uint32_t
         while (n < cap && p < end) {
             const char *nl = memchr(p, '\n', (size_t)(end - p));
             if (!nl) break;
+            ++c.lines;
             int k = parse_line(p, nl, &out[n]);
-            if (k == LINE_FRAME)
+            if (k == LINE_FRAME) {
                 ++n;
-            else if (k == LINE_SKIP)
-                ++skip;
+            } else if (k == LINE_EXTENDED) {
+                ++c.skipped;
+                ++c.extended;
+            } else if (k == LINE_OTHER) {
+                ++c.skipped;
+            } else if (k == LINE_BAD) {
+                if (c.unparsable++ == 0) c.first_unparsable = c.lines;
+            }
             p = nl + 1;
         }
         used = (uint64_t)(p - buf);
     }
     if (consumed) *consumed = used;
-    if (skipped) *skipped = skip;
+    if (counts) *counts = c;
+    return n;
+}
+
+/* hil_log_parse_counted with one count: *skipped = the lines that are not an 11-bit data frame
+ * of <= 8 bytes (skipped frames and unparsable lines together), as a follower of a growing log needs. */
+uint32_t hil_log_parse(const char *buf, uint64_t len, hil_frame_t *out, uint32_t cap, uint64_t *consumed,
+                       uint64_t *skipped)
+{
+    hil_log_counts_t c;
+    uint32_t n = hil_log_parse_counted(buf, len, out, cap, consumed, &c);
+    if (skipped) *skipped = c.skipped + c.unparsable;
     return n;
 }

@@ -24,6 +24,7 @@ from the EDS files at run time for the run's node-IDs (bench/eds.py), never writ
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -243,6 +244,59 @@ def cob_ids(plant_id: int, drive_id: int) -> dict[str, int]:
         out[f"{node}.heartbeat"] = 0x700 + nid  # CiA 301: NMT error control is 0x700 + node-ID
         out[f"{node}.EMCY"] = int(od[0x1014].default) & 0x7FF
     return out
+
+
+def loop_frames(plant_id: int = 0x10, drive_id: int = 0x20) -> dict[int, str]:
+    """The frames a lockstep period cannot do without, COB-ID -> name, from the EDS files: the SYNC and
+    every TPDO of one node that a valid RPDO of the other consumes (the measurements, the command)."""
+    from ..eds import load as load_od
+
+    ids = cob_ids(plant_id, drive_id)
+    out = {ids["SYNC"]: "SYNC"}
+    for node, other, nid in (("plant", "drive", drive_id), ("drive", "plant", plant_id)):
+        od = load_od(other, nid)
+        consumed = set()
+        for i in range(4):
+            cob = int(od[0x1400 + i][1].default)
+            if not cob & 0x80000000:
+                consumed.add(cob & 0x7FF)
+        out.update(
+            {ids[f"{node}.TPDO{i}"]: f"{node}.TPDO{i}" for i in range(1, 5) if ids[f"{node}.TPDO{i}"] in consumed}
+        )
+    return out
+
+
+def refuse_lockstep_stalls(
+    faults: list[Fault], where: str, timing: str, expect: tuple[str, ...], command_timeout_us: Callable[[int], float]
+) -> None:
+    """In lockstep with [drive] command_timeout_us = 0 (plant.eds 0x2003:04, its default) the plant waits for
+    every command: a fault that takes a frame of the loop away (dropped, or delayed to a later period that
+    cannot come) or freezes the drive stalls the loop; the run would wait 10 s of simulated time, then say
+    frames_lost. Refused before anything starts, unless the scenario expects frames_lost.
+    `command_timeout_us(period)`: the value in effect at that period (the scenario's, its events')."""
+    if timing != "lockstep" or "frames_lost" in expect:
+        return
+    loop = loop_frames()
+    names = cob_ids(0x10, 0x20)
+    for f in faults:
+        if command_timeout_us(f.at_period) > 0:
+            continue
+        if f.kind in ("drop", "delay"):
+            cob = names[f.frame] if f.frame else f.cob_id
+            if cob not in loop:
+                continue
+            what = f"a {f.kind} of {f.frame or loop[cob]} (a frame of the loop)"
+        elif f.kind == "freeze":
+            what = "a frozen drive (it sends no command)"
+        else:
+            continue
+        raise FaultError(
+            f"{where}: faults[{f.index}] ({f.kind}, at_period {f.at_period}): {what} stalls a lockstep loop whose "
+            "plant waits for every command ([drive] command_timeout_us = 0, plant.eds 0x2003:04): the run would "
+            "stop after 10 s of simulated time with frames_lost. Set [drive] command_timeout_us > 0 (e.g. 20000) "
+            'so the plant goes on without the missing command, or expect = "frames_lost" if the stall is the '
+            "point"
+        )
 
 
 def rules_text(faults: list[Fault], plant_id: int, drive_id: int) -> str:

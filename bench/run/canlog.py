@@ -38,6 +38,18 @@ _READ_BLOCK = 4 << 20  # bytes read from a .log per block; also the longest line
 _lib: ctypes.CDLL | None = None
 
 
+class _LogCounts(ctypes.Structure):
+    """hil_log_counts_t of bench/direct/hil_log.c."""
+
+    _fields_ = [
+        ("lines", ctypes.c_uint64),
+        ("skipped", ctypes.c_uint64),
+        ("extended", ctypes.c_uint64),
+        ("unparsable", ctypes.c_uint64),
+        ("first_unparsable", ctypes.c_uint64),
+    ]
+
+
 def _hil() -> ctypes.CDLL:
     global _lib
     if _lib is None:
@@ -65,6 +77,15 @@ def _hil() -> ctypes.CDLL:
             ctypes.POINTER(ctypes.c_uint64),
         ]
         lib.hil_log_parse.restype = ctypes.c_uint32
+        lib.hil_log_parse_counted.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_uint64,
+            ctypes.c_void_p,
+            ctypes.c_uint32,
+            ctypes.POINTER(ctypes.c_uint64),
+            ctypes.POINTER(_LogCounts),
+        ]
+        lib.hil_log_parse_counted.restype = ctypes.c_uint32
         _lib = lib
     return _lib
 
@@ -123,8 +144,13 @@ class CandumpWriter:
 class LogFrames(Iterator[np.ndarray]):
     """The frames of a log as FRAME_DTYPE chunks (at most chunk_frames each, seq numbered across
     chunks from 0, sender 255). After (or during) iteration: `frames` = frames yielded,
-    `skipped` = frames/lines that are not an 11-bit data frame of <= 8 bytes (extended, error,
-    remote, CAN FD longer than 8 bytes; in a .log also malformed lines).
+    `skipped` = frames that are not an 11-bit data frame of <= 8 bytes (extended, error, remote,
+    CAN FD longer than 8 bytes), of them `extended` = extended-ID data frames; in a .log also
+    `unparsable` = lines that are no candump frame (garbage, a line longer than a block), the first
+    at line `first_unparsable_line`, and `truncated_line` = the last line's number when the file
+    ends without its end of line (a recorder cut mid-write): that line is not counted as
+    unparsable; its frame is kept when it still parses (only the '\n' was lost), else dropped
+    (`truncated_dropped`).
 
     t_us is what the format keeps: absolute µs for .log and .blf, µs from the first frame for
     .asc (python-can's ASCReader default; the absolute start of an .asc is only in ms)."""
@@ -136,6 +162,12 @@ class LogFrames(Iterator[np.ndarray]):
         self.chunk_frames = int(chunk_frames)
         self.frames = 0
         self.skipped = 0
+        self.extended = 0
+        self.unparsable = 0
+        self.first_unparsable_line: int | None = None
+        self.truncated_line: int | None = None
+        self.truncated_dropped = False
+        self.lines = 0  # lines read so far (.log)
         source = self._candump() if self.path.suffix.lower() == ".log" else self._python_can()
         self._chunks = self._numbered(source)
 
@@ -152,32 +184,70 @@ class LogFrames(Iterator[np.ndarray]):
             self.frames += len(chunk)
             yield chunk
 
+    def report(self) -> dict[str, int | bool | None]:
+        """What was left out of the log, for summary.json's "log"."""
+        return {
+            "frames_skipped": self.skipped,
+            "extended_frames": self.extended,
+            "unparsable_lines": self.unparsable,
+            "first_unparsable_line": self.first_unparsable_line,
+            "truncated_line": self.truncated_line,
+            "truncated_line_dropped": self.truncated_dropped,
+        }
+
+    def _count(self, c: _LogCounts, cut_line: bool) -> None:
+        """Adds one hil_log_parse_counted call's counts; `cut_line`: the call's only line is the
+        file's unterminated last line (truncated, not unparsable)."""
+        if cut_line and c.lines:
+            self.truncated_line = self.lines + 1
+            self.truncated_dropped = bool(c.unparsable)
+        elif c.unparsable:
+            if self.first_unparsable_line is None:
+                self.first_unparsable_line = self.lines + int(c.first_unparsable)
+            self.unparsable += int(c.unparsable)
+        self.lines += int(c.lines)
+        self.skipped += int(c.skipped)
+        self.extended += int(c.extended)
+
+    def _long_line(self) -> None:
+        """A "line" longer than a block: garbage, dropped up to its '\n'."""
+        self.lines += 1
+        self.unparsable += 1
+        if self.first_unparsable_line is None:
+            self.first_unparsable_line = self.lines
+
+    def _long_line_was_cut(self) -> None:
+        self.unparsable -= 1
+        if self.first_unparsable_line == self.lines:
+            self.first_unparsable_line = None
+        self.truncated_line, self.truncated_dropped = self.lines, True
+
     def _candump(self) -> Iterator[np.ndarray]:
-        """hil_log_parse over fixed blocks of the file: memory stays one block + one chunk.
+        """hil_log_parse_counted over fixed blocks of the file: memory stays one block + one chunk.
         Hand-written because python-can's CanutilsLogReader makes a can.Message per line (~13 µs)."""
         lib = _hil()
         buf = np.empty(_READ_BLOCK + 1, dtype=np.uint8)  # +1: the '\n' added to an unterminated last line
         base = buf.ctypes.data
         have = pos = 0
-        eof = discarding = False
-        consumed, skipped = ctypes.c_uint64(), ctypes.c_uint64()
+        eof = discarding = cut = False
+        consumed, counts = ctypes.c_uint64(), _LogCounts()
         out = np.empty(self.chunk_frames, dtype=FRAME_DTYPE)
         filled = 0
         with open(self.path, "rb", buffering=0) as fh:
             while True:
                 n = int(
-                    lib.hil_log_parse(
+                    lib.hil_log_parse_counted(
                         base + pos,
                         have - pos,
                         out.ctypes.data + filled * FRAME_DTYPE.itemsize,
                         self.chunk_frames - filled,
                         ctypes.byref(consumed),
-                        ctypes.byref(skipped),
+                        ctypes.byref(counts),
                     )
                 )
                 filled += n
                 pos += consumed.value
-                self.skipped += skipped.value
+                self._count(counts, cut)
                 if filled == self.chunk_frames:  # out full: more lines may wait in buf
                     yield out
                     out = np.empty(self.chunk_frames, dtype=FRAME_DTYPE)
@@ -190,17 +260,19 @@ class LogFrames(Iterator[np.ndarray]):
                 have, pos = rest, 0
                 if eof:
                     break
-                if have == _READ_BLOCK:  # a "line" longer than a block: garbage, drop it up to its '\n'
-                    self.skipped += 1
+                if have == _READ_BLOCK:
+                    self._long_line()
                     have, discarding = 0, True
                 got = fh.readinto(memoryview(buf)[have:_READ_BLOCK])
                 if not got:
                     eof = True
-                    if discarding:
+                    if discarding:  # the long line was the last, unterminated: the cut line
+                        self._long_line_was_cut()
                         have = 0
-                    elif have:  # unterminated last line: complete it
+                    elif have:  # unterminated last line, alone in buf: complete it, parse it alone
                         buf[have] = 0x0A
                         have += 1
+                        cut = True
                     continue
                 if discarding:
                     nl = np.flatnonzero(buf[have : have + got] == 0x0A)
@@ -229,6 +301,11 @@ class LogFrames(Iterator[np.ndarray]):
                     if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame or len(m.data) > 8)
                 ]
                 self.skipped += len(msgs) - len(keep)
+                self.extended += sum(
+                    1
+                    for m in msgs
+                    if m.is_extended_id and not (m.is_error_frame or m.is_remote_frame or len(m.data) > 8)
+                )
                 if keep:
                     yield _to_frames(keep)
 

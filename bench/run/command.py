@@ -1,9 +1,9 @@
 """`bench run`: one scenario end to end, and `bench capture` (its bus half, run inside the VM).
 
 The result folder is built in NAME.partial and renamed when complete; a failed run is left in
-NAME.failed; an existing folder is never touched. The exit status is the run's verdict
-(bench/run/summary.py): 0 ok (or the status the scenario expects), 3 tripped, 4 diverged,
-5 non-finite values, 6 frames lost, 7 expected status not reached; 1 failure, 2 bad input,
+NAME.failed; an existing folder is never touched. The exit status is the run's verdict, one code
+per status (bench/run/summary.py's EXIT_CODES: exit_codes_help() lists them for --help); 0 also
+for the status the scenario expects, 7 when it expected another; 1 failure, 2 bad input,
 130 interrupted.
 """
 
@@ -28,6 +28,23 @@ from .vm_run import run_in_vm_capture
 
 def default_out(sc: Scenario) -> Path:
     return Path("runs") / f"{sc.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+
+EXIT_FAILURE, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 1, 2, 130
+
+
+def exit_codes_help() -> str:
+    """The exit codes of a run, for --help, from the table that defines them (summary.EXIT_CODES)."""
+    from .summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+
+    codes = sorted(
+        [*EXIT_CODES.items(), ("expected status not reached", EXIT_EXPECTATION_NOT_MET)], key=lambda kv: kv[1]
+    )
+    verdicts = ", ".join(f"{code} {name}" for name, code in codes)
+    return (
+        f"{verdicts} (0 also when the status is one the scenario expects); {EXIT_FAILURE} failure, "
+        f"{EXIT_BAD_INPUT} bad input, {EXIT_INTERRUPTED} interrupted"
+    )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

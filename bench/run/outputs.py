@@ -19,41 +19,85 @@ from .sinks import TRACES_FILE, TraceFileSink
 
 
 class Progress:
-    """A tqdm bar on a terminal; otherwise a line every few seconds (CI logs), none for short phases."""
+    """A tqdm bar on a terminal; otherwise a line every few seconds (CI logs) and a final line with what
+    was done and the rate. The rate counts from the first update and the amount it brought (a VM boots
+    first; the first update may carry many periods at once): none is shown before time has passed."""
+
+    MIN_RATE_SPAN_S = 0.5  # a rate over less time than this is not shown
 
     def __init__(self, total: int, desc: str, every_s: float = 5.0, unit: str = "periods") -> None:
         self.total, self.desc, self.n, self.unit = total, desc, 0, unit
         self._bar: Any = None
-        self._t0 = self._last = time.monotonic()
+        self._start = self._last = time.monotonic()
+        self._t0: float | None = None  # first update: its time and the count it brought
+        self._n0 = 0
         self._every = every_s
+        self._closed = False
         if sys.stderr.isatty():
             from tqdm import tqdm
 
             self._bar = tqdm(total=total, unit=unit, desc=desc, unit_scale=True, leave=False)
 
+    def rate(self, now: float) -> float | None:
+        """Units a second since the first update; None while too little time has passed to tell."""
+        if self._t0 is None or now - self._t0 < self.MIN_RATE_SPAN_S or self.n <= self._n0:
+            return None
+        return (self.n - self._n0) / (now - self._t0)
+
     def update(self, k: int) -> None:
         if k <= 0:
             return
-        if self.n == 0:
-            self._t0 = time.monotonic()  # the rate counts from the first period (a VM boots first)
         self.n += k
+        now = time.monotonic()
+        if self._t0 is None:
+            self._t0, self._n0 = now, self.n
         if self._bar is not None:
             self._bar.update(k)
             return
-        now = time.monotonic()
         if now - self._last >= self._every:
             self._last = now
-            rate = self.n / max(now - self._t0, 1e-9)
-            eta = (self.total - self.n) / rate if rate > 0 else float("nan")
-            print(
-                f"  {self.desc}: {self.n}/{self.total} {self.unit} ({rate:,.0f}/s, ~{max(eta, 0):.0f} s left)",
-                file=sys.stderr,
-                flush=True,
-            )
+            rate = self.rate(now)
+            pace = f" ({rate:,.0f}/s, ~{max(self.total - self.n, 0) / rate:.0f} s left)" if rate else ""
+            print(f"  {self.desc}: {self.n}/{self.total} {self.unit}{pace}", file=sys.stderr, flush=True)
 
     def close(self) -> None:
+        """The bar goes; without a terminal, a final line: done, time, rate (when progress was seen)."""
+        if self._closed:
+            return
+        self._closed = True
         if self._bar is not None:
             self._bar.close()
+            return
+        if self.n == 0:
+            return
+        now = time.monotonic()
+        rate = self.rate(now)
+        pace = f", {rate:,.0f} {self.unit}/s" if rate else ""
+        print(
+            f"  {self.desc}: {self.n}/{self.total} {self.unit} done in {now - self._start:.1f} s{pace}",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
+class _ProgressSink:
+    """A trace sink that moves the active progress bar with the periods decoded: every kind of run (direct,
+    a bus, the VM) feeds its trace chunks through the sinks as they come, so the bar moves within a
+    segment (the session's own progress calls come at its events only)."""
+
+    def __init__(self) -> None:
+        self.bar: Progress | None = None
+
+    def begin(self, signals: Any, ctx: Any) -> None:
+        pass
+
+    def write(self, chunk: dict[str, Any]) -> None:
+        bar, periods = self.bar, chunk.get("period")
+        if bar is not None and periods is not None and len(periods):
+            bar.update(int(periods[-1]) + 1 - bar.n)
+
+    def end(self, summary: dict[str, Any]) -> None:
+        pass
 
 
 class Outputs:
@@ -64,7 +108,8 @@ class Outputs:
         self.log_formats = [f for f in (getattr(args, "log_format", None) or []) if f != "log"]
         self.traces = TraceFileSink(folder / TRACES_FILE)
         self.view = self._view_worker()
-        self.sinks: list[Any] = [self.traces, self.view]
+        self._progress_sink = _ProgressSink()
+        self.sinks: list[Any] = [self.traces, self.view, self._progress_sink]
         self.frame_sinks: list[Any] = []
         self.log_path = folder / "bus.log"
         if args.bus == "direct":  # over a bus, candump's own log is the log
@@ -96,9 +141,11 @@ class Outputs:
     @contextmanager
     def progress(self, total: int, desc: str) -> Iterator[Progress]:
         bar = Progress(total, desc)
+        self._progress_sink.bar = bar
         try:
             yield bar
         finally:
+            self._progress_sink.bar = None
             bar.close()
 
     def finish(self, result: Any) -> None:
@@ -227,7 +274,7 @@ def print_result(out: Path, result: Any) -> None:
             f"{s['divergence_bound_A']:.3g} A that the inverter can drive through the winding"
         ),
         "non_finite": f"non-finite values arrived in PDOs: {', '.join(nf)}",
-        "frames_lost": (s["stopped"]["message"] if s.get("stopped") else f"{bs['lost_frames']} frames lost"),
+        "frames_lost": (s["stopped"]["message"] if s.get("stopped") else _frames_lost(s)),
         "node_lost": (s.get("stopped") or {}).get("message", ""),
         "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
         f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
@@ -241,4 +288,27 @@ def print_result(out: Path, result: Any) -> None:
         print(f"status: {status.upper()}: {why} (exit {result.exit_code})")
     if status == "ok" and not result.expected:
         print(f"status: the scenario expected {', '.join(s['expect'])} (exit {result.exit_code})")
-    print(f"results in {out}/: summary.json, {TRACES_FILE}, bus.log, run.rrd, *.svg")
+    print(f"results in {out}/: {', '.join(_files_written(s))}")
+
+
+def _files_written(s: dict[str, Any]) -> list[str]:
+    """The files summary.json lists (what was written), summary.json first."""
+    files = s.get("files")
+    if not files:
+        return ["summary.json", TRACES_FILE, "bus.log", "run.rrd", "*.svg"]
+    names = [files.get("log"), files.get("traces"), *files.get("exports", []), files.get("recording")]
+    plots = files.get("plots") or []
+    shown = ["summary.json", *[n for n in names if n]]
+    return shown + (plots if len(plots) <= 3 else [f"{len(plots)} plots (*.svg)"])
+
+
+def _frames_lost(s: dict[str, Any]) -> str:
+    """Why frames_lost without a stop: frames missing from periods, and/or fewer periods than the master ran."""
+    bs, log = s["bus_stats"], s.get("log") or {}
+    parts = [f"{bs['lost_frames']} frames lost"] if bs["lost_frames"] else []
+    planned = bs.get("planned_periods")
+    if planned and s["periods"] != planned:
+        parts.append(f"{s['periods']} periods of the {planned} the master ran")
+    if log.get("truncated_line"):
+        parts.append(f"the log is truncated (it ends mid-line at line {log['truncated_line']})")
+    return "; ".join(parts) or f"{bs['lost_frames']} frames lost"

@@ -458,8 +458,8 @@ def replay_log(
         pipe.feed(chunk)
         if progress:
             progress(len(chunk))
-    res = pipe.finish(path.stem, f"log {path.name}", {"wall_s": time.monotonic() - t0})
-    res.summary["log"] = {"path": str(path), "frames_skipped": frames.skipped, "sdo_transfers": pipe.dec.sdo.transfers}
+    res = pipe.finish(path.name, f"log {path.name}", {"wall_s": time.monotonic() - t0})
+    res.summary["log"] = {"path": str(path), **frames.report(), "sdo_transfers": pipe.dec.sdo.transfers}
     if collector is not None:
         res.trace = collector.trace
     return res

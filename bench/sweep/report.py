@@ -4,6 +4,7 @@ the distribution of each metric (percentiles, printed and in sweep.json, and a h
 from __future__ import annotations
 
 import math
+import textwrap
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -105,7 +106,11 @@ def heatmap(path: Path, grid: list[tuple[str, list[str]]], rows: list[dict[str, 
             for j in range(len(v2)):
                 txt = "-" if np.isnan(z[i, j]) else f"{z[i, j]:.3g}"
                 ax.text(j, i, txt, ha="center", va="center", color="w")
-    fig.colorbar(im, label=metric + " (first iq step; '-' = none, e.g. never settles)")
+    # the colour bar's label runs along the figure's height: wrapped to it (~6 pt a 10 pt character), or a
+    # small grid's figure cut it off at both ends
+    label = metric + " (first iq step; '-' = none, e.g. never settles)"
+    per_line = max(12, int(fig.get_figheight() * 0.8 * 72 / 6.5))
+    fig.colorbar(im, label=textwrap.fill(label, per_line))
     ax.set_title(f"{title}: {metric}")
     fig.tight_layout()
     fig.savefig(path, dpi=90)

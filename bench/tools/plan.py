@@ -99,6 +99,36 @@ def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1) -> list[tuple[str, i
     return out
 
 
+def _bad(field: str, value: object, allowed: str) -> ValueError:
+    return ValueError(f"{field} = {value}: must be {allowed}")
+
+
+def _check_inputs(
+    bitrate: float,
+    ts_s: float,
+    fd: bool,
+    data_bitrate: float | None,
+    max_load: float,
+    trace_pdos: int,
+    trace_decimation: int,
+) -> None:
+    """Every input in its range (a ValueError naming the field, its value and the allowed range);
+    NaN and infinities are out of every range."""
+    top = 12e6 if fd else 1e6
+    if not (math.isfinite(bitrate) and 0 < bitrate <= top + 1e-9):
+        raise _bad("--bitrate", f"{bitrate:g}", f"in (0, {top:g}] bit/s for {'CAN FD' if fd else 'classic CAN'}")
+    if fd and (data_bitrate is None or not (math.isfinite(data_bitrate) and 0 < data_bitrate <= 12e6)):
+        raise _bad("--data-bitrate", data_bitrate, "in (0, 12e6] bit/s with --fd")
+    if not (math.isfinite(ts_s) and ts_s > 0):
+        raise _bad("--ts", f"{ts_s:g}", "a finite period > 0 s (e.g. 55e-6)")
+    if not (math.isfinite(max_load) and 0 < max_load <= 1):
+        raise _bad("--max-load", f"{max_load:g}", "in (0, 1]")
+    if trace_pdos < 0:
+        raise _bad("--trace-pdos", trace_pdos, ">= 0")
+    if trace_decimation < 1:
+        raise _bad("--trace-decimation", trace_decimation, ">= 1")
+
+
 def make_plan(
     bitrate: float,
     ts_s: float,
@@ -108,14 +138,7 @@ def make_plan(
     trace_pdos: int = 0,
     trace_decimation: int = 1,
 ) -> Plan:
-    if bitrate <= 0 or bitrate > 1e6 + 1e-9 and not fd:
-        raise ValueError(f"--bitrate must be in (0, 1e6] bit/s for classic CAN, got {bitrate:g}")
-    if fd and (data_bitrate is None or data_bitrate <= 0 or data_bitrate > 12e6):
-        raise ValueError("--data-bitrate must be in (0, 12e6] bit/s with --fd")
-    if ts_s <= 0:
-        raise ValueError(f"--ts must be > 0 s, got {ts_s:g}")
-    if not 0 < max_load <= 1:
-        raise ValueError(f"--max-load must be in (0, 1], got {max_load:g}")
+    _check_inputs(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation)
     plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load)
     for what, n, per in pdo_set(trace_pdos, trace_decimation):
         if fd:

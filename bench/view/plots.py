@@ -55,6 +55,8 @@ def _chart(title: str, x_title: str, y_title: str, width: int = 760, height: int
         js=[],
         disable_xml_declaration=True,
         legend_at_bottom=True,
+        # pygal lays the bottom legend out as if there were no x title: room for it, or it is cut off
+        margin_bottom=40 if x_title else None,
         legend_at_bottom_columns=4,
         truncate_legend=-1,
         x_labels_major_count=8,
@@ -85,7 +87,9 @@ def _svg(*charts: pygal.XY) -> str:
     for c in charts:
         body = c.render(is_unicode=True)
         h, w = c.config.height, c.config.width
-        body = re.sub(r"^<svg ", f'<svg x="0" y="{y}" ', body, count=1)
+        # its own width and height: a nested <svg> without them is 100% of the document (SVG 1.1 5.1.2),
+        # its viewBox then scaled into the whole stack and centred (blank bands, the next panel clipped)
+        body = re.sub(r"^<svg ", f'<svg x="0" y="{y}" width="{w}" height="{h}" ', body, count=1)
         parts.append(body)
         y += h
         width = max(width, w)
@@ -119,7 +123,7 @@ def step_plots(
         charts = [cur]
         vname = "vq_V" if sig == "iq" else "vd_V"
         if vname in w:
-            volt = _chart("", "control periods after the reference step", "voltage command (V)", height=230)
+            volt = _chart("", "control periods after the reference step", "voltage command (V)", height=270)
             volt.add(f"{vname[:2]}* (V)", _pts(k, w[vname], steps=True))
             charts.append(volt)
         path = out / f"step_{i:02d}_{sig}_p{p}.svg"

@@ -144,13 +144,20 @@ def test_partial_last_line(tmp_path: Path, written: tuple[Path, np.ndarray]) -> 
     p.write_bytes(text[:-1])
     it = read_frames(p, chunk_frames=7)
     same(np.concatenate(list(it)), frames)
-    assert it.skipped == 0
-    # a line cut in the middle (a recorder killed mid-write) is skipped and counted
+    assert it.skipped == 0 and it.unparsable == 0
+    assert it.truncated_line == len(frames) and not it.truncated_dropped  # said: its '\n' is missing
+    # a line cut in the middle (a recorder killed mid-write): dropped, said as the truncated line (its
+    # number), neither a skipped frame nor an unparsable line
     last = text.rstrip(b"\n").rsplit(b"\n", 1)[1]
     p.write_bytes(text + last[:12])
     it = read_frames(p)
     same(np.concatenate(list(it)), frames)
-    assert it.skipped == 1
+    assert (it.skipped, it.unparsable, it.first_unparsable_line) == (0, 0, None)
+    assert it.truncated_line == len(frames) + 1 and it.truncated_dropped
+    # a complete log is not truncated
+    it = read_frames(path)
+    list(it)
+    assert it.truncated_line is None
 
 
 def test_parse_stops_before_partial_line() -> None:
@@ -326,6 +333,7 @@ MALFORMED = [
     b"(1700000000.000001) vcan0 1 2#11",
     b"\x00\xff\x80(\x01",
 ]
+MALFORMED_FRAMES = [b"(1700000000.000001) vcan0 1234#11"]  # a frame (extended ID), not ours
 SILENT = [b"", b"   \r", b"# a comment", b"  ; another comment"]  # skipped without being counted
 
 
@@ -351,7 +359,10 @@ def test_garbage(tmp_path: Path) -> None:
     for chunk in (1 << 20, 2):
         it = read_frames(path, chunk_frames=chunk)
         check_valid(np.concatenate(list(it)), expect)
-        assert it.skipped == len(MALFORMED)
+        # one of them is a frame (not ours), the rest no candump frame
+        assert (it.skipped, it.extended) == (len(MALFORMED_FRAMES), 1)
+        assert it.unparsable == len(MALFORMED) - len(MALFORMED_FRAMES)
+        assert it.first_unparsable_line == 2  # valid, garbage, ...
     # random bytes (no '\n' in them) between valid lines: one skipped line each
     blobs = [
         rng.integers(0, 256, int(rng.integers(1, 300)), dtype=np.uint8).tobytes().replace(b"\n", b"x")
@@ -362,7 +373,7 @@ def test_garbage(tmp_path: Path) -> None:
     body = b"".join(valid[i % len(valid)] + b"\n" + b + b"\n" for i, b in enumerate(blobs))
     path.write_bytes(body)
     it = read_frames(path, chunk_frames=3)
-    assert len(np.concatenate(list(it))) == len(blobs) and it.skipped == len(blobs)
+    assert len(np.concatenate(list(it))) == len(blobs) and it.unparsable == len(blobs) and it.skipped == 0
 
 
 def test_garbage_line_longer_than_a_block(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -371,7 +382,8 @@ def test_garbage_line_longer_than_a_block(tmp_path: Path, monkeypatch: pytest.Mo
     good = b"(1700000000.000001) vcan0 123#11\n"
     path.write_bytes(good + b"y" * 1000 + b"\n" + good + b"z" * 500)
     it = read_frames(path)
-    assert len(np.concatenate(list(it))) == 2 and it.skipped == 2
+    assert len(np.concatenate(list(it))) == 2 and it.unparsable == 1 and it.skipped == 0
+    assert it.first_unparsable_line == 2 and it.truncated_line == 4 and it.truncated_dropped
 
 
 def test_random_buffers_never_crash() -> None:

@@ -62,3 +62,40 @@ def test_vm_timeout_is_enforced_without_output() -> None:
     res = run("vm", "--timeout", "40", "--", "sleep", "100000", timeout=600)
     assert res.returncode == 124, res.stdout + res.stderr
     assert "timed out" in res.stderr
+
+
+def test_help_lists_no_hidden_command() -> None:
+    """The internal `capture` is not listed (a help=SUPPRESS leaked as "capture ==SUPPRESS==")."""
+    out = run("--help").stdout
+    assert "SUPPRESS" not in out and "capture" not in out, out
+
+
+def test_run_help_lists_every_exit_code_of_the_verdict_table() -> None:
+    """bench run/replay --help: every status with its exit code, from summary.EXIT_CODES (8, 9 were missing)."""
+    import re
+
+    from bench.run.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+
+    for cmd in ("run", "replay"):
+        text = " ".join(run(cmd, "--help").stdout.split())  # argparse wraps lines anywhere
+        for status, code in EXIT_CODES.items():
+            assert re.search(rf"\b{code} {status}\b", text), (cmd, status, code)
+        assert f"{EXIT_EXPECTATION_NOT_MET} expected status not reached" in text
+
+
+def test_docs_name_only_commands_that_exist() -> None:
+    """Every `bench COMMAND` the README and docs show in code exists (the README named a `bench check`)."""
+    import re
+
+    from bench.cli import build_parser
+    from bench.paths import REPO
+
+    sub = next(a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction")
+    commands = set(sub.choices)  # type: ignore[attr-defined]
+    bad = []
+    for doc in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        for code in re.findall(r"`([^`\n]+)`", doc.read_text()):
+            for m in re.finditer(r"(?:^|[\s/])bench ([a-z][a-z-]*)", code):
+                if m.group(1) not in commands:
+                    bad.append(f"{doc.name}: `{code}`")
+    assert not bad, bad

@@ -45,6 +45,29 @@ def test_cli_json_and_errors() -> None:
     d = json.loads(res.stdout)
     assert d["fits"] is False and d["bits_per_period"] == 470 and d["fastest_period_s"] > 55e-6
     bad = subprocess.run([*run, "--ts", "-1"], capture_output=True, text=True)
-    assert bad.returncode == 64 and "--ts" in bad.stderr
+    assert bad.returncode == 2 and "--ts" in bad.stderr
     text = subprocess.run([*run, "--bitrate", "1000000", "--ts", "55e-6"], capture_output=True, text=True).stdout
     assert "fits in real time: NO" in text and "lockstep" in text
+
+
+@pytest.mark.parametrize(
+    "args, field",
+    [
+        (["--ts", "0"], "--ts"),
+        (["--ts", "nan"], "--ts"),
+        (["--ts", "inf"], "--ts"),
+        (["--bitrate", "0"], "--bitrate"),
+        (["--bitrate", "2e6"], "--bitrate"),
+        (["--max-load", "1.5"], "--max-load"),
+        (["--max-load", "nan"], "--max-load"),
+        (["--fd"], "--data-bitrate"),
+        (["--trace-pdos", "-1"], "--trace-pdos"),
+        (["--trace-decimation", "0"], "--trace-decimation"),
+    ],
+)
+def test_cli_bad_input_exits_2_naming_the_field_and_range(args: list[str], field: str) -> None:
+    """Bad input exits 2 (as every command's), with the field, its value and the allowed range; no traceback."""
+    bad = subprocess.run([sys.executable, "-m", "bench.cli", "plan", *args], capture_output=True, text=True)
+    assert bad.returncode == 2, bad.stderr
+    assert bad.stderr.startswith(f"bench plan: {field} = ") and "must be" in bad.stderr, bad.stderr
+    assert "Traceback" not in bad.stderr

@@ -101,3 +101,93 @@ def test_every_signal_of_the_controller_is_in_the_recording(tmp_path: Path, case
     summary = json.loads((out / "summary.json").read_text())
     assert summary["identified"]["controller"] == controller
     assert (out / "overview.svg").stat().st_size > 0 and list(out.glob("step_*.svg"))
+
+
+def _svg_boxes(path: Path) -> tuple[tuple[float, float], list[tuple[float, float, float, float, str | None]]]:
+    """The document's size and each stacked chart's (x, y, width, height, viewBox) as the SVG declares them."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(path).getroot()
+    vb = [float(v) for v in root.get("viewBox", "").split()]
+    assert vb[:2] == [0, 0] and vb[2:] == [float(root.get("width", 0)), float(root.get("height", 0))]
+    boxes = []
+    for c in root.findall("{http://www.w3.org/2000/svg}svg"):
+        w, h = c.get("width"), c.get("height")  # absent: 100% of the document (SVG 1.1, 5.1.2)
+        boxes.append(
+            (
+                float(c.get("x", 0)),
+                float(c.get("y", 0)),
+                float(w) if w else vb[2],
+                float(h) if h else vb[3],
+                c.get("viewBox"),
+            )
+        )
+    return (vb[2], vb[3]), boxes
+
+
+def test_stacked_plots_declare_each_panel_where_it_is_drawn(tmp_path: Path) -> None:
+    """Each panel of a step plot / the overview is a nested <svg>: with its own size it sits in its band of
+    the document; without (as before), Chromium scaled each into the whole document: ~600 px blank atop the
+    overview, the step plot's voltage panel clipped. Geometry from the SVG itself: the panels tile the
+    document, each at the scale 1 of its viewBox."""
+    from bench.view.plots import overview_plot, step_plots
+
+    k = np.arange(-5, 30)
+    win = {"at_period": 20, "period": 20 + k, "iq_A": (k > 1).astype(float), "iq_ref_A": (k >= 0).astype(float)}
+    win["vq_V"] = 80.0 * (k == 1)
+    step = {"at_period": 20, "signal": "iq", "periods_to_settle": 2, "from_A": 0.0, "to_A": 1.0, "overshoot_A": 0.0}
+    start = np.arange(0, 400, 4)
+    env = {n: (start, np.sin(start / 50.0), np.sin(start / 50.0) + 0.1) for n in ("iq_A", "vq_V", "omega_rad_s")}
+    paths = [*step_plots(tmp_path, [win], [step], "t"), overview_plot(tmp_path, env, "t", 1e-4)]
+    assert len(paths) == 2
+    for path in paths:
+        assert path is not None
+        (width, height), boxes = _svg_boxes(path)
+        assert len(boxes) >= 2, path.name
+        y = 0.0
+        for x, top, w, h, vb in boxes:
+            assert vb is not None
+            assert [float(v) for v in vb.split()] == [0, 0, w, h], (path.name, vb, w, h)  # scale 1, not fitted
+            assert x == 0 and top == y and w <= width, (path.name, top, y)  # stacked, no gap, no overlap
+            y += h
+        assert y == height, path.name  # the panels fill the document: no blank band, none cut off
+
+
+@pytest.mark.parametrize("rows_n", [2, 3, 12])
+def test_sweep_heatmap_text_stays_inside_the_figure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, rows_n: int
+) -> None:
+    """Everything drawn on the sweep's heat-map (the colour bar's label above all: cut at both ends on a
+    small grid) lies inside the figure when it is saved: the tight box matplotlib's renderer gives."""
+    from matplotlib.figure import Figure
+
+    from bench.sweep.report import heatmap
+
+    seen: list[list[str]] = []
+    save = Figure.savefig
+
+    def checked(fig: Figure, *args: object, **kwargs: object) -> None:
+        fig.canvas.draw()
+        drawn = fig.get_tightbbox(fig.canvas.get_renderer())  # type: ignore[attr-defined]
+        page = fig.bbox_inches  # what is drawn (ticks out of view excluded) against the page, inches
+        tol = 0.02
+        seen.append(
+            [
+                side
+                for side, out in (
+                    ("left", drawn.x0 < page.x0 - tol),
+                    ("right", drawn.x1 > page.x1 + tol),
+                    ("bottom", drawn.y0 < page.y0 - tol),
+                    ("top", drawn.y1 > page.y1 + tol),
+                )
+                if out
+            ]
+        )
+        save(fig, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Figure, "savefig", checked)
+    v1 = [f"{0.5 + 0.1 * i:.1f}" for i in range(rows_n)]
+    v2 = ["1.0", "1.5"]
+    rows = [{"a": a, "b": b, "periods_to_settle": 2 + i} for i, a in enumerate(v1) for b in v2]
+    heatmap(tmp_path / "h.png", [("a", v1), ("b", v2)], rows, "periods_to_settle", "t")
+    assert seen == [[]], seen

@@ -1,0 +1,75 @@
+"""Lockstep faults that would stall the loop (the plant waits for every command: [drive]
+command_timeout_us = 0, its default) are refused before anything starts, naming the entry and the key."""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.faults.spec import loop_frames
+from bench.scenario import ScenarioError, loads
+
+HEAD = """
+[scenario]
+name = "x"
+periods = 100
+{expect}
+[motor]
+preset = "you2019"
+mech_mode = "locked"
+[drive]
+t_dead_s = 0.0
+{timeout}
+[[faults]]
+{fault}
+at_period = 21
+"""
+
+STALLS = [
+    'kind = "drop"\nframe = "drive.TPDO1"',
+    'kind = "drop"\nframe = "plant.TPDO2"',
+    'kind = "drop"\nframe = "SYNC"\nprobability = 0.01',
+    'kind = "delay"\nframe = "drive.TPDO1"\ndelay_periods = 1',
+    'kind = "drop"\ncob_id = 0x210\nfrom = "drive"',
+    'kind = "freeze"\nnode = "drive"\nperiods = 5',
+]
+
+
+def text(fault: str, timeout: str = "", expect: str = "") -> str:
+    return HEAD.format(fault=fault, timeout=timeout, expect=expect)
+
+
+@pytest.mark.parametrize("fault", STALLS)
+def test_a_fault_that_stalls_lockstep_is_refused(fault: str) -> None:
+    with pytest.raises(ScenarioError) as err:
+        loads(text(fault), "s.toml")
+    msg = str(err.value)
+    assert msg.startswith("s.toml: faults[0]") and "command_timeout_us > 0" in msg and "[drive]" in msg, msg
+
+
+@pytest.mark.parametrize("fault", STALLS)
+def test_the_same_fault_runs_with_a_command_timeout_or_when_the_stall_is_expected(fault: str) -> None:
+    assert loads(text(fault, timeout="command_timeout_us = 20000"), "s.toml").faults
+    assert loads(text(fault, expect='expect = "frames_lost"'), "s.toml").faults
+
+
+def test_a_timeout_set_by_an_event_before_the_fault_counts() -> None:
+    src = text(STALLS[0]) + "\n[[events]]\nat_period = 10\ndrive = { command_timeout_us = 20000 }\n"
+    assert loads(src, "s.toml").faults
+    late = text(STALLS[0]) + "\n[[events]]\nat_period = 30\ndrive = { command_timeout_us = 20000 }\n"
+    with pytest.raises(ScenarioError):
+        loads(late, "s.toml")
+
+
+def test_frames_outside_the_loop_and_harmless_kinds_are_not_refused() -> None:
+    for fault in (
+        'kind = "drop"\nframe = "drive.TPDO2"',
+        'kind = "duplicate"\nframe = "drive.TPDO1"',
+        'kind = "corrupt"\nframe = "drive.TPDO1"\nbit = 3',
+        'kind = "drop"\nframe = "plant.heartbeat"',
+    ):
+        assert loads(text(fault), "s.toml").faults, fault
+
+
+def test_the_loop_frames_come_from_the_eds() -> None:
+    assert set(loop_frames().values()) >= {"SYNC", "plant.TPDO1", "drive.TPDO1"}
+    assert "drive.TPDO2" not in loop_frames().values()
