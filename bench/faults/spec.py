@@ -246,23 +246,30 @@ def cob_ids(plant_id: int, drive_id: int) -> dict[str, int]:
     return out
 
 
+# What a lockstep period waits on, by the EDS objects mapped: the drive steps on the sample (the plant's
+# TPDO that carries Measurement.sample_index) and the plant waits for the drive's Voltage command. A lost
+# SYNC or current frame (TPDO1) does not stall it: the drive still steps (late or on the held currents).
+_AWAITED = {"plant": ("Measurement", "sample_index"), "drive": ("Voltage command", None)}
+
+
 def loop_frames(plant_id: int = 0x10, drive_id: int = 0x20) -> dict[int, str]:
-    """The frames a lockstep period cannot do without, COB-ID -> name, from the EDS files: the SYNC and
-    every TPDO of one node that a valid RPDO of the other consumes (the measurements, the command)."""
+    """The frames a lockstep period cannot do without, COB-ID -> name, from the EDS files' default TPDO
+    mappings: the plant's TPDO that maps the sample index (it triggers the drive's step) and the drive's
+    TPDO that maps the voltage command (the plant produces the next SYNC when it has come)."""
     from ..eds import load as load_od
 
     ids = cob_ids(plant_id, drive_id)
-    out = {ids["SYNC"]: "SYNC"}
-    for node, other, nid in (("plant", "drive", drive_id), ("drive", "plant", plant_id)):
-        od = load_od(other, nid)
-        consumed = set()
+    out: dict[int, str] = {}
+    for node, nid in (("plant", plant_id), ("drive", drive_id)):
+        od = load_od(node, nid)
+        record, member = _AWAITED[node]
         for i in range(4):
-            cob = int(od[0x1400 + i][1].default)
-            if not cob & 0x80000000:
-                consumed.add(cob & 0x7FF)
-        out.update(
-            {ids[f"{node}.TPDO{i}"]: f"{node}.TPDO{i}" for i in range(1, 5) if ids[f"{node}.TPDO{i}"] in consumed}
-        )
+            mapping = od[0x1A00 + i]
+            for k in range(1, int(mapping[0].default or 0) + 1):
+                entry = int(mapping[k].default)
+                obj = od[entry >> 16]
+                if obj.name == record and (member is None or obj[(entry >> 8) & 0xFF].name == member):
+                    out[ids[f"{node}.TPDO{i + 1}"]] = f"{node}.TPDO{i + 1}"
     return out
 
 
