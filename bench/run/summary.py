@@ -73,10 +73,10 @@ CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
 # them): the live quantities of the law the scenario selects, by drive.eds "Object.entry" name, recorded
 # per period in traces.npy and run.rrd. The drive has four TPDOs: TPDO1 the voltage command, TPDO2 the
 # live trace of the drive's own recorder, TPDO3 and TPDO4 these, 8 bytes each: two REAL32 per TPDO, four
-# per run. You 2019: its estimator (Eq. 24-25) and the gain and inductance in use. Yao 2020: the R, L
-# the DPCC uses now (identified) and the observer's disturbance estimate on both axes (Eq. 17).
-# Zhao 2022: the law's gains and the voltage limiter's flag. PI and open loop identify nothing: the
-# drive's own view (its measured currents, the iq reference in effect, its speed estimate).
+# per run. You 2019: its estimator (You 2019 Eq. 24-25) and the gain and inductance in use. Yao 2020:
+# the R, L the DPCC uses now (identified) and the observer's disturbance estimate on both axes (Yao 2020
+# Eq. 17). Zhao 2022: the law's gains and the voltage limiter's flag. PI and open loop identify nothing:
+# the drive's own view (its measured currents, the iq reference in effect, its speed estimate).
 DRIVE_VIEW: dict[int, tuple[str, ...]] = {
     3: ("Drive status.id_A", "Drive status.iq_A"),
     4: ("Drive status.iq_ref_active_A", "Drive status.speed_rad_s"),
