@@ -40,6 +40,7 @@ from .summary import (
 )
 
 FrameSink = Any  # has write(frames) and close()
+Progress = Callable[[int, int], None]
 
 
 def stopped_at(stopped: dict[str, Any], periods: int) -> dict[str, Any]:
@@ -50,9 +51,6 @@ def stopped_at(stopped: dict[str, Any], periods: int) -> dict[str, Any]:
     if periods <= 0:
         return stopped
     return {**stopped, "at_period": periods - 1}
-
-
-Progress = Callable[[int, int], None]
 
 
 @dataclass

@@ -288,3 +288,20 @@ def test_every_default_trace_fits_its_tpdo() -> None:
     for law, pdos in CONTROLLER_TRACE.items():
         assert set(pdos) <= {3, 4}
         assert _trace(law, {f"pdo{n}": list(s) for n, s in pdos.items()}) == pdos
+
+
+def test_default_trace_is_the_law_of_period_0() -> None:
+    """The law the run starts with: the EDS default without a setting, the [controller] setting, then a
+    period-0 event (written after it, before the PDOs are mapped); a later switch leaves the mapping."""
+    from bench.run.summary import CONTROLLER_TRACE
+    from bench.scenario import parse
+
+    def trace(**raw: object) -> dict[int, tuple[str, ...]]:
+        return parse({"scenario": {"name": "t", "periods": 100}, **raw}, "<t>").trace
+
+    assert trace() == CONTROLLER_TRACE["deadbeat_you2019"]  # drive.eds Controller.controller DefaultValue=2
+    assert trace(controller={"controller": "pi"}) == CONTROLLER_TRACE["pi"]
+    at0 = [{"at_period": 0, "controller": {"controller": "predictive_zhao2022"}}]
+    assert trace(controller={"controller": "pi"}, events=at0) == CONTROLLER_TRACE["predictive_zhao2022"]
+    later = [{"at_period": 50, "controller": {"controller": "predictive_zhao2022"}}]
+    assert trace(controller={"controller": "pi"}, events=later) == CONTROLLER_TRACE["pi"]
