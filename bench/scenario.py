@@ -32,8 +32,8 @@ Layout (every key optional except where noted)::
     iq_ref_A = 0.0
 
     [trace]                      # the drive's synchronous trace TPDOs (drive.eds names, REAL32/integers,
-    pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"]    # at most 8 bytes each); default below
-    pdo4 = ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]
+    pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"]    # at most 8 bytes each); without it,
+    pdo4 = ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]  # the selected law's (default_trace)
 
     [[faults]]                   # faults on purpose (bench/faults/spec.py): drop, delay, duplicate,
     kind = "drop"                # corrupt, reorder frames; silence_heartbeat, freeze, kill, reset nodes
@@ -78,10 +78,6 @@ RATIOS = {
     "L_hat_ratio": (("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H")),
     "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),),
 }
-DEFAULT_TRACE: dict[int, tuple[str, ...]] = {
-    3: ("Online tuning.det_A2", "Online tuning.K1_hat_V_A"),
-    4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H"),
-}
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
 # Run statuses (bench/run/status.py gives each its exit code).
@@ -119,7 +115,7 @@ class Scenario:
     preset: str | None = "you2019"
     settings: list[Setting] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
-    trace: dict[int, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_TRACE))
+    trace: dict[int, tuple[str, ...]] = field(default_factory=dict)  # TPDO number -> entries (parse)
     expect: tuple[str, ...] = ("ok",)
     faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/faults/spec.py)
     raw: dict[str, Any] = field(default_factory=dict)
@@ -272,8 +268,7 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
             raise ScenarioError(f"{w}: an event must change something")
         sc.events.append(Event(at, settings))
     sc.events.sort(key=lambda e: e.at_period)
-    if "trace" in raw:
-        sc.trace = _trace(where, raw["trace"])
+    sc.trace = _trace(where, raw["trace"]) if "trace" in raw else default_trace(sc)
     try:
         sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
         refuse_lockstep_stalls(sc.faults, where, timing, sc.expect, lambda k: _value_at(sc, COMMAND_TIMEOUT, k))
@@ -297,6 +292,29 @@ def _value_at(sc: Scenario, key: str, period: int) -> float:
         if s.key == key:
             value = float(s.value)
     return value
+
+
+def controller_at_start(sc: Scenario) -> str:
+    """The law the drive runs from period 0 (drive.eds Controller.controller by its ValueNames): the
+    scenario's [controller] setting, then its period-0 events (in the order the bench writes them), else
+    the EDS default."""
+    from .eds import enum
+    from .eds import load as load_od
+
+    value = int(load_od("drive")["Controller"]["controller"].default)
+    for s in [*sc.settings, *(s for e in sc.events if e.at_period == 0 for s in e.settings)]:
+        if s.param is not None and (s.param.node, s.param.obj, s.param.name) == ("drive", "Controller", "controller"):
+            value = int(s.value)
+    return {v: k for k, v in enum("drive", "Controller", "controller").items()}[value]
+
+
+def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
+    """The trace TPDOs of a scenario without [trace]: the live quantities of the law it starts with
+    (bench/run/summary.py CONTROLLER_TRACE, the one table of them). An event that switches laws later
+    leaves the mapping as it is: the PDOs are mapped once, before the run."""
+    from .run.summary import CONTROLLER_TRACE
+
+    return dict(CONTROLLER_TRACE[controller_at_start(sc)])
 
 
 def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:

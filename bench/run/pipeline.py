@@ -43,6 +43,16 @@ FrameSink = Any  # has write(frames) and close()
 Progress = Callable[[int, int], None]
 
 
+def stopped_at(stopped: dict[str, Any], periods: int) -> dict[str, Any]:
+    """The period an early stop happened at, from the record: the last period on the bus (the traces'
+    last row). The master's own figure is only the last it heard of: over a bus, where a dead plant
+    answers no SDO, that is the end of the previous lockstep segment (its hold announcement) or the
+    last poll, periods before the loop really stopped. Without a period on the bus it stays as it was."""
+    if periods <= 0:
+        return stopped
+    return {**stopped, "at_period": periods - 1}
+
+
 @dataclass
 class RunResult:
     scenario: str
@@ -202,6 +212,8 @@ class Pipeline:
         `faults`: the scenario's faults, the injector's log and how many actions it could not log."""
         self._rows(self.dec.finish())
         dec = self.dec
+        if stopped:
+            stopped = stopped_at(stopped, dec.stats.periods)
         steps = [m.to_dict() for sig, _, _ in STEP_SIGNALS for m in self.steps[sig].finish()]
         tuning = dec.sdo.changes("Online tuning.enable")
         for s in steps:

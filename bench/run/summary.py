@@ -69,6 +69,32 @@ CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "incremental_zhao2022": ("Zhao 2022", "Zhao 2022", ("K1_V_A", "K2_V_A", "limited")),
     "predictive_zhao2022": ("Zhao 2022", "Zhao 2022", ("G_V_A", "limited")),
 }
+# The drive's trace TPDOs of a run whose scenario has no [trace] (a scenario's trace.pdo3 / pdo4 replace
+# them): the live quantities of the law the scenario selects, by drive.eds "Object.entry" name, recorded
+# per period in traces.npy and run.rrd. The drive has four TPDOs: TPDO1 the voltage command, TPDO2 the
+# live trace of the drive's own recorder, TPDO3 and TPDO4 these, 8 bytes each: two REAL32 per TPDO, four
+# per run. You 2019: its estimator (You 2019 Eq. 24-25) and the gain and inductance in use. Yao 2020:
+# the R, L the DPCC uses now (identified) and the observer's disturbance estimate on both axes (Yao 2020
+# Eq. 17). Zhao 2022: the law's gains and the voltage limiter's flag. PI and open loop identify nothing:
+# the drive's own view (its measured currents, the iq reference in effect, its speed estimate).
+DRIVE_VIEW: dict[int, tuple[str, ...]] = {
+    3: ("Drive status.id_A", "Drive status.iq_A"),
+    4: ("Drive status.iq_ref_active_A", "Drive status.speed_rad_s"),
+}
+CONTROLLER_TRACE: dict[str, dict[int, tuple[str, ...]]] = {
+    "open_loop": DRIVE_VIEW,
+    "pi": DRIVE_VIEW,
+    "deadbeat_you2019": {
+        3: ("Online tuning.det_A2", "Online tuning.K1_hat_V_A"),
+        4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H"),
+    },
+    "dpcc_yao2020": {
+        3: ("Yao 2020 DPCC.R_hat_ohm", "Yao 2020 DPCC.L_hat_H"),
+        4: ("Yao 2020 DPCC.p_hat_d_A", "Yao 2020 DPCC.p_hat_q_A"),
+    },
+    "incremental_zhao2022": {3: ("Zhao 2022.K1_V_A", "Zhao 2022.K2_V_A"), 4: ("Zhao 2022.limited",)},
+    "predictive_zhao2022": {3: ("Zhao 2022.G_V_A", "Zhao 2022.limited")},
+}
 # Statuses read at the end: (node, object, entries).
 END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("plant", "Run control", ("missed_commands", "late_commands", "period_index", "trip_active")),

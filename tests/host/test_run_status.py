@@ -150,3 +150,25 @@ def test_runaway_without_voltage_limit_trips_by_default_and_diverges_without_tri
     # later events are still reported: the command overflowed to NaN, which the plant refused (trip)
     assert s["status_flags"]["non_finite"] and s["status_flags"]["tripped"]
     assert s["first_non_finite_period"] <= s["first_trip_period"]
+
+
+def test_stopped_at_period_is_the_last_period_on_the_bus() -> None:
+    """A plant killed mid-run: summary.json's stopped.at_period is the period the loop stopped at, the
+    traces' last row, whatever period the master had last heard of. Over a bus a dead plant answers no
+    SDO, and the master knew only the end of the lockstep segment before the last event (period 19 of the
+    step scenario's event at 20) while the traces went on: the record says where the loop stopped."""
+    p = 150
+    sc = load(STEP, [f'faults=[{{kind="kill", node="plant", at_period={p}}}]', "scenario.expect=node_lost"])
+    fc = FrameCollector()
+    res = run_scenario(sc, RunOptions(bus="direct"), frame_sinks=[fc], keep_trace=True)
+    fc.close()
+    assert res.status == "node_lost" and res.expected and res.trace is not None
+    last = int(res.trace["period"][-1])
+    assert last == p and res.summary["stopped"]["at_period"] == last and res.summary["periods"] == last + 1
+    stale = {**res.summary["stopped"], "at_period": 19}  # what the master of a run over vcan reported
+    pipe = Pipeline(0x10, 0x20, expect=("node_lost",))
+    for i in range(0, len(fc.frames), 4096):
+        pipe.feed(fc.frames[i : i + 4096])
+    again = pipe.finish("t", "vcan0", stopped=stale)
+    assert again.status == "node_lost" and again.summary["periods"] == last + 1
+    assert again.summary["stopped"]["at_period"] == last, again.summary["stopped"]

@@ -193,3 +193,115 @@ def test_diverging_zhao2022_loop_trips_on_the_non_finite_command(nodes) -> None:
     assert bad > 0 and not np.isfinite(v_mag[bad]) and np.isfinite(v_mag[:bad]).all()
     assert trip_active == 1 and k == bad + 2 and (status[k:] & 1).all() and not (status[:k] & 1).any()
     assert np.isfinite(ia).all() and np.isfinite(ib).all()
+
+
+# ------------------------------------------------------------------ a run's default trace follows its law
+# (bench/run/summary.py CONTROLLER_TRACE): each law's live quantities, none of another law's leftovers
+LAW_RUNS: dict[str, tuple[str, dict[str, float | int | str]]] = {
+    "open_loop": ("you2019", {"Vmax_V": 139.0}),
+    "pi": ("you2019", {"Vmax_V": 139.0}),
+    "deadbeat_you2019": ("you2019", {"Vmax_V": 139.0, "enable": 1}),
+    "dpcc_yao2020": ("yao2020_low", {"observer_enable": 1, "R_hat_ratio": 1.5}),
+    "incremental_zhao2022": ("zhao2022", {"Vmax_V": VMAX}),
+    "predictive_zhao2022": ("zhao2022", {"Vmax_V": VMAX}),
+}
+
+
+def _law_run(controller: str, **over: object):  # type: ignore[no-untyped-def]
+    """A locked-rotor step of 1 A (0.1 A on the zhao2022 motor) under `controller`, no [trace]."""
+    from bench.run import RunOptions, run_scenario
+    from bench.scenario import parse
+
+    preset, ctl = LAW_RUNS[controller]
+    step = {"iq_ref_A": 0.1} if preset == "zhao2022" else ({"v_q_open_V": 2.0} if controller == "open_loop" else {})
+    raw = {
+        "scenario": {"name": f"trace-{controller}", "periods": 400, "expect": ["ok", "diverged", "tripped"]},
+        "motor": {"preset": preset, "mech_mode": "locked"},
+        "drive": {"t_dead_s": 0.0, "encoder_lines": 0},
+        "controller": {"controller": controller, **ctl},
+        "events": [{"at_period": 40, "references": step or {"iq_ref_A": 1.0}}],
+        **over,
+    }
+    sc = parse(raw, f"<{controller}>")
+    return sc, run_scenario(sc, RunOptions(bus="direct"), keep_trace=True)
+
+
+@pytest.mark.parametrize("controller", sorted(LAW_RUNS))
+def test_default_trace_follows_the_selected_controller(controller: str) -> None:
+    from bench.run.signals import column_name
+    from bench.run.summary import CONTROLLER_TRACE
+
+    sc, res = _law_run(controller)
+    own = {column_name(q) for sigs in CONTROLLER_TRACE[controller].values() for q in sigs}
+    others = {column_name(q) for sigs in map(dict.values, CONTROLLER_TRACE.values()) for s in sigs for q in s} - own
+    assert sc.trace == CONTROLLER_TRACE[controller]
+    tr = res.trace
+    assert tr is not None
+    assert own <= set(tr), sorted(set(tr))
+    assert not others & set(tr), sorted(others & set(tr))  # no other law's constant leftovers
+    ident = res.summary["identified"]
+    assert ident["controller"] == controller
+    after = slice(60, None)  # after the step at 40
+
+    def last(col: str) -> float:  # the last value traced (the last period's trace TPDOs never come: NaN)
+        v = tr[col]
+        return float(v[np.isfinite(v)][-1])
+
+    if controller in ("open_loop", "pi"):  # the drive's own view of the current follows the plant's
+        assert np.nanmax(np.abs(tr["drive_iq_A"][after])) > 0.1
+        assert np.allclose(tr["drive_iq_A"][:-1], tr["iq_A"][:-1], atol=0.05)  # row k: the step of period k
+    if controller == "deadbeat_you2019":
+        assert last("K1_active_V_A") == pytest.approx(ident["K1_active_V_A"], rel=1e-6)
+        assert np.nanmax(np.abs(tr["det_A2"][after])) > 0 and np.nanmax(np.abs(tr["K1_hat_V_A"][after])) > 0
+    if controller == "dpcc_yao2020":  # R_hat 1.5 R: the observer's estimate takes up the mismatch
+        for axis in ("d", "q"):
+            # the summary reads it after the last step, whose trace never comes: one step later, settled
+            assert last(f"Yao_2020_DPCC_p_hat_{axis}_A") == pytest.approx(ident[f"p_hat_{axis}_A"], rel=1e-3, abs=1e-6)
+        assert np.nanmax(np.abs(tr["Yao_2020_DPCC_p_hat_q_A"][after])) > 1e-4
+        assert last("Yao_2020_DPCC_R_hat_ohm") == pytest.approx(ident["R_hat_ohm"], rel=1e-6) and ident["R_hat_ohm"]
+        assert last("Yao_2020_DPCC_L_hat_H") == pytest.approx(ident["L_hat_H"], rel=1e-6) and ident["L_hat_H"]
+    if controller == "incremental_zhao2022":
+        for k in ("K1_V_A", "K2_V_A"):
+            assert np.all(tr[f"Zhao_2022_{k}"][1:-1] == np.float32(ident[k])) and ident[k] > 0
+        assert set(np.unique(tr["Zhao_2022_limited"][1:-1])) <= {0.0, 1.0}
+    if controller == "predictive_zhao2022":
+        assert np.all(tr["Zhao_2022_G_V_A"][1:-1] == np.float32(ident["G_V_A"])) and ident["G_V_A"] > 0
+
+
+def test_an_explicit_trace_wins_over_the_law_default() -> None:
+    from bench.run.summary import CONTROLLER_TRACE
+
+    pdo3 = ["Drive status.iq_ref_active_A", "Drive status.speed_rad_s"]
+    sc, res = _law_run("incremental_zhao2022", trace={"pdo3": pdo3})
+    assert sc.trace == {3: tuple(pdo3)} != CONTROLLER_TRACE["incremental_zhao2022"]
+    assert res.trace is not None and "drive_iq_ref_active_A" in res.trace and "Zhao_2022_K1_V_A" not in res.trace
+
+
+def test_every_default_trace_fits_its_tpdo() -> None:
+    """Each law's default is checked as a scenario's [trace] is (drive.eds names, PDO-mappable, at most
+    8 bytes a TPDO); every law of drive.eds has one."""
+    from bench.eds import enum
+    from bench.run.summary import CONTROLLER_TRACE
+    from bench.scenario import _trace
+
+    assert set(CONTROLLER_TRACE) == set(enum("drive", "Controller", "controller"))
+    for law, pdos in CONTROLLER_TRACE.items():
+        assert set(pdos) <= {3, 4}
+        assert _trace(law, {f"pdo{n}": list(s) for n, s in pdos.items()}) == pdos
+
+
+def test_default_trace_is_the_law_of_period_0() -> None:
+    """The law the run starts with: the EDS default without a setting, the [controller] setting, then a
+    period-0 event (written after it, before the PDOs are mapped); a later switch leaves the mapping."""
+    from bench.run.summary import CONTROLLER_TRACE
+    from bench.scenario import parse
+
+    def trace(**raw: object) -> dict[int, tuple[str, ...]]:
+        return parse({"scenario": {"name": "t", "periods": 100}, **raw}, "<t>").trace
+
+    assert trace() == CONTROLLER_TRACE["deadbeat_you2019"]  # drive.eds Controller.controller DefaultValue=2
+    assert trace(controller={"controller": "pi"}) == CONTROLLER_TRACE["pi"]
+    at0 = [{"at_period": 0, "controller": {"controller": "predictive_zhao2022"}}]
+    assert trace(controller={"controller": "pi"}, events=at0) == CONTROLLER_TRACE["predictive_zhao2022"]
+    later = [{"at_period": 50, "controller": {"controller": "predictive_zhao2022"}}]
+    assert trace(controller={"controller": "pi"}, events=later) == CONTROLLER_TRACE["pi"]
