@@ -40,11 +40,9 @@ int cia402_device_controlword(cia402_device_t *dev, uint16_t controlword, int fa
     if (!bit7) dev->reset_armed = 1u;
     switch ((cia402_state_t)dev->state) {
     case CIA402_FAULT:
-        if (rising && fault_reset_allowed) {
-            dev->reset_armed = 0u;
-            return set_state(dev, CIA402_SWITCH_ON_DISABLED); /* 15 */
-        }
-        return 0; /* a refused reset stays armed: the next rising edge tries again */
+        if (!rising) return 0;
+        dev->reset_armed = 0u; /* the edge is consumed, reset or refused: holding bit 7 never resets later */
+        return fault_reset_allowed ? set_state(dev, CIA402_SWITCH_ON_DISABLED) : 0; /* 15 */
     case CIA402_FAULT_REACTION_ACTIVE:
     case CIA402_NOT_READY_TO_SWITCH_ON: return 0;
     default: break;

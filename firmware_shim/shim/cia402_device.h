@@ -79,8 +79,10 @@ typedef struct {
 void cia402_device_init(cia402_device_t *dev, const cia402_config_t *cfg);
 
 /* A controlword was written.  fault_reset_allowed: 0 while the cause of the
- * fault persists (the reset is then ignored and stays armed for the next
- * rising edge).  Returns 1 if the state changed. */
+ * fault persists: the reset is then refused and its edge consumed (CiA 402
+ * resets on the rising edge of bit 7 only: a master holding 0x80, e.g. in a
+ * cyclic RPDO, gets no reset when the cause clears; it must send bit 7 = 0,
+ * then 1 again).  Returns 1 if the state changed. */
 int cia402_device_controlword(cia402_device_t *dev, uint16_t controlword, int fault_reset_allowed);
 
 /* A fault: transitions 13 and 14 (no effect in FAULT). Returns 1 if the state changed. */

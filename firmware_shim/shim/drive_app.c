@@ -455,10 +455,9 @@ static void cia402_on_controlword(drive_app_t *app, co_node_t *node)
     const int was_powered = cia402_device_power_enabled(&app->cia402);
     const uint8_t before = app->cia402.state;
     if (!cia402_device_controlword(&app->cia402, mfr_of(node)->x6040_Controlword, !heartbeat_lost(node))) return;
-    if (before == (uint8_t)CIA402_FAULT) {
-        leave_safe_state(app, node); /* transition 15: the fault reset (sends the statusword) */
-        return;
-    }
+    /* transition 15 (the device is already in SWITCH ON DISABLED): the fault reset clears the safe state
+     * and its EMCY first, then the statusword goes out like at any other state change */
+    if (before == (uint8_t)CIA402_FAULT) leave_safe_state(app, node);
     cia402_changed(app, node, was_powered);
 }
 

@@ -95,7 +95,9 @@
  *   faults               the safe states below are the 402 FAULT (transitions 13,
  *                        14) with 0x603F = their EMCY code; a fault reset (rising
  *                        edge of controlword bit 7, or 0x2209:05) is refused while
- *                        the plant's heartbeat is still lost
+ *                        the plant's heartbeat is still lost (a refused edge is
+ *                        consumed: bit 7 held at 1 never resets later); a reset
+ *                        sends the statusword TPDOs like any state change
  *   NMT                  leaving OPERATIONAL while enabled: SWITCH ON DISABLED
  *                        (the "disable voltage" reaction of 0x6007); a reset node
  *                        or reset communication: SWITCH ON DISABLED

@@ -7,7 +7,8 @@
  *       0x6071 / 1000 x 0x6076 / (1.5 p psi_hat), clamped to 0x6072; actual values
  *   (c) quick stop option codes 0, 2, 6; the step that ends a quick stop commands 0 V
  *   (d) faults: measurement timeout -> FAULT, 0x603F = 0xFF03; fault reset only on
- *       a rising edge of bit 7; refused while the plant's heartbeat is lost
+ *       a rising edge of bit 7, the event-driven statusword TPDO3 at it; refused while
+ *       the plant's heartbeat is lost, and a refused edge is consumed
  *   (e) NMT pre-operational while enabled -> SWITCH ON DISABLED; modes refused
  */
 #include <math.h>
@@ -224,8 +225,10 @@ static void test_faults(void)
     CHECK_TRUE(state_is(0x4Fu, 0x08u) && sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == DRIVE_EMCY_SAFE_MEAS_TIMEOUT);
     k = (uint16_t)(k + 3u);
     CHECK_TRUE(zero_cmd(k++));
-    /* fault reset by RPDO4: bit 7 after a controlword without it */
+    /* fault reset by RPDO4: bit 7 after a controlword without it; the event-driven TPDO3 tells it (a master
+     * such as canopen's BaseNode402 waits for it) */
     rpdo4(0x0080u, 0);
+    CHECK_TRUE(tpdo3_statusword() >= 0 && ((uint16_t)tpdo3_statusword() & 0x4Fu) == 0x40u);
     CHECK_TRUE(state_is(0x4Fu, 0x40u)); /* the first 0x80 after 0: a rising edge */
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == 0u && g_app.safe_reason == 0u);
     enable_drive();
@@ -247,8 +250,10 @@ static void test_faults(void)
     rpdo4(0x0080u, 0);
     CHECK_TRUE(state_is(0x4Fu, 0x40u)); /* 0 -> 1: reset */
 
-    /* heartbeat lost: FAULT with 0xFF04; a reset is refused while it is lost */
+    /* heartbeat lost: FAULT with 0xFF04; a reset is refused while it is lost, and the refusal consumes the
+     * edge: bit 7 held at 1 does not reset once the heartbeat is back (CiA 402: the rising edge only) */
     setup(STEP_US);
+    enable_pdos();
     CHECK_TRUE(sdo_write_u32(0x1016, 1, (0x10u << 16) | 50u) == 0); /* plant 0x10, 50 ms */
     const uint8_t hb = 0x05;
     testbus_clear(&g_tb);
@@ -265,11 +270,17 @@ static void test_faults(void)
     testbus_clear(&g_tb);
     inject(0x710, 1, &hb);
     deliver();
+    CHECK_TRUE(g_app.safe_reason == OD_DRIVE_REASON_HEARTBEAT_LOST); /* the cause is gone, the fault stays */
+    CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0080u) == 0);
+    CHECK_TRUE(tpdo3_statusword() == -1);
+    CHECK_TRUE(state_is(0x4Fu, 0x08u)); /* bit 7 held: no edge, no reset (the refused one consumed it) */
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0000u) == 0);
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0080u) == 0);
+    CHECK_TRUE(tpdo3_statusword() >= 0 && ((uint16_t)tpdo3_statusword() & 0x4Fu) == 0x40u); /* by SDO too */
     CHECK_TRUE(state_is(0x4Fu, 0x40u) && sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == 0u);
-    printf("(d) measurement timeout -> FAULT (TPDO3), 0x603F = 0xFF03, reset on a rising bit 7 only; heartbeat lost "
-           "-> 0xFF04, reset refused until the heartbeat is back\n");
+    printf("(d) measurement timeout -> FAULT (TPDO3), 0x603F = 0xFF03, reset on a rising bit 7 only, statusword "
+           "TPDO3 at the reset; heartbeat lost -> 0xFF04, reset refused until the heartbeat is back, the refused "
+           "edge consumed (bit 7 held does not reset)\n");
 }
 
 /* ------------------------------------------------------------------ (e) */

@@ -61,12 +61,15 @@ void co_emcy_clear_error(co_emcy_t *em, uint16_t code)
     }
 }
 
-uint32_t co_emcy_check_write(const co_od_entry_t *e, const uint8_t *data)
+uint32_t co_emcy_check_write(const co_emcy_t *em, const co_od_entry_t *e, const uint8_t *data)
 {
     if (e->index == IDX_ERROR_FIELD && e->subindex == 0u && data[0] != 0u) return CO_ABORT_INVALID_VALUE;
     if (e->index == IDX_EMCY_COBID) {
         uint32_t v = (uint32_t)data[0] | (uint32_t)data[1] << 8 | (uint32_t)data[2] << 16 | (uint32_t)data[3] << 24;
         if (v & COB_EXTENDED) return CO_ABORT_INVALID_VALUE; /* 29-bit identifiers not supported */
+        /* While valid only the valid bit may change (as the PDO COB-IDs, co_pdo.c). */
+        uint32_t cob = co_od_get_u32(em->od, IDX_EMCY_COBID, 0);
+        if (!(cob & COB_INVALID) && !(v & COB_INVALID) && ((v ^ cob) & 0x7FFu)) return CO_ABORT_INVALID_VALUE;
         /* Bit 31 = not valid; an identifier in use must not be restricted. */
         if (!(v & COB_INVALID) && co_cob_restricted(v)) return CO_ABORT_INVALID_VALUE;
     }

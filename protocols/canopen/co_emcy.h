@@ -56,8 +56,9 @@ void co_emcy_report_error(co_emcy_t *em, uint16_t code, uint8_t err_reg_bits, co
 void co_emcy_clear_error(co_emcy_t *em, uint16_t code);
 
 /* CiA 301 rules of an SDO write to the EMCY objects (0x1003:00, 0x1014); an abort code or 0.
- * The value already passed co_od_check_write. */
-uint32_t co_emcy_check_write(const co_od_entry_t *e, const uint8_t *data);
+ * The value already passed co_od_check_write.  0x1014 (CiA 301 7.5.2.32): while the EMCY
+ * is valid (bit 31 = 0) its CAN-ID may not change (0x06090030); set bit 31 first. */
+uint32_t co_emcy_check_write(const co_emcy_t *em, const co_od_entry_t *e, const uint8_t *data);
 
 /* A checked write of e is about to be stored: writing 0x1003:00 clears the error history. */
 void co_emcy_before_store(co_emcy_t *em, const co_od_entry_t *e);

@@ -213,7 +213,7 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
     co_node_t *node = (co_node_t *)ctx;
     uint32_t abort = co_od_check_write(e, data, len);
     if (abort) return abort;
-    abort = co_emcy_check_write(e, data);
+    abort = co_emcy_check_write(&node->emcy, e, data);
     if (abort) return abort;
     abort = sync_check_write(node, e, data);
     if (abort) return abort;

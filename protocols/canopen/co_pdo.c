@@ -1,7 +1,12 @@
 /* co_pdo.c - PDOs (CiA 301 7.2.2): mapping from the OD, synchronous (1-240, and
  * acyclic 0) and event-driven (254/255) transmission with inhibit and event
  * timers, RPDO deadline monitoring, synchronous RPDOs actuated at the next SYNC,
- * and the re-mapping procedure by SDO with its abort codes. */
+ * and the re-mapping procedure by SDO with its abort codes.
+ * SYNC start value (TPDO sub 6, types 1-240; CiA 301 7.5.2.37): with a SYNC counter
+ * (0x1019 >= 2) and a start value S != 0, the first PDO goes out at the SYNC whose
+ * counter is S, then every transmission type-th SYNC (S + n, S + 2n, ...: as CANopenNode's
+ * CO_TPDO_process); without a counter S is ignored.  Start value 0: the first PDO at the
+ * n-th SYNC.  Sub 6 may be written only while the PDO is not valid. */
 #include "co_pdo.h"
 
 #include <string.h>
@@ -115,6 +120,9 @@ static uint32_t check_comm_write(const co_pdo_t *p, const co_od_entry_t *e, cons
         return CO_ABORT_INVALID_VALUE; /* 241-251 reserved; 252/253 (RTR-only) not supported */
     }
     case 3: /* inhibit time: only while the PDO does not exist */ return pdo_valid ? CO_ABORT_UNSUPPORTED : 0;
+    case 6: /* TPDO SYNC start value: only while the PDO does not exist (CiA 301 7.5.2.37, as CANopenNode) */
+        if (!p->link.is_tpdo) return 0;
+        return pdo_valid || data[0] > 240u ? CO_ABORT_INVALID_VALUE : 0;
     default: return 0;
     }
 }
@@ -162,6 +170,7 @@ void co_pdo_stop(co_pdo_t *p)
     p->rx_buffered = false;
     p->deadline_armed = false;
     p->pending = false;
+    if (p->sync_start != 0u) p->started = false; /* back in OPERATIONAL: wait for the start value again */
 }
 
 /* ------------------------------------------------------------------ RPDO */
@@ -277,9 +286,16 @@ void co_tpdo_on_sync(co_pdo_t *p, uint8_t counter, bool operational, int64_t now
     }
     if (p->trans_type > 240u) return;
     if (!p->started) {
-        if (counter != p->sync_start) return;
+        if (!operational) return; /* counting starts at the start value seen while OPERATIONAL */
         p->started = true;
         p->sync_count = 0;
+        if (counter != 0u) { /* a SYNC counter (0x1019 >= 2): the start value is in use */
+            if (counter != p->sync_start) {
+                p->started = false;
+                return;
+            }
+            p->sync_count = (uint8_t)(p->trans_type - 1u); /* the SYNC equal to the start value sends the first */
+        }
     }
     if (++p->sync_count >= p->trans_type) {
         p->sync_count = 0;

@@ -76,10 +76,11 @@ void co_pdo_configure(co_pdo_t *p);
 bool co_pdo_owns(const co_pdo_t *p, uint16_t index);
 
 /* CiA 301 rules of an SDO write to this PDO's parameters (COB-ID, transmission type,
- * inhibit time, re-mapping procedure); an abort code or 0. sync_cob_id: 0x1005. */
+ * inhibit time, SYNC start value, re-mapping procedure); an abort code or 0. sync_cob_id: 0x1005. */
 uint32_t co_pdo_check_write(const co_pdo_t *p, const co_od_entry_t *e, const uint8_t *data, uint32_t sync_cob_id);
 
-/* Leaving operational: a buffered RPDO, the deadline watch and a pending TPDO are dropped. */
+/* Leaving operational: a buffered RPDO, the deadline watch and a pending TPDO are dropped;
+ * a TPDO with a SYNC start value waits for it again. */
 void co_pdo_stop(co_pdo_t *p);
 
 /* RPDO: a frame arrived (any COB-ID; others are ignored). */
@@ -91,7 +92,7 @@ void co_rpdo_check_deadline(co_pdo_t *p, int64_t now_us);
 
 /* TPDO: the application requests an event-driven (or type-0) transmission. */
 void co_tpdo_request_event(co_pdo_t *p, bool operational, int64_t now_us);
-/* TPDO: SYNC with this counter (0: counter disabled). */
+/* TPDO: SYNC with this counter (0: counter disabled); the start value rules are in co_pdo.c. */
 void co_tpdo_on_sync(co_pdo_t *p, uint8_t counter, bool operational, int64_t now_us);
 /* TPDO: inhibit and event timers. */
 void co_tpdo_tick(co_pdo_t *p, bool operational, int64_t now_us);

@@ -67,10 +67,11 @@ int co_runtime_wait_one(co_runtime_t *rt, int64_t timeout_us)
     return r;
 }
 
-void co_runtime_drain(co_runtime_t *rt)
+uint32_t co_runtime_drain(co_runtime_t *rt)
 {
-    while (co_runtime_wait_one(rt, 0) == 1) {
-    }
+    uint32_t n = 0;
+    while (n < CO_RUNTIME_BURST_MAX && co_runtime_wait_one(rt, 0) == 1) ++n;
+    return n;
 }
 
 int co_runtime_run(co_runtime_t *rt)
@@ -85,7 +86,10 @@ int co_runtime_run(co_runtime_t *rt)
             fprintf(stderr, "CAN receive failed\n");
             return 1;
         }
-        if (r == 1) co_runtime_drain(rt); /* the rest of the burst, without waiting */
+        /* the rest of the burst, without waiting, but bounded: under any receive load the node's timers
+         * (heartbeat produced and consumed, TPDO event timers, SDO timeout) and the app's poll run at
+         * least every CO_RUNTIME_BURST_MAX + 1 frames; the frames left are served next time round */
+        if (r == 1) (void)co_runtime_drain(rt);
         now = co_socketcan_now_us();
         co_node_tick(&rt->node, now);
         if (rt->app && rt->app->poll) {

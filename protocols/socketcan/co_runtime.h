@@ -1,7 +1,10 @@
 /* co_runtime.h - the Linux main loop of a CANopen node process: one raw
  * SocketCAN socket, the portable co_node_t, and an application poll hook.
  *
- *   for (;;) { wait for a frame or the next timer; co_node_process(); co_node_tick(); app->poll(); }
+ *   for (;;) { wait for a frame or the next timer; co_node_process() the burst; co_node_tick(); app->poll(); }
+ *
+ * A burst is bounded (CO_RUNTIME_BURST_MAX frames), so under any receive load the heartbeat
+ * and the other timers keep their time (a flood of frames once held them for seconds).
  *
  * SIGINT/SIGTERM end the loop cleanly (co_runtime_run returns 0).
  */
@@ -44,8 +47,14 @@ int co_runtime_open(co_runtime_t *rt, const char *iface, const co_od_t *od, uint
 /* Run until stopped by a signal or by the app. Returns 0 on a clean stop, 1 on a bus error. */
 int co_runtime_run(co_runtime_t *rt);
 
-/* Process every frame already queued on the socket without waiting (for tight loops). */
-void co_runtime_drain(co_runtime_t *rt);
+/* Frames processed back to back before the node's timers get their turn (co_runtime_run, co_runtime_drain):
+ * a flood of received frames must not hold the heartbeat, whose time is the bus's liveness. */
+#define CO_RUNTIME_BURST_MAX 64u
+
+/* Process the frames already queued on the socket without waiting (for tight loops), at most
+ * CO_RUNTIME_BURST_MAX: the caller runs its timers (co_node_tick) and comes back for the rest.
+ * Returns how many were processed. */
+uint32_t co_runtime_drain(co_runtime_t *rt);
 
 /* Block up to timeout_us for one frame and process it; returns 1 if a frame was processed. */
 int co_runtime_wait_one(co_runtime_t *rt, int64_t timeout_us);

@@ -145,6 +145,11 @@ def test_sdo_write_every_writable_object(target: Target) -> None:
                 t.node.sdo[var.index][3].raw = 0
             assert exc.value.code == 0x06010000
             continue
+        if 0x1800 <= var.index < 0x1A00 and var.subindex == 6 and not (t.node.sdo[var.index][1].raw & 0x80000000):
+            with pytest.raises(SdoAbortedError) as exc:  # SYNC start value of an existing PDO (CiA 301)
+                t.node.sdo[var.index][6].raw = t.node.sdo[var.index][6].raw
+            assert exc.value.code == 0x06090030
+            continue
         sdo_var = (
             t.node.sdo[var.index] if isinstance(od[var.index], ODVariable) else t.node.sdo[var.index][var.subindex]
         )
@@ -373,6 +378,70 @@ def test_pdo_remap_aborts(target: Target) -> None:
     assert code(b"\x23" + struct.pack("<HB", comm.index, 1) + _u32(0x3F0)) == 0x06090030
     t.node.nmt.send_command(0x82)  # reset communication restores the EDS mapping
     time.sleep(0.1)
+
+
+def test_sync_start_value(target: Target) -> None:
+    """CiA 301: sub 6 is written only while the TPDO is not valid; with a SYNC counter the first TPDO goes
+    out at the SYNC whose counter equals the start value, then every n-th (as CANopenNode)."""
+    t = target
+    start, every, overflow = 5, 2, 240
+    t.node.nmt.send_command(0x80)
+    if t.node.sdo["COB-ID SYNC message"].raw & 0x40000000:
+        t.node.sdo["COB-ID SYNC message"].raw = 0x80
+    assert t.node.sdo["Synchronous counter overflow value"].raw == overflow
+    t.node.tpdo.read()
+    pdo = t.node.tpdo[3]
+    pdo.clear()
+    for v in _mappable_tx_vars(t.node.object_dictionary, 2):
+        pdo.add_variable(v.index, v.subindex)
+    pdo.cob_id = 0x380 + t.node_id
+    pdo.trans_type = every
+    pdo.sync_start_value = start
+    pdo.enabled = True
+    pdo.save()  # sub 6 written while the COB-ID says "not valid"
+    assert t.node.sdo[0x1802][6].raw == start
+    with pytest.raises(SdoAbortedError) as exc:
+        t.node.sdo[0x1802][6].raw = 1  # the PDO is valid again
+    assert exc.value.code == 0x06090030
+    t.node.nmt.send_command(0x01)
+    time.sleep(0.05)
+    sent = []
+    for c in range(1, 13):
+        t.capture.clear()
+        t.net.sync.transmit(c)
+        # a barrier, not a wait: the node answers in order, so a TPDO of this SYNC is captured before this answer
+        assert t.raw_sdo(b"\x40" + struct.pack("<HB", 0x1000, 0) + b"\0" * 4) is not None
+        if t.capture.with_id(0x380 + t.node_id):
+            sent.append(c)
+    assert sent == list(range(start, 13, every)), sent
+    t.node.nmt.send_command(0x82)  # reset communication restores the EDS values
+    time.sleep(0.1)
+
+
+def test_emcy_cob_id_fixed_while_valid(target: Target) -> None:
+    """CiA 301: while the EMCY is valid (0x1014 bit 31 = 0) its CAN-ID may not change; invalid, it may."""
+    t = target
+    t.node.nmt.send_command(0x80)
+    cob = t.node.sdo[0x1014]
+    default = cob.raw
+    assert default == 0x80 + t.node_id
+    with pytest.raises(SdoAbortedError) as exc:
+        cob.raw = 0xFF  # the EMCY range (a node-ID absent here), not a restricted CAN-ID
+    assert exc.value.code == 0x06090030
+    cob.raw = default  # the same value: nothing changes
+    cob.raw = default | 0x80000000
+    cob.raw = 0x800000FF
+    cob.raw = 0xFF
+    if t.node.sdo["COB-ID SYNC message"].raw & 0x40000000:
+        t.node.sdo["COB-ID SYNC message"].raw = 0x80
+    t.capture.clear()
+    t.net.send_message(0x80, b"")  # a SYNC of the wrong length: EMCY 0x8240, now on 0xFF
+    emcy = t.capture.wait_for(0xFF, 1, 2.0)
+    assert emcy and struct.unpack_from("<H", emcy[0])[0] == 0x8240
+    assert not t.capture.with_id(default)
+    t.node.nmt.send_command(0x82)
+    time.sleep(0.1)
+    assert cob.raw == default
 
 
 def test_emcy_error_register_and_history(target: Target) -> None:
