@@ -470,14 +470,20 @@ def test_emcy_error_register_and_history(target: Target) -> None:
 
 def test_heartbeat_consumer_timeout_raises_emcy(target: Target) -> None:
     t = target
-    t.node.sdo["Consumer heartbeat time"][1].raw = (0x7E << 16) | 100
+    consumer_s = 0.5
+    t.node.sdo["Consumer heartbeat time"][1].raw = (0x7E << 16) | int(consumer_s * 1000)
     t.capture.clear()
+    sent = []
     for _ in range(5):
         t.net.send_message(0x77E, b"\x05")
+        sent.append(time.monotonic())
         time.sleep(0.03)
-    time.sleep(0.05)
-    assert not [f for f in t.capture.with_id(0x80 + t.node_id) if f[:2] == b"\x30\x81"]
-    emcy = t.capture.wait_for(0x80 + t.node_id, 1, 2.0)
+    # heartbeats within the consumer time: no EMCY yet (judged only when this process did send them so: a
+    # loaded machine may deschedule it for longer, and then the node's EMCY is right, not a failure)
+    gaps = [b - a for a, b in zip(sent, [*sent[1:], time.monotonic()], strict=True)]
+    if max(gaps) < 0.5 * consumer_s:
+        assert not [f for f in t.capture.with_id(0x80 + t.node_id) if f[:2] == b"\x30\x81"]
+    emcy = t.capture.wait_for(0x80 + t.node_id, 1, 10.0)
     assert emcy and struct.unpack_from("<H", emcy[0])[0] == 0x8130
     t.node.sdo["Consumer heartbeat time"][1].raw = 0
     t.node.nmt.send_command(0x82)
