@@ -88,6 +88,7 @@ class Outputs:
             web_port=getattr(self.args, "web_port", 9090),
             grpc_port=getattr(self.args, "grpc_port", 9876),
             serve_for=getattr(self.args, "serve_for", None),
+            bind=getattr(self.args, "serve_bind", "127.0.0.1"),
         )
         if live == "serve":  # fail before the run if the ports are taken; the address, once, now
             worker.wait_ready()
@@ -135,7 +136,7 @@ class Outputs:
             "log": self.log_path.name,
             "traces": TRACES_FILE,
             "exports": [f"bus.{f}" for f in self.log_formats] if complete else [],
-            "recording": "run.rrd" if complete else None,
+            "recording": "run.rrd" if complete and (self.folder / "run.rrd").exists() else None,
             "plots": plots or [],
         }
         (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
@@ -241,4 +242,5 @@ def print_result(out: Path, result: Any) -> None:
         print(f"status: {status.upper()}: {why} (exit {result.exit_code})")
     if status == "ok" and not result.expected:
         print(f"status: the scenario expected {', '.join(s['expect'])} (exit {result.exit_code})")
-    print(f"results in {out}/: summary.json, {TRACES_FILE}, bus.log, run.rrd, *.svg")
+    views = ", run.rrd, *.svg" if (out / "run.rrd").exists() else ""
+    print(f"results in {out}/: summary.json, {TRACES_FILE}, bus.log{views}")
