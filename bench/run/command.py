@@ -227,7 +227,10 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
             file=sys.stderr,
         )
         return (130 if cut.startswith("interrupted") else 1), result, out
-    outputs.serve(args)
+    if outputs.interrupted:  # Ctrl-C while the results were written: they are, and serving is not wanted
+        outputs.abort()
+    else:
+        outputs.serve(args)
     return result.exit_code, result, out
 
 
@@ -241,6 +244,7 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
 
     def on_sigint(signum: int, frame: Any) -> None:
         presses[0] += 1
+        outputs.interrupted = True
         if presses[0] == 1:  # os.write: print() may be in use by the interrupted code
             os.write(
                 2,

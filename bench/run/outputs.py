@@ -67,6 +67,7 @@ class Outputs:
         self.sinks: list[Any] = [self.traces, self.view]
         self.frame_sinks: list[Any] = []
         self.log_path = folder / "bus.log"
+        self.interrupted = False  # a Ctrl-C while the results were written: no serving after them
         if args.bus == "direct":  # over a bus, candump's own log is the log
             from .canlog import CandumpWriter
 

@@ -231,6 +231,7 @@ class ViewWorker:
         terminal's process group, or to the bench alone: then the bench stops it); wait for it."""
         from ..stop import deferred
 
+        sys.stdout.flush()  # the results are said before the wait (a pipe buffers them otherwise)
         try:
             self.rerun.proc.wait()
         except KeyboardInterrupt:
