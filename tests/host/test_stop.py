@@ -208,6 +208,7 @@ def test_a_sweep_listens_on_this_machine_and_its_ctrl_c_is_one_line(tmp_path: Pa
 def test_sigterm_to_bench_vm_ends_its_qemu(tmp_path: Path) -> None:
     b = Bench("vm", "--", "sleep", "600")
     qemu: dict[int, str] = {}
+    started: dict[int, str] = {}
     try:
         deadline = time.monotonic() + 240
         while not qemu and time.monotonic() < deadline and b.proc.poll() is None:
@@ -221,7 +222,7 @@ def test_sigterm_to_bench_vm_ends_its_qemu(tmp_path: Path) -> None:
         assert rc == 143, f"exit {rc}:\n{b.text()[-3000:]}"
         assert not wait_gone(set(started), 60), f"left behind: {started}"
     finally:
-        for p in descendants(b.pid) | qemu:
+        for p in descendants(b.pid) | started | qemu:  # vng runs in a session of its own
             try:
                 os.kill(p, signal.SIGKILL)
             except ProcessLookupError:
