@@ -350,17 +350,25 @@ def main(argv: list[str] | None = None) -> int:
         print("terminated" if stop.terminated() else "interrupted", file=sys.stderr)
         return stop.exit_status()
     except BrokenPipeError:
-        # docs.python.org, "Note on SIGPIPE": the reader went away; nothing more can be shown, and
-        # Python's exit must not fail flushing the same stdout again. 141 as a shell reports SIGPIPE.
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return stop.EXIT_SIGPIPE
+        _stdout_gone()
+        return stop.EXIT_SIGPIPE  # as a shell reports a command ended by SIGPIPE
     finally:
         worker = sys.modules.get(f"{__package__}.view.worker")
         if worker is not None:
             with stop.deferred():
                 worker.discard()  # viewer processes a run started and did not use: stopped now, not waited for
+        try:
+            sys.stdout.flush()  # what a SystemExit (argparse's --help, a usage error) left in the buffer
+        except BrokenPipeError:
+            _stdout_gone()
+
+
+def _stdout_gone() -> None:
+    """docs.python.org, "Note on SIGPIPE": the reader went away; nothing more can be shown, and Python's
+    exit must not fail flushing the same stdout again: stdout becomes /dev/null."""
+    import os
+
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _main(argv: list[str]) -> int:

@@ -106,7 +106,8 @@ class _Proc:
         return msg  # type: ignore[no-any-return]
 
     def kill(self, grace_s: float = 10.0) -> None:
-        """Stop it: SIGTERM (it stops what it started: the web viewer's server), SIGKILL after `grace_s`."""
+        """Stop it: SIGTERM (it stops what it started: the web viewer's server), SIGKILL after `grace_s` (the
+        server then ends by its PR_SET_PDEATHSIG, bench/view/serve.py)."""
         try:
             self._queue.put_nowait(None)
         except queue.Full:
@@ -118,12 +119,6 @@ class _Proc:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-        server = (self._first or {}).get("server_pid")
-        if server:  # the server's own PR_SET_PDEATHSIG covers a killed helper too; this covers the rest
-            try:
-                os.kill(server, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
 
 
 def prestart() -> None:
@@ -267,8 +262,7 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
     except Exception as exc:  # noqa: BLE001 - the bench reports it
         reply(error=str(exc))
         return 2
-    server = serve.served()
-    reply(ready=True, url=sink.url, server_pid=server.server.pid if server else None)
+    reply(ready=True, url=sink.url)
     for kind, *payload in msgs:
         if kind == "begin":
             sink.begin(payload[0])
