@@ -326,14 +326,54 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--out", type=Path, default=None, help="output folder (default runs/demo-TIMESTAMP)")
     dm.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     dm.add_argument("--serve", action="store_true", help="serve the Rerun web viewer")
+    dm.add_argument(
+        "--serve-bind",
+        default="127.0.0.1",
+        metavar="ADDR",
+        help="with --serve: the address it listens on (default 127.0.0.1: this machine only)",
+    )
     dm.add_argument("--no-viewer", action="store_true", help="do not spawn the Rerun viewer")
     dm.set_defaults(func=_cmd_demo)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if argv[:1] in (["run"], ["demo"]) and not {"-h", "--help"} & set(argv):
+    """The command: Ctrl-C exits 130 and SIGTERM 143 through the command's own cleanup, from the first
+    instruction on (bench/stop.py); a closed stdout (`bench plan --json | head -1`) ends it quietly."""
+    from . import stop
+
+    try:
+        stop.install()
+        rc = _main(sys.argv[1:] if argv is None else argv)
+        sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's exit
+        return rc
+    except KeyboardInterrupt:
+        print("terminated" if stop.terminated() else "interrupted", file=sys.stderr)
+        return stop.exit_status()
+    except BrokenPipeError:
+        _stdout_gone()
+        return stop.EXIT_SIGPIPE  # as a shell reports a command ended by SIGPIPE
+    finally:
+        worker = sys.modules.get(f"{__package__}.view.worker")
+        if worker is not None:
+            with stop.deferred():
+                worker.discard()  # viewer processes a run started and did not use: stopped now, not waited for
+        try:
+            sys.stdout.flush()  # what a SystemExit (argparse's --help, a usage error) left in the buffer
+        except BrokenPipeError:
+            _stdout_gone()
+
+
+def _stdout_gone() -> None:
+    """docs.python.org, "Note on SIGPIPE": the reader went away; nothing more can be shown, and Python's
+    exit must not fail flushing the same stdout again: stdout becomes /dev/null."""
+    import os
+
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
+def _main(argv: list[str]) -> int:
+    if argv[:1] in (["run"], ["demo"]) and not {"-h", "--help"} & set(argv) and not _cia402(argv):
         from .view.worker import prestart
 
         prestart()  # the viewer and plot processes import rerun and matplotlib while we import the rest
@@ -342,11 +382,19 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 64
-    try:
-        return int(args.func(args))
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    rc = int(args.func(args))
+    if rc == 130:  # the command's own "interrupted": 143 when it was a SIGTERM
+        from . import stop
+
+        rc = stop.exit_status()
+    return rc
+
+
+def _cia402(argv: list[str]) -> bool:
+    """`bench run --drive-profile cia402` draws its own plot: no viewer processes."""
+    return "--drive-profile=cia402" in argv or any(
+        a == "--drive-profile" and b == "cia402" for a, b in zip(argv, argv[1:], strict=False)
+    )
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ def main(args: argparse.Namespace) -> int:
     out = args.out or Path("runs") / f"demo-{time.strftime('%Y%m%d-%H%M%S')}"
     argv = ["run", str(SCENARIO), "--bus", args.bus, "--out", str(out)]
     argv += [a for o in args.overrides for a in ("--set", o)]
-    argv += ["--serve"] if args.serve else []
+    argv += ["--serve", "--serve-bind", args.serve_bind] if args.serve else []
     argv += ["--no-viewer"] if args.no_viewer else []
     rc, result, out_dir = execute(build_parser().parse_args(argv))
     if result is None:

@@ -38,6 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--serve-for", type=float, default=None, metavar="SECONDS")
     p.add_argument("--web-port", type=int, default=9090)
     p.add_argument("--grpc-port", type=int, default=9876)
+    p.add_argument("--serve-bind", default="127.0.0.1", metavar="ADDR", help="with --serve: the address it listens on")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -93,6 +94,7 @@ def main(args: argparse.Namespace) -> int:
         live=live,  # type: ignore[arg-type]
         web_port=args.web_port,
         grpc_port=args.grpc_port,
+        bind=args.serve_bind,
     )
     est_frames = max(1, args.log.stat().st_size // 33)  # a candump line is ~33 bytes: an estimate for the bar
     bar = Progress(est_frames, f"replay {args.log.name}", unit="frames")

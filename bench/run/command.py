@@ -131,6 +131,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--web-port", type=int, default=9090, help="web viewer port for --serve (default 9090)")
     p.add_argument("--grpc-port", type=int, default=9876, help="Rerun gRPC port for --serve (default 9876)")
+    p.add_argument(
+        "--serve-bind",
+        default="127.0.0.1",
+        metavar="ADDR",
+        help="with --serve: the address both ports listen on (default 127.0.0.1: this machine only; "
+        "0.0.0.0 or :: lets anyone on the network watch the run)",
+    )
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer (the .rrd is still saved)")
     p.add_argument("--live-decimate", type=int, default=1, help="send every Nth period to the live viewer")
     from ..cia402.command import add_arguments as cia402_arguments
@@ -149,6 +156,13 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ScenarioError(f"--live-decimate = {args.live_decimate}: must be >= 1")
     if args.serve_for is not None and (args.serve_for < 0 or not args.serve):
         raise ScenarioError("--serve-for needs --serve and a number of seconds >= 0")
+    if args.serve:
+        from ..view.serve import check_bind
+
+        try:
+            check_bind(args.serve_bind)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
     for port in ("web_port", "grpc_port"):
         if not 1 <= getattr(args, port) <= 65535:
             raise ScenarioError(f"--{port.replace('_', '-')} = {getattr(args, port)}: a port is 1 .. 65535")
@@ -234,7 +248,10 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
             file=sys.stderr,
         )
         return (130 if cut.startswith("interrupted") else 1), result, out
-    outputs.serve(args)
+    if outputs.interrupted:  # Ctrl-C while the results were written: they are, and serving is not wanted
+        outputs.abort()
+    else:
+        outputs.serve(args)
     return result.exit_code, result, out
 
 
@@ -248,6 +265,7 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
 
     def on_sigint(signum: int, frame: Any) -> None:
         presses[0] += 1
+        outputs.interrupted = True
         if presses[0] == 1:  # os.write: print() may be in use by the interrupted code
             os.write(
                 2,

@@ -112,6 +112,7 @@ class Outputs:
         self.sinks: list[Any] = [self.traces, self.view, self._progress_sink]
         self.frame_sinks: list[Any] = []
         self.log_path = folder / "bus.log"
+        self.interrupted = False  # a Ctrl-C while the results were written: no serving after them
         if args.bus == "direct":  # over a bus, candump's own log is the log
             from .canlog import CandumpWriter
 
@@ -133,6 +134,7 @@ class Outputs:
             web_port=getattr(self.args, "web_port", 9090),
             grpc_port=getattr(self.args, "grpc_port", 9876),
             serve_for=getattr(self.args, "serve_for", None),
+            bind=getattr(self.args, "serve_bind", "127.0.0.1"),
         )
         if live == "serve":  # fail before the run if the ports are taken; the address, once, now
             worker.wait_ready()
@@ -182,7 +184,7 @@ class Outputs:
             "log": self.log_path.name,
             "traces": TRACES_FILE,
             "exports": [f"bus.{f}" for f in self.log_formats] if complete else [],
-            "recording": "run.rrd" if complete else None,
+            "recording": "run.rrd" if complete and (self.folder / "run.rrd").exists() else None,
             "plots": plots or [],
         }
         (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
@@ -288,14 +290,15 @@ def print_result(out: Path, result: Any) -> None:
         print(f"status: {status.upper()}: {why} (exit {result.exit_code})")
     if status == "ok" and not result.expected:
         print(f"status: the scenario expected {', '.join(s['expect'])} (exit {result.exit_code})")
-    print(f"results in {out}/: {', '.join(_files_written(s))}")
+    print(f"results in {out}/: {', '.join(_files_written(s, out))}")
 
 
-def _files_written(s: dict[str, Any]) -> list[str]:
+def _files_written(s: dict[str, Any], out: Path) -> list[str]:
     """The files summary.json lists (what was written), summary.json first."""
     files = s.get("files")
-    if not files:
-        return ["summary.json", TRACES_FILE, "bus.log", "run.rrd", "*.svg"]
+    if not files:  # a run stopped early whose view helpers were still starting has no recording, no plots
+        views = ["run.rrd", "*.svg"] if (out / "run.rrd").exists() else []
+        return ["summary.json", TRACES_FILE, "bus.log", *views]
     names = [files.get("log"), files.get("traces"), *files.get("exports", []), files.get("recording")]
     plots = files.get("plots") or []
     shown = ["summary.json", *[n for n in names if n]]

@@ -83,6 +83,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     r.add_argument("--serial", action="store_true", help="no Dask: every point in this process, in order")
     r.add_argument("--no-dashboard", action="store_true", help="no Dask dashboard for the embedded cluster")
+    r.add_argument(
+        "--dashboard-address",
+        default="127.0.0.1:0",
+        metavar="HOST:PORT",
+        help="where the embedded cluster's dashboard listens (default 127.0.0.1:0: this machine only, a free "
+        "port; e.g. 0.0.0.0:8787 to show it on the network). The cluster itself listens on 127.0.0.1",
+    )
     o = p.add_argument_group("outputs")
     o.add_argument("--out", type=Path, default=None, help="output folder (default runs/sweep-NAME-TIMESTAMP)")
     o.add_argument("--resume", action="store_true", help="continue the study in --out: skip its finished points")
@@ -213,13 +220,20 @@ def main(args: argparse.Namespace) -> int:
         return 2
     done = {r["point_id"]: r for r in read_done(out).to_pylist()} if args.resume else {}
     try:
-        engine = Engine(args.scheduler, args.workers, args.serial, dashboard=not args.no_dashboard)
+        engine = Engine(
+            args.scheduler,
+            args.workers,
+            args.serial,
+            dashboard=not args.no_dashboard,
+            dashboard_address=args.dashboard_address,
+        )
     except OSError as exc:  # no scheduler at that address, or it did not answer in time
         print(f"bench sweep: --scheduler {args.scheduler}: {exc}", file=sys.stderr)
         return 2
     print(f"bench sweep: {sc.name} ({sc.periods} periods a point) on {engine.where}")
     if engine.dashboard:
-        print(f"bench sweep: Dask dashboard {engine.dashboard}")
+        where = "" if args.scheduler else f" (listening on {engine.dashboard_listens}; --dashboard-address)"
+        print(f"bench sweep: Dask dashboard {engine.dashboard}{where}")
     writer = TableWriter(out)
     t0 = time.monotonic()
     ran = 0
@@ -247,10 +261,15 @@ def main(args: argparse.Namespace) -> int:
                 prog.close()
             results = None
     except KeyboardInterrupt:
-        writer.flush()
-        engine.close()
+        from ..stop import deferred
+
+        with deferred():  # the rows must reach the table, and the cluster must stop, whatever is pressed
+            writer.flush()
+            engine.close()
+        again = "--resume" + ("" if args.out else f" --out {out}")
         print(
-            f"\nbench sweep: interrupted; {writer.written} new points kept in {out} (--resume continues)",
+            f"\nbench sweep: interrupted; {writer.written} new points kept in {out} ({writer.written + len(done)} "
+            f"done in all); the same command with {again} runs the rest",
             file=sys.stderr,
         )
         return 130

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -20,6 +21,7 @@ from .point import run_batch
 
 Rows = list[dict[str, Any]]
 WAIT_WORKERS_S = 120  # an existing cluster without workers: how long to wait for one
+DASHBOARD = "127.0.0.1:0"  # the embedded cluster's dashboard: this machine only, a free port
 
 
 def batches(points: list[dict[str, str]], workers: int, max_batch: int = 16) -> list[list[dict[str, str]]]:
@@ -36,12 +38,20 @@ class WorkerError(RuntimeError):
 class Engine:
     """Runs batches of points and yields their rows as they complete."""
 
-    def __init__(self, scheduler: str | None, workers: int | None, serial: bool, dashboard: bool = True) -> None:
+    def __init__(
+        self,
+        scheduler: str | None,
+        workers: int | None,
+        serial: bool,
+        dashboard: bool = True,
+        dashboard_address: str = DASHBOARD,
+    ) -> None:
         self.serial = serial
         self.client: Any = None
         self.cluster: Any = None
         self.where = "this process (serial)"
         self.dashboard: str | None = None
+        self.dashboard_listens = dashboard_address  # the embedded cluster's
         if serial:
             self.workers = 1
             return
@@ -63,13 +73,20 @@ class Engine:
             self.workers = max(1, sum(w.get("nthreads", 1) for w in info["workers"].values()))
             self.where = f"the Dask cluster at {self.client.scheduler.address} ({len(info['workers'])} workers)"
         else:
+            from ..stop import spawn_ignoring_sigint
+
             n = workers or os.cpu_count() or 1
             with contextlib.redirect_stderr(open(os.devnull, "w")):  # noqa: SIM115 - distributed's start-up chatter
-                self.cluster = LocalCluster(
-                    n_workers=n,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0" if dashboard else None,
+                # The workers ignore Ctrl-C (inherited): this process stops them, keeping the rows done.
+                self.cluster = spawn_ignoring_sigint(
+                    lambda: LocalCluster(
+                        n_workers=n,
+                        threads_per_worker=1,
+                        processes=True,
+                        host="127.0.0.1",
+                        silence_logs=logging.ERROR,  # no warnings of the tasks a stop cancels
+                        dashboard_address=dashboard_address if dashboard else None,
+                    )
                 )
             self.client = Client(self.cluster)
             self.workers = n
@@ -77,6 +94,10 @@ class Engine:
         with contextlib.suppress(Exception):
             link = self.client.dashboard_link
             self.dashboard = link if dashboard and link else None
+        if self.cluster is not None and self.dashboard:
+            host = dashboard_address.rpartition(":")[0] or "every interface"
+            port = self.dashboard.split("://", 1)[-1].split("/", 1)[0].rpartition(":")[2]
+            self.dashboard_listens = f"{host}, port {port}"
 
     def run(self, scenario_text: str, where: str, fixed: list[str], todo: list[list[dict[str, str]]]) -> Iterator[Rows]:
         if self.serial:

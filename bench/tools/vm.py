@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import threading
@@ -26,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..paths import REPO
+from ..stop import deferred
 
 # Variables forwarded into the guest (everything else is dropped by virtme-ng).
 FORWARD_ENV = ("CI", "TERM", "COLUMNS", "LINES", "PYTHONPATH", "PYTHONHASHSEED", "VIRTUAL_ENV", "NO_COLOR")
@@ -240,15 +242,10 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
             if expired.is_set():
                 raise subprocess.TimeoutExpired(argv, opts.timeout_s)
             proc.wait(timeout=max(1.0, deadline - time.monotonic()))
-        except (subprocess.TimeoutExpired, KeyboardInterrupt) as exc:
+        except (subprocess.TimeoutExpired, KeyboardInterrupt) as exc:  # Ctrl-C, SIGTERM (bench/stop.py), timeout
             watchdog.cancel()
-            try:
-                os.killpg(proc.pid, 15)
-                proc.wait(timeout=10)
-            except ProcessLookupError:
-                pass
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, 9)
+            with deferred():  # a second signal must not leave QEMU behind
+                _stop_group(proc)
             if isinstance(exc, KeyboardInterrupt):
                 raise
             sys.stderr.write(f"bench vm: timed out after {opts.timeout_s:.0f} s\n")
@@ -263,6 +260,24 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     status = int(status_file.read_text().strip() or "255")
     shutil.rmtree(job, ignore_errors=True)
     return status
+
+
+def _stop_group(proc: subprocess.Popen[bytes]) -> None:
+    """End vng and everything it started (QEMU and its helpers: one process group, its own session):
+    SIGTERM, then SIGKILL to what is left of the group, vng included, once vng ended or after 10 s."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        pass
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)  # QEMU may outlive vng (it reparents to init, same group)
+    except ProcessLookupError:
+        pass
+    proc.wait()
 
 
 def run_here_or_in_vm(cmd: list[str], interfaces: tuple[str, ...] = ("vcan0",), timeout_s: float = 3600.0) -> int:

@@ -8,23 +8,22 @@ unit, so quantities of different units never share an axis. Timelines: `period` 
 the control-period index) and `sim_time` (duration, simulated seconds). Each chunk is logged
 with one `send_columns` call per signal.
 
-Serving happens once per process: the first serve-mode sink starts the gRPC server and the
-web viewer, and they stay up until the process exits (`serve_until` keeps the process alive
-after a run); later serve-mode sinks in the same process stream to the same server when they
-ask for the same ports, and are refused with a clear error when they ask for others.
+Serving happens once per process (bench/view/serve.py): the first serve-mode sink starts the
+server (gRPC and the web viewer, on 127.0.0.1 unless `bind` says otherwise), and it stays up until
+the process exits or `serve.stop()` (`serve_until` keeps the process alive after a run); later
+serve-mode sinks in the same process stream to the same server when they ask for the same ports,
+and are refused with a clear error when they ask for others.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import math
 import os
 import re
 import shutil
-import socket
 import sys
 import time
-import urllib.parse
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -34,12 +33,14 @@ import rerun.blueprint as rrb
 
 from bench.run.signals import SignalInfo
 
+from .serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
+from .serve import serve as _serve
+
+__all__ = ["PORT_OPTIONS", "RerunSink", "ServeError"]
+
 APPLICATION_ID = "pmsm-hil-bench"
 TIMELINES = ("period", "t_s")  # chunk columns that are timelines, not signals
 
-# The command-line options that set the ports, named in the port-in-use error. The CLI that
-# builds a RerunSink may override these to match its own option names.
-PORT_OPTIONS = {"web": "--web-port", "grpc": "--grpc-port"}
 
 # A readable view name per unit (the quantity plotted); any other unit is named by itself.
 QUANTITY_OF_UNIT: dict[str, str] = {
@@ -82,10 +83,6 @@ GRID_ORDER = (
     "H/(V·s)",
     "1",
 )
-
-
-class ServeError(RuntimeError):
-    """The web viewer cannot be served as asked (a port in use, or this process already serves elsewhere)."""
 
 
 def unit_slug(unit: str) -> str:
@@ -144,94 +141,9 @@ def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
     )
 
 
-# --- serving (once per process) ------------------------------------------------------------------
+# --- serving: bench/view/serve.py; spawning a native viewer -------------------------------------
 
-
-def _web_url(web_port: int, grpc_port: int) -> str:
-    proxy = f"rerun+http://localhost:{grpc_port}/proxy"
-    return f"http://localhost:{web_port}/?url={urllib.parse.quote(proxy, safe=':/')}"
-
-
-def _port_free(port: int) -> bool:
-    """Whether a listener can bind 0.0.0.0:port (what rerun binds), as rerun would (SO_REUSEADDR)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind(("0.0.0.0", port))  # noqa: S104 - probing the address rerun binds
-        except OSError:
-            return False
-    return True
-
-
-def _listening(port: int, within_s: float) -> bool:
-    deadline = time.monotonic() + within_s
-    while True:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return True
-        except OSError:
-            if time.monotonic() >= deadline:
-                return False
-            time.sleep(0.02)
-
-
-def _port_in_use(what: str, port: int) -> ServeError:
-    label = {"web": "web viewer (HTTP)", "grpc": "gRPC"}[what]
-    return ServeError(
-        f"rerun: {label} port {port} is already in use (another bench or viewer still serving?); "
-        f"choose another with {PORT_OPTIONS[what]} (RerunSink {what}_port=)"
-    )
-
-
-@dataclass
-class _Served:
-    web_port: int
-    grpc_port: int
-    url: str
-    owner: rr.RecordingStream  # the live stream that hosts the gRPC server; kept for the process lifetime
-
-
-_SERVED: _Served | None = None
 _SAID_NO_DISPLAY = False
-
-
-def _serve(name: str, web_port: int, grpc_port: int, memory_limit: str) -> tuple[rr.RecordingStream, str]:
-    """A live recording stream connected to this process's gRPC server (started, with the web
-    viewer, on first use), and the browser URL."""
-    global _SERVED
-    if _SERVED is not None:
-        if (_SERVED.web_port, _SERVED.grpc_port) != (web_port, grpc_port):
-            raise ServeError(
-                f"rerun: this process already serves the web viewer at {_SERVED.url} "
-                f"(web port {_SERVED.web_port}, gRPC port {_SERVED.grpc_port}); it serves once per "
-                f"process, so it cannot also serve on web port {web_port}, gRPC port {grpc_port}"
-            )
-        live = rr.RecordingStream(APPLICATION_ID, recording_id=name)
-        live.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
-        return live, _SERVED.url
-    if web_port == grpc_port:
-        raise ServeError(
-            f"rerun: the web viewer and the gRPC server need two ports, both were given {web_port}; "
-            f"change {PORT_OPTIONS['web']} or {PORT_OPTIONS['grpc']}"
-        )
-    # rerun only logs (does not raise) when the gRPC port is taken: check both ports first.
-    for what, port in (("grpc", grpc_port), ("web", web_port)):
-        if not _port_free(port):
-            raise _port_in_use(what, port)
-    owner = rr.RecordingStream(APPLICATION_ID, recording_id=name)
-    owner.set_sinks(rr.GrpcServerSink(port=grpc_port, server_memory_limit=memory_limit))
-    if not _listening(grpc_port, within_s=5.0):
-        owner.set_sinks()  # drop the failed server sink
-        raise _port_in_use("grpc", grpc_port)
-    try:
-        rr.serve_web_viewer(web_port=web_port, open_browser=False)
-    except RuntimeError as exc:
-        owner.set_sinks()
-        if "in use" in str(exc):
-            raise _port_in_use("web", web_port) from None
-        raise ServeError(f"rerun: cannot serve the web viewer on port {web_port}: {exc}") from None
-    _SERVED = _Served(web_port, grpc_port, _web_url(web_port, grpc_port), owner)
-    return owner, _SERVED.url
 
 
 def _viewer_executable() -> str | None:
@@ -264,6 +176,7 @@ class RerunSink:
         web_port: int = 9090,
         grpc_port: int = 9876,
         memory_limit: str = "1GiB",
+        bind: str = DEFAULT_BIND,
     ) -> None:
         global _SAID_NO_DISPLAY
         if live not in ("none", "spawn", "serve"):
@@ -282,9 +195,11 @@ class RerunSink:
 
         self.live: rr.RecordingStream | None = None
         if live == "serve":
-            self.live, self._url = _serve(name, web_port, grpc_port, memory_limit)
-            self._owns_server = _SERVED is not None and _SERVED.owner is self.live
-            print(f"rerun: web viewer at {self._url}", flush=True)
+            self.live, server = _serve(name, web_port, grpc_port, memory_limit, bind)
+            self._url = server.url
+            self._owns_server = server.owner is self.live
+            wide = "" if ipaddress.ip_address(server.bind).is_loopback else "; other machines can watch"
+            print(f"rerun: web viewer at {self._url} (listening on {server.where}{wide})", flush=True)
         elif live == "spawn":
             if not _display():
                 if not _SAID_NO_DISPLAY:
@@ -313,7 +228,7 @@ class RerunSink:
                     first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
                     print(f"rerun: no viewer spawned ({first_line}){saved}", flush=True)
                 else:
-                    if _listening(grpc_port, within_s=1.0):
+                    if listening(grpc_port, within_s=1.0):
                         live_rec.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
                         self.live = live_rec
                     else:
