@@ -71,6 +71,11 @@ def main(args: argparse.Namespace) -> int:
         print(f"bench replay: --expect {bad[0]}: expected one of {', '.join(STATUSES)}", file=sys.stderr)
         return 2
     out: Path = args.out or args.log.parent / "replay"
+    from .paths import lost_in_vm
+
+    if (lost := lost_in_vm(out)) is not None:
+        print(f"bench replay: --out {lost}", file=sys.stderr)
+        return 2
     if out.exists() and any(out.iterdir()):
         print(f"bench replay: {out} exists and is not empty; choose another --out", file=sys.stderr)
         return 2

@@ -164,6 +164,10 @@ def _prepare_out(args: argparse.Namespace, name: str, spec: dict[str, Any]) -> P
     from .table import PARTS, TABLE
 
     out = args.out or Path("runs") / f"sweep-{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    from ..paths import lost_in_vm
+
+    if (lost := lost_in_vm(out)) is not None:
+        raise Refused(f"--out {lost}")
     meta = out / "sweep.json"
     has_rows = (out / TABLE).exists() or (out / PARTS).is_dir()
     if args.resume:

@@ -189,7 +189,7 @@ def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None
         np.testing.assert_array_equal(ta[name], tb[name], err_msg=name)
 
 
-@pytest.mark.parametrize("cmd", ["run", "cia402", "faults", "reproduce"])
+@pytest.mark.parametrize("cmd", ["run", "cia402", "faults", "reproduce", "replay", "sweep"])
 def test_out_inside_the_vm_but_not_shared_is_refused(tmp_path: Path, cmd: str) -> None:
     """Inside `bench vm` a folder the VM does not share with the host (its /tmp) is lost when it stops:
     refused before anything runs (exit 2, the folder and the shared ones named), nothing written."""
@@ -197,11 +197,14 @@ def test_out_inside_the_vm_but_not_shared_is_refused(tmp_path: Path, cmd: str) -
 
     shared, private = tmp_path / "shared", tmp_path / "vm-own" / "out"
     shared.mkdir()
+    (shared / "bus.log").write_text("(1.000000) vcan0 080#\n")
     argv = {
         "run": ["run", str(STEP), "--bus", "direct", "--no-viewer"],
         "cia402": ["run", str(STEP), "--bus", "vcan0", "--drive-profile", "cia402"],
         "faults": ["faults", "--only", "drop-command"],
         "reproduce": ["reproduce", "--paper", "000", "--bus", "direct"],
+        "replay": ["replay", str(shared / "bus.log")],
+        "sweep": ["sweep", str(STEP), "--grid", "controller.L_hat_ratio=0.5,1.0"],
     }[cmd]
     env = {**os.environ, "BENCH_IN_VM": "1", "BENCH_VM_SHARED": f"{REPO}{os.pathsep}{shared}"}
     res = subprocess.run(
