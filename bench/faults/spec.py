@@ -288,11 +288,13 @@ def refuse_lockstep_stalls(
     for f in faults:
         if command_timeout_us(f.at_period) > 0:
             continue
-        if f.kind in ("drop", "delay"):
+        if f.kind in ("drop", "delay") or (f.kind == "corrupt" and f.dlc is not None and f.dlc < 8):
             cob = names[f.frame] if f.frame else f.cob_id
             if cob not in loop:
                 continue
-            what = f"a {f.kind} of {f.frame or loop[cob]} (a frame of the loop)"
+            # a loop frame is 8 bytes (its EDS mapping); a shorter one is not processed (CiA 301): as dropped
+            how = f"{f.kind} to DLC {f.dlc}" if f.kind == "corrupt" else f.kind
+            what = f"a {how} of {f.frame or loop[cob]} (a frame of the loop)"
         elif f.kind == "freeze":
             what = "a frozen drive (it sends no command)"
         else:

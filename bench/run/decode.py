@@ -37,6 +37,7 @@ SQRT3 = math.sqrt(3.0)
 KIND_FOREIGN, KIND_KNOWN, KIND_EMCY = 0, 1, 2  # what an identifier is to the run
 REFERENCES = ("iq_ref_A", "id_ref_A")
 TPDOS = 4
+PLANT_STATUS_MISSED = 0x04  # Measurement.status: the period before this sample ended without its command
 
 
 def layout_from_sdo(sdo: SdoLog) -> BusLayout:
@@ -111,6 +112,7 @@ class Decoder:
         self._nmt_seen = False  # an NMT command went by (a master configuring the nodes) ...
         self._nmt_started = False  # ... and NMT start: the loop's SYNCs come after it
         self._index: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sample_index
+        self._status: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.status
         self._meas: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sync_counter
         self._known: np.ndarray = self._base_known()
         self._kind = self._kinds()
@@ -148,6 +150,7 @@ class Decoder:
         self._kind = self._kinds()
         self._meas = plant_field(self.layout, "Measurement.sync_counter", "B")
         self._index = plant_field(self.layout, "Measurement.sample_index", "H")
+        self._status = plant_field(self.layout, "Measurement.status", "B")
         self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
         self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
         names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC", "<f4")]
@@ -332,12 +335,13 @@ class Decoder:
         miss_meas = np.zeros(n, dtype=bool)
         miss_cmd = np.zeros(n, dtype=bool)
         misaligned = self._misaligned(buf, period_of, r0, r1)
-        # a command may come after the SYNC it was meant for: in real time, and in lockstep with a command
-        # timeout (the plant held the last command and went on; 0x2003:04 > 0)
-        late_commands = (
-            self.sdo.plant.get("Run control", "mode") == 1
-            or int(self.sdo.plant.get("Run control", "command_timeout_us") or 0) > 0
-        )
+        # a command may come after the SYNC it was meant for: in real time in any period; in lockstep with a
+        # command timeout (0x2003:04 > 0) only in a period whose sample says the one before ended without its
+        # command (the plant held and went on): any other second command there is interference
+        realtime = self.sdo.plant.get("Run control", "mode") == 1
+        late_ok: np.ndarray | None = None
+        if not realtime and int(self.sdo.plant.get("Run control", "command_timeout_us") or 0) > 0:
+            late_ok = self._missed(buf, period_of, r0, r1)
         for cob_id, ps in st.pdos.items():
             pdo = ps.pdo
             pos = np.flatnonzero(cob == cob_id)
@@ -364,7 +368,7 @@ class Decoder:
                         pos, per, dup = pos[keep], per[keep], dup[keep] & ~safe[keep]
                     if not dup.any():
                         pass
-                    elif is_cmd and late_commands:
+                    elif is_cmd and (realtime or (late_ok is not None and np.isin(per[dup], late_ok).all())):
                         # a late command lands in the next period (the plant counts it late, 0x2003 late_commands,
                         # and never applies it): the drive's own frame, not interference; the period's own
                         # command is the last one
@@ -429,6 +433,17 @@ class Decoder:
         d = buf["data"][pos]
         si = d[:, off].astype(np.int64) | (d[:, off + 1].astype(np.int64) << 8)
         return np.unique(per[si == (per + 1) % 65536])
+
+    def _missed(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> np.ndarray:
+        """Periods in [r0, r1) whose sample's status says the period before ended without its command
+        (plant_app.h PLANT_STATUS_MISSED): there the late command of that period may still come."""
+        if self._status is None:
+            return np.zeros(0, dtype=np.int64)
+        cob_id, off = self._status
+        pos = np.flatnonzero(buf["cob_id"] == cob_id)
+        per = period_of[pos]
+        ok = (per >= r0) & (per < r1)
+        return np.unique(per[ok][(buf["data"][pos[ok], off] & PLANT_STATUS_MISSED) != 0])
 
     def _lost(self, periods: np.ndarray) -> None:
         if len(periods):

@@ -19,7 +19,7 @@ DRIVE_ID = 0x20
 HEARTBEAT_MS = 100
 FLOOD_S = 6.0
 # a bound, not a timing: the heartbeat may be late on a loaded machine, not silent for the flood
-MAX_GAP_S = 10 * HEARTBEAT_MS / 1000
+MAX_GAP_S = 30 * HEARTBEAT_MS / 1000  # a bound for a loaded VM (cangen takes a core); the defect was 11.5 s
 
 
 def _heartbeat_times(log: Path) -> list[float]:

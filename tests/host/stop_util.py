@@ -4,6 +4,7 @@ sockets of a set of processes, and a bench command started in a session of its o
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -108,6 +109,9 @@ class Bench:
             text=True,
             start_new_session=True,
             env=env,
+            # Ctrl-C as a terminal's default: a CI runner may start the suite with SIGINT ignored (a shell's
+            # background job), which a child inherits and keeps (bench.stop respects it)
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
         self.out: list[str] = []
         self.err: list[str] = []

@@ -31,6 +31,7 @@ STALLS = [
     'kind = "delay"\nframe = "drive.TPDO1"\ndelay_periods = 1',
     'kind = "drop"\ncob_id = 0x210\nfrom = "drive"',
     'kind = "freeze"\nnode = "drive"\nperiods = 5',
+    'kind = "corrupt"\nframe = "plant.TPDO2"\ndlc = 4',  # a short PDO is not processed: as dropped
 ]
 
 

@@ -167,3 +167,17 @@ def test_a_fault_reset_event_enables_the_drive_again() -> None:
     p, iq = hit.tr["period"], hit.tr["iq_A"]
     assert (np.diff(iq[(p >= 40) & (p < 60)]) < 0).all()  # 0 V in FAULT: the current decays (L/R = 58 Ts)
     assert abs(iq[p >= 100] - 1.0).max() < 0.05, iq[p >= 100]  # back on the 1 A reference after the reset
+
+
+def test_a_second_command_is_late_only_where_the_plant_held() -> None:
+    """Lockstep with a command timeout: a command after its SYNC is the drive's own late frame only in a
+    period whose sample says the period before went without its command; a doubled command elsewhere is
+    still interference (the plant may have acted on it)."""
+    from bench.claims import run_raw
+
+    raw = with_command_timeout(base("fc-dup-command"))
+    hit = run_raw(
+        with_fault(raw, ["interference"], {"kind": "duplicate", "frame": "drive.TPDO1", "at_period": 30}), "direct"
+    )
+    itf = hit.result.summary["bus_stats"]["interference"]
+    assert hit.result.status == "interference" and itf["frames"] == 1 and itf["first_period"] == 30, itf
