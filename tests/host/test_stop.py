@@ -222,9 +222,12 @@ def test_sigterm_to_bench_vm_ends_its_qemu(tmp_path: Path) -> None:
         assert rc == 143, f"exit {rc}:\n{b.text()[-3000:]}"
         assert not wait_gone(set(started), 60), f"left behind: {started}"
     finally:
-        for p in descendants(b.pid) | started | qemu:  # vng runs in a session of its own
-            try:
+        seen = {**started, **qemu}
+        for p in set(descendants(b.pid)) | set(seen):  # vng runs in a session of its own
+            try:  # only a process still the one seen (a PID freed by its exit may be another's now)
+                if p in seen and Path(f"/proc/{p}/comm").read_text().strip() != seen[p]:
+                    continue
                 os.kill(p, signal.SIGKILL)
-            except ProcessLookupError:
+            except (ProcessLookupError, OSError):
                 pass
         b.kill()
