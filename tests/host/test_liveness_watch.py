@@ -64,3 +64,23 @@ def test_beating_nodes_are_not_named() -> None:
         assert live.verdict() is None
     finally:
         live.close()
+
+
+def test_a_stall_of_the_watcher_itself_is_not_a_silent_node() -> None:
+    """Under load (the VM's vCPUs descheduled by a busy host) the whole guest stops, and its clock jumps
+    when it runs again: the watcher, woken that much late, must not take its own stall for the node's
+    silence. A real silence, with the watcher on time, is still named."""
+
+    class Net:
+        def subscribe(self, cob: int, cb: object) -> None:
+            pass
+
+    def watcher(silent_s: float) -> Liveness:
+        lv = Liveness(Net(), {"plant": 0x10}, {}, timeout_ms=1000, heartbeat_ms=100)  # type: ignore[arg-type]
+        lv.armed = True
+        lv.last["plant"] = time.monotonic() - silent_s
+        return lv
+
+    assert watcher(1.9).tick(late_s=1.85) is None  # 1.9 s without a heartbeat, 1.85 s of it the watcher's own
+    lost = watcher(1.9).tick(late_s=0.0)
+    assert lost is not None and lost.status == "node_lost" and lost.node == "plant", lost
