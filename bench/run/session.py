@@ -75,8 +75,16 @@ class RunOptions:
     stall_s: float = 10.0  # both nodes alive, the period index still for this long: a frame was lost
 
 
+# The Cortex-M4F image of `--drive mcu` runs under qemu-system-arm's emulation (TCG) behind a serial SLCAN
+# link: neither is real time, and a loaded host stalls them for seconds. With the 1 s consumer time a healthy
+# image then lost the plant's heartbeat and entered its safe state (EMCY 0xFF04) in the middle of a lockstep
+# run (2 burners on this 2-core host). The consumer time of both nodes and the bench with --drive mcu:
+MCU_HEARTBEAT_TIMEOUT_MS = 5000
+
+
 def run_options(args: Any, out: Path) -> RunOptions:
     """RunOptions from the command line of `bench run` or `bench capture` (which has fewer options)."""
+    drive = getattr(args, "drive", "node")
     return RunOptions(
         bus=args.bus,
         drive_bus=getattr(args, "drive_bus", None),
@@ -89,8 +97,9 @@ def run_options(args: Any, out: Path) -> RunOptions:
         start_plant=not getattr(args, "no_plant", False),
         start_drive=not getattr(args, "no_drive", False),
         out=out,
-        drive=getattr(args, "drive", "node"),
+        drive=drive,
         drive_tty=getattr(args, "drive_tty", None),
+        heartbeat_timeout_ms=MCU_HEARTBEAT_TIMEOUT_MS if drive == "mcu" else RunOptions.heartbeat_timeout_ms,
     )
 
 
