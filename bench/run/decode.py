@@ -423,27 +423,15 @@ class Decoder:
     def _misaligned(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> np.ndarray:
         """Periods in [r0, r1) holding a measurement of the next period's sample: the SYNC between them was
         lost. Any other sample index in a second measurement (a frame the plant did not send) is not."""
-        if self._index is None:
-            return np.zeros(0, dtype=np.int64)
-        cob_id, off = self._index
-        pos = np.flatnonzero(buf["cob_id"] == cob_id)
-        per = period_of[pos]
-        ok = (per >= r0) & (per < r1)
-        pos, per = pos[ok], per[ok]
-        d = buf["data"][pos]
-        si = d[:, off].astype(np.int64) | (d[:, off + 1].astype(np.int64) << 8)
+        per, d = _field_bytes(buf, period_of, r0, r1, self._index, 2)
+        si = d[:, 0].astype(np.int64) | (d[:, 1].astype(np.int64) << 8)
         return np.unique(per[si == (per + 1) % 65536])
 
     def _missed(self, buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int) -> np.ndarray:
         """Periods in [r0, r1) whose sample's status says the period before ended without its command
         (plant_app.h PLANT_STATUS_MISSED): there the late command of that period may still come."""
-        if self._status is None:
-            return np.zeros(0, dtype=np.int64)
-        cob_id, off = self._status
-        pos = np.flatnonzero(buf["cob_id"] == cob_id)
-        per = period_of[pos]
-        ok = (per >= r0) & (per < r1)
-        return np.unique(per[ok][(buf["data"][pos[ok], off] & PLANT_STATUS_MISSED) != 0])
+        per, d = _field_bytes(buf, period_of, r0, r1, self._status, 1)
+        return np.unique(per[(d[:, 0] & PLANT_STATUS_MISSED) != 0])
 
     def _lost(self, periods: np.ndarray) -> None:
         if len(periods):
@@ -532,6 +520,20 @@ class Decoder:
             wrong = si[good] != (out["period"][good] % 65536)
             self.stats.sample_index_mismatches += int(wrong.sum())
             self._lost(out["period"][good][wrong])
+
+
+def _field_bytes(
+    buf: np.ndarray, period_of: np.ndarray, r0: int, r1: int, where: tuple[int, int] | None, size: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The periods in [r0, r1) of the frames that carry a plant field (`where`: COB-ID, byte offset), and
+    the field's `size` bytes of each; nothing when the layout has no such field."""
+    if where is None:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, size), dtype=np.uint8)
+    cob_id, off = where
+    pos = np.flatnonzero(buf["cob_id"] == cob_id)
+    per = period_of[pos]
+    ok = (per >= r0) & (per < r1)
+    return per[ok], buf["data"][pos[ok], off : off + size]
 
 
 def _late_to_free_row(per: np.ndarray, dup: np.ndarray, r0: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
