@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import re
 import subprocess
-import time
 from dataclasses import dataclass
 
 from ..paths import binary
@@ -29,9 +28,16 @@ def run_pingpong(iface: str = "vcan0", count: int = 1000) -> PingPongResult:
         [exe, "echo", iface, str(count)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     try:
-        time.sleep(0.2)  # let the echo process bind before the first ping
+        # the first ping only once the echo process listens (its socket bound): a fixed sleep was too short
+        # for a loaded VM, and the lost first ping failed the run
+        assert echo.stdout is not None
+        ready = echo.stdout.readline()
+        if ready.strip() != "echo: ready":
+            echo.wait(timeout=30)
+            raise RuntimeError(f"ping-pong: the echo process did not start: {ready}{echo.stdout.read()}")
         ping = subprocess.run([exe, "ping", iface, str(count)], capture_output=True, text=True, timeout=600)
-        echo_out, _ = echo.communicate(timeout=30)
+        echo_out, _ = echo.communicate(timeout=60)
+        echo_out = ready + echo_out
     finally:
         if echo.poll() is None:
             echo.kill()

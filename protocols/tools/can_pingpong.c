@@ -39,6 +39,8 @@ static int cmp_i64(const void *a, const void *b)
 static int run_echo(int fd, uint32_t n)
 {
     uint32_t answered = 0;
+    printf("echo: ready\n"); /* bound and listening: the ping may start (no sleep on a loaded machine) */
+    fflush(stdout);
     while (answered < n) {
         co_frame_t f;
         int r = co_socketcan_recv(fd, &f, 10 * 1000 * 1000, NULL);
