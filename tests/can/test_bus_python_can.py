@@ -20,7 +20,7 @@ def test_python_can_to_c_echo(vcan0: str) -> None:
         text=True,
     )
     try:
-        time.sleep(0.3)
+        assert echo.stdout is not None and echo.stdout.readline().strip() == "echo: ready"  # it listens
         with can.Bus(interface="socketcan", channel=vcan0, receive_own_messages=False) as bus:
             for seq in range(n):
                 payload = struct.pack("<II", seq, (~seq) & 0xFFFFFFFF)

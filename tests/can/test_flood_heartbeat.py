@@ -43,7 +43,10 @@ def test_heartbeat_keeps_its_period_under_a_sync_flood(vcan0: str, tmp_path: Pat
         with log.open("w") as f:
             dump = subprocess.Popen(["candump", "-L", f"{vcan0},{0x700 + DRIVE_ID:03X}:7FF"], stdout=f)
             try:
-                time.sleep(1.0)  # candump is listening
+                deadline = time.monotonic() + 120  # candump listens once it has logged a heartbeat (a bound)
+                while time.monotonic() < deadline and not log.read_text().strip():
+                    time.sleep(0.1)
+                assert log.read_text().strip(), "candump logged no heartbeat"
                 t_start = time.time()
                 gen = subprocess.Popen(
                     ["cangen", vcan0, "-I", "080", "-L", "1", "-D", "i", "-g", "0", "-i"],
