@@ -312,6 +312,15 @@ static void hb_check_consumers(co_node_t *node, int64_t now_us)
     }
 }
 
+void co_node_excuse_us(co_node_t *node, int64_t stall_us)
+{
+    if (stall_us <= 0) return;
+    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
+        co_hb_consumer_t *c = &node->hb[i];
+        if (c->active && c->seen && !c->timed_out) c->last_us += stall_us;
+    }
+}
+
 void co_node_tick(co_node_t *node, int64_t now_us)
 {
     node->now_us = now_us;

@@ -121,6 +121,10 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us);
 
 /* Timers: heartbeat, consumers, SDO timeout, TPDO event/inhibit, RPDO deadline, SYNC producer. */
 void co_node_tick(co_node_t *node, int64_t now_us);
+/* This node was not running for `stall_us` (its process, or the whole machine or VM, descheduled: its loop
+ * woke that much later than it asked): the silence of the heartbeats it consumes over that time is its own,
+ * not the producers', and is not counted against them (a producer silent on its own is still timed out). */
+void co_node_excuse_us(co_node_t *node, int64_t stall_us);
 
 /* Microseconds until the next timer event (for poll timeouts); capped at max_us. */
 int64_t co_node_next_event_us(const co_node_t *node, int64_t now_us, int64_t max_us);

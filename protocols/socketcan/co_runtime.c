@@ -86,6 +86,10 @@ int co_runtime_run(co_runtime_t *rt)
             fprintf(stderr, "CAN receive failed\n");
             return 1;
         }
+        /* woken far later than asked: this process (or its machine, its VM) did not run meanwhile, and the
+         * heartbeats it consumes are not to blame for that time (a loaded host stalled a CI VM for ~2 s) */
+        int64_t late_us = co_socketcan_now_us() - (now + wait);
+        if (late_us > CO_RUNTIME_STALL_US) co_node_excuse_us(&rt->node, late_us);
         /* the rest of the burst, without waiting, but bounded: under any receive load the node's timers
          * (heartbeat produced and consumed, TPDO event timers, SDO timeout) and the app's poll run at
          * least every CO_RUNTIME_BURST_MAX + 1 frames; the frames left are served next time round */

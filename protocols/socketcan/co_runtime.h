@@ -50,6 +50,8 @@ int co_runtime_run(co_runtime_t *rt);
 /* Frames processed back to back before the node's timers get their turn (co_runtime_run, co_runtime_drain):
  * a flood of received frames must not hold the heartbeat, whose time is the bus's liveness. */
 #define CO_RUNTIME_BURST_MAX 64u
+/* A wake-up this much later than asked is a stall of the node's own (co_node_excuse_us). */
+#define CO_RUNTIME_STALL_US 50000
 
 /* Process the frames already queued on the socket without waiting (for tight loops), at most
  * CO_RUNTIME_BURST_MAX: the caller runs its timers (co_node_tick) and comes back for the rest.

@@ -9,6 +9,8 @@
  *       SYNC whose counter is S, then S + n, S + 2n, ... (CANopenNode's CO_TPDO_process);
  *       after NMT pre-operational -> operational it waits for S again
  *   (d) start value without a SYNC counter (0x1019 = 0): ignored, every n-th SYNC
+ *   (e) a stall of the node's own (co_node_excuse_us: its loop woke that much late) is not a
+ *       producer's silence; a silence without it is (EMCY 0x8130)
  * The expected SYNC counters are derived from S and n, never copied from the node. */
 #include <stdio.h>
 #include <string.h>
@@ -145,8 +147,38 @@ static void test_start_value(void)
     printf("(d) no SYNC counter: start value ignored, %d TPDOs in 8 SYNCs\n", n);
 }
 
+/* ------------------------------------------------------------------ (e) */
+static int emcy_8130(void)
+{
+    const co_frame_t *f = testbus_find(&g_tb, COB_EMCY, 0);
+    return f && f->data[0] == 0x30u && f->data[1] == 0x81u;
+}
+
+static void test_stall_excused(void)
+{
+    start();
+    CHECK(sdo_w(0x1016, 1, (0x10u << 16) | 100u, 4) == 0, "consumer of node 0x10, 100 ms");
+    nmt(0x01);
+    const uint8_t op = 0x05;
+    testbus_send(&g_tb, 0x710u, 1, &op); /* monitoring starts at the first heartbeat */
+    testbus_clear(&g_tb);
+    g_tb.now_us += 300000; /* 300 ms without running: the node's own stall */
+    co_node_excuse_us(&g_tb.node, 295000);
+    co_node_tick(&g_tb.node, g_tb.now_us);
+    testbus_deliver(&g_tb);
+    CHECK(!emcy_8130(), "a 300 ms stall of the node's own, excused: no heartbeat EMCY");
+    testbus_send(&g_tb, 0x710u, 1, &op);
+    testbus_clear(&g_tb);
+    g_tb.now_us += 300000; /* 300 ms of the producer's silence, the node running */
+    co_node_tick(&g_tb.node, g_tb.now_us);
+    testbus_deliver(&g_tb);
+    CHECK(emcy_8130(), "300 ms of silence with the node running: EMCY 0x8130");
+    printf("(e) a stall of the node's own is not the producer's silence\n");
+}
+
 int main(void)
 {
+    test_stall_excused();
     test_emcy_cob_id();
     test_start_value_writes();
     test_start_value();
