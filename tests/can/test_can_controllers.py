@@ -107,7 +107,9 @@ def test_a_link_taken_down_mid_run_is_reported(can_pair: tuple[str, str], tmp_pa
     summary = json.loads((out / "summary.json").read_text())
     stopped = summary["stopped"]
     assert summary["status"] == "node_lost" and stopped["node"] == "drive", stopped
-    assert stopped["detected_at_unix"] - t_down < RunOptions().heartbeat_timeout_ms / 1000 + 1.0, stopped
+    # named by its heartbeat's silence, well before the 10 s stall detector (a bound for a loaded VM, whose
+    # own stalls the watcher does not count against the drive, so a bound, not the consumer time)
+    assert stopped["detected_at_unix"] - t_down < RunOptions().stall_s, stopped
     assert 0 < summary["periods"] < 5_000_000
     # the drive's adapter went down: the kernel says so in the summary
     assert summary["can_links"][drive_bus]["after"]["up"] is False
