@@ -146,3 +146,23 @@ def test_an_unknown_result_name_is_refused(tmp_path: Path) -> None:
     eds.write_text(eds.read_text().replace("CurrentLaws=my_law\n", "CurrentLaws=my_law\nResults=nope\n"))
     with pytest.raises(KeyError, match="nope"):
         law_info("my_law", eds)
+
+
+def test_the_end_reads_are_in_the_same_order_in_every_process() -> None:
+    """END_READS is built in law order, not from a set: the same under any string hash seed."""
+    import os
+    import subprocess
+    import sys
+
+    code = "from bench.run.summary import END_READS; print(END_READS)"
+    seen = {
+        subprocess.run(
+            [sys.executable, "-c", code],
+            env={**os.environ, "PYTHONHASHSEED": str(seed)},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        for seed in range(6)
+    }
+    assert len(seen) == 1, seen
