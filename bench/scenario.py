@@ -310,11 +310,11 @@ def controller_at_start(sc: Scenario) -> str:
 
 def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     """The trace TPDOs of a scenario without [trace]: the live quantities of the law it starts with
-    (bench/run/summary.py CONTROLLER_TRACE, the one table of them). An event that switches laws later
+    (its record's Trace key in drive.eds, read by bench/laws.py). An event that switches laws later
     leaves the mapping as it is: the PDOs are mapped once, before the run."""
-    from .run.summary import CONTROLLER_TRACE
+    from .laws import law_info
 
-    return dict(CONTROLLER_TRACE[controller_at_start(sc)])
+    return dict(law_info(controller_at_start(sc)).trace)
 
 
 def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
