@@ -86,6 +86,17 @@ def law_names(path: Path | None = None) -> tuple[str, ...]:
     return value_names(_path(path), _od(path)[LAW_ENTRY[0]][LAW_ENTRY[1]])
 
 
+def law_records(path: Path | None = None) -> tuple[str, ...]:
+    """The laws' records by object name, in index order (their parameters are a scenario's [controller] keys)."""
+    raw = _raw(str(_path(path)))
+    od = _od(path)
+    return tuple(
+        od[i].name
+        for i in sorted(od.indices)
+        if isinstance(od[i], ODRecord) and raw.has_option(f"{i:04X}", "CurrentLaws")
+    )
+
+
 def _record_of(law: str, path: Path | None) -> ODRecord | None:
     raw = _raw(str(_path(path)))
     for obj in _od(path).values():

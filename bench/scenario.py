@@ -21,7 +21,8 @@ Layout (every key optional except where noted)::
     Vdc_V = 300
     adc_noise_std_A = 0.0
 
-    [controller]                 # drive.eds "Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC",
+    [controller]                 # drive.eds "Controller", "Outer loops", each current law's record (its
+                                 # CurrentLaws key: "Online tuning", "Yao 2020 DPCC", ..., a user law's),
                                  # "Safe state" (meas_timeout_periods; clear = 1 in an event: fault reset + enable)
     controller = "deadbeat_you2019"
     L_hat_ratio = 0.5            # ratios to the plant's own values (R_hat_ratio, Ld_hat_ratio,
@@ -62,11 +63,13 @@ from canopen.objectdictionary import datatypes
 
 from .eds import Param, params
 from .faults.spec import Fault, FaultError, parse_faults, refuse_lockstep_stalls
+from .laws import law_records
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
     "drive": ("plant", ("Inverter", "Sensors", "Run control")),
-    "controller": ("drive", ("Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC", "Safe state")),
+    # the drive's own records and every current law's (drive.eds CurrentLaws, a user law's too)
+    "controller": ("drive", ("Controller", "Outer loops", *law_records(), "Safe state")),
     "references": ("drive", ("References",)),
 }
 # Run-control entries the bench drives itself (scenario.timing sets the mode).
