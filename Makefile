@@ -22,6 +22,9 @@ CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/od
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
 PLANT_SRC := $(wildcard plant_rt/core/*.c)
 FW_SRC    := $(wildcard firmware_shim/core/*.c) protocols/generated/current_law_table.c
+# The node apps: every source of their folders but the process's main (a node app is portable glue).
+SHIM_APP_SRC  := $(filter-out firmware_shim/shim/drive_node_main.c,$(wildcard firmware_shim/shim/*.c))
+PLANT_APP_SRC := $(filter-out plant_rt/node/plant_node_main.c,$(wildcard plant_rt/node/*.c))
 # The fault injector between the plant's and the drive's side (portable core + its rule text).
 FAULT_SRC := protocols/faults/fault_injector.c protocols/faults/fault_rules.c
 
@@ -58,7 +61,7 @@ MCU_ARCH  := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
 MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off \
               -ffunction-sections -fdata-sections -ffreestanding -fno-common
 MCU_INC   := $(INC) -I$(MCU_DIR)
-MCU_SRC   := $(CO_SRC) $(FW_SRC) firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c $(wildcard firmware_shim/port/*.c) \
+MCU_SRC   := $(CO_SRC) $(FW_SRC) $(SHIM_APP_SRC) $(wildcard firmware_shim/port/*.c) \
              $(wildcard $(MCU_DIR)/*.c)
 MCU_OBJ   := $(patsubst %.c,$(MCU_BUILD)/obj/%.o,$(MCU_SRC))
 MCU_ELF   := $(MCU_BUILD)/drive_mcu.elf
@@ -160,8 +163,8 @@ $(BUILD)/tests/plant_%: plant_rt/tests/%.c $(LIBPLANT)
 # The drive tests close the loop against the plant's own motor model (tests/c/motor_model.h): libplant.
 # The apps are linked as objects (built with their own dependency files): one source per compile line,
 # so that -MF records the test's own headers (with several sources, gcc keeps the last one's only).
-SHIM_APP_OBJ  := $(call obj,firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c)
-PLANT_APP_OBJ := $(call obj,plant_rt/node/plant_app.c)
+SHIM_APP_OBJ  := $(call obj,$(SHIM_APP_SRC))
+PLANT_APP_OBJ := $(call obj,$(PLANT_APP_SRC))
 $(BUILD)/tests/fw_test_shim_%: firmware_shim/tests/test_shim_%.c $(SHIM_APP_OBJ) $(LIBFW) $(LIBPLANT) $(LIBCO)
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(SHIM_APP_OBJ) $(LIBFW) $(LIBPLANT) $(LIBCO) -lm -o $@
@@ -193,8 +196,7 @@ $(BUILD)/tests/protocols_test_fault_injector: protocols/faults/tests/test_fault_
 $(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $(LIBSCAN)
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(FAULT_SRC) $(LIBSCAN) -o $@
-HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(wildcard plant_rt/node/plant_app.c) \
-           $(wildcard firmware_shim/shim/drive_app.c firmware_shim/shim/cia402_device.c) $(wildcard bench/direct/*.c) $(FAULT_SRC)
+HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(PLANT_APP_SRC) $(SHIM_APP_SRC) $(wildcard bench/direct/*.c) $(FAULT_SRC)
 $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
 	$(CC) -shared $^ -lm -o $@

@@ -178,6 +178,41 @@ enum { DRIVE_NON_FINITE_I_A = 0x01, DRIVE_NON_FINITE_I_B = 0x02, DRIVE_NON_FINIT
  * difference is published in 0x2208 Step cost. */
 typedef uint32_t (*drive_app_cycles_fn)(void *user);
 
+/* The read-only entries of the status records, named as in drive.eds: the app keeps its counts in
+ * them, and a read of the record copies them to the OD with the list od_drive_fields.h generates
+ * (OD_DRIVE_<RECORD>_STATUS), so an entry's name is written once, in the EDS.  Values the app does
+ * not count (the core's currents, the mean, the trace's size) are taken just before the copy. */
+typedef struct { /* 0x2204 Drive status */
+    uint32_t current_steps;
+    uint32_t lost_measurements;
+    uint32_t late_measurements;
+    float id_A; /* id_A .. iq_ref_active_A: the core's, at the read */
+    float iq_A;
+    float speed_rad_s;
+    float iq_ref_active_A;
+    uint16_t last_sample_index; /* also the sequencing's last sample */
+} drive_app_drive_status_t;
+
+typedef struct {               /* 0x2208 Step cost */
+    uint32_t step_cycles_last; /* REAL32 in the OD */
+    uint32_t step_cycles_max;  /* REAL32 in the OD */
+    float step_cycles_mean;    /* at the read: sum / steps_measured */
+    uint32_t cycle_clock_Hz;   /* at the read: 0 without a counter */
+    uint32_t steps_measured;
+} drive_app_step_cost_t;
+
+typedef struct {    /* 0x2209 Safe state */
+    uint8_t reason; /* OD_DRIVE_REASON_*: NONE = not in the safe state */
+    uint32_t entries;
+    uint16_t entered_at_sample;
+    uint32_t non_finite_rejected;
+} drive_app_safe_state_t;
+
+typedef struct { /* 0x2300 Trace, at the read */
+    uint32_t captured_bytes;
+    uint32_t trigger_row;
+} drive_app_trace_status_t;
+
 typedef struct {
     drive_t drv;            /* firmware core */
     trace_recorder_t trace; /* oscilloscope buffer, exposed as 0x2301 */
@@ -187,18 +222,15 @@ typedef struct {
     drive_meas_t meas;
     drive_cmd_t cmd;
 
-    /* counters (mirrored in 0x2204) */
-    uint32_t current_steps;
-    uint32_t lost;
-    uint32_t late;
+    /* counters (0x2204; last_sample_index: valid with have_last) */
+    drive_app_drive_status_t drive_status;
     uint32_t emcy_raised; /* EMCY 0xFF01/0xFF02 raised */
 
     /* measurement sequencing */
     uint8_t rpdo1_fresh; /* RPDO1 seen, waiting for its RPDO2 */
-    uint8_t have_last;   /* last_sample_index valid */
-    uint16_t last_sample_index;
-    uint8_t old_run;   /* consecutive duplicate/old sample_index */
-    uint8_t sync_seen; /* a SYNC was received since OPERATIONAL */
+    uint8_t have_last;   /* drive_status.last_sample_index valid */
+    uint8_t old_run;     /* consecutive duplicate/old sample_index */
+    uint8_t sync_seen;   /* a SYNC was received since OPERATIONAL */
     uint8_t last_sync_counter;
     uint8_t meas_error_active; /* an 0xFF01/0xFF02 error is active */
 
@@ -208,18 +240,15 @@ typedef struct {
     uint16_t pending_code[DRIVE_APP_PENDING_EMCY];
     uint8_t pending_msef[DRIVE_APP_PENDING_EMCY][5];
 
-    /* safe state (mirrored in 0x2209) */
-    uint8_t safe_reason; /* OD_DRIVE_REASON_*: NONE = not in the safe state */
-    uint32_t safe_entries;
-    uint16_t safe_entered_at_sample;
+    /* safe state (0x2209; with non_finite_rejected below) */
+    drive_app_safe_state_t safe_state;
     uint16_t syncs_without_meas; /* SYNCs since the last measurement (saturates) */
     uint8_t meas_seen;           /* a measurement arrived since the NMT state changed */
     uint8_t have_good;           /* good_sample_index valid */
     uint16_t good_sample_index;  /* sample_index of the last step on finite measurement values */
 
     /* non-finite values received by PDO */
-    drive_meas_t meas_good; /* last finite value of each measurement field */
-    uint32_t non_finite_rejected;
+    drive_meas_t meas_good;    /* last finite value of each measurement field */
     uint8_t non_finite_mask;   /* DRIVE_NON_FINITE_* replaced in the last step */
     uint8_t non_finite_active; /* EMCY 0xFF05 active */
 
@@ -232,6 +261,7 @@ typedef struct {
 
     /* trace buffer linearised in place for the DOMAIN upload */
     uint8_t trace_linear;
+    drive_app_trace_status_t trace_status;
 
     /* live trace (TPDO2) decimation counter */
     uint16_t live_count;
@@ -240,10 +270,8 @@ typedef struct {
     drive_app_cycles_fn cycles_fn;
     void *cycles_user;
     uint32_t cycle_clock_Hz;
-    uint32_t step_cycles_last;
-    uint32_t step_cycles_max;
+    drive_app_step_cost_t step_cost;
     uint64_t step_cycles_sum;
-    uint32_t steps_measured;
     uint8_t cost_controller; /* 0x2200:01 of the steps measured (a new one resets the statistics) */
 } drive_app_t;
 

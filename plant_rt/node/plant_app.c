@@ -6,9 +6,9 @@
 
 #include "co_field_map.h"
 #include "od_plant.h"
+#include "plant_app_internal.h"
 #include "presets.h"
 
-#define M (OD_PLANT.mfr)
 #define RUN_FOREVER 0xFFFFFFFFu
 
 /* ------------------------------------------------------------------ OD <-> config */
@@ -53,19 +53,6 @@ static void hist_clear(plant_app_t *app)
 {
     memset(app->hist, 0, sizeof app->hist);
     memset(app->hist_bytes, 0, sizeof app->hist_bytes);
-}
-
-static void hist_add(plant_app_t *app, int64_t lateness_us)
-{
-    int64_t b = (lateness_us - PLANT_APP_HIST_ORIGIN_US);
-    b = b < 0 ? 0 : b / PLANT_APP_HIST_BIN_US;
-    if (b >= (int64_t)PLANT_APP_HIST_BINS) b = PLANT_APP_HIST_BINS - 1;
-    uint32_t v = ++app->hist[b];
-    uint8_t *p = &app->hist_bytes[b * 4];
-    p[0] = (uint8_t)v;
-    p[1] = (uint8_t)(v >> 8);
-    p[2] = (uint8_t)(v >> 16);
-    p[3] = (uint8_t)(v >> 24);
 }
 
 static void reset_tracking(plant_app_t *app)
@@ -120,69 +107,6 @@ bool plant_app_realtime_mode(const plant_app_t *app)
 
 int64_t plant_app_period_ns(const plant_app_t *app) { return (int64_t)llround(app->cfg.Ts_s * 1e9); }
 
-static int64_t period_us(const plant_app_t *app) { return (int64_t)llround(app->cfg.Ts_s * 1e6); }
-
-/* The RPDO that carries the voltage command (maps 0x2102). */
-static const co_pdo_t *cmd_rpdo(const plant_app_t *app)
-{
-    for (uint8_t n = 0; n < CO_NUM_PDO; ++n) {
-        const co_pdo_t *p = &app->node->rpdo[n];
-        if (!p->valid) continue;
-        for (uint8_t i = 0; i < p->count; ++i)
-            if (p->entry[i]->index == OD_PLANT_VOLTAGE_COMMAND_IDX) return p;
-    }
-    return NULL;
-}
-
-/* A command frame was received at t_us. The n-th command answers sample n:
- * while commands of missed periods are owed, an arrival is one of them (late). */
-static void note_arrival(plant_app_t *app, int64_t t_us)
-{
-    ++app->commands;
-    int64_t deadline;
-    if (app->owed > 0u) {
-        uint64_t p = app->k >= app->owed ? app->k - app->owed : 0u; /* period it was meant for */
-        deadline = app->sched_us[(p + 1u) % PLANT_APP_SCHED_RING];
-        --app->owed;
-        ++M.x2003_run_control.late_commands;
-        app->late_in_period = true;
-    } else {
-        app->cmd_ready = true;
-        deadline = app->sched_us[app->k % PLANT_APP_SCHED_RING] + period_us(app);
-    }
-    if (app->started && M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME) hist_add(app, t_us - deadline);
-}
-
-static void scan_arrivals(plant_app_t *app)
-{
-    const co_pdo_t *p = cmd_rpdo(app);
-    if (!p || !p->rx_buffered) return;
-    if (app->cmd_seen && p->last_rx_us == app->cmd_seen_rx_us) return;
-    app->cmd_seen = true;
-    app->cmd_seen_rx_us = p->last_rx_us;
-    note_arrival(app, p->last_rx_us);
-}
-
-/* The current period ends without its command. */
-static void handle_miss(plant_app_t *app)
-{
-    ++M.x2003_run_control.missed_commands;
-    app->miss_flag = true;
-    if (app->late_in_period) {
-        /* lockstep: tolerate a drive that is several periods behind; real time:
-         * the SYNCs do not wait, assume at once that a command was dropped */
-        uint32_t limit = M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME ? 1u : PLANT_APP_RESYNC_PERIODS;
-        if (++app->late_timeout_streak >= limit) {
-            app->owed = 0; /* resynchronise: the drive dropped a command */
-            app->late_timeout_streak = 0;
-            return;
-        }
-    } else {
-        app->late_timeout_streak = 0;
-    }
-    if (app->owed < PLANT_APP_SCHED_RING - 1u) ++app->owed;
-}
-
 static void apply_pending_config(plant_app_t *app)
 {
     plant_config_t *c = &app->scratch_cfg;
@@ -197,6 +121,39 @@ static void apply_pending_config(plant_app_t *app)
     }
     app->cfg_dirty = false;
     app->reseed = false;
+}
+
+/* ------------------------------------------------------------------ status */
+
+/* 0x2100's and 0x2005's entries <- plant_app_t.measurement / .plant_state (their names: plant.eds). */
+#define MEASUREMENT_ROW(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_app_measurement_t, record, field),
+#define PLANT_STATE_ROW(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_app_plant_state_t, record, field),
+static const co_field_map_t measurement_rows[] = {OD_PLANT_MEASUREMENT_STATUS(MEASUREMENT_ROW)};
+static const co_field_map_t plant_state_rows[] = {OD_PLANT_PLANT_STATE_STATUS(PLANT_STATE_ROW)};
+#undef MEASUREMENT_ROW
+#undef PLANT_STATE_ROW
+
+/* The sample of this SYNC -> 0x2100 (the TPDOs) and 0x2005. */
+static void publish_sample(plant_app_t *app, uint8_t sync_counter, uint8_t status)
+{
+    plant_app_measurement_t *x = &app->measurement;
+    x->i_a_A = app->meas.i_a_A;
+    x->i_b_A = app->meas.i_b_A;
+    x->theta_m_rad = app->meas.theta_m_rad;
+    x->sync_counter = sync_counter;
+    x->status = status;
+    x->sample_index = (uint16_t)app->k;
+    plant_app_plant_state_t *p = &app->plant_state;
+    p->id_A = app->meas.id_A;
+    p->iq_A = app->meas.iq_A;
+    p->omega_m_rad_s = app->meas.omega_m_rad_s;
+    p->theta_m_rad = app->meas.theta_m_true_rad;
+    p->torque_Nm = app->meas.torque_Nm;
+    p->energy_in_J = app->state.energy.in_J;
+    co_field_map_to_od(measurement_rows, sizeof measurement_rows / sizeof measurement_rows[0], &M, x);
+    co_field_map_to_od(plant_state_rows, sizeof plant_state_rows / sizeof plant_state_rows[0], &M, p);
 }
 
 /* ------------------------------------------------------------------ hooks */
@@ -288,9 +245,9 @@ static void hook_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
 {
     plant_app_t *app = user_app(user, node);
     /* Synchronous RPDO actuated at this SYNC: account for it if poll did not see it yet. */
-    const co_pdo_t *p = cmd_rpdo(app);
+    const co_pdo_t *p = plant_app_cmd_rpdo(app);
     if (p && p == &node->rpdo[pdo] && !(app->cmd_seen && p->last_rx_us == app->cmd_seen_rx_us))
-        note_arrival(app, p->last_rx_us);
+        plant_app_note_arrival(app, p->last_rx_us);
     app->cmd_seen = false;
 }
 
@@ -345,19 +302,7 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     if (held) status |= PLANT_STATUS_HELD;
     app->miss_flag = false;
 
-    M.x2100_Measurement.i_a_A = app->meas.i_a_A;
-    M.x2100_Measurement.i_b_A = app->meas.i_b_A;
-    M.x2100_Measurement.theta_m_rad = app->meas.theta_m_rad;
-    M.x2100_Measurement.sync_counter = counter;
-    M.x2100_Measurement.status = status;
-    M.x2100_Measurement.sample_index = (uint16_t)app->k;
-
-    M.x2005_plant_state.id_A = (float)app->meas.id_A;
-    M.x2005_plant_state.iq_A = (float)app->meas.iq_A;
-    M.x2005_plant_state.omega_m_rad_s = (float)app->meas.omega_m_rad_s;
-    M.x2005_plant_state.theta_m_rad = (float)app->meas.theta_m_true_rad;
-    M.x2005_plant_state.torque_Nm = (float)app->meas.torque_Nm;
-    M.x2005_plant_state.energy_in_J = (float)app->state.energy.in_J;
+    publish_sample(app, counter, status);
 
     M.x2003_run_control.period_index = (uint32_t)app->k;
     /* Still running until the command for this sample is in (see plant_app_poll). */
@@ -418,79 +363,3 @@ static const co_hooks_t k_hooks = {
 };
 
 const co_hooks_t *plant_app_hooks(void) { return &k_hooks; }
-
-/* ------------------------------------------------------------------ drivers */
-
-/* Lockstep: how long the command of the current period may still be waited for (us); 0 when the
- * wait is over; -1 (no wish) when command_timeout_us = 0, which waits for the command as long as
- * the drive is alive (its heartbeat, hook_on_hb_timeout): load then never turns into a held command. */
-static int64_t command_wait_left_us(const plant_app_t *app, int64_t now_us)
-{
-    int64_t timeout = (int64_t)M.x2003_run_control.command_timeout_us;
-    if (timeout == 0) return -1;
-    int64_t left = timeout - (now_us - app->wait_start_us);
-    return left > 0 ? left : 0;
-}
-
-static int produce(plant_app_t *app, int64_t now_us)
-{
-    app->paused = false;
-    return co_sync_produce(app->node, now_us);
-}
-
-int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
-{
-    if (!app->node) return -1;
-    scan_arrivals(app);
-    bool run = plant_app_running(app);
-    if (!run) {
-        /* Holding (run_periods exhausted) or not operational. The hold is announced only once the
-         * command for the last sample is in (or timed out): a master that changes parameters on the
-         * hold then changes them exactly between two periods. The announcement: 0x2003:09 = 0 and
-         * every event-driven TPDO is sent once (map 0x2003 period_index/state into one to be told). */
-        int64_t left = command_wait_left_us(app, now_us);
-        bool settled =
-            app->node->nmt != CO_NMT_OPERATIONAL || !app->started || app->cmd_ready || app->paused || left == 0;
-        app->paused = settled;
-        if (!settled) return left;
-        if (M.x2003_run_control.state != 0u) {
-            M.x2003_run_control.state = 0u;
-            for (uint8_t n = 0; n < CO_NUM_PDO; ++n) co_tpdo_request(app->node, n);
-        }
-        return -1;
-    }
-    if (M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME) return -1; /* real time: the transport ticks */
-    if (app->paused) {
-        app->paused = false;
-        app->wait_start_us = now_us; /* the timeout counts from the resume */
-    }
-    if (!app->started || app->cmd_ready) {
-        produce(app, now_us);
-        return command_wait_left_us(app, now_us);
-    }
-    int64_t left = command_wait_left_us(app, now_us);
-    if (left == 0) {
-        handle_miss(app);
-        produce(app, now_us);
-        return command_wait_left_us(app, now_us);
-    }
-    return left;
-}
-
-int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_us)
-{
-    if (!app->node) return -1;
-    scan_arrivals(app);
-    if (!plant_app_running(app) || M.x2003_run_control.mode != OD_PLANT_MODE_REALTIME) {
-        app->paused = true;
-        return -1;
-    }
-    if (app->started && !app->paused && !app->cmd_ready) handle_miss(app);
-    if (lateness_us > 0) {
-        if (lateness_us > (int64_t)M.x2003_run_control.max_sync_lateness_us)
-            M.x2003_run_control.max_sync_lateness_us = lateness_us > 0xFFFFFFFF ? 0xFFFFFFFFu : (uint32_t)lateness_us;
-        if (lateness_us > period_us(app)) ++M.x2003_run_control.sync_overruns;
-    }
-    app->tick_sched_us = now_us - lateness_us;
-    return produce(app, now_us);
-}

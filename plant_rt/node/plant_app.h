@@ -75,14 +75,38 @@
 #define PLANT_APP_RESYNC_PERIODS 3u
 #define PLANT_APP_SCHED_RING 16u
 
+/* The read-only entries of 0x2100 Measurement and 0x2005 Plant state, named as in plant.eds: the
+ * SYNC fills them and the list od_plant_fields.h generates (OD_PLANT_<RECORD>_STATUS) copies them
+ * to the OD, so an entry's name is written once, in the EDS.  (0x2003 Run control's status stays
+ * in the OD: the plant counts and tests it there.) */
+typedef struct { /* 0x2100 Measurement (TPDO1, TPDO2) */
+    float i_a_A;
+    float i_b_A;
+    float theta_m_rad;
+    uint8_t sync_counter;
+    uint8_t status; /* PLANT_STATUS_* */
+    uint16_t sample_index;
+} plant_app_measurement_t;
+
+typedef struct { /* 0x2005 Plant state: the model's truth, REAL32 in the OD */
+    double id_A;
+    double iq_A;
+    double omega_m_rad_s;
+    double theta_m_rad;
+    double torque_Nm;
+    double energy_in_J;
+} plant_app_plant_state_t;
+
 typedef struct {
     co_node_t *node;
 
     /* model */
     plant_config_t cfg; /* applied configuration */
     plant_state_t state;
-    plant_meas_t meas;          /* sample of the last SYNC */
-    plant_config_t scratch_cfg; /* SDO validation (not in the per-period path) */
+    plant_meas_t meas;                   /* sample of the last SYNC */
+    plant_app_measurement_t measurement; /* 0x2100 of the last SYNC */
+    plant_app_plant_state_t plant_state; /* 0x2005 of the last SYNC */
+    plant_config_t scratch_cfg;          /* SDO validation (not in the per-period path) */
     plant_state_t scratch_state;
     bool cfg_dirty; /* OD 0x2000-0x2002 changed: apply at the next SYNC */
     bool reseed;    /* rng_seed written: re-seed at the next SYNC */
