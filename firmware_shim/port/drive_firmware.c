@@ -27,6 +27,7 @@ void drive_firmware_init(drive_firmware_t *fw, uint8_t node_id)
     drive_app_bind(&fw->app, &fw->node);
     const uint32_t hz = drive_port_cycle_clock_Hz();
     drive_app_set_cycle_counter(&fw->app, hz != 0u ? port_cycles : NULL, NULL, hz);
+    drive_app_set_overrun_check(&fw->app, hz != 0u ? 1u : 0u); /* bare metal: the counter's cycles are the step's */
 }
 
 uint32_t drive_firmware_poll(drive_firmware_t *fw)

@@ -148,9 +148,16 @@ void drive_app_step(drive_app_t *app)
     } else if (app->open_loop) {
         open_loop_step(app, m);
     } else {
-        drive_current_step(d, &app->meas, &app->cmd);
+        drive_current_step(d, &app->meas, &app->cmd); /* a law's bad command is 0 V (drive_core.h) */
+        if (d->st.law_fault != (uint8_t)DRIVE_LAW_FAULT_NONE)
+            drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_LAW_OUTPUT);
     }
-    if (app->cycles_fn != NULL) drive_app_count_step_cost(app, app->cycles_fn(app->cycles_user) - c0);
+    if (app->cycles_fn != NULL) {
+        const uint32_t cycles = app->cycles_fn(app->cycles_user) - c0;
+        drive_app_count_step_cost(app, cycles);
+        if (app->overrun_check != 0u && (float)cycles > d->cfg.Ts_s * (float)app->cycle_clock_Hz)
+            drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_OVERRUN);
+    }
     ++app->drive_status.current_steps;
 
     m->x2102_voltage_command.v_alpha_V = app->cmd.v_alpha_V;
@@ -312,6 +319,8 @@ void drive_app_set_cycle_counter(drive_app_t *app, drive_app_cycles_fn fn, void 
     app->cycle_clock_Hz = clock_Hz;
     drive_app_reset_step_cost(app);
 }
+
+void drive_app_set_overrun_check(drive_app_t *app, uint8_t on) { app->overrun_check = on; }
 
 void drive_app_load_config(drive_app_t *app)
 {

@@ -156,6 +156,8 @@
 #define DRIVE_EMCY_SAFE_MEAS_TIMEOUT 0xFF03u /* safe state entered: measurement timeout */
 #define DRIVE_EMCY_SAFE_HEARTBEAT 0xFF04u    /* safe state entered: plant heartbeat lost */
 #define DRIVE_EMCY_NON_FINITE 0xFF05u        /* non-finite measurement value replaced */
+#define DRIVE_EMCY_SAFE_LAW_OUTPUT 0xFF06u   /* safe state entered: the law's command non-finite or beyond Vmax_V */
+#define DRIVE_EMCY_SAFE_OVERRUN 0xFF07u      /* safe state entered: a current step longer than the period */
 
 /* Reasons in byte 2 of the MSEF of DRIVE_EMCY_MEAS_LATE. */
 enum {
@@ -270,6 +272,7 @@ typedef struct {
     drive_app_cycles_fn cycles_fn;
     void *cycles_user;
     uint32_t cycle_clock_Hz;
+    uint8_t overrun_check; /* 1: a step longer than Ts_s by the counter enters the safe state (overrun) */
     drive_app_step_cost_t step_cost;
     uint64_t step_cycles_sum;
     uint8_t cost_controller; /* 0x2200:01 of the steps measured (a new one resets the statistics) */
@@ -288,6 +291,12 @@ void drive_app_bind(drive_app_t *app, co_node_t *node);
  * none, the entries read 0).  The statistics restart with it, at an NMT reset
  * node and when 0x2200:01 selects another controller. */
 void drive_app_set_cycle_counter(drive_app_t *app, drive_app_cycles_fn fn, void *user, uint32_t clock_Hz);
+
+/* On a target whose counter measures the step alone (a bare-metal MCU: no preemption, cycles are the
+ * step's), a step that takes longer than the current period Ts_s is an overrun: the law is too slow for
+ * the target.  The drive enters its safe state (reason overrun, EMCY 0xFF07).  Off by default: a Linux
+ * process's clock counts the time it was preempted too. */
+void drive_app_set_overrun_check(drive_app_t *app, uint8_t on);
 
 /* Run one current step on the measurement held in 0x2100 (what the RPDO2 hook
  * does; public for drivers that receive the measurement otherwise). */

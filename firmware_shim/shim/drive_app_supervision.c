@@ -192,7 +192,12 @@ int drive_app_heartbeat_lost(const co_node_t *node)
 
 static uint16_t safe_emcy_code(uint8_t reason)
 {
-    return reason == (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST ? DRIVE_EMCY_SAFE_HEARTBEAT : DRIVE_EMCY_SAFE_MEAS_TIMEOUT;
+    switch (reason) {
+    case OD_DRIVE_REASON_HEARTBEAT_LOST: return DRIVE_EMCY_SAFE_HEARTBEAT;
+    case OD_DRIVE_REASON_LAW_OUTPUT: return DRIVE_EMCY_SAFE_LAW_OUTPUT;
+    case OD_DRIVE_REASON_OVERRUN: return DRIVE_EMCY_SAFE_OVERRUN;
+    default: return DRIVE_EMCY_SAFE_MEAS_TIMEOUT;
+    }
 }
 
 void drive_app_enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason)

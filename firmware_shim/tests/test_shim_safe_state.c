@@ -582,6 +582,68 @@ static void test_normal_run_unchanged(void)
     printf("(f) normal run: %d measurements, exactly one frame (the command) each, no EMCY\n", N);
 }
 
+/* ------------------------------------------------------------------ (g), (h) */
+
+/* (g) A law whose command is not finite (here: a NaN model, a law's bug): the drive applies 0 V at that
+ * step, enters its safe state (reason law_output, EMCY 0xFF06) and stays there. */
+static void test_law_output(void)
+{
+    setup(STEP_US);
+    CHECK_TRUE(sdo_write_f32(OD_DRIVE_REFERENCES_IDX, OD_DRIVE_REFERENCES_IQ_REF_A_SUB, 1.0f) == 0);
+    for (uint16_t k = 0; k < 5; ++k) {
+        const drive_meas_t m = meas_of(k);
+        const co_frame_t *f = sample(&m, k);
+        CHECK_TRUE(f != NULL && !cmd_is(f, 0.0f, 0.0f));
+    }
+    g_app.drv.cfg.R_hat_ohm = (float)NAN; /* what no SDO write can do (the EDS range): a broken law */
+    drive_apply_config(&g_app.drv);
+    const drive_meas_t m = meas_of(5);
+    const co_frame_t *f = sample(&m, 5);
+    CHECK_TRUE(f != NULL && cmd_is(f, 0.0f, 0.0f));
+    uint8_t msef[5] = {0};
+    CHECK_TRUE(count_emcy(DRIVE_EMCY_SAFE_LAW_OUTPUT, msef, NULL) == 1 && msef[2] == OD_DRIVE_REASON_LAW_OUTPUT);
+    CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_REASON_SUB) == OD_DRIVE_REASON_LAW_OUTPUT);
+    for (uint16_t k = 6; k < 10; ++k) {
+        const drive_meas_t mk = meas_of(k);
+        const co_frame_t *fk = sample(&mk, k);
+        CHECK_TRUE(fk != NULL && cmd_is(fk, 0.0f, 0.0f));
+    }
+    printf("(g) a law's non-finite command: 0 V at once, safe state law_output, EMCY 0xFF06\n");
+}
+
+static uint32_t g_fake_cycles;
+static uint32_t fake_cycles(void *user)
+{
+    (void)user;
+    g_fake_cycles += 40000u; /* per call: two calls a step, 40 000 cycles apart */
+    return g_fake_cycles;
+}
+
+/* (h) A step longer than the current period by a bare-metal counter (overrun check on): safe state,
+ * reason overrun, EMCY 0xFF07; the same counter without the check (a Linux process) is only counted. */
+static void test_overrun(void)
+{
+    for (int on = 0; on <= 1; ++on) {
+        setup(STEP_US);
+        drive_app_set_cycle_counter(&g_app, fake_cycles, NULL, 1000000000u); /* 40 us a step at 1 GHz */
+        drive_app_set_overrun_check(&g_app, (uint8_t)on);
+        const float Ts = g_app.drv.cfg.Ts_s; /* You 2019: 55 us, above 40 */
+        for (uint16_t k = 0; k < 3; ++k) {
+            const drive_meas_t m = meas_of(k);
+            CHECK_TRUE(sample(&m, k) != NULL);
+        }
+        CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_REASON_SUB) == 0u);
+        g_app.drv.cfg.Ts_s = 30e-6f; /* now 40 us is longer than the period */
+        const drive_meas_t m = meas_of(3);
+        CHECK_TRUE(sample(&m, 3) != NULL);
+        CHECK_TRUE(count_emcy(DRIVE_EMCY_SAFE_OVERRUN, NULL, NULL) == on); /* this exchange's frames */
+        const uint32_t want = on ? (uint32_t)OD_DRIVE_REASON_OVERRUN : 0u;
+        CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_REASON_SUB) == want);
+        g_app.drv.cfg.Ts_s = Ts;
+    }
+    printf("(h) a step of 40 us in a 30 us period: overrun (EMCY 0xFF07) with the check on, counted only without\n");
+}
+
 int main(void)
 {
     test_meas_timeout_and_clear();
@@ -591,5 +653,7 @@ int main(void)
     test_heartbeat_lost();
     test_non_finite();
     test_normal_run_unchanged();
+    test_law_output();
+    test_overrun();
     return check_finish("test_shim_safe_state");
 }

@@ -135,7 +135,8 @@ def test_cli_exit_code_is_the_status(tmp_path: Path) -> None:
 def test_runaway_without_voltage_limit_trips_by_default_and_diverges_without_trip() -> None:
     """Zhao 2022 at L/L0 = 0.68 with the voltage limiter off runs away: the plant's default trip
     (from the preset) stops it; with the trip level off the current passes the inverter's bound
-    first, and the verdict names that, not what followed (a NaN command, the non-finite trip)."""
+    first, and the verdict names that, not what followed: the law's command overflowing, which the drive refuses
+    (0 V, its safe state law_output, EMCY 0xFF06) instead of sending it."""
     raw = zhao(0.68)
     raw["scenario"]["periods"] = 3000
     raw["controller"]["Vmax_V"] = 0.0
@@ -147,9 +148,10 @@ def test_runaway_without_voltage_limit_trips_by_default_and_diverges_without_tri
     s = runaway.summary
     assert runaway.status == "diverged" and runaway.exit_code == 4
     assert s["max_phase_current_A"] > s["divergence_bound_A"]
-    # later events are still reported: the command overflowed to NaN, which the plant refused (trip)
-    assert s["status_flags"]["non_finite"] and s["status_flags"]["tripped"]
-    assert s["first_non_finite_period"] <= s["first_trip_period"]
+    # later events are still reported: the law's command overflowed, the drive refused it and entered its safe
+    # state (EMCY 0xFF06): no non-finite value reached the bus
+    assert not s["status_flags"]["non_finite"] and s["bus_stats"]["non_finite_values"] == {}
+    assert any(e["code"] == "0xFF06" and e["node"] == "drive" for e in s["emcy"]), s["emcy"][:5]
 
 
 def test_stopped_at_period_is_the_last_period_on_the_bus() -> None:

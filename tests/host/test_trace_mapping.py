@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
+from bench.eds import enum
 from bench.paths import EDS_DIR
 from bench.run.configure import enable_cia402
 from bench.run.direct import DirectBus, Hil
@@ -182,16 +183,22 @@ def test_diverging_zhao2022_loop_trips_at_the_preset_level(nodes) -> None:  # ty
     assert abs(ia[-1]) < 1e-3 and abs(ib[-1]) < 1e-3  # the bridge is off: the current decays
 
 
-def test_diverging_zhao2022_loop_trips_on_the_non_finite_command(nodes) -> None:  # type: ignore[no-untyped-def]
+def test_diverging_zhao2022_loop_overflow_puts_the_drive_in_its_safe_state(nodes) -> None:  # type: ignore[no-untyped-def]
     """With the level off (I_trip_A = 0) the drive's float32 law overflows (inf, then NaN from 0 * inf in its
-    inverse Park transform); the plant trips on that command instead of integrating it: currents stay finite."""
+    inverse Park transform). The drive does not send that command (drive_core.c: a law's non-finite command is
+    0 V): it enters its safe state (reason law_output, EMCY 0xFF06) and commands 0 V from then on, so the plant
+    never sees a non-finite command and its currents stay finite. (The plant's own refusal of a non-finite
+    command is tested in plant_rt/tests/test_node_nonfinite.c and tests/host/test_run_status.py.)"""
     hil, plant, drive = nodes
     ia, ib, status, v_mag, trip_active = _run_diverging(hil, plant, drive, 2400, 0.0)
-    bad = int(np.argmax(~np.isfinite(v_mag)))
-    k = int(np.argmax(status & 1))
-    print(f"first non-finite command at period {bad}, trip bit from sample {k}, max |i_b| {np.max(np.abs(ib)):.2e} A")
-    assert bad > 0 and not np.isfinite(v_mag[bad]) and np.isfinite(v_mag[:bad]).all()
-    assert trip_active == 1 and k == bad + 2 and (status[k:] & 1).all() and not (status[:k] & 1).any()
+    assert np.isfinite(v_mag).all()
+    k = int(np.flatnonzero(v_mag > 0.0)[-1]) + 1  # 0 V from here on
+    print(
+        f"0 V from period {k} on (|v*| before: up to {np.max(v_mag[:k]):.3g} V), max |i_b| {np.max(np.abs(ib)):.2e} A"
+    )
+    assert 100 < k < len(v_mag) and (v_mag[k:] == 0.0).all() and np.max(v_mag[:k]) > 1e6
+    assert drive.sdo["Safe state"]["reason"].raw == enum("drive", "Safe state", "reason")["law_output"]
+    assert trip_active == 0 and not (status & 1).any()  # the plant got nothing to trip on
     assert np.isfinite(ia).all() and np.isfinite(ib).all()
 
 
