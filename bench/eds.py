@@ -146,3 +146,12 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
                 value_names(eds_path(node), var),
             )
     return out
+
+
+USER_LAWS = range(0x2400, 0x2500)  # the records of users' laws (protocols/gen_law.py; bench ... --law DIR)
+
+
+@cache
+def user_law_records() -> tuple[str, ...]:
+    """The names of the drive's user-law records: none but in a law's build (BENCH_BUILD_DIR's EDS)."""
+    return tuple(obj.name for obj in load("drive").values() if obj.index in USER_LAWS)

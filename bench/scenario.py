@@ -60,7 +60,7 @@ from typing import Any
 
 from canopen.objectdictionary import datatypes
 
-from .eds import Param, params
+from .eds import Param, params, user_law_records
 from .faults.spec import Fault, FaultError, parse_faults, refuse_lockstep_stalls
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -125,7 +125,10 @@ class Scenario:
 
 
 def _param_tables() -> dict[str, dict[str, Param]]:
-    return {sec: params(node, objs) for sec, (node, objs) in SECTION_OBJECTS.items()}
+    tables = {sec: params(node, objs) for sec, (node, objs) in SECTION_OBJECTS.items()}
+    # a user law's record (0x2400..0x24FF, bench ... --law DIR): its parameters are [controller] keys too
+    tables["controller"] = {**params("drive", user_law_records()), **tables["controller"]}
+    return tables
 
 
 def _fmt_range(p: Param) -> str:
@@ -312,9 +315,9 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     """The trace TPDOs of a scenario without [trace]: the live quantities of the law it starts with
     (bench/run/summary.py CONTROLLER_TRACE, the one table of them). An event that switches laws later
     leaves the mapping as it is: the PDOs are mapped once, before the run."""
-    from .run.summary import CONTROLLER_TRACE
+    from .run.summary import CONTROLLER_TRACE, DRIVE_VIEW
 
-    return dict(CONTROLLER_TRACE[controller_at_start(sc)])
+    return dict(CONTROLLER_TRACE.get(controller_at_start(sc), DRIVE_VIEW))  # a user law: the drive's view
 
 
 def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
