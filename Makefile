@@ -49,6 +49,10 @@ endif
 BUILD    ?= build/laws/$(LAW_NAME)
 GEN_DIR  := $(BUILD)/generated
 GEN_STAMP := $(GEN_DIR)/.stamp
+# The folder this build was made from: another folder with the same law name rebuilds the law's files.
+LAW_FROM := $(BUILD)/law.from
+$(shell mkdir -p '$(BUILD)' && { [ "$$(cat '$(LAW_FROM)' 2>/dev/null)" = '$(abspath $(LAW_DIR))' ] || \
+        echo '$(abspath $(LAW_DIR))' > '$(LAW_FROM)'; })
 LAW_OK   := $(BUILD)/law.ok
 INC      := -I$(GEN_DIR) $(filter-out -Iprotocols/generated,$(INC))
 CO_SRC   := $(filter-out protocols/generated/%,$(CO_SRC)) $(GEN_DIR)/od_drive.c $(GEN_DIR)/od_plant.c
@@ -242,7 +246,7 @@ ifneq ($(strip $(LAW)),)
 law: $(LAW_OK) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(BUILD)/bin/fault_gateway $(BUILD)/libhil.so \
      $(if $(HAVE_MCU_CC),mcu)
 	@echo "make: law $(LAW_NAME) built in $(BUILD)"
-$(GEN_STAMP): $(LAW_DIR)/law.eds $(wildcard protocols/eds/*.eds) protocols/gen_od.py protocols/gen_law.py
+$(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/gen_od.py protocols/gen_law.py
 	$(PYTHON) protocols/gen_od.py --law '$(LAW_DIR)' --out '$(BUILD)'
 	@touch $@
 $(addprefix $(GEN_DIR)/,od_drive.h od_drive.c od_drive_fields.h od_plant.h od_plant.c od_plant_fields.h \
@@ -250,10 +254,10 @@ $(addprefix $(GEN_DIR)/,od_drive.h od_drive.c od_drive_fields.h od_plant.h od_pl
 # Every object after the generated headers (their .d files take over from the second build on).
 $(call obj,$(CO_SRC) $(SCAN_SRC) $(PLANT_SRC) $(FW_SRC) $(HIL_SRC) $(wildcard firmware_shim/shim/*.c plant_rt/node/*.c) \
     protocols/faults/fault_gateway_main.c) $(MCU_OBJ): | $(GEN_STAMP)
-$(BUILD)/obj/law/%.o: $(LAW_DIR)/%.c
+$(BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_FW) $(INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
-$(MCU_BUILD)/obj/law/%.o: $(LAW_DIR)/%.c
+$(MCU_BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
 	@mkdir -p $(@D)
 	$(MCU_CC) $(MCU_CFLAGS) $(MCU_INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
 # The folder must define the descriptor its name promises (current_law_table.c refers to it).

@@ -85,16 +85,26 @@ def build(law: Path, repo: Path) -> Path:
     return out
 
 
+DIAGNOSTIC = re.compile(r": (fatal )?error: |undefined reference to ")
+MAKE_ERROR = re.compile(r"^Makefile:\d+: \*\*\* (.*?)\.?  Stop\.$")
+
+
 def _failure(lines: list[str], law: Path) -> str:
-    """The first lines that say why: gen_od's refusal, the missing descriptor, the compiler's first error."""
+    """The first lines that say why: gen_od's refusal, the Makefile's, the missing descriptor, else the
+    compiler's first error lines (they name the user's file)."""
     for line in lines:
-        if line.startswith("gen_od:") or "defines the symbol current_law_" in line or "***" in line:
-            return re.sub(r"^make(\[\d+\])?: ", "", line)
-    first = next((i for i, line in enumerate(lines) if "error" in line and not line.startswith("make")), None)
-    if first is None:
+        if line.startswith("gen_od:") and not line.startswith("gen_od: wrote"):
+            return line
+        m = MAKE_ERROR.match(line)
+        if m:
+            return m.group(1)
+        if "defines the symbol current_law_" in line:
+            return re.sub(r"^make: ", "", line)
+    errors = [i for i, line in enumerate(lines) if DIAGNOSTIC.search(line)]
+    if not errors:
         return "make failed:\n" + "\n".join(lines[-ERROR_LINES:])
-    start = first - 1 if first > 0 and "In function" in lines[first - 1] else first
-    shown = [line for line in lines[start : start + ERROR_LINES] if not line.startswith("make")]
+    start = errors[0] - 1 if errors[0] > 0 and "In function" in lines[errors[0] - 1] else errors[0]
+    shown = [ln for ln in lines[start:] if not ln.startswith("make") and not COMPILE.search(ln)][:ERROR_LINES]
     return f"the law in {law} does not compile:\n" + "\n".join(shown)
 
 
