@@ -62,12 +62,17 @@ def _record(frag: Path, raw: configparser.ConfigParser) -> tuple[str, int]:
             raise LawError(f"{frag} [{sec}]: a sub-entry of another object than [{top}]")
     if int(raw.get(top, "ObjectType", fallback="0"), 0) != 0x9:
         raise LawError(f"{frag} [{top}]: ObjectType must be 0x9 (a record)")
+    return top, index
+
+
+def _check_index(frag: Path, top: str, index: int, base: configparser.ConfigParser) -> None:
+    if any(int(m.group(1), 16) == index for m in map(SECTION.match, base.sections()) if m):
+        raise LawError(f"{frag} [{top}]: index 0x{index:04X} already used in drive.eds")
     if not USER_LAW_FIRST <= index <= USER_LAW_LAST:
         raise LawError(
             f"{frag} [{top}]: index 0x{index:04X} outside 0x{USER_LAW_FIRST:04X}..0x{USER_LAW_LAST:04X} "
             "(the range reserved for user laws)"
         )
-    return top, index
 
 
 def _law_name(frag: Path, raw: configparser.ConfigParser, top: str, existing: list[str]) -> str:
@@ -162,8 +167,7 @@ def merge(drive_eds: Path, law_dir: Path, supported: Collection[int]) -> tuple[s
     top, index = _record(frag, raw)
     text = drive_eds.read_text()
     base = _parse(text, str(drive_eds))
-    if any(int(SECTION.match(s).group(1), 16) == index for s in base.sections() if SECTION.match(s)):  # type: ignore[union-attr]
-        raise LawError(f"{frag} [{top}]: index 0x{index:04X} already used in drive.eds")
+    _check_index(frag, top, index, base)
     names = [n.strip() for n in base.get(LAW_ENTRY, "ValueNames").split(",")]
     name = _law_name(frag, raw, top, names)
     _check_types(frag, raw, top, supported)
@@ -199,7 +203,14 @@ def _canopen_check(frag: Path, top: str, text: str) -> None:
             path.write_text(text)
             canopen.import_od(str(path))
     except Exception as exc:  # canopen raises what its parsers raise (ValueError, KeyError, ...)
-        raise LawError(f"{frag} [{_section_in(str(exc), top)}]: canopen refused it: {exc}") from None
+        sec = _section_in(str(exc), top)
+        tb = exc.__traceback__
+        while tb is not None:  # the section canopen was reading (its eds.py keeps it in `section`)
+            name = tb.tb_frame.f_locals.get("section")
+            if isinstance(name, str) and name.upper().startswith(top.upper()):
+                sec = name
+            tb = tb.tb_next
+        raise LawError(f"{frag} [{sec}]: canopen refused it: {exc}") from None
     finally:
         logging.getLogger("canopen").removeHandler(handler)
     if handler.messages:

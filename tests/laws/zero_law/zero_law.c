@@ -25,10 +25,7 @@ static void zero_step(void *state, const drive_config_t *cfg, const void *record
     *out = (current_law_out_t){0};
 }
 
-static void zero_reset(void *state)
-{
-    ((zero_law_state_t *)state)->steps = 0u;
-}
+static void zero_reset(void *state) { ((zero_law_state_t *)state)->steps = 0u; }
 
 static void zero_status(const void *state, const drive_config_t *cfg, void *record)
 {
