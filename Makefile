@@ -55,7 +55,7 @@ $(shell mkdir -p '$(BUILD)' && { [ "$$(cat '$(LAW_FROM)' 2>/dev/null)" = '$(absp
         echo '$(abspath $(LAW_DIR))' > '$(LAW_FROM)'; })
 LAW_OK   := $(BUILD)/law.ok
 INC      := -I$(GEN_DIR) $(filter-out -Iprotocols/generated,$(INC))
-CO_SRC   := $(filter-out protocols/generated/%,$(CO_SRC)) $(GEN_DIR)/od_drive.c $(GEN_DIR)/od_plant.c
+CO_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(CO_SRC))
 FW_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(FW_SRC)) $(LAW_SRC)
 .DEFAULT_GOAL := law
 else
