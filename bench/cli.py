@@ -395,7 +395,7 @@ def _with_law(argv: list[str]) -> tuple[list[str], int]:
     except LawBuildError as exc:
         print(f"bench: {exc}", file=sys.stderr)
         return argv, 2
-    if law is None:
+    if law is None or {"-h", "--help"} & set(argv):
         return argv, 0
     rc = use(law)
     if rc == 0 and "bench.paths" in sys.modules:  # something read the default build already: start afresh
