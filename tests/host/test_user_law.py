@@ -6,6 +6,7 @@ from __future__ import annotations
 import configparser
 import importlib.util
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -183,3 +184,33 @@ def test_bench_run_selects_the_users_law(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((out / "summary.json").read_text())
     assert json.dumps(summary).count('"zero_law"') >= 1, summary
+
+
+SCENARIO_PROBE = """
+import json, sys
+from bench.scenario import load
+sc = load(__import__("pathlib").Path(sys.argv[1]), [])
+print(json.dumps([[s.key, s.param.obj, s.param.index, s.value] for s in sc.settings if s.param is not None]))
+"""
+
+
+def test_scenario_selects_the_law_and_sets_its_record_by_name_in_the_laws_build(tmp_path: Path) -> None:
+    """BENCH_BUILD_DIR (what --law sets) brings the merged EDS: the law's value and its record's entries."""
+    out = tmp_path / "out"
+    assert _gen_od().main(["--law", str(FIXTURE), "--out", str(out)]) == 0
+    env = {**os.environ, "BENCH_BUILD_DIR": str(out)}
+    proc = subprocess.run(
+        [sys.executable, "-c", SCENARIO_PROBE, str(SCENARIO)], capture_output=True, text=True, cwd=REPO, env=env
+    )
+    assert proc.returncode == 0, proc.stderr
+    settings = {key: (obj, index, value) for key, obj, index, value in json.loads(proc.stdout)}
+    names = configparser.ConfigParser(strict=False, interpolation=None)
+    names.read(out / "eds" / "drive.eds")
+    assert settings["controller.controller"][2] == names.get("2200sub1", "valuenames").split(",").index("zero_law")
+    assert settings["controller.gain"] == ("Zero law", 0x2400, 0.25)
+    # without the law's build, the plain drive has no such law
+    plain = {k: v for k, v in env.items() if k != "BENCH_BUILD_DIR"}
+    proc = subprocess.run(
+        [sys.executable, "-c", SCENARIO_PROBE, str(SCENARIO)], capture_output=True, text=True, cwd=REPO, env=plain
+    )
+    assert proc.returncode != 0 and "zero_law" in proc.stderr
