@@ -24,7 +24,7 @@ INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/od_*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
 PLANT_SRC := $(wildcard plant_rt/core/*.c)
-FW_SRC    := $(wildcard firmware_shim/core/*.c)
+FW_SRC    := $(wildcard firmware_shim/core/*.c) protocols/generated/current_law_table.c
 # The fault injector between the plant's and the drive's side (portable core + its rule text).
 FAULT_SRC := protocols/faults/fault_injector.c protocols/faults/fault_rules.c
 

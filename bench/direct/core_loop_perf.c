@@ -48,7 +48,7 @@ double hil_core_loop_ns(uint32_t periods)
     if (ps.status != 0) return -1.0;
 
     drive_default_config(&dc); /* You 2019 Tables A1/A2: matches the preset */
-    dc.controller = (uint8_t)DRIVE_CTRL_DEADBEAT_YOU2019;
+    dc.controller = (uint8_t)OD_DRIVE_CONTROLLER_DEADBEAT_YOU2019;
     drive_init(&drv, &dc);
     drv.sp.mode = (uint8_t)DRIVE_MODE_CURRENT;
     drv.sp.iq_ref_A = 1.0f;

@@ -29,15 +29,17 @@
  * the descriptor `const current_law_t current_law_N` of the law's C file.  The
  * papers' laws are registered the same way (docs/YOUR_CONTROLLER.md).
  *
- * What a law may do: float32 arithmetic on its own state, <math.h>.  What it
+ * What a law may do: float32 arithmetic on its own state, <math.h>, dq_math.h.  What it
  * may not: allocate, include an OS header, keep pointers to the drive, block.
  * Its state lives in the drive (CURRENT_LAW_STATE_BYTES, no allocation); its
  * record is the EDS record's generated C struct (od_drive_fields.h). */
 #ifndef CURRENT_LAW_H
 #define CURRENT_LAW_H
 
+#include <math.h>
 #include <stdint.h>
 
+#include "dq_math.h"
 #include "drive_config.h"
 #include "od_drive_fields.h"
 #include "trace_recorder.h"
@@ -72,7 +74,6 @@ typedef enum {
 } current_law_verdict_t;
 
 typedef struct current_law {
-    const char *source;        /* the paper or book the law implements (its C file cites the equations) */
     uint32_t state_bytes;      /* sizeof its state, <= CURRENT_LAW_STATE_BYTES */
     uint8_t single_inductance; /* 1: a surface-mounted law (L_hat = Lq_hat_H), needs a non-salient model */
     void (*configure)(void *state, const drive_config_t *cfg, const void *record, int switched);
@@ -113,6 +114,15 @@ static inline const current_law_entry_t *current_law_find(uint8_t value)
     for (uint8_t i = 0u; i < current_law_count; ++i)
         if (current_law_table[i].value == value) return &current_law_table[i];
     return (const current_law_entry_t *)0;
+}
+
+/* The stator-frame command of a dq command held over [k+1, k+2]: rotated by
+ * the drive's angle advance (angle_advance_periods, 0.5 = the middle of the
+ * interval) at the electrical speed of the sample. */
+static inline void current_law_to_stator(const drive_config_t *cfg, const current_law_in_t *in, current_law_out_t *out)
+{
+    const float th_cmd = in->theta_e_rad + cfg->angle_advance_periods * in->omega_e_rad_s * cfg->Ts_s;
+    dq_inv_park(out->v_d_V, out->v_q_V, cosf(th_cmd), sinf(th_cmd), &out->v_alpha_V, &out->v_beta_V);
 }
 
 /* Reserve a law's state in the drive: a compile-time error when it does not fit. */

@@ -35,7 +35,7 @@ typedef struct {
     float pole_pairs;
     float Vmax_V;                 /* radius of the voltage limit */
     float pi_bandwidth_Hz;        /* PI baseline */
-    uint8_t limited_memory;       /* you2019_deadbeat_memory_t */
+    uint8_t limited_memory;       /* what a law's memory holds: 0 raw output, 1 applied */
     uint8_t deadtime_comp_enable; /* dead-time compensation, on the estimated currents */
     float deadtime_comp_V;
     float deadtime_comp_I_sat_A;

@@ -1,7 +1,8 @@
-/* yao2020_dpcc.c - Yao 2020 improved DPCC: fully discretised model
- * (Eq. 4-7), deadbeat law (Eq. 12), sliding-mode disturbance observer
- * (Eq. 13-18); the R/L identification (Eq. 22-45) it runs every period is in
- * yao2020_identification.c.  See yao2020_dpcc.h for timing, frames and units.
+/* yao2020_dpcc.c - Yao 2020 improved DPCC: deadbeat law (Eq. 12) on the
+ * fully discretised model (Eq. 4-7, yao2020_model.c), sliding-mode
+ * disturbance observer (Eq. 13-18); the R/L identification (Eq. 22-45) it
+ * runs every period is in yao2020_identification.c.  See yao2020_dpcc.h
+ * for timing, frames and units.
  *
  * Complex notation used in the comments: a dq (or alpha-beta) 2-vector
  * [a b] is the complex number a + j b.  Then Tr = exp(-j w T), Tr^-1 =
@@ -62,44 +63,14 @@ void yao2020_dpcc_reset(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *
 
 void yao2020_dpcc_init(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st) { yao2020_dpcc_reset(cfg, st); }
 
-/* Yao 2020 Eq. 5-6 (ZOH of the augmented alpha-beta model Eq. 3):
- *   x  = exp(-R T / L),  y = (1 - x) / R
- *   d1 = ((x - cos wT) R - sin wT  w L) / (R^2 + w^2 L^2)
- *   d2 = -((x - cos wT) w L + sin wT R) / (R^2 + w^2 L^2)
- * i.e. G2 = d1 + j d2 = (x - exp(j w T)) / (R + j w L)   (derived: the
- * integral -1/L int_0^T exp(-R/L (T - t)) exp(j w t) dt; it reproduces
- * Eq. 6 exactly).  y uses expm1f so that it stays accurate for small R T/L,
- * and tends to T/L for R -> 0. */
-void yao2020_dpcc_model(float R_ohm, float L_H, float w_rad_s, float Ts_s, yao2020_dpcc_model_t *m)
-{
-    const float a = Ts_s * R_ohm / L_H;
-    const float one_minus_x = -expm1f(-a);
-    m->x = 1.0f - one_minus_x;
-    m->y = (R_ohm > 1e-9f) ? one_minus_x / R_ohm : Ts_s / L_H;
-    const float wT = w_rad_s * Ts_s;
-    m->c = cosf(wT);
-    m->s = sinf(wT);
-    const float wL = w_rad_s * L_H;
-    const float den = R_ohm * R_ohm + wL * wL;
-    const float xc = m->x - m->c;
-    if (den > 0.0f) {
-        const float inv = 1.0f / den;
-        m->d1 = (xc * R_ohm - m->s * wL) * inv;
-        m->d2 = -(xc * wL + m->s * R_ohm) * inv;
-    } else {
-        m->d1 = -m->y; /* R = w = 0 limit: G2 = -T/L */
-        m->d2 = 0.0f;
-    }
-}
-
 /* ----------------------------------------------------------------- step */
 
 void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st, float id_ref_A, float iq_ref_A,
                        float id_A, float iq_A, float w_rad_s, float theta_e_rad, yao2020_dpcc_cmd_t *cmd)
 {
-    yao2020_dpcc_model_t *m = &st->m;
+    yao2020_model_t *m = &st->m;
     /* Yao 2020 Eq. 5-7 with the current estimates R_hat, L_hat and w(k) */
-    yao2020_dpcc_model(st->R_hat_ohm, st->L_hat_H, w_rad_s, cfg->Ts_s, m);
+    yao2020_model_compute(st->R_hat_ohm, st->L_hat_H, w_rad_s, cfg->Ts_s, m);
 
     /* v(k): voltage acting over [k, k+1], frame theta(k): v(k) = v*(k-1)
      * (Yao 2020 Eq. 9) */
@@ -111,7 +82,7 @@ void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *s
     float fe_d, fe_q;
     {
         const float e = w_rad_s * cfg->psi_hat_Wb;
-        yao2020_dpcc_rot_fwd(m, -m->d2 * e, m->d1 * e, &fe_d, &fe_q);
+        yao2020_model_rot_fwd(m, -m->d2 * e, m->d1 * e, &fe_d, &fe_q);
     }
 
     if (st->primed == 0u) {
@@ -144,7 +115,7 @@ void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *s
          * give p_hat = ... + 2 p(k) - p(k-1) instead.  Observer error dynamics
          * (derived, tested): i_tilde(k+1) = Q i_tilde(k) + p(k-1) - p(k). */
         float Gd, Gq;
-        yao2020_dpcc_rot_fwd(m, ekd, ekq, &Gd, &Gq);
+        yao2020_model_rot_fwd(m, ekd, ekq, &Gd, &Gq);
         st->p_hat_d_A = cfg->Q_d * ekd - m->x * Gd + st->p_prev_d_A;
         st->p_hat_q_A = cfg->Q_q * ekq - m->x * Gq + st->p_prev_q_A;
         st->i_err_d_A = ekd;
@@ -160,8 +131,8 @@ void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *s
     /* Yao 2020 Eq. 22: M(k) = F_hat^-1 p_hat(k) = G2_hat^-1 Tr^-1 p_hat(k) (trace) */
     {
         float a, b;
-        yao2020_dpcc_rot_inv(m, st->p_hat_d_A, st->p_hat_q_A, &a, &b);
-        yao2020_dpcc_g2_solve(m, a, b, &st->M_d_V, &st->M_q_V);
+        yao2020_model_rot_inv(m, st->p_hat_d_A, st->p_hat_q_A, &a, &b);
+        yao2020_model_g2_solve(m, a, b, &st->M_d_V, &st->M_q_V);
     }
 
     /* identification (may change the injection now and R_hat/L_hat for the
@@ -177,7 +148,7 @@ void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *s
     float vd, vq;
     {
         float a, b;
-        yao2020_dpcc_rot_inv(m, r2d - st->p_hat_d_A, r2q - st->p_hat_q_A, &a, &b);
+        yao2020_model_rot_inv(m, r2d - st->p_hat_d_A, r2q - st->p_hat_q_A, &a, &b);
         const float iy = 1.0f / m->y;
         vd = (a - m->x * st->r_prev_d_A) * iy;
         vq = (b - m->x * st->r_prev_q_A) * iy;
@@ -187,8 +158,8 @@ void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *s
     /* Yao 2020 Eq. 13: i_hat(k+1) = G i_hat(k) + H v(k) + p_hat(k) */
     {
         float a, b, c2, d2;
-        yao2020_dpcc_rot_fwd(m, st->i_pred_d_A, st->i_pred_q_A, &a, &b);
-        yao2020_dpcc_rot_fwd(m, st->v_app_d_V, st->v_app_q_V, &c2, &d2);
+        yao2020_model_rot_fwd(m, st->i_pred_d_A, st->i_pred_q_A, &a, &b);
+        yao2020_model_rot_fwd(m, st->v_app_d_V, st->v_app_q_V, &c2, &d2);
         st->i_pred_d_A = m->x * a + m->y * c2 + st->p_hat_d_A;
         st->i_pred_q_A = m->x * b + m->y * d2 + st->p_hat_q_A;
     }
@@ -208,7 +179,7 @@ void yao2020_dpcc_step(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *s
     /* Yao 2020 Eq. 9: v_ref(k) = Tr^-1 v*(k) in the frame of theta(k); stator frame =
      * exp(j theta(k)) v_ref(k) = exp(j (theta(k) + w T)) v*(k) */
     float rd, rq;
-    yao2020_dpcc_rot_inv(m, vd, vq, &rd, &rq);
+    yao2020_model_rot_inv(m, vd, vq, &rd, &rq);
     const float ct = cosf(theta_e_rad), sn = sinf(theta_e_rad);
     cmd->v_star_d_V = vd;
     cmd->v_star_q_V = vq;

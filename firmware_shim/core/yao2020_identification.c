@@ -26,20 +26,20 @@ static float clampf(float v, float lo, float hi)
     return v;
 }
 
-static uint32_t ident_total_phases(const yao2020_dpcc_config_t *cfg)
+static uint32_t ident_total_phases(const yao2020_model_config_t *cfg)
 {
     const uint32_t r = cfg->n_rounds > 0u ? cfg->n_rounds : 1u;
     return 4u * r + 1u;
 }
 
-bool yao2020_identification_running(const yao2020_dpcc_state_t *st)
+bool yao2020_identification_running(const yao2020_model_state_t *st)
 {
     return st->id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE &&
            st->id_state != (uint8_t)YAO2020_IDENTIFICATION_DONE &&
            st->id_state != (uint8_t)YAO2020_IDENTIFICATION_ABORTED;
 }
 
-bool yao2020_identification_start(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st)
+bool yao2020_identification_start(const yao2020_model_config_t *cfg, yao2020_model_state_t *st)
 {
     if (yao2020_identification_running(st) || st->primed == 0u) {
         return false;
@@ -86,8 +86,8 @@ bool yao2020_identification_start(const yao2020_dpcc_config_t *cfg, yao2020_dpcc
      *        dM_q = w T/(y L) (L - L_hat) did
      *        dM_d = s w T x/(s^2 + (c - x)^2) (R - R_hat) did */
     {
-        yao2020_dpcc_model_t m0;
-        yao2020_dpcc_model(st->R_hat_ohm, st->L_hat_H, st->w_start_rad_s, cfg->Ts_s, &m0);
+        yao2020_model_t m0;
+        yao2020_model_compute(st->R_hat_ohm, st->L_hat_H, st->w_start_rad_s, cfg->Ts_s, &m0);
         const float ai = fabsf(cfg->inj_id_A);
         const float aw = fabsf(st->w_start_rad_s);
         float kq, kd;
@@ -106,7 +106,7 @@ bool yao2020_identification_start(const yao2020_dpcc_config_t *cfg, yao2020_dpcc
     return true;
 }
 
-static void ident_abort(yao2020_dpcc_state_t *st, yao2020_identification_abort_reason_t why)
+static void ident_abort(yao2020_model_state_t *st, yao2020_identification_abort_reason_t why)
 {
     st->id_state = (uint8_t)YAO2020_IDENTIFICATION_ABORTED;
     st->abort_reason = (uint8_t)why;
@@ -115,27 +115,27 @@ static void ident_abort(yao2020_dpcc_state_t *st, yao2020_identification_abort_r
     st->L_hat_H = st->L_start_H;
 }
 
-void yao2020_identification_abort(yao2020_dpcc_state_t *st)
+void yao2020_identification_abort(yao2020_model_state_t *st)
 {
     if (yao2020_identification_running(st)) {
         ident_abort(st, YAO2020_IDENTIFICATION_ABORT_USER);
     }
 }
 
-float yao2020_identification_progress(const yao2020_dpcc_config_t *cfg, const yao2020_dpcc_state_t *st)
+float yao2020_identification_progress(const yao2020_model_config_t *cfg, const yao2020_model_state_t *st)
 {
     if (st->id_state == (uint8_t)YAO2020_IDENTIFICATION_DONE) return 1.0f;
     return (float)st->phases_done / (float)ident_total_phases(cfg);
 }
 
-bool yao2020_identification_result(const yao2020_dpcc_state_t *st, float *R_ohm, float *L_H)
+bool yao2020_identification_result(const yao2020_model_state_t *st, float *R_ohm, float *L_H)
 {
     *R_ohm = st->R_id_ohm;
     *L_H = st->L_id_H;
     return st->id_state == (uint8_t)YAO2020_IDENTIFICATION_DONE;
 }
 
-static void next_phase(yao2020_dpcc_state_t *st, yao2020_identification_phase_t s)
+static void next_phase(yao2020_model_state_t *st, yao2020_identification_phase_t s)
 {
     st->id_state = (uint8_t)s;
     st->phase_count = 0u;
@@ -144,7 +144,7 @@ static void next_phase(yao2020_dpcc_state_t *st, yao2020_identification_phase_t 
     memset(st->acc, 0, sizeof(st->acc));
 }
 
-void yao2020_identification_update(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st, float iq_ref_A,
+void yao2020_identification_update(const yao2020_model_config_t *cfg, yao2020_model_state_t *st, float iq_ref_A,
                                    float id_A, float iq_A, float w_rad_s)
 {
     if (!yao2020_identification_running(st)) {
@@ -164,10 +164,10 @@ void yao2020_identification_update(const yao2020_dpcc_config_t *cfg, yao2020_dpc
         ident_abort(st, YAO2020_IDENTIFICATION_ABORT_LOW_SPEED);
         return;
     }
-    const yao2020_dpcc_model_t *m = &st->m;
+    const yao2020_model_t *m = &st->m;
     /* Tr^-1 p_hat(k); M(k) = F^-1 p_hat = G2^-1 Tr^-1 p_hat (Yao 2020 Eq. 22) */
     float tp_d, tp_q;
-    yao2020_dpcc_rot_inv(m, st->p_hat_d_A, st->p_hat_q_A, &tp_d, &tp_q);
+    yao2020_model_rot_inv(m, st->p_hat_d_A, st->p_hat_q_A, &tp_d, &tp_q);
     st->phase_count++;
     const yao2020_identification_phase_t s = (yao2020_identification_phase_t)st->id_state;
     switch (s) {
@@ -221,7 +221,7 @@ void yao2020_identification_update(const yao2020_dpcc_config_t *cfg, yao2020_dpc
         if (cfg->rereference != 0u) {
             const float ad = tp_d - (st->N0_d - m->x * st->i0_d - m->y * st->v0_d);
             const float aq = tp_q - (st->N0_q - m->x * st->i0_q - m->y * st->v0_q);
-            yao2020_dpcc_g2_solve(m, ad, aq, &st->dM_d_V, &st->dM_q_V);
+            yao2020_model_g2_solve(m, ad, aq, &st->dM_d_V, &st->dM_q_V);
         } else {
             st->dM_d_V = st->M_d_V - st->M0_d;
             st->dM_q_V = st->M_q_V - st->M0_q;

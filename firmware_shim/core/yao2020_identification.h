@@ -6,7 +6,9 @@
  *
  * Its configuration and state are part of yao2020_dpcc_config_t and
  * yao2020_dpcc_state_t (the estimates R_hat/L_hat are the controller's
- * model); yao2020_dpcc_step() runs yao2020_identification_update() every
+ * model), i.e. of yao2020_model_config_t and yao2020_model_state_t: the same
+ * types, defined in yao2020_model.h so that this header does not include
+ * yao2020_dpcc.h; yao2020_dpcc_step() runs yao2020_identification_update() every
  * period after the observer.  The enums below are the values of the uint8_t
  * fields gain_select, id_state, abort_reason and motor_class. */
 #ifndef YAO2020_IDENTIFICATION_H
@@ -15,7 +17,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "yao2020_dpcc.h"
+#include "yao2020_model.h"
 
 /* Motor class of Yao 2020 Definitions 1 and 2 (Eq. 30-31). */
 typedef enum {
@@ -64,20 +66,20 @@ yao2020_identification_motor_class_t yao2020_identification_classify(float R_ohm
 /* Identification commands.  start: from IDLE/DONE/ABORTED, requires steady
  * speed and iq reference (checked every period while running; a change
  * aborts and restores the R_hat/L_hat held at the start). */
-bool yao2020_identification_start(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st);
-void yao2020_identification_abort(yao2020_dpcc_state_t *st);
-bool yao2020_identification_running(const yao2020_dpcc_state_t *st);
+bool yao2020_identification_start(const yao2020_model_config_t *cfg, yao2020_model_state_t *st);
+void yao2020_identification_abort(yao2020_model_state_t *st);
+bool yao2020_identification_running(const yao2020_model_state_t *st);
 /* 0..1: completed phases / total phases of the sequence. */
-float yao2020_identification_progress(const yao2020_dpcc_config_t *cfg, const yao2020_dpcc_state_t *st);
+float yao2020_identification_progress(const yao2020_model_config_t *cfg, const yao2020_model_state_t *st);
 /* Converged values (true when the sequence is DONE). */
-bool yao2020_identification_result(const yao2020_dpcc_state_t *st, float *R_ohm, float *L_H);
+bool yao2020_identification_result(const yao2020_model_state_t *st, float *R_ohm, float *L_H);
 
 /* Identification update of one period (state machine + Yao 2020 Eq. 22-45
  * estimator), called by yao2020_dpcc_step() after the observer; public for the
  * perf tool.
  * Uses st->p_hat, st->m, st->v_app and the measured current; updates
  * R_hat/L_hat (effective from the next step) and st->id_inj_A. */
-void yao2020_identification_update(const yao2020_dpcc_config_t *cfg, yao2020_dpcc_state_t *st, float iq_ref_A,
+void yao2020_identification_update(const yao2020_model_config_t *cfg, yao2020_model_state_t *st, float iq_ref_A,
                                    float id_A, float iq_A, float w_rad_s);
 
 #endif

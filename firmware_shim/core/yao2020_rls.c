@@ -4,7 +4,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "yao2020_dpcc.h"
+#include "yao2020_model.h"
 
 void yao2020_rls_default_config(yao2020_rls_config_t *cfg)
 {
@@ -18,8 +18,8 @@ void yao2020_rls_default_config(yao2020_rls_config_t *cfg)
 void yao2020_rls_init(const yao2020_rls_config_t *cfg, yao2020_rls_state_t *st, float R0_ohm, float L0_H)
 {
     memset(st, 0, sizeof(*st));
-    yao2020_dpcc_model_t m;
-    yao2020_dpcc_model(R0_ohm, L0_H, 0.0f, cfg->Ts_s, &m);
+    yao2020_model_t m;
+    yao2020_model_compute(R0_ohm, L0_H, 0.0f, cfg->Ts_s, &m);
     st->x_hat = m.x;
     st->y_hat = m.y;
     st->P11 = cfg->P0_x;
@@ -36,8 +36,8 @@ void yao2020_rls_update(const yao2020_rls_config_t *cfg, yao2020_rls_state_t *st
         const float wT = st->w * T;
         const float c = cosf(wT), s = sinf(wT);
         /* G2_hat from the current estimates (Yao 2020 Eq. 6 with Eq. 48) */
-        yao2020_dpcc_model_t m;
-        yao2020_dpcc_model(st->R_hat_ohm, st->L_hat_H, st->w, T, &m);
+        yao2020_model_t m;
+        yao2020_model_compute(st->R_hat_ohm, st->L_hat_H, st->w, T, &m);
         const float e = st->w * cfg->psi_hat_Wb;
         /* Yao 2020 Eq. 47: y = Tr^-1 i(k) - G2_hat e(k-1) */
         const float yd = (c * id_A - s * iq_A) - (-m.d2 * e);

@@ -20,27 +20,19 @@ static int is_finite_f(float x) { return (x - x) == 0.0f; /* false for NaN and +
 /* The drive's parameter records -> drive_config_t, one row per EDS entry (the
  * lists od_drive_fields.h generates; the config's fields carry the EDS names). */
 #define AT_ROOT(index, sub, record, field, eds_default) CO_FIELD_MAP_ROW(od_drive_mfr_t, drive_config_t, record, field),
-#define IN_IDENT(index, sub, record, field, eds_default) \
-    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, ident, record, field),
 #define IN_OUTER(index, sub, record, field, eds_default) \
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, record, field),
-#define IN_YAO(index, sub, record, field, eds_default) \
-    CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, yao, record, field),
 /* one list a line (clang-format would run the macro lists together) */
 /* clang-format off */
 static const co_field_map_t config_rows[] = {
     OD_DRIVE_CONTROLLER_PARAMS(AT_ROOT)
-    OD_DRIVE_ONLINE_TUNING_PARAMS(IN_IDENT)
     OD_DRIVE_OUTER_LOOPS_PARAMS(IN_OUTER)
-    OD_DRIVE_YAO_2020_DPCC_PARAMS(IN_YAO)
     /* the profile of References belongs to the outer loops */
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, x2202_References, profile_speed_rad_s),
     CO_FIELD_MAP_ROW_IN(od_drive_mfr_t, drive_config_t, outer, x2202_References, profile_accel_rad_s2)};
 /* clang-format on */
 #undef AT_ROOT
-#undef IN_IDENT
 #undef IN_OUTER
-#undef IN_YAO
 
 /* OD -> drive_config_t.  core_ctrl: controller to keep when the OD selects the
  * open loop (the core has no open-loop controller). */
@@ -50,14 +42,88 @@ static void od_to_config(const od_drive_mfr_t *m, drive_config_t *c, uint8_t cor
     if (c->controller == (uint8_t)OD_DRIVE_CONTROLLER_OPEN_LOOP) c->controller = core_ctrl;
 }
 
-/* Would the core accept the parameter records of m?  (Its rules: drive_config_check.) */
-static uint32_t check_config(const drive_t *d, const od_drive_mfr_t *m, int controller_written)
+/* ------------------------------------------------------------------ the laws' records */
+
+/* The C struct of a manufacturer record in the OD at m (its sub-index 0 is its first member), NULL for none. */
+static void *od_record(const co_node_t *node, od_drive_mfr_t *m, uint16_t index)
 {
-    drive_config_t c = d->cfg;
+    const co_od_entry_t *e = node != NULL ? co_od_find(node->od, index, 0u, NULL) : NULL;
+    if (e == NULL) return NULL;
+    const size_t off = (size_t)((const uint8_t *)e->data - (const uint8_t *)mfr_of(node));
+    return (uint8_t *)m + off;
+}
+
+typedef struct {
+    const co_node_t *node;
+    od_drive_mfr_t *m;
+} record_ctx_t;
+
+static const void *record_in(uint16_t index, void *user)
+{
+    const record_ctx_t *x = (const record_ctx_t *)user;
+    return od_record(x->node, x->m, index);
+}
+
+/* 1 when a law's record at `index` (0x2201, 0x2206, ..., a user law's 0x24xx). */
+static int is_law_record(uint16_t index)
+{
+    for (uint8_t i = 0u; i < current_law_count; ++i)
+        if (current_law_table[i].record_index == index && index != 0u) return 1;
+    return 0;
+}
+
+/* The law that takes commands on the record at `index`, NULL for none. */
+static const current_law_entry_t *commanded_law(uint16_t index)
+{
+    for (uint8_t i = 0u; i < current_law_count; ++i)
+        if (current_law_table[i].record_index == index && current_law_table[i].law->command != NULL)
+            return &current_law_table[i];
+    return NULL;
+}
+
+/* The selected law's record, OD -> drive, when its parameters (its writable entries) differ from what
+ * the drive holds; returns 1 then.  Status entries (written by pre_read) are not a change. */
+static int sync_law_record(drive_app_t *app)
+{
+    co_node_t *node = app->node;
+    drive_t *d = &app->drv;
+    const current_law_entry_t *e = current_law_find(d->cfg.controller);
+    if (node == NULL || e == NULL || e->record_index == 0u) return 0;
+    const uint8_t *rec = (const uint8_t *)od_record(node, mfr_of(node), e->record_index);
+    if (rec == NULL) return 0;
+    int differ = d->law_record_index != e->record_index;
+    for (uint16_t sub = 1u; !differ && sub <= 0xFFu; ++sub) {
+        const co_od_entry_t *x = co_od_find(node->od, e->record_index, (uint8_t)sub, NULL);
+        if (x == NULL) break;
+        if ((x->flags & CO_ODF_WRITE) == 0u) continue;
+        const size_t off = (size_t)((const uint8_t *)x->data - rec);
+        differ = memcmp(d->law_record + off, x->data, co_od_value_size(x)) != 0;
+    }
+    if (differ) drive_set_law_record(d, rec, e->record_bytes);
+    return differ;
+}
+
+static uint32_t abort_of(current_law_verdict_t v)
+{
+    switch (v) {
+    case CURRENT_LAW_OK:
+    case CURRENT_LAW_NOT_COMMAND: return 0u;
+    case CURRENT_LAW_INCOMPATIBLE: return CO_ABORT_PARAM_INCOMPAT;
+    case CURRENT_LAW_NOT_NOW: return CO_ABORT_DATA_STATE;
+    default: return CO_ABORT_INVALID_VALUE;
+    }
+}
+
+/* Would the core accept the parameter records of m (a candidate OD)?  (Its rules: drive_config_check,
+ * and every law's on its record.) */
+static uint32_t check_config(const drive_app_t *app, od_drive_mfr_t *m, int controller_written)
+{
+    drive_config_t c = app->drv.cfg;
     co_field_map_to_core(config_rows, sizeof config_rows / sizeof config_rows[0], m, &c); /* 0 = open loop */
     if (controller_written && drive_config_check_selection(&c) != DRIVE_CONFIG_OK)
         return CO_ABORT_INVALID_VALUE; /* a surface-mounted law with a salient model */
-    switch (drive_config_check(&c, m->x2202_References.mode)) {
+    record_ctx_t ctx = {app->node, m};
+    switch (drive_config_check(&c, m->x2202_References.mode, record_in, &ctx)) {
     case DRIVE_CONFIG_OK: return 0;
     case DRIVE_CONFIG_NO_SUCH_CONTROLLER: return CO_ABORT_INVALID_VALUE;
     default: return CO_ABORT_PARAM_INCOMPAT;
@@ -158,55 +224,14 @@ static void trace_linearise(drive_app_t *app)
 
 static void refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
 {
-    const drive_t *d = &app->drv;
+    drive_t *d = &app->drv;
+    const current_law_entry_t *selected = current_law_find(d->cfg.controller);
+    if (selected != NULL && selected->record_index == index) drive_update_config(d); /* selected, not yet run */
+    if (d->law != NULL && d->law->record_index == index && d->law->record_index != 0u) {
+        drive_law_status(d, od_record(app->node, m, index)); /* the selected law's status entries */
+        return;
+    }
     switch (index) {
-    case OD_DRIVE_ONLINE_TUNING_IDX: {
-#define t (&m->x2201_online_tuning)
-        t->det_A2 = d->ident.q.det_A2;
-        t->K1_hat_V_A = d->ident.q.K1_hat_V_A;
-        t->K2_hat_V_A = d->ident.q.K2_hat_V_A;
-        t->K1_bar_V_A = d->ident.q.K1_bar_V_A;
-        t->K2_bar_V_A = d->ident.q.K2_bar_V_A;
-        t->L_hat_H = d->ident.q.L_hat_H;
-        t->identifications = d->ident.q.n_identified;
-        t->K1_active_V_A = d->db.K1q_V_A;
-        t->K2_active_V_A = d->db.K2q_V_A;
-        t->gain_updates = d->st.n_gain_updates;
-#undef t
-        break;
-    }
-    case OD_DRIVE_YAO_2020_DPCC_IDX: {
-#define y (&m->x2206_yao_2020_dpcc)
-        const yao2020_dpcc_state_t *st = &d->yao;
-        y->ident_state = st->id_state;
-        y->abort_reason = st->abort_reason;
-        y->progress = yao2020_identification_progress(&d->yao_cfg, st);
-        y->R_hat_ohm = st->R_hat_ohm;
-        y->L_hat_H = st->L_hat_H;
-        y->R_id_ohm = st->R_id_ohm;
-        y->L_id_H = st->L_id_H;
-        y->L_converged = st->L_converged;
-        y->R_converged = st->R_converged;
-        y->t_L_conv_s = (float)st->t_L_conv_periods * d->cfg.Ts_s;
-        y->t_R_conv_s = (float)st->t_R_conv_periods * d->cfg.Ts_s;
-        y->dM_d_V = st->dM_d_V;
-        y->dM_q_V = st->dM_q_V;
-        y->motor_class = st->motor_class;
-        y->gains_high = st->gains_high;
-        y->rls_R_hat_ohm = d->rls.R_hat_ohm;
-        y->rls_L_hat_H = d->rls.L_hat_H;
-        y->p_hat_d_A = st->p_hat_d_A;
-        y->p_hat_q_A = st->p_hat_q_A;
-#undef y
-        break;
-    }
-    case OD_DRIVE_ZHAO_2022_IDX:
-        m->x2207_zhao_2022.K1_V_A = d->inc.K1_V_A;
-        m->x2207_zhao_2022.K2_V_A = d->inc.K2_V_A;
-        m->x2207_zhao_2022.G_V_A = d->eul.G_V_A;
-        m->x2207_zhao_2022.limited =
-            d->cfg.controller == (uint8_t)DRIVE_CTRL_INCREMENTAL_ZHAO2022 ? d->inc.limited : d->eul.limited;
-        break;
     case OD_DRIVE_DRIVE_STATUS_IDX: {
 #define s (&m->x2204_drive_status)
         s->current_steps = app->current_steps;
@@ -383,23 +408,23 @@ static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
         vq = 0.0f;
         ++app->non_finite_rejected;
     }
-    s->v_limited = dq_limit_voltage(&vd, &vq, d->cfg.Vmax_V, d->cfg.vlimit_radial);
+    s->out.v_limited = dq_limit_voltage(&vd, &vq, d->cfg.Vmax_V, d->cfg.vlimit_radial);
     const float cs = cosf(s->theta_e_rad);
     const float sn = sinf(s->theta_e_rad);
-    s->v_d_V = s->v_d_star_V = vd;
-    s->v_q_V = s->v_q_star_V = vq;
-    s->v_d_ff_V = s->v_q_ff_V = 0.0f;
-    dq_inv_park(vd, vq, cs, sn, &s->v_alpha_V, &s->v_beta_V);
+    s->out.v_d_V = s->out.v_d_star_V = vd;
+    s->out.v_q_V = s->out.v_q_star_V = vq;
+    s->out.v_d_ff_V = s->out.v_q_ff_V = 0.0f;
+    dq_inv_park(vd, vq, cs, sn, &s->out.v_alpha_V, &s->out.v_beta_V);
     s->signals[TRACE_SIG_VQ] = vq;
     s->signals[TRACE_SIG_VD] = vd;
     s->signals[TRACE_SIG_VQ_STAR] = vq;
     s->signals[TRACE_SIG_VD_STAR] = vd;
-    s->signals[TRACE_SIG_V_ALPHA] = s->v_alpha_V;
-    s->signals[TRACE_SIG_V_BETA] = s->v_beta_V;
-    s->signals[TRACE_SIG_V_LIMITED] = (float)s->v_limited;
+    s->signals[TRACE_SIG_V_ALPHA] = s->out.v_alpha_V;
+    s->signals[TRACE_SIG_V_BETA] = s->out.v_beta_V;
+    s->signals[TRACE_SIG_V_LIMITED] = (float)s->out.v_limited;
     if (rec != NULL) trace_sample(rec, s->signals);
-    app->cmd.v_alpha_V = s->v_alpha_V;
-    app->cmd.v_beta_V = s->v_beta_V;
+    app->cmd.v_alpha_V = s->out.v_alpha_V;
+    app->cmd.v_beta_V = s->out.v_beta_V;
 }
 
 /* ------------------------------------------------------------------ CiA 402 (drive_app.h) */
@@ -556,11 +581,11 @@ static void cia402_check_stopped(drive_app_t *app, co_node_t *node)
 static void zero_voltage(drive_t *d)
 {
     drive_state_t *s = &d->st;
-    s->v_d_V = s->v_q_V = 0.0f;
-    s->v_d_star_V = s->v_q_star_V = 0.0f;
-    s->v_d_ff_V = s->v_q_ff_V = 0.0f;
-    s->v_alpha_V = s->v_beta_V = 0.0f;
-    s->v_limited = 0u;
+    s->out.v_d_V = s->out.v_q_V = 0.0f;
+    s->out.v_d_star_V = s->out.v_q_star_V = 0.0f;
+    s->out.v_d_ff_V = s->out.v_q_ff_V = 0.0f;
+    s->out.v_alpha_V = s->out.v_beta_V = 0.0f;
+    s->out.v_limited = 0u;
     s->signals[TRACE_SIG_VQ] = 0.0f;
     s->signals[TRACE_SIG_VD] = 0.0f;
     s->signals[TRACE_SIG_VQ_STAR] = 0.0f;
@@ -819,7 +844,7 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
         const int16_t code = (int16_t)(uint16_t)(data[0] | (data[1] << 8));
         return code == 3 || code == 4 ? CO_ABORT_INVALID_VALUE : 0u; /* torque / voltage limit: not here */
     }
-    if (idx < OD_DRIVE_CONTROLLER_IDX || idx > OD_DRIVE_LIVE_TRACE_IDX) return 0;
+    if ((idx < OD_DRIVE_CONTROLLER_IDX || idx > OD_DRIVE_LIVE_TRACE_IDX) && !is_law_record(idx)) return 0;
     const uint32_t sz = co_dt_size(e->datatype);
     if (sz == 0u || len != sz) return 0; /* lengths already checked by the core */
 
@@ -833,21 +858,19 @@ static uint32_t hk_pre_write(void *user, co_node_t *node, const co_od_entry_t *e
     tmp.data = (uint8_t *)&cand + off;
     co_od_store(&tmp, data, len);
 
-    if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX)
-        return check_config(&app->drv, &cand,
-                            idx == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB);
-
-    if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
-        const drive_t *d = &app->drv;
-        if (data[0] == 1u) {
-            if (d->cfg.controller != (uint8_t)DRIVE_CTRL_DPCC_YAO2020 ||
-                m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP || d->cfg.yao.observer_enable == 0u)
-                return CO_ABORT_PARAM_INCOMPAT; /* the identification needs the DPCC with its observer */
-            if (d->yao.primed == 0u || yao2020_identification_running(&d->yao))
-                return CO_ABORT_DATA_STATE; /* not run yet / already running */
+    if (is_law_record(idx)) { /* a law's command, or its parameters */
+        const current_law_entry_t *law = commanded_law(idx);
+        if (law != NULL) {
+            const int open_loop = m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP;
+            const current_law_verdict_t v =
+                drive_law_command(&app->drv, law, od_record(node, &cand, idx), e->subindex, open_loop, 0);
+            if (v != CURRENT_LAW_NOT_COMMAND) return abort_of(v);
         }
-        return 0;
+        return check_config(app, &cand, 0);
     }
+    if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX)
+        return check_config(app, &cand,
+                            idx == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB);
 
     if (idx == OD_DRIVE_SAFE_STATE_IDX && e->subindex == OD_DRIVE_SAFE_STATE_CLEAR_SUB) {
         if (data[0] > 1u) return CO_ABORT_INVALID_VALUE; /* 0: no action (what a read gives back), 1: clear */
@@ -899,14 +922,12 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
         return;
     default: break;
     }
-    if (idx == OD_DRIVE_YAO_2020_DPCC_IDX && e->subindex == OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB) {
-        const uint8_t cmd = m->x2206_yao_2020_dpcc.ident_command;
-        m->x2206_yao_2020_dpcc.ident_command = 0u; /* a command, not a state */
-        if (cmd == 1u)
-            (void)drive_yao_ident_start(&app->drv);
-        else if (cmd == 2u)
-            drive_yao_ident_abort(&app->drv);
-        return;
+    const current_law_entry_t *law = commanded_law(idx);
+    if (law != NULL) {
+        const int open_loop = m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP;
+        if (drive_law_command(&app->drv, law, od_record(node, m, idx), e->subindex, open_loop, 1) !=
+            CURRENT_LAW_NOT_COMMAND)
+            return;
     }
     if (idx == OD_DRIVE_SAFE_STATE_IDX && e->subindex == OD_DRIVE_SAFE_STATE_CLEAR_SUB) {
         const uint8_t v = m->x2209_safe_state.clear;
@@ -915,17 +936,16 @@ static void hk_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
         return;
     }
     const int is_config =
-        idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_ONLINE_TUNING_IDX || idx == OD_DRIVE_OUTER_LOOPS_IDX ||
-        idx == OD_DRIVE_YAO_2020_DPCC_IDX ||
+        idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_OUTER_LOOPS_IDX || is_law_record(idx) ||
         (idx == OD_DRIVE_REFERENCES_IDX && (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
                                             e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));
     if (is_config) { /* the one config-change path: copy, and recompute at the next step if it changed */
         drive_config_t c = app->drv.cfg;
         od_to_config(m, &c, c.controller);
-        if (memcmp(&c, &app->drv.cfg, sizeof c) != 0) {
-            app->drv.cfg = c;
-            drive_apply_config(&app->drv);
-        }
+        int changed = memcmp(&c, &app->drv.cfg, sizeof c) != 0;
+        if (changed) app->drv.cfg = c;
+        changed |= sync_law_record(app); /* the selected law's record (also when the selection changed) */
+        if (changed) drive_apply_config(&app->drv);
         return;
     }
     if (idx == OD_DRIVE_TRACE_IDX && e->subindex == OD_DRIVE_TRACE_STATE_SUB) {
@@ -1024,6 +1044,7 @@ static void hk_on_reset(void *user, co_node_t *node, int communication_only)
         drive_default_config(&cfg);
         od_to_config(m, &cfg, cfg.controller);
         drive_init(&app->drv, &cfg);
+        if (sync_law_record(app)) drive_apply_config(&app->drv);
         trace_init(&app->trace);
         drive_attach_trace(&app->drv, &app->trace);
         app->current_steps = app->lost = app->late = app->emcy_raised = 0u;
@@ -1092,5 +1113,6 @@ void drive_app_load_config(drive_app_t *app)
 {
     if (app->node == NULL) return;
     od_to_config(mfr_of(app->node), &app->drv.cfg, app->drv.cfg.controller);
+    (void)sync_law_record(app);
     drive_apply_config(&app->drv);
 }

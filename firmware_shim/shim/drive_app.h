@@ -23,20 +23,17 @@
  * field through drive_apply_config() (also at the next step).  Invalid
  * combinations are refused in pre_write with SDO abort 0x06040043.
  *
- * OD controller numbering (0x2200:01) vs the core's drive_controller_t:
- *   0 open loop (shim), n >= 1 -> core controller n - 1 (1 PI, 2 deadbeat
- *   You 2019, 3 DPCC Yao 2020, 4 incremental deadbeat Zhao 2022, 5
- *   forward-Euler predictive Zhao 2022); values whose core controller does
- *   not exist (>= DRIVE_CTRL_COUNT) abort with 0x06090030.  3-5 are
- *   surface-mounted laws (L = Lq_hat_H): selecting one while |Ld_hat_H -
- *   Lq_hat_H| > 5 % of Lq_hat_H aborts with 0x06090030 too.
+ * Controllers (0x2200:01): 0 is the app's open loop; every other value is a
+ *   current law of the registry (firmware_shim/core/current_law.h, generated
+ *   from the EDS's value names), n the row of value n; a value without a row
+ *   aborts with 0x06090030, and so does selecting a surface-mounted law
+ *   (single_inductance) while |Ld_hat_H - Lq_hat_H| > 5 % of Lq_hat_H.
  *
- * Yao 2020 (0x2206): its settings reach the core like the others (next
- * step); 0x2206:15 ident_command = 1 starts the R/L identification at once
- * (abort 0x06040043 without controller 3 and its observer, 0x08000022
- * before the first step or while running), 2 aborts it; it reads back 0.
- * The read-only entries (state, progress, R_hat/L_hat, RLS estimates) are
- * refreshed on every read (SDO or TPDO).
+ * A law's EDS record (CurrentLaws key of its section): its parameters reach
+ *   the law like the drive's (post_write, next step); the law checks them
+ *   (pre_write, abort 0x06040043); its commands (entries that read back 0) act
+ *   at once (current_law_t.command); its status entries are written by the
+ *   law on every read (pre_read).
  *
  * Measurement supervision (counted in 0x2204, never silently skipped):
  *   lost (0x2204:02)  gap in sample_index (modulo 65536): every missing sample

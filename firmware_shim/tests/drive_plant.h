@@ -13,6 +13,7 @@
 #include <math.h>
 
 #include "drive_core.h"
+#include "law_states.h"
 #include "motor_model.h"
 
 typedef struct {

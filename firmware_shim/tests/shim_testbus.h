@@ -13,6 +13,7 @@
 #include "check.h"
 #include "drive_app.h"
 #include "drive_core.h"
+#include "law_states.h"
 #include "od_drive.h"
 #include "testbus.h"
 

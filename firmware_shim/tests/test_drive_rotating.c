@@ -28,8 +28,9 @@ int main(void)
     drive_default_config(&cfg);
     cfg.Lq_hat_H *= 0.5f;
     cfg.Ld_hat_H *= 0.5f;
-    cfg.ident.enable = 1u;
     drive_init(&drv, &cfg);
+    ((od_drive_online_tuning_t *)drive_law_record(&drv))->enable = 1u;
+    drive_apply_config(&drv);
     double maxe1 = 0, maxe2 = 0;
     int nacc = 0;
     static double iq[4000];
@@ -40,10 +41,10 @@ int main(void)
         drv.sp.iq_ref_A = (k / 500) % 2 ? 0.5f : -0.5f;
         drive_current_step(&drv, &m, &c);
         iq[k] = (double)drv.st.i_q_A;
-        if (k > 100 && drv.ident.q.accepted) {
+        if (k > 100 && YOU2019_OF(drv)->ident.q.accepted) {
             nacc++;
-            const double e1 = fabs((double)drv.ident.q.K1_hat_V_A - K1) / K1;
-            const double e2 = fabs((double)drv.ident.q.K2_hat_V_A - K2) / K2;
+            const double e1 = fabs((double)YOU2019_OF(drv)->ident.q.K1_hat_V_A - K1) / K1;
+            const double e2 = fabs((double)YOU2019_OF(drv)->ident.q.K2_hat_V_A - K2) / K2;
             if (e1 > maxe1) maxe1 = e1;
             if (e2 > maxe2) maxe2 = e2;
         }
@@ -55,9 +56,9 @@ int main(void)
     printf("[at 1500 rpm, L_hat=0.5L] accepted=%d max err K1_hat=%.2f%% K2_hat=%.2f%%; "
            "K1 active=%.3f (true %.3f) L_hat=%.3f mH; last step -0.5->0.5 A: iq(k+1..k+4)=%.3f %.3f %.3f %.3f,"
            " max|iq-0.5| k+2..k+19=%.3f\n",
-           nacc, 100 * maxe1, 100 * maxe2, (double)drv.db.K1q_V_A, K1, 1e3 * (double)drv.ident.q.L_hat_H, iq[3501],
-           iq[3502], iq[3503], iq[3504], dev);
-    CHECK(fabs((double)drv.db.K1q_V_A - K1) / K1 < 0.03, "tuned K1 at speed");
+           nacc, 100 * maxe1, 100 * maxe2, (double)YOU2019_OF(drv)->db.K1q_V_A, K1,
+           1e3 * (double)YOU2019_OF(drv)->ident.q.L_hat_H, iq[3501], iq[3502], iq[3503], iq[3504], dev);
+    CHECK(fabs((double)YOU2019_OF(drv)->db.K1q_V_A - K1) / K1 < 0.03, "tuned K1 at speed");
     CHECK(dev < 0.02, "2-period response at speed after tuning");
 
     /* 2. speed mode with free mechanics: 0 -> 100 rad/s */

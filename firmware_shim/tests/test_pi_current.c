@@ -14,7 +14,7 @@ static void run(double ref, double *overshoot, int *t98, int *nlim, double *fina
     drive_plant_t pl;
     drive_plant_init(&pl, "you2019");
     drive_default_config(&cfg);
-    cfg.controller = (uint8_t)DRIVE_CTRL_PI;
+    cfg.controller = (uint8_t)OD_DRIVE_CONTROLLER_PI;
     drive_init(&drv, &cfg);
     double imax = 0;
     *t98 = -1;
@@ -29,8 +29,9 @@ static void run(double ref, double *overshoot, int *t98, int *nlim, double *fina
         const double iq = (double)drv.st.i_q_A;
         if (iq > imax) imax = iq;
         if (*t98 < 0 && iq >= 0.98 * ref) *t98 = k - 10;
-        *nlim += drv.st.v_limited;
-        if (fabs((double)drv.pi.integ_q_V) > *integ_max) *integ_max = fabs((double)drv.pi.integ_q_V);
+        *nlim += drv.st.out.v_limited;
+        if (fabs((double)YOU2019_OF(drv)->pi.integ_q_V) > *integ_max)
+            *integ_max = fabs((double)YOU2019_OF(drv)->pi.integ_q_V);
         *final = iq;
         drive_plant_advance(&pl, &c);
     }

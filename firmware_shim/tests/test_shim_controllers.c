@@ -110,7 +110,8 @@ static void run_controller(uint8_t od_ctrl)
 
     static drive_t ref;
     configure_ref(&ref, core_ctrl);
-    ref.cfg.yao.rls_enable = od_ctrl == 3u ? 1u : 0u;
+    if (drive_law_record(&ref) != NULL) /* the surface-mounted laws: Yao 2020's record (0x2206) only */
+        ((od_drive_yao_2020_dpcc_t *)drive_law_record(&ref))->rls_enable = od_ctrl == 3u ? 1u : 0u;
     drive_apply_config(&ref);
 
     /* direct cores, configured from the same values */
@@ -142,9 +143,14 @@ static void run_controller(uint8_t od_ctrl)
     for (uint16_t k = 0; k < (uint16_t)N; ++k) {
         if (od_ctrl == 3u && k == K_ID) {
             CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 1u) == 0);
-            CHECK_TRUE(drive_yao_ident_start(&ref));
+            od_drive_yao_2020_dpcc_t *yrec = (od_drive_yao_2020_dpcc_t *)drive_law_record(&ref);
+            yrec->ident_command = 1u;
+            CHECK_TRUE(drive_law_command(&ref, ref.law, yrec, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 0, 0) ==
+                       CURRENT_LAW_OK);
+            (void)drive_law_command(&ref, ref.law, yrec, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 0, 1);
+            CHECK_TRUE(yao2020_identification_running(&YAO2020_OF(ref)->st));
             CHECK_TRUE(yao2020_identification_start(&ycfg, &yst));
-            CHECK_TRUE(yao2020_identification_running(&g_app.drv.yao));
+            CHECK_TRUE(yao2020_identification_running(&YAO2020_OF(g_app.drv)->st));
         }
         const drive_meas_t m = meas_of(k);
         const co_frame_t *f = sample(&m, k);
@@ -181,12 +187,13 @@ static void run_controller(uint8_t od_ctrl)
     CHECK_TRUE(n_same_drive == N);
     CHECK_TRUE(n_same_core == N);
     if (od_ctrl == 3u) {
-        CHECK_TRUE(g_app.drv.yao.id_state == yst.id_state && yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
+        CHECK_TRUE(YAO2020_OF(g_app.drv)->st.id_state == yst.id_state &&
+                   yst.id_state != (uint8_t)YAO2020_IDENTIFICATION_IDLE);
         CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_L_HAT_H_SUB), yst.L_hat_H));
         CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_SUB), rls.R_hat_ohm));
         CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
         CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
-        CHECK_TRUE(g_app.drv.yao.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
+        CHECK_TRUE(YAO2020_OF(g_app.drv)->st.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
         CHECK_TRUE(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
     }
     if (od_ctrl == 4u) {

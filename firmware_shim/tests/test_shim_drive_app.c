@@ -181,7 +181,7 @@ static void test_sdo_gains(void)
         drive_current_step(&ref, &m, &c);
     }
     const float K1_before = sdo_read_f32(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_SUB);
-    CHECK_TRUE(testbus_same_f32(K1_before, ref.db.K1q_V_A));
+    CHECK_TRUE(testbus_same_f32(K1_before, YOU2019_OF(ref)->db.K1q_V_A));
 
     /* the real frame: 23 00 22 06 <REAL32 LE> (expedited download, 4 bytes) */
     const float Lq_new = 2.27e-3f; /* 50 % of the motor's Lq */
@@ -193,7 +193,7 @@ static void test_sdo_gains(void)
     const co_frame_t *r = find(COB_SDO_TX, 0);
     CHECK_TRUE(r && r->data[0] == 0x60 && r->data[1] == 0x00 && r->data[2] == 0x22 && r->data[3] == 0x06);
     CHECK_TRUE(testbus_same_f32(OD_DRIVE.mfr.x2200_Controller.Lq_hat_H, Lq_new));
-    CHECK_TRUE(testbus_same_f32(g_app.drv.db.K1q_V_A, K1_before)); /* not before the next step */
+    CHECK_TRUE(testbus_same_f32(YOU2019_OF(g_app.drv)->db.K1q_V_A, K1_before)); /* not before the next step */
 
     ref.cfg.Lq_hat_H = Lq_new; /* the same mismatch knob, written directly ... */
     drive_apply_config(&ref);  /* ... through the one config-change path */
@@ -204,7 +204,7 @@ static void test_sdo_gains(void)
     float A, B, K1e, K2e;
     you2019_deadbeat_model_gains(55e-6f, 1.4f, Lq_new, &A, &B);
     you2019_deadbeat_controller_gains(A, B, &K1e, &K2e);
-    CHECK_TRUE(testbus_same_f32(K1_after, K1e) && testbus_same_f32(K1_after, ref.db.K1q_V_A));
+    CHECK_TRUE(testbus_same_f32(K1_after, K1e) && testbus_same_f32(K1_after, YOU2019_OF(ref)->db.K1q_V_A));
     CHECK_TRUE(K1_after < 0.6f * K1_before);
 
     /* aborts: range, unimplemented controller, invalid combinations */
@@ -230,7 +230,8 @@ static void test_sdo_gains(void)
     /* a non-watched field (memory reading) reaches the core through drive_apply_config */
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LIMITED_MEMORY_SUB, 1) == 0);
     CHECK_TRUE(g_app.drv.cfg.limited_memory == 1u && g_app.drv.st.dirty == 1u);
-    CHECK_TRUE(g_app.drv.cfg.deadtime_comp_enable == 1u && g_app.drv.cfg.ident.enable == 1u);
+    CHECK_TRUE(g_app.drv.cfg.deadtime_comp_enable == 1u &&
+               ((od_drive_online_tuning_t *)drive_law_record(&g_app.drv))->enable == 1u);
     CHECK_TRUE(sample(&m, 6) != NULL);
     CHECK_TRUE(g_app.drv.st.dirty == 0u);
     printf("(c) SDO 23 00 22 06 Lq_hat = %.3g H: K1 %.3f -> %.3f V/A at the next step (bit-identical to the core); "

@@ -206,9 +206,9 @@ static void test_meas_timeout_and_clear(void)
         const drive_state_t *s = &g_app.drv.st;
         same_core += testbus_same_f32(s->i_q_A, ref.st.i_q_A) && testbus_same_f32(s->theta_e_rad, ref.st.theta_e_rad) &&
                      testbus_same_f32(g_app.drv.outer.omega_m_rad_s, ref.outer.omega_m_rad_s) &&
-                     testbus_same_f32(g_app.drv.est.i_hat_q_A, ref.est.i_hat_q_A);
-        CHECK_TRUE(zero_f(s->v_alpha_V) && zero_f(s->v_beta_V) && zero_f(s->v_d_V) && zero_f(s->v_q_V) &&
-                   zero_f(s->v_d_star_V) && zero_f(s->v_q_star_V));
+                     testbus_same_f32(YOU2019_OF(g_app.drv)->est.i_hat_q_A, YOU2019_OF(ref)->est.i_hat_q_A);
+        CHECK_TRUE(zero_f(s->out.v_alpha_V) && zero_f(s->out.v_beta_V) && zero_f(s->out.v_d_V) &&
+                   zero_f(s->out.v_q_V) && zero_f(s->out.v_d_star_V) && zero_f(s->out.v_q_star_V));
         CHECK_TRUE(zero_f(drive_signal(&g_app.drv, TRACE_SIG_V_ALPHA)) &&
                    zero_f(drive_signal(&g_app.drv, TRACE_SIG_V_BETA)) &&
                    zero_f(drive_signal(&g_app.drv, TRACE_SIG_VQ)) && zero_f(drive_signal(&g_app.drv, TRACE_SIG_VD)));

@@ -7,6 +7,7 @@
 
 #include "yao2020_dpcc.h"
 #include "yao2020_identification.h"
+#include "yao2020_model.h"
 #include "yao2020_common.h"
 
 #include "check.h"
@@ -34,8 +35,8 @@ static void check_model(const char *name, motor_t *pl, double w, double iscale, 
         pl->v_beta_pend_V = vbe;
         yplant_advance(pl, 0.0, 0.0);
         /* Yao 2020 Eq. 7: i(k+1) = Tr (x i + y v + G2 e), e = [0 w psi] */
-        yao2020_dpcc_model_t m;
-        yao2020_dpcc_model((float)pl->par.R_ohm, (float)pl->par.Lq_H, (float)w, (float)pl->par.Ts_s, &m);
+        yao2020_model_t m;
+        yao2020_model_compute((float)pl->par.R_ohm, (float)pl->par.Lq_H, (float)w, (float)pl->par.Ts_s, &m);
         const double e = w * pl->par.psi_Wb;
         const double ad = (double)m.x * id0 + (double)m.y * vd - (double)m.d2 * e;
         const double aq = (double)m.x * iq0 + (double)m.y * vq + (double)m.d1 * e;

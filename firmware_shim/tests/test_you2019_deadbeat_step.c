@@ -32,8 +32,8 @@ static void run_step(const drive_config_t *cfg, double iq_ref, run_t *r)
         drv.sp.iq_ref_A = k >= K0 ? (float)iq_ref : 0.0f;
         drive_current_step(&drv, &m, &c);
         r->iq[k] = (double)drv.st.i_q_A;
-        r->vq[k] = (double)drv.st.v_q_V;
-        r->nlim += drv.st.v_limited;
+        r->vq[k] = (double)drv.st.out.v_q_V;
+        r->nlim += drv.st.out.v_limited;
         drive_plant_advance(&pl, &c);
     }
 }

@@ -45,7 +45,7 @@ int main(void)
             drive_plant_measure(&pl, &m);
             drv.sp.iq_ref_A = (k / 200) % 2 ? 1.5f : -0.5f;
             drive_current_step(&drv, &m, &cmd);
-            ih[k] = (double)drv.est.i_hat_q_A;
+            ih[k] = (double)YOU2019_OF(drv)->est.i_hat_q_A;
             ii[k] = (double)drv.st.i_q_A;
             drive_plant_advance(&pl, &cmd);
         }

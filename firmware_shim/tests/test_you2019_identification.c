@@ -19,15 +19,17 @@ static void run_case(double lf, int d_axis)
     drive_default_config(&cfg);
     cfg.Lq_hat_H = (float)(lf * 4.54e-3);
     cfg.Ld_hat_H = (float)(lf * 4.46e-3);
-    cfg.ident.enable = 1u;
-    cfg.ident.separate_d_axis = (uint8_t)d_axis;
     drive_init(&drv, &cfg);
+    od_drive_online_tuning_t *tuning = (od_drive_online_tuning_t *)drive_law_record(&drv);
+    tuning->enable = 1u;
+    tuning->separate_d_axis = (uint8_t)d_axis;
+    drive_apply_config(&drv);
     const int k0 = 13, k1 = 400;
     int n_acc = 0, first_acc = -1, upd_step = -1, est_pi_step = -1;
     double max_e1 = 0, max_e2 = 0, min_absdet_acc = 1e9;
     float kp_before = 0;
     double i_hist[600];
-    const you2019_identification_axis_state_t *ax = d_axis ? &drv.ident.d : &drv.ident.q;
+    const you2019_identification_axis_state_t *ax = d_axis ? &YOU2019_OF(drv)->ident.d : &YOU2019_OF(drv)->ident.q;
     for (int k = 0; k < 600; ++k) {
         drive_meas_t m;
         drive_cmd_t c;
@@ -37,8 +39,8 @@ static void run_case(double lf, int d_axis)
             drv.sp.id_ref_A = ref;
         else
             drv.sp.iq_ref_A = ref;
-        const uint32_t nupd = drv.st.n_gain_updates;
-        kp_before = d_axis ? drv.est.kp_d : drv.est.kp_q;
+        const uint32_t nupd = YOU2019_OF(drv)->n_gain_updates;
+        kp_before = d_axis ? YOU2019_OF(drv)->est.kp_d : YOU2019_OF(drv)->est.kp_q;
         drive_current_step(&drv, &m, &c);
         i_hist[k] = (double)(d_axis ? drv.st.i_d_A : drv.st.i_q_A);
         if (ax->accepted) {
@@ -49,12 +51,14 @@ static void run_case(double lf, int d_axis)
             if (first_acc < 0) first_acc = k;
             n_acc++;
         }
-        if (upd_step < 0 && drv.st.n_gain_updates != nupd) upd_step = k;
-        if (upd_step >= 0 && est_pi_step < 0 && (d_axis ? drv.est.kp_d : drv.est.kp_q) != kp_before) est_pi_step = k;
+        if (upd_step < 0 && YOU2019_OF(drv)->n_gain_updates != nupd) upd_step = k;
+        if (upd_step >= 0 && est_pi_step < 0 &&
+            (d_axis ? YOU2019_OF(drv)->est.kp_d : YOU2019_OF(drv)->est.kp_q) != kp_before)
+            est_pi_step = k;
         drive_plant_advance(&pl, &c);
     }
-    const float K1a = d_axis ? drv.db.K1d_V_A : drv.db.K1q_V_A;
-    const float K2a = d_axis ? drv.db.K2d_V_A : drv.db.K2q_V_A;
+    const float K1a = d_axis ? YOU2019_OF(drv)->db.K1d_V_A : YOU2019_OF(drv)->db.K1q_V_A;
+    const float K2a = d_axis ? YOU2019_OF(drv)->db.K2d_V_A : YOU2019_OF(drv)->db.K2q_V_A;
     printf("[%s L_hat=%.1fL] accepted ids=%d (min |det| %.3f A^2), max err K1_hat=%.2e K2_hat=%.2e;"
            " first accepted k=%d, gains loaded k=%d (%d periods after), est PI k=%d\n",
            d_axis ? "d-axis" : "q-axis", lf, n_acc, min_absdet_acc, max_e1, max_e2, first_acc, upd_step,
@@ -62,7 +66,7 @@ static void run_case(double lf, int d_axis)
     printf("  K1_bar=%.4f (true %.4f) K2_bar=%.4f (true %.4f) A_hat=%.7f (true %.7f) L_hat=%.4f mH"
            " (true %.4f) active K1=%.4f K2=%.4f; q->d copy K1d=%.4f\n",
            (double)ax->K1_bar_V_A, K1, (double)ax->K2_bar_V_A, K2, (double)ax->A_hat, A, 1e3 * (double)ax->L_hat_H,
-           1e3 * L, (double)K1a, (double)K2a, (double)drv.db.K1d_V_A);
+           1e3 * L, (double)K1a, (double)K2a, (double)YOU2019_OF(drv)->db.K1d_V_A);
     printf("  i after first step:");
     for (int k = k0; k < k0 + 14; ++k) printf(" %.3f", i_hist[k]);
     printf("\n  i after second step:");
@@ -80,7 +84,7 @@ static void run_case(double lf, int d_axis)
     CHECK(fabs((double)K1a - K1) / K1 < 0.01 && fabs((double)K2a - K2) / K2 < 0.01, "active gains");
     CHECK(fabs((double)ax->L_hat_H - L) / L < 0.01, "L_hat (You 2019 Eq. 32)");
     CHECK(fabs(i_hist[k1 + 1] - 1.0) < 0.01 && maxdev2 < 0.01 * 2.0, "not back to the 2-period deadbeat response");
-    if (!d_axis) CHECK(fabs((double)drv.db.K1d_V_A - K1) / K1 < 0.01, "q->d copy");
+    if (!d_axis) CHECK(fabs((double)YOU2019_OF(drv)->db.K1d_V_A - K1) / K1 < 0.01, "q->d copy");
 }
 
 int main(void)

@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include "drive_core.h"
+#include "you2019_identification.h"
 
 static double now_ns(void)
 {
@@ -24,9 +25,13 @@ static double bench(uint8_t controller, uint8_t tuning, long n)
     drive_config_t cfg;
     drive_default_config(&cfg);
     cfg.controller = controller;
-    cfg.ident.enable = tuning;
     cfg.Lq_hat_H = 0.8f * cfg.Lq_hat_H;
     drive_init(&drv, &cfg);
+    od_drive_online_tuning_t *tuning_record = (od_drive_online_tuning_t *)drive_law_record(&drv);
+    if (tuning_record != NULL) { /* the deadbeat law's record: You 2019 online tuning */
+        tuning_record->enable = tuning;
+        drive_apply_config(&drv);
+    }
     drive_meas_t m = {0.0f, 0.0f, 0.0f};
     drive_cmd_t c;
     /* crude first-order plant in the loop so the code paths are realistic */
@@ -70,10 +75,14 @@ int main(int argc, char **argv)
     long n = argc > 1 ? atol(argv[1]) : 1000000L;
     if (n < 1) n = 1;
     printf("steps per case: %ld\n", n);
-    printf("deadbeat current step:                 %8.1f ns\n", bench((uint8_t)DRIVE_CTRL_DEADBEAT_YOU2019, 0u, n));
-    printf("deadbeat + identification step:        %8.1f ns\n", bench((uint8_t)DRIVE_CTRL_DEADBEAT_YOU2019, 1u, n));
-    const unsigned nupd = (unsigned)drv.st.n_gain_updates;
-    printf("PI current step:                       %8.1f ns\n", bench((uint8_t)DRIVE_CTRL_PI, 0u, n));
+    printf("deadbeat current step:                 %8.1f ns\n",
+           bench((uint8_t)OD_DRIVE_CONTROLLER_DEADBEAT_YOU2019, 0u, n));
+    printf("deadbeat + identification step:        %8.1f ns\n",
+           bench((uint8_t)OD_DRIVE_CONTROLLER_DEADBEAT_YOU2019, 1u, n));
+    od_drive_online_tuning_t tuned;
+    drive_law_status(&drv, &tuned);
+    const unsigned nupd = (unsigned)tuned.gain_updates;
+    printf("PI current step:                       %8.1f ns\n", bench((uint8_t)OD_DRIVE_CONTROLLER_PI, 0u, n));
     const long na = n / 8 > 0 ? n / 8 : 1;
     printf("identification update (You 2019 Eq. 28-32): %8.1f ns\n", bench_average(na));
     printf("gain updates applied in tuning run:    %u\n", nupd);

@@ -7,6 +7,10 @@ The include lines of protocols/canopen/*.c and *.h are read; a module is a file 
     through another header;
   - the module graph has no cycle (co_node -> co_pdo -> co_node was the old one).
 The checker itself is tested on the old layout, rebuilt in a temporary folder.
+
+The controller cores (firmware_shim/core/*.c, *.h) have no include cycle either (issue 26: the
+Yao 2020 DPCC and its identification included each other; the shared model, configuration and
+state are now in yao2020_model, below both).
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from pathlib import Path
 from bench.paths import REPO
 
 CANOPEN = REPO / "protocols" / "canopen"
+CORE = REPO / "firmware_shim" / "core"
 SERVICE_PREFIXES = ("co_pdo", "co_sdo", "co_emcy", "co_od")
 NODE = "co_node"
 INCLUDE_RE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.M)
@@ -127,3 +132,31 @@ def test_checker_on_synthetic_graphs() -> None:
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"x": {"y"}, "y": {"y"}}) == ["y", "y"]
     assert reaches({"s": {"h"}, "h": {"co_node"}}, "s", "co_node") == ["s", "h", "co_node"]
+
+
+def test_controller_cores_have_no_include_cycle() -> None:
+    graph = module_graph(CORE)
+    assert find_cycle(graph) is None, f"include cycle: {' -> '.join(find_cycle(graph) or [])}"
+    assert {"yao2020_dpcc", "yao2020_identification", "yao2020_model"} <= graph.keys()
+    # Yao 2020: model <- identification <- dpcc; neither the identification nor the RLS
+    # baseline reaches the DPCC.
+    assert reaches(graph, "yao2020_identification", "yao2020_dpcc") is None
+    assert reaches(graph, "yao2020_rls", "yao2020_dpcc") is None
+    assert reaches(graph, "yao2020_dpcc", "yao2020_model") == ["yao2020_dpcc", "yao2020_model"]
+
+
+def test_checker_finds_the_old_yao2020_cycle(tmp_path: Path) -> None:
+    """The layout before issue 26: the DPCC's types and model helpers in yao2020_dpcc.h, which
+    the identification's header included, and yao2020_dpcc.c calling the identification."""
+    old = {
+        "dq_math.h": [],
+        "yao2020_dpcc.h": [],
+        "yao2020_dpcc.c": ["yao2020_dpcc.h", "dq_math.h", "yao2020_identification.h"],
+        "yao2020_identification.h": ["yao2020_dpcc.h"],
+        "yao2020_identification.c": ["yao2020_identification.h"],
+        "yao2020_rls.h": [],
+        "yao2020_rls.c": ["yao2020_rls.h", "yao2020_dpcc.h"],
+    }
+    for name, includes in old.items():
+        (tmp_path / name).write_text("".join(f'#include "{h}"\n' for h in includes) + "#include <math.h>\n")
+    assert find_cycle(module_graph(tmp_path)) == ["yao2020_dpcc", "yao2020_identification", "yao2020_dpcc"]

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from bench.eds import enum as enum_values
 from bench.paths import REPO
 
 PAPERS = ("You 2019", "Yao 2020", "Zhao 2022")
@@ -214,11 +215,21 @@ def test_every_eds_description_names_its_paper() -> None:
 
 
 # ------------------------------------------------------------------ file name = prefix
-def global_functions(obj: Path) -> list[str]:
+def global_symbols(obj: Path, kinds: str) -> list[str]:
     out = subprocess.run(
         [shutil.which("nm") or "nm", "--defined-only", str(obj)], capture_output=True, text=True, check=True
     ).stdout
-    return sorted(f[2] for f in (line.split() for line in out.splitlines()) if len(f) == 3 and f[1] == "T")
+    return sorted(f[2] for f in (line.split() for line in out.splitlines()) if len(f) == 3 and f[1] in kinds)
+
+
+def global_functions(obj: Path) -> list[str]:
+    return global_symbols(obj, "T")
+
+
+def law_descriptors(obj: Path) -> list[str]:
+    """The global data a paper file exports: only its current laws' registry descriptors
+    (firmware_shim/core/current_law.h), named current_law_<Controller.controller value name>."""
+    return global_symbols(obj, "DRB")
 
 
 def compile_object(src: Path, tmp: Path) -> Path:
@@ -226,7 +237,10 @@ def compile_object(src: Path, tmp: Path) -> Path:
     assert cc, "no C compiler"
     obj = tmp / (src.stem + ".o")
     subprocess.run(
-        [cc, "-std=c11", "-O2", f"-I{CORE}", "-c", str(src), "-o", str(obj)], check=True, capture_output=True, text=True
+        [cc, "-std=c11", "-O2", f"-I{CORE}", f"-I{REPO / 'protocols' / 'generated'}", "-c", str(src), "-o", str(obj)],
+        check=True,
+        capture_output=True,
+        text=True,
     )
     return obj
 
@@ -278,9 +292,14 @@ def test_paper_files_exist() -> None:
 
 @pytest.mark.parametrize("src", PAPER_SOURCES, ids=[p.name for p in PAPER_SOURCES])
 def test_paper_file_defines_only_its_prefix(src: Path, tmp_path: Path) -> None:
-    assert global_functions(compile_object(src, tmp_path)), f"{src.name} defines no function"
+    obj = compile_object(src, tmp_path)
+    laws = law_descriptors(obj)
+    assert global_functions(obj) or laws, f"{src.name} defines no function and no current law"
     bad = misnamed_functions(src, tmp_path)
     assert not bad, f"{src.name} defines {bad}: its functions must be named {src.stem}_*"
+    names = set(enum_values("drive", "Controller", "controller"))
+    bad_laws = [n for n in laws if not (n.startswith("current_law_") and n.removeprefix("current_law_") in names)]
+    assert not bad_laws, f"{src.name} exports {bad_laws}: only current_law_<Controller.controller value name>"
     header = src.with_suffix(".h")
     assert header.exists(), f"{header.name} missing"
     bad_h = misnamed_header_names(header)
