@@ -51,8 +51,9 @@ GEN_DIR  := $(BUILD)/generated
 GEN_STAMP := $(GEN_DIR)/.stamp
 # The folder this build was made from: another folder with the same law name rebuilds the law's files.
 LAW_FROM := $(BUILD)/law.from
-$(shell mkdir -p '$(BUILD)' && { [ "$$(cat '$(LAW_FROM)' 2>/dev/null)" = '$(abspath $(LAW_DIR))' ] || \
-        echo '$(abspath $(LAW_DIR))' > '$(LAW_FROM)'; })
+# (its objects and their dependency files, which name the other folder's files, are dropped first).
+$(shell mkdir -p '$(BUILD)' && { [ "$$(cat '$(LAW_FROM)' 2>/dev/null)" = '$(abspath $(LAW_DIR))' ] || { \
+        rm -rf '$(BUILD)/obj/law' '$(BUILD)/mcu/obj/law' && echo '$(abspath $(LAW_DIR))' > '$(LAW_FROM)'; }; })
 LAW_OK   := $(BUILD)/law.ok
 INC      := -I$(GEN_DIR) $(filter-out -Iprotocols/generated,$(INC))
 CO_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(CO_SRC))

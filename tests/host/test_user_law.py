@@ -179,11 +179,21 @@ def _core_has_registry() -> bool:
 
 @pytest.mark.skipif(not _core_has_registry(), reason="the drive core does not use the law registry yet (main)")
 def test_bench_run_selects_the_users_law(tmp_path: Path) -> None:
+    """End to end: the law's build runs, the drive runs the law (0 V: no current), its record is the
+    scenario's (gain) and its status reaches the trace (steps)."""
+    import numpy as np
+
     out = tmp_path / "run"
     proc = _bench("run", str(SCENARIO), "--law", str(FIXTURE), "--bus", "direct", "--out", str(out), "--no-viewer")
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((out / "summary.json").read_text())
-    assert json.dumps(summary).count('"zero_law"') >= 1, summary
+    assert summary["identified"]["controller"] == "zero_law", summary["identified"]
+    assert summary["status"] == "ok"
+    tr = np.load(out / "traces.npy")
+    steps = tr["Zero_law_steps"][np.isfinite(tr["Zero_law_steps"])]
+    assert len(steps) > 10 and np.all(np.diff(steps) > 0), steps
+    assert np.all(tr["Zero_law_gain_seen"][np.isfinite(tr["Zero_law_gain_seen"])] == np.float32(0.25))
+    assert np.nanmax(np.abs(tr["v_alpha_V"])) == 0.0 and np.nanmax(np.abs(tr["v_beta_V"])) == 0.0
 
 
 SCENARIO_PROBE = """

@@ -36,7 +36,6 @@ static void zero_status(const void *state, const drive_config_t *cfg, void *reco
 }
 
 const current_law_t current_law_zero_law = {
-    .source = "none: a test fixture (0 V)",
     .state_bytes = (uint32_t)sizeof(zero_law_state_t),
     .single_inductance = 0u,
     .configure = zero_configure,
