@@ -129,6 +129,11 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
         for var in subs:
             if not var.writable or var.subindex == 0 and not isinstance(obj, ODVariable):
                 continue
+            if var.name in out:  # e.g. a user law's parameter named like one of the drive's
+                raise ValueError(
+                    f"{eds_path(node)}: {oname}.{var.name} and {out[var.name].obj}.{var.name} are both parameters "
+                    f"of one scenario section: rename one (a scenario key names one entry)"
+                )
             if var.data_type == datatypes.REAL32:
                 lo, hi = float_limits(eds_path(node), var)
             else:
@@ -147,11 +152,3 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
             )
     return out
 
-
-USER_LAWS = range(0x2400, 0x2500)  # the records of users' laws (protocols/gen_law.py; bench ... --law DIR)
-
-
-@cache
-def user_law_records() -> tuple[str, ...]:
-    """The names of the drive's user-law records: none but in a law's build (BENCH_BUILD_DIR's EDS)."""
-    return tuple(obj.name for obj in load("drive").values() if obj.index in USER_LAWS)

@@ -21,7 +21,8 @@ Layout (every key optional except where noted)::
     Vdc_V = 300
     adc_noise_std_A = 0.0
 
-    [controller]                 # drive.eds "Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC",
+    [controller]                 # drive.eds "Controller", "Outer loops", each current law's record (its
+                                 # CurrentLaws key: "Online tuning", "Yao 2020 DPCC", ..., a user law's),
                                  # "Safe state" (meas_timeout_periods; clear = 1 in an event: fault reset + enable)
     controller = "deadbeat_you2019"
     L_hat_ratio = 0.5            # ratios to the plant's own values (R_hat_ratio, Ld_hat_ratio,
@@ -60,13 +61,15 @@ from typing import Any
 
 from canopen.objectdictionary import datatypes
 
-from .eds import Param, params, user_law_records
+from .eds import Param, params
 from .faults.spec import Fault, FaultError, parse_faults, refuse_lockstep_stalls
+from .laws import law_records
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
     "drive": ("plant", ("Inverter", "Sensors", "Run control")),
-    "controller": ("drive", ("Controller", "Online tuning", "Outer loops", "Yao 2020 DPCC", "Safe state")),
+    # the drive's own records and every current law's (drive.eds CurrentLaws, a user law's too)
+    "controller": ("drive", ("Controller", "Outer loops", *law_records(), "Safe state")),
     "references": ("drive", ("References",)),
 }
 # Run-control entries the bench drives itself (scenario.timing sets the mode).
@@ -125,10 +128,7 @@ class Scenario:
 
 
 def _param_tables() -> dict[str, dict[str, Param]]:
-    tables = {sec: params(node, objs) for sec, (node, objs) in SECTION_OBJECTS.items()}
-    # a user law's record (0x2400..0x24FF, bench ... --law DIR): its parameters are [controller] keys too
-    tables["controller"] = {**params("drive", user_law_records()), **tables["controller"]}
-    return tables
+    return {sec: params(node, objs) for sec, (node, objs) in SECTION_OBJECTS.items()}
 
 
 def _fmt_range(p: Param) -> str:
@@ -313,11 +313,11 @@ def controller_at_start(sc: Scenario) -> str:
 
 def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     """The trace TPDOs of a scenario without [trace]: the live quantities of the law it starts with
-    (bench/run/summary.py CONTROLLER_TRACE, the one table of them). An event that switches laws later
+    (its record's Trace key in drive.eds, read by bench/laws.py). An event that switches laws later
     leaves the mapping as it is: the PDOs are mapped once, before the run."""
-    from .run.summary import CONTROLLER_TRACE, DRIVE_VIEW
+    from .laws import law_info
 
-    return dict(CONTROLLER_TRACE.get(controller_at_start(sc), DRIVE_VIEW))  # a user law: the drive's view
+    return dict(law_info(controller_at_start(sc)).trace)
 
 
 def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:

@@ -321,6 +321,10 @@ def law_table(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigP
         rtype = f"od_{node}_{c_ident(obj.name).lower()}_t"
         rows = [f"    .{c_ident(v.name)} = {_default_of(v)}," for v in obj.values() if v.data_type in C_TYPES]
         out.append(f"static const {rtype} x{obj.index:04X}_defaults = {{\n" + "\n".join(rows) + "\n};")
+        out.append(
+            f'_Static_assert(sizeof({rtype}) <= CURRENT_LAW_RECORD_BYTES, "record 0x{obj.index:04X} {obj.name} '
+            f'exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");'
+        )
     out.append("")
     laws = [n for n in names if n != OPEN_LOOP]
     out += [f"extern const current_law_t current_law_{n};" for n in laws]

@@ -29,6 +29,7 @@ from .signals import SignalInfo
 from .sinks import Sink, TraceCollector
 from .stats import STEP_SIGNALS, Envelope, StepTracker
 from .summary import (
+    CONTROLLER_VALUES,
     SCHEMA_VERSION,
     bus_stats,
     divergence_bound_A,
@@ -282,19 +283,7 @@ class Pipeline:
             "identified": identified(dec),
             "step_cost": step_cost(dec),
             "plant": plant,
-            "controller": {
-                n: ctl.get("Controller", n)
-                for n in (
-                    "controller",
-                    "R_hat_ohm",
-                    "Ld_hat_H",
-                    "Lq_hat_H",
-                    "psi_hat_Wb",
-                    "Vmax_V",
-                    "Ts_s",
-                    "pole_pairs",
-                )
-            },
+            "controller": {n: ctl.get("Controller", n) for n in CONTROLLER_VALUES},
             "counters": {
                 "plant_missed_commands": dec.sdo.plant.get("Run control", "missed_commands"),
                 "plant_late_commands": dec.sdo.plant.get("Run control", "late_commands"),

@@ -18,11 +18,13 @@ A scenario may expect a bad status (scenario.expect); the run then passes when i
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..eds import enum
+from ..laws import law_info, law_names, result_reads
 from ..scenario import STATUSES
 from ..tools.plan import classic_frame_bits
 from .decode import Decoder
@@ -42,69 +44,17 @@ assert set(EXIT_CODES) == set(STATUSES)
 # at the same period, the root cause first
 PRIORITY = ("node_lost", "interference", "non_finite", "diverged", "tripped", "frames_lost")
 
-# What each controller identifies or applies, read by SDO at the end of every run (and so in the log).
-CONTROLLER_RESULTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "deadbeat_you2019": (
-        "You 2019",
-        "Online tuning",
-        ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H", "K1_active_V_A", "K2_active_V_A", "identifications", "gain_updates"),
-    ),
-    "dpcc_yao2020": (
-        "Yao 2020",
-        "Yao 2020 DPCC",
-        (
-            "R_hat_ohm",
-            "L_hat_H",
-            "p_hat_d_A",
-            "p_hat_q_A",
-            "dM_d_V",
-            "dM_q_V",
-            "ident_state",
-            "R_converged",
-            "L_converged",
-            "rls_R_hat_ohm",
-            "rls_L_hat_H",
-        ),
-    ),
-    "incremental_zhao2022": ("Zhao 2022", "Zhao 2022", ("K1_V_A", "K2_V_A", "limited")),
-    "predictive_zhao2022": ("Zhao 2022", "Zhao 2022", ("G_V_A", "limited")),
-}
-# The drive's trace TPDOs of a run whose scenario has no [trace] (a scenario's trace.pdo3 / pdo4 replace
-# them): the live quantities of the law the scenario selects, by drive.eds "Object.entry" name, recorded
-# per period in traces.npy and run.rrd. The drive has four TPDOs: TPDO1 the voltage command, TPDO2 the
-# live trace of the drive's own recorder, TPDO3 and TPDO4 these, 8 bytes each: two REAL32 per TPDO, four
-# per run. You 2019: its estimator (You 2019 Eq. 24-25) and the gain and inductance in use. Yao 2020:
-# the R, L the DPCC uses now (identified) and the observer's disturbance estimate on both axes (Yao 2020
-# Eq. 17). Zhao 2022: the law's gains and the voltage limiter's flag. PI and open loop identify nothing:
-# the drive's own view (its measured currents, the iq reference in effect, its speed estimate).
-DRIVE_VIEW: dict[int, tuple[str, ...]] = {
-    3: ("Drive status.id_A", "Drive status.iq_A"),
-    4: ("Drive status.iq_ref_active_A", "Drive status.speed_rad_s"),
-}
-CONTROLLER_TRACE: dict[str, dict[int, tuple[str, ...]]] = {
-    "open_loop": DRIVE_VIEW,
-    "pi": DRIVE_VIEW,
-    "deadbeat_you2019": {
-        3: ("Online tuning.det_A2", "Online tuning.K1_hat_V_A"),
-        4: ("Online tuning.K1_active_V_A", "Online tuning.L_hat_H"),
-    },
-    "dpcc_yao2020": {
-        3: ("Yao 2020 DPCC.R_hat_ohm", "Yao 2020 DPCC.L_hat_H"),
-        4: ("Yao 2020 DPCC.p_hat_d_A", "Yao 2020 DPCC.p_hat_q_A"),
-    },
-    "incremental_zhao2022": {3: ("Zhao 2022.K1_V_A", "Zhao 2022.K2_V_A"), 4: ("Zhao 2022.limited",)},
-    "predictive_zhao2022": {3: ("Zhao 2022.G_V_A", "Zhao 2022.limited")},
-}
+# What each law identifies or applies (read by SDO at the end of every run, and so in the log), and the
+# drive's trace TPDOs of a run whose scenario has no [trace]: the keys Source / Results / Trace / ValidIf
+# of the law's record in drive.eds, read by bench/laws.py (a user's law merged into drive.eds needs no
+# edit here). PI and open loop identify nothing and trace the drive's own view (laws.DRIVE_VIEW).
+CONTROLLER_VALUES = ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs")
 # Statuses read at the end: (node, object, entries).
 END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("plant", "Run control", ("missed_commands", "late_commands", "period_index", "trip_active")),
     ("drive", "Drive status", ("current_steps", "lost_measurements", "late_measurements")),
-    (
-        "drive",
-        "Controller",
-        ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs"),
-    ),
-    *{(("drive", obj, subs)) for _, obj, subs in CONTROLLER_RESULTS.values()},
+    ("drive", "Controller", CONTROLLER_VALUES),
+    *result_reads(),
 )
 # the drive's cost of one current step (0x2208, counted by the target's cycle counter around every step);
 # read at the end of runs whose drive is the MCU image (bench run --drive mcu)
@@ -117,7 +67,6 @@ PLANT_VALUES = (
     ("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode", "omega_imposed_rad_s")),
     ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")),
 )
-CONTROLLER_NAMES = {v: k for k, v in enum("drive", "Controller", "controller").items()}
 
 
 def _num(v: float | None) -> float | int | None:
@@ -137,37 +86,38 @@ def step_cost(dec: Decoder) -> dict[str, Any] | None:
         return None
     return {
         **{n: _num(x) for n, x in v.items()},
-        "controller": CONTROLLER_NAMES.get(int(dec.sdo.drive.get("Controller", "controller") or 0)),
+        "controller": law_name(dec.sdo.drive.get("Controller", "controller") or 0),
         "step_mean_s": float(v["step_cycles_mean"]) / float(clock),
         "step_max_s": float(v["step_cycles_max"] or 0) / float(clock),
     }
 
 
-def identified(dec: Decoder) -> dict[str, Any]:
-    """Per-controller results; what does not apply says so instead of showing zeros."""
-    value = dec.sdo.drive.get("Controller", "controller")
-    kind = CONTROLLER_NAMES.get(int(value), "unknown") if value is not None else "unknown"
+def law_name(value: float | None, eds: Path | None = None) -> str | None:
+    """The law's value name of a Controller.controller value (None: not read, or not a value)."""
+    names = law_names(eds)
+    return names[int(value)] if value is not None and 0 <= int(value) < len(names) else None
+
+
+def identified(dec: Decoder, eds: Path | None = None) -> dict[str, Any]:
+    """Per-law results (its record's Results, bench/laws.py); a value whose ValidIf entry is zero is
+    None, with that entry's NotApplicableNote; a law without a record says it identifies nothing."""
+    kind = law_name(dec.sdo.drive.get("Controller", "controller"), eds) or "unknown"
     out: dict[str, Any] = {"controller": kind}
-    spec = CONTROLLER_RESULTS.get(kind)
-    if spec is None:
+    info = law_info(kind, eds) if kind != "unknown" else None
+    if info is None or info.record is None:
         out["paper"] = None
         out["note"] = f"not applicable: the {kind} controller identifies nothing"
         return out
-    paper, obj, subs = spec
-    out["paper"] = paper
-    vals = {s: _num(dec.sdo.drive.get(obj, s)) for s in subs}
-    if kind == "deadbeat_you2019":
-        if not vals.get("identifications"):
-            for k in ("K1_bar_V_A", "K2_bar_V_A", "L_hat_H"):
-                vals[k] = None
-            out["note"] = (
-                "no identification ran (online tuning off or never excited): K1/K2 averages and "
-                "L_hat not applicable; K1_active_V_A is the gain in use"
-            )
-    if kind == "dpcc_yao2020":
-        rls = _num(dec.sdo.drive.get("Yao 2020 DPCC", "rls_enable"))
-        if not rls:
-            vals["rls_R_hat_ohm"] = vals["rls_L_hat_H"] = None
+    out["paper"] = info.source
+    obj = info.record
+    vals = {s: _num(dec.sdo.drive.get(obj, s)) for s in info.results}
+    off = {c for c in dict.fromkeys(info.valid_if.values()) if not _num(dec.sdo.drive.get(obj, c))}
+    for s in vals:
+        if info.valid_if.get(s) in off:
+            vals[s] = None
+    notes = [info.notes[c] for c in sorted(off, key=list(info.valid_if.values()).index) if c in info.notes]
+    if notes:
+        out["note"] = "; ".join(notes)
     out.update(vals)
     return out
 
@@ -269,17 +219,17 @@ def format_table(summary: dict[str, Any]) -> str:
 
 
 def format_identified(ident: dict[str, Any]) -> str:
-    if ident.get("paper") is None:
+    values = {k: v for k, v in ident.items() if k not in ("controller", "paper", "note")}
+    if not values:
         return f"identified: {ident.get('note', 'not applicable')}"
     parts = []
-    for k, v in ident.items():
-        if k in ("controller", "paper", "note"):
-            continue
+    for k, v in values.items():
         if v is None:
             parts.append(f"{k} n/a")
         elif isinstance(v, float):
             parts.append(f"{k} {v:.6g}")
         else:
             parts.append(f"{k} {v}")
-    line = f"identified ({ident['paper']}, {ident['controller']}): " + ", ".join(parts)
+    who = f"{ident['paper']}, {ident['controller']}" if ident.get("paper") else str(ident.get("controller"))
+    line = f"identified ({who}): " + ", ".join(parts)
     return line + (f"\n  ({ident['note']})" if ident.get("note") else "")

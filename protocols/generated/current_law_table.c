@@ -19,6 +19,7 @@ static const od_drive_online_tuning_t x2201_defaults = {
     .K2_active_V_A = 0.0f,
     .gain_updates = 0u,
 };
+_Static_assert(sizeof(od_drive_online_tuning_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2201 Online tuning exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
 static const od_drive_yao_2020_dpcc_t x2206_defaults = {
     .highest_sub_index_supported = 42u,
     .observer_enable = 1u,
@@ -64,6 +65,7 @@ static const od_drive_yao_2020_dpcc_t x2206_defaults = {
     .p_hat_d_A = 0.0f,
     .p_hat_q_A = 0.0f,
 };
+_Static_assert(sizeof(od_drive_yao_2020_dpcc_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2206 Yao 2020 DPCC exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
 static const od_drive_zhao_2022_t x2207_defaults = {
     .highest_sub_index_supported = 4u,
     .K1_V_A = 0.0f,
@@ -71,6 +73,7 @@ static const od_drive_zhao_2022_t x2207_defaults = {
     .G_V_A = 0.0f,
     .limited = 0u,
 };
+_Static_assert(sizeof(od_drive_zhao_2022_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2207 Zhao 2022 exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
 
 extern const current_law_t current_law_pi;
 extern const current_law_t current_law_deadbeat_you2019;

@@ -587,7 +587,7 @@ static const co_od_entry_t entries[] = {
     {0x2208u, 0x05u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.steps_measured), &OD_DRIVE.mfr.x2208_step_cost.steps_measured, {.i = 0}, {.i = 0}}, /* steps_measured */
     {0x2209u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2209_safe_state.highest_sub_index_supported), &OD_DRIVE.mfr.x2209_safe_state.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2209u, 0x01u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2209_safe_state.meas_timeout_periods), &OD_DRIVE.mfr.x2209_safe_state.meas_timeout_periods, {.i = 0}, {.i = 1000}}, /* meas_timeout_periods */
-    {0x2209u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2209_safe_state.reason), &OD_DRIVE.mfr.x2209_safe_state.reason, {.i = 0}, {.i = 2}}, /* reason */
+    {0x2209u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2209_safe_state.reason), &OD_DRIVE.mfr.x2209_safe_state.reason, {.i = 0}, {.i = 4}}, /* reason */
     {0x2209u, 0x03u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2209_safe_state.entries), &OD_DRIVE.mfr.x2209_safe_state.entries, {.i = 0}, {.i = 0}}, /* entries */
     {0x2209u, 0x04u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2209_safe_state.entered_at_sample), &OD_DRIVE.mfr.x2209_safe_state.entered_at_sample, {.i = 0}, {.i = 0}}, /* entered_at_sample */
     {0x2209u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE, sizeof(OD_DRIVE.mfr.x2209_safe_state.clear), &OD_DRIVE.mfr.x2209_safe_state.clear, {.i = 0}, {.i = 0}}, /* clear */

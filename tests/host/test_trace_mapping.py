@@ -196,7 +196,13 @@ def test_diverging_zhao2022_loop_trips_on_the_non_finite_command(nodes) -> None:
 
 
 # ------------------------------------------------------------------ a run's default trace follows its law
-# (bench/run/summary.py CONTROLLER_TRACE): each law's live quantities, none of another law's leftovers
+# (its record's Trace key in drive.eds, bench/laws.py): each law's live quantities, none of another law's leftovers
+def _traces() -> dict[str, dict[int, tuple[str, ...]]]:
+    from bench.laws import law_info, law_names
+
+    return {law: law_info(law).trace for law in law_names()}
+
+
 LAW_RUNS: dict[str, tuple[str, dict[str, float | int | str]]] = {
     "open_loop": ("you2019", {"Vmax_V": 139.0}),
     "pi": ("you2019", {"Vmax_V": 139.0}),
@@ -229,12 +235,13 @@ def _law_run(controller: str, **over: object):  # type: ignore[no-untyped-def]
 @pytest.mark.parametrize("controller", sorted(LAW_RUNS))
 def test_default_trace_follows_the_selected_controller(controller: str) -> None:
     from bench.run.signals import column_name
-    from bench.run.summary import CONTROLLER_TRACE
+
+    law_traces = _traces()
 
     sc, res = _law_run(controller)
-    own = {column_name(q) for sigs in CONTROLLER_TRACE[controller].values() for q in sigs}
-    others = {column_name(q) for sigs in map(dict.values, CONTROLLER_TRACE.values()) for s in sigs for q in s} - own
-    assert sc.trace == CONTROLLER_TRACE[controller]
+    own = {column_name(q) for sigs in law_traces[controller].values() for q in sigs}
+    others = {column_name(q) for sigs in map(dict.values, law_traces.values()) for s in sigs for q in s} - own
+    assert sc.trace == law_traces[controller]
     tr = res.trace
     assert tr is not None
     assert own <= set(tr), sorted(set(tr))
@@ -269,11 +276,11 @@ def test_default_trace_follows_the_selected_controller(controller: str) -> None:
 
 
 def test_an_explicit_trace_wins_over_the_law_default() -> None:
-    from bench.run.summary import CONTROLLER_TRACE
+    law_traces = _traces()
 
     pdo3 = ["Drive status.iq_ref_active_A", "Drive status.speed_rad_s"]
     sc, res = _law_run("incremental_zhao2022", trace={"pdo3": pdo3})
-    assert sc.trace == {3: tuple(pdo3)} != CONTROLLER_TRACE["incremental_zhao2022"]
+    assert sc.trace == {3: tuple(pdo3)} != law_traces["incremental_zhao2022"]
     assert res.trace is not None and "drive_iq_ref_active_A" in res.trace and "Zhao_2022_K1_V_A" not in res.trace
 
 
@@ -281,11 +288,12 @@ def test_every_default_trace_fits_its_tpdo() -> None:
     """Each law's default is checked as a scenario's [trace] is (drive.eds names, PDO-mappable, at most
     8 bytes a TPDO); every law of drive.eds has one."""
     from bench.eds import enum
-    from bench.run.summary import CONTROLLER_TRACE
+
+    law_traces = _traces()
     from bench.scenario import _trace
 
-    assert set(CONTROLLER_TRACE) == set(enum("drive", "Controller", "controller"))
-    for law, pdos in CONTROLLER_TRACE.items():
+    assert set(law_traces) == set(enum("drive", "Controller", "controller"))
+    for law, pdos in law_traces.items():
         assert set(pdos) <= {3, 4}
         assert _trace(law, {f"pdo{n}": list(s) for n, s in pdos.items()}) == pdos
 
@@ -293,15 +301,15 @@ def test_every_default_trace_fits_its_tpdo() -> None:
 def test_default_trace_is_the_law_of_period_0() -> None:
     """The law the run starts with: the EDS default without a setting, the [controller] setting, then a
     period-0 event (written after it, before the PDOs are mapped); a later switch leaves the mapping."""
-    from bench.run.summary import CONTROLLER_TRACE
+    law_traces = _traces()
     from bench.scenario import parse
 
     def trace(**raw: object) -> dict[int, tuple[str, ...]]:
         return parse({"scenario": {"name": "t", "periods": 100}, **raw}, "<t>").trace
 
-    assert trace() == CONTROLLER_TRACE["deadbeat_you2019"]  # drive.eds Controller.controller DefaultValue=2
-    assert trace(controller={"controller": "pi"}) == CONTROLLER_TRACE["pi"]
+    assert trace() == law_traces["deadbeat_you2019"]  # drive.eds Controller.controller DefaultValue=2
+    assert trace(controller={"controller": "pi"}) == law_traces["pi"]
     at0 = [{"at_period": 0, "controller": {"controller": "predictive_zhao2022"}}]
-    assert trace(controller={"controller": "pi"}, events=at0) == CONTROLLER_TRACE["predictive_zhao2022"]
+    assert trace(controller={"controller": "pi"}, events=at0) == law_traces["predictive_zhao2022"]
     later = [{"at_period": 50, "controller": {"controller": "predictive_zhao2022"}}]
-    assert trace(controller={"controller": "pi"}, events=later) == CONTROLLER_TRACE["pi"]
+    assert trace(controller={"controller": "pi"}, events=later) == law_traces["pi"]
