@@ -151,4 +151,3 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
                 value_names(eds_path(node), var),
             )
     return out
-
