@@ -4,10 +4,13 @@
 #   make test   set up everything and run the whole test suite (real vcan; VM if needed)
 #   make format apply the code style (ruff format, clang-format; checked by tests/host/test_style.py)
 #
-# `make all` only builds the C code (C11, -Wall -Wextra -Werror), into build/.
+# `make all` only builds the C code (C11, -Wall -Wextra -Werror), into build/ (BUILD=DIR: elsewhere).
+# `make LAW=DIR` (and `make LAW=DIR mcu`) builds the drive with a user's current law, a folder of one or
+# two C files and law.eds, into build/laws/<law name>/ (docs/ARCHITECTURE.md, "A law from your own folder").
 
 CC      ?= gcc
-BUILD   := build
+LAW     ?=
+PYTHON  ?= $(if $(wildcard .venv/bin/python),.venv/bin/python,python3)
 OPT     ?= -O2 -g
 WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wdouble-promotion
 CSTD    := -std=c11
@@ -28,7 +31,43 @@ PLANT_APP_SRC := $(filter-out plant_rt/node/plant_node_main.c,$(wildcard plant_r
 # The fault injector between the plant's and the drive's side (portable core + its rule text).
 FAULT_SRC := protocols/faults/fault_injector.c protocols/faults/fault_rules.c
 
-obj = $(patsubst %.c,$(BUILD)/obj/%.o,$(1))
+# A user's law: its name from law.eds's CurrentLaws key; gen_od.py --law merges law.eds into drive.eds and
+# writes $(BUILD)/eds and $(BUILD)/generated, which replace protocols/generated (first on the include path);
+# the law's C files join the firmware (every drive target), compiled as the firmware with its folder on the
+# include path.
+ifneq ($(strip $(LAW)),)
+LAW_DIR  := $(patsubst %/,%,$(strip $(LAW)))
+LAW_NAME := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_]*\).*/\1/p' \
+              '$(LAW_DIR)/law.eds' 2>/dev/null | head -n 1)
+ifeq ($(LAW_NAME),)
+$(error LAW=$(LAW): no $(LAW_DIR)/law.eds with a CurrentLaws=<law name> key)
+endif
+LAW_SRC  := $(wildcard $(LAW_DIR)/*.c)
+ifeq ($(LAW_SRC),)
+$(error LAW=$(LAW): no C file in $(LAW_DIR) (it must define const current_law_t current_law_$(LAW_NAME)))
+endif
+ifneq ($(word 3,$(LAW_SRC))$(word 2,$(wildcard $(LAW_DIR)/*.h)),)
+$(error LAW=$(LAW): at most two C files and one header in a law folder)
+endif
+BUILD    ?= build/laws/$(LAW_NAME)
+GEN_DIR  := $(BUILD)/generated
+GEN_STAMP := $(GEN_DIR)/.stamp
+# The folder this build was made from: another folder with the same law name rebuilds the law's files.
+LAW_FROM := $(BUILD)/law.from
+# (its objects and their dependency files, which name the other folder's files, are dropped first).
+$(shell mkdir -p '$(BUILD)' && { [ "$$(cat '$(LAW_FROM)' 2>/dev/null)" = '$(abspath $(LAW_DIR))' ] || { \
+        rm -rf '$(BUILD)/obj/law' '$(BUILD)/mcu/obj/law' && echo '$(abspath $(LAW_DIR))' > '$(LAW_FROM)'; }; })
+LAW_OK   := $(BUILD)/law.ok
+INC      := -I$(GEN_DIR) $(filter-out -Iprotocols/generated,$(INC))
+CO_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(CO_SRC))
+FW_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(FW_SRC)) $(LAW_SRC)
+.DEFAULT_GOAL := law
+else
+BUILD    ?= build
+endif
+
+obj = $(patsubst %.c,$(BUILD)/obj/%.o,$(filter-out $(LAW_SRC),$(1))) \
+      $(patsubst $(LAW_DIR)/%.c,$(BUILD)/obj/law/%.o,$(filter $(LAW_SRC),$(1)))
 
 LIBCO    := $(BUILD)/libco.a
 LIBSCAN  := $(BUILD)/libco_socketcan.a
@@ -47,7 +86,7 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node) $(BUILD)/bin/fault_gateway
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup fuzz format mcu sanitize
+.PHONY: all clean demo test setup fuzz format mcu sanitize law
 
 # The drive firmware as a bare-metal Cortex-M4F image (QEMU mps2-an386; docs/PORTING.md):
 # the portable CANopen slave, drive app and cores, the port layer (firmware_shim/port)
@@ -63,7 +102,8 @@ MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(CSTD) $(WARN) -Wfloat-conversion -ffp-contrac
 MCU_INC   := $(INC) -I$(MCU_DIR)
 MCU_SRC   := $(CO_SRC) $(FW_SRC) $(SHIM_APP_SRC) $(wildcard firmware_shim/port/*.c) \
              $(wildcard $(MCU_DIR)/*.c)
-MCU_OBJ   := $(patsubst %.c,$(MCU_BUILD)/obj/%.o,$(MCU_SRC))
+MCU_OBJ   := $(patsubst %.c,$(MCU_BUILD)/obj/%.o,$(filter-out $(LAW_SRC),$(MCU_SRC))) \
+             $(patsubst $(LAW_DIR)/%.c,$(MCU_BUILD)/obj/law/%.o,$(filter $(LAW_SRC),$(MCU_SRC)))
 MCU_ELF   := $(MCU_BUILD)/drive_mcu.elf
 HAVE_MCU_CC := $(shell command -v $(MCU_CC) 2>/dev/null)
 
@@ -203,5 +243,32 @@ $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 
 clean:
 	rm -rf $(BUILD)
+
+ifneq ($(strip $(LAW)),)
+# What a run with the law needs (bench ... --law DIR): the nodes, the gateway, libhil.so, the MCU image.
+law: $(LAW_OK) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(BUILD)/bin/fault_gateway $(BUILD)/libhil.so \
+     $(if $(HAVE_MCU_CC),mcu)
+	@echo "make: law $(LAW_NAME) built in $(BUILD)"
+$(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/gen_od.py protocols/gen_law.py
+	$(PYTHON) protocols/gen_od.py --law '$(LAW_DIR)' --out '$(BUILD)'
+	@touch $@
+$(addprefix $(GEN_DIR)/,od_drive.h od_drive.c od_drive_fields.h od_plant.h od_plant.c od_plant_fields.h \
+    current_law_table.c): $(GEN_STAMP) ;
+# Every object after the generated headers (their .d files take over from the second build on).
+$(call obj,$(CO_SRC) $(SCAN_SRC) $(PLANT_SRC) $(FW_SRC) $(HIL_SRC) $(wildcard firmware_shim/shim/*.c plant_rt/node/*.c) \
+    protocols/faults/fault_gateway_main.c) $(MCU_OBJ): | $(GEN_STAMP)
+$(BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_FW) $(INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
+$(MCU_BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
+	@mkdir -p $(@D)
+	$(MCU_CC) $(MCU_CFLAGS) $(MCU_INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
+# The folder must define the descriptor its name promises (current_law_table.c refers to it).
+$(LAW_OK): $(call obj,$(LAW_SRC))
+	@nm $^ | grep -Eq ' [RDBGS] current_law_$(LAW_NAME)$$' || { echo "make: LAW=$(LAW): no C file of the folder \
+	defines the symbol current_law_$(LAW_NAME) (const current_law_t current_law_$(LAW_NAME) = {...};)" >&2; exit 1; }
+	@touch $@
+$(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
+endif
 
 -include $(shell find $(BUILD)/obj $(BUILD)/deps $(BUILD)/mcu/obj -name '*.d' 2>/dev/null)

@@ -130,6 +130,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return demo_main(args)
 
 
+def _law_option(p: argparse.ArgumentParser) -> None:
+    """--law DIR, taken off the command line before parsing (_with_law); here for --help."""
+    from .law import HELP
+
+    p.add_argument("--law", type=Path, default=None, metavar="DIR", help=HELP)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="bench",
@@ -210,6 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Example: bench run scenarios/you2019_step.toml --bus direct",
     )
     add_arguments(r)
+    _law_option(r)
     r.set_defaults(func=_cmd_run)
     # internal (the VM half of a run over a VM's bus): no `help`, so argparse lists no entry for it (a
     # help=argparse.SUPPRESS still lists "capture ==SUPPRESS==" in the command listing before Python 3.14)
@@ -238,6 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
         f"as for bench run: {exit_codes_help()}.",
     )
     replay_args(rp)
+    _law_option(rp)
     rp.set_defaults(func=_cmd_replay)
 
     ex = sub.add_parser(
@@ -269,6 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
         "      --until 'error_growth_per_period>=1'                   # Zhao 2022's stability boundary\n",
     )
     sweep_args(sw)
+    _law_option(sw)
     sw.set_defaults(func=_cmd_sweep)
 
     from .reproduce import add_arguments as reproduce_args
@@ -296,6 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
         "scenario, give it [[faults]] tables and use bench run.",
     )
     faults_args(fl)
+    _law_option(fl)
     fl.set_defaults(func=_cmd_faults)
 
     from .tools.perf import add_arguments as perf_args
@@ -372,7 +383,30 @@ def _stdout_gone() -> None:
     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
+def _with_law(argv: list[str]) -> tuple[list[str], int]:
+    """`--law DIR` of a command that runs the drive (bench/law.py): built, then BENCH_BUILD_DIR points the
+    bench at its build; argv without it, and 0 or the exit status of a law that does not build."""
+    import os
+
+    from .law import LawBuildError, take_law, use
+
+    try:
+        law, argv = take_law(argv)
+    except LawBuildError as exc:
+        print(f"bench: {exc}", file=sys.stderr)
+        return argv, 2
+    if law is None or {"-h", "--help"} & set(argv):
+        return argv, 0
+    rc = use(law)
+    if rc == 0 and "bench.paths" in sys.modules:  # something read the default build already: start afresh
+        os.execv(sys.executable, [sys.executable, "-m", "bench.cli", *argv])
+    return argv, rc
+
+
 def _main(argv: list[str]) -> int:
+    argv, rc = _with_law(argv)
+    if rc:
+        return rc
     if argv[:1] in (["run"], ["demo"]) and not {"-h", "--help"} & set(argv) and not _cia402(argv):
         from .view.worker import prestart
 

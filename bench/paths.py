@@ -1,21 +1,26 @@
-"""Where the bench finds its own files: the repository, the C build, the EDS files."""
+"""Where the bench finds its own files: the repository, the C build, the EDS files.
+
+BENCH_BUILD_DIR chooses another build: a user's law (`bench run ... --law DIR`, bench/law.py, builds
+build/laws/<law name>/), whose node binaries, libhil.so, MCU image and merged EDS files (its eds/) the
+bench then uses. Read once, at import: the CLI sets it before any module reads an EDS (`bench vm`
+forwards it into the VM, as every BENCH_* variable).
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-BUILD = REPO / "build"
+BUILD = Path(os.environ.get("BENCH_BUILD_DIR") or REPO / "build").resolve()
 BIN = BUILD / "bin"
-EDS_DIR = REPO / "protocols" / "eds"
+EDS_DIR = BUILD / "eds" if os.environ.get("BENCH_BUILD_DIR") else REPO / "protocols" / "eds"
 VECTORS_DIR = REPO / "protocols" / "vectors"
 
 
 def binary(name: str) -> Path:
     """Path of a C executable built by `make`; a clear error if it is missing. BENCH_BIN_DIR chooses another
     build of the node processes (build/sanitize/bin: ASan + UBSan, `make sanitize`)."""
-    import os
-
     path = Path(os.environ.get("BENCH_BIN_DIR") or BIN) / name
     if not path.exists():
         raise FileNotFoundError(f"{path} is missing: run `make all` (or `make demo`) in {REPO}")
@@ -26,8 +31,6 @@ def lost_in_vm(path: Path) -> str | None:
     """Inside the VM of `bench vm` (BENCH_IN_VM=1): why writing `path` would lose it - a folder the VM
     does not share with the host is the guest's own (its /tmp too), gone when the VM powers off - or
     None when it reaches the host (or when not in the VM)."""
-    import os
-
     shared = os.environ.get("BENCH_VM_SHARED")
     if os.environ.get("BENCH_IN_VM") != "1" or shared is None:
         return None

@@ -1,0 +1,119 @@
+"""`bench ... --law DIR`: build a user's current law (a folder: C files and law.eds) and run with it.
+
+`make LAW=DIR` builds the drive with the law into build/laws/<law name>/ (the Makefile; gen_od.py --law
+merges law.eds into drive.eds there); the command then runs with that build: BENCH_BUILD_DIR (bench/paths.py)
+points the node binaries, libhil.so, the MCU image and the EDS files at it. The CLI does this before any
+module reads an EDS (bench/cli.py). Nothing is written in the user's folder.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent  # not bench.paths: it reads BENCH_BUILD_DIR once, at import
+COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
+HELP = (
+    "a user's current law: a folder of one or two C files and law.eds (one record in 0x2400..0x24FF naming "
+    "the law in CurrentLaws=NAME); built first (make LAW=DIR into build/laws/NAME/), then used: select it "
+    'with [controller] controller = "NAME" (docs/ARCHITECTURE.md, "A law from your own folder")'
+)
+CURRENT_LAWS = re.compile(r"^\s*CurrentLaws\s*=\s*([A-Za-z0-9_]*)", re.MULTILINE)
+COMPILE = re.compile(r"\s-c\s+(\S+\.c)\s+-o\s")
+ERROR_LINES = 12
+
+
+class LawBuildError(Exception):
+    """The law does not build: the message names the user's file (or what the folder lacks)."""
+
+
+def take_law(argv: list[str]) -> tuple[Path | None, list[str]]:
+    """The --law DIR of a command that takes it, and argv without it."""
+    if not argv or argv[0] not in COMMANDS:
+        return None, argv
+    rest, law = [argv[0]], None
+    it = iter(argv[1:])
+    for a in it:
+        if a == "--":
+            rest += [a, *it]
+            break
+        if a == "--law":
+            law = next(it, None)
+            if law is None:
+                raise LawBuildError("--law needs a folder")
+        elif a.startswith("--law="):
+            law = a.split("=", 1)[1]
+        else:
+            rest.append(a)
+    return (None if law is None else Path(law)), rest
+
+
+def law_name(law: Path) -> str:
+    frag = law / "law.eds"
+    if not law.is_dir():
+        raise LawBuildError(f"{law}: no such folder")
+    if not frag.is_file():
+        raise LawBuildError(f"{frag}: missing (a law folder holds one or two C files and one EDS fragment, law.eds)")
+    m = CURRENT_LAWS.search(frag.read_text())
+    if m is None or not m.group(1):
+        raise LawBuildError(f"{frag}: no CurrentLaws=<law name> key in its record's section")
+    return m.group(1)
+
+
+def build(law: Path, repo: Path) -> Path:
+    """`make LAW=law` with progress on stderr; the build folder, or LawBuildError."""
+    law = law.resolve()
+    if re.search(r"\s", str(law)):
+        raise LawBuildError(f"{law}: a law folder's path must not contain white space (make cannot take it)")
+    name = law_name(law)
+    out = repo / "build" / "laws" / name
+    cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD=build/laws/{name}", f"-j{os.cpu_count() or 1}"]
+    print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        lines.append(line.rstrip("\n"))
+        m = COMPILE.search(line)
+        if m:
+            print(f"  cc {m.group(1)}", file=sys.stderr, flush=True)
+    if proc.wait() != 0:
+        raise LawBuildError(_failure(lines, law))
+    return out
+
+
+DIAGNOSTIC = re.compile(r": (fatal )?error: |undefined reference to ")
+MAKE_ERROR = re.compile(r"^Makefile:\d+: \*\*\* (.*?)\.?  Stop\.$")
+
+
+def _failure(lines: list[str], law: Path) -> str:
+    """The first lines that say why: gen_od's refusal, the Makefile's, the missing descriptor, else the
+    compiler's first error lines (they name the user's file)."""
+    for line in lines:
+        if line.startswith("gen_od:") and not line.startswith("gen_od: wrote"):
+            return line
+        m = MAKE_ERROR.match(line)
+        if m:
+            return m.group(1)
+        if "defines the symbol current_law_" in line:
+            return re.sub(r"^make: ", "", line)
+    errors = [i for i, line in enumerate(lines) if DIAGNOSTIC.search(line)]
+    if not errors:
+        return "make failed:\n" + "\n".join(lines[-ERROR_LINES:])
+    start = errors[0] - 1 if errors[0] > 0 and "In function" in lines[errors[0] - 1] else errors[0]
+    shown = [ln for ln in lines[start:] if not ln.startswith("make") and not COMPILE.search(ln)][:ERROR_LINES]
+    return f"the law in {law} does not compile:\n" + "\n".join(shown)
+
+
+def use(law: Path) -> int:
+    """Build the law and point this process (and its children) at the build; 0, or 2 after a one-line refusal."""
+    try:
+        out = build(law, REPO)
+    except LawBuildError as exc:
+        print(f"bench: --law {law}: {exc}", file=sys.stderr)
+        return 2
+    os.environ["BENCH_BUILD_DIR"] = str(out)
+    return 0

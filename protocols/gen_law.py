@@ -1,0 +1,224 @@
+"""A user's current law merged into the drive's EDS (protocols/gen_od.py --law DIR --out OUTDIR).
+
+A law is a folder: one or two C files (and at most one header) and ONE EDS fragment, law.eds, holding
+exactly one record (ObjectType=0x9) in 0x2400 .. 0x24FF, the index range reserved for user laws, in
+CiA 306 syntax ([2400], [2400sub0], [2400sub1], ... with DataType/AccessType/DefaultValue/LowLimit/
+HighLimit), whose section names the law in its key CurrentLaws=<name> (a lower-case C identifier). The
+merge is text-level: the record's sections are appended to drive.eds, listed in [ManufacturerObjects]
+(SupportedObjects counted up), and the name appended to Controller.controller's ValueNames (HighLimit
+raised). Every refusal is one line naming the fragment, the section and what is wrong (LawError).
+Plain python with `canopen`, nothing of the bench (as gen_od.py).
+"""
+
+from __future__ import annotations
+
+import configparser
+import logging
+import re
+import tempfile
+from collections.abc import Collection
+from pathlib import Path
+
+import canopen
+
+USER_LAW_FIRST, USER_LAW_LAST = 0x2400, 0x24FF  # the index range of user laws' records
+LAW_ENTRY = "2200sub1"  # Controller.controller: its ValueNames name the laws
+FRAGMENT = "law.eds"
+LAW_NAME = re.compile(r"[a-z_][a-z0-9_]*\Z")
+SECTION = re.compile(r"([0-9A-Fa-f]{4})(?:sub([0-9A-Fa-f]{1,2}))?\Z", re.IGNORECASE)
+
+
+class LawError(ValueError):
+    """A law folder the generator refuses: one line, naming the fragment file and the section."""
+
+
+def _parse(text: str, what: str) -> configparser.ConfigParser:
+    raw = configparser.ConfigParser(strict=True, interpolation=None)
+    raw.optionxform = str  # type: ignore[assignment,method-assign]
+    try:
+        raw.read_string(text, source=what)
+    except configparser.Error as exc:
+        raise LawError(f"{what}: not an EDS fragment: {str(exc).splitlines()[0]}") from None
+    return raw
+
+
+def _record(frag: Path, raw: configparser.ConfigParser) -> tuple[str, int]:
+    """The fragment's one record: its section name and index."""
+    tops: list[str] = []
+    for sec in raw.sections():
+        m = SECTION.match(sec)
+        if m is None:
+            raise LawError(f"{frag} [{sec}]: not an object section (a fragment holds its record's sections only)")
+        if m.group(2) is None:
+            tops.append(sec)
+    if not tops:
+        raise LawError(f"{frag}: no record section (e.g. [2400] with ObjectType=0x9)")
+    if len(tops) > 1:
+        raise LawError(f"{frag} [{tops[1]}]: more than one object ({', '.join(tops)}); a law has exactly one record")
+    top = tops[0]
+    index = int(top, 16)
+    for sec in raw.sections():
+        if int(SECTION.match(sec).group(1), 16) != index:  # type: ignore[union-attr]
+            raise LawError(f"{frag} [{sec}]: a sub-entry of another object than [{top}]")
+    if int(raw.get(top, "ObjectType", fallback="0"), 0) != 0x9:
+        raise LawError(f"{frag} [{top}]: ObjectType must be 0x9 (a record)")
+    return top, index
+
+
+def _check_index(frag: Path, top: str, index: int, base: configparser.ConfigParser) -> None:
+    if any(int(m.group(1), 16) == index for m in map(SECTION.match, base.sections()) if m):
+        raise LawError(f"{frag} [{top}]: index 0x{index:04X} already used in drive.eds")
+    if not USER_LAW_FIRST <= index <= USER_LAW_LAST:
+        raise LawError(
+            f"{frag} [{top}]: index 0x{index:04X} outside 0x{USER_LAW_FIRST:04X}..0x{USER_LAW_LAST:04X} "
+            "(the range reserved for user laws)"
+        )
+
+
+def _law_name(frag: Path, raw: configparser.ConfigParser, top: str, existing: list[str]) -> str:
+    if not raw.has_option(top, "CurrentLaws"):
+        raise LawError(f"{frag} [{top}]: no CurrentLaws=<law name> key (the value of Controller.controller)")
+    name = raw.get(top, "CurrentLaws").strip()
+    if not LAW_NAME.match(name):
+        raise LawError(f"{frag} [{top}]: CurrentLaws={name}: not a lower-case C identifier (one law per folder)")
+    if name in existing:
+        raise LawError(f"{frag} [{top}]: CurrentLaws={name}: already a value of Controller.controller")
+    return name
+
+
+def _check_types(frag: Path, raw: configparser.ConfigParser, top: str, supported: Collection[int]) -> None:
+    for sec in raw.sections():
+        if sec == top:
+            continue
+        try:
+            dt = int(raw.get(sec, "DataType"), 0)
+        except (configparser.Error, ValueError):
+            raise LawError(f"{frag} [{sec}]: no DataType (or not a number)") from None
+        if dt not in supported:
+            names = ", ".join(sorted(_type_name(t) for t in supported))
+            raise LawError(f"{frag} [{sec}]: DataType 0x{dt:04X} not supported (a law's record holds {names})")
+
+
+ACCESS = ("ro", "rw", "rww", "rwr", "const")  # parameters rw, status ro
+REAL32 = 0x0008
+
+
+def _number(frag: Path, sec: str, key: str, text: str, dt: int) -> float:
+    try:
+        return float(text) if dt == REAL32 else int(text, 0)
+    except ValueError:
+        kind = "a number" if dt == REAL32 else "an integer"
+        raise LawError(f"{frag} [{sec}]: {key}={text}: not {kind}") from None
+
+
+def _check_values(frag: Path, raw: configparser.ConfigParser, top: str) -> None:
+    """What canopen reads without a word (a default that is not a number becomes none) refused here."""
+    seen: dict[str, str] = {}
+    for sec in (s for s in raw.sections() if s != top):
+        name = raw.get(sec, "ParameterName", fallback="").strip()
+        if not name:
+            raise LawError(f"{frag} [{sec}]: no ParameterName")
+        ident = re.sub(r"[^0-9a-z]+", "_", name.lower()).strip("_")
+        if ident in seen:
+            raise LawError(f"{frag} [{sec}]: ParameterName {name!r} gives the same C name as [{seen[ident]}]")
+        seen[ident] = sec
+        access = raw.get(sec, "AccessType", fallback="").strip().lower()
+        if access not in ACCESS:
+            raise LawError(f"{frag} [{sec}]: AccessType={access}: one of {', '.join(ACCESS)}")
+        dt = int(raw.get(sec, "DataType"), 0)
+        value = {
+            k: _number(frag, sec, k, raw.get(sec, k), dt)
+            for k in ("DefaultValue", "LowLimit", "HighLimit")
+            if raw.has_option(sec, k)
+        }
+        if ("LowLimit" in value) != ("HighLimit" in value):
+            raise LawError(f"{frag} [{sec}]: give both LowLimit and HighLimit or neither")
+        if (
+            "LowLimit" in value
+            and not value["LowLimit"] <= value.get("DefaultValue", value["LowLimit"]) <= value["HighLimit"]
+        ):
+            raise LawError(f"{frag} [{sec}]: DefaultValue outside LowLimit..HighLimit (or LowLimit > HighLimit)")
+
+
+def _type_name(dt: int) -> str:
+    from canopen.objectdictionary import datatypes
+
+    return next((k for k, v in vars(datatypes).items() if v == dt and k.isupper()), f"0x{dt:04X}")
+
+
+def _set_key(text: str, section: str, key: str, value: str) -> str:
+    """`key=value` in `section` of an EDS text (replaced, or added at the section's end)."""
+    m = re.search(rf"^\[{re.escape(section)}\][^\n]*\n(.*?)(?=^\[|\Z)", text, re.MULTILINE | re.DOTALL)
+    if m is None:
+        raise LawError(f"drive.eds: no [{section}] section")
+    body = m.group(1)
+    line = re.compile(rf"^{re.escape(key)}\s*=.*$", re.MULTILINE)
+    new = line.sub(f"{key}={value}", body, count=1) if line.search(body) else body.rstrip("\n") + f"\n{key}={value}\n\n"
+    return text[: m.start(1)] + new + text[m.end(1) :]
+
+
+def merge(drive_eds: Path, law_dir: Path, supported: Collection[int]) -> tuple[str, int, str]:
+    """(law name, record index, merged drive.eds text), or LawError naming what is wrong."""
+    frag = law_dir / FRAGMENT
+    if not frag.is_file():
+        raise LawError(f"{frag}: missing (a law folder holds its C files and one EDS fragment, {FRAGMENT})")
+    ftext = frag.read_text()
+    raw = _parse(ftext, str(frag))
+    top, index = _record(frag, raw)
+    text = drive_eds.read_text()
+    base = _parse(text, str(drive_eds))
+    _check_index(frag, top, index, base)
+    names = [n.strip() for n in base.get(LAW_ENTRY, "ValueNames").split(",")]
+    name = _law_name(frag, raw, top, names)
+    _check_types(frag, raw, top, supported)
+    _check_values(frag, raw, top)
+    count = int(base.get("ManufacturerObjects", "SupportedObjects"), 0)
+    text = _set_key(text, "ManufacturerObjects", "SupportedObjects", str(count + 1))
+    text = _set_key(text, "ManufacturerObjects", str(count + 1), f"0x{index:04X}")
+    text = _set_key(text, LAW_ENTRY, "ValueNames", ",".join([*names, name]))
+    if base.has_option(LAW_ENTRY, "HighLimit"):
+        text = _set_key(text, LAW_ENTRY, "HighLimit", str(len(names)))
+    text = text.rstrip("\n") + f"\n\n; user law {name}: {frag}\n" + ftext.strip("\n") + "\n"
+    _canopen_check(frag, top, text)
+    return name, index, text
+
+
+class _Collect(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(level=logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+def _canopen_check(frag: Path, top: str, text: str) -> None:
+    """The merged EDS read by `canopen` (as the bench and the generator read it): a warning or an error
+    (drive.eds alone has none: gen_od.py refuses it) is the fragment's."""
+    handler = _Collect()
+    logging.getLogger("canopen").addHandler(handler)
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "drive.eds"
+            path.write_text(text)
+            canopen.import_od(str(path))
+    except Exception as exc:  # canopen raises what its parsers raise (ValueError, KeyError, ...)
+        sec = _section_in(str(exc), top)
+        tb = exc.__traceback__
+        while tb is not None:  # the section canopen was reading (its eds.py keeps it in `section`)
+            name = tb.tb_frame.f_locals.get("section")
+            if isinstance(name, str) and name.upper().startswith(top.upper()):
+                sec = name
+            tb = tb.tb_next
+        raise LawError(f"{frag} [{sec}]: canopen refused it: {exc}") from None
+    finally:
+        logging.getLogger("canopen").removeHandler(handler)
+    if handler.messages:
+        first = handler.messages[0]
+        raise LawError(f"{frag} [{_section_in(first, top)}]: canopen warned: {first}")
+
+
+def _section_in(message: str, top: str) -> str:
+    """The sub-entry a canopen message names (0x2400:01 / 2400sub1), else the record's section."""
+    m = re.search(rf"(?:0x)?{top}(?:sub|:)([0-9A-Fa-f]{{1,2}})", message, re.IGNORECASE)
+    return f"{top}sub{int(m.group(1), 16):X}" if m else top
