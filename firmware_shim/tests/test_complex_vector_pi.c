@@ -14,7 +14,11 @@
  *      settles, i_d small;
  *  (d) a voltage-limited 20 A step: limited, then no windup overshoot;
  *  (e) L_hat = 0.5 L and 2 L: stable, settles;
- *  (f) check(): the refused configurations.
+ *  (f) check(): the refused configurations;
+ *  (g) the stability boundary in L_hat of the mismatched loop on the Zhao 2022
+ *      motor, z (z - 1)(z - a) + Kp Gam (z - a_hat) = 0 (r = L_hat / L = 1.927
+ *      at 1 kHz, the roots computed in docs/YOUR_CONTROLLER.md): r = 1.85
+ *      decays, r = 2.0 grows.
  *
  * The law's record type is generated from its law.eds by the LAW build
  * (od_drive_fields.h of build/laws/...); the default build has no such type,
@@ -284,6 +288,35 @@ static void test_check(void)
     CHECK(law->state_bytes <= CURRENT_LAW_STATE_BYTES && law->single_inductance == 1u, "descriptor");
 }
 
+/* max |iq - ref| over periods [from, to) */
+static double err_max(const run_t *run, double ref, int from, int to)
+{
+    double mx = 0.0;
+    for (int k = from; k < to; ++k)
+        if (fabs(run->iq[k] - ref) > mx) mx = fabs(run->iq[k] - ref);
+    return mx;
+}
+
+static void test_boundary(void)
+{
+    const motor_params_t p = motor_params_preset("zhao2022");
+    od_drive_complex_vector_pi_t r = record_default();
+    const double ratios[2] = {1.85, 2.0};
+    double growth[2];
+    for (int n = 0; n < 2; ++n) {
+        drive_config_t c = config_of(&p, ratios[n]);
+        c.Vmax_V = 1000.0f; /* the linear loop */
+        static run_t run;
+        run_zoh(&p, &c, &r, 0.0, 0.05, &run);
+        growth[n] = err_max(&run, 0.05, 150, 220) / err_max(&run, 0.05, 30, 100);
+        printf("[g Zhao 2022 motor, L_hat=%.2f L] max error over 150..219 / 30..99 (linear: Vmax 1000 V, limited from "
+               "~250) = %.3g\n",
+               ratios[n], growth[n]);
+    }
+    CHECK(growth[0] < 0.5, "L_hat = 1.85 L is inside the boundary");
+    CHECK(growth[1] > 2.0, "L_hat = 2.0 L is outside the boundary");
+}
+
 int main(void)
 {
     test_standstill();
@@ -291,5 +324,6 @@ int main(void)
     test_at_speed_rk4();
     test_limited_and_mismatch();
     test_check();
+    test_boundary();
     return check_finish("test_complex_vector_pi");
 }
