@@ -1,0 +1,70 @@
+"""The example law of docs/YOUR_CONTROLLER.md (examples/laws/complex_vector_pi), built from a copy of its
+folder outside the repository, over vcan: in lockstep its traces are the direct run's bit for bit (the
+same C in the drive node as in-process); as the Cortex-M4F image (`--drive mcu`) they are the host's
+within float32 rounding (newlib's sinf/cosf are not glibc's: the law rotates its command by the
+turning angle), and the image publishes the law's step cost (0x2208)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bench.paths import REPO
+
+LAW = REPO / "examples" / "laws" / "complex_vector_pi"
+STEP = REPO / "examples" / "scenarios" / "complex_vector_pi_step.toml"
+DISCRETE = ("period", "sync_counter", "status", "sample_index")
+REL_TOL = 1e-5  # of a column's largest magnitude: ~100 float32 ULP at full scale
+
+
+@pytest.fixture(scope="module")
+def law_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("user") / "complex_vector_pi"
+    shutil.copytree(LAW, d)
+    res = subprocess.run(["make", f"LAW={d}"], cwd=REPO, capture_output=True, text=True, timeout=1800)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return d
+
+
+def run(law: Path, out: Path, *args: str) -> tuple[dict[str, Any], Any]:
+    cmd = [sys.executable, "-m", "bench.cli", "run", str(STEP), "--law", str(law), "--no-viewer", "--out", str(out)]
+    res = subprocess.run([*cmd, *args], cwd=REPO, capture_output=True, text=True, timeout=1800)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return json.loads((out / "summary.json").read_text()), np.load(out / "traces.npy")
+
+
+def test_lockstep_over_vcan_equals_direct_bit_for_bit(law_copy: Path, vcan0: str, tmp_path: Path) -> None:
+    _, direct = run(law_copy, tmp_path / "direct", "--bus", "direct")
+    summary, vcan = run(law_copy, tmp_path / "vcan", "--bus", vcan0)
+    assert summary["status"] == "ok" and summary["bus_stats"]["lost_frames"] == 0
+    assert set(vcan.dtype.names) == set(direct.dtype.names)
+    for col in direct.dtype.names:
+        np.testing.assert_array_equal(vcan[col], direct[col], err_msg=col)
+    assert np.nanmax(direct["iq_A"]) > 0.9  # the step happened
+
+
+def test_the_mcu_image_runs_the_law_as_the_host(law_copy: Path, vcan0: str, tmp_path: Path) -> None:
+    _, direct = run(law_copy, tmp_path / "direct", "--bus", "direct")
+    summary, mcu = run(law_copy, tmp_path / "mcu", "--bus", vcan0, "--drive", "mcu")
+    assert summary["status"] == "ok" and summary["bus_stats"]["lost_frames"] == 0
+    worst = 0.0
+    for col in direct.dtype.names:
+        a, b = mcu[col].astype(np.float64), direct[col].astype(np.float64)
+        np.testing.assert_array_equal(np.isnan(a), np.isnan(b), err_msg=col)
+        if col in DISCRETE:
+            np.testing.assert_array_equal(a, b, err_msg=col)
+            continue
+        ok = ~np.isnan(b)
+        scale = float(np.max(np.abs(b[ok]))) if ok.any() else 0.0
+        diff = float(np.max(np.abs(a[ok] - b[ok]))) if ok.any() else 0.0
+        assert diff <= REL_TOL * max(scale, 1e-30), (col, diff, scale)
+        worst = max(worst, diff / max(scale, 1e-30))
+    print(f"largest difference: {worst:.2e} of full scale; step cost: {summary['step_cost']}")
+    assert summary["step_cost"] and summary["step_cost"]["steps_measured"] > 0

@@ -1,0 +1,140 @@
+"""The example law of docs/YOUR_CONTROLLER.md (examples/laws/complex_vector_pi: Briz 2000's complex
+vector PI) as a user builds and runs it: from a COPY of its folder outside the repository
+(`make LAW=DIR`, `bench run ... --law DIR`, `bench sweep ... --law DIR`).
+
+Bounds come from the law's design (its C file): behind the drive's one-period delay the matched loop
+is z^2 - z + K, K = Kp Gam (complex at speed); the step's overshoot and settling are that loop's, with
+a margin for what the design leaves out (the You 2019 motor's 1.8 % saliency, the stator-frame hold
+at 1500 rpm: 0.02 points in the C unit test). With L_hat = r L on the Zhao 2022 motor the loop
+z (z - 1)(z - a) + Kp Gam (z - a_hat) loses stability at r = 1.927."""
+
+from __future__ import annotations
+
+import cmath
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from bench.paths import BUILD, REPO
+
+LAW = REPO / "examples" / "laws" / "complex_vector_pi"
+STEP = REPO / "examples" / "scenarios" / "complex_vector_pi_step.toml"
+MISMATCH = REPO / "examples" / "scenarios" / "complex_vector_pi_mismatch.toml"
+DROP = REPO / "examples" / "scenarios" / "complex_vector_pi_drop_command.toml"
+BENCH = [sys.executable, "-m", "bench.cli"]
+F_BW_HZ = 1000.0  # the scenarios' bandwidth_Hz
+OVERSHOOT_MARGIN_PCT = 2.0  # saliency and stator-frame hold, beyond the design's round-rotor ZOH loop
+SETTLE_MARGIN_PERIODS = 5
+
+
+def bench(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*BENCH, *args], cwd=REPO, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def law_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The example's folder copied outside the repository, built with `make LAW=DIR`."""
+    d = tmp_path_factory.mktemp("user") / "complex_vector_pi"
+    shutil.copytree(LAW, d)
+    assert REPO not in d.parents
+    res = subprocess.run(["make", f"LAW={d}"], cwd=REPO, capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return d
+
+
+def run(scenario: Path, law: Path, out: Path, *extra: str) -> tuple[dict[str, Any], Any]:
+    res = bench("run", str(scenario), "--bus", "direct", "--law", str(law), "--no-viewer", "--out", str(out), *extra)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return json.loads((out / "summary.json").read_text()), np.load(out / "traces.npy")
+
+
+def nominal_step(K: complex, n: int = 400) -> tuple[float, int]:
+    """Overshoot (%) and periods to settle (2 % band) of the design's loop i(k+1) = i(k) + K e(k-1), iq 0 -> 1."""
+    i = [0j] * n
+    for k in range(n - 1):
+        i[k + 1] = i[k] + K * ((1j - i[k - 1]) if k >= 1 else 0j)
+    q = np.array([x.imag for x in i])
+    outside = np.nonzero(np.abs(q - 1.0) > 0.02)[0]
+    return 100.0 * max(0.0, float(q.max()) - 1.0), int(outside[-1]) + 1
+
+
+def design_K(plant: dict[str, Any], omega_e: float) -> complex:
+    R, L, Ts = plant["R_ohm"], plant["Lq_H"], plant["Ts_s"]
+    a = cmath.exp(-(R / L + 1j * omega_e) * Ts)
+    return 2 * math.pi * F_BW_HZ * L * (1 - a) / (R + 1j * omega_e * L)
+
+
+def test_the_build_leaves_the_users_folder_alone(law_copy: Path) -> None:
+    assert sorted(p.name for p in law_copy.iterdir()) == sorted(p.name for p in LAW.iterdir())
+    assert (BUILD / "laws" / "complex_vector_pi").is_dir()
+
+
+def test_a_step_at_speed_is_the_designs_first_order_loop(law_copy: Path, tmp_path: Path) -> None:
+    summary, tr = run(STEP, law_copy, tmp_path / "step")
+    assert summary["status"] == "ok", summary["status"]
+    (step,) = [s for s in summary["steps"] if s["signal"] == "iq"]
+    omega_e = summary["plant"]["pole_pairs"] * 157.07963267948966
+    os_pct, settle = nominal_step(design_K(summary["plant"], omega_e))
+    print(
+        f"overshoot {step['overshoot_pct']:.2f} % (design {os_pct:.2f} %),",
+        f"settle {step['periods_to_settle']} (design {settle})",
+    )
+    assert step["overshoot_pct"] <= os_pct + OVERSHOOT_MARGIN_PCT
+    assert step["periods_to_settle"] is not None and step["periods_to_settle"] <= settle + SETTLE_MARGIN_PERIODS
+    assert abs(step["steady_state_error_A"]) < 1e-3
+    # the complex zero keeps the d axis quiet at 1500 rpm (w_e L = 2.5 R): the plain PI does not
+    _, plain = run(STEP, law_copy, tmp_path / "plain", "--set", "controller.cross_coupling=0")
+    assert np.nanmax(np.abs(plain["id_A"])) > 3 * np.nanmax(np.abs(tr["id_A"]))
+
+
+def test_a_mismatch_sweep_on_dask(law_copy: Path, tmp_path: Path) -> None:
+    out = tmp_path / "grid"
+    res = bench(
+        "sweep", str(MISMATCH), "--law", str(law_copy), "--grid", "controller.L_hat_ratio=0.75,1.0,1.25",
+        "--workers", "2", "--no-dashboard", "--out", str(out),
+    )  # fmt: skip
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    rows = {float(r["controller.L_hat_ratio"]): r for r in pq.read_table(out / "sweep.parquet").to_pylist()}
+    assert sorted(rows) == [0.75, 1.0, 1.25] and all(r["status"] == "ok" for r in rows.values())
+    # a larger L_hat is a larger loop gain K: more overshoot
+    assert rows[0.75]["overshoot_pct"] < rows[1.0]["overshoot_pct"] < rows[1.25]["overshoot_pct"]
+
+
+def mismatch_radius(r: float) -> float:
+    """Largest root of z (z - 1)(z - a) + Kp Gam (z - a_hat) on the Zhao 2022 motor (presets.c)."""
+    R, L, Ts = 48.9, 14e-3, 100e-6
+    a, a_hat = math.exp(-R * Ts / L), math.exp(-R * Ts / (r * L))
+    kg = 2 * math.pi * F_BW_HZ * r * L * (1 - a) / R
+    return float(max(abs(np.roots([1.0, -(1 + a), a + kg, -kg * a_hat]))))
+
+
+def test_the_mismatch_boundary_is_the_designs(law_copy: Path, tmp_path: Path) -> None:
+    lo, hi = 1.5, 2.5
+    while hi - lo > 1e-6:
+        lo, hi = ((lo + hi) / 2, hi) if mismatch_radius((lo + hi) / 2) < 1 else (lo, (lo + hi) / 2)
+    exact = lo
+    out = tmp_path / "bisect"
+    res = bench(
+        "sweep", str(MISMATCH), "--law", str(law_copy), "--bisect", "controller.L_hat_ratio=1.5:2.5",
+        "--until", "error_growth_per_period>=1", "--tol", "0.01", "--workers", "2", "--no-dashboard",
+        "--out", str(out),
+    )  # fmt: skip
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    (b,) = json.loads((out / "sweep.json").read_text())["boundaries"]
+    print(f"boundary {b['boundary']:.4f}, design {exact:.4f}")
+    assert abs(b["boundary"] - exact) / exact < 0.02, (b, exact)
+
+
+def test_a_dropped_command_is_absorbed(law_copy: Path, tmp_path: Path) -> None:
+    summary, tr = run(DROP, law_copy, tmp_path / "drop")
+    assert summary["status"] == "frames_lost" and summary["status_expected"], summary["status"]
+    late = tr["iq_A"][-50:]
+    assert np.all(np.abs(late - 1.0) < 0.02)
