@@ -220,7 +220,6 @@ static current_law_verdict_t cvpi_check(const drive_config_t *cfg, const void *r
 }
 
 const current_law_t current_law_complex_vector_pi = {
-    .source = "Briz del Blanco, Degner, Lorenz, IEEE Trans. Ind. Appl. 36(3) 817-825, 2000",
     .state_bytes = (uint32_t)sizeof(cvpi_state_t),
     .single_inductance = 1u,
     .configure = cvpi_configure,
