@@ -325,3 +325,31 @@ def test_prefix_check_catches_a_foreign_name(tmp_path: Path) -> None:
         "  return 0;\n}\n#endif\n"
     )
     assert misnamed_header_names(hdr) == ["bilinear_incremental_config_t", "bilinear_incremental_law"]
+
+
+# ------------------------------------------------------------------ the drive's glue knows no law
+# (issue 26): drive_core, its configuration, the law interface, the node app and the port name no paper;
+# they reach a law through the registry (firmware_shim/core/current_law.h) only.
+GLUE = (
+    *(CORE / n for n in ("drive_core.c", "drive_core.h", "drive_config.h", "current_law.h")),
+    *sorted((REPO / "firmware_shim" / "shim").glob("*.[ch]")),
+    *sorted((REPO / "firmware_shim" / "port").glob("*.[ch]")),
+)
+PAPER_NAME_RE = re.compile(r"you\s*_?2019|yao\s*_?2020|zhao\s*_?2022", re.IGNORECASE)
+
+
+def papers_named(text: str) -> list[str]:
+    return sorted({m.group(0) for m in PAPER_NAME_RE.finditer(text)})
+
+
+def test_the_drive_glue_names_no_paper() -> None:
+    named = {p.relative_to(REPO).as_posix(): papers_named(p.read_text()) for p in GLUE}
+    assert len(named) > 10 and not {k: v for k, v in named.items() if v}, named
+
+
+def test_paper_name_scan_finds_a_law_in_the_glue() -> None:
+    assert papers_named("case DRIVE_CTRL_DEADBEAT_YOU2019: yao2020_dpcc_step(); /* Zhao 2022 */") == [
+        "YOU2019",
+        "Zhao 2022",
+        "yao2020",
+    ]
