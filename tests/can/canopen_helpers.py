@@ -35,6 +35,20 @@ class Capture(can.Listener):
         with self.lock:
             return [d for _, c, d in self.frames if c == cob_id]
 
+    def wait_for_data(self, cob_id: int, data: bytes, timeout: float = 5.0) -> list[bytes]:
+        """The frames of cob_id up to and with the first one carrying `data` (all of them if none came within
+        the timeout, a bound). A frame the node sent before the event waited for may still arrive after a
+        clear() on a loaded machine (python-can's receive thread is late): look for the frame, not at the
+        first one."""
+        deadline = time.monotonic() + timeout
+        while True:
+            got = self.with_id(cob_id)
+            if data in got:
+                return got[: got.index(data) + 1]
+            if time.monotonic() >= deadline:
+                return got
+            time.sleep(0.005)
+
     def wait_for(self, cob_id: int, count: int = 1, timeout: float = 5.0) -> list[bytes]:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:

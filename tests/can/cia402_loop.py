@@ -10,7 +10,7 @@ exact at any Ts (its discretisation), the drive's PI bandwidth is 1/(12 Ts)."""
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -49,10 +49,16 @@ def _wait_boot(net: canopen.Network, ids: tuple[int, ...], timeout_s: float = 15
     assert not missing, f"no boot-up from node(s) {sorted(hex(i) for i in missing)}"
 
 
-def configure_motor(plant: canopen.RemoteNode, drive: canopen.RemoteNode, cycle_s: float) -> None:
+def configure_motor(
+    plant: canopen.RemoteNode,
+    drive: canopen.RemoteNode,
+    cycle_s: float,
+    law: Callable[[canopen.RemoteNode, float], int] | None = None,
+) -> None:
     """The plant as the drive's motor (SYNC consumer, locked rotor, running without end) and the drive's
     current loop at the cycle (PI, bandwidth 1/(12 Ts), no estimator, measurement timeout 10 cycles); the
-    PDOs wired."""
+    PDOs wired. `law(drive, bandwidth_Hz)`: another current law instead of the PI, given the bandwidth before
+    the cycle is written (every law checks its parameters against Ts); it returns the law's controller value."""
     sdo = plant.sdo
     sdo["Motor preset"].raw = "you2019"
     sdo["Motor model"]["mech_mode"].raw = 1  # locked (ValueNames free, locked, imposed_speed)
@@ -69,6 +75,8 @@ def configure_motor(plant: canopen.RemoteNode, drive: canopen.RemoteNode, cycle_
     ctl["estimator_enable"].raw = 0
     bw = 1.0 / (12 * cycle_s)  # the bandwidths before Ts: each is checked against it (< 1/(6 Ts), 1/(2 Ts))
     ctl["pi_bandwidth_Hz"].raw = max(1.0, bw)
+    if law is not None:
+        ctl["controller"].raw = law(drive, max(1.0, bw))
     ctl["estimator_bandwidth_Hz"].raw = max(1.0, bw)
     ctl["speed_loop_divider"].raw = 1  # the speed loop's Nyquist (x the divider) and the cascade's order
     outer["position_bandwidth_Hz"].raw = max(0.01, bw / 8)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import subprocess
 import time
+from collections.abc import Callable
+from pathlib import Path
 from types import TracebackType
 
 import canopen
@@ -33,8 +35,16 @@ def _sh(*cmd: str, check: bool = True) -> None:
 
 
 class StandIn:
-    def __init__(self, cycle_s: float, bus: str = "vcan0") -> None:
-        self.cycle_s, self.bus = cycle_s, bus
+    def __init__(
+        self,
+        cycle_s: float,
+        bus: str = "vcan0",
+        eds_dir: Path = EDS_DIR,
+        law: Callable[[canopen.RemoteNode, float], int] | None = None,
+    ) -> None:
+        """eds_dir: the EDS files of the node binaries (a user law's build: its merged drive.eds); law: see
+        cia402_loop.configure_motor."""
+        self.cycle_s, self.bus, self.eds_dir, self.law = cycle_s, bus, eds_dir, law
         self.procs: list[NodeProcess] = []
         self.rules: list[list[str]] = []
         self.net: canopen.Network | None = None
@@ -56,15 +66,15 @@ class StandIn:
         _sh("ip", "link", "set", MOTOR_BUS, "up")
         self.net = net = canopen.Network()
         net.connect(interface="socketcan", channel=MOTOR_BUS)
-        plant = canopen.RemoteNode(PLANT_ID, str(EDS_DIR / "plant.eds"))
-        drive = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
+        plant = canopen.RemoteNode(PLANT_ID, str(self.eds_dir / "plant.eds"))
+        drive = canopen.RemoteNode(DRIVE_ID, str(self.eds_dir / "drive.eds"))
         for node in (plant, drive):
             node.sdo.RESPONSE_TIMEOUT = 5.0
             net.add_node(node)
         for name, nid in (("plant_node", PLANT_ID), ("drive_node", DRIVE_ID)):
             self.procs.append(NodeProcess(name, ["--iface", MOTOR_BUS, "--node-id", str(nid)]).start())
         time.sleep(1.0)
-        configure_motor(plant, drive, self.cycle_s)
+        configure_motor(plant, drive, self.cycle_s, self.law)
         plant.nmt.state = "OPERATIONAL"
         drive.nmt.state = "OPERATIONAL"
         for src, dst, ids in ((self.bus, MOTOR_BUS, TO_DRIVE), (MOTOR_BUS, self.bus, FROM_DRIVE)):

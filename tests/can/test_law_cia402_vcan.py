@@ -1,0 +1,76 @@
+"""CiA 402 through a user's current law (issue 26: the profile works for a user's law unchanged):
+`bench run --drive-profile cia402 --law DIR` over vcan0 against the stand-in drive (tests/can/cia402_standin.py)
+built with the example law examples/laws/complex_vector_pi (make LAW=DIR) and running it. The master does
+not know the law: it drives the CiA 402 state machine and the CST target torque; the torque is the law's.
+
+Run in the VM: .venv/bin/bench vm --timeout 900 -- .venv/bin/pytest -q -p no:cacheprovider
+tests/can/test_law_cia402_vcan.py
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import canopen
+import pytest
+from cia402_standin import DRIVE_ID, StandIn
+
+from bench.eds import value_names
+from bench.law import build, law_name
+from bench.paths import REPO
+
+CYCLE_MS = 50  # as tests/can/test_cia402_master_vcan.py: the VM stalls processes up to ~150 ms
+LAW = REPO / "examples" / "laws" / "complex_vector_pi"
+STEP = REPO / "scenarios" / "you2019_step.toml"
+
+
+def _select_law(eds: Path):  # type: ignore[no-untyped-def]
+    def select(drive: canopen.RemoteNode, bandwidth_Hz: float) -> int:
+        drive.sdo["Complex vector PI"]["bandwidth_Hz"].raw = bandwidth_Hz  # its check is against Ts
+        return value_names(eds, drive.sdo["Controller"]["controller"].od).index(law_name(LAW))
+
+    return select
+
+
+@pytest.fixture
+def law_build(vcan0: str) -> Path:
+    return build(LAW, REPO)
+
+
+@pytest.fixture
+def standin(law_build: Path, vcan0: str, monkeypatch: pytest.MonkeyPatch) -> Iterator[StandIn]:
+    monkeypatch.setenv("BENCH_BIN_DIR", str(law_build / "bin"))  # the stand-in's node binaries: the law's
+    eds = law_build / "eds" / "drive.eds"
+    with StandIn(CYCLE_MS / 1000, vcan0, eds_dir=law_build / "eds", law=_select_law(eds)) as s:
+        yield s
+
+
+def test_cst_step_through_a_users_law(standin: StandIn, law_build: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "vcan0", "--drive-profile", "cia402"]
+    cmd += ["--cycle-ms", str(CYCLE_MS), "--law", str(LAW), "--out", str(out), "--set", "scenario.periods=80"]
+    res = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stdout + res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert "OPERATION ENABLED" in summary["states_passed"], summary["states_passed"]
+    step = [t for t in summary["tracking"] if t["target_permille"] == 250]
+    assert step and step[0]["mean_actual_permille"] is not None, summary["tracking"]
+    assert abs(step[0]["relative_error"]) <= 0.25, step
+    # the drive ran the user's law all along: selected, and its status (its gains) written by the law
+    net = canopen.Network()
+    net.connect(interface="socketcan", channel="vcan0")
+    try:
+        eds = law_build / "eds" / "drive.eds"
+        node = canopen.RemoteNode(DRIVE_ID, str(eds))
+        node.sdo.RESPONSE_TIMEOUT = 5.0
+        net.add_node(node)
+        names = value_names(eds, node.sdo["Controller"]["controller"].od)
+        assert names[int(node.sdo["Controller"]["controller"].raw)] == law_name(LAW)
+        assert float(node.sdo["Complex vector PI"]["Kp_V_A"].raw) > 0.0
+    finally:
+        net.disconnect()
+    assert standin.alive()
