@@ -9,7 +9,8 @@ import time
 from pathlib import Path
 
 from ..paths import lost_in_vm
-from .checks import CHECKS, run_checks
+from ..scenario import ScenarioError, parse
+from .checks import CHECKS, base, run_checks
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,6 +26,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="CHECK,...",
         help=f"run only these checks: {', '.join(CHECKS)}",
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change every check's scenario (You 2019's deadbeat on its motor, locked rotor, iq step 0 -> 1 A at "
+        "period 20), as bench run --set does: another current law (--set controller.controller=pi; a law of "
+        "your own with --law DIR) and its parameters (repeatable). How fast the loop recovers is judged against "
+        "that law's own fault-free step",
     )
     p.add_argument("--out", type=Path, default=None, help="write faults.json here (a folder)")
 
@@ -48,13 +60,19 @@ def main(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
+    law = tuple(args.overrides)
+    try:  # a bad key or value is refused before any run, naming the entry and its range
+        parse(base("fc-settings", law=law), "--set")
+    except ScenarioError as exc:
+        print(f"bench faults: {exc}", file=sys.stderr)
+        return 2
     names = only or list(CHECKS)
     results = []
     t0 = time.monotonic()
     for i, name in enumerate(names, 1):
         print(f"[{i}/{len(names)}] {name} ...", end="", flush=True)
         t = time.monotonic()
-        (c,) = run_checks(args.bus, [name])
+        (c,) = run_checks(args.bus, [name], law)
         results.append(c)
         print(f" {'pass' if c.ok else 'FAIL'} ({time.monotonic() - t:.1f} s)", flush=True)
     print()
@@ -70,7 +88,11 @@ def main(args: argparse.Namespace) -> int:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         path = args.out / "faults.json"
-        path.write_text(json.dumps({"bus": args.bus, "checks": [c.to_dict() for c in results]}, indent=2, default=str))
+        path.write_text(
+            json.dumps(
+                {"bus": args.bus, "set": list(law), "checks": [c.to_dict() for c in results]}, indent=2, default=str
+            )
+        )
         print(f"written: {path}")
     return 1 if failed else 0
 

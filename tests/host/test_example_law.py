@@ -138,3 +138,18 @@ def test_a_dropped_command_is_absorbed(law_copy: Path, tmp_path: Path) -> None:
     assert summary["status"] == "frames_lost" and summary["status_expected"], summary["status"]
     late = tr["iq_A"][-50:]
     assert np.all(np.abs(late - 1.0) < 0.02)
+
+
+def test_bench_faults_through_the_law(law_copy: Path, tmp_path: Path) -> None:
+    """Every fault check with the user's law in the loop: the drive's and plant's reactions are the same
+    as under the papers' laws, and the loop's recovery is judged by the law's own step (not a deadbeat's 2)."""
+    out = tmp_path / "faults"
+    res = bench(
+        "faults", "--law", str(law_copy), "--set", "controller.controller=complex_vector_pi", "--out", str(out)
+    )  # fmt: skip
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    report = json.loads((out / "faults.json").read_text())
+    assert report["set"] == ["controller.controller=complex_vector_pi"]
+    checks = {c["check_id"]: c for c in report["checks"]}
+    assert len(checks) == 13 and all(c["ok"] for c in checks.values())
+    assert checks["drop-command"]["measured"]["bound_periods"] > 2  # the law's settling, so the law ran

@@ -26,6 +26,29 @@ def test_fault_check_passes_in_direct_mode(check: str) -> None:
     assert c.ok, (c.expectation, c.measured)
 
 
+def test_the_checks_through_another_law_judge_its_recovery_by_its_own_step() -> None:
+    """`bench faults --set controller.controller=pi`: the runs are the PI's (its step settles in more than the
+    deadbeat's 2 periods, and that is the recovery bound); the protocol reactions pass as for the deadbeat."""
+    law = ("controller.controller=pi",)
+    (pi,) = run_checks("direct", ["drop-command"], law)
+    (db,) = run_checks("direct", ["drop-command"])
+    assert pi.ok and db.ok, (pi.measured, db.measured)
+    assert db.measured["bound_periods"] == 2 < pi.measured["bound_periods"]
+    assert {r.result.summary["identified"]["controller"] for r in pi.runs} == {"pi"}
+    (short,) = run_checks("direct", ["short-measurement"], law)
+    assert short.ok and short.measured["bound_A"] == pytest.approx(0.02), short.measured
+
+
+def test_bench_faults_refuses_a_bad_setting_before_any_run(tmp_path: Path) -> None:
+    res = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "faults", "--set", "controller.Vmax_V=-5", "--out", str(tmp_path / "f")],
+        cwd=REPO, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "controller.Vmax_V = -5 is out of range: allowed 0 .. 2000" in res.stderr
+    assert "[1/" not in res.stdout and not (tmp_path / "f").exists()
+
+
 def test_a_check_fails_when_the_reaction_is_wrong() -> None:
     """The checks can fail: with the drive's measurement timeout off (0x2209:01 = 0) there is no safe state."""
     from bench.claims import run_raw
