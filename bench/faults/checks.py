@@ -18,6 +18,7 @@ import numpy as np
 
 from ..claims import Run, run_raw
 from ..scenario import apply_overrides
+from .measure import RECOVERS, at, back, emcys, held, recovered, recovery, settling_bound
 
 STEP_AT = 20  # the iq step 0 -> 1 A of You 2019 Fig. 8
 # `bench faults --set KEY=VALUE ...`: the scenario changes every check's runs share, e.g. another current law
@@ -94,88 +95,8 @@ def with_fault(raw: dict[str, Any], expect: list[str], *faults: dict[str, Any]) 
     return out
 
 
-def emcys(run: Run, code: int, node: str | None = None) -> list[dict[str, Any]]:
-    return [e for e in run.result.summary["emcy"] if int(e["code"], 16) == code and (node is None or e["node"] == node)]
-
-
-def at(events: list[dict[str, Any]], p: int) -> bool:
-    """EMCYs of one event at period p: a node sends an EMCY after the command of the same measurement, so on
-    a bus it may follow the next SYNC (period p + 1); in direct mode it is always in p."""
-    return bool(events) and all(e["period"] in (p, p + 1) for e in events)
-
-
-def held(run: Run) -> list[int]:
-    st = np.nan_to_num(run.tr["status"]).astype(np.int64)
-    return run.tr["period"][(st & 8) != 0].astype(int).tolist()
-
-
-def deviation_after(a: Run, b: Run, col: str, start: int) -> float:
-    pa, pb = a.tr["period"], b.tr["period"]
-    n = min(len(pa), len(pb))
-    m = pa[:n] >= start
-    return float(np.nanmax(np.abs(a.tr[col][:n][m] - b.tr[col][:n][m]))) if m.any() else float("nan")
-
-
-def settling_bound(clean: Run) -> int | None:
-    """The periods the law's own fault-free step takes to enter its 2 % band (the run's step metrics), at least
-    the 2 of the drive's one-period delay: a held or stale sample is a disturbance the loop absorbs in about
-    that time. None when the fault-free step never settles (the check fails)."""
-    steps = [s for s in clean.result.summary["steps"] if s["signal"] == "iq"]
-    n = steps[0]["periods_to_settle"] if steps else None
-    return None if n is None else max(2, int(n))
-
-
-def recovered(hit: Run, clean: Run, p: int, step_A: float) -> dict[str, Any]:
-    """The deviation of iq from the fault-free run once the law has had its settling time after the fault at
-    period p, and its bound: a loop that settles within its two periods of delay (a deadbeat law) leaves no
-    residual (1e-5 A: float rounding); an asymptotic one must be back inside its own 2 % band of the step."""
-    n = settling_bound(clean)
-    if n is None:
-        return {"iq_deviation_after_recovery_A": None, "bound_A": None, "from_period": None}
-    dev = deviation_after(hit, clean, "iq_A", p + 1 + n)
-    return {
-        "iq_deviation_after_recovery_A": dev,
-        "bound_A": 1e-5 if n <= 2 else 0.02 * step_A,
-        "from_period": p + 1 + n,
-    }
-
-
-RECOVERS = (
-    "the loop recovers within its own step's settling periods (3 periods after the fault for a deadbeat law, "
-    "then equal to the fault-free run to 1e-5 A; an asymptotic law: back inside its 2 % band)"
-)
-
-
-def _back(r: dict[str, Any]) -> bool:
-    return r["bound_A"] is not None and r["iq_deviation_after_recovery_A"] < r["bound_A"]
-
-
 def _pair(raw: dict[str, Any], faulted: dict[str, Any], bus: str) -> tuple[Run, Run]:
     return _run(raw, bus), _run(faulted, bus)
-
-
-def recovery(hit: Run, clean: Run, held_at: int, step_A: float = 1.0) -> dict[str, Any]:
-    """How the loop comes back after the command held over period `held_at`: its effect shows in the sample
-    at held_at + 1; `periods_to_5pct` counts from there to the first sample from which |iq - iq_clean| stays
-    under 5 % of the step (a digital drive's correction lands one period after it sees the error: 2 at
-    best), and the time constant (periods) of what is left (a log-linear fit over 20 periods)."""
-    held_at += 1
-    p = hit.tr["period"]
-    d = np.abs(hit.tr["iq_A"] - clean.tr["iq_A"][: len(p)])
-    after = np.flatnonzero(p >= held_at)
-    big = after[d[after] >= 0.05 * step_A]
-    back = int(p[big[-1]] + 1) if len(big) else held_at
-    tail = np.flatnonzero((p >= back) & (p < back + 20) & (d > 1e-9))
-    tau = None
-    if len(tail) >= 5:
-        slope = np.polyfit(p[tail], np.log(d[tail]), 1)[0]
-        tau = float(-1.0 / slope) if slope < 0 else None
-    return {
-        "periods_to_5pct": back - held_at,
-        "peak_deviation_A": float(np.nanmax(d[after])),
-        "residual_A": float(d[np.flatnonzero(p == back)[0]]) if back in p else None,
-        "residual_time_constant_periods": tau,
-    }
 
 
 def check_drop_command(bus: str, law: Law) -> FaultCheck:
@@ -255,7 +176,7 @@ def check_reorder_measurement(bus: str, law: Law) -> FaultCheck:
         "the drive steps on the sample with the last currents it has and says so (EMCY 0xFF02, reason 2: "
         f"TPDO2 without a fresh TPDO1), then the late currents (reason 1); {RECOVERS}",
         {"late_emcy_periods": [e["period"] for e in late], "late_reasons": [e["data"][4:6] for e in late], **rec},
-        at(late, p) and _back(rec),
+        at(late, p) and back(rec),
         bus,
     )
 
@@ -290,7 +211,7 @@ def check_short_measurement(bus: str, law: Law) -> FaultCheck:
         "the drive refuses the PDO (CiA 301 EMCY 0x8210, PDO not processed: length error), steps with the last "
         f"currents; {RECOVERS}",
         {"length_emcy_periods": [e["period"] for e in length], **rec},
-        len(length) == 1 and at(length, p) and _back(rec),
+        len(length) == 1 and at(length, p) and back(rec),
         bus,
     )
 
@@ -314,7 +235,7 @@ def check_non_finite_measurement(bus: str, law: Law) -> FaultCheck:
         "the drive rejects the value (steps with the last good current), counts it (0x2209:06) and says so (EMCY "
         "0xFF05); its commands stay finite; " + RECOVERS,
         {"non_finite_emcy_periods": [e["period"] for e in nf], "rejected": rejected, "commands_finite": vq_ok, **rec},
-        len(nf) == 1 and at(nf, p) and rejected == 1 and vq_ok and _back(rec),
+        len(nf) == 1 and at(nf, p) and rejected == 1 and vq_ok and back(rec),
         bus,
     )
 
