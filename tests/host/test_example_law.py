@@ -91,8 +91,11 @@ def test_a_step_at_speed_is_the_designs_first_order_loop(law_copy: Path, tmp_pat
     assert step["periods_to_settle"] is not None and step["periods_to_settle"] <= settle + SETTLE_MARGIN_PERIODS
     assert abs(step["steady_state_error_A"]) < 1e-3
     # the complex zero keeps the d axis quiet at 1500 rpm (w_e L = 2.5 R): the plain PI does not
+    # (after the step: before it both take the start-up's missing back-EMF feed-forward, see the scenario)
     _, plain = run(STEP, law_copy, tmp_path / "plain", "--set", "controller.cross_coupling=0")
-    assert np.nanmax(np.abs(plain["id_A"])) > 3 * np.nanmax(np.abs(tr["id_A"]))
+    cv_id, pi_id = (np.nanmax(np.abs(t["id_A"][t["period"] >= step["at_period"]])) for t in (tr, plain))
+    print(f"max |id| after the step: complex vector PI {cv_id:.4f} A, synchronous-frame PI {pi_id:.4f} A")
+    assert pi_id > 3 * cv_id
 
 
 def test_a_mismatch_sweep_on_dask(law_copy: Path, tmp_path: Path) -> None:
@@ -124,12 +127,14 @@ def test_the_mismatch_boundary_is_the_designs(law_copy: Path, tmp_path: Path) ->
     out = tmp_path / "bisect"
     res = bench(
         "sweep", str(MISMATCH), "--law", str(law_copy), "--bisect", "controller.L_hat_ratio=1.5:2.5",
-        "--until", "error_growth_per_period>=1", "--tol", "0.01", "--workers", "2", "--no-dashboard",
-        "--out", str(out),
+        "--until", "status!=ok", "--tol", "0.005", "--workers", "2", "--no-dashboard", "--out", str(out),
     )  # fmt: skip
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     (b,) = json.loads((out / "sweep.json").read_text())["boundaries"]
+    assert b["boundary"] is not None, b
     print(f"boundary {b['boundary']:.4f}, design {exact:.4f}")
+    # status 'diverged': still swinging over half the step at the end of the 700 periods; a loop just inside
+    # the boundary (root radius 0.998) has not decayed that far yet, so the bench's boundary lies a little below
     assert abs(b["boundary"] - exact) / exact < 0.02, (b, exact)
 
 
