@@ -36,6 +36,9 @@ FAULT_SRC := protocols/faults/fault_injector.c protocols/faults/fault_rules.c
 # the law's C files join the firmware (every drive target), compiled as the firmware with its folder on the
 # include path.
 ifneq ($(strip $(LAW)),)
+ifneq ($(words $(LAW)),1)
+$(error LAW=$(LAW): a path with white space, which make cannot take: link the folder from a path without (ln -s '<folder>' /tmp/my_law; make LAW=/tmp/my_law))
+endif
 LAW_DIR  := $(patsubst %/,%,$(strip $(LAW)))
 LAW_NAME := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_]*\).*/\1/p' \
               '$(LAW_DIR)/law.eds' 2>/dev/null | head -n 1)
@@ -246,7 +249,7 @@ clean:
 
 ifneq ($(strip $(LAW)),)
 # What a run with the law needs (bench ... --law DIR): the nodes, the gateway, libhil.so, the MCU image.
-law: $(LAW_OK) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(BUILD)/bin/fault_gateway $(BUILD)/libhil.so \
+law: $(LAW_OK) $(LAW_CHECKED) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(BUILD)/bin/fault_gateway $(BUILD)/libhil.so \
      $(if $(HAVE_MCU_CC),mcu)
 	@echo "make: law $(LAW_NAME) built in $(BUILD)"
 $(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/gen_od.py protocols/gen_law.py
@@ -269,6 +272,15 @@ $(LAW_OK): $(call obj,$(LAW_SRC))
 	defines the symbol current_law_$(LAW_NAME) (const current_law_t current_law_$(LAW_NAME) = {...};)" >&2; exit 1; }
 	@touch $@
 $(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
+# ... and fills the members the drive calls unconditionally, with a state that fits (firmware_shim/law/law_check.c).
+LAW_CHECKED := $(BUILD)/law.checked
+$(LAW_CHECKED): firmware_shim/law/law_check.c $(LIBFW)
+	@mkdir -p $(BUILD)/bin
+	@$(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$(LAW_NAME) $< $(LIBFW) -lm -o $(BUILD)/bin/law_check
+	@$(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
+	 sed 's|^law_check: |make: LAW=$(LAW): |' $(BUILD)/law_check.err >&2; exit 1; }
+	@touch $@
+$(BUILD)/bin/drive_node $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_CHECKED)
 endif
 
 -include $(shell find $(BUILD)/obj $(BUILD)/deps $(BUILD)/mcu/obj -name '*.d' 2>/dev/null)

@@ -65,9 +65,12 @@ def law_name(law: Path) -> str:
 
 def build(law: Path, repo: Path) -> Path:
     """`make LAW=law` with progress on stderr; the build folder, or LawBuildError."""
-    law = law.resolve()
+    law = Path(os.path.abspath(law))  # not resolve(): a link from a path without white space stays one
     if re.search(r"\s", str(law)):
-        raise LawBuildError(f"{law}: a law folder's path must not contain white space (make cannot take it)")
+        raise LawBuildError(
+            f"{law}: a law folder's path must not contain white space (make cannot take it): link the folder "
+            "from a path without (ln -s '<folder>' /tmp/my_law; --law /tmp/my_law)"
+        )
     name = law_name(law)
     out = repo / "build" / "laws" / name
     cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD=build/laws/{name}", f"-j{os.cpu_count() or 1}"]
@@ -98,8 +101,8 @@ def _failure(lines: list[str], law: Path) -> str:
         m = MAKE_ERROR.match(line)
         if m:
             return m.group(1)
-        if "defines the symbol current_law_" in line:
-            return re.sub(r"^make: ", "", line)
+        if line.startswith("make: LAW="):  # the descriptor's checks (the symbol, law_check.c)
+            return "\n".join(re.sub(r"^make: LAW=\S+: ", "", ln) for ln in lines if ln.startswith("make: LAW="))
     errors = [i for i, line in enumerate(lines) if DIAGNOSTIC.search(line)]
     if not errors:
         return "make failed:\n" + "\n".join(lines[-ERROR_LINES:])
@@ -116,4 +119,5 @@ def use(law: Path) -> int:
         print(f"bench: --law {law}: {exc}", file=sys.stderr)
         return 2
     os.environ["BENCH_BUILD_DIR"] = str(out)
+    os.environ["BENCH_LAW"] = out.name  # its name: a run that never selects it is refused (scenario.py)
     return 0

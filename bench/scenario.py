@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,7 +64,7 @@ from canopen.objectdictionary import datatypes
 
 from .eds import Param, params
 from .faults.spec import Fault, FaultError, parse_faults, refuse_lockstep_stalls
-from .laws import law_records
+from .laws import law_names, law_records
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
@@ -83,8 +84,8 @@ RATIOS = {
 }
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
-# Run statuses (bench/run/status.py gives each its exit code).
-STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference")
+# Run statuses (bench/run/summary.py EXIT_CODES gives each its exit code).
+STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference", "law_fault")
 
 
 class ScenarioError(ValueError):
@@ -169,6 +170,23 @@ def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, d
             f"{where}: {full} = {value!r} is out of range: allowed {_fmt_range(p)} (from {p.node}.eds {p.obj})"
         )
     return Setting(full, p, value)
+
+
+def unselected_law(scenarios: list[Scenario], what: str = "the scenario") -> str | None:
+    """Under `--law DIR` (bench/law.py sets BENCH_LAW to the law's name): a refusal when none of these
+    scenarios selects the user's law (controller.controller, at the start or in an event), else None."""
+    name = os.environ.get("BENCH_LAW")
+    if not name:
+        return None
+    value = law_names().index(name) if name in law_names() else -1
+    for sc in scenarios:
+        for st in [*sc.settings, *(x for e in sc.events for x in e.settings)]:
+            if st.key == "controller.controller" and int(st.value) == value:
+                return None
+    return (
+        f'--law: {what} does not select the law {name}: set [controller] controller = "{name}" '
+        f"(or --set controller.controller={name})"
+    )
 
 
 def apply_overrides(raw: dict[str, Any], overrides: list[str], where: str) -> dict[str, Any]:

@@ -140,6 +140,58 @@ def _check_values(frag: Path, raw: configparser.ConfigParser, top: str) -> None:
             raise LawError(f"{frag} [{sec}]: DefaultValue outside LowLimit..HighLimit (or LowLimit > HighLimit)")
 
 
+def _ident(name: str) -> str:
+    """A name as the generator makes C of it (gen_od.c_ident, lower case): struct and enum names."""
+    return re.sub(r"[^0-9A-Za-z]+", "_", name).strip("_").lower()
+
+
+WRITABLE = ("rw", "rww", "rwr", "wo")
+MANUFACTURER = range(0x2000, 0x6000)
+
+
+def _check_names(frag: Path, raw: configparser.ConfigParser, top: str, base: configparser.ConfigParser) -> None:
+    """Names the generated C or the scenario keys would take twice: the record's name (its C type
+    od_drive_<name>_t), a parameter's name (a scenario key [controller].<name>) and the name of an entry
+    with ValueNames (its enum OD_DRIVE_<NAME>_<VALUE>) against drive.eds's own."""
+    rec = raw.get(top, "ParameterName", fallback="").strip()
+    if not rec:
+        raise LawError(f"{frag} [{top}]: no ParameterName (the record's name)")
+    taken_rec: dict[str, str] = {}
+    taken_par: dict[str, str] = {}
+    taken_enum: dict[str, str] = {}
+    for sec in base.sections():
+        m = SECTION.match(sec)
+        if m is None or not base.has_option(sec, "ParameterName"):
+            continue
+        name = base.get(sec, "ParameterName").strip()
+        if m.group(2) is None:
+            taken_rec.setdefault(_ident(name), sec)
+            continue
+        if int(m.group(1), 16) in MANUFACTURER and base.get(sec, "AccessType", fallback="").strip().lower() in WRITABLE:
+            taken_par.setdefault(name, sec)
+        if base.has_option(sec, "ValueNames"):
+            taken_enum.setdefault(_ident(name), sec)
+    if _ident(rec) in taken_rec:
+        raise LawError(
+            f"{frag} [{top}]: ParameterName={rec}: drive.eds [{taken_rec[_ident(rec)]}] has that name "
+            f"(the generated C type od_drive_{_ident(rec)}_t would be defined twice)"
+        )
+    for sec in (x for x in raw.sections() if x != top):
+        name = raw.get(sec, "ParameterName", fallback="").strip()
+        access = raw.get(sec, "AccessType", fallback="").strip().lower()
+        if access in WRITABLE and name in taken_par:
+            raise LawError(
+                f"{frag} [{sec}]: ParameterName={name}: a parameter of the drive's own "
+                f"(drive.eds [{taken_par[name]}]); a law's parameters are scenario keys controller.<name>: rename it"
+            )
+        if raw.has_option(sec, "ValueNames") and _ident(name) in taken_enum:
+            raise LawError(
+                f"{frag} [{sec}]: ParameterName={name} with ValueNames: drive.eds [{taken_enum[_ident(name)]}] "
+                f"has an entry of that name with ValueNames (the enum OD_DRIVE_{_ident(name).upper()}_* "
+                "would be defined twice): rename it"
+            )
+
+
 def _type_name(dt: int) -> str:
     from canopen.objectdictionary import datatypes
 
@@ -172,6 +224,7 @@ def merge(drive_eds: Path, law_dir: Path, supported: Collection[int]) -> tuple[s
     name = _law_name(frag, raw, top, names)
     _check_types(frag, raw, top, supported)
     _check_values(frag, raw, top)
+    _check_names(frag, raw, top, base)
     count = int(base.get("ManufacturerObjects", "SupportedObjects"), 0)
     text = _set_key(text, "ManufacturerObjects", "SupportedObjects", str(count + 1))
     text = _set_key(text, "ManufacturerObjects", str(count + 1), f"0x{index:04X}")

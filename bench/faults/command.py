@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from ..paths import lost_in_vm
-from ..scenario import ScenarioError, parse
+from ..scenario import ScenarioError, parse, unselected_law
 from .checks import CHECKS, base, run_checks
 
 
@@ -62,7 +62,9 @@ def main(args: argparse.Namespace) -> int:
             return 2
     law = tuple(args.overrides)
     try:  # a bad key or value is refused before any run, naming the entry and its range
-        parse(base("fc-settings", law=law), "--set")
+        sc = parse(base("fc-settings", law=law), "--set")
+        if (unselected := unselected_law([sc], "the checks' scenario")) is not None:
+            raise ScenarioError(unselected)
     except ScenarioError as exc:
         print(f"bench faults: {exc}", file=sys.stderr)
         return 2

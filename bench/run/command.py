@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..paths import lost_in_vm
-from ..scenario import Scenario, ScenarioError, load
+from ..scenario import Scenario, ScenarioError, load, unselected_law
 from .buses import bus_problem
 from .canlog import LOG_FORMATS
 from .outputs import Outputs, print_result
@@ -180,6 +180,8 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     """`bench run` with its parsed arguments: (exit status, RunResult or None, result folder or None)."""
     try:
         sc = load(args.scenario, args.overrides)
+        if (unselected := unselected_law([sc])) is not None:
+            raise ScenarioError(unselected)
         _check_args(args)
         if args.bus == "direct" and sc.timing == "realtime":
             from .pipeline import DIRECT_IS_LOCKSTEP

@@ -281,6 +281,7 @@ def print_result(out: Path, result: Any) -> None:
         "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
         f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
         f"first in period {bs.get('interference', {}).get('first_period')}",
+        "law_fault": _law_fault(s),
     }.get(status, "")
     if status == "ok":
         print("status: ok")
@@ -303,6 +304,24 @@ def _files_written(s: dict[str, Any], out: Path) -> list[str]:
     plots = files.get("plots") or []
     shown = ["summary.json", *[n for n in names if n]]
     return shown + (plots if len(plots) <= 3 else [f"{len(plots)} plots (*.svg)"])
+
+
+def _law_fault(s: dict[str, Any]) -> str:
+    from ..faults.report import emcy_names
+
+    why = {
+        "safe_law_output": "a non-finite command or one beyond Vmax_V",
+        "safe_overrun": "a step longer than the period",
+    }
+    names = emcy_names()
+    e = next((e for e in s.get("emcy", []) if e["node"] == "drive" and names.get(int(e["code"], 16)) in why), None)
+    if e is None:
+        return ""
+    law = (s.get("identified") or {}).get("controller")
+    return (
+        f"the drive refused its current law {law} at period {e['period']}: {why[names[int(e['code'], 16)]]} "
+        f"(EMCY {e['code']}); it commands 0 V in its safe state from then on"
+    )
 
 
 def _frames_lost(s: dict[str, Any]) -> str:

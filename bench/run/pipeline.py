@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..faults.report import StatusWatch
+from ..faults.report import StatusWatch, emcy_codes
 from ..faults.report import build as fault_report
 from ..scenario import Scenario
 from .decode import Decoder
@@ -41,6 +41,9 @@ from .summary import (
 )
 
 FrameSink = Any  # has write(frames) and close()
+# The drive's EMCYs of a safe state its current law caused (status law_fault): its command non-finite or
+# beyond Vmax_V (0xFF06), a step longer than the period on a bare-metal target (0xFF07).
+LAW_FAULT_EMCY = frozenset(emcy_codes("safe_law_output", "safe_overrun"))
 Progress = Callable[[int, int], None]
 
 
@@ -237,7 +240,11 @@ class Pipeline:
         planned = sum(int(v) for _, v in dec.sdo.changes("Run control.run_periods", node="plant") if 0 < v < 0xFFFFFFFF)
         bstats["planned_periods"] = planned or None
         short = bool(planned) and dec.stats.periods != planned and not stopped
+        # The drive refused its law (a non-finite or beyond-Vmax_V command; a step longer than the period on a
+        # bare-metal target) and entered its safe state: its EMCY, the first one's period
+        law_faults = [e["period"] for e in dec.emcy if e["node"] == "drive" and int(e["code"], 16) in LAW_FAULT_EMCY]
         flags = {
+            "law_fault": bool(law_faults),
             "non_finite": bool(bstats["non_finite_values"]),
             "diverged": (bound is not None and self.max_phase_A > bound) or bool(oscillating),
             "tripped": self.first_trip_period is not None or bool(trip_active),
@@ -246,6 +253,7 @@ class Pipeline:
             "interference": bstats["interference"]["frames"] > 0,
         }
         first = {
+            "law_fault": min(law_faults) if law_faults else None,
             "non_finite": dec.stats.first_non_finite_period,
             "tripped": self.first_trip_period,
             "diverged": self.first_beyond_bound_period

@@ -38,11 +38,12 @@ EXIT_CODES = {
     "frames_lost": 6,
     "node_lost": 8,
     "interference": 9,
+    "law_fault": 10,
 }
 EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
 # at the same period, the root cause first
-PRIORITY = ("node_lost", "interference", "non_finite", "diverged", "tripped", "frames_lost")
+PRIORITY = ("node_lost", "interference", "non_finite", "law_fault", "diverged", "tripped", "frames_lost")
 
 # What each law identifies or applies (read by SDO at the end of every run, and so in the log), and the
 # drive's trace TPDOs of a run whose scenario has no [trace]: the keys Source / Results / Trace / ValidIf

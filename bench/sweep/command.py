@@ -108,7 +108,7 @@ class Refused(Exception):
 
 
 def _study(args: argparse.Namespace) -> tuple[Any, str, Space, tuple[str, float, float] | None, Condition | None]:
-    from ..scenario import ScenarioError, load, loads
+    from ..scenario import ScenarioError, load, loads, unselected_law
 
     try:
         text = args.scenario.read_text()
@@ -140,9 +140,13 @@ def _study(args: argparse.Namespace) -> tuple[Any, str, Space, tuple[str, float,
         checks = space.distinct_values()
         if bis:
             checks[bis[0]] = [repr(bis[1]), repr(bis[2])]
+        seen = [sc]
         for key, vals in checks.items():  # every value validated before anything starts
             for v in vals:
-                loads(text, str(args.scenario), [*args.overrides, f"{key}={v}"])
+                point = loads(text, str(args.scenario), [*args.overrides, f"{key}={v}"])
+                seen += [point] if key == "controller.controller" else []
+        if (unselected := unselected_law(seen, "the study (its scenario and its points)")) is not None:
+            raise ScenarioError(unselected)
     except ScenarioError as exc:
         raise Refused(str(exc)) from exc
     return sc, text, space, bis, cond

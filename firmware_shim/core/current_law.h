@@ -108,11 +108,20 @@ typedef struct {
 extern const current_law_entry_t current_law_table[];
 extern const uint8_t current_law_count;
 
-/* The row of a Controller.controller value, NULL for none (open loop, unknown). */
+/* What the drive calls unconditionally is there, and the state fits (make LAW= checks the same at build
+ * time, firmware_shim/law/law_check.c; the drive refuses to select a law that fails it). */
+static inline int current_law_usable(const current_law_t *law)
+{
+    return law->configure != 0 && law->step != 0 && law->state_bytes <= CURRENT_LAW_STATE_BYTES;
+}
+
+/* The row of a Controller.controller value, NULL for none (open loop, unknown, unusable). */
 static inline const current_law_entry_t *current_law_find(uint8_t value)
 {
     for (uint8_t i = 0u; i < current_law_count; ++i)
-        if (current_law_table[i].value == value) return &current_law_table[i];
+        if (current_law_table[i].value == value)
+            return current_law_usable(current_law_table[i].law) ? &current_law_table[i]
+                                                                : (const current_law_entry_t *)0;
     return (const current_law_entry_t *)0;
 }
 

@@ -150,13 +150,13 @@ void drive_app_step(drive_app_t *app)
     } else {
         drive_current_step(d, &app->meas, &app->cmd); /* a law's bad command is 0 V (drive_core.h) */
         if (d->st.law_fault != (uint8_t)DRIVE_LAW_FAULT_NONE)
-            drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_LAW_OUTPUT);
+            drive_app_enter_safe_state_in_step(app, node, (uint8_t)OD_DRIVE_REASON_LAW_OUTPUT);
     }
     if (app->cycles_fn != NULL) {
         const uint32_t cycles = app->cycles_fn(app->cycles_user) - c0;
         drive_app_count_step_cost(app, cycles);
         if (app->overrun_check != 0u && (float)cycles > d->cfg.Ts_s * (float)app->cycle_clock_Hz)
-            drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_OVERRUN);
+            drive_app_enter_safe_state_in_step(app, node, (uint8_t)OD_DRIVE_REASON_OVERRUN);
     }
     ++app->drive_status.current_steps;
 

@@ -51,6 +51,9 @@ void drive_app_clear_control_memory(drive_t *d);
 void drive_app_safe_step(drive_app_t *app);
 int drive_app_heartbeat_lost(const co_node_t *node);
 void drive_app_enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason);
+/* The same from inside the current step, whose own command (now 0 V) goes out at its end: one command a
+ * period on the bus, never a second frame. */
+void drive_app_enter_safe_state_in_step(drive_app_t *app, co_node_t *node, uint8_t reason);
 void drive_app_leave_safe_state(drive_app_t *app, co_node_t *node);
 
 /* drive_app_cia402.c */

@@ -200,7 +200,7 @@ static uint16_t safe_emcy_code(uint8_t reason)
     }
 }
 
-void drive_app_enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason)
+static void enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason, int send_now)
 {
     if (app->safe_state.reason != (uint8_t)OD_DRIVE_REASON_NONE) return; /* latched: the first reason stays */
     app->safe_state.reason = reason;
@@ -215,12 +215,22 @@ void drive_app_enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reaso
     od_drive_mfr_t *m = mfr_of(node);
     m->x2102_voltage_command.v_alpha_V = 0.0f;
     m->x2102_voltage_command.v_beta_V = 0.0f;
-    co_tpdo_request(node, 0);
+    if (send_now) co_tpdo_request(node, 0);
     const uint8_t msef[5] = {(uint8_t)si, (uint8_t)(si >> 8), reason, 0, 0};
     emcy_send(app, safe_emcy_code(reason), msef);
     /* CiA 402: the fault reaction (0 V, above) is done: FAULT, with the EMCY code as the error code */
     m->x603F_error_code = safe_emcy_code(reason);
     if (cia402_device_fault(&app->cia402)) drive_app_cia402_changed(app, node, 0);
+}
+
+void drive_app_enter_safe_state(drive_app_t *app, co_node_t *node, uint8_t reason)
+{
+    enter_safe_state(app, node, reason, 1);
+}
+
+void drive_app_enter_safe_state_in_step(drive_app_t *app, co_node_t *node, uint8_t reason)
+{
+    enter_safe_state(app, node, reason, 0);
 }
 
 void drive_app_leave_safe_state(drive_app_t *app, co_node_t *node)

@@ -84,3 +84,35 @@ def test_a_stall_of_the_watcher_itself_is_not_a_silent_node() -> None:
     assert watcher(1.9).tick(late_s=1.85) is None  # 1.9 s without a heartbeat, 1.85 s of it the watcher's own
     lost = watcher(1.9).tick(late_s=0.0)
     assert lost is not None and lost.status == "node_lost" and lost.node == "plant", lost
+
+
+def test_a_running_silent_node_of_ours_is_taken_for_starved_a_stopped_one_for_frozen() -> None:
+    """A node process the bench started that still runs (a vCPU of the loaded VM descheduled) is allowed
+    STARVED_S of silence; stopped (SIGSTOP: kernel state T) it is named after the consumer time."""
+    import signal
+    import subprocess
+    from types import SimpleNamespace
+
+    from bench.run import liveness
+
+    node = SimpleNamespace(name="sleep", proc=subprocess.Popen(["sleep", "60"]))
+    net = _Net()
+    live = Liveness(net, {"drive": 0x20}, {"drive": node}, timeout_ms=300, heartbeat_ms=50)  # type: ignore[arg-type]
+    try:
+        live.arm()
+        net.heartbeat(0x20)
+        live.last["drive"] -= 1.0  # silent for a second: beyond the consumer time, far within STARVED_S
+        assert liveness.STARVED_S > 1.5 and live.check() is None
+        node.proc.send_signal(signal.SIGSTOP)
+        for _ in range(100):  # the kernel's state follows the signal at once; bounded, not timed
+            lost = live.check()
+            if lost is not None:
+                break
+            time.sleep(0.01)
+        assert lost is not None and lost.node == "drive" and lost.details["cause"] == "heartbeat_timeout", lost
+        assert "allowed" not in lost.message
+    finally:
+        live.close()
+        node.proc.send_signal(signal.SIGCONT)
+        node.proc.kill()
+        node.proc.wait()
