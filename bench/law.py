@@ -19,7 +19,7 @@ COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
 HELP = (
     "a user's current law: a folder of one or two C files and law.eds (one record in 0x2400..0x24FF naming "
     "the law in CurrentLaws=NAME); built first (make LAW=DIR into build/laws/NAME/), then used: select it "
-    'with [controller] controller = "NAME" (docs/ARCHITECTURE.md, "A law from your own folder")'
+    'with [controller] controller = "NAME" (docs/YOUR_CONTROLLER.md)'
 )
 CURRENT_LAWS = re.compile(r"^\s*CurrentLaws\s*=\s*([A-Za-z0-9_]*)", re.MULTILINE)
 COMPILE = re.compile(r"\s-c\s+(\S+\.c)\s+-o\s")

@@ -67,7 +67,7 @@ typedef struct {
 
 typedef enum {
     CURRENT_LAW_OK = 0,
-    CURRENT_LAW_INCOMPATIBLE, /* contradicts the drive's configuration (SDO abort 0x0604 0047) */
+    CURRENT_LAW_INCOMPATIBLE, /* contradicts the drive's configuration (SDO abort 0x0604 0043) */
     CURRENT_LAW_NOT_NOW,      /* refused in the present state (SDO abort 0x0800 0022) */
     CURRENT_LAW_INVALID,      /* a value the law does not take (SDO abort 0x0609 0030) */
     CURRENT_LAW_NOT_COMMAND,  /* command(): the entry is a parameter, not a command */
@@ -126,8 +126,9 @@ static inline const current_law_entry_t *current_law_find(uint8_t value)
 }
 
 /* The stator-frame command of a dq command held over [k+1, k+2]: rotated by
- * the drive's angle advance (angle_advance_periods, 0.5 = the middle of the
- * interval) at the electrical speed of the sample. */
+ * the drive's angle advance (angle_advance_periods periods after the sample k:
+ * 1.5, the EDS default, is the middle of the interval) at the electrical speed
+ * of the sample. */
 static inline void current_law_to_stator(const drive_config_t *cfg, const current_law_in_t *in, current_law_out_t *out)
 {
     const float th_cmd = in->theta_e_rad + cfg->angle_advance_periods * in->omega_e_rad_s * cfg->Ts_s;

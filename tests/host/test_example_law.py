@@ -158,3 +158,34 @@ def test_bench_faults_through_the_law(law_copy: Path, tmp_path: Path) -> None:
     checks = {c["check_id"]: c for c in report["checks"]}
     assert len(checks) == 13 and all(c["ok"] for c in checks.values())
     assert checks["drop-command"]["measured"]["bound_periods"] > 2  # the law's settling, so the law ran
+
+
+DISCRETE = ("period", "sync_counter", "status", "sample_index")
+REL_TOL = 1e-5  # of a column's largest magnitude: ~100 float32 ULP at full scale
+
+
+def test_the_mcu_image_runs_the_law_as_the_host(law_copy: Path, tmp_path: Path) -> None:
+    """The law in the Cortex-M4F image (`--drive mcu`, qemu-system-arm on this host, the bus in the VM where
+    the kernel has no CAN): its traces are the host build's within float32 rounding (newlib's sinf/cosf are
+    not glibc's: the law rotates its command by the turning angle); the image publishes the law's step cost."""
+    periods = "scenario.periods=440"  # the step at 400 and 40 periods after it: the emulated image is slow
+    _, direct = run(STEP, law_copy, tmp_path / "direct", "--set", periods)
+    summary, mcu = run(STEP, law_copy, tmp_path / "mcu", "--set", periods, "--bus", "vcan0", "--drive", "mcu")
+    assert summary["status"] == "ok" and summary["bus_stats"]["lost_frames"] == 0
+    assert set(mcu.dtype.names) == set(direct.dtype.names) and len(mcu) == len(direct) == 440
+    worst = 0.0
+    for col in direct.dtype.names:
+        a, b = mcu[col].astype(np.float64), direct[col].astype(np.float64)
+        np.testing.assert_array_equal(np.isnan(a), np.isnan(b), err_msg=col)
+        if col in DISCRETE:
+            np.testing.assert_array_equal(a, b, err_msg=col)
+            continue
+        ok = ~np.isnan(b)
+        scale = float(np.max(np.abs(b[ok]))) if ok.any() else 0.0
+        diff = float(np.max(np.abs(a[ok] - b[ok]))) if ok.any() else 0.0
+        assert diff <= REL_TOL * max(scale, 1e-30), (col, diff, scale)
+        worst = max(worst, diff / max(scale, 1e-30))
+    print(f"largest difference: {worst:.2e} of full scale; step cost: {summary['step_cost']}")
+    assert np.nanmax(direct["iq_A"]) > 0.9  # the step happened
+    cost = summary["step_cost"]
+    assert cost and cost["steps_measured"] > 0 and cost["controller"] == "complex_vector_pi", cost

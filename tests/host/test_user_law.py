@@ -59,6 +59,23 @@ REFUSALS = [
     ("law name not a C identifier", "CurrentLaws=zero_law", "CurrentLaws=Zero-Law", 1, "not a lower-case C", "2400"),
     ("law name of a built-in law", "CurrentLaws=zero_law", "CurrentLaws=pi", 1, "already a value", "2400"),
     ("no CurrentLaws key", "CurrentLaws=zero_law\n", "", 1, "no CurrentLaws", "2400"),
+    ("a record named like a drive object", "ParameterName=Zero law", "ParameterName=Controller", 1, "[2200]", "2400"),
+    (
+        "a parameter named like the drive's",
+        "ParameterName=gain\n",
+        "ParameterName=Vmax_V\n",
+        1,
+        "drive's own",
+        "2400sub1",
+    ),
+    (
+        "an enum named like the drive's",
+        "ParameterName=hold_periods\n",
+        "ParameterName=reason\nValueNames=a,b\n",
+        1,
+        "enum OD_DRIVE_REASON_*",
+        "2400sub2",
+    ),
     ("unsupported data type", "DataType=0x0006", "DataType=0x0009", 1, "DataType 0x0009 not supported", "2400sub2"),
     ("a default that is not a number", "DefaultValue=0.5", "DefaultValue=half", 1, "not a number", "2400sub1"),
     ("a default out of its range", "DefaultValue=0.5", "DefaultValue=2", 1, "outside LowLimit..HighLimit", "2400sub1"),
@@ -172,12 +189,56 @@ def test_bench_says_which_symbol_the_folder_must_define(tmp_path: Path) -> None:
     assert "current_law_nameless_law" in proc.stderr.splitlines()[-1], proc.stderr
 
 
-def _core_has_registry() -> bool:
-    """The drive core that looks laws up in the registry (the plug-in core, merged from main)."""
-    return "current_law_find" in (REPO / "firmware_shim" / "core" / "drive_core.c").read_text()
+def test_a_descriptor_without_step_is_refused_when_built(tmp_path: Path) -> None:
+    """The drive calls step every period: a NULL there is refused by the build (law_check.c), not a crash."""
+    law = _law_copy(tmp_path, "stepless_law")
+    _rename(law, "stepless_law")
+    src = law / "zero_law.c"
+    src.write_text(
+        src.read_text().replace(".step = zero_step,", ".step = 0,").replace("static void zero_step", "void zero_step")
+    )
+    proc = _bench("run", str(SCENARIO), "--law", str(law), "--bus", "direct", "--out", str(tmp_path / "run"))
+    assert proc.returncode == 2, proc.stderr
+    assert "current_law_stepless_law.step is NULL" in proc.stderr.splitlines()[-1], proc.stderr
+    assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.skipif(not _core_has_registry(), reason="the drive core does not use the law registry yet (main)")
+def test_a_law_whose_command_is_not_finite_ends_the_run_law_fault(tmp_path: Path) -> None:
+    """A NaN command: the drive commands 0 V in its safe state (EMCY 0xFF06), one command frame a period (no
+    interference), and the run's status is law_fault (exit 10)."""
+    import numpy as np
+
+    law = _law_copy(tmp_path, "nan_law")
+    _rename(law, "nan_law")
+    src = law / "zero_law.c"
+    text = src.read_text().replace(
+        "*out = (current_law_out_t){0};",
+        "*out = (current_law_out_t){0};\n    if (in->iq_ref_A > 0.5f) out->v_alpha_V = NAN;",
+    )
+    src.write_text(text.replace("    (void)in;\n", ""))
+    out = tmp_path / "run"
+    proc = _bench(
+        "run", str(SCENARIO), "--law", str(law), "--set", "controller.controller=nan_law", "--bus", "direct",
+        "--no-viewer", "--out", str(out),
+    )  # fmt: skip
+    assert proc.returncode == 10, proc.stdout[-2000:] + proc.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "law_fault" and summary["bus_stats"]["interference"]["frames"] == 0, summary["status"]
+    faults = [e for e in summary["emcy"] if e["node"] == "drive" and e["code"] == "0xFF06"]
+    assert [e["period"] for e in faults] == [10], summary["emcy"]  # the reference step's period (the scenario)
+    assert "refused its current law nan_law at period 10" in proc.stdout
+    tr = np.load(out / "traces.npy")
+    assert np.all(tr["v_alpha_V"][np.isfinite(tr["v_alpha_V"])] == 0.0)
+
+
+def test_a_run_that_never_selects_the_law_is_refused(tmp_path: Path) -> None:
+    scenario = REPO / "scenarios" / "you2019_step.toml"
+    proc = _bench("run", str(scenario), "--law", str(FIXTURE), "--bus", "direct", "--out", str(tmp_path / "run"))
+    assert proc.returncode == 2, proc.stderr
+    assert "does not select the law zero_law" in proc.stderr and "controller.controller=zero_law" in proc.stderr
+    assert not (tmp_path / "run").exists()
+
+
 def test_bench_run_selects_the_users_law(tmp_path: Path) -> None:
     """End to end: the law's build runs, the drive runs the law (0 V: no current), its record is the
     scenario's (gain) and its status reaches the trace (steps)."""
