@@ -19,15 +19,16 @@ SCENARIO = REPO / "scenarios" / "demo_you2019_tuning.toml"
 
 
 def main(args: argparse.Namespace) -> int:
-    from .cli import build_parser
-    from .run.command import execute
+    from .run.command import add_arguments, execute
 
     out = args.out or Path("runs") / f"demo-{time.strftime('%Y%m%d-%H%M%S')}"
     argv = ["run", str(SCENARIO), "--bus", args.bus, "--out", str(out)]
     argv += [a for o in args.overrides for a in ("--set", o)]
     argv += ["--serve", "--serve-bind", args.serve_bind] if args.serve else []
     argv += ["--no-viewer"] if args.no_viewer else []
-    rc, result, out_dir = execute(build_parser().parse_args(argv))
+    run_parser = argparse.ArgumentParser(prog="bench run")  # `bench run`'s own options (bench/run/command.py)
+    add_arguments(run_parser)
+    rc, result, out_dir = execute(run_parser.parse_args(argv[1:]))
     if result is None:
         return rc
     summary = result.summary

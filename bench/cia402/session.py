@@ -11,8 +11,8 @@ from typing import Any
 
 from ..scenario import Scenario
 from . import NO_LOCKSTEP
-from .command import Interrupted, ignore_signals, raise_on_signals, summary_text, write_summary
 from .master import DriveRefused, DriveStopped, Master
+from .outcome import Interrupted, ignore_signals, raise_on_signals, summary_text, write_summary
 from .plan import Frames, PlanError, Segment, bus_load, ignored_keys, targets
 from .record import Layout, decode_log, states_passed, tracking, write_csv, write_plot
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from .options import RunOptions
     from .pipeline import Pipeline, RunResult, run_scenario
-    from .session import RunOptions
 
 __all__ = ["Pipeline", "RunOptions", "RunResult", "run_scenario"]
 
@@ -21,7 +21,7 @@ def __getattr__(name: str) -> Any:
 
         return getattr(pipeline, name)
     if name == "RunOptions":
-        from .session import RunOptions
+        from .options import RunOptions
 
         return RunOptions
     raise AttributeError(name)

@@ -313,8 +313,8 @@ def _discard(partial: Path, out: Path) -> None:
 
 
 def _run_here(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
+    from .options import run_options
     from .pipeline import run_scenario
-    from .session import run_options
 
     with outputs.progress(sc.periods, "run") as bar:
         return run_scenario(

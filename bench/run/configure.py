@@ -13,7 +13,7 @@ from .summary import PLANT_VALUES
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
-    from .session import RunOptions
+    from .options import RunOptions
 
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 OBJECT_DOES_NOT_EXIST = 0x06020000  # SDO abort code (CiA 301)

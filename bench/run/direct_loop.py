@@ -12,7 +12,7 @@ from .liveness import NMT_STATES, LoopStopped
 
 if TYPE_CHECKING:
     from .direct import Hil
-    from .session import RunOptions
+    from .options import RunOptions
 
 
 class DirectLoop:

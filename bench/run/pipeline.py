@@ -24,7 +24,8 @@ from ..faults.report import build as fault_report
 from ..scenario import Scenario
 from .decode import Decoder
 from .liveness import LoopStopped
-from .session import RunOptions, Session
+from .options import RunOptions
+from .session import Session
 from .signals import SignalInfo
 from .sinks import Sink, TraceCollector
 from .stats import STEP_SIGNALS, Envelope, StepTracker

@@ -17,7 +17,6 @@ import struct
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +35,7 @@ from .direct_loop import DirectLoop
 from .gateway import FaultGateway
 from .liveness import Liveness, LoopStopped
 from .nodes import NodeProcess
+from .options import RunOptions
 from .slcan_bridge import SlcanBridge
 from .summary import END_READS, STEP_COST
 
@@ -43,64 +43,6 @@ PROGRESS = Callable[[int, int], None]
 
 
 POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
-
-
-@dataclass
-class RunOptions:
-    bus: str = "direct"  # "direct" or a CAN channel (vcan0, can0, ...)
-    interface: str = "socketcan"  # python-can interface for non-direct buses
-    bitrate: int | None = None
-    fd: bool = False
-    data_bitrate: int | None = None
-    plant_id: int = 0x10
-    drive_id: int = 0x20
-    # the drive's own interface when it sits on another adapter of the same bus (a lab bench with two USB
-    # adapters: plant, master and recorder on can0, the drive on can1); None: the drive is on `bus`
-    drive_bus: str | None = None
-    # the drive: "node" (the Linux process build/bin/drive_node) or "mcu" (the Cortex-M4F image under QEMU,
-    # reached over SLCAN on `drive_tty`, joined to the drive's bus by the kernel: bench/run/slcan_bridge.py)
-    drive: str = "node"
-    drive_tty: str | None = None
-    start_plant: bool = True  # start the C plant process (False: a physical plant/drive is on the bus)
-    start_drive: bool = True  # start the C drive process (False: a physical drive implements drive.eds)
-    out: Path | None = None  # where the node processes' output goes (None: nowhere)
-    # record every frame (candump / in-process); off only to time the loop alone (then nothing is decoded: the
-    # result has no periods)
-    record: bool = True
-    chunk_periods: int = 65_536  # periods per chunk of the pipeline (direct mode: per C call)
-    heartbeat_ms: int = 100  # both nodes' heartbeat producer time (0x1017)
-    # consumer time (0x1016 of each node, and the bench's): a node silent this long is named and the run stops
-    # (10 heartbeats: load in a VM must not look like a dead node)
-    heartbeat_timeout_ms: int = 1000
-    stall_s: float = 10.0  # both nodes alive, the period index still for this long: a frame was lost
-
-
-# The Cortex-M4F image of `--drive mcu` runs under qemu-system-arm's emulation (TCG) behind a serial SLCAN
-# link: neither is real time, and a loaded host stalls them for seconds. With the 1 s consumer time a healthy
-# image then lost the plant's heartbeat and entered its safe state (EMCY 0xFF04) in the middle of a lockstep
-# run (2 burners on this 2-core host). The consumer time of both nodes and the bench with --drive mcu:
-MCU_HEARTBEAT_TIMEOUT_MS = 5000
-
-
-def run_options(args: Any, out: Path) -> RunOptions:
-    """RunOptions from the command line of `bench run` or `bench capture` (which has fewer options)."""
-    drive = getattr(args, "drive", "node")
-    return RunOptions(
-        bus=args.bus,
-        drive_bus=getattr(args, "drive_bus", None),
-        interface=getattr(args, "interface", "socketcan"),
-        bitrate=getattr(args, "bitrate", None),
-        fd=getattr(args, "fd", False),
-        data_bitrate=getattr(args, "data_bitrate", None),
-        plant_id=args.plant_id,
-        drive_id=args.drive_id,
-        start_plant=not getattr(args, "no_plant", False),
-        start_drive=not getattr(args, "no_drive", False),
-        out=out,
-        drive=drive,
-        drive_tty=getattr(args, "drive_tty", None),
-        heartbeat_timeout_ms=MCU_HEARTBEAT_TIMEOUT_MS if drive == "mcu" else RunOptions.heartbeat_timeout_ms,
-    )
 
 
 class Session(Configurator, DirectLoop):

@@ -166,8 +166,8 @@ class _Quiet:
 def capture_only(args: argparse.Namespace) -> int:
     """`bench capture` (run inside the VM): configure, run and record candump.log; no decoding
     (the host does it). Writes capture.json with the run's wall time."""
+    from .options import run_options
     from .pipeline import capture_to_log
-    from .session import run_options
 
     try:
         sc = load(args.scenario, args.overrides)

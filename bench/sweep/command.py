@@ -12,11 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from .bisect import Condition, parse_bisect, parse_condition
-from .point import STEP_METRICS
+from .point import METRICS, NUMERIC
 from .space import Space, SpaceError, build, point_id
-
-METRICS = (*STEP_METRICS, "error_growth_per_period", "max_phase_current_A", "status", "periods", "loop_s", "point_s")
-NUMERIC = tuple(m for m in METRICS if m != "status")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

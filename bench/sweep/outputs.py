@@ -45,7 +45,7 @@ def write_outputs(
     ran: int,
     skipped: int,
 ) -> None:
-    from .command import NUMERIC
+    from .point import NUMERIC
 
     keys = space.keys + ([args.bisect.partition("=")[0]] if args.bisect else [])
     metric = (
@@ -76,7 +76,7 @@ def write_outputs(
         heatmap(out / name, space.grid, rows, metric, sc.name)
         plots.append(name)
     if space.samples:
-        from .command import NUMERIC as M
+        from .point import NUMERIC as M
 
         ident = sorted({k for r in rows for k in r if k.startswith("identified.")})
         metrics = tuple(m for m in M if m not in ("loop_s", "point_s", "periods")) + tuple(ident)

@@ -16,6 +16,9 @@ from typing import Any
 import numpy as np
 
 STEP_METRICS = ("periods_to_settle", "overshoot_pct", "overshoot_A", "steady_state_error_A")
+# A point's row: the columns a condition (--until) may name, the numeric ones a plot may show
+METRICS = (*STEP_METRICS, "error_growth_per_period", "max_phase_current_A", "status", "periods", "loop_s", "point_s")
+NUMERIC = tuple(m for m in METRICS if m != "status")
 # the float32 floor of the loop: an error envelope below this fraction of the step has decayed
 FLOOR = 1e-5
 

@@ -81,8 +81,8 @@ def test_the_loop_frames_come_from_the_eds() -> None:
 def test_what_is_not_refused_does_not_stall() -> None:
     """The refusal's other side, run: a lockstep loop without a command timeout goes on through a dropped
     SYNC or current frame (so refusing them would turn away scenarios that run)."""
+    from bench.run.options import RunOptions
     from bench.run.pipeline import run_scenario
-    from bench.run.session import RunOptions
 
     for fault in ('kind = "drop"\nframe = "SYNC"', 'kind = "drop"\nframe = "plant.TPDO1"'):
         res = run_scenario(loads(text(fault), "s.toml"), RunOptions(bus="direct"))

@@ -62,7 +62,8 @@ def api(periods: int, folder: Path) -> dict[str, Any]:
 
 
 def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
-    from ...run.session import RunOptions, Session
+    from ...run.options import RunOptions
+    from ...run.session import Session
     from ...run.sources import DirectSource
 
     opts = RunOptions(bus="direct")

@@ -96,8 +96,8 @@ def memory_verdict(samples: list[tuple[float, int]]) -> dict[str, Any]:
 
 
 def inside(periods: int, out: Path) -> int:
+    from ...run.options import RunOptions
     from ...run.pipeline import capture_to_log
-    from ...run.session import RunOptions
     from ...scenario import load
 
     keep = PERF_DIR / "vm_soak"

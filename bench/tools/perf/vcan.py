@@ -95,8 +95,8 @@ def _floor(iface: str, periods: int, extra: int, record: Path | None) -> dict[st
 def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
     """The bus half of `bench run` (bench.run.pipeline.capture_to_log: nodes, master, candump's
     log into `keep`); the host decodes the log."""
+    from ...run.options import RunOptions
     from ...run.pipeline import capture_to_log
-    from ...run.session import RunOptions
 
     if keep.exists():
         shutil.rmtree(keep)
@@ -118,7 +118,8 @@ def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
 
 def _unrecorded(sc: Any, iface: str) -> dict[str, Any]:
     """The same loop with no recorder at all (what RunOptions(record=False) means over a bus)."""
-    from ...run.session import RunOptions, Session
+    from ...run.options import RunOptions
+    from ...run.session import Session
 
     sess = Session(sc, RunOptions(bus=iface, record=False))
     t0 = time.monotonic()

@@ -1,0 +1,90 @@
+"""The bench's Python modules import one another without a circle (issue 27): every import counts, at the top
+of a module, under TYPE_CHECKING or inside a function, since each is an arrow of the structure. A package's
+__init__.py is its face: importing bench.run means bench/run/__init__.py."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from bench.paths import REPO
+
+BENCH = REPO / "bench"
+
+
+def _module(path: Path) -> str:
+    parts = list(path.relative_to(REPO).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _targets(path: Path, mod: str, modules: set[str]) -> set[str]:
+    """The bench modules this file imports (a name imported from a package that is a module counts as it)."""
+    package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join([*up, *([base] if base else [])])
+            names = [base, *(f"{base}.{a.name}" for a in node.names)]
+        else:
+            continue
+        out |= {n for n in names if n in modules}
+    return out - {mod}
+
+
+def _graph() -> dict[str, set[str]]:
+    files = {_module(p): p for p in BENCH.rglob("*.py")}
+    return {m: _targets(p, m, set(files)) for m, p in files.items()}
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_graph_is_read() -> None:
+    g = _graph()
+    assert "bench.run.options" in g["bench.run.session"] and "bench.scenario" in g["bench.run.command"]
+
+
+def test_the_bench_imports_without_a_circle() -> None:
+    circles = _circles(_graph())
+    assert not circles, "\n".join(" <-> ".join(c) for c in circles)
+
+
+def test_a_circle_is_found() -> None:
+    assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
