@@ -61,6 +61,7 @@ LAW_FROM := $(BUILD)/law.from
 $(shell mkdir -p '$(BUILD)' && { [ "$$(cat '$(LAW_FROM)' 2>/dev/null)" = '$(abspath $(LAW_DIR))' ] || { \
         rm -rf '$(BUILD)/obj/law' '$(BUILD)/mcu/obj/law' && echo '$(abspath $(LAW_DIR))' > '$(LAW_FROM)'; }; })
 LAW_OK   := $(BUILD)/law.ok
+LAW_CHECKED := $(BUILD)/law.checked
 INC      := -I$(GEN_DIR) $(filter-out -Iprotocols/generated,$(INC))
 CO_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(CO_SRC))
 FW_SRC   := $(patsubst protocols/generated/%,$(GEN_DIR)/%,$(FW_SRC)) $(LAW_SRC)
@@ -273,7 +274,6 @@ $(LAW_OK): $(call obj,$(LAW_SRC))
 	@touch $@
 $(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
 # ... and fills the members the drive calls unconditionally, with a state that fits (firmware_shim/law/law_check.c).
-LAW_CHECKED := $(BUILD)/law.checked
 $(LAW_CHECKED): firmware_shim/law/law_check.c $(LIBFW)
 	@mkdir -p $(BUILD)/bin
 	@$(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$(LAW_NAME) $< $(LIBFW) -lm -o $(BUILD)/bin/law_check

@@ -146,6 +146,8 @@ def _ident(name: str) -> str:
 
 
 WRITABLE = ("rw", "rww", "rwr", "wo")
+GENERATOR_TYPES = ("comm", "mfr", "ram")  # gen_od.py's own struct names beside the records'
+RATIO_SUFFIX = "_ratio"  # the scenario's [controller] ratio keys (bench/scenario.py RATIOS)
 MANUFACTURER = range(0x2000, 0x6000)
 
 
@@ -171,9 +173,12 @@ def _check_names(frag: Path, raw: configparser.ConfigParser, top: str, base: con
             taken_par.setdefault(name, sec)
         if base.has_option(sec, "ValueNames"):
             taken_enum.setdefault(_ident(name), sec)
+    for own in GENERATOR_TYPES:  # the generator's own types: od_drive_comm_t, od_drive_mfr_t, od_drive_ram_t
+        taken_rec.setdefault(own, f"the generator's od_drive_{own}_t")
     if _ident(rec) in taken_rec:
+        where = taken_rec[_ident(rec)]
         raise LawError(
-            f"{frag} [{top}]: ParameterName={rec}: drive.eds [{taken_rec[_ident(rec)]}] has that name "
+            f"{frag} [{top}]: ParameterName={rec}: {where if ' ' in where else f'drive.eds [{where}]'} has that name "
             f"(the generated C type od_drive_{_ident(rec)}_t would be defined twice)"
         )
     for sec in (x for x in raw.sections() if x != top):
@@ -181,8 +186,14 @@ def _check_names(frag: Path, raw: configparser.ConfigParser, top: str, base: con
         access = raw.get(sec, "AccessType", fallback="").strip().lower()
         if access in WRITABLE and name in taken_par:
             raise LawError(
-                f"{frag} [{sec}]: ParameterName={name}: a parameter of the drive's own "
-                f"(drive.eds [{taken_par[name]}]); a law's parameters are scenario keys controller.<name>: rename it"
+                f"{frag} [{sec}]: ParameterName={name}: the name of a parameter of the drive's own "
+                f"(drive.eds [{taken_par[name]}]); a law's parameters are scenario keys controller.<name>, kept "
+                "apart from every name the drive's parameters use: rename it"
+            )
+        if access in WRITABLE and name.endswith(RATIO_SUFFIX):
+            raise LawError(
+                f"{frag} [{sec}]: ParameterName={name}: controller.<name>{RATIO_SUFFIX} keys are the bench's "
+                "model-mismatch ratios (L_hat_ratio, R_hat_ratio, ...): rename it"
             )
         if raw.has_option(sec, "ValueNames") and _ident(name) in taken_enum:
             raise LawError(

@@ -222,7 +222,17 @@ def check_non_finite_measurement(bus: str, law: Law) -> FaultCheck:
     clean = _run(raw, bus)
     # a period where i_b is in [1, 2) A: its float's exponent is 0x7F, and flipping bit 30 makes it 0xFF (inf/NaN)
     ib = clean.tr["i_b_A"]
-    p = int(clean.tr["period"][np.flatnonzero((np.abs(ib) >= 1.0) & (np.abs(ib) < 2.0))[0]])
+    where = np.flatnonzero((np.abs(ib) >= 1.0) & (np.abs(ib) < 2.0))
+    if len(where) == 0:  # a law that never drives i_b there (open loop, a law of 0 V): nothing to corrupt
+        return FaultCheck(
+            "non-finite-measurement",
+            "bit 30 of i_b_A flipped in the currents frame of the first period with 1 A <= |i_b| < 2 A",
+            "a period to corrupt: the 1.5 A step drives i_b into [1, 2) A",
+            {"note": "the law never drove |i_b| into [1, 2) A: not judged", "max_i_b_A": float(np.nanmax(np.abs(ib)))},
+            False,
+            bus,
+        )
+    p = int(clean.tr["period"][where[0]])
     f = {"kind": "corrupt", "frame": "plant.TPDO1", "at_period": p, "bit": 62}
     hit = _run(with_fault(raw, ["ok"], f), bus)  # the recorder (side a) sees the frame as the plant sent it
     nf = emcys(hit, 0xFF05, "drive")

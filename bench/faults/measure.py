@@ -48,6 +48,9 @@ def recovered(hit: Run, clean: Run, p: int, step_A: float) -> dict[str, Any]:
     n = settling_bound(clean)
     if n is None:
         return {"iq_deviation_after_recovery_A": None, "bound_A": None, "from_period": None}
+    if p + 1 + n >= len(clean.tr["period"]):  # the law settles later than this run lasts: not judged
+        note = f"the law's step settles in {n} periods: beyond the run's end"
+        return {"iq_deviation_after_recovery_A": None, "bound_A": None, "from_period": p + 1 + n, "note": note}
     dev = deviation_after(hit, clean, "iq_A", p + 1 + n)
     return {
         "iq_deviation_after_recovery_A": dev,

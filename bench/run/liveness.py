@@ -6,7 +6,8 @@ both too (python `canopen` delivers the frames; the judgement is ours because ca
 
 - its process (when the bench started it) has exited: at once, with its exit status;
 - its heartbeat has not been seen for the consumer time (`heartbeat_timeout_ms`): dead or silent
-  (frozen, unplugged, bus-off);
+  (frozen, unplugged, bus-off); in lockstep a node process of the bench's that still runs is allowed
+  STARVED_S (a loaded host starves it; lockstep waits);
 - its heartbeat says it left OPERATIONAL (an NMT command from elsewhere, a reset);
 - the other node reports losing it (EMCY 0x8130 with its node-ID), on interfaces where the master sees
   EMCYs (over SocketCAN its kernel filter keeps them out: bench/run/session.py).
@@ -36,11 +37,13 @@ WATCH_S = 0.1  # how often the watcher thread judges
 # vCPUs descheduled by the host: the whole guest stops, and its clock jumps when it runs again): the silence
 # it would now see is its own, not the nodes', so that time is not counted against them
 STALL_S = 0.3
-# A node process the bench started that is alive and not stopped (its kernel state is not T) but silent was
-# most likely starved of CPU: a loaded host deschedules one of the VM's vCPUs, and the node on it stops while
-# the watcher on the other vCPU runs on. In lockstep that changes nothing but time, so such a node is named
-# after this much silence (a hung node too, later than the consumer time); a stopped or exited process, or a
-# node the bench did not start (a physical drive), is judged by the consumer time as before.
+# In lockstep, a node process the bench started that is alive and not stopped (its kernel state is not T) but
+# silent was most likely starved of CPU: a loaded host deschedules one of the VM's vCPUs, and the node on it
+# stops while the watcher on the other vCPU runs on. Lockstep waits for it: that changes nothing but time, so
+# such a node is named after this much silence (a hung or unplugged node of ours too, later than the consumer
+# time). A stopped or exited process, a node the bench did not start (a physical drive) and every node of a
+# real-time run (where the other node's own consumer reacts after the consumer time) are judged by the
+# consumer time.
 STARVED_S = 5.0
 
 
@@ -94,10 +97,12 @@ class Liveness:
         procs: dict[str, NodeProcess],
         timeout_ms: int,
         heartbeat_ms: int,
+        starved_s: float = 0.0,
     ) -> None:
         self.nodes = nodes  # name -> node-ID
         self.procs = procs  # name -> process the bench started
         self.timeout_s = timeout_ms / 1000.0
+        self.starved_s = starved_s  # STARVED_S in lockstep, 0: the consumer time for every node
         self.last: dict[str, float] = {}  # name -> monotonic time of the last heartbeat
         self.state: dict[str, int] = {}
         self.emcy: list[tuple[str, int, bytes, float]] = []
@@ -205,16 +210,16 @@ class Liveness:
         return found if found is not None else self.check()
 
     def _silence_bound(self, name: str) -> float:
-        """How long this node may be silent before it is named (STARVED_S for a running process of ours)."""
+        """How long this node may be silent before it is named (starved_s for a running process of ours)."""
         proc = self.procs.get(name)
         pid = proc.proc.pid if proc is not None and proc.proc is not None else None
-        if pid is None:
+        if pid is None or self.starved_s <= self.timeout_s:
             return self.timeout_s
         try:  # /proc/PID/stat: "pid (comm) state ...", comm may hold spaces and parentheses
             state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
         except (OSError, IndexError):
             return self.timeout_s
-        return self.timeout_s if state in ("T", "t") else max(self.timeout_s, STARVED_S)
+        return self.timeout_s if state in ("T", "t") else self.starved_s
 
     def _who(self, name: str) -> str:
         return f"the {name} (node 0x{self.nodes[name]:02X})"

@@ -33,7 +33,7 @@ from .configure import Configurator, SettingRefused
 from .direct import DirectBus, Hil
 from .direct_loop import DirectLoop
 from .gateway import FaultGateway
-from .liveness import Liveness, LoopStopped
+from .liveness import STARVED_S, Liveness, LoopStopped
 from .nodes import NodeProcess
 from .options import RunOptions
 from .slcan_bridge import SlcanBridge
@@ -196,6 +196,7 @@ class Session(Configurator, DirectLoop):
                 getattr(self, "node_procs", {}),
                 self.opts.heartbeat_timeout_ms,
                 self.opts.heartbeat_ms,
+                starved_s=STARVED_S if self.sc.timing == "lockstep" else 0.0,
             )
 
     def close(self) -> None:

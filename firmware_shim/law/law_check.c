@@ -32,9 +32,9 @@ int main(void)
         fprintf(stderr, "law_check: %s.step is NULL: the drive calls it every current period\n", sym);
         bad = 1;
     }
-    if (law->state_bytes == 0u || law->state_bytes > CURRENT_LAW_STATE_BYTES) {
+    if (law->state_bytes > CURRENT_LAW_STATE_BYTES) {
         fprintf(stderr,
-                "law_check: %s.state_bytes = %lu: expected sizeof your state, 1 .. %lu "
+                "law_check: %s.state_bytes = %lu: expected sizeof your state, at most %lu "
                 "(CURRENT_LAW_STATE_BYTES; CURRENT_LAW_STATE_FITS(state_t) checks it at compile time)\n",
                 sym, (unsigned long)law->state_bytes, (unsigned long)CURRENT_LAW_STATE_BYTES);
         bad = 1;

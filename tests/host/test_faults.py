@@ -39,6 +39,13 @@ def test_the_checks_through_another_law_judge_its_recovery_by_its_own_step() -> 
     assert short.ok and short.measured["bound_A"] == pytest.approx(0.02), short.measured
 
 
+def test_a_check_a_law_cannot_be_judged_by_fails_with_a_note() -> None:
+    """Open loop never drives i_b into [1, 2) A: the non-finite check has no period to corrupt and says so
+    (not judged, not ok) instead of raising; the drop check's recovery is then not judged either."""
+    (nf,) = run_checks("direct", ["non-finite-measurement"], ("controller.controller=open_loop",))
+    assert not nf.ok and "not judged" in nf.measured["note"], nf.measured
+
+
 def test_bench_faults_refuses_a_bad_setting_before_any_run(tmp_path: Path) -> None:
     res = subprocess.run(
         [sys.executable, "-m", "bench.cli", "faults", "--set", "controller.Vmax_V=-5", "--out", str(tmp_path / "f")],
