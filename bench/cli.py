@@ -230,8 +230,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--drive-tty", default=None)
     c.add_argument("--bitrate", type=int, default=None)
     c.add_argument("--out", type=Path, required=True)
-    c.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10)
-    c.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20)
+    from .eds import add_node_id_arguments
+
+    add_node_id_arguments(c)
     c.set_defaults(func=_cmd_capture)
 
     from .replay import add_arguments as replay_args

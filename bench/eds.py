@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
@@ -41,6 +41,24 @@ def _raw(path: str) -> configparser.ConfigParser:
     raw.optionxform = str  # type: ignore[assignment,method-assign]
     raw.read(path)
     return raw
+
+
+def default_node_id(node: str) -> int:
+    """A node's default node-ID: its EDS's [DeviceComissioning] NodeID (plant 0x10, drive 0x20; the C nodes'
+    OD_<NODE>_DEFAULT_NODE_ID is generated from the same key)."""
+    return int(_raw(str(eds_path(node))).get("DeviceComissioning", "NodeID"), 0)
+
+
+def add_node_id_arguments(p: Any) -> None:
+    """--plant-id / --drive-id (hex or decimal) of an argparse parser, defaulting to the EDS's NodeIDs."""
+    for node in ("plant", "drive"):
+        nid = default_node_id(node)
+        p.add_argument(
+            f"--{node}-id",
+            type=lambda s: int(s, 0),
+            default=nid,
+            help=f"{node} node-ID (default 0x{nid:02X}, {node}.eds)",
+        )
 
 
 def float_limits(path: Path, var: ODVariable) -> tuple[float | None, float | None]:

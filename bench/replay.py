@@ -16,9 +16,10 @@ from typing import Any
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from .eds import add_node_id_arguments  # here: bench.eds imports canopen
+
     p.add_argument("log", type=Path, help="CAN log (.log candump, .asc, .blf, ...)")
-    p.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10, help="plant node-ID (default 0x10)")
-    p.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20, help="drive node-ID (default 0x20)")
+    add_node_id_arguments(p)
     p.add_argument(
         "--out",
         type=Path,

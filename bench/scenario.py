@@ -172,6 +172,12 @@ def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, d
     return Setting(full, p, value)
 
 
+def add_set_argument(p: Any, help: str) -> None:
+    """`--set KEY=VALUE` (repeatable) of the commands that take a scenario's overrides (apply_overrides):
+    bench run, sweep, faults; `p` an argparse parser, the values in args.overrides."""
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=help)
+
+
 def unselected_law(scenarios: list[Scenario], what: str = "the scenario") -> str | None:
     """Under `--law DIR` (bench/law.py sets BENCH_LAW to the law's name): a refusal when none of these
     scenarios selects the user's law (controller.controller, at the start or in an event), else None."""

@@ -68,9 +68,13 @@ class Layout:
         return asdict(self)
 
 
-def default_layout(drive_id: int = 0x20, cycle_s: float = 0.001) -> Layout:
+def default_layout(drive_id: int | None = None, cycle_s: float = 0.001) -> Layout:
     """drive.eds' own PDOs: RPDO4 {0x6040, 0x6071}, TPDO3 {0x6041, 0x6061, 0x6077, 0x6078}, TPDO4
-    {0x6064, 0x606C}, the rated values' defaults."""
+    {0x6064, 0x606C}, the rated values' defaults (drive_id None: drive.eds' NodeID)."""
+    if drive_id is None:
+        from ..eds import default_node_id
+
+        drive_id = default_node_id("drive")
     return Layout(
         drive_id,
         0x80,

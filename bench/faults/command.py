@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from ..paths import lost_in_vm
-from ..scenario import ScenarioError, parse, unselected_law
+from ..scenario import ScenarioError, add_set_argument, parse, unselected_law
 from .checks import CHECKS, base, run_checks
 
 
@@ -27,13 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="CHECK,...",
         help=f"run only these checks: {', '.join(CHECKS)}",
     )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="change every check's scenario (You 2019's deadbeat on its motor, locked rotor, iq step 0 -> 1 A at "
+    add_set_argument(
+        p,
+        "change every check's scenario (You 2019's deadbeat on its motor, locked rotor, iq step 0 -> 1 A at "
         "period 20), as bench run --set does: another current law (--set controller.controller=pi; a law of "
         "your own with --law DIR) and its parameters (repeatable). How fast the loop recovers is judged against "
         "that law's own fault-free step",

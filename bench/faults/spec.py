@@ -252,12 +252,15 @@ def cob_ids(plant_id: int, drive_id: int) -> dict[str, int]:
 _AWAITED = {"plant": ("Measurement", "sample_index"), "drive": ("Voltage command", None)}
 
 
-def loop_frames(plant_id: int = 0x10, drive_id: int = 0x20) -> dict[int, str]:
+def loop_frames(plant_id: int | None = None, drive_id: int | None = None) -> dict[int, str]:
     """The frames a lockstep period cannot do without, COB-ID -> name, from the EDS files' default TPDO
     mappings: the plant's TPDO that maps the sample index (it triggers the drive's step) and the drive's
     TPDO that maps the voltage command (the plant produces the next SYNC when it has come)."""
+    from ..eds import default_node_id
     from ..eds import load as load_od
 
+    plant_id = default_node_id("plant") if plant_id is None else plant_id
+    drive_id = default_node_id("drive") if drive_id is None else drive_id
     ids = cob_ids(plant_id, drive_id)
     out: dict[int, str] = {}
     for node, nid in (("plant", plant_id), ("drive", drive_id)):

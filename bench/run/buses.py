@@ -89,13 +89,13 @@ def _mcu_problem(args: argparse.Namespace) -> str | None:
     """What stops `--drive mcu` (the Cortex-M4F image over SLCAN) here, or None."""
     import shutil
 
-    from ..eds import load
+    from ..eds import default_node_id
 
     if args.bus == "direct" or args.interface != "socketcan":
         return "--drive mcu reaches the image over a SocketCAN bus: use --bus vcan0 (or can0 --drive-bus can1)"
     if getattr(args, "no_drive", False):
         return "--drive mcu starts the drive image; with --no-drive the bench starts no drive"
-    node_id = load("drive").node_id or 0x20
+    node_id = default_node_id("drive")
     if args.drive_id != node_id:
         return f"--drive mcu: the image is node 0x{node_id:02X} (drive.eds), not --drive-id 0x{args.drive_id:02X}"
     for tool, pkg in (("qemu-system-arm", "qemu-system-arm"), ("arm-none-eabi-gcc", "gcc-arm-none-eabi")):

@@ -18,8 +18,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ..eds import add_node_id_arguments
 from ..paths import lost_in_vm
-from ..scenario import Scenario, ScenarioError, load, unselected_law
+from ..scenario import Scenario, ScenarioError, add_set_argument, load, unselected_law
 from .buses import bus_problem
 from .canlog import LOG_FORMATS
 from .outputs import Outputs, print_result
@@ -49,13 +50,9 @@ def exit_codes_help() -> str:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario value with a dotted key following the TOML layout, "
+    add_set_argument(
+        p,
+        "override a scenario value with a dotted key following the TOML layout, "
         "e.g. --set controller.L_hat_ratio=0.5 (repeatable)",
     )
     p.add_argument(
@@ -103,8 +100,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="do not start the C drive (a physical drive implementing drive.eds is on the bus)",
     )
-    p.add_argument("--plant-id", type=lambda s: int(s, 0), default=0x10, help="plant node-ID (default 0x10)")
-    p.add_argument("--drive-id", type=lambda s: int(s, 0), default=0x20, help="drive node-ID (default 0x20)")
+    add_node_id_arguments(p)
     p.add_argument(
         "--out", type=Path, default=None, help="output folder (default runs/NAME-TIMESTAMP); must not exist or be empty"
     )

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..eds import default_node_id
 from .frames import FRAME_DTYPE
 from .layout import FMT, BusLayout, PdoLayout
 from .sdo_log import SdoLog
@@ -94,8 +95,12 @@ class DecodeStats:
 class Decoder:
     """Feed frames in bus order (any chunk size); get back the rows completed so far."""
 
-    def __init__(self, plant_id: int = 0x10, drive_id: int = 0x20) -> None:
-        self.sdo = SdoLog(plant_id, drive_id)
+    def __init__(self, plant_id: int | None = None, drive_id: int | None = None) -> None:
+        """plant_id/drive_id: the nodes' IDs (None: their EDS's NodeID)."""
+        self.sdo = SdoLog(
+            default_node_id("plant") if plant_id is None else plant_id,
+            default_node_id("drive") if drive_id is None else drive_id,
+        )
         self.layout: BusLayout | None = None
         self.stats = DecodeStats()
         self.signals: list[SignalInfo] = []

@@ -11,6 +11,7 @@ import time
 import can
 import numpy as np
 
+from ..eds import default_node_id
 from ..paths import BUILD
 from .frames import FRAME_DTYPE
 
@@ -46,7 +47,7 @@ class Hil:
 
     _lock = threading.RLock()
 
-    def __init__(self, plant_id: int = 0x10, drive_id: int = 0x20) -> None:
+    def __init__(self, plant_id: int | None = None, drive_id: int | None = None) -> None:
         path = BUILD / "libhil.so"
         if not path.exists():
             raise FileNotFoundError(f"{path} is missing: run `make all`")
@@ -73,7 +74,10 @@ class Hil:
         assert self.lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
         self._rec: np.ndarray | None = None
         with self._lock:
-            self.lib.hil_open(plant_id, drive_id)
+            self.lib.hil_open(
+                default_node_id("plant") if plant_id is None else plant_id,
+                default_node_id("drive") if drive_id is None else drive_id,
+            )
 
     def set_faults(self, rules: str) -> int:
         """The fault injector's rules (protocols/faults/fault_rules.h text), before the run."""

@@ -4,9 +4,11 @@ and its values from a `bench run` / `bench capture` command line."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from ..eds import default_node_id
 
 
 @dataclass
@@ -16,8 +18,8 @@ class RunOptions:
     bitrate: int | None = None
     fd: bool = False
     data_bitrate: int | None = None
-    plant_id: int = 0x10
-    drive_id: int = 0x20
+    plant_id: int = field(default_factory=lambda: default_node_id("plant"))  # the EDS's NodeID (0x10)
+    drive_id: int = field(default_factory=lambda: default_node_id("drive"))  # (0x20)
     # the drive's own interface when it sits on another adapter of the same bus (a lab bench with two USB
     # adapters: plant, master and recorder on can0, the drive on can1); None: the drive is on `bus`
     drive_bus: str | None = None

@@ -97,8 +97,8 @@ class Pipeline:
 
     def __init__(
         self,
-        plant_id: int,
-        drive_id: int,
+        plant_id: int | None,  # None: the EDS's NodeID
+        drive_id: int | None,
         sinks: list[Sink] | None = None,
         frame_sinks: list[FrameSink] | None = None,
         expect: tuple[str, ...] = ("ok",),
@@ -445,8 +445,8 @@ def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any
 
 def replay_log(
     path: Path,
-    plant_id: int = 0x10,
-    drive_id: int = 0x20,
+    plant_id: int | None = None,
+    drive_id: int | None = None,
     sinks: list[Sink] | None = None,
     keep_trace: bool = False,
     expect: tuple[str, ...] = ("ok",),

@@ -55,14 +55,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--tol", type=float, default=None, help="stop the search when the bracket is narrower (default (HI-LO)/1000)"
     )
-    g.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="fixed overrides applied to every point",
-    )
+    from ..scenario import add_set_argument  # here: the module reads the EDS, --help of other commands need not
+
+    add_set_argument(g, "fixed overrides applied to every point")
     r = p.add_argument_group("where it runs")
     r.add_argument(
         "--workers",

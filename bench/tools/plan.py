@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, field
 
 import canopen
 
+from ..eds import default_node_id
 from ..paths import EDS_DIR
 
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
@@ -81,8 +82,8 @@ class Plan:
 def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1) -> list[tuple[str, int, float]]:
     """(what, data bytes, frames per period) of one control period, from the EDS files."""
     out: list[tuple[str, int, float]] = []
-    plant = canopen.import_od(str(EDS_DIR / "plant.eds"), node_id=0x10)
-    drive = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=0x20)
+    plant = canopen.import_od(str(EDS_DIR / "plant.eds"), node_id=default_node_id("plant"))
+    drive = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=default_node_id("drive"))
     ov = plant["Synchronous counter overflow value"].default or 0
     out.append(("SYNC (plant)", 1 if ov >= 2 else 0, 1.0))
     for name, od in (("plant", plant), ("drive", drive)):

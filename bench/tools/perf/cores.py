@@ -90,7 +90,7 @@ def plant_core() -> dict[str, Any]:
 def closed_loop() -> dict[str, Any]:
     import canopen
 
-    from ...eds import eds_path
+    from ...eds import default_node_id, eds_path
     from ...run.direct import DirectBus, Hil
 
     # Bare cores, no CANopen.
@@ -118,8 +118,8 @@ def closed_loop() -> dict[str, Any]:
     net.bus = DirectBus(hil)
     net.connect()
     try:
-        plant = canopen.RemoteNode(0x10, str(eds_path("plant")))
-        drive = canopen.RemoteNode(0x20, str(eds_path("drive")))
+        plant = canopen.RemoteNode(default_node_id("plant"), str(eds_path("plant")))
+        drive = canopen.RemoteNode(default_node_id("drive"), str(eds_path("drive")))
         net.add_node(plant)
         net.add_node(drive)
         total = DIRECT_PERIODS * 2 + DIRECT_PERIODS // 10

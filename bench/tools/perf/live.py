@@ -80,7 +80,7 @@ def live_follow(log: Path, periods_per_update: int = 1000, periods: int | None =
         grow = Path(td) / "candump.log"
         follower = LogFollower(grow)
         sinks = [TraceFileSink(Path(td) / "traces.npy"), RerunSink("perf-live", Path(td) / "run.rrd", live="none")]
-        pipe = Pipeline(0x10, 0x20, sinks)
+        pipe = Pipeline(None, None, sinks)  # the EDS's node-IDs
         t_all = time.perf_counter()
         with open(log, "rb") as src, open(grow, "wb") as dst:
             while True:

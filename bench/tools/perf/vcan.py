@@ -222,7 +222,7 @@ def recorder_check(d: Path) -> dict[str, Any]:
     periods = int(meta["periods"])
     log = d / "candump.log"
     count = _FrameCount()
-    pipe = Pipeline(0x10, 0x20, frame_sinks=[count])
+    pipe = Pipeline(None, None, frame_sinks=[count])  # the EDS's node-IDs
     for chunk in read_frames(log):
         pipe.feed(chunk)
     in_log_order = pipe.finish("log order", "vcan0").summary["bus_stats"]
