@@ -46,6 +46,11 @@ class RunOptions:
 # image then lost the plant's heartbeat and entered its safe state (EMCY 0xFF04) in the middle of a lockstep
 # run (2 burners on this 2-core host). The consumer time of both nodes and the bench with --drive mcu:
 MCU_HEARTBEAT_TIMEOUT_MS = 5000
+# ... and under two burners plus a second VM the image answered an SDO read after 12 s (its emulation and the
+# serial path starved): with --drive mcu the master waits this long for the image's SDO answers, and in
+# lockstep the bench gives the silent image this long before naming it lost (a dead QEMU or slcand process
+# is named at once, by its exit).
+MCU_STALL_S = 30.0
 
 
 def run_options(args: Any, out: Path) -> RunOptions:

@@ -35,7 +35,7 @@ from .direct_loop import DirectLoop
 from .gateway import FaultGateway
 from .liveness import STARVED_S, Liveness, LoopStopped
 from .nodes import NodeProcess
-from .options import RunOptions
+from .options import MCU_STALL_S, RunOptions
 from .slcan_bridge import SlcanBridge
 from .summary import END_READS, STEP_COST
 
@@ -180,7 +180,7 @@ class Session(Configurator, DirectLoop):
         self.net.add_node(self.plant)
         self.net.add_node(self.drive)
         for n in (self.plant, self.drive):
-            n.sdo.RESPONSE_TIMEOUT = 5.0
+            n.sdo.RESPONSE_TIMEOUT = MCU_STALL_S if n is self.drive and self.opts.drive == "mcu" else 5.0
             # An SDO frame is always 8 bytes (CiA 301); canopen's client takes any frame on the identifier for
             # the answer and fails on a short one (struct.error): a foreign frame there is dropped instead.
             self.net.unsubscribe(n.sdo.tx_cobid, n.sdo.on_response)
@@ -196,7 +196,9 @@ class Session(Configurator, DirectLoop):
                 getattr(self, "node_procs", {}),
                 self.opts.heartbeat_timeout_ms,
                 self.opts.heartbeat_ms,
-                starved_s=STARVED_S if self.sc.timing == "lockstep" else 0.0,
+                starved_s=(MCU_STALL_S if self.opts.drive == "mcu" else STARVED_S)
+                if self.sc.timing == "lockstep"
+                else 0.0,
             )
 
     def close(self) -> None:

@@ -148,6 +148,13 @@ def vm_options(args: argparse.Namespace) -> Any:
         timeout_s=3600,
         interfaces=tuple(n for n in names if not VM_CAN.fullmatch(n)),
         can_controllers=max(cans) + 1 if cans else 0,
+        # --drive mcu: one vCPU. The image's frames cross can-gw between vcan0 and slcan0, and the guest kernel
+        # queues a frame on the backlog of the CPU its sender runs on: with two vCPUs and a loaded host a
+        # sender that moved between them had its frames reordered (the plant's currents after its sample: the
+        # drive stepped on stale currents, EMCY 0xFF02 reasons 2 then 1; an image's trace frame after the
+        # next SYNC). One vCPU keeps every frame in the order it was sent; the loop's rate is the serial
+        # link's anyway (docs/BENCHMARKS.md).
+        cpus=1 if getattr(args, "drive", "node") == "mcu" else VmOptions.cpus,
     )
 
 

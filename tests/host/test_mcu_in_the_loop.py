@@ -46,6 +46,9 @@ def pair(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactor
 def test_the_image_in_the_loop_gives_the_host_builds_traces(pair: tuple[str, Any, dict, Any]) -> None:
     name, mcu, summary, direct = pair
     assert summary["status"] == "ok" and summary["bus_stats"]["lost_frames"] == 0, summary["bus_stats"]
+    # a measurement late or out of order at the image (EMCY 0xFF02) changes the loop: say so before the traces
+    late = [e for e in summary["emcy"] if e["node"] == "drive" and e["code"] == "0xFF02"]
+    assert not late, f"the image got measurements late or out of order: {late}"
     tr = direct.trace
     assert tr is not None and set(mcu.dtype.names) == set(tr)
     assert len(mcu) == len(tr["period"]) == load(SCENARIOS[name]).periods
