@@ -8,13 +8,13 @@ from pathlib import Path
 
 
 def _cmd_doctor(args: argparse.Namespace) -> int:
-    from .tools.doctor import report
+    from bench.tools.doctor import report
 
     return report()
 
 
 def _cmd_vm(args: argparse.Namespace) -> int:
-    from .tools.vm import VmError, VmOptions, run_in_vm
+    from bench.run.bus.vm import VmError, VmOptions, run_in_vm
 
     cmd = list(args.cmd)
     if cmd and cmd[0] == "--":
@@ -42,7 +42,7 @@ def _cmd_vm(args: argparse.Namespace) -> int:
 
 
 def _cmd_pingpong(args: argparse.Namespace) -> int:
-    from .tools.pingpong import run_pingpong
+    from bench.tools.pingpong import run_pingpong
 
     res = run_pingpong(args.iface, args.count)
     print(res.echo_output.strip())
@@ -51,7 +51,7 @@ def _cmd_pingpong(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .tools.plan import format_plan, make_plan
+    from bench.tools.plan import format_plan, make_plan
 
     try:
         plan = make_plan(
@@ -65,25 +65,29 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .run.command import run
+    if args.drive_profile == "cia402":
+        from bench.cia402.command import run as run_cia402
+
+        return run_cia402(args)
+    from bench.run.command import run
 
     return run(args)
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
-    from .run.vm_run import capture_only
+    from bench.run.vm_run import capture_only
 
     return capture_only(args)
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from .replay import main as replay_main
+    from bench.replay import main as replay_main
 
     return replay_main(args)
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from .run.canlog import LOG_FORMATS, export
+    from bench.run.record.canlog import LOG_FORMATS, export
 
     ext = args.dest.suffix.lstrip(".")
     if ext not in LOG_FORMATS:
@@ -101,38 +105,38 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep import main as sweep_main
+    from bench.sweep import main as sweep_main
 
     return sweep_main(args)
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from .reproduce import main as reproduce_main
+    from bench.reproduce import main as reproduce_main
 
     return reproduce_main(args)
 
 
 def _cmd_faults(args: argparse.Namespace) -> int:
-    from .faults.command import main as faults_main
+    from bench.faults.command import main as faults_main
 
     return faults_main(args)
 
 
 def _cmd_perf(args: argparse.Namespace) -> int:
-    from .tools.perf import main as perf_main
+    from bench.tools.perf import main as perf_main
 
     return perf_main(args)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import main as demo_main
+    from bench.demo import main as demo_main
 
     return demo_main(args)
 
 
 def _law_option(p: argparse.ArgumentParser) -> None:
     """--law DIR, taken off the command line before parsing (_with_law); here for --help."""
-    from .law import HELP
+    from bench.law import HELP
 
     p.add_argument("--law", type=Path, default=None, metavar="DIR", help=HELP)
 
@@ -205,7 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--json", action="store_true", help="print one JSON object")
     pl.set_defaults(func=_cmd_plan)
 
-    from .run.command import add_arguments, exit_codes_help
+    from bench.run.command import add_arguments, exit_codes_help
 
     r = sub.add_parser(
         "run",
@@ -217,6 +221,9 @@ def build_parser() -> argparse.ArgumentParser:
         "Example: bench run scenarios/you2019_step.toml --bus direct",
     )
     add_arguments(r)
+    from bench.cia402.command import add_arguments as cia402_arguments
+
+    cia402_arguments(r)
     _law_option(r)
     r.set_defaults(func=_cmd_run)
     # internal (the VM half of a run over a VM's bus): no `help`, so argparse lists no entry for it (a
@@ -230,12 +237,12 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--drive-tty", default=None)
     c.add_argument("--bitrate", type=int, default=None)
     c.add_argument("--out", type=Path, required=True)
-    from .eds import add_node_id_arguments
+    from bench.eds import add_node_id_arguments
 
     add_node_id_arguments(c)
     c.set_defaults(func=_cmd_capture)
 
-    from .replay import add_arguments as replay_args
+    from bench.replay import add_arguments as replay_args
 
     rp = sub.add_parser(
         "replay",
@@ -261,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("dest", type=Path, help="the file to write (.log, .asc or .blf)")
     ex.set_defaults(func=_cmd_export)
 
-    from .sweep import add_arguments as sweep_args
+    from bench.sweep import add_arguments as sweep_args
 
     sw = sub.add_parser(
         "sweep",
@@ -282,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
     _law_option(sw)
     sw.set_defaults(func=_cmd_sweep)
 
-    from .reproduce import add_arguments as reproduce_args
+    from bench.reproduce import add_arguments as reproduce_args
 
     rep = sub.add_parser(
         "reproduce",
@@ -294,7 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
-    from .faults.command import add_arguments as faults_args
+    from bench.faults.command import add_arguments as faults_args
 
     fl = sub.add_parser(
         "faults",
@@ -310,7 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
     _law_option(fl)
     fl.set_defaults(func=_cmd_faults)
 
-    from .tools.perf import add_arguments as perf_args
+    from bench.tools.perf import add_arguments as perf_args
 
     pf = sub.add_parser(
         "perf",
@@ -352,7 +359,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """The command: Ctrl-C exits 130 and SIGTERM 143 through the command's own cleanup, from the first
     instruction on (bench/stop.py); a closed stdout (`bench plan --json | head -1`) ends it quietly."""
-    from . import stop
+    from bench import stop
 
     try:
         stop.install()
@@ -389,7 +396,7 @@ def _with_law(argv: list[str]) -> tuple[list[str], int]:
     bench at its build; argv without it, and 0 or the exit status of a law that does not build."""
     import os
 
-    from .law import LawBuildError, take_law, use
+    from bench.law import LawBuildError, take_law, use
 
     try:
         law, argv = take_law(argv)
@@ -409,7 +416,7 @@ def _main(argv: list[str]) -> int:
     if rc:
         return rc
     if argv[:1] in (["run"], ["demo"]) and not {"-h", "--help"} & set(argv) and not _cia402(argv):
-        from .view.worker import prestart
+        from bench.view.worker import prestart
 
         prestart()  # the viewer and plot processes import rerun and matplotlib while we import the rest
     parser = build_parser()
@@ -419,7 +426,7 @@ def _main(argv: list[str]) -> int:
         return 64
     rc = int(args.func(args))
     if rc == 130:  # the command's own "interrupted": 143 when it was a SIGTERM
-        from . import stop
+        from bench import stop
 
         rc = stop.exit_status()
     return rc

@@ -13,13 +13,13 @@ import argparse
 import time
 from pathlib import Path
 
-from .paths import REPO
+from bench.paths import REPO
 
 SCENARIO = REPO / "scenarios" / "demo_you2019_tuning.toml"
 
 
 def main(args: argparse.Namespace) -> int:
-    from .run.command import add_arguments, execute
+    from bench.run.command import add_arguments, execute
 
     out = args.out or Path("runs") / f"demo-{time.strftime('%Y%m%d-%H%M%S')}"
     argv = ["run", str(SCENARIO), "--bus", args.bus, "--out", str(out)]

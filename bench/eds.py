@@ -20,7 +20,7 @@ from typing import Any, TypeVar
 import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
-from .paths import BUILD, EDS_DIR
+from bench.paths import BUILD, EDS_DIR
 
 T = TypeVar("T")
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import ODRecord, ODVariable, datatypes
 
-from .eds import _raw, eds_path, load, section_of, value_names
+from bench.eds import _raw, eds_path, load, section_of, value_names
 
 LAW_ENTRY = ("Controller", "controller")
 # The drive's own view, traced for a law without a record: its measured currents, the iq reference in

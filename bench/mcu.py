@@ -27,7 +27,7 @@ from types import TracebackType
 
 import can
 
-from .paths import BUILD, REPO
+from bench.paths import BUILD, REPO
 
 ELF = BUILD / "mcu" / "drive_mcu.elf"
 QEMU = "qemu-system-arm"

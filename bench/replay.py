@@ -3,7 +3,7 @@ vcan or a physical bus) into the same traces, summary, plots and Rerun view as a
 
 Nothing is assumed silently: the PDO layout, the plant's parameters (pole pairs, Ts), the
 settings with their periods and the statuses read at the end are all SDO transfers in the
-log (bench/run/sdo_log.py). A log without that traffic (recorded after the configuration,
+log (bench/run/decode/sdo_log.py). A log without that traffic (recorded after the configuration,
 or of another master) is decoded with the EDS defaults, and replay says so.
 """
 
@@ -16,7 +16,7 @@ from typing import Any
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from .eds import add_node_id_arguments  # here: bench.eds imports canopen
+    from bench.eds import add_node_id_arguments  # here: bench.eds imports canopen
 
     p.add_argument("log", type=Path, help="CAN log (.log candump, .asc, .blf, ...)")
     add_node_id_arguments(p)
@@ -47,11 +47,11 @@ def main(args: argparse.Namespace) -> int:
     import os
     import shutil
 
-    from .run.outputs import Progress, print_result
-    from .run.pipeline import replay_log
-    from .run.sinks import TRACES_FILE, TraceFileSink
-    from .view.plots import overview_plot, step_plots
-    from .view.rerun_sink import RerunSink
+    from bench.run.outputs import Progress, print_result
+    from bench.run.pipeline import replay_log
+    from bench.run.sinks import TRACES_FILE, TraceFileSink
+    from bench.view.plots import overview_plot, step_plots
+    from bench.view.rerun_sink import RerunSink
 
     if args.log.is_dir():
         hint = " (its CAN log is bus.log)" if (args.log / "bus.log").is_file() else ""
@@ -60,7 +60,7 @@ def main(args: argparse.Namespace) -> int:
     if not args.log.is_file():
         print(f"bench replay: {args.log}: no such file", file=sys.stderr)
         return 2
-    from .scenario import STATUSES
+    from bench.scenario import STATUSES
 
     expect = args.expect
     beside = args.log.parent / "summary.json"
@@ -72,7 +72,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"bench replay: --expect {bad[0]}: expected one of {', '.join(STATUSES)}", file=sys.stderr)
         return 2
     out: Path = args.out or args.log.parent / "replay"
-    from .paths import lost_in_vm
+    from bench.paths import lost_in_vm
 
     if (lost := lost_in_vm(out)) is not None:
         print(f"bench replay: --out {lost}", file=sys.stderr)

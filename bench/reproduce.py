@@ -82,8 +82,8 @@ def run_claim_function(fn: Any, bus: str, code: str, paper: str) -> list[dict[st
     """Run one claim function; its records, each with the runs whose figure shows it: the result's own
     `runs`, else the function's runs when it made one result only (several results without `runs`:
     no figure rather than another claim's)."""
-    from . import claims
-    from .claims import ClaimResult
+    from bench import claims
+    from bench.claims import ClaimResult
 
     claims.RUNS_USED.clear()
     t0 = time.monotonic()
@@ -119,8 +119,8 @@ def _dur(s: float) -> str:
 
 def collect(papers: list[str], bus: str, out: Path) -> list[dict[str, Any]]:
     """Run every claim of the papers on `bus`; write claims.json; keep the runs under out/runs."""
-    from . import claims
-    from .claims import ClaimResult
+    from bench import claims
+    from bench.claims import ClaimResult
 
     claims.RUN_ROOT = out / "runs"
     claims.RUN_ROOT.mkdir(parents=True, exist_ok=True)
@@ -196,8 +196,8 @@ def postprocess_runs(out: Path) -> int:
     """Every kept run's CAN log (out/runs/NAME/bus.log, from this host or the VM) through the run pipeline:
     its Rerun recording (run.rrd) and overview figure. Runs that already have run.rrd are left as they are.
     Returns the number of runs that could not be post-processed (each reported)."""
-    from .run.pipeline import replay_log
-    from .view.rerun_sink import RerunSink
+    from bench.run.pipeline import replay_log
+    from bench.view.rerun_sink import RerunSink
 
     root = out / "runs"
     todo = (
@@ -323,7 +323,7 @@ def _figure_runs(out: Path, r: dict[str, Any]) -> tuple[str | None, list[str]]:
 def _refusal(path: Path, replaceable_report: bool = False) -> str | None:
     """Why `path` may not be written to: an existing non-empty folder (or a file). A previous report
     folder (report.json in it) may be replaced when `replaceable_report`."""
-    from .paths import lost_in_vm
+    from bench.paths import lost_in_vm
 
     if (lost := lost_in_vm(path)) is not None:
         return lost
@@ -431,7 +431,7 @@ window.addEventListener('load', function () {{
 
 
 def main(args: argparse.Namespace) -> int:
-    from .canbus import host_has_vcan
+    from bench.canbus import host_has_vcan
 
     out: Path = args.out or Path("reports") / time.strftime("%Y%m%d-%H%M%S")
     papers = _papers(args.paper)
@@ -459,7 +459,7 @@ def main(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     if args.bus != "direct" and not host_has_vcan(args.bus):
-        from .tools.vm import VmOptions, run_in_vm
+        from bench.run.bus.vm import VmOptions, run_in_vm
 
         print(f"bench reproduce: host kernel has no SocketCAN; running the claims over {args.bus} inside the VM")
         rc = run_in_vm(

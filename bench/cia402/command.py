@@ -12,12 +12,12 @@ import sys
 import time
 from pathlib import Path
 
-from ..eds import eds_path
-from ..paths import lost_in_vm
-from ..scenario import Scenario, ScenarioError, load
-from . import NO_LOCKSTEP
-from .outcome import Interrupted, summary_text
-from .plan import PlanError, Segment, choose_cycle, ignored_keys, targets
+from bench.cia402 import NO_LOCKSTEP
+from bench.cia402.outcome import Interrupted, summary_text
+from bench.cia402.plan import PlanError, Segment, choose_cycle, ignored_keys, targets
+from bench.eds import eds_path
+from bench.paths import lost_in_vm
+from bench.scenario import Scenario, ScenarioError, load
 
 HELP = (
     "--drive-profile cia402: the bench is the CiA 402 master of a drive it did not build (no plant node, "
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     except (ScenarioError, PlanError) as exc:
         print(f"bench run: {exc}", file=sys.stderr)
         return 2
-    from ..canbus import probe_af_can
+    from bench.canbus import probe_af_can
 
     if args.interface == "socketcan" and not probe_af_can().af_can:
         print(
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    from .session import Session
+    from bench.cia402.session import Session
 
     return Session(args, sc, cycle_s, load_, segs, eds, out).run()
 

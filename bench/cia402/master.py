@@ -16,7 +16,7 @@ import canopen
 from canopen.pdo.base import PdoMap
 from canopen.profiles.p402 import BaseNode402
 
-from .record import Layout, Pdo, state_name
+from bench.cia402.record import Layout, Pdo, state_name
 
 BENCH_ID = 0x7F
 BENCH_HEARTBEAT_S = 0.1

@@ -10,7 +10,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from . import NO_LOCKSTEP
+from bench.cia402 import NO_LOCKSTEP
 
 
 class Interrupted(Exception):

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..scenario import Scenario
-from ..tools.plan import classic_frame_bits
+from bench.canbus import classic_frame_bits
+from bench.scenario import Scenario
 
 CYCLES_MS = (1.0, 2.0, 5.0, 10.0)
 CYCLE_RANGE_MS = (1.0, 1000.0)

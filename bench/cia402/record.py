@@ -1,7 +1,7 @@
 """The CiA 402 run's record: every frame in a candump log, decoded ONCE into a per-SYNC trace.
 
 The layout (SYNC COB-ID, the PDOs' COB-IDs and mappings) is what the master used; the decoder
-works on FRAME_DTYPE arrays (bench/run/frames.py), never on a Python object per frame. Cycle k
+works on FRAME_DTYPE arrays (bench/run/bus/frames.py), never on a Python object per frame. Cycle k
 is the time from SYNC k to SYNC k+1: the statusword/position TPDOs the drive sends on SYNC k and
 the last RPDO the bench sent before SYNC k+1 belong to it.
 """
@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from ..run.canlog import read_frames
-from ..run.frames import empty
+from bench.run.bus.frames import empty
+from bench.run.record.canlog import read_frames
 
 INC_PER_REV = 65536
 STATES: tuple[tuple[str, int, int], ...] = (  # CiA 402 statusword masks (as canopen's State402.SW_MASK)
@@ -72,7 +72,7 @@ def default_layout(drive_id: int | None = None, cycle_s: float = 0.001) -> Layou
     """drive.eds' own PDOs: RPDO4 {0x6040, 0x6071}, TPDO3 {0x6041, 0x6061, 0x6077, 0x6078}, TPDO4
     {0x6064, 0x606C}, the rated values' defaults (drive_id None: drive.eds' NodeID)."""
     if drive_id is None:
-        from ..eds import default_node_id
+        from bench.eds import default_node_id
 
         drive_id = default_node_id("drive")
     return Layout(

@@ -9,12 +9,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..scenario import Scenario
-from . import NO_LOCKSTEP
-from .master import DriveRefused, DriveStopped, Master
-from .outcome import Interrupted, ignore_signals, raise_on_signals, summary_text, write_summary
-from .plan import Frames, PlanError, Segment, bus_load, ignored_keys, targets
-from .record import Layout, decode_log, states_passed, tracking, write_csv, write_plot
+from bench.cia402 import NO_LOCKSTEP
+from bench.cia402.master import DriveRefused, DriveStopped, Master
+from bench.cia402.outcome import Interrupted, ignore_signals, raise_on_signals, summary_text, write_summary
+from bench.cia402.plan import Frames, PlanError, Segment, bus_load, ignored_keys, targets
+from bench.cia402.record import Layout, decode_log, states_passed, tracking, write_csv, write_plot
+from bench.scenario import Scenario
 
 
 def say(text: str) -> None:
@@ -94,7 +94,7 @@ class Session:
     def _recorder(self) -> Any:
         log = self.partial / "candump.log"
         if self.args.interface == "socketcan":
-            from ..run.sources import CandumpSource
+            from bench.run.record.sources import CandumpSource
 
             return CandumpSource(self.args.bus, log, follow=False)
         return _PythonCanRecorder(self.args, log)

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from ..run import RunOptions, RunResult, run_scenario
-from ..scenario import parse
+from bench.run import RunOptions, RunResult, run_scenario
+from bench.scenario import parse
 
 
 @dataclass
@@ -101,8 +101,8 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
     `bench reproduce` makes its plots and Rerun recording from that log (bench/reproduce.py)."""
     import json
 
-    from ..run.canlog import CandumpWriter
-    from ..run.sinks import FrameCollector
+    from bench.run.record.canlog import CandumpWriter
+    from bench.run.sinks import FrameCollector
 
     if _TRACE is not None and "trace" not in raw:
         raw = {**raw, "trace": {f"pdo{n}": list(names) for n, names in _TRACE.items()}}

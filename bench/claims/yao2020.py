@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from . import ClaimResult, run_raw, traced
+from bench.claims import ClaimResult, run_raw, traced
 
 PAPER = "Yao 2020"
 OBJ = "Yao 2020 DPCC"

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..metrics import step_metrics
-from . import ClaimResult, Run, run_raw, traced
+from bench.claims import ClaimResult, Run, run_raw, traced
+from bench.metrics import step_metrics
 
 PAPER = "You 2019"
 STEP_AT = 20

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from . import ClaimResult, run_raw, traced
+from bench.claims import ClaimResult, run_raw, traced
 
 PAPER = "Zhao 2022"
 R, L, TS, PP = 48.9, 14e-3, 100e-6, 5

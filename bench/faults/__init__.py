@@ -2,6 +2,6 @@
 in-process in direct mode, the fault_gateway process over SocketCAN), and what was injected and
 how the nodes reacted (report.py)."""
 
-from .spec import FAULT_KINDS, Fault, FaultError, parse_faults, rules_text
+from bench.scenario.faults import FAULT_KINDS, Fault, FaultError, parse_faults, rules_text
 
 __all__ = ["FAULT_KINDS", "Fault", "FaultError", "parse_faults", "rules_text"]

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from ..claims import Run, run_raw
-from ..scenario import apply_overrides
-from .measure import RECOVERS, at, back, emcys, held, recovered, recovery, settling_bound
+from bench.claims import Run, run_raw
+from bench.faults.measure import RECOVERS, at, back, emcys, held, recovered, recovery, settling_bound
+from bench.scenario import apply_overrides
 
 STEP_AT = 20  # the iq step 0 -> 1 A of You 2019 Fig. 8
 # `bench faults --set KEY=VALUE ...`: the scenario changes every check's runs share, e.g. another current law

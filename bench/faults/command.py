@@ -8,9 +8,9 @@ import sys
 import time
 from pathlib import Path
 
-from ..paths import lost_in_vm
-from ..scenario import ScenarioError, add_set_argument, parse, unselected_law
-from .checks import CHECKS, base, run_checks
+from bench.faults.checks import CHECKS, base, run_checks
+from bench.paths import lost_in_vm
+from bench.scenario import ScenarioError, add_set_argument, parse, unselected_law
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -47,7 +47,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"bench faults: --out {lost}", file=sys.stderr)
         return 2
     if args.bus != "direct":
-        from ..canbus import probe_af_can
+        from bench.canbus import probe_af_can
 
         if not probe_af_can().af_can:
             print(

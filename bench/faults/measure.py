@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..claims import Run
+from bench.claims import Run
 
 
 def emcys(run: Run, code: int, node: str | None = None) -> list[dict[str, Any]]:

@@ -2,7 +2,7 @@
 
 The result folder is built in NAME.partial and renamed when complete; a failed run is left in
 NAME.failed; an existing folder is never touched. The exit status is the run's verdict, one code
-per status (bench/run/summary.py's EXIT_CODES: exit_codes_help() lists them for --help); 0 also
+per status (bench/run/verdict/summary.py's EXIT_CODES: exit_codes_help() lists them for --help); 0 also
 for the status the scenario expects, 7 when it expected another; 1 failure, 2 bad input,
 130 interrupted.
 """
@@ -18,13 +18,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..eds import add_node_id_arguments
-from ..paths import lost_in_vm
-from ..scenario import Scenario, ScenarioError, add_set_argument, load, unselected_law
-from .buses import bus_problem
-from .canlog import LOG_FORMATS
-from .outputs import Outputs, print_result
-from .vm_run import run_in_vm_capture
+from bench.eds import add_node_id_arguments
+from bench.paths import lost_in_vm
+from bench.run.bus.buses import bus_problem
+from bench.run.outputs import Outputs, print_result
+from bench.run.record.canlog import LOG_FORMATS
+from bench.run.vm_run import run_in_vm_capture
+from bench.scenario import Scenario, ScenarioError, add_set_argument, load, unselected_law
 
 
 def default_out(sc: Scenario) -> Path:
@@ -36,7 +36,7 @@ EXIT_FAILURE, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 1, 2, 130
 
 def exit_codes_help() -> str:
     """The exit codes of a run, for --help, from the table that defines them (summary.EXIT_CODES)."""
-    from .summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+    from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
 
     codes = sorted(
         [*EXIT_CODES.items(), ("expected status not reached", EXIT_EXPECTATION_NOT_MET)], key=lambda kv: kv[1]
@@ -136,9 +136,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer (the .rrd is still saved)")
     p.add_argument("--live-decimate", type=int, default=1, help="send every Nth period to the live viewer")
-    from ..cia402.command import add_arguments as cia402_arguments
-
-    cia402_arguments(p)
 
 
 def _check_args(args: argparse.Namespace) -> None:
@@ -153,7 +150,7 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.serve_for is not None and (args.serve_for < 0 or not args.serve):
         raise ScenarioError("--serve-for needs --serve and a number of seconds >= 0")
     if args.serve:
-        from ..view.serve import check_bind
+        from bench.view.serve import check_bind
 
         try:
             check_bind(args.serve_bind)
@@ -165,10 +162,6 @@ def _check_args(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if getattr(args, "drive_profile", "hil") == "cia402":
-        from ..cia402.command import run as run_cia402
-
-        return run_cia402(args)
     return execute(args)[0]
 
 
@@ -180,7 +173,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
             raise ScenarioError(unselected)
         _check_args(args)
         if args.bus == "direct" and sc.timing == "realtime":
-            from .pipeline import DIRECT_IS_LOCKSTEP
+            from bench.run.pipeline import DIRECT_IS_LOCKSTEP
 
             raise ScenarioError(DIRECT_IS_LOCKSTEP)
     except ScenarioError as exc:
@@ -223,8 +216,8 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     except Exception as exc:  # noqa: BLE001 - report every failure the same way
         if outputs is not None:
             outputs.abort()
-        from ..canbus import LinkError
-        from .configure import SettingRefused
+        from bench.canbus import LinkError
+        from bench.run.loop.configure import SettingRefused
 
         if isinstance(exc, SettingRefused | LinkError):  # bad input or a link not usable: said, nothing left
             print(f"bench run: {exc}", file=sys.stderr)
@@ -309,8 +302,8 @@ def _discard(partial: Path, out: Path) -> None:
 
 
 def _run_here(args: argparse.Namespace, sc: Scenario, partial: Path, outputs: Outputs) -> Any:
-    from .options import run_options
-    from .pipeline import run_scenario
+    from bench.run.options import run_options
+    from bench.run.pipeline import run_scenario
 
     with outputs.progress(sc.periods, "run") as bar:
         return run_scenario(

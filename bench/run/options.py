@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..eds import default_node_id
+from bench.eds import default_node_id
 
 
 @dataclass
@@ -24,7 +24,7 @@ class RunOptions:
     # adapters: plant, master and recorder on can0, the drive on can1); None: the drive is on `bus`
     drive_bus: str | None = None
     # the drive: "node" (the Linux process build/bin/drive_node) or "mcu" (the Cortex-M4F image under QEMU,
-    # reached over SLCAN on `drive_tty`, joined to the drive's bus by the kernel: bench/run/slcan_bridge.py)
+    # reached over SLCAN on `drive_tty`, joined to the drive's bus by the kernel: bench/run/bus/slcan_bridge.py)
     drive: str = "node"
     drive_tty: str | None = None
     start_plant: bool = True  # start the C plant process (False: a physical plant/drive is on the bus)

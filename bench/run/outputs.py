@@ -14,8 +14,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ..scenario import Scenario
-from .sinks import TRACES_FILE, TraceFileSink
+from bench.run.sinks import TRACES_FILE, TraceFileSink
+from bench.scenario import Scenario
 
 
 class Progress:
@@ -114,12 +114,12 @@ class Outputs:
         self.log_path = folder / "bus.log"
         self.interrupted = False  # a Ctrl-C while the results were written: no serving after them
         if args.bus == "direct":  # over a bus, candump's own log is the log
-            from .canlog import CandumpWriter
+            from bench.run.record.canlog import CandumpWriter
 
             self.frame_sinks.append(CandumpWriter(self.log_path, "direct", int(time.time() * 1e6)))
 
     def _view_worker(self) -> Any:
-        from ..view.worker import ViewWorker
+        from bench.view.worker import ViewWorker
 
         live = "none"
         if self.args.serve:
@@ -160,7 +160,7 @@ class Outputs:
         if cand.exists():
             cand.rename(self.log_path)
         for fmt in self.log_formats:
-            from .canlog import export
+            from bench.run.record.canlog import export
 
             dst = self.log_path.with_suffix("." + fmt)
             print(f"  writing {dst.name} with python-can's writer ...", file=sys.stderr, flush=True)
@@ -220,7 +220,7 @@ def _ids(by_id: dict[str, int]) -> str:
 
 
 def print_result(out: Path, result: Any) -> None:
-    from .summary import format_identified, format_table
+    from bench.run.verdict.summary import format_identified, format_table
 
     s = result.summary
     print(format_table(s))
@@ -245,7 +245,7 @@ def print_result(out: Path, result: Any) -> None:
         shown = ", ".join(f"{e['node']} {e['code']} at period {e['period']}" for e in emcy[:6])
         print(f"EMCY: {len(emcy)}{'+' if len(emcy) >= 100 else ''}: {shown}{' ...' if len(emcy) > 6 else ''}")
     if s.get("faults"):
-        from ..faults.report import format_faults
+        from bench.run.verdict.faults import format_faults
 
         print(format_faults(s["faults"]))
     cost = s.get("step_cost")
@@ -307,7 +307,7 @@ def _files_written(s: dict[str, Any], out: Path) -> list[str]:
 
 
 def _law_fault(s: dict[str, Any]) -> str:
-    from ..faults.report import emcy_names
+    from bench.emcy import emcy_names
 
     why = {
         "safe_law_output": "a non-finite command or one beyond Vmax_V",

@@ -19,18 +19,17 @@ from typing import Any
 
 import numpy as np
 
-from ..faults.report import StatusWatch, emcy_codes
-from ..faults.report import build as fault_report
-from ..scenario import Scenario
-from .decode import Decoder
-from .liveness import LoopStopped
-from .options import RunOptions
-from .session import Session
-from .signals import SignalInfo
-from .sinks import Sink, TraceCollector
-from .stats import STEP_SIGNALS, Envelope, StepTracker
-from .summary import (
-    CONTROLLER_VALUES,
+from bench.emcy import emcy_codes
+from bench.run.bus.liveness import LoopStopped
+from bench.run.decode.decoder import Decoder
+from bench.run.loop.reads import CONTROLLER_VALUES
+from bench.run.loop.session import Session
+from bench.run.options import RunOptions
+from bench.run.sinks import Sink, TraceCollector
+from bench.run.verdict.faults import StatusWatch
+from bench.run.verdict.faults import build as fault_report
+from bench.run.verdict.stats import STEP_SIGNALS, Envelope, StepTracker
+from bench.run.verdict.summary import (
     SCHEMA_VERSION,
     bus_stats,
     divergence_bound_A,
@@ -40,6 +39,8 @@ from .summary import (
     step_cost,
     verdict,
 )
+from bench.scenario import Scenario
+from bench.signals import SignalInfo
 
 FrameSink = Any  # has write(frames) and close()
 # The drive's EMCYs of a safe state its current law caused (status law_fault): its command non-finite or
@@ -63,7 +64,7 @@ class RunResult:
     scenario: str
     bus: str
     status: str  # ok | tripped | diverged | non_finite | frames_lost | node_lost | interference
-    exit_code: int  # 0, or the status's code (bench/run/summary.py)
+    exit_code: int  # 0, or the status's code (bench/run/verdict/summary.py)
     expected: bool  # the status is what the scenario declared
     summary: dict[str, Any]
     signals: list[SignalInfo] = field(default_factory=list)
@@ -348,7 +349,7 @@ def run_scenario(
     `sinks` take the trace chunks (files, viewers); `frame_sinks` the raw frames (a log writer);
     `keep_trace` also returns the whole trace in memory (O(periods): for short runs and tests).
     Over SocketCAN the frames come from candump's log in `opts.out` (which must be set)."""
-    from .sources import CandumpSource, DirectSource, ListenerSource
+    from bench.run.record.sources import CandumpSource, DirectSource, ListenerSource
 
     opts = opts or RunOptions()
     if opts.bus == "direct" and sc.timing == "realtime":
@@ -416,7 +417,7 @@ def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any
     """The bus half of a run only: nodes, master and candump's log in `opts.out`; no decoding
     (inside the VM, where Python is slow, the host decodes the log). Returns the loop's wall time,
     when the loop ended early why (LoopStopped.to_dict()), and the interfaces' state (Session.links)."""
-    from .sources import CandumpSource
+    from bench.run.record.sources import CandumpSource
 
     assert opts.out is not None
     sess = Session(sc, opts)
@@ -453,9 +454,9 @@ def replay_log(
     progress: Callable[[int], None] | None = None,
 ) -> RunResult:
     """A CAN log (candump .log, .asc, .blf, ...) through the same pipeline as a run: the same trace and
-    summary, since the log carries the layout, the settings and the statuses (bench/run/sdo_log.py)."""
-    from .canlog import read_frames
-    from .sources import sorted_chunks
+    summary, since the log carries the layout, the settings and the statuses (bench/run/decode/sdo_log.py)."""
+    from bench.run.record.canlog import read_frames
+    from bench.run.record.sources import sorted_chunks
 
     sinks = list(sinks or [])
     collector = TraceCollector() if keep_trace else None

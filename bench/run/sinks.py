@@ -13,8 +13,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .frames import FRAME_DTYPE
-from .signals import SignalInfo
+from bench.run.bus.frames import FRAME_DTYPE
+from bench.signals import SignalInfo
 
 TRACES_FILE = "traces.npy"
 

@@ -13,9 +13,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..scenario import Scenario, ScenarioError, load
-from .buses import VM_CAN
-from .outputs import Outputs
+from bench.run.bus.buses import VM_CAN
+from bench.run.outputs import Outputs
+from bench.scenario import Scenario, ScenarioError, load
 
 CAPTURE_REFUSED = 65  # `bench capture` in the VM: a node refused a value of the scenario (EX_DATAERR)
 CAPTURE_LINK = 66  # `bench capture` in the VM: a CAN link could not be set up (canbus.LinkError)
@@ -27,10 +27,10 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
     candump's log on the shared folder and feeds the same pipeline as it grows (live view included)."""
     import uuid
 
-    from ..paths import REPO
-    from ..tools.vm import run_in_vm
-    from .pipeline import Pipeline
-    from .sources import LogFollower
+    from bench.paths import REPO
+    from bench.run.bus.vm import run_in_vm
+    from bench.run.pipeline import Pipeline
+    from bench.run.record.sources import LogFollower
 
     # The guest's /tmp is its own: stage the capture in the repository (always shared with the VM).
     stage = REPO / "build" / "capture" / uuid.uuid4().hex[:12]
@@ -70,7 +70,7 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
     if getattr(args, "drive", "node") == "mcu":
         # The image runs on the host (qemu-system-arm, not nested in the VM's emulation); its UART0 is a local
         # TCP server that the VM's second serial port joins: ttyS1 in the guest, where slcand attaches it.
-        from ..mcu import McuImage
+        from bench.mcu import McuImage
 
         mcu = McuImage()
         port = mcu.start()
@@ -100,11 +100,11 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
             if errors:
                 raise errors[0]
             if rc == CAPTURE_REFUSED:
-                from .configure import SettingRefused
+                from bench.run.loop.configure import SettingRefused
 
                 raise SettingRefused("a node refused a value of the scenario (the line above says which)")
             if rc == CAPTURE_LINK:
-                from ..canbus import LinkError
+                from bench.canbus import LinkError
 
                 raise LinkError("a CAN link in the VM could not be set up (the line above says why)")
             if rc != 0:
@@ -124,7 +124,7 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
         stage.rmdir()
     injected = None
     if sc.faults:  # the gateway's log of actions came with the capture
-        from .gateway import LOG_NAME, read_log
+        from bench.run.bus.gateway import LOG_NAME, read_log
 
         injected = (sc.faults, *read_log(partial / LOG_NAME))
     return pipe.finish(
@@ -140,7 +140,7 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
 def vm_options(args: argparse.Namespace) -> Any:
     """The VM for this run's buses: vcanN are made in it; canN are emulated CAN controllers (Kvaser PCIcan,
     SJA1000) on one emulated bus, as many as the highest canN asks."""
-    from ..tools.vm import VmOptions
+    from bench.run.bus.vm import VmOptions
 
     names = tuple(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
     cans = [int(n[3:]) for n in names if VM_CAN.fullmatch(n)]
@@ -173,8 +173,8 @@ class _Quiet:
 def capture_only(args: argparse.Namespace) -> int:
     """`bench capture` (run inside the VM): configure, run and record candump.log; no decoding
     (the host does it). Writes capture.json with the run's wall time."""
-    from .options import run_options
-    from .pipeline import capture_to_log
+    from bench.run.options import run_options
+    from bench.run.pipeline import capture_to_log
 
     try:
         sc = load(args.scenario, args.overrides)
@@ -183,8 +183,8 @@ def capture_only(args: argparse.Namespace) -> int:
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     opts = run_options(args, args.out)
-    from ..canbus import LinkError
-    from .configure import SettingRefused
+    from bench.canbus import LinkError
+    from bench.run.loop.configure import SettingRefused
 
     try:
         run_wall, stopped, links = capture_to_log(sc, opts)

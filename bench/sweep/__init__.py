@@ -10,6 +10,6 @@ outputs.py  sweep.json, plots, what is printed
 command.py  the command line
 """
 
-from .command import add_arguments, main
+from bench.sweep.command import add_arguments, main
 
 __all__ = ["add_arguments", "main"]

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from .space import SpaceError, _dec, _key_value
+from bench.sweep.space import SpaceError, _dec, _key_value
 
 OPS: dict[str, Callable[[Any, Any], bool]] = {
     "==": operator.eq,
@@ -181,6 +181,6 @@ def run_searches(
 
 
 def _pid(values: dict[str, str]) -> str:
-    from .space import point_id
+    from bench.sweep.space import point_id
 
     return point_id(values)

@@ -11,9 +11,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .bisect import Condition, parse_bisect, parse_condition
-from .point import METRICS, NUMERIC
-from .space import Space, SpaceError, build, point_id
+from bench.sweep.bisect import Condition, parse_bisect, parse_condition
+from bench.sweep.point import METRICS, NUMERIC
+from bench.sweep.space import Space, SpaceError, build, point_id
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -55,7 +55,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--tol", type=float, default=None, help="stop the search when the bracket is narrower (default (HI-LO)/1000)"
     )
-    from ..scenario import add_set_argument  # here: the module reads the EDS, --help of other commands need not
+    from bench.scenario import add_set_argument  # here: the module reads the EDS, --help of other commands need not
 
     add_set_argument(g, "fixed overrides applied to every point")
     r = p.add_argument_group("where it runs")
@@ -100,7 +100,7 @@ class Refused(Exception):
 
 
 def _study(args: argparse.Namespace) -> tuple[Any, str, Space, tuple[str, float, float] | None, Condition | None]:
-    from ..scenario import ScenarioError, load, loads, unselected_law
+    from bench.scenario import ScenarioError, load, loads, unselected_law
 
     try:
         text = args.scenario.read_text()
@@ -157,10 +157,10 @@ def _spec(args: argparse.Namespace, text: str, space: Space) -> dict[str, Any]:
 
 
 def _prepare_out(args: argparse.Namespace, name: str, spec: dict[str, Any]) -> Path:
-    from .table import PARTS, TABLE
+    from bench.sweep.table import PARTS, TABLE
 
     out = args.out or Path("runs") / f"sweep-{name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    from ..paths import lost_in_vm
+    from bench.paths import lost_in_vm
 
     if (lost := lost_in_vm(out)) is not None:
         raise Refused(f"--out {lost}")
@@ -208,8 +208,8 @@ class Progress:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .engine import Engine, WorkerError, batches
-    from .table import TableWriter, read_done
+    from bench.sweep.engine import Engine, WorkerError, batches
+    from bench.sweep.table import TableWriter, read_done
 
     try:
         sc, text, space, bis, cond = _study(args)
@@ -239,7 +239,7 @@ def main(args: argparse.Namespace) -> int:
     ran = 0
     try:
         if bis and cond:
-            from .bisect import run_searches
+            from bench.sweep.bisect import run_searches
 
             results, order, ran = run_searches(
                 engine, text, str(args.scenario), args.overrides, space, bis, cond, args.tol, done, writer
@@ -261,7 +261,7 @@ def main(args: argparse.Namespace) -> int:
                 prog.close()
             results = None
     except KeyboardInterrupt:
-        from ..stop import deferred
+        from bench.stop import deferred
 
         with deferred():  # the rows must reach the table, and the cluster must stop, whatever is pressed
             writer.flush()
@@ -285,7 +285,7 @@ def main(args: argparse.Namespace) -> int:
     wall = time.monotonic() - t0
     engine.close()
     table = writer.finish(order, args.csv)
-    from .outputs import write_outputs
+    from bench.sweep.outputs import write_outputs
 
     write_outputs(out, args, sc, spec, space, table.to_pylist(), results, engine, wall, ran, len(done))
     return 0

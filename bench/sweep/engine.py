@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from .point import run_batch
+from bench.sweep.point import run_batch
 
 Rows = list[dict[str, Any]]
 WAIT_WORKERS_S = 120  # an existing cluster without workers: how long to wait for one
@@ -73,7 +73,7 @@ class Engine:
             self.workers = max(1, sum(w.get("nthreads", 1) for w in info["workers"].values()))
             self.where = f"the Dask cluster at {self.client.scheduler.address} ({len(info['workers'])} workers)"
         else:
-            from ..stop import spawn_ignoring_sigint
+            from bench.stop import spawn_ignoring_sigint
 
             n = workers or os.cpu_count() or 1
             with contextlib.redirect_stderr(open(os.devnull, "w")):  # noqa: SIM115 - distributed's start-up chatter

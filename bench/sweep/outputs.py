@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from .report import boundary_plot, distributions, format_distributions, heatmap, histogram
-from .table import TABLE
+from bench.sweep.report import boundary_plot, distributions, format_distributions, heatmap, histogram
+from bench.sweep.table import TABLE
 
 SHOWN = ("status", "periods_to_settle", "overshoot_pct", "steady_state_error_A", "error_growth_per_period")
 
@@ -45,7 +45,7 @@ def write_outputs(
     ran: int,
     skipped: int,
 ) -> None:
-    from .point import NUMERIC
+    from bench.sweep.point import NUMERIC
 
     keys = space.keys + ([args.bisect.partition("=")[0]] if args.bisect else [])
     metric = (
@@ -76,7 +76,7 @@ def write_outputs(
         heatmap(out / name, space.grid, rows, metric, sc.name)
         plots.append(name)
     if space.samples:
-        from .point import NUMERIC as M
+        from bench.sweep.point import NUMERIC as M
 
         ident = sorted({k for r in rows for k in r if k.startswith("identified.")})
         metrics = tuple(m for m in M if m not in ("loop_s", "point_s", "periods")) + tuple(ident)

@@ -74,9 +74,9 @@ def _number(v: Any) -> float | None:
 def run_point(scenario_text: str, where: str, fixed: list[str], values: dict[str, str]) -> dict[str, Any]:
     """Run one point; a point the scenario or a node refuses is a row with its reason, not the end of
     the study."""
-    from ..run import RunOptions, run_scenario
-    from ..scenario import ScenarioError, loads
-    from .space import point_id
+    from bench.run import RunOptions, run_scenario
+    from bench.scenario import ScenarioError, loads
+    from bench.sweep.space import point_id
 
     row: dict[str, Any] = {"point_id": point_id(values), **values}
     t0 = time.perf_counter()

@@ -7,9 +7,9 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 
-from .. import canbus
-from ..paths import BIN, REPO
-from . import vm
+from bench import canbus
+from bench.paths import BIN, REPO
+from bench.run.bus import vm
 
 
 @dataclass

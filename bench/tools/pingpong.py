@@ -6,7 +6,7 @@ import re
 import subprocess
 from dataclasses import dataclass
 
-from ..paths import binary
+from bench.paths import binary
 
 
 @dataclass

@@ -27,27 +27,9 @@ from dataclasses import asdict, dataclass, field
 
 import canopen
 
-from ..eds import default_node_id
-from ..paths import EDS_DIR
-
-FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
-
-
-def classic_frame_bits(n_bytes: int) -> int:
-    if not 0 <= n_bytes <= 8:
-        raise ValueError(f"classic CAN carries 0..8 data bytes, not {n_bytes}")
-    return 47 + 8 * n_bytes + (34 + 8 * n_bytes - 1) // 4
-
-
-def fd_frame_bits(n_bytes: int) -> tuple[int, int]:
-    """(bits at the nominal rate, bits at the data rate) of a CAN FD frame, worst case."""
-    length = next((n for n in FD_LENGTHS if n >= n_bytes), None)
-    if length is None:
-        raise ValueError(f"CAN FD carries at most 64 data bytes, not {n_bytes}")
-    nominal_bits = 17 + 4 + 13
-    crc = 17 if length <= 16 else 21
-    data_bits = 1 + 4 + 8 * length + (5 + 8 * length - 1) // 4 + 4 + crc + math.ceil((4 + crc) / 4)
-    return nominal_bits, data_bits
+from bench.canbus import classic_frame_bits, fd_frame_bits
+from bench.eds import default_node_id
+from bench.paths import EDS_DIR
 
 
 @dataclass

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..paths import VECTORS_DIR
+from bench.paths import VECTORS_DIR
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import numpy as np
 import pygal
 from pygal.style import Style
 
-from ..run.signals import unit_of
+from bench.signals import unit_of
 
 # Bus bookkeeping, not signals of the loop: in the summary, not in the overview.
 BOOKKEEPING = {"sync_counter", "sample_index"}

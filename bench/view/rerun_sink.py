@@ -31,10 +31,9 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from bench.run.signals import SignalInfo
-
-from .serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
-from .serve import serve as _serve
+from bench.signals import SignalInfo
+from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
+from bench.view.serve import serve as _serve
 
 __all__ = ["PORT_OPTIONS", "RerunSink", "ServeError"]
 

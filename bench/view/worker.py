@@ -34,7 +34,7 @@ class _Proc:
     the queue is bounded, so memory stays bounded if it falls behind), JSON replies out."""
 
     def __init__(self, role: str) -> None:
-        from ..stop import spawn_ignoring_sigint
+        from bench.stop import spawn_ignoring_sigint
 
         r, w = os.pipe()
         self.role = role
@@ -224,7 +224,7 @@ class ViewWorker:
     def serve(self, seconds: float | None) -> None:
         """With a live viewer: the rerun process keeps serving until `seconds`, Ctrl-C or SIGTERM (to the
         terminal's process group, or to the bench alone: then the bench stops it); wait for it."""
-        from ..stop import deferred
+        from bench.stop import deferred
 
         sys.stdout.flush()  # the results are said before the wait (a pipe buffers them otherwise)
         try:
@@ -236,7 +236,7 @@ class ViewWorker:
             self.plots.kill()
 
     def abort(self) -> None:
-        from ..stop import deferred
+        from bench.stop import deferred
 
         with deferred():
             self.rerun.kill()
@@ -245,8 +245,8 @@ class ViewWorker:
 
 # ---------------------------------------------------------------------- the helper processes
 def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
-    from . import serve
-    from .rerun_sink import RerunSink
+    from bench.view import serve
+    from bench.view.rerun_sink import RerunSink
 
     folder = Path(spec["folder"])
     try:
@@ -313,7 +313,7 @@ def _serve_until(url: str, seconds: float | None, reply_fd: int) -> None:
 
 
 def _plots_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
-    from . import plots
+    from bench.view import plots
 
     reply(ready=True)
     folder = Path(spec["folder"])
@@ -343,7 +343,7 @@ def main(role: str, reply_fd: int) -> int:
     try:
         return _main(role, reply_fd)
     except KeyboardInterrupt:
-        from . import serve
+        from bench.view import serve
 
         serve.stop()
         os._exit(130)
@@ -365,9 +365,9 @@ def _main(role: str, reply_fd: int) -> int:
     reply.fd = reply_fd  # type: ignore[attr-defined]
     # Import what the role needs at once, while the bench starts up.
     if role == "rerun":
-        from . import rerun_sink  # noqa: F401
+        from bench.view import rerun_sink  # noqa: F401
     else:
-        from . import plots  # noqa: F401
+        from bench.view import plots  # noqa: F401
     stdin = sys.stdin.buffer
 
     def messages() -> Any:

@@ -13,7 +13,7 @@ import can
 import canopen
 
 from bench.paths import EDS_DIR
-from bench.run.nodes import NodeProcess
+from bench.run.bus.nodes import NodeProcess
 
 
 class Capture(can.Listener):

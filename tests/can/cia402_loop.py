@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import canopen
 
 from bench.paths import EDS_DIR
-from bench.run.nodes import NodeProcess
+from bench.run.bus.nodes import NodeProcess
 
 PLANT_ID, DRIVE_ID = 0x10, 0x20
 RUN_FOREVER = 0xFFFFFFFF
@@ -85,7 +85,7 @@ def configure_motor(
     for hat, true in (("R_hat_ohm", "R_ohm"), ("Ld_hat_H", "Ld_H"), ("Lq_hat_H", "Lq_H"), ("psi_hat_Wb", "psi_Wb")):
         ctl[hat].raw = motor[true].raw
     drive.sdo["Safe state"]["meas_timeout_periods"].raw = 10
-    # plant TPDO1/2 -> drive RPDO1/2, drive TPDO1 -> plant RPDO1 (bench/run/configure.py wire_pdos)
+    # plant TPDO1/2 -> drive RPDO1/2, drive TPDO1 -> plant RPDO1 (bench/run/loop/configure.py wire_pdos)
     for n in (plant, drive):
         n.tpdo.read()
         n.rpdo.read()

@@ -19,7 +19,7 @@ import canopen
 from cia402_loop import DRIVE_ID, PLANT_ID, configure_motor
 
 from bench.paths import EDS_DIR
-from bench.run.nodes import NodeProcess
+from bench.run.bus.nodes import NodeProcess
 
 MOTOR_BUS = "vcan_motor"
 TO_DRIVE = (0x000, 0x080, 0x600 + DRIVE_ID, 0x77F) + tuple(0x200 + 0x100 * n + DRIVE_ID for n in range(4))

@@ -29,7 +29,7 @@ from cia402_transitions import new_drive_402, walk
 from bench.canbus import LinkError, link_info, prepare_can_link
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
-from bench.run.summary import EXIT_CODES
+from bench.run.verdict.summary import EXIT_CODES
 from bench.scenario import load
 
 PARITY = REPO / "tests" / "scenarios" / "parity.toml"

@@ -23,7 +23,7 @@ from bench_proc import pids, start_long_run
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
-from bench.run.summary import EXIT_CODES
+from bench.run.verdict.summary import EXIT_CODES
 from bench.scenario import load
 
 STEP = REPO / "scenarios" / "you2019_step.toml"

@@ -8,7 +8,7 @@ import argparse
 import pytest
 
 from bench.canbus import probe_af_can
-from bench.run.buses import bus_problem
+from bench.run.bus.buses import bus_problem
 from bench.run.vm_run import vm_options
 
 HOST_CAN = probe_af_can().af_can

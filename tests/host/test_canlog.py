@@ -1,4 +1,4 @@
-"""bench/run/canlog.py and bench/direct/hil_log.c: the candump log written and read in C must
+"""bench/run/record/canlog.py and bench/direct/hil_log.c: the candump log written and read in C must
 round-trip through python-can's own readers/writers and can-utils' log2asc."""
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from bench.run import canlog
-from bench.run.canlog import LOG_FORMATS, CandumpWriter, export, read_frames
-from bench.run.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.record.canlog import LOG_FORMATS, CandumpWriter, export, read_frames
 
 LINE_RE = re.compile(rb"^\(\d{10}\.\d{6}\) vcan0 [0-9A-F]{3}#(?:[0-9A-F]{2}){0,8}$")
 

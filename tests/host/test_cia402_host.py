@@ -22,12 +22,11 @@ from bench.scenario import load
 STEP = REPO / "scenarios" / "you2019_step.toml"
 
 
-def parser() -> argparse.ArgumentParser:
-    from bench.run.command import add_arguments
+def parse_run(argv: list[str]) -> argparse.Namespace:
+    """`bench run`'s arguments as the CLI parses them (its own and the CiA 402 master's)."""
+    from bench.cli import build_parser
 
-    p = argparse.ArgumentParser(prog="bench run")
-    add_arguments(p)
-    return p
+    return build_parser().parse_args(["run", *argv])
 
 
 def test_profile_becomes_cst_targets() -> None:
@@ -74,17 +73,17 @@ def test_cycle_planner() -> None:
 def test_refusals_exit_2_and_write_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], why: str
 ) -> None:
-    from bench.run.command import run
-
     out = tmp_path / "out"
-    args = parser().parse_args([str(STEP), "--drive-profile", "cia402", "--out", str(out), *extra])
-    assert run(args) == 2
+    args = parse_run([str(STEP), "--drive-profile", "cia402", "--out", str(out), *extra])
+    assert args.func(args) == 2
     assert why in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 
-def test_help_explains_the_profile() -> None:
-    text = parser().format_help()
+def test_help_explains_the_profile(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        parse_run(["--help"])
+    text = capsys.readouterr().out
     assert "--drive-profile" in text and "no lockstep" in text and "0x1016" in text
 
 

@@ -74,7 +74,7 @@ def test_run_help_lists_every_exit_code_of_the_verdict_table() -> None:
     """bench run/replay --help: every status with its exit code, from summary.EXIT_CODES (8, 9 were missing)."""
     import re
 
-    from bench.run.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+    from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
 
     for cmd in ("run", "replay"):
         text = " ".join(run(cmd, "--help").stdout.split())  # argparse wraps lines anywhere

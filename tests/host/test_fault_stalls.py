@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from bench.faults.spec import loop_frames
 from bench.scenario import ScenarioError, loads
+from bench.scenario.faults import loop_frames
 
 HEAD = """
 [scenario]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench.run import RunOptions, run_scenario
-from bench.run.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE
 from bench.run.pipeline import Pipeline, RunResult
 from bench.run.sinks import FrameCollector, TraceCollector
 from bench.scenario import load

@@ -78,7 +78,7 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_graph_is_read() -> None:
     g = _graph()
-    assert "bench.run.options" in g["bench.run.session"] and "bench.scenario" in g["bench.run.command"]
+    assert "bench.run.options" in g["bench.run.loop.session"] and "bench.scenario" in g["bench.run.command"]
 
 
 def test_the_bench_imports_without_a_circle() -> None:
@@ -88,3 +88,67 @@ def test_the_bench_imports_without_a_circle() -> None:
 
 def test_a_circle_is_found() -> None:
     assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+# The floors of bench/, lowest first (docs/ARCHITECTURE.md, "The bench's floors"): a module may import its own floor
+# (without a circle) and the floors below, never one above. A module's floor is that of its longest listed prefix.
+FLOORS: list[tuple[str, tuple[str, ...]]] = [
+    (
+        "ground",
+        (
+            "bench",
+            "bench.paths",
+            "bench.stop",
+            "bench.eds",
+            "bench.canbus",
+            "bench.mcu",
+            "bench.metrics",
+            "bench.laws",
+            "bench.law",
+            "bench.signals",
+            "bench.emcy",
+        ),
+    ),
+    ("scenario", ("bench.scenario", "bench.run.options")),
+    ("bus and nodes", ("bench.run.bus",)),
+    ("configuration and the PDO loop", ("bench.run.loop",)),
+    ("frames", ("bench.run.record",)),
+    ("decode", ("bench.run.decode",)),
+    ("verdict", ("bench.run.verdict",)),
+    ("sinks", ("bench.run.sinks", "bench.view")),
+    ("a run", ("bench.run",)),
+    ("studies and masters", ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults")),
+    ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
+    ("the command line", ("bench.cli",)),
+]
+
+
+def floor_of(module: str) -> int:
+    best, floor = -1, -1
+    for i, (_, prefixes) in enumerate(FLOORS):
+        for p in prefixes:
+            if (module == p or module.startswith(p + ".")) and len(p) > best and (p != "bench" or module == "bench"):
+                best, floor = len(p), i
+    assert floor >= 0, f"{module} is on no floor: add it to FLOORS and to docs/ARCHITECTURE.md"
+    return floor
+
+
+def upward(graph: dict[str, set[str]]) -> list[str]:
+    return sorted(
+        f"{m} ({FLOORS[floor_of(m)][0]}) -> {t} ({FLOORS[floor_of(t)][0]})"
+        for m, ts in graph.items()
+        for t in ts
+        if floor_of(t) > floor_of(m)
+    )
+
+
+def test_no_import_runs_up_a_floor() -> None:
+    arrows = upward(_graph())
+    assert not arrows, "\n".join(arrows)
+
+
+def test_an_upward_import_is_found() -> None:
+    assert upward({"bench.run.decode.decoder": {"bench.run.verdict.faults", "bench.eds"}}) == [
+        "bench.run.decode.decoder (decode) -> bench.run.verdict.faults (verdict)"
+    ]
+    assert floor_of("bench.laws") == floor_of("bench.law") == 0 and floor_of("bench.run.pipeline") == 8

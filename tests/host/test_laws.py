@@ -67,7 +67,7 @@ def _decoder(values: dict[tuple[str, str], float]) -> Any:
 
 def test_a_user_law_reports_and_traces_its_own_status(tmp_path: Path) -> None:
     from bench.laws import law_info, law_names, result_reads
-    from bench.run.summary import format_identified, identified
+    from bench.run.verdict.summary import format_identified, identified
 
     eds = merged_eds(tmp_path)
     value = law_names(eds).index("my_law")
@@ -91,7 +91,7 @@ def test_a_user_law_validif_on_a_parameter_and_its_note(tmp_path: Path) -> None:
     """ValidIf naming a parameter (known from its writes or its EDS default, not read at the end);
     a NotApplicableNote on the condition becomes the summary's note."""
     from bench.laws import law_info, law_names, result_reads
-    from bench.run.summary import identified
+    from bench.run.verdict.summary import identified
 
     eds = merged_eds(tmp_path, valid_if="enable")
     assert law_info("my_law", eds).valid_if == {"L_est_H": "enable"}
@@ -118,7 +118,7 @@ def test_a_status_valid_if_not_among_the_results_is_read_at_the_end(tmp_path: Pa
 
 def test_a_law_without_a_record_identifies_nothing_and_traces_the_drive_view(tmp_path: Path) -> None:
     from bench.laws import DRIVE_VIEW, law_info
-    from bench.run.summary import identified
+    from bench.run.verdict.summary import identified
 
     eds = merged_eds(tmp_path)
     assert law_info("pi", eds).record is None and law_info("pi", eds).trace == DRIVE_VIEW
@@ -131,7 +131,7 @@ def test_the_papers_laws_read_their_results_in_order(law: str) -> None:
     """The end reads are a tuple in law order (not a set): the same on every run; each law's results
     are read with its record."""
     from bench.laws import law_info
-    from bench.run.summary import END_READS
+    from bench.run.loop.reads import END_READS
 
     info = law_info(law)
     assert info.source is not None and info.record is not None and info.results
@@ -154,7 +154,7 @@ def test_the_end_reads_are_in_the_same_order_in_every_process() -> None:
     import subprocess
     import sys
 
-    code = "from bench.run.summary import END_READS; print(END_READS)"
+    code = "from bench.run.loop.reads import END_READS; print(END_READS)"
     seen = {
         subprocess.run(
             [sys.executable, "-c", code],

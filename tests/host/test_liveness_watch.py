@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from bench.run.liveness import Liveness
+from bench.run.bus.liveness import Liveness
 
 
 class _Net:

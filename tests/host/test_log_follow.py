@@ -11,10 +11,10 @@ import numpy as np
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
-from bench.run.canlog import CandumpWriter
 from bench.run.pipeline import Pipeline
+from bench.run.record.canlog import CandumpWriter
+from bench.run.record.sources import LogFollower
 from bench.run.sinks import FrameCollector
-from bench.run.sources import LogFollower
 from bench.scenario import load
 
 

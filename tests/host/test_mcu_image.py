@@ -25,8 +25,8 @@ import pytest
 
 from bench.mcu import INSTRUCTIONS_PER_TICK, SYSCLK_HZ, McuImage
 from bench.paths import EDS_DIR
-from bench.run.configure import enable_cia402
-from bench.run.direct import DirectBus, Hil
+from bench.run.bus.direct import DirectBus, Hil
+from bench.run.loop.configure import enable_cia402
 
 DRIVE_ID = 0x20  # OD_DRIVE_DEFAULT_NODE_ID: the image's node-ID
 CONTROLLERS = (0, 1, 2, 3, 4, 5)  # 0x2200:01: open loop, PI, You 2019, Yao 2020, Zhao 2022 x2

@@ -1,5 +1,5 @@
 """`bench perf`'s vcan section, host side: the recorder check of a lockstep run's candump log
-(read with bench.run.canlog, decoded by the run pipeline) on a log made in direct mode, where
+(read with bench.run.record.canlog, decoded by the run pipeline) on a log made in direct mode, where
 no frame is lost; and the frame counter's count of frames out of time order in a log."""
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from bench.paths import REPO
-from bench.run.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE
 from bench.tools.perf.vcan import _FrameCount, recorder_check
 
 
 def test_recorder_check_of_a_complete_log(tmp_path: Path) -> None:
     from bench.run import RunOptions, run_scenario
-    from bench.run.canlog import CandumpWriter
+    from bench.run.record.canlog import CandumpWriter
     from bench.scenario import load
 
     periods = 600

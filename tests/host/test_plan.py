@@ -8,7 +8,8 @@ import sys
 
 import pytest
 
-from bench.tools.plan import classic_frame_bits, fd_frame_bits, make_plan
+from bench.canbus import classic_frame_bits, fd_frame_bits
+from bench.tools.plan import make_plan
 
 
 def test_classic_frame_bits_worst_case() -> None:

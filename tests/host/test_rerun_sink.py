@@ -21,7 +21,7 @@ import rerun as rr
 from rerun.chunk import RrdReader
 from rrd_util import read_recording
 
-from bench.run.signals import SignalInfo
+from bench.signals import SignalInfo
 from bench.view import rerun_sink
 from bench.view.rerun_sink import RerunSink, ServeError, entity_path, unit_slug, view_name
 

@@ -17,7 +17,7 @@ from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.run.pipeline import Pipeline
 from bench.run.sinks import FrameCollector
-from bench.run.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
 from bench.scenario import ScenarioError, load, parse
 
 STEP = REPO / "scenarios" / "you2019_step.toml"

@@ -14,7 +14,7 @@ import pytest
 from rrd_util import read_recording
 
 from bench.paths import REPO
-from bench.run.signals import unit_of
+from bench.signals import unit_of
 
 SCENARIO = """
 [scenario]

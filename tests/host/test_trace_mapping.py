@@ -19,8 +19,8 @@ from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.eds import enum
 from bench.paths import EDS_DIR
-from bench.run.configure import enable_cia402
-from bench.run.direct import DirectBus, Hil
+from bench.run.bus.direct import DirectBus, Hil
+from bench.run.loop.configure import enable_cia402
 
 PLANT_ID, DRIVE_ID = 0x10, 0x20
 SYNC_COB = 0x080
@@ -241,7 +241,7 @@ def _law_run(controller: str, **over: object):  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize("controller", sorted(LAW_RUNS))
 def test_default_trace_follows_the_selected_controller(controller: str) -> None:
-    from bench.run.signals import column_name
+    from bench.signals import column_name
 
     law_traces = _traces()
 

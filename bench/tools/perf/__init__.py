@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .common import PERF_DIR, VM_LOCKSTEP_PERIODS, VM_LONG_BUDGET_S, machine, section
+from bench.tools.perf.common import PERF_DIR, VM_LOCKSTEP_PERIODS, VM_LONG_BUDGET_S, machine, section
 
 SECTIONS = (
     "plant_core",
@@ -57,7 +57,7 @@ SECTIONS = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from .common import TARGET_LONG_PERIODS
+    from bench.tools.perf.common import TARGET_LONG_PERIODS
 
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument(
@@ -101,14 +101,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
-    from .canopen_cost import canopen_cost
-    from .cores import closed_loop, cortex_m4, firmware, plant_core, yao2020_identification_cost
-    from .live import rerun_live
-    from .mcu import mcu_in_the_loop
-    from .pipeline import Sizes, pipeline
-    from .soak import soak
-    from .sweep import sweep_scaling
-    from .vcan import vcan
+    from bench.tools.perf.canopen_cost import canopen_cost
+    from bench.tools.perf.cores import closed_loop, cortex_m4, firmware, plant_core, yao2020_identification_cost
+    from bench.tools.perf.live import rerun_live
+    from bench.tools.perf.mcu import mcu_in_the_loop
+    from bench.tools.perf.pipeline import Sizes, pipeline
+    from bench.tools.perf.soak import soak
+    from bench.tools.perf.sweep import sweep_scaling
+    from bench.tools.perf.vcan import vcan
 
     sizes = Sizes.quick() if args.quick else Sizes()
     if args.repetitions is not None:
@@ -132,10 +132,10 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .report import format_report
+    from bench.tools.perf.report import format_report
 
     if getattr(args, "inside_vm", False):
-        from .vcan import inside_vm
+        from bench.tools.perf.vcan import inside_vm
 
         if args.out is None:
             print("bench perf: --inside-vm needs --out FILE", file=sys.stderr)

@@ -3,7 +3,7 @@
 import argparse
 import sys
 
-from . import add_arguments, main
+from bench.tools.perf import add_arguments, main
 
 _ap = argparse.ArgumentParser(prog="bench perf", description="bench perf")
 add_arguments(_ap)

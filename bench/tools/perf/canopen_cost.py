@@ -5,8 +5,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from ...paths import binary
-from .common import run
+from bench.paths import binary
+from bench.tools.perf.common import run
 
 CO_PERF_FRAMES = 1_000_000
 

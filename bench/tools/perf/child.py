@@ -20,13 +20,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ...paths import REPO
+from bench.paths import REPO
 
 SCENARIO = REPO / "scenarios" / "you2019_step.toml"
 
 
 def _scenario(periods: int) -> Any:
-    from ...scenario import load
+    from bench.scenario import load
 
     return load(SCENARIO, [f"scenario.periods={periods}"])
 
@@ -40,8 +40,8 @@ def _json_default(o: Any) -> Any:
 
 
 def api(periods: int, folder: Path) -> dict[str, Any]:
-    from ...run import RunOptions, run_scenario
-    from ...run.sinks import TraceFileSink
+    from bench.run import RunOptions, run_scenario
+    from bench.run.sinks import TraceFileSink
 
     folder.mkdir(parents=True, exist_ok=True)
     sc = _scenario(periods)
@@ -62,9 +62,9 @@ def api(periods: int, folder: Path) -> dict[str, Any]:
 
 
 def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
-    from ...run.options import RunOptions
-    from ...run.session import Session
-    from ...run.sources import DirectSource
+    from bench.run.loop.session import Session
+    from bench.run.options import RunOptions
+    from bench.run.record.sources import DirectSource
 
     opts = RunOptions(bus="direct")
     sess = Session(_scenario(periods), opts)

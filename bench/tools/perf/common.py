@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...paths import BUILD
+from bench.paths import BUILD
 
 PERF_DIR = BUILD / "perf"
 

@@ -15,9 +15,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ...paths import BUILD, REPO, binary
-from ...run.configure import enable_cia402
-from .common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, YAO2020_DSP_US, first_line, run, statm_pages
+from bench.paths import BUILD, REPO, binary
+from bench.run.loop.configure import enable_cia402
+from bench.tools.perf.common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, YAO2020_DSP_US, first_line, run, statm_pages
 
 ARM_FLAGS = [
     "-mcpu=cortex-m4",
@@ -90,8 +90,8 @@ def plant_core() -> dict[str, Any]:
 def closed_loop() -> dict[str, Any]:
     import canopen
 
-    from ...eds import default_node_id, eds_path
-    from ...run.direct import DirectBus, Hil
+    from bench.eds import default_node_id, eds_path
+    from bench.run.bus.direct import DirectBus, Hil
 
     # Bare cores, no CANopen.
     lib = ctypes.CDLL(str(BUILD / "libhil.so"))

@@ -1,6 +1,6 @@
 """The views' costs: Rerun's live buffer for 10^6 periods x 16 signals (what a viewer is served
 from), and the VM live view's cost per update: `bench run` over the VM follows candump's log as it
-grows (bench.run.sources.LogFollower -> Pipeline -> sinks); each update must cost O(new periods),
+grows (bench.run.record.sources.LogFollower -> Pipeline -> sinks); each update must cost O(new periods),
 never O(periods so far)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .common import run
+from bench.tools.perf.common import run
 
 _RERUN_CHILD = r"""
 import json, resource, sys, time
@@ -61,10 +61,10 @@ def live_follow(log: Path, periods_per_update: int = 1000, periods: int | None =
     `periods_per_update` periods (cut anywhere, mid-line too) and times each update of the VM path
     of `bench run` (LogFollower.drain -> Pipeline.feed -> traces.npy + .rrd sinks, no viewer).
     Reports the median update early in the run and late in it: equal when an update is O(new)."""
-    from ...run.pipeline import Pipeline
-    from ...run.sinks import TraceFileSink
-    from ...run.sources import LogFollower
-    from ...view.rerun_sink import RerunSink
+    from bench.run.pipeline import Pipeline
+    from bench.run.record.sources import LogFollower
+    from bench.run.sinks import TraceFileSink
+    from bench.view.rerun_sink import RerunSink
 
     size = log.stat().st_size
     if periods is None:

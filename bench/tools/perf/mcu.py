@@ -15,9 +15,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from ...mcu import ELF, build
-from ...paths import REPO
-from .common import YAO2020_DSP_US
+from bench.mcu import ELF, build
+from bench.paths import REPO
+from bench.tools.perf.common import YAO2020_DSP_US
 
 YOU = REPO / "scenarios" / "demo_you2019_tuning.toml"
 YAO = REPO / "scenarios" / "yao2020_identification.toml"

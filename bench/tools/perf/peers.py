@@ -13,8 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ...paths import REPO
-from .common import measure, stats
+from bench.paths import REPO
+from bench.tools.perf.common import measure, stats
 
 PEERS_VENV = REPO / ".peers-venv"
 PEERS_SH = REPO / "scripts" / "peers.sh"

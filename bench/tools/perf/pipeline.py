@@ -15,8 +15,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from ...paths import REPO
-from .common import measure, stats
+from bench.paths import REPO
+from bench.tools.perf.common import measure, stats
 
 SCENARIO = REPO / "scenarios" / "you2019_step.toml"
 ONE_SECOND_PERIODS = 18_182  # 1.0 s of You 2019's Ts = 55 us
@@ -194,8 +194,8 @@ def pipeline(
     sizes: Sizes | None = None, work: Path | None = None, note: Callable[[str], None] | None = None
 ) -> dict[str, Any]:
     """The section. `work`: where the runs write (a temporary folder, removed, by default)."""
-    from .live import live_follow
-    from .peers import gem
+    from bench.tools.perf.live import live_follow
+    from bench.tools.perf.peers import gem
 
     sizes = sizes or Sizes()
     say = note or (lambda msg: None)

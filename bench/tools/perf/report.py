@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, TARGET_VCAN_RATIO
+from bench.tools.perf.common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, TARGET_VCAN_RATIO
 
 
 def _fmt_target(ok: bool | None) -> str:
@@ -388,7 +388,7 @@ def format_report(r: dict[str, Any]) -> str:
     _cores(r, L)
     _pipeline(r, L)
     _vcan(r, L)
-    from .soak import format_soak
+    from bench.tools.perf.soak import format_soak
 
     format_soak(r, L)
     L.append("")

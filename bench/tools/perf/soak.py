@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ...paths import REPO
-from .common import PERF_DIR
+from bench.paths import REPO
+from bench.tools.perf.common import PERF_DIR
 
 SOAK_PERIODS = 1_000_000
 WATCH = ("plant_node", "drive_node", "candump")
@@ -96,9 +96,9 @@ def memory_verdict(samples: list[tuple[float, int]]) -> dict[str, Any]:
 
 
 def inside(periods: int, out: Path) -> int:
-    from ...run.options import RunOptions
-    from ...run.pipeline import capture_to_log
-    from ...scenario import load
+    from bench.run.options import RunOptions
+    from bench.run.pipeline import capture_to_log
+    from bench.scenario import load
 
     keep = PERF_DIR / "vm_soak"
     if keep.exists():
@@ -129,9 +129,9 @@ def inside(periods: int, out: Path) -> int:
 
 def soak(periods: int = SOAK_PERIODS) -> dict[str, Any]:
     """Host side: the run inside the VM (or on the host's vcan0), then every frame of its log checked."""
-    from ...canbus import host_has_vcan
-    from ..vm import VmOptions, run_in_vm
-    from .vcan import recorder_check
+    from bench.canbus import host_has_vcan
+    from bench.run.bus.vm import VmOptions, run_in_vm
+    from bench.tools.perf.vcan import recorder_check
 
     out = PERF_DIR / "soak.json"
     out.unlink(missing_ok=True)

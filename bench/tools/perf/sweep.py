@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ...paths import REPO
+from bench.paths import REPO
 
 SCENARIO = REPO / "scenarios" / "you2019_step.toml"
 PERIODS = 2000

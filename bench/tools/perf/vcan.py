@@ -5,7 +5,7 @@ every frame is checked from the SYNC counters.
 
 Inside the VM `python -m bench.tools.perf --inside-vm --out FILE` runs (`inside_vm`); the host
 decodes the recorded candump logs with the run pipeline's own reader and decoder
-(bench.run.canlog.read_frames, bench.run.pipeline.Pipeline): Python in the VM is ~50x slower.
+(bench.run.record.canlog.read_frames, bench.run.pipeline.Pipeline): Python in the VM is ~50x slower.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from ...paths import REPO, binary
-from .common import PERF_DIR, TARGET_LONG_PERIODS, TARGET_VCAN_RATIO
+from bench.paths import REPO, binary
+from bench.tools.perf.common import PERF_DIR, TARGET_LONG_PERIODS, TARGET_VCAN_RATIO
 
 FLOOR_RE = (
     r"periods (\d+) frames_per_period (\d+) wall_s ([\d.]+) periods_per_s ([\d.]+) "
@@ -95,8 +95,8 @@ def _floor(iface: str, periods: int, extra: int, record: Path | None) -> dict[st
 def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
     """The bus half of `bench run` (bench.run.pipeline.capture_to_log: nodes, master, candump's
     log into `keep`); the host decodes the log."""
-    from ...run.options import RunOptions
-    from ...run.pipeline import capture_to_log
+    from bench.run.options import RunOptions
+    from bench.run.pipeline import capture_to_log
 
     if keep.exists():
         shutil.rmtree(keep)
@@ -118,8 +118,8 @@ def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
 
 def _unrecorded(sc: Any, iface: str) -> dict[str, Any]:
     """The same loop with no recorder at all (what RunOptions(record=False) means over a bus)."""
-    from ...run.options import RunOptions
-    from ...run.session import Session
+    from bench.run.loop.session import Session
+    from bench.run.options import RunOptions
 
     sess = Session(sc, RunOptions(bus=iface, record=False))
     t0 = time.monotonic()
@@ -145,7 +145,7 @@ def _unrecorded(sc: Any, iface: str) -> dict[str, Any]:
 
 def inside_vm(args: argparse.Namespace) -> int:
     """Runs next to a real vcan0 (in the VM): floors and real loop, results to args.out (JSON)."""
-    from ...scenario import load
+    from bench.scenario import load
 
     iface = "vcan0"
     n = args.lockstep_periods
@@ -214,9 +214,9 @@ def recorder_check(d: Path) -> dict[str, Any]:
     """Every frame of a recorded lockstep run, checked: decoded in kernel time-stamp order (as
     `bench run` and `bench replay` do) and in candump's log order, SYNC-counter gaps, missing
     measurements and commands, per COB-ID counts against what the periods should have sent."""
-    from ...run.canlog import read_frames
-    from ...run.configure import HOLD_TPDO
-    from ...run.pipeline import Pipeline, replay_log
+    from bench.run.loop.configure import HOLD_TPDO
+    from bench.run.pipeline import Pipeline, replay_log
+    from bench.run.record.canlog import read_frames
 
     meta = json.loads((d / "perf_capture.json").read_text())
     periods = int(meta["periods"])
@@ -232,7 +232,7 @@ def recorder_check(d: Path) -> dict[str, Any]:
     if layout is None:
         raise RuntimeError(f"{log}: no SYNC recorded")
     # One frame per period each: the SYNC and every PDO but the plant's hold announcement (sent once
-    # per run segment, bench/run/session.py).
+    # per run segment, bench/run/loop/session.py).
     per_period = [p.cob_id for p in layout.pdos if not (p.node == "plant" and p.pdo == f"TPDO{HOLD_TPDO}")]
     cobs = [layout.sync_cob_id, *per_period]
     keys = ("sync_counter_gaps", "missing_measurements", "missing_commands", "sample_index_mismatches")
@@ -255,8 +255,8 @@ def recorder_check(d: Path) -> dict[str, Any]:
 
 
 def vcan(args: argparse.Namespace) -> dict[str, Any]:
-    from ...canbus import host_has_vcan
-    from ..vm import VmOptions, run_in_vm
+    from bench.canbus import host_has_vcan
+    from bench.run.bus.vm import VmOptions, run_in_vm
 
     out = PERF_DIR / "vm.json"
     out.unlink(missing_ok=True)

@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING, Any
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError
 
-from ..scenario import Setting
-from .summary import PLANT_VALUES
+from bench.run.loop.reads import PLANT_VALUES
+from bench.scenario import Setting
 
 if TYPE_CHECKING:
-    from ..scenario import Scenario
-    from .options import RunOptions
+    from bench.run.options import RunOptions
+    from bench.scenario import Scenario
 
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 OBJECT_DOES_NOT_EXIST = 0x06020000  # SDO abort code (CiA 301)
@@ -124,7 +124,7 @@ class Configurator:
         for s in sc.settings:
             if s.param is not None and s.param.node == "plant":
                 self._apply(s)
-        # Read back by SDO, so that the log carries the plant the run had (bench/run/sdo_log.py).
+        # Read back by SDO, so that the log carries the plant the run had (bench/run/decode/sdo_log.py).
         for obj, names in PLANT_VALUES:
             for name in names:
                 self.plant_values[name] = plant.sdo[obj][name].raw

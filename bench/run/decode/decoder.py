@@ -8,7 +8,7 @@ the decoder keeps the frames of the last period of a chunk and decodes them agai
 next one (rows already emitted are not emitted twice; SDO frames are followed once).
 
 Columns are float64 (NaN where no frame carried the value) except `period` (int64); names
-carry SI units (bench/run/signals.py). Which frames were missing and which carried a
+carry SI units (bench/signals.py). Which frames were missing and which carried a
 non-finite value are counted separately, per PDO: a NaN sent on the bus is never a lost frame.
 
 Foreign frames never crash the decoder and never make periods. A SYNC starts a period only when
@@ -27,12 +27,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..eds import default_node_id
-from .frames import FRAME_DTYPE
-from .layout import FMT, BusLayout, PdoLayout
-from .sdo_log import SdoLog
-from .signals import SignalInfo, column_name
-from .syncs import genuine_syncs, plant_field, starts_loop
+from bench.eds import default_node_id
+from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.decode.layout import FMT, BusLayout, PdoLayout
+from bench.run.decode.sdo_log import SdoLog
+from bench.run.decode.syncs import genuine_syncs, plant_field, starts_loop
+from bench.signals import SignalInfo, column_name
 
 SQRT3 = math.sqrt(3.0)
 KIND_FOREIGN, KIND_KNOWN, KIND_EMCY = 0, 1, 2  # what an identifier is to the run
@@ -451,7 +451,7 @@ class Decoder:
         """Of the drive's command frames `pos` (periods `per`), the second ones of a period that are the
         drive's safe-state command: all zero (0 V) in a period whose drive EMCY says it entered its safe
         state (0xFF03 measurement timeout, 0xFF04 plant heartbeat lost)."""
-        from ..faults.report import emcy_codes
+        from bench.emcy import emcy_codes
 
         codes = emcy_codes("safe_meas_timeout", "safe_heartbeat")
         emcy = np.flatnonzero(buf["cob_id"] == 0x080 + self.sdo.drive.node_id)

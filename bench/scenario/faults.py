@@ -119,7 +119,7 @@ def max_rules() -> int:
     """FI_MAX_RULES of protocols/faults/fault_injector.h (the injector's fixed rule table)."""
     import re
 
-    from ..paths import REPO
+    from bench.paths import REPO
 
     text = (REPO / "protocols" / "faults" / "fault_injector.h").read_text()
     m = re.search(r"#define\s+FI_MAX_RULES\s+(\d+)u", text)
@@ -234,7 +234,7 @@ def _frame_keys(w: str, ent: dict[str, Any], seed: int) -> dict[str, Any]:
 def cob_ids(plant_id: int, drive_id: int) -> dict[str, int]:
     """Each frame name's COB-ID for these node-IDs, from the EDS files (their defaults, which the
     session wires the loop with)."""
-    from ..eds import load as load_od
+    from bench.eds import load as load_od
 
     out = {"SYNC": int(load_od("plant", plant_id)[0x1005].default) & 0x7FF}
     for node, nid in (("plant", plant_id), ("drive", drive_id)):
@@ -256,8 +256,8 @@ def loop_frames(plant_id: int | None = None, drive_id: int | None = None) -> dic
     """The frames a lockstep period cannot do without, COB-ID -> name, from the EDS files' default TPDO
     mappings: the plant's TPDO that maps the sample index (it triggers the drive's step) and the drive's
     TPDO that maps the voltage command (the plant produces the next SYNC when it has come)."""
-    from ..eds import default_node_id
-    from ..eds import load as load_od
+    from bench.eds import default_node_id
+    from bench.eds import load as load_od
 
     plant_id = default_node_id("plant") if plant_id is None else plant_id
     drive_id = default_node_id("drive") if drive_id is None else drive_id

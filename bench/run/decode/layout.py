@@ -1,5 +1,5 @@
 """The PDO layout of a run: which COB-ID carries which signals. Read off the bus traffic
-itself (bench/run/decode.py `layout_from_sdo`: the EDS defaults plus every SDO transfer to
+itself (bench/run/decode/decoder.py `layout_from_sdo`: the EDS defaults plus every SDO transfer to
 0x1800/0x1A00), so a log decodes without any file beside it."""
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from ..paths import binary
+from bench.paths import binary
 
 
 class NodeProcess:

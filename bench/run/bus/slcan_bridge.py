@@ -14,7 +14,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from .nodes import end_process
+from bench.run.bus.nodes import end_process
 
 SLCAN_SPEED = "8"  # slcand -s8: 1 Mbit/s as the adapter announces it (the image's SLCAN ignores the rate)
 UART_BAUD = "115200"  # the emulated 16550's highest rate; QEMU does not pace the line by it

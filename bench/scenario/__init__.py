@@ -36,7 +36,7 @@ Layout (every key optional except where noted)::
     pdo3 = ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"]    # at most 8 bytes each); without it,
     pdo4 = ["Online tuning.K1_active_V_A", "Online tuning.L_hat_H"]  # the selected law's (default_trace)
 
-    [[faults]]                   # faults on purpose (bench/faults/spec.py): drop, delay, duplicate,
+    [[faults]]                   # faults on purpose (bench/scenario/faults.py): drop, delay, duplicate,
     kind = "drop"                # corrupt, reorder frames; silence_heartbeat, freeze, kill, reset nodes
     frame = "drive.TPDO1"
     at_period = 200
@@ -62,9 +62,9 @@ from typing import Any
 
 from canopen.objectdictionary import datatypes
 
-from .eds import Param, params
-from .faults.spec import Fault, FaultError, parse_faults, refuse_lockstep_stalls
-from .laws import law_names, law_records
+from bench.eds import Param, params
+from bench.laws import law_names, law_records
+from bench.scenario.faults import Fault, FaultError, parse_faults, refuse_lockstep_stalls
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
@@ -84,7 +84,7 @@ RATIOS = {
 }
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 TIMINGS = ("lockstep", "realtime")
-# Run statuses (bench/run/summary.py EXIT_CODES gives each its exit code).
+# Run statuses (bench/run/verdict/summary.py EXIT_CODES gives each its exit code).
 STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference", "law_fault")
 
 
@@ -121,7 +121,7 @@ class Scenario:
     events: list[Event] = field(default_factory=list)
     trace: dict[int, tuple[str, ...]] = field(default_factory=dict)  # TPDO number -> entries (parse)
     expect: tuple[str, ...] = ("ok",)
-    faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/faults/spec.py)
+    faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/scenario/faults.py)
     raw: dict[str, Any] = field(default_factory=dict)
 
     def event_periods(self) -> list[int]:
@@ -309,7 +309,7 @@ COMMAND_TIMEOUT = "drive.command_timeout_us"  # plant.eds 0x2003:04, set in the 
 
 def _value_at(sc: Scenario, key: str, period: int) -> float:
     """A setting's value in effect at a period: its EDS default, the scenario's, then its events' up to it."""
-    from .eds import load as load_od
+    from bench.eds import load as load_od
 
     section, name = key.split(".", 1)
     p = _param_tables()[section][name]
@@ -325,8 +325,8 @@ def controller_at_start(sc: Scenario) -> str:
     """The law the drive runs from period 0 (drive.eds Controller.controller by its ValueNames): the
     scenario's [controller] setting, then its period-0 events (in the order the bench writes them), else
     the EDS default."""
-    from .eds import enum
-    from .eds import load as load_od
+    from bench.eds import enum
+    from bench.eds import load as load_od
 
     value = int(load_od("drive")["Controller"]["controller"].default)
     for s in [*sc.settings, *(s for e in sc.events if e.at_period == 0 for s in e.settings)]:
@@ -339,7 +339,7 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     """The trace TPDOs of a scenario without [trace]: the live quantities of the law it starts with
     (its record's Trace key in drive.eds, read by bench/laws.py). An event that switches laws later
     leaves the mapping as it is: the PDOs are mapped once, before the run."""
-    from .laws import law_info
+    from bench.laws import law_info
 
     return dict(law_info(controller_at_start(sc)).trace)
 
@@ -348,7 +348,7 @@ def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
     """[trace] pdo3/pdo4: drive.eds entries (by "Object.sub-entry" name) mapped into TPDO3/TPDO4."""
     from canopen.objectdictionary import ODVariable
 
-    from .eds import load as load_od
+    from bench.eds import load as load_od
 
     if not isinstance(table, dict):
         raise ScenarioError(f"{where}: [trace] must be a table with pdo3 / pdo4 lists")

@@ -10,11 +10,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..faults.report import KINDS
-from ..paths import binary
-from .nodes import end_process
+from bench.paths import binary
+from bench.run.bus.nodes import end_process
 
 LOG_NAME = "fault_gateway.log"  # the injector's actions, one a line (written when the gateway stops)
+
+# the injector's actions as protocols/faults numbers them in its log (fi_kind_t, protocols/faults/fault_injector.h)
+KINDS = ("pass", "drop", "delay", "duplicate", "corrupt", "reorder", "freeze", "thaw", "kill", "reset", "release")
 
 
 class FaultGateway:

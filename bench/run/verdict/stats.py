@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..metrics import BAND, StepMetrics
+from bench.metrics import BAND, StepMetrics
 
 STEP_SIGNALS = (("iq", "iq_A", "iq_ref_A"), ("id", "id_A", "id_ref_A"))
 

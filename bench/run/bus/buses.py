@@ -12,7 +12,7 @@ VCAN = re.compile(r"vcan\d{1,3}")
 
 def bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     """(what is wrong with --bus / --drive-bus, whether the VM supplies them)."""
-    from ..canbus import probe_af_can
+    from bench.canbus import probe_af_can
 
     if args.drive_bus is not None:
         if args.bus == "direct":
@@ -60,7 +60,7 @@ def _host_link_problem(name: str, opt: str, bitrate: int | None) -> str | None:
     """What stops this user from running on the host's interface `name`, or None."""
     import os
 
-    from ..canbus import DEFAULT_BITRATE, RESTART_MS, can_interfaces, host_has_vcan, link_info
+    from bench.canbus import DEFAULT_BITRATE, RESTART_MS, can_interfaces, host_has_vcan, link_info
 
     if VCAN.fullmatch(name) and host_has_vcan(name):  # a vcan is made when missing (as root)
         return None
@@ -89,7 +89,7 @@ def _mcu_problem(args: argparse.Namespace) -> str | None:
     """What stops `--drive mcu` (the Cortex-M4F image over SLCAN) here, or None."""
     import shutil
 
-    from ..eds import default_node_id
+    from bench.eds import default_node_id
 
     if args.bus == "direct" or args.interface != "socketcan":
         return "--drive mcu reaches the image over a SocketCAN bus: use --bus vcan0 (or can0 --drive-bus can1)"

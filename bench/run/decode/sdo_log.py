@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
-from ..eds import load as load_od
+from bench.eds import load as load_od
 
 STRUCT = {
     datatypes.BOOLEAN: "?",

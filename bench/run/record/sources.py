@@ -21,10 +21,10 @@ from pathlib import Path
 import can
 import numpy as np
 
-from .canlog import _to_frames, parse_candump
-from .direct import Hil
-from .frames import empty
-from .nodes import in_vm
+from bench.run.bus.direct import Hil
+from bench.run.bus.frames import empty
+from bench.run.bus.nodes import in_vm
+from bench.run.record.canlog import _to_frames, parse_candump
 
 
 class DirectSource:

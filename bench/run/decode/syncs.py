@@ -3,7 +3,7 @@
 A SYNC is the plant's when its counter is the sync_counter of the plant's next measurement PDO
 (Measurement.sync_counter, CiA 301 0x1019 counter) and no SYNC nearer to that measurement carries it
 too; or, when that measurement was lost, when its counter sits exactly between the plant's SYNCs
-before and after it. Any other frame on the SYNC identifier is foreign (bench/run/decode.py counts it
+before and after it. Any other frame on the SYNC identifier is foreign (bench/run/decode/decoder.py counts it
 as interference inside the loop). Written by hand: this is the bench's own policy on a shared bus,
 which no CANopen library decides for a recorder.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import BusLayout
+from bench.run.decode.layout import BusLayout
 
 # foreign SYNCs tolerated between the plant's SYNC and its measurement (a plant descheduled for 15 ms in a VM
 # while a flood ran at 2 ms saw 4); far fewer than the 240 SYNCs after which the counter repeats

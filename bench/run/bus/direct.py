@@ -11,9 +11,9 @@ import time
 import can
 import numpy as np
 
-from ..eds import default_node_id
-from ..paths import BUILD
-from .frames import FRAME_DTYPE
+from bench.eds import default_node_id
+from bench.paths import BUILD
+from bench.run.bus.frames import FRAME_DTYPE
 
 
 class _Frame(ctypes.Structure):

@@ -28,8 +28,7 @@ import can
 import numpy as np
 
 from bench.paths import BUILD
-
-from .frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE
 
 LOG_FORMATS = ("log", "asc", "blf")
 

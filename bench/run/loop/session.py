@@ -5,8 +5,8 @@ Sequence: node processes up -> NMT reset -> configuration by SDO from the EDS na
 model, controller with its mismatch, PDO wiring, trace PDOs) -> NMT start -> run the periods
 between events in lockstep ("run N periods then hold" object of the plant), applying each
 event's SDO writes at its exact period -> read the statuses -> NMT pre-operational. Every
-frame of it is on the bus, where the recorder (bench/run/sources.py) takes it: the session
-returns nothing the frames do not also say (bench/run/sdo_log.py reads it back from them).
+frame of it is on the bus, where the recorder (bench/run/record/sources.py) takes it: the session
+returns nothing the frames do not also say (bench/run/decode/sdo_log.py reads it back from them).
 """
 
 from __future__ import annotations
@@ -24,20 +24,20 @@ import can
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoError
 
-from ..canbus import ensure_vcan, link_info, prepare_can_link
-from ..eds import load as load_od
-from ..faults import rules_text
-from ..scenario import Scenario
-from .buses import VCAN
-from .configure import Configurator, SettingRefused
-from .direct import DirectBus, Hil
-from .direct_loop import DirectLoop
-from .gateway import FaultGateway
-from .liveness import STARVED_S, Liveness, LoopStopped
-from .nodes import NodeProcess
-from .options import MCU_STALL_S, RunOptions
-from .slcan_bridge import SlcanBridge
-from .summary import END_READS, STEP_COST
+from bench.canbus import ensure_vcan, link_info, prepare_can_link
+from bench.eds import load as load_od
+from bench.run.bus.buses import VCAN
+from bench.run.bus.direct import DirectBus, Hil
+from bench.run.bus.gateway import FaultGateway
+from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
+from bench.run.bus.nodes import NodeProcess
+from bench.run.bus.slcan_bridge import SlcanBridge
+from bench.run.loop.configure import Configurator, SettingRefused
+from bench.run.loop.direct_loop import DirectLoop
+from bench.run.loop.reads import END_READS, STEP_COST
+from bench.run.options import MCU_STALL_S, RunOptions
+from bench.scenario import Scenario
+from bench.scenario.faults import rules_text
 
 PROGRESS = Callable[[int, int], None]
 
@@ -268,7 +268,7 @@ class Session(Configurator, DirectLoop):
             self._run_direct(n, tick)
             return
         # No time limit: load may slow the loop as much as it likes. What ends a wait early is a lost
-        # node (heartbeats, processes: bench/run/liveness.py) or a stall with both nodes alive.
+        # node (heartbeats, processes: bench/run/bus/liveness.py) or a stall with both nodes alive.
         index, moved = -1, time.monotonic()
         last_poll = 0.0
         while True:

@@ -10,7 +10,7 @@ both too (python `canopen` delivers the frames; the judgement is ours because ca
   STARVED_S (a loaded host starves it; lockstep waits);
 - its heartbeat says it left OPERATIONAL (an NMT command from elsewhere, a reset);
 - the other node reports losing it (EMCY 0x8130 with its node-ID), on interfaces where the master sees
-  EMCYs (over SocketCAN its kernel filter keeps them out: bench/run/session.py).
+  EMCYs (over SocketCAN its kernel filter keeps them out: bench/run/loop/session.py).
 
 In lockstep the plant waits for each command without a time limit (plant.eds 0x2003:04 = 0):
 load slows the loop, it never changes it. A loop whose nodes are both alive but whose period
@@ -28,7 +28,7 @@ from typing import Any
 
 import canopen
 
-from .nodes import NodeProcess
+from bench.run.bus.nodes import NodeProcess
 
 NMT_STATES = {0x00: "INITIALISING (boot-up)", 0x04: "STOPPED", 0x05: "OPERATIONAL", 0x7F: "PRE-OPERATIONAL"}
 EMCY_HEARTBEAT = 0x8130

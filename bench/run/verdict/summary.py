@@ -23,11 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from ..eds import enum
-from ..laws import law_info, law_names, result_reads
-from ..scenario import STATUSES
-from ..tools.plan import classic_frame_bits
-from .decode import Decoder
+from bench.canbus import classic_frame_bits
+from bench.eds import enum
+from bench.laws import law_info, law_names
+from bench.run.decode.decoder import Decoder
+from bench.run.loop.reads import PLANT_VALUES, STEP_COST
+from bench.scenario import STATUSES
 
 SCHEMA_VERSION = 2
 EXIT_CODES = {
@@ -44,30 +45,6 @@ EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
 # at the same period, the root cause first
 PRIORITY = ("node_lost", "interference", "non_finite", "law_fault", "diverged", "tripped", "frames_lost")
-
-# What each law identifies or applies (read by SDO at the end of every run, and so in the log), and the
-# drive's trace TPDOs of a run whose scenario has no [trace]: the keys Source / Results / Trace / ValidIf
-# of the law's record in drive.eds, read by bench/laws.py (a user's law merged into drive.eds needs no
-# edit here). PI and open loop identify nothing and trace the drive's own view (laws.DRIVE_VIEW).
-CONTROLLER_VALUES = ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs")
-# Statuses read at the end: (node, object, entries).
-END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    ("plant", "Run control", ("missed_commands", "late_commands", "period_index", "trip_active")),
-    ("drive", "Drive status", ("current_steps", "lost_measurements", "late_measurements")),
-    ("drive", "Controller", CONTROLLER_VALUES),
-    *result_reads(),
-)
-# the drive's cost of one current step (0x2208, counted by the target's cycle counter around every step);
-# read at the end of runs whose drive is the MCU image (bench run --drive mcu)
-STEP_COST = (
-    "drive",
-    "Step cost",
-    ("step_cycles_last", "step_cycles_max", "step_cycles_mean", "cycle_clock_Hz", "steps_measured"),
-)
-PLANT_VALUES = (
-    ("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode", "omega_imposed_rad_s")),
-    ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")),
-)
 
 
 def _num(v: float | None) -> float | int | None:

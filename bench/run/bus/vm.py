@@ -26,8 +26,8 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..paths import REPO
-from ..stop import deferred
+from bench.paths import REPO
+from bench.stop import deferred
 
 # Variables forwarded into the guest (everything else is dropped by virtme-ng).
 FORWARD_ENV = ("CI", "TERM", "COLUMNS", "LINES", "PYTHONPATH", "PYTHONHASHSEED", "VIRTUAL_ENV", "NO_COLOR")
@@ -282,7 +282,7 @@ def _stop_group(proc: subprocess.Popen[bytes]) -> None:
 
 def run_here_or_in_vm(cmd: list[str], interfaces: tuple[str, ...] = ("vcan0",), timeout_s: float = 3600.0) -> int:
     """Run `cmd` on the host when it has vcan, else inside the VM; return its status."""
-    from ..canbus import host_has_vcan
+    from bench.canbus import host_has_vcan
 
     if all(host_has_vcan(i) for i in interfaces):
         return subprocess.call(cmd)

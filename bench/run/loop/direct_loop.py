@@ -8,11 +8,11 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from .liveness import NMT_STATES, LoopStopped
+from bench.run.bus.liveness import NMT_STATES, LoopStopped
 
 if TYPE_CHECKING:
-    from .direct import Hil
-    from .options import RunOptions
+    from bench.run.bus.direct import Hil
+    from bench.run.options import RunOptions
 
 
 class DirectLoop:
