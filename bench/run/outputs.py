@@ -116,7 +116,7 @@ class Outputs:
         if args.bus == "direct":  # over a bus, candump's own log is the log
             from bench.run.record.canlog import CandumpWriter
 
-            self.frame_sinks.append(CandumpWriter(self.log_path, "direct", int(time.time() * 1e6)))
+            self.frame_sinks.append(CandumpWriter(self.log_path, "direct"))
 
     def _view_worker(self) -> Any:
         from bench.view.worker import ViewWorker

@@ -10,8 +10,9 @@ chunks (~0.1 µs a frame); the output is the can-utils format byte for byte, and
 round-trip it through python-can's CanutilsLogReader and can-utils' log2asc. .asc and .blf
 are written by python-can's own writers (`export`): slow, but exactly what those tools expect.
 
-Time stamps in a .log are absolute (µs since the epoch): `CandumpWriter(t0_us=...)` adds the
-run's start to the frames' simulated time. Keep them absolute: log2asc takes a 0 seconds
+Time stamps in a .log are `t0_us` plus the frames' own time. A direct run's frames carry simulated
+time and its log starts at SIMULATED_T0_US, not at the wall clock: two identical runs write
+byte-identical logs. Not 0: log2asc takes a 0 seconds
 field as "no header written yet" and repeats its header for every frame of the first second.
 """
 
@@ -35,6 +36,9 @@ LOG_FORMATS = ("log", "asc", "blf")
 _WRITE_BATCH = 1 << 16  # frames formatted per C call (buffer = batch * line_max bytes)
 _READ_BLOCK = 4 << 20  # bytes read from a .log per block; also the longest line accepted
 _lib: ctypes.CDLL | None = None
+
+
+SIMULATED_T0_US = 1_000_000  # a direct run's log starts at 1 s of simulated time (see the docstring)
 
 
 class _LogCounts(ctypes.Structure):
@@ -92,11 +96,11 @@ def _hil() -> ctypes.CDLL:
 class CandumpWriter:
     """Frames -> a candump -L log, chunk by chunk (hil_log_format into one reused buffer).
 
-    Time stamp of a frame = t0_us + frame["t_us"] (pass the run's start in µs since the epoch).
+    Time stamp of a frame = t0_us + frame["t_us"] (a direct run's frames: SIMULATED_T0_US, see above).
     Hand-written because python-can's CanutilsLogWriter needs a can.Message per frame (~10 µs,
     ~90 µs a control period)."""
 
-    def __init__(self, path: Path, channel: str, t0_us: int) -> None:
+    def __init__(self, path: Path, channel: str, t0_us: int = SIMULATED_T0_US) -> None:
         self._lib = _hil()
         self._channel = channel.encode("ascii")
         line_max = int(self._lib.hil_log_line_max(self._channel))
