@@ -373,10 +373,10 @@ def run_scenario(
             sess.prepare_links()
             source = CandumpSource(opts.bus, opts.out / "candump.log")
         sess.open()
-        if sess.hil is not None and opts.record:
+        if sess.hil is not None and sess.direct is not None and opts.record:
             source = DirectSource(sess.hil, opts.chunk_periods)
-            sess.on_direct_chunk = source.collect
-            sess.on_direct_stop = source.release
+            sess.direct.on_chunk = source.collect
+            sess.direct.on_stop = source.release
         elif source is None and opts.record:
             source = ListenerSource()
             sess.net.notifier.add_listener(source)

@@ -1,11 +1,13 @@
-"""The SDO configuration of a run (part of Session): the scenario's settings written by their EDS names,
-each refusal named with the EDS's limits; heartbeats; the PDO wiring and the trace PDOs."""
+"""The SDO configuration of a run (a part of Session): the scenario's settings written by their EDS names,
+each refusal named with the EDS's limits; heartbeats; the PDO wiring and the trace PDOs; the CiA 402 enable
+by python canopen's State402 tables."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
 import canopen
+from canopen.profiles.p402 import State402
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.run.loop.reads import PLANT_VALUES
@@ -35,32 +37,41 @@ def enable_cia402(drive: canopen.RemoteNode) -> bool:
     returns False then."""
     cw = drive.sdo["Controlword"]
     try:
-        cw.raw = 0x06
+        cw.raw = State402.CW_SHUTDOWN
     except SdoAbortedError as exc:
         if exc.code == OBJECT_DOES_NOT_EXIST:
             return False
         raise
-    cw.raw = 0x07
-    cw.raw = 0x0F
+    cw.raw = State402.CW_SWITCH_ON
+    cw.raw = State402.CW_OPERATION_ENABLED
     sw = int(drive.sdo["Statusword"].raw)
-    if sw & 0x6F != 0x27:
+    if not in_state(sw, "OPERATION ENABLED"):
         raise RuntimeError(f"the drive did not reach OPERATION ENABLED: statusword 0x{sw:04X}")
     return True
 
 
-class Configurator:
-    """Mixed into Session: uses its sc, opts, plant, drive, plant_values, references, applied, _period,
-    _hold_cob."""
+def in_state(statusword: int, state: str) -> bool:
+    """Whether a CiA 402 statusword shows this state (canopen's State402.SW_MASK: mask, value)."""
+    mask, value = State402.SW_MASK[state]
+    return statusword & mask == value
 
-    sc: Scenario
-    opts: RunOptions
-    plant: canopen.RemoteNode
-    drive: canopen.RemoteNode
-    plant_values: dict[str, Any]
-    references: list[tuple[int, str, float]]
-    applied: list[tuple[int, str, float]]
-    _period: int
-    _hold_cob: int
+
+class Configurator:
+    """Writes a scenario into both nodes by SDO (Session owns one): at the start (`configure`) and at each
+    event's period (`apply`, with `period` set by the session). What it learns is kept here: the plant's
+    values, every setting applied and the reference changes with their periods, the hold announcement's
+    COB-ID."""
+
+    def __init__(self, sc: Scenario, opts: RunOptions, plant: canopen.RemoteNode, drive: canopen.RemoteNode) -> None:
+        self.sc = sc
+        self.opts = opts
+        self.plant = plant
+        self.drive = drive
+        self.plant_values: dict[str, Any] = {}
+        self.references: list[tuple[int, str, float]] = []
+        self.applied: list[tuple[int, str, float]] = []  # every setting with the period it took effect
+        self.period = 0  # the period the next setting takes effect at
+        self.hold_cob = 0  # the plant's hold announcement (wire_pdos)
 
     # ---------------------------------------------------------------- configuration
     def _write(self, var, value: float | int, what: str) -> None:  # type: ignore[no-untyped-def]
@@ -70,7 +81,7 @@ class Configurator:
         except SdoAbortedError as exc:
             raise SettingRefused(
                 f"{what} = {value:g} refused by node 0x{var.sdo_node.rx_cobid - 0x600:02X} (object "
-                f"{var.od.qualname!r}) at period {self._period}: {exc}{self._limits(var)}"
+                f"{var.od.qualname!r}) at period {self.period}: {exc}{self._limits(var)}"
             ) from None
 
     def _limits(self, var) -> str:  # type: ignore[no-untyped-def]
@@ -99,8 +110,8 @@ class Configurator:
                 pass
         return ("; the EDS says: " + "; ".join(parts)) if parts else ""
 
-    def _apply(self, s: Setting) -> None:
-        self.applied.append((self._period, s.key, float(s.value)))
+    def apply(self, s: Setting) -> None:
+        self.applied.append((self.period, s.key, float(s.value)))
         if s.param is None:  # ratio of a plant value
             for drive_name, plant_name in s.ratio_of:
                 value = self.plant_values[plant_name] * float(s.value)
@@ -109,12 +120,12 @@ class Configurator:
         node = self.plant if s.param.node == "plant" else self.drive
         self._write(_entry(node, s.param.obj, s.param.name), s.value, s.key)
         if s.param.obj == "References":
-            self.references.append((self._period, s.param.name, float(s.value)))
+            self.references.append((self.period, s.param.name, float(s.value)))
         if (s.param.node, s.param.obj, s.param.name) == ("drive", "Safe state", "clear") and int(s.value) == 1:
             self._reenable_after_clear()
 
     def configure(self) -> None:
-        self._period = 0
+        self.period = 0
         sc, plant, drive = self.sc, self.plant, self.drive
         self.configure_heartbeats()
         if sc.preset:
@@ -123,7 +134,7 @@ class Configurator:
         plant.sdo["Run control"]["mode"].raw = 0 if sc.timing == "lockstep" else 1
         for s in sc.settings:
             if s.param is not None and s.param.node == "plant":
-                self._apply(s)
+                self.apply(s)
         # Read back by SDO, so that the log carries the plant the run had (bench/run/decode/sdo_log.py).
         for obj, names in PLANT_VALUES:
             for name in names:
@@ -141,7 +152,7 @@ class Configurator:
         explicit = {s.key for s in sc.settings}
         for s in sc.settings:
             if s.param is None or s.param.node == "drive":
-                self._apply(s)
+                self.apply(s)
         # The controller runs at the plant's period with its pole pairs, unless the scenario says otherwise;
         # written after the scenario's bandwidths, which the drive checks against Ts.
         for name in ("Ts_s", "pole_pairs"):
@@ -150,7 +161,7 @@ class Configurator:
         for e in sc.events:
             if e.at_period == 0:
                 for s in e.settings:
-                    self._apply(s)
+                    self.apply(s)
         self.wire_pdos()
         self.enable_drive()
 
@@ -166,7 +177,7 @@ class Configurator:
         """A scenario's fault reset (Safe state.clear = 1) leaves the CiA 402 FAULT for SWITCH ON DISABLED
         (transition 15): the bench enables the drive again, so the control goes on as before the fault.
         A clear that found no fault leaves the drive enabled, and nothing is written."""
-        if int(self.drive.sdo["Statusword"].raw) & 0x4F == 0x40:
+        if in_state(int(self.drive.sdo["Statusword"].raw), "SWITCH ON DISABLED"):
             self.enable_drive()
 
     def configure_heartbeats(self) -> None:
@@ -209,7 +220,7 @@ class Configurator:
         m.trans_type = 254
         m.enabled = True
         m.save()
-        self._hold_cob = m.cob_id
+        self.hold_cob = m.cob_id
         for num, signals in self.sc.trace.items():
             m = drive.tpdo[num]
             m.clear()

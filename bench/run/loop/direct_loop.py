@@ -1,10 +1,9 @@
-"""The in-process loop of direct mode (part of Session): the C loop on a thread of its own in chunks,
-and why it stopped early, named as the liveness monitor names it on a bus."""
+"""The in-process loop of direct mode (a part of Session in direct mode): the C loop on a thread of its own in
+chunks, and why it stopped early, named as the liveness monitor names it on a bus."""
 
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -16,17 +15,20 @@ if TYPE_CHECKING:
 
 
 class DirectLoop:
-    """Mixed into Session: uses its hil, opts, on_direct_chunk, on_direct_stop."""
+    """Runs libhil's loop (Session owns one in direct mode). `on_chunk` (the frame source takes the recorded
+    frames) is called on the loop's thread after each chunk; `on_stop` when a segment ends or is interrupted,
+    so that a waiting loop thread is released."""
 
-    hil: Hil | None
-    opts: RunOptions
-    on_direct_chunk: Callable[[], None] | None
-    on_direct_stop: Callable[[], None] | None
+    def __init__(self, hil: Hil, opts: RunOptions) -> None:
+        self.hil = hil
+        self.opts = opts
+        self.on_chunk: Callable[[], None] | None = None
+        self.on_stop: Callable[[], None] | None = None
 
-    def _run_direct(self, n: int, tick: Callable[[], None] | None) -> None:
+    def run(self, n: int, tick: Callable[[], None] | None) -> None:
         """The C loop in chunks on a thread of its own (ctypes releases the GIL), so that this thread
         decodes chunk k (`tick`) while the loop runs chunk k+1: the two cores work at once. After each
-        chunk `on_direct_chunk` (the frame source) takes the recorded frames; it blocks while two chunks
+        chunk `on_chunk` (the frame source) takes the recorded frames; it blocks while two chunks
         wait, so memory stays bounded when decoding is the slower side."""
         ready = threading.Event()
         done = threading.Event()
@@ -37,13 +39,12 @@ class DirectLoop:
         def produce() -> None:
             try:
                 while ran[0] < n and not stop.is_set():  # in chunks: bounded memory, Ctrl-C seen promptly
-                    assert self.hil is not None
                     got = self.hil.run(min(self.opts.chunk_periods, n - ran[0]))
                     if got == 0:
                         break
                     ran[0] += got
-                    if self.on_direct_chunk is not None:
-                        self.on_direct_chunk()
+                    if self.on_chunk is not None:
+                        self.on_chunk()
                     ready.set()
             except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
                 errors.append(exc)
@@ -61,8 +62,8 @@ class DirectLoop:
                     tick()
         finally:
             stop.set()
-            if self.on_direct_stop is not None:
-                self.on_direct_stop()
+            if self.on_stop is not None:
+                self.on_stop()
             th.join()
         if errors:
             raise errors[0]
@@ -74,7 +75,6 @@ class DirectLoop:
     def _direct_stopped(self, ran: int, n: int) -> None:
         """Why the in-process loop stopped early, named as the liveness monitor names it on a bus: a node
         killed or out of OPERATIONAL (a fault), or a stall (simulated time ran on without a period)."""
-        assert self.hil is not None
         at = self.hil.period()
         down = self.hil.nodes_down()
         for name, state in down.items():
@@ -95,12 +95,3 @@ class DirectLoop:
             "period (a frame of the loop was lost and nothing timed out: 0x2003:04 command_timeout_us is 0)",
             at_period=at,
         )
-
-    def linger(self) -> None:
-        """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
-        fires after the consumer time): the consumer time plus a margin, simulated in direct mode."""
-        wait = self.opts.heartbeat_timeout_ms / 1000.0 + 0.3
-        if self.hil is not None:
-            self.hil.linger(wait)  # its frames go with the final drain of the recorder
-        else:
-            time.sleep(wait)

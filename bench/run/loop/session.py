@@ -45,7 +45,11 @@ PROGRESS = Callable[[int, int], None]
 POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
 
 
-class Session(Configurator, DirectLoop):
+class Session:
+    """The master of one run, made of parts: the nodes (processes, or libhil's in direct mode), the canopen
+    network, a Configurator (the SDO configuration), the loop driver (DirectLoop in process, lockstep
+    segments over a bus) and the Liveness watch."""
+
     def __init__(self, sc: Scenario, opts: RunOptions) -> None:
         self.sc = sc
         self.opts = opts
@@ -55,18 +59,11 @@ class Session(Configurator, DirectLoop):
         # The OD objects read once per process (bench/eds.py), shared with the decoder's SDO follower.
         self.plant = canopen.RemoteNode(opts.plant_id, load_od("plant", opts.plant_id))
         self.drive = canopen.RemoteNode(opts.drive_id, load_od("drive", opts.drive_id))
-        self.plant_values: dict[str, float] = {}
+        self.config = Configurator(sc, opts, self.plant, self.drive)
+        self.direct: DirectLoop | None = None  # direct mode: the in-process loop (its on_chunk, on_stop)
         self.kernel_filters: list[dict[str, int]] | None = None
-        self.references: list[tuple[int, str, float]] = []
-        self.applied: list[tuple[int, str, float]] = []  # every setting with the period it took effect
         self._hold = threading.Event()
-        # direct mode: called on the loop's thread after each chunk (the frame source takes the frames),
-        # and when a segment ends or is interrupted (so that a waiting loop thread is released)
-        self.on_direct_chunk: Callable[[], None] | None = None
-        self.on_direct_stop: Callable[[], None] | None = None
         self._hold_index = -1
-        self._hold_cob = 0
-        self._period = 0
         self.liveness: Liveness | None = None
         self.gateway: FaultGateway | None = None  # the fault injector between the buses (faults over SocketCAN)
         # each SocketCAN interface of the run: what the kernel reports of it before and after (canbus.link_info)
@@ -125,6 +122,7 @@ class Session(Configurator, DirectLoop):
             if self.sc.faults:
                 self.hil.set_faults(rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id))
             self.net.bus = DirectBus(self.hil)
+            self.direct = DirectLoop(self.hil, self.opts)
         else:
 
             def log(name: str) -> Path | None:
@@ -225,6 +223,18 @@ class Session(Configurator, DirectLoop):
             for name, rec in self.links.items():
                 rec["after"] = link_info(name)
 
+    def configure(self) -> None:
+        self.config.configure()
+
+    def linger(self) -> None:
+        """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
+        fires after the consumer time): the consumer time plus a margin, simulated in direct mode."""
+        wait = self.opts.heartbeat_timeout_ms / 1000.0 + 0.3
+        if self.hil is not None:
+            self.hil.linger(wait)  # its frames go with the final drain of the recorder
+        else:
+            time.sleep(wait)
+
     # ---------------------------------------------------------------- NMT
     def reset_nodes(self) -> None:
         booted: dict[int, bool] = {}
@@ -264,8 +274,8 @@ class Session(Configurator, DirectLoop):
         rc = self.plant.sdo["Run control"]
         self._hold.clear()
         rc["run_periods"].raw = n
-        if self.hil is not None:
-            self._run_direct(n, tick)
+        if self.direct is not None:
+            self.direct.run(n, tick)
             return
         # No time limit: load may slow the loop as much as it likes. What ends a wait early is a lost
         # node (heartbeats, processes: bench/run/bus/liveness.py) or a stall with both nodes alive.
@@ -334,9 +344,9 @@ class Session(Configurator, DirectLoop):
         """Run every period; `tick` is called between chunks (direct) or while waiting (bus)."""
         sc = self.sc
         if self.hil is None:
-            self.net.subscribe(self._hold_cob, self._on_hold)
+            self.net.subscribe(self.config.hold_cob, self._on_hold)
             if self.kernel_filters is not None:
-                self.net.bus.set_filters([*self.kernel_filters, {"can_id": self._hold_cob, "can_mask": 0x7FF}])
+                self.net.bus.set_filters([*self.kernel_filters, {"can_id": self.config.hold_cob, "can_mask": 0x7FF}])
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x01)
         if self.liveness is not None:
@@ -351,12 +361,12 @@ class Session(Configurator, DirectLoop):
                     self._run_segment(stop - start, stop - 1, tick)
                     if tick and self.hil is None:
                         tick()  # over a bus: decode what the segment recorded (short segments never wait)
-                self._period = stop
+                self.config.period = stop
                 if stop in events:
                     for s in events[stop].settings:
-                        self._apply(s)
+                        self.config.apply(s)
             except SdoCommunicationError:  # a node that stopped answering: named if it is lost
-                self._check_alive(self._period - 1)
+                self._check_alive(self.config.period - 1)
                 raise
             start = stop
             if progress:

@@ -71,11 +71,11 @@ def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
     frames = 0
     try:
         sess.open()
-        assert sess.hil is not None
+        assert sess.hil is not None and sess.direct is not None
         source = DirectSource(sess.hil, opts.chunk_periods) if recorded else None
         if source is not None:  # as run_scenario wires it: the loop's thread hands each chunk over
-            sess.on_direct_chunk = source.collect
-            sess.on_direct_stop = source.release
+            sess.direct.on_chunk = source.collect
+            sess.direct.on_stop = source.release
         sess.reset_nodes()
         sess.configure()
         if source is not None:
