@@ -122,3 +122,63 @@ class FrameCollector:
         if self._parts:
             self.frames = np.concatenate([self.frames, *self._parts])
             self._parts = []
+
+
+class StepWindows:
+    """The rows around each reference step (a few dozen per step, the first MAX_WINDOWS steps), kept for the
+    step plots (RunResult.step_windows)."""
+
+    WINDOW = (4, 24)  # periods before and after a reference step kept for its plot
+    MAX_WINDOWS = 64  # steps whose rows are kept (the plots show the first dozen)
+
+    def __init__(self) -> None:
+        self._tail: dict[str, np.ndarray] = {}  # the last rows, for step windows that start in a chunk
+        self._windows: list[dict[str, Any]] = []
+        self._open_windows: list[dict[str, Any]] = []
+        self._seen: set[tuple[int, str]] = set()
+
+    def begin(self, signals: list[SignalInfo], ctx: Any) -> None:
+        pass
+
+    def write(self, chunk: dict[str, np.ndarray]) -> None:
+        """Keep the rows around each reference step (a few dozen per step, the first MAX_WINDOWS steps)
+        for the step plots."""
+        before, after = self.WINDOW
+        names = [n for n in ("period", "iq_A", "iq_ref_A", "id_A", "id_ref_A", "vd_V", "vq_V") if n in chunk]
+        joined = {n: np.concatenate([self._tail.get(n, chunk[n][:0]), chunk[n]]) for n in names}
+        p = joined["period"]
+        for w in self._open_windows:  # windows still filling
+            m = (p >= w["lo"]) & (p < w["hi"]) & (p > w["have"])
+            if m.any():
+                for n in names:
+                    w["rows"][n] = np.concatenate([w["rows"][n], joined[n][m]])
+                w["have"] = int(p[m][-1])
+        self._open_windows = [w for w in self._open_windows if w["have"] < w["hi"] - 1]
+        for ref in ("iq_ref_A", "id_ref_A"):
+            if ref not in joined or len(joined[ref]) < 2 or len(self._windows) >= self.MAX_WINDOWS:
+                continue
+            r = joined[ref]
+            for j in np.nonzero(np.abs(np.diff(r)) > 1e-6)[0] + 1:
+                at = int(p[j])
+                if (at, ref) in self._seen or len(self._windows) >= self.MAX_WINDOWS:
+                    continue
+                self._seen.add((at, ref))
+                lo, hi = at - before, at + after
+                m = (p >= lo) & (p < hi)
+                w = {
+                    "at": at,
+                    "ref": ref,
+                    "lo": lo,
+                    "hi": hi,
+                    "have": int(p[m][-1]),
+                    "rows": {n: joined[n][m].copy() for n in names},
+                }
+                self._windows.append(w)
+                self._open_windows.append(w)
+        self._tail = {n: joined[n][-before:] for n in names}
+
+    def end(self, summary: dict[str, Any]) -> None:
+        pass
+
+    def windows(self) -> list[dict[str, np.ndarray]]:
+        return [{**w["rows"], "at_period": np.int64(w["at"])} for w in sorted(self._windows, key=lambda w: w["at"])]

@@ -27,7 +27,7 @@ from bench.canbus import classic_frame_bits
 from bench.eds import enum
 from bench.laws import law_info, law_names
 from bench.run.decode.decoder import Decoder
-from bench.run.loop.reads import PLANT_VALUES, STEP_COST
+from bench.run.loop.reads import CONTROLLER_VALUES, PLANT_VALUES, STEP_COST
 from bench.scenario import STATUSES
 
 SCHEMA_VERSION = 2
@@ -175,6 +175,69 @@ def verdict(
     if status in expect:
         return status, 0, True
     return status, EXIT_CODES[status] if status != "ok" else EXIT_EXPECTATION_NOT_MET, False
+
+
+def build_summary(
+    dec: Decoder,
+    *,
+    scenario: str,
+    bus: str,
+    status: str,
+    expected: bool,
+    expect: tuple[str, ...],
+    flags: dict[str, bool],
+    stopped: dict[str, Any] | None,
+    first_trip_period: int | None,
+    oscillating: list[int],
+    max_phase_A: float,
+    bound_A: float | None,
+    steps: list[dict[str, Any]],
+    bstats: dict[str, Any],
+    timing: dict[str, float],
+    links: dict[str, dict[str, Any]],
+) -> dict[str, Any]:
+    """summary.json (without "faults"): the verdict, the steps, what the bus showed of both nodes."""
+    ctl = dec.sdo.drive
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "scenario": scenario,
+        "bus": bus,
+        "status": status,
+        "status_expected": expected,
+        "expect": list(expect),
+        "status_flags": flags,
+        "stopped": stopped,
+        "emcy": dec.emcy[:100],
+        "first_trip_period": first_trip_period,
+        "first_non_finite_period": dec.stats.first_non_finite_period,
+        "oscillating_steps": oscillating,
+        "max_phase_current_A": max_phase_A,
+        "divergence_bound_A": bound_A,
+        "periods": dec.stats.periods,
+        "Ts_s": dec.ts_s,
+        "steps": steps,
+        "identified": identified(dec),
+        "step_cost": step_cost(dec),
+        "plant": plant_values(dec),
+        "controller": {n: ctl.get("Controller", n) for n in CONTROLLER_VALUES},
+        "counters": {
+            "plant_missed_commands": dec.sdo.plant.get("Run control", "missed_commands"),
+            "plant_late_commands": dec.sdo.plant.get("Run control", "late_commands"),
+            "plant_period_index": dec.sdo.plant.get("Run control", "period_index"),
+            "drive_current_steps": ctl.get("Drive status", "current_steps"),
+            "drive_lost_measurements": ctl.get("Drive status", "lost_measurements"),
+            "drive_late_measurements": ctl.get("Drive status", "late_measurements"),
+        },
+        "settings": [
+            {"period": w.period, "node": w.node, "name": w.name, "value": w.value}
+            for w in dec.sdo.writes
+            if w.period > 0
+        ],
+        "bus_stats": bstats,
+        "timing": timing,
+        # each SocketCAN interface (kind, state, bit rate, error counters) before and after the run
+        "can_links": links,
+    }
 
 
 def format_table(summary: dict[str, Any]) -> str:
