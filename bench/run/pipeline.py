@@ -58,7 +58,7 @@ class RunResult:
     envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
     step_windows: list[dict[str, np.ndarray]] = field(default_factory=list)
 
-    # what the claims and tests read, by the names they had
+    # shortcuts into the summary
     @property
     def identified(self) -> dict[str, Any]:
         return self.summary["identified"]

@@ -7,7 +7,6 @@ A sink has `begin(signals, ctx)`, `write(chunk)` and `end(summary)`; `ctx` is th
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -73,20 +72,6 @@ class TraceFileSink:
         self._fh.write(self._header(self.rows))
         self._fh.close()
         self._fh = None
-
-
-def load_traces(path: Path, mmap: bool = True) -> dict[str, np.ndarray]:
-    """traces.npy as columns (memory-mapped: a column is read when used)."""
-    arr = np.load(path, mmap_mode="r" if mmap else None)
-    return {name: arr[name] for name in arr.dtype.names}
-
-
-def trace_header(path: Path) -> dict[str, Any]:
-    with open(path, "rb") as fh:
-        np.lib.format.read_magic(fh)
-        fh.seek(8)
-        n = int.from_bytes(fh.read(4), "little")
-        return ast.literal_eval(fh.read(n).decode("latin1"))
 
 
 class TraceCollector:

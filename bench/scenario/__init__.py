@@ -394,7 +394,3 @@ def loads(text: str, where: str, overrides: list[str] | None = None) -> Scenario
     if overrides:
         raw = apply_overrides(raw, overrides, where)
     return parse(raw, where)
-
-
-def is_integer_type(p: Param) -> bool:
-    return p.data_type != datatypes.REAL32

@@ -182,7 +182,6 @@ class RerunSink:
             raise ValueError(f"live must be 'none', 'spawn' or 'serve', not {live!r}")
         self.name = name
         self.rrd = Path(rrd) if rrd is not None else None
-        self.live_mode = live
         self.live_decimate = max(1, int(live_decimate))
         self._url: str | None = None
         self._signals: list[SignalInfo] = []

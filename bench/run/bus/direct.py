@@ -147,9 +147,6 @@ class Hil:
     def period(self) -> int:
         return int(self.lib.hil_plant_period())
 
-    def now_s(self) -> float:
-        return self.lib.hil_now_us() * 1e-6
-
 
 class DirectBus(can.BusABC):
     """python-can bus over the in-process CAN bus of :class:`Hil`."""

@@ -294,7 +294,3 @@ class Liveness:
                     details={"cause": "emcy_8130", "reported_by": reporter},
                 )
         return None
-
-    def emcy_list(self) -> list[dict[str, Any]]:
-        with self._lock:
-            return [{"node": n, "code": f"0x{c:04X}", "data": d.hex()} for n, c, d, _ in self.emcy]

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import time
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -61,15 +60,6 @@ def end_process(proc: subprocess.Popen[bytes], log_fh: Any, timeout_s: float, wa
     if log_fh:
         log_fh.close()
     return proc.returncode
-
-
-def wait_until(pred, timeout_s: float, step_s: float = 0.01) -> bool:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(step_s)
-    return bool(pred())
 
 
 def in_vm() -> bool:

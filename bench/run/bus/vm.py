@@ -278,12 +278,3 @@ def _stop_group(proc: subprocess.Popen[bytes]) -> None:
     except ProcessLookupError:
         pass
     proc.wait()
-
-
-def run_here_or_in_vm(cmd: list[str], interfaces: tuple[str, ...] = ("vcan0",), timeout_s: float = 3600.0) -> int:
-    """Run `cmd` on the host when it has vcan, else inside the VM; return its status."""
-    from bench.canbus import host_has_vcan
-
-    if all(host_has_vcan(i) for i in interfaces):
-        return subprocess.call(cmd)
-    return run_in_vm(cmd, VmOptions(interfaces=interfaces, timeout_s=timeout_s))
