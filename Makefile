@@ -253,11 +253,12 @@ ifneq ($(strip $(LAW)),)
 law: $(LAW_OK) $(LAW_CHECKED) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(BUILD)/bin/fault_gateway $(BUILD)/libhil.so \
      $(if $(HAVE_MCU_CC),mcu)
 	@echo "make: law $(LAW_NAME) built in $(BUILD)"
-$(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/gen_od.py protocols/gen_law.py
+$(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/eds/common.ini \
+    protocols/gen_od.py protocols/gen_law.py protocols/eds_reader.py
 	$(PYTHON) protocols/gen_od.py --law '$(LAW_DIR)' --out '$(BUILD)'
 	@touch $@
 $(addprefix $(GEN_DIR)/,od_drive.h od_drive.c od_drive_fields.h od_plant.h od_plant.c od_plant_fields.h \
-    current_law_table.c): $(GEN_STAMP) ;
+    eds_common.h current_law_table.c): $(GEN_STAMP) ;
 # Every object after the generated headers (their .d files take over from the second build on).
 $(call obj,$(CO_SRC) $(SCAN_SRC) $(PLANT_SRC) $(FW_SRC) $(HIL_SRC) $(wildcard firmware_shim/shim/*.c plant_rt/node/*.c) \
     protocols/faults/fault_gateway_main.c) $(MCU_OBJ): | $(GEN_STAMP)

@@ -1,52 +1,72 @@
 """The EDS files, read with `canopen` (the single source of truth of the CANopen contract).
 
-`canopen` parses integer LowLimit/HighLimit but not REAL32 ones; :func:`float_limits`
-reads those from the same EDS section (protocols/gen_od.py, which stands on its own, has its own
-copy of this reader; tests/host/test_eds.py checks that both agree).
+What `canopen` does not read (REAL32 LowLimit/HighLimit, ValueNames, the EMCY codes of [EmergencyCodes], the
+shared protocols/eds/common.ini) is read by protocols/eds_reader.py, the one EDS reader of the bench and of
+protocols/gen_od.py (which generates the C from the same files through it).
 """
 
 from __future__ import annotations
 
 import configparser
 import hashlib
+import importlib.util
 import os
 import pickle
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from types import ModuleType
 from typing import Any, TypeVar
 
 import canopen
-from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
+from canopen.objectdictionary import ODVariable, datatypes
 
-from bench.paths import BUILD, EDS_DIR
+from bench.paths import BUILD, EDS_DIR, REPO
 
 T = TypeVar("T")
+
+
+def _import_reader() -> ModuleType:
+    """protocols/eds_reader.py (protocols/ is no package: gen_od.py runs as a script and imports it from its own
+    folder, as the module eds_reader; the same name here, so both hold one module)."""
+    if "eds_reader" in sys.modules:
+        return sys.modules["eds_reader"]
+    spec = importlib.util.spec_from_file_location("eds_reader", REPO / "protocols" / "eds_reader.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["eds_reader"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+reader = _import_reader()
 
 
 def eds_path(node: str) -> Path:
     return EDS_DIR / f"{node}.eds"
 
 
+def common_path() -> Path:
+    """protocols/eds/common.ini (or the law build's copy): what both nodes share (the stack's EMCY codes, the
+    fault injector's sizes)."""
+    return EDS_DIR / reader.COMMON
+
+
 def section_of(var: ODVariable) -> str:
-    if isinstance(var.parent, (ODRecord, ODArray)):
-        return f"{var.index:04X}sub{var.subindex:X}"
-    return f"{var.index:04X}"
+    return reader.section_of(var)  # type: ignore[no-any-return]
 
 
 @cache
 def _raw(path: str) -> configparser.ConfigParser:
-    raw = configparser.ConfigParser(strict=False)
-    raw.optionxform = str  # type: ignore[assignment,method-assign]
-    raw.read(path)
-    return raw
+    return reader.parse(path)  # type: ignore[no-any-return]
 
 
 def default_node_id(node: str) -> int:
     """A node's default node-ID: its EDS's [DeviceComissioning] NodeID (plant 0x10, drive 0x20; the C nodes'
     OD_<NODE>_DEFAULT_NODE_ID is generated from the same key)."""
-    return int(_raw(str(eds_path(node))).get("DeviceComissioning", "NodeID"), 0)
+    return reader.default_node_id(_raw(str(eds_path(node))))  # type: ignore[no-any-return]
 
 
 def add_node_id_arguments(p: Any) -> None:
@@ -62,23 +82,14 @@ def add_node_id_arguments(p: Any) -> None:
 
 
 def float_limits(path: Path, var: ODVariable) -> tuple[float | None, float | None]:
-    raw = _raw(str(path))
-    sec = section_of(var)
-
-    def get(key: str) -> float | None:
-        return float(raw.get(sec, key)) if raw.has_option(sec, key) else None
-
-    return get("LowLimit"), get("HighLimit")
+    """LowLimit/HighLimit of a REAL32 entry (`canopen` parses only the integer ones)."""
+    return reader.float_limits(_raw(str(path)), var)  # type: ignore[no-any-return]
 
 
 def value_names(path: Path, var: ODVariable) -> tuple[str, ...]:
     """Names of an enumerated entry's values 0, 1, ... (key ValueNames of its EDS section, also read by
     protocols/gen_od.py for the C enumerations); () for a plain number."""
-    raw = _raw(str(path))
-    sec = section_of(var)
-    if not raw.has_option(sec, "ValueNames"):
-        return ()
-    return tuple(n.strip() for n in raw.get(sec, "ValueNames").split(","))
+    return reader.value_names(_raw(str(path)), var)  # type: ignore[no-any-return]
 
 
 def enum(node: str, obj: str, name: str) -> dict[str, int]:
@@ -109,7 +120,22 @@ def _cached(what: str, node: str, build: Callable[[], T]) -> T:
 
 @cache
 def load(node: str, node_id: int | None = None) -> canopen.ObjectDictionary:
-    return _cached(f"od|{node_id}", node, lambda: canopen.import_od(str(eds_path(node)), node_id=node_id))
+    return _cached(f"od|{node_id}", node, lambda: reader.import_od(eds_path(node), node_id=node_id))
+
+
+@cache
+def emcy_table() -> dict[str, tuple[Any, ...]]:
+    """Every EMCY code the nodes send, by where the EDS declares it: "common" (common.ini: the CANopen stack's
+    own), "plant", "drive" (each node's [EmergencyCodes]); each an eds_reader.EmcyCode (name, code, description).
+    A code or a name declared twice is refused (EdsError)."""
+    return reader.emcy_table(EDS_DIR, ("plant", "drive"))  # type: ignore[no-any-return]
+
+
+def fault_injector_size(key: str) -> int:
+    """A fixed size of the fault injector from [FaultInjector] of common.ini (MaxRules: its rule table,
+    FI_MAX_RULES in the C, generated from the same key)."""
+    path = common_path()
+    return reader.fault_injector(_raw(str(path)), str(path))[key]  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,13 @@ indices and sub-indices the node code uses.
 
 User laws' records live in 0x2400..0x24FF (reserved; docs/ARCHITECTURE.md, "A law from your own folder").
 
-`canopen` parses integer LowLimit/HighLimit but ignores REAL32 ones; those are
-read from the same EDS section with configparser. The generator stands on its own
+The EMCY codes come from the EDS too: a node's own from its [EmergencyCodes] section
+(`#define <NODE>_EMCY_<NAME>` in od_<node>_fields.h), the CANopen stack's own from the
+shared protocols/eds/common.ini, with the fault injector's table size
+(`CO_EMCY_<NAME>`, `FI_MAX_RULES`: protocols/generated/eds_common.h).
+
+The EDS files are read through protocols/eds_reader.py, the bench's reader too (what
+`canopen` ignores: REAL32 limits, ValueNames, EMCY codes). The generator stands on its own
 (python with `canopen`, nothing of the bench): firmware builds can run it anywhere.
 """
 
@@ -24,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import configparser
-import logging
 import re
 import struct
 import sys
@@ -35,6 +39,13 @@ import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))  # the EDS reader beside this file, however it is run (script, runpy, importlib)
+try:
+    import eds_reader
+    from eds_reader import EdsError, EmcyCode, float_limits, section_of, value_names
+finally:
+    sys.path.remove(str(HERE))
+
 EDS_DIR = HERE / "eds"
 OUT_DIR = HERE / "generated"
 NODES = ("plant", "drive")
@@ -64,10 +75,6 @@ DT_NAMES = {
 }
 
 
-class EdsError(ValueError):
-    pass
-
-
 def c_ident(name: str) -> str:
     """EDS ParameterName -> C identifier (standard names lower-cased, manufacturer names kept)."""
     s = re.sub(r"[^0-9A-Za-z]+", "_", name).strip("_")
@@ -88,45 +95,14 @@ class Entry:
     high: float | int | None
 
 
-def _section(var: ODVariable) -> str:
-    if isinstance(var.parent, (ODRecord, ODArray)):
-        return f"{var.index:04X}sub{var.subindex:X}"
-    return f"{var.index:04X}"
-
-
-def float_limits(raw: configparser.ConfigParser, var: ODVariable) -> tuple[float | None, float | None]:
-    """LowLimit/HighLimit of a REAL32 entry, which `canopen` does not parse (bench/eds.py reads them
-    the same way; tests/host/test_eds.py checks that both agree on every entry)."""
-    sec = _section(var)
-
-    def get(key: str) -> float | None:
-        return float(raw.get(sec, key)) if raw.has_option(sec, key) else None
-
-    return get("LowLimit"), get("HighLimit")
-
-
-def _raw(eds: Path) -> configparser.ConfigParser:
-    raw = configparser.ConfigParser(strict=False)
-    raw.optionxform = str  # type: ignore[assignment,method-assign]
-    raw.read(eds)
-    return raw
-
-
 def load(
     node: str,
     eds_dir: Path | None = None,
 ) -> tuple[canopen.ObjectDictionary, list[Entry], list[str], list[str], list[str], list[str], list[str]]:
     """The OD of a node: entries, record types, comm/mfr struct members, #defines, field lists and enums."""
     eds = (eds_dir or EDS_DIR) / f"{node}.eds"
-    handler = _Collect()
-    logging.getLogger("canopen").addHandler(handler)
-    try:
-        od = canopen.import_od(str(eds))
-    finally:
-        logging.getLogger("canopen").removeHandler(handler)
-    if handler.messages:
-        raise EdsError(f"{eds}: canopen warned: {handler.messages}")
-    raw = _raw(eds)
+    od = eds_reader.import_od(eds, strict=True)
+    raw = eds_reader.parse(eds)
     entries: list[Entry] = []
     comm_fields: list[str] = []
     mfr_fields: list[str] = []
@@ -144,8 +120,8 @@ def load(
         members: list[str] = []
         for var in subs:
             if var.data_type not in DT_NAMES:
-                raise EdsError(f"{eds} [{_section(var)}] {var.name}: data type 0x{var.data_type:X} not supported")
-            sec = _section(var)
+                raise EdsError(f"{eds} [{section_of(var)}] {var.name}: data type 0x{var.data_type:X} not supported")
+            sec = section_of(var)
             if isinstance(obj, ODVariable):
                 field = f"{prefix}.{oname}"
                 member_name = oname
@@ -228,15 +204,6 @@ def _default_of(var: ODVariable) -> str:
     )
 
 
-def value_names(raw: configparser.ConfigParser, var: ODVariable) -> list[str]:
-    """The names of an enumerated entry's values 0, 1, ... (key ValueNames of its EDS section: not a CiA 306
-    key, ignored by EDS readers; the bench's scenario files use the same names)."""
-    sec = _section(var)
-    if not raw.has_option(sec, "ValueNames"):
-        return []
-    return [n.strip() for n in raw.get(sec, "ValueNames").split(",")]
-
-
 def _enums(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigParser) -> list[str]:
     out = []
     for obj in od.values():
@@ -247,15 +214,6 @@ def _enums(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigPars
                 rows = ",\n".join(f"    {base}_{n.upper()} = {i}" for i, n in enumerate(names))
                 out.append(f"/* 0x{var.index:04X}:{var.subindex:02X} {obj.name}.{var.name} */\nenum {{\n{rows}\n}};\n")
     return out
-
-
-class _Collect(logging.Handler):
-    def __init__(self) -> None:
-        super().__init__(level=logging.WARNING)
-        self.messages: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
 
 
 def _default_literal(e: Entry) -> str | None:
@@ -347,21 +305,57 @@ def law_table(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigP
     return "\n".join(out)
 
 
+def _entry_row(up: str, e: Entry) -> str:
+    """One row of a node's entry table (co_od_entry_t): index, subindex, type, flags, size, value, limits."""
+    var = e.var
+    flags = []
+    if var.access_type in ("ro", "rw", "rwr", "rww", "const"):
+        flags.append("CO_ODF_READ")
+    if var.access_type in ("wo", "rw", "rwr", "rww"):
+        flags.append("CO_ODF_WRITE")
+    if var.pdo_mappable:
+        flags.append("CO_ODF_PDO")
+    if var.relative:
+        flags.append("CO_ODF_NODEID")
+    if e.low is not None:
+        flags.append("CO_ODF_LIMITS")
+    if var.data_type == datatypes.VISIBLE_STRING:
+        size = str(e.capacity)
+    elif var.data_type == datatypes.DOMAIN:
+        size = "0"
+    else:
+        size = f"sizeof(OD_{up}.{e.field})"
+    if e.low is None:
+        lim = "{.i = 0}, {.i = 0}"
+    elif var.data_type == datatypes.REAL32:
+        lim = f"{{.f = {_c_float(float(e.low))}}}, {{.f = {_c_float(float(e.high))}}}"  # type: ignore[arg-type]
+    else:
+        lim = f"{{.i = {int(e.low)}}}, {{.i = {int(e.high)}}}"  # type: ignore[arg-type]
+    ptr = f"OD_{up}.{e.field}" if var.data_type == datatypes.VISIBLE_STRING else f"&OD_{up}.{e.field}"
+    return (
+        f"    {{0x{var.index:04X}u, 0x{var.subindex:02X}u, {DT_NAMES[var.data_type]}, "
+        f"{' | '.join(flags) or '0'}, {size}, {ptr}, {lim}}}, /* {var.name} */"
+    )
+
+
 def render(node: str, eds_dir: Path | None = None) -> dict[str, str]:
     """The generated files of a node, by file name (from EDS_DIR's EDS files, or eds_dir's: --law)."""
     od, entries, record_types, comm_fields, mfr_fields, defines, fields = load(node, eds_dir)
+    eds = (eds_dir or EDS_DIR) / f"{node}.eds"
     up = node.upper()
     src_note = f"Generated by protocols/gen_od.py from protocols/eds/{node}.eds - do not edit."
     f: list[str] = [
         f"/* od_{node}_fields.h - {src_note}",
         " * Plain C, no CANopen: the cores include it for the names, defaults and enumerations",
-        " * of the EDS (one source), the node app for its copy tables (co_field_map.h). */",
+        " * of the EDS (one source), the node app for its copy tables (co_field_map.h) and the",
+        f" * node's own EMCY codes ({up}_EMCY_*). */",
         f"#ifndef OD_{up}_FIELDS_H",
         f"#define OD_{up}_FIELDS_H",
         "",
         "#include <stdint.h>",
         "",
         *fields,
+        *_emcy_defines(up, eds_reader.emcy_codes(eds_reader.parse(eds), str(eds)), f"{node}.eds"),
         f"#endif /* OD_{up}_FIELDS_H */",
         "",
     ]
@@ -399,36 +393,7 @@ def render(node: str, eds_dir: Path | None = None) -> dict[str, str]:
             c.append(f"    .{e.field} = {lit},")
     c.append("};\n")
     c.append("static const co_od_entry_t entries[] = {")
-    for e in entries:
-        var = e.var
-        flags = []
-        if var.access_type in ("ro", "rw", "rwr", "rww", "const"):
-            flags.append("CO_ODF_READ")
-        if var.access_type in ("wo", "rw", "rwr", "rww"):
-            flags.append("CO_ODF_WRITE")
-        if var.pdo_mappable:
-            flags.append("CO_ODF_PDO")
-        if var.relative:
-            flags.append("CO_ODF_NODEID")
-        if e.low is not None:
-            flags.append("CO_ODF_LIMITS")
-        if var.data_type == datatypes.VISIBLE_STRING:
-            size = str(e.capacity)
-        elif var.data_type == datatypes.DOMAIN:
-            size = "0"
-        else:
-            size = f"sizeof(OD_{up}.{e.field})"
-        if e.low is None:
-            lim = "{.i = 0}, {.i = 0}"
-        elif var.data_type == datatypes.REAL32:
-            lim = f"{{.f = {_c_float(float(e.low))}}}, {{.f = {_c_float(float(e.high))}}}"  # type: ignore[arg-type]
-        else:
-            lim = f"{{.i = {int(e.low)}}}, {{.i = {int(e.high)}}}"  # type: ignore[arg-type]
-        ptr = f"OD_{up}.{e.field}" if var.data_type == datatypes.VISIBLE_STRING else f"&OD_{up}.{e.field}"
-        c.append(
-            f"    {{0x{var.index:04X}u, 0x{var.subindex:02X}u, {DT_NAMES[var.data_type]}, "
-            f"{' | '.join(flags) or '0'}, {size}, {ptr}, {lim}}}, /* {var.name} */"
-        )
+    c += [_entry_row(up, e) for e in entries]
     c.append("};\n")
     c.append(
         f"const co_od_t od_{node} = {{entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_{up}, "
@@ -436,14 +401,49 @@ def render(node: str, eds_dir: Path | None = None) -> dict[str, str]:
     )
     c.append("")
     files = {f"od_{node}.h": "\n".join(h), f"od_{node}.c": "\n".join(c), f"od_{node}_fields.h": "\n".join(f)}
-    table = law_table(node, od, _raw((eds_dir or EDS_DIR) / f"{node}.eds"))
+    table = law_table(node, od, eds_reader.parse(eds))
     if table is not None:
         files["current_law_table.c"] = table
     return files
 
 
+def _emcy_defines(prefix: str, codes: tuple[EmcyCode, ...], source: str) -> list[str]:
+    """`#define <PREFIX>_EMCY_<NAME> 0x<code>u` of each EMCY code of a file, its description as a comment."""
+    rows = [
+        f"#define {prefix}_EMCY_{c.name.upper()} 0x{c.code:04X}u" + (f" /* {c.description} */" if c.description else "")
+        for c in codes
+    ]
+    return [f"/* EMCY error codes ([{eds_reader.EMCY_SECTION}] of {source}) */", *rows, ""] if rows else []
+
+
+def render_common(eds_dir: Path | None = None) -> str:
+    """eds_common.h from common.ini: the CANopen stack's own EMCY codes (CO_EMCY_*, co_emcy.h includes it) and the
+    fault injector's fixed sizes (FI_*, fault_injector.h). Plain C, no include."""
+    path = (eds_dir or EDS_DIR) / eds_reader.COMMON
+    if not path.is_file():
+        raise EdsError(f"{path}: missing (what both nodes share: the stack's EMCY codes, the fault injector's sizes)")
+    raw = eds_reader.parse(path)
+    sizes = eds_reader.fault_injector(raw, str(path))
+    return "\n".join(
+        [
+            f"/* eds_common.h - Generated by protocols/gen_od.py from protocols/eds/{eds_reader.COMMON} - do not edit.",
+            " * Plain C: what both nodes share, the CANopen stack's own EMCY codes (co_emcy.h) and the fault",
+            " * injector's fixed sizes (fault_injector.h). */",
+            "#ifndef EDS_COMMON_H",
+            "#define EDS_COMMON_H",
+            "",
+            *_emcy_defines("CO", eds_reader.emcy_codes(raw, str(path)), eds_reader.COMMON),
+            f"/* The fault injector's fixed sizes ([{eds_reader.FAULT_SECTION}] of {eds_reader.COMMON}) */",
+            *(f"#define {eds_reader.fault_macro(key)} {value}u" for key, value in sizes.items()),
+            "",
+            "#endif /* EDS_COMMON_H */",
+            "",
+        ]
+    )
+
+
 def _law_eds(law: Path, out_eds: Path) -> None:
-    """The merged EDS files of a user's law (gen_law.py) in out_eds: drive.eds with the law, plant.eds."""
+    """The merged EDS files of a user's law (gen_law.py) in out_eds: drive.eds with the law, plant.eds, common.ini."""
     sys.path.insert(0, str(HERE))
     try:
         import gen_law
@@ -452,7 +452,8 @@ def _law_eds(law: Path, out_eds: Path) -> None:
     _, _, text = gen_law.merge(EDS_DIR / "drive.eds", law, C_TYPES.keys())
     out_eds.mkdir(parents=True, exist_ok=True)
     (out_eds / "drive.eds").write_text(text)
-    (out_eds / "plant.eds").write_text((EDS_DIR / "plant.eds").read_text())
+    for name in ("plant.eds", eds_reader.COMMON):
+        (out_eds / name).write_text((EDS_DIR / name).read_text())
 
 
 def _generate(args: argparse.Namespace) -> dict[Path, str] | int:
@@ -467,8 +468,10 @@ def _generate(args: argparse.Namespace) -> dict[Path, str] | int:
                 _law_eds(args.law, eds_dir)
                 files = {args.out / "eds" / p.name: p.read_text() for p in sorted(eds_dir.iterdir())}
             out = OUT_DIR if args.out is None else args.out / "generated"
+            eds_reader.emcy_table(eds_dir or EDS_DIR, NODES)  # no code or name declared twice
             for node in NODES:
                 files |= {out / name: text for name, text in render(node, eds_dir).items()}
+            files[out / "eds_common.h"] = render_common(eds_dir)
         except ValueError as exc:  # EdsError, gen_law.LawError
             print(f"gen_od: {exc}", file=sys.stderr)
             return 2

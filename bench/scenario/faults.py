@@ -116,14 +116,11 @@ def frame_names() -> tuple[str, ...]:
 
 
 def max_rules() -> int:
-    """FI_MAX_RULES of protocols/faults/fault_injector.h (the injector's fixed rule table)."""
-    import re
+    """The injector's fixed rule table: MaxRules of [FaultInjector] in protocols/eds/common.ini, from which
+    protocols/gen_od.py generates the C's FI_MAX_RULES (protocols/generated/eds_common.h)."""
+    from bench.eds import fault_injector_size
 
-    from bench.paths import REPO
-
-    text = (REPO / "protocols" / "faults" / "fault_injector.h").read_text()
-    m = re.search(r"#define\s+FI_MAX_RULES\s+(\d+)u", text)
-    return int(m.group(1)) if m else 0
+    return fault_injector_size("MaxRules")
 
 
 def parse_faults(

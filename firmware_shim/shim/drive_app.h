@@ -148,16 +148,10 @@
 #include "cia402_device.h"
 #include "co_node.h"
 #include "drive_core.h"
+/* The drive's manufacturer-specific EMCY codes (CiA 301 0xFF00-0xFFFF), DRIVE_EMCY_*: generated from the
+ * [EmergencyCodes] of drive.eds by protocols/gen_od.py. */
+#include "od_drive_fields.h"
 #include "trace_recorder.h"
-
-/* Manufacturer-specific EMCY codes (CiA 301 0xFF00-0xFFFF). */
-#define DRIVE_EMCY_MEAS_LOST 0xFF01u
-#define DRIVE_EMCY_MEAS_LATE 0xFF02u
-#define DRIVE_EMCY_SAFE_MEAS_TIMEOUT 0xFF03u /* safe state entered: measurement timeout */
-#define DRIVE_EMCY_SAFE_HEARTBEAT 0xFF04u    /* safe state entered: plant heartbeat lost */
-#define DRIVE_EMCY_NON_FINITE 0xFF05u        /* non-finite measurement value replaced */
-#define DRIVE_EMCY_SAFE_LAW_OUTPUT 0xFF06u   /* safe state entered: the law's command non-finite or beyond Vmax_V */
-#define DRIVE_EMCY_SAFE_OVERRUN 0xFF07u      /* safe state entered: a current step longer than the period */
 
 /* Reasons in byte 2 of the MSEF of DRIVE_EMCY_MEAS_LATE. */
 enum {

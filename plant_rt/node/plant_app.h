@@ -46,12 +46,8 @@
 #include <stdint.h>
 
 #include "co_node.h"
+#include "od_plant_fields.h" /* the plant's EMCY codes PLANT_EMCY_* ([EmergencyCodes] of plant.eds) */
 #include "pmsm_plant.h"
-
-/* EMCY error code of the over-current trip (CiA 301: 0x23xx current, device output side). */
-#define PLANT_EMCY_OVERCURRENT 0x2310u
-/* EMCY of the inverter switched off because the drive was lost (real time; manufacturer specific). */
-#define PLANT_EMCY_DRIVE_LOST 0xFF10u
 
 /* Bits of 0x2100:05 status. */
 #define PLANT_STATUS_TRIP 0x01u    /* over-current trip latched */

@@ -13,14 +13,9 @@
 
 #include "co_od.h"
 #include "co_tx.h"
-
-/* EMCY error codes used by the slave itself (CiA 301 table 21). */
-#define CO_EMCY_NO_ERROR 0x0000u
-#define CO_EMCY_HEARTBEAT 0x8130u
-#define CO_EMCY_PDO_LENGTH 0x8210u
-#define CO_EMCY_PDO_LENGTH_EXCEEDED 0x8220u
-#define CO_EMCY_SYNC_LENGTH 0x8240u
-#define CO_EMCY_RPDO_TIMEOUT 0x8250u
+/* The EMCY error codes used by the slave itself (CiA 301 table 21), CO_EMCY_*: generated from the
+ * [EmergencyCodes] of protocols/eds/common.ini by protocols/gen_od.py. */
+#include "eds_common.h"
 
 /* Error register bits (0x1001). */
 #define CO_ERR_REG_GENERIC 0x01u

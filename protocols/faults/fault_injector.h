@@ -31,8 +31,10 @@
 #include <stdint.h>
 
 #include "co_frame.h"
+/* FI_MAX_RULES, the rule table's size (a scenario's [[faults]] at most): generated from [FaultInjector] of
+ * protocols/eds/common.ini by protocols/gen_od.py, which the bench reads too (bench/scenario/faults.py). */
+#include "eds_common.h"
 
-#define FI_MAX_RULES 32u
 #define FI_MAX_HELD 256u
 #define FI_LOG_SIZE 4096u
 #define FI_ANY_COB 0xFFFFu
