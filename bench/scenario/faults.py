@@ -33,22 +33,6 @@ NODE_KINDS = ("silence_heartbeat", "freeze", "kill", "reset")
 FAULT_KINDS = FRAME_KINDS + NODE_KINDS
 NODES = ("plant", "drive")
 SIDE = {"plant": "a", "drive": "b"}  # the injector's sides: a = plant, master, recorder; b = drive
-KEYS = {
-    "kind",
-    "frame",
-    "cob_id",
-    "from",
-    "at_period",
-    "periods",
-    "probability",
-    "seed",
-    "count",
-    "delay_periods",
-    "delay_us",
-    "bit",
-    "dlc",
-    "node",
-}
 PER_KIND = {
     "drop": set(),
     "delay": {"delay_periods", "delay_us"},
