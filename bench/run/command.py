@@ -49,6 +49,7 @@ def exit_codes_help() -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """`bench run`'s own options: the scenario, the bus and the nodes, then the outputs."""
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
     add_set_argument(
         p,
@@ -101,6 +102,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="do not start the C drive (a physical drive implementing drive.eds is on the bus)",
     )
     add_node_id_arguments(p)
+    _output_arguments(p)
+
+
+def _output_arguments(p: argparse.ArgumentParser) -> None:
+    """Where a run's results go and how they are shown: the folder, the log formats, the live viewer."""
     p.add_argument(
         "--out", type=Path, default=None, help="output folder (default runs/NAME-TIMESTAMP); must not exist or be empty"
     )

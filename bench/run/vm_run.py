@@ -48,40 +48,9 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
         except BaseException as exc:  # noqa: BLE001 - reported by the main thread
             errors.append(exc)
 
-    cmd = [
-        sys.executable,
-        "-m",
-        "bench.cli",
-        "capture",
-        str(args.scenario.resolve()),
-        "--bus",
-        args.bus,
-        "--out",
-        str(stage),
-        "--plant-id",
-        str(args.plant_id),
-        "--drive-id",
-        str(args.drive_id),
-    ]
-    if args.drive_bus:
-        cmd += ["--drive-bus", args.drive_bus]
-    mcu = None
+    cmd = _capture_command(args, stage)
     vm = vm_options(args)
-    if getattr(args, "drive", "node") == "mcu":
-        # The image runs on the host (qemu-system-arm, not nested in the VM's emulation); its UART0 is a local
-        # TCP server that the VM's second serial port joins: ttyS1 in the guest, where slcand attaches it.
-        from bench.mcu import McuImage
-
-        mcu = McuImage()
-        port = mcu.start()
-        vm.qemu_opts.append(
-            f"-chardev socket,id=slcan,host=127.0.0.1,port={port},nodelay=on -device isa-serial,chardev=slcan"
-        )
-        cmd += ["--drive", "mcu", "--drive-tty", GUEST_TTY]
-    if args.bitrate:
-        cmd += ["--bitrate", str(args.bitrate)]
-    for o in args.overrides:
-        cmd += ["--set", o]
+    mcu = _start_mcu(vm, cmd) if getattr(args, "drive", "node") == "mcu" else None
     print(
         "bench run: host kernel has no SocketCAN; the bus runs inside the virtme-ng VM (boot ~20 s); "
         "the host decodes candump's log as it grows",
@@ -99,16 +68,7 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
                 th.join()
             if errors:
                 raise errors[0]
-            if rc == CAPTURE_REFUSED:
-                from bench.run.loop.configure import SettingRefused
-
-                raise SettingRefused("a node refused a value of the scenario (the line above says which)")
-            if rc == CAPTURE_LINK:
-                from bench.canbus import LinkError
-
-                raise LinkError("a CAN link in the VM could not be set up (the line above says why)")
-            if rc != 0:
-                raise RuntimeError(f"the capture inside the VM failed with status {rc}")
+            _raise_for(rc)
             pipe.feed(follower.drain(final=True))
             bar.update(pipe.periods - bar.n)
         if not (stage / "capture.json").exists():
@@ -135,6 +95,47 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
         cap.get("links"),
         injected,
     )
+
+
+def _capture_command(args: argparse.Namespace, stage: Path) -> list[str]:
+    """`bench capture` as the VM runs it: the run's scenario, bus, node-IDs and settings, its log in `stage`."""
+    cmd = [sys.executable, "-m", "bench.cli", "capture", str(args.scenario.resolve()), "--bus", args.bus]
+    cmd += ["--out", str(stage), "--plant-id", str(args.plant_id), "--drive-id", str(args.drive_id)]
+    if args.drive_bus:
+        cmd += ["--drive-bus", args.drive_bus]
+    if args.bitrate:
+        cmd += ["--bitrate", str(args.bitrate)]
+    for o in args.overrides:
+        cmd += ["--set", o]
+    return cmd
+
+
+def _start_mcu(vm: Any, cmd: list[str]) -> Any:
+    """The MCU image runs on the host (qemu-system-arm, not nested in the VM's emulation); its UART0 is a local
+    TCP server that the VM's second serial port joins: ttyS1 in the guest, where slcand attaches it."""
+    from bench.mcu import McuImage
+
+    mcu = McuImage()
+    port = mcu.start()
+    vm.qemu_opts.append(
+        f"-chardev socket,id=slcan,host=127.0.0.1,port={port},nodelay=on -device isa-serial,chardev=slcan"
+    )
+    cmd += ["--drive", "mcu", "--drive-tty", GUEST_TTY]
+    return mcu
+
+
+def _raise_for(rc: int) -> None:
+    """The capture's exit status as the host's error: a refused setting, a CAN link, any other failure."""
+    if rc == CAPTURE_REFUSED:
+        from bench.run.loop.configure import SettingRefused
+
+        raise SettingRefused("a node refused a value of the scenario (the line above says which)")
+    if rc == CAPTURE_LINK:
+        from bench.canbus import LinkError
+
+        raise LinkError("a CAN link in the VM could not be set up (the line above says why)")
+    if rc != 0:
+        raise RuntimeError(f"the capture inside the VM failed with status {rc}")
 
 
 def vm_options(args: argparse.Namespace) -> Any:

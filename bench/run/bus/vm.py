@@ -25,6 +25,7 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from bench.paths import REPO
 from bench.stop import deferred
@@ -190,10 +191,29 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     script.write_text(
         _guest_script(cmd, cwd, status_file, opts.interfaces, opts.can_controllers, tuple(sorted(rwdirs)))
     )
+    argv = _vng_argv(vng, kern[0], opts, rwdirs, script)
+    env = dict(os.environ)
+    env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])
+    out = stdout if stdout is not None else sys.stdout
+    if _stream(argv, env, out, opts.timeout_s) is None:
+        return 124
+    if not status_file.exists():
+        sys.stderr.write(
+            "bench vm: the guest ended without reporting the command's status "
+            "(killed by a signal, or the guest kernel failed); see the output above\n"
+        )
+        return 255
+    status = int(status_file.read_text().strip() or "255")
+    shutil.rmtree(job, ignore_errors=True)
+    return status
+
+
+def _vng_argv(vng: Path, kernel: Path, opts: VmOptions, rwdirs: set[Path], script: Path) -> list[str]:
+    """virtme-ng's command line: the kernel, CPUs, memory, the shared folders, QEMU's extra devices, the job."""
     argv = [
         str(vng),
         "--run",
-        str(kern[0]),
+        str(kernel),
         "--user",
         "root",
         "--cpus",
@@ -209,9 +229,12 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     for o in (can_bus_qemu_opts(opts.can_controllers) if opts.can_controllers else []) + opts.qemu_opts:
         argv.append(f"--qemu-opts={o}")  # with "=": the value starts with "-"
     argv += ["--exec", f"sh {script}"]
-    env = dict(os.environ)
-    env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])
-    out = stdout if stdout is not None else sys.stdout
+    return argv
+
+
+def _stream(argv: list[str], env: dict[str, str], out: Any, timeout_s: float) -> int | None:
+    """Run virtme-ng, its output streamed to `out` as it comes; its exit status, None on a timeout (the whole
+    process group stopped: QEMU may outlive vng). Ctrl-C and SIGTERM stop it too, and are raised again."""
     # QEMU reopens its stdout: give it a pipe (never a file) and an open stdin.
     with subprocess.Popen(
         argv,
@@ -222,7 +245,7 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
         start_new_session=True,
     ) as proc:
         assert proc.stdout is not None
-        deadline = time.monotonic() + opts.timeout_s
+        deadline = time.monotonic() + timeout_s
         expired = threading.Event()
 
         def _expire() -> None:  # enforced even when the guest prints nothing
@@ -232,15 +255,15 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
             except ProcessLookupError:
                 pass
 
-        watchdog = threading.Timer(opts.timeout_s, _expire)
+        watchdog = threading.Timer(timeout_s, _expire)
         watchdog.daemon = True
         watchdog.start()
         try:
             for raw in iter(proc.stdout.readline, b""):
-                out.write(raw.decode(errors="replace"))  # type: ignore[attr-defined]
-                out.flush()  # type: ignore[attr-defined]
+                out.write(raw.decode(errors="replace"))
+                out.flush()
             if expired.is_set():
-                raise subprocess.TimeoutExpired(argv, opts.timeout_s)
+                raise subprocess.TimeoutExpired(argv, timeout_s)
             proc.wait(timeout=max(1.0, deadline - time.monotonic()))
         except (subprocess.TimeoutExpired, KeyboardInterrupt) as exc:  # Ctrl-C, SIGTERM (bench/stop.py), timeout
             watchdog.cancel()
@@ -248,18 +271,10 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
                 _stop_group(proc)
             if isinstance(exc, KeyboardInterrupt):
                 raise
-            sys.stderr.write(f"bench vm: timed out after {opts.timeout_s:.0f} s\n")
-            return 124
+            sys.stderr.write(f"bench vm: timed out after {timeout_s:.0f} s\n")
+            return None
     watchdog.cancel()
-    if not status_file.exists():
-        sys.stderr.write(
-            "bench vm: the guest ended without reporting the command's status "
-            "(killed by a signal, or the guest kernel failed); see the output above\n"
-        )
-        return 255
-    status = int(status_file.read_text().strip() or "255")
-    shutil.rmtree(job, ignore_errors=True)
-    return status
+    return proc.returncode
 
 
 def _stop_group(proc: subprocess.Popen[bytes]) -> None:

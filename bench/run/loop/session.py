@@ -55,6 +55,7 @@ class Session:
         self.opts = opts
         self.hil: Hil | None = None
         self.procs: list[NodeProcess | SlcanBridge] = []
+        self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}  # over a bus: the processes by node
         self.net = canopen.Network()
         # The OD objects read once per process (bench/eds.py), shared with the decoder's SDO follower.
         self.plant = canopen.RemoteNode(opts.plant_id, load_od("plant", opts.plant_id))
@@ -116,7 +117,6 @@ class Session:
             self.links[name] = {"before": link_info(name)}
 
     def open(self) -> None:
-        out = self.opts.out
         if self.opts.bus == "direct":
             self.hil = Hil(self.opts.plant_id, self.opts.drive_id)
             if self.sc.faults:
@@ -124,56 +124,7 @@ class Session:
             self.net.bus = DirectBus(self.hil)
             self.direct = DirectLoop(self.hil, self.opts)
         else:
-
-            def log(name: str) -> Path | None:
-                return None if out is None else out / f"{name}.out"
-
-            drive_bus = self.drive_side_bus()
-            self._check_node_faults()
-            self.prepare_links()
-            self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}
-            if self.opts.start_plant:
-                self.node_procs["plant"] = NodeProcess(
-                    "plant_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)], log("plant_node")
-                )
-            if self.opts.start_drive and self.opts.drive == "mcu":
-                if self.opts.drive_tty is None:
-                    raise ValueError("RunOptions.drive = 'mcu' needs drive_tty (the image's serial line)")
-                self.node_procs["drive"] = SlcanBridge(self.opts.drive_tty, drive_bus, log=log("slcand"))
-            elif self.opts.start_drive:
-                self.node_procs["drive"] = NodeProcess(
-                    "drive_node", ["--iface", drive_bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
-                )
-            for proc in self.node_procs.values():
-                self.procs.append(proc.start())
-            if self.sc.faults:
-                pids = {n: p.proc.pid for n, p in self.node_procs.items() if isinstance(p, NodeProcess) and p.proc}
-                if out is None:
-                    raise ValueError(
-                        "a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)"
-                    )
-                rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
-                self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids).start()
-            # The master only needs its nodes' SDO answers and heartbeats: filtering in the kernel keeps the
-            # PDO stream (thousands of frames per second) out of this process's socket, which a slow Python
-            # (the VM) could not drain, and which the recorder records anyway. EMCYs stay out too: a node
-            # may send hundreds a second (one per foreign SYNC), which left the master's notifier seconds
-            # behind in the VM (heartbeats and SDO answers queued behind them: a live node taken for lost);
-            # the decoder lists every EMCY from the record, and the heartbeats judge liveness.
-            ids = (self.opts.plant_id, self.opts.drive_id)
-            filters = [{"can_id": 0x580 + i, "can_mask": 0x7FF} for i in ids]
-            filters += [{"can_id": 0x700 + i, "can_mask": 0x7FF} for i in ids]
-            self.kernel_filters = filters if self.opts.interface == "socketcan" else None
-            kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus}
-            if self.kernel_filters is not None:
-                kwargs["can_filters"] = filters
-            if self.opts.bitrate:
-                kwargs["bitrate"] = self.opts.bitrate
-            if self.opts.fd:
-                kwargs["fd"] = True
-                if self.opts.data_bitrate:
-                    kwargs["data_bitrate"] = self.opts.data_bitrate
-            self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
+            self._open_bus()
         self.net.connect()
         self.net.add_node(self.plant)
         self.net.add_node(self.drive)
@@ -191,13 +142,65 @@ class Session:
             self.liveness = Liveness(
                 self.net,
                 {"plant": self.opts.plant_id, "drive": self.opts.drive_id},
-                getattr(self, "node_procs", {}),
+                self.node_procs,
                 self.opts.heartbeat_timeout_ms,
                 self.opts.heartbeat_ms,
                 starved_s=(MCU_STALL_S if self.opts.drive == "mcu" else STARVED_S)
                 if self.sc.timing == "lockstep"
                 else 0.0,
             )
+
+    def _open_bus(self) -> None:
+        """Over SocketCAN (or another python-can interface): the node processes (or the MCU image's serial
+        bridge), the fault gateway between two buses, and the master's own bus with kernel filters."""
+        out = self.opts.out
+
+        def log(name: str) -> Path | None:
+            return None if out is None else out / f"{name}.out"
+
+        drive_bus = self.drive_side_bus()
+        self._check_node_faults()
+        self.prepare_links()
+        if self.opts.start_plant:
+            self.node_procs["plant"] = NodeProcess(
+                "plant_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)], log("plant_node")
+            )
+        if self.opts.start_drive and self.opts.drive == "mcu":
+            if self.opts.drive_tty is None:
+                raise ValueError("RunOptions.drive = 'mcu' needs drive_tty (the image's serial line)")
+            self.node_procs["drive"] = SlcanBridge(self.opts.drive_tty, drive_bus, log=log("slcand"))
+        elif self.opts.start_drive:
+            self.node_procs["drive"] = NodeProcess(
+                "drive_node", ["--iface", drive_bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
+            )
+        for proc in self.node_procs.values():
+            self.procs.append(proc.start())
+        if self.sc.faults:
+            pids = {n: p.proc.pid for n, p in self.node_procs.items() if isinstance(p, NodeProcess) and p.proc}
+            if out is None:
+                raise ValueError("a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)")
+            rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
+            self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids).start()
+        # The master only needs its nodes' SDO answers and heartbeats: filtering in the kernel keeps the
+        # PDO stream (thousands of frames per second) out of this process's socket, which a slow Python
+        # (the VM) could not drain, and which the recorder records anyway. EMCYs stay out too: a node
+        # may send hundreds a second (one per foreign SYNC), which left the master's notifier seconds
+        # behind in the VM (heartbeats and SDO answers queued behind them: a live node taken for lost);
+        # the decoder lists every EMCY from the record, and the heartbeats judge liveness.
+        ids = (self.opts.plant_id, self.opts.drive_id)
+        filters = [{"can_id": 0x580 + i, "can_mask": 0x7FF} for i in ids]
+        filters += [{"can_id": 0x700 + i, "can_mask": 0x7FF} for i in ids]
+        self.kernel_filters = filters if self.opts.interface == "socketcan" else None
+        kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus}
+        if self.kernel_filters is not None:
+            kwargs["can_filters"] = filters
+        if self.opts.bitrate:
+            kwargs["bitrate"] = self.opts.bitrate
+        if self.opts.fd:
+            kwargs["fd"] = True
+            if self.opts.data_bitrate:
+                kwargs["data_bitrate"] = self.opts.data_bitrate
+        self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
 
     def close(self) -> None:
         if self.liveness is not None:
