@@ -11,7 +11,6 @@ returns nothing the frames do not also say (bench/run/decode/sdo_log.py reads it
 
 from __future__ import annotations
 
-import queue
 import re
 import struct
 import threading
@@ -22,16 +21,17 @@ from typing import Any
 
 import can
 import canopen
-from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError, SdoError
+from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench.canbus import ensure_vcan, link_info, prepare_can_link
 from bench.eds import load as load_od
 from bench.run.bus.buses import VCAN
 from bench.run.bus.direct import DirectBus, Hil
 from bench.run.bus.gateway import FaultGateway
-from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
+from bench.run.bus.liveness import STARVED_S, Liveness
 from bench.run.bus.nodes import NodeProcess
 from bench.run.bus.slcan_bridge import SlcanBridge
+from bench.run.loop.bus_loop import BusLoop
 from bench.run.loop.configure import Configurator, SettingRefused
 from bench.run.loop.direct_loop import DirectLoop
 from bench.run.loop.reads import END_READS, STEP_COST
@@ -40,9 +40,6 @@ from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
 
 PROGRESS = Callable[[int, int], None]
-
-
-POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
 
 
 class Session:
@@ -63,8 +60,7 @@ class Session:
         self.config = Configurator(sc, opts, self.plant, self.drive)
         self.direct: DirectLoop | None = None  # direct mode: the in-process loop (its on_chunk, on_stop)
         self.kernel_filters: list[dict[str, int]] | None = None
-        self._hold = threading.Event()
-        self._hold_index = -1
+        self.bus_loop: BusLoop | None = None  # over a bus: the lockstep segments (run())
         self.liveness: Liveness | None = None
         self.gateway: FaultGateway | None = None  # the fault injector between the buses (faults over SocketCAN)
         # each SocketCAN interface of the run: what the kernel reports of it before and after (canbus.link_info)
@@ -265,89 +261,25 @@ class Session:
                 )
 
     # ---------------------------------------------------------------- run
-    def _on_hold(self, cob_id: int, data: bytearray, ts: float) -> None:
-        if len(data) != 5:  # a foreign frame on the announcement's identifier (the decoder counts it)
-            return
-        index, state = struct.unpack_from("<IB", bytes(data))
-        if state == 0:
-            self._hold_index = index
-            self._hold.set()
-
     def _run_segment(self, n: int, target_index: int, tick: Callable[[], None] | None) -> None:
-        rc = self.plant.sdo["Run control"]
-        self._hold.clear()
-        rc["run_periods"].raw = n
+        if self.bus_loop is not None:
+            self.bus_loop.arm()
+        self.plant.sdo["Run control"]["run_periods"].raw = n
         if self.direct is not None:
             self.direct.run(n, tick)
-            return
-        # No time limit: load may slow the loop as much as it likes. What ends a wait early is a lost
-        # node (heartbeats, processes: bench/run/bus/liveness.py) or a stall with both nodes alive.
-        index, moved = -1, time.monotonic()
-        last_poll = 0.0
-        while True:
-            # the hold announcement (no bus load, no CPU while the loop runs), confirmed by SDO (a frame of
-            # the same identifier and length from elsewhere must not end a segment early) ...
-            if self._hold.wait(timeout=0.1) and self._hold_index >= target_index:
-                self._hold.clear()
-                if self._poll(rc, target_index) is True:
-                    return
-            self._hold.clear()
-            self._check_alive(index)
-            now = time.monotonic()
-            if now - last_poll < 0.5:
-                continue
-            last_poll = now
-            if tick:
-                tick()
-            # ... and, should it be missed, the same information by SDO
-            got = self._poll(rc, target_index)
-            if got is True:
-                return
-            was, index = index, (got if got is not None else index)
-            if index != was:
-                moved = time.monotonic()
-            elif time.monotonic() - moved > self.opts.stall_s:  # also when the plant stops answering SDO
-                self._check_alive(index)
-                raise LoopStopped(
-                    "frames_lost",
-                    f"the loop stalled at period {index}: both nodes alive, no "
-                    f"progress for {self.opts.stall_s:g} s (a frame of the loop was lost on the "
-                    "bus, or the plant no longer answers SDO)",
-                    at_period=index,
-                )
-
-    def _poll(self, rc, target_index: int) -> bool | int | None:  # type: ignore[no-untyped-def]
-        """The plant's period index by SDO: True when it holds at or after target_index, else the index
-        (None: no answer). A short answer time, so that a dead plant does not hold up the liveness checks
-        for the usual 5 s; after a miss, a late answer is let in and dropped before the next request."""
-        sdo, wait = self.plant.sdo, self.plant.sdo.RESPONSE_TIMEOUT
-        sdo.RESPONSE_TIMEOUT = POLL_ANSWER_S
-        try:
-            index = rc["period_index"].raw
-            if index >= target_index and rc["state"].raw == 0:
-                return True
-            return int(index)
-        except SdoError:
-            self._check_alive(-1 if self._hold_index < 0 else self._hold_index)
-            time.sleep(POLL_ANSWER_S)
-            sdo.responses = queue.Queue()
-            return None
-        finally:
-            sdo.RESPONSE_TIMEOUT = wait
+        elif self.bus_loop is not None:
+            self.bus_loop.run(target_index, tick)
 
     def _check_alive(self, index: int) -> None:
-        if self.liveness is None:
-            return
-        lost = self.liveness.verdict()
-        if lost is not None:
-            lost.at_period = index if index >= 0 else None
-            raise lost
+        if self.bus_loop is not None:
+            self.bus_loop.check_alive(index)
 
     def run(self, progress: PROGRESS | None = None, tick: Callable[[], None] | None = None) -> float:
         """Run every period; `tick` is called between chunks (direct) or while waiting (bus)."""
         sc = self.sc
         if self.hil is None:
-            self.net.subscribe(self.config.hold_cob, self._on_hold)
+            self.bus_loop = BusLoop(self.plant, self.opts, self.liveness)
+            self.net.subscribe(self.config.hold_cob, self.bus_loop.on_hold)
             if self.kernel_filters is not None:
                 self.net.bus.set_filters([*self.kernel_filters, {"can_id": self.config.hold_cob, "can_mask": 0x7FF}])
         for n in (self.plant, self.drive):
