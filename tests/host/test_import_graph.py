@@ -152,3 +152,11 @@ def test_an_upward_import_is_found() -> None:
         "bench.run.decode.decoder (decode) -> bench.run.verdict.faults (verdict)"
     ]
     assert floor_of("bench.laws") == floor_of("bench.law") == 0 and floor_of("bench.run.pipeline") == 8
+
+
+def test_the_architecture_shows_every_floor() -> None:
+    """docs/ARCHITECTURE.md's floors table has a row per floor of FLOORS, in the same order."""
+    text = (REPO / "docs" / "ARCHITECTURE.md").read_text()
+    table = text[text.index("### The floors of `bench/`") :]
+    rows = [line.split("|")[1].strip() for line in table.splitlines() if line.startswith("| ") and "---" not in line]
+    assert rows[1 : len(FLOORS) + 1] == [name for name, _ in FLOORS]
