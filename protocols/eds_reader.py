@@ -47,12 +47,17 @@ class EmcyCode(NamedTuple):
 def parse(path: Path | str) -> configparser.ConfigParser:
     """The file as INI text, keys with their case (what `canopen` does not read). A section or a key given twice
     is refused, as `canopen` refuses it in an EDS file."""
+    return parse_text(Path(path).read_text(), str(path))
+
+
+def parse_text(text: str, what: str) -> configparser.ConfigParser:
+    """`parse` of a text (`what` names it in a refusal: a law's fragment before it is merged)."""
     raw = configparser.ConfigParser(strict=True, interpolation=None)
     raw.optionxform = str  # type: ignore[assignment,method-assign]
     try:
-        raw.read(path)
+        raw.read_string(text, source=what)
     except configparser.Error as exc:
-        raise EdsError(f"{path}: {str(exc).splitlines()[0]}") from None
+        raise EdsError(f"{what}: {str(exc).splitlines()[0]}") from None
     return raw
 
 
@@ -87,7 +92,9 @@ def default_node_id(raw: configparser.ConfigParser) -> int:
     return int(raw.get("DeviceComissioning", "NodeID"), 0)
 
 
-class _Collect(logging.Handler):
+class Collect(logging.Handler):
+    """The warnings `canopen` logs while it reads a file (a strict reader takes each for a refusal)."""
+
     def __init__(self) -> None:
         super().__init__(level=logging.WARNING)
         self.messages: list[str] = []
@@ -100,7 +107,7 @@ def import_od(path: Path | str, node_id: int | None = None, *, strict: bool = Fa
     """The object dictionary read by `canopen`; strict: a warning of `canopen` is an EdsError (the generator's)."""
     if not strict:
         return canopen.import_od(str(path), node_id=node_id)
-    handler = _Collect()
+    handler = Collect()
     logging.getLogger("canopen").addHandler(handler)
     try:
         od = canopen.import_od(str(path), node_id=node_id)

@@ -20,6 +20,7 @@ from collections.abc import Collection
 from pathlib import Path
 
 import canopen
+import eds_reader  # protocols/: gen_od.py, which imports this module, puts its folder on sys.path
 
 USER_LAW_FIRST, USER_LAW_LAST = 0x2400, 0x24FF  # the index range of user laws' records
 LAW_ENTRY = "2200sub1"  # Controller.controller: its ValueNames name the laws
@@ -33,13 +34,10 @@ class LawError(ValueError):
 
 
 def _parse(text: str, what: str) -> configparser.ConfigParser:
-    raw = configparser.ConfigParser(strict=True, interpolation=None)
-    raw.optionxform = str  # type: ignore[assignment,method-assign]
     try:
-        raw.read_string(text, source=what)
-    except configparser.Error as exc:
-        raise LawError(f"{what}: not an EDS fragment: {str(exc).splitlines()[0]}") from None
-    return raw
+        return eds_reader.parse_text(text, what)
+    except eds_reader.EdsError as exc:
+        raise LawError(str(exc).replace(f"{what}: ", f"{what}: not an EDS fragment: ", 1)) from None
 
 
 def _record(frag: Path, raw: configparser.ConfigParser) -> tuple[str, int]:
@@ -247,19 +245,10 @@ def merge(drive_eds: Path, law_dir: Path, supported: Collection[int]) -> tuple[s
     return name, index, text
 
 
-class _Collect(logging.Handler):
-    def __init__(self) -> None:
-        super().__init__(level=logging.WARNING)
-        self.messages: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
-
-
 def _canopen_check(frag: Path, top: str, text: str) -> None:
     """The merged EDS read by `canopen` (as the bench and the generator read it): a warning or an error
     (drive.eds alone has none: gen_od.py refuses it) is the fragment's."""
-    handler = _Collect()
+    handler = eds_reader.Collect()
     logging.getLogger("canopen").addHandler(handler)
     try:
         with tempfile.TemporaryDirectory() as tmp:
