@@ -11,7 +11,8 @@ PY=.venv/bin/python
 RES=build/test-results
 rm -rf "$RES"; mkdir -p "$RES"
 export PYTHONHASHSEED=0
-# The CAN phase runs ~20 minutes in the VM on an idle machine, over 40 with both cores busy (its VM may take 60): one line per test as it ends (-v: its name, PASSED/FAILED,
+# The CAN phase runs ~20 minutes in the VM on an idle machine, over 40 with both cores busy (its VM may take
+# 60): one line per test as it ends (-v: its name, PASSED/FAILED,
 # the share done), the slowest tests at the end, and pytest's summary line ("N passed in ...", which
 # .ci/run greps) still last. tests/host/test_progress.py runs pytest with these options.
 CAN_PYTEST_OPTS=(-v --durations=15 -p no:cacheprovider)
