@@ -12,7 +12,11 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from bench.run import RunResult
+    from bench.view.rerun_sink import RerunSink
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -42,24 +46,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--serve-bind", default="127.0.0.1", metavar="ADDR", help="with --serve: the address it listens on")
 
 
-def main(args: argparse.Namespace) -> int:
-    import json
-    import os
-    import shutil
+class _Refused(Exception):
+    """Bad input, said in one line on stderr (exit status 2)."""
 
-    from bench.run.outputs import Progress, print_result
-    from bench.run.pipeline import replay_log
-    from bench.run.sinks import TRACES_FILE, TraceFileSink
-    from bench.view.plots import overview_plot, step_plots
-    from bench.view.rerun_sink import RerunSink
+
+def _inputs(args: argparse.Namespace) -> tuple[tuple[str, ...], Path]:
+    """The input checked before anything is written: the log is a file; the statuses it is judged against
+    (--expect, else the expect of summary.json beside the log, else ok); the output folder (--out, else
+    LOG's folder/replay), which must not exist or be empty. _Refused says what is wrong."""
+    import json
 
     if args.log.is_dir():
         hint = " (its CAN log is bus.log)" if (args.log / "bus.log").is_file() else ""
-        print(f"bench replay: {args.log}: is a directory, not a CAN log{hint}", file=sys.stderr)
-        return 2
+        raise _Refused(f"{args.log}: is a directory, not a CAN log{hint}")
     if not args.log.is_file():
-        print(f"bench replay: {args.log}: no such file", file=sys.stderr)
-        return 2
+        raise _Refused(f"{args.log}: no such file")
     from bench.scenario import STATUSES
 
     expect = args.expect
@@ -69,32 +70,26 @@ def main(args: argparse.Namespace) -> int:
     expect = tuple(expect or ("ok",))
     bad = [e for e in expect if e not in STATUSES]
     if bad:
-        print(f"bench replay: --expect {bad[0]}: expected one of {', '.join(STATUSES)}", file=sys.stderr)
-        return 2
+        raise _Refused(f"--expect {bad[0]}: expected one of {', '.join(STATUSES)}")
     out: Path = args.out or args.log.parent / "replay"
     from bench.paths import lost_in_vm
 
     if (lost := lost_in_vm(out)) is not None:
-        print(f"bench replay: --out {lost}", file=sys.stderr)
-        return 2
+        raise _Refused(f"--out {lost}")
     if out.exists() and any(out.iterdir()):
-        print(f"bench replay: {out} exists and is not empty; choose another --out", file=sys.stderr)
-        return 2
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
+        raise _Refused(f"{out} exists and is not empty; choose another --out")
+    return expect, out
 
-    def refuse(message: str) -> int:  # bad input: nothing is left behind
-        rerun.close()
-        if created:
-            shutil.rmtree(out, ignore_errors=True)
-        else:
-            for f in out.iterdir():
-                f.unlink()
-        print(f"bench replay: {message}", file=sys.stderr)
-        return 2
+
+def _rerun_sink(args: argparse.Namespace, out: Path) -> RerunSink:
+    """The Rerun recording out/run.rrd, with a live viewer: served (--serve), spawned (a display and no
+    --no-viewer) or none."""
+    import os
+
+    from bench.view.rerun_sink import RerunSink
 
     live = "serve" if args.serve else ("spawn" if not args.no_viewer and os.environ.get("DISPLAY") else "none")
-    rerun = RerunSink(
+    return RerunSink(
         args.log.name,
         out / "run.rrd",
         live=live,  # type: ignore[arg-type]
@@ -102,6 +97,54 @@ def main(args: argparse.Namespace) -> int:
         grpc_port=args.grpc_port,
         bind=args.serve_bind,
     )
+
+
+def _refuse(message: str, rerun: RerunSink, out: Path, created: bool) -> int:
+    """Bad input found while decoding: nothing is left behind (the folder removed if replay made it, else
+    emptied), the message on stderr, exit status 2."""
+    import shutil
+
+    rerun.close()
+    if created:
+        shutil.rmtree(out, ignore_errors=True)
+    else:
+        for f in out.iterdir():
+            f.unlink()
+    print(f"bench replay: {message}", file=sys.stderr)
+    return 2
+
+
+def _write_summary(out: Path, res: RunResult, name: str) -> None:
+    """The step and overview plots, and summary.json naming the files written beside it."""
+    import json
+
+    from bench.run.sinks import TRACES_FILE
+    from bench.view.plots import overview_plot, step_plots
+
+    s = res.summary
+    plots = step_plots(out, res.step_windows, s["steps"], name)
+    ov = overview_plot(out, res.envelopes, name, s["Ts_s"])
+    s["files"] = {
+        "traces": TRACES_FILE,
+        "recording": "run.rrd",
+        "plots": [p.name for p in plots] + ([ov.name] if ov else []),
+    }
+    (out / "summary.json").write_text(json.dumps(s, indent=2, default=str))
+
+
+def main(args: argparse.Namespace) -> int:
+    from bench.run.outputs import Progress, print_result
+    from bench.run.pipeline import replay_log
+    from bench.run.sinks import TRACES_FILE, TraceFileSink
+
+    try:
+        expect, out = _inputs(args)
+    except _Refused as exc:
+        print(f"bench replay: {exc}", file=sys.stderr)
+        return 2
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    rerun = _rerun_sink(args, out)
     est_frames = max(1, args.log.stat().st_size // 33)  # a candump line is ~33 bytes: an estimate for the bar
     bar = Progress(est_frames, f"replay {args.log.name}", unit="frames")
     try:
@@ -115,11 +158,11 @@ def main(args: argparse.Namespace) -> int:
         )
     except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
         bar.close()
-        return refuse(f"{args.log}: cannot decode: {exc}")
+        return _refuse(f"{args.log}: cannot decode: {exc}", rerun, out, created)
     bar.close()
     s = res.summary
     if s["periods"] == 0:
-        return refuse(f"{args.log}: {_nothing_to_decode(s)}")
+        return _refuse(f"{args.log}: {_nothing_to_decode(s)}", rerun, out, created)
     if s["log"]["sdo_transfers"] == 0:
         print(
             "bench replay: the log holds no SDO traffic (recorded after the configuration, or of another "
@@ -127,14 +170,7 @@ def main(args: argparse.Namespace) -> int:
             f"{s['plant'].get('pole_pairs')}, Ts {s['Ts_s']:g} s",
             file=sys.stderr,
         )
-    plots = step_plots(out, res.step_windows, s["steps"], args.log.name)
-    ov = overview_plot(out, res.envelopes, args.log.name, s["Ts_s"])
-    s["files"] = {
-        "traces": TRACES_FILE,
-        "recording": "run.rrd",
-        "plots": [p.name for p in plots] + ([ov.name] if ov else []),
-    }
-    (out / "summary.json").write_text(json.dumps(s, indent=2, default=str))
+    _write_summary(out, res, args.log.name)
     print(f"bench replay: {s['bus_stats']['frames']} frames, {s['periods']} periods decoded; {_left_out(s['log'])}")
     print_result(out, res)
     if args.serve:

@@ -9,11 +9,15 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.sweep.bisect import Condition, parse_bisect, parse_condition
 from bench.sweep.point import METRICS, NUMERIC
 from bench.sweep.space import Space, SpaceError, build, point_id
+
+if TYPE_CHECKING:
+    from bench.sweep.engine import Engine
+    from bench.sweep.table import TableWriter
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -207,18 +211,11 @@ class Progress:
         self.bar.close()
 
 
-def main(args: argparse.Namespace) -> int:
-    from bench.sweep.engine import Engine, WorkerError, batches
-    from bench.sweep.table import TableWriter, read_done
+def _start_engine(args: argparse.Namespace, sc: Any) -> Engine | None:
+    """Where the points run (the embedded LocalCluster, an existing --scheduler, or this process with --serial),
+    said on stdout with its Dask dashboard; None when --scheduler did not answer (said on stderr)."""
+    from bench.sweep.engine import Engine
 
-    try:
-        sc, text, space, bis, cond = _study(args)
-        spec = _spec(args, text, space)
-        out = _prepare_out(args, sc.name, spec)
-    except (SpaceError, Refused) as exc:
-        print(f"bench sweep: {exc}", file=sys.stderr)
-        return 2
-    done = {r["point_id"]: r for r in read_done(out).to_pylist()} if args.resume else {}
     try:
         engine = Engine(
             args.scheduler,
@@ -229,14 +226,79 @@ def main(args: argparse.Namespace) -> int:
         )
     except OSError as exc:  # no scheduler at that address, or it did not answer in time
         print(f"bench sweep: --scheduler {args.scheduler}: {exc}", file=sys.stderr)
-        return 2
+        return None
     print(f"bench sweep: {sc.name} ({sc.periods} periods a point) on {engine.where}")
     if engine.dashboard:
         where = "" if args.scheduler else f" (listening on {engine.dashboard_listens}; --dashboard-address)"
         print(f"bench sweep: Dask dashboard {engine.dashboard}{where}")
+    return engine
+
+
+def _run_points(
+    engine: Engine,
+    text: str,
+    args: argparse.Namespace,
+    space: Space,
+    done: dict[str, Any],
+    out: Path,
+    writer: TableWriter,
+) -> tuple[list[str], int]:
+    """The grid / Monte Carlo points not done yet, in batches over the workers, their rows streamed to the table
+    under a progress bar: the study's point ids in order, and how many points ran now."""
+    from bench.sweep.engine import batches
+
+    points = space.points()
+    order = [point_id(p) for p in points]
+    todo = [p for p, pid in zip(points, order, strict=True) if pid not in done]
+    if done:
+        print(f"bench sweep: resuming: {len(points) - len(todo)} of {len(points)} points already in {out}")
+    print(f"bench sweep: {len(todo)} points to run")
+    ran = 0
+    prog = Progress(len(todo), "points")
+    try:
+        for rows in engine.run(text, str(args.scenario), args.overrides, batches(todo, engine.workers)):
+            writer.add(rows)
+            ran += len(rows)
+            prog.add(len(rows))
+    finally:
+        prog.close()
+    return order, ran
+
+
+def _interrupted(args: argparse.Namespace, engine: Engine, writer: TableWriter, out: Path, done: dict[str, Any]) -> int:
+    """Ctrl-C: the rows run so far reach the table and the cluster stops, whatever is pressed again; says how to
+    run the rest (--resume). The exit status 130."""
+    from bench.stop import deferred
+
+    with deferred():  # the rows must reach the table, and the cluster must stop, whatever is pressed
+        writer.flush()
+        engine.close()
+    again = "--resume" + ("" if args.out else f" --out {out}")
+    print(
+        f"\nbench sweep: interrupted; {writer.written} new points kept in {out} ({writer.written + len(done)} "
+        f"done in all); the same command with {again} runs the rest",
+        file=sys.stderr,
+    )
+    return 130
+
+
+def main(args: argparse.Namespace) -> int:
+    from bench.sweep.engine import WorkerError
+    from bench.sweep.table import TableWriter, read_done
+
+    try:
+        sc, text, space, bis, cond = _study(args)
+        spec = _spec(args, text, space)
+        out = _prepare_out(args, sc.name, spec)
+    except (SpaceError, Refused) as exc:
+        print(f"bench sweep: {exc}", file=sys.stderr)
+        return 2
+    done = {r["point_id"]: r for r in read_done(out).to_pylist()} if args.resume else {}
+    engine = _start_engine(args, sc)
+    if engine is None:
+        return 2
     writer = TableWriter(out)
     t0 = time.monotonic()
-    ran = 0
     try:
         if bis and cond:
             from bench.sweep.bisect import run_searches
@@ -245,34 +307,10 @@ def main(args: argparse.Namespace) -> int:
                 engine, text, str(args.scenario), args.overrides, space, bis, cond, args.tol, done, writer
             )
         else:
-            points = space.points()
-            order = [point_id(p) for p in points]
-            todo = [p for p, pid in zip(points, order, strict=True) if pid not in done]
-            if done:
-                print(f"bench sweep: resuming: {len(points) - len(todo)} of {len(points)} points already in {out}")
-            print(f"bench sweep: {len(todo)} points to run")
-            prog = Progress(len(todo), "points")
-            try:
-                for rows in engine.run(text, str(args.scenario), args.overrides, batches(todo, engine.workers)):
-                    writer.add(rows)
-                    ran += len(rows)
-                    prog.add(len(rows))
-            finally:
-                prog.close()
+            order, ran = _run_points(engine, text, args, space, done, out, writer)
             results = None
     except KeyboardInterrupt:
-        from bench.stop import deferred
-
-        with deferred():  # the rows must reach the table, and the cluster must stop, whatever is pressed
-            writer.flush()
-            engine.close()
-        again = "--resume" + ("" if args.out else f" --out {out}")
-        print(
-            f"\nbench sweep: interrupted; {writer.written} new points kept in {out} ({writer.written + len(done)} "
-            f"done in all); the same command with {again} runs the rest",
-            file=sys.stderr,
-        )
-        return 130
+        return _interrupted(args, engine, writer, out, done)
     except WorkerError as exc:
         writer.flush()
         engine.close()

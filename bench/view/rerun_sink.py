@@ -2,11 +2,10 @@
 when asked, to a live viewer (every Nth period): a spawned native viewer, or a web viewer
 served from this process.
 
-Entities are grouped by SI unit, `/{unit_slug}/{column}` (`/A/iq_A`, `/V_per_A/K1_active_V_A`,
-`/H/L_hat_H`, `/count_or_ratio/sync_counter`), and the blueprint has one time-series view per
-unit, so quantities of different units never share an axis. Timelines: `period` (sequence,
-the control-period index) and `sim_time` (duration, simulated seconds). Each chunk is logged
-with one `send_columns` call per signal.
+Entities are grouped by SI unit, `/{unit_slug}/{column}`, under a blueprint of one time-series view
+per unit (bench/view/rerun_blueprint.py). Timelines: `period` (sequence, the control-period index)
+and `sim_time` (duration, simulated seconds). Each chunk is logged with one `send_columns` call per
+signal.
 
 Serving happens once per process (bench/view/serve.py): the first serve-mode sink starts the
 server (gRPC and the web viewer, on 127.0.0.1 unless `bind` says otherwise), and it stays up until
@@ -18,9 +17,7 @@ and are refused with a clear error when they ask for others.
 from __future__ import annotations
 
 import ipaddress
-import math
 import os
-import re
 import shutil
 import sys
 import time
@@ -29,115 +26,16 @@ from typing import Any, Literal
 
 import numpy as np
 import rerun as rr
-import rerun.blueprint as rrb
 
 from bench.signals import SignalInfo
+from bench.view.rerun_blueprint import blueprint_for, entity_path, events_blueprint, unit_slug, view_name
 from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
 from bench.view.serve import serve as _serve
 
-__all__ = ["PORT_OPTIONS", "RerunSink", "ServeError"]
+__all__ = ["PORT_OPTIONS", "RerunSink", "ServeError", "blueprint_for", "entity_path", "unit_slug", "view_name"]
 
 APPLICATION_ID = "pmsm-hil-bench"
 TIMELINES = ("period", "t_s")  # chunk columns that are timelines, not signals
-
-
-# A readable view name per unit (the quantity plotted); any other unit is named by itself.
-QUANTITY_OF_UNIT: dict[str, str] = {
-    "A": "currents",
-    "V": "voltages",
-    "V/A": "gains",
-    "H": "inductances",
-    "Ω": "resistances",
-    "A²": "squared currents",
-    "Wb": "flux linkages",
-    "rad": "angles",
-    "rad/s": "speeds",
-    "rad/s²": "accelerations",
-    "N·m": "torques",
-    "kg·m²": "inertias",
-    "Hz": "frequencies",
-    "J": "energies",
-    "s": "times",
-    "Ω/(V·s)": "adaptation gains",
-    "H/(V·s)": "adaptation gains",
-}
-# Order of the views: currents and voltages on top (large), the others in a grid below in this
-# order, then any unit not listed here alphabetically.
-TOP_UNITS = ("A", "V")
-GRID_ORDER = (
-    "V/A",
-    "H",
-    "Ω",
-    "A²",
-    "Wb",
-    "rad",
-    "rad/s",
-    "rad/s²",
-    "N·m",
-    "kg·m²",
-    "Hz",
-    "J",
-    "s",
-    "Ω/(V·s)",
-    "H/(V·s)",
-    "1",
-)
-
-
-def unit_slug(unit: str) -> str:
-    """An entity-path-safe name of a unit: 'V/A' -> 'V_per_A', 'Ω' -> 'ohm', 'A²' -> 'A2', '1' -> 'count_or_ratio'."""
-    if unit in ("1", ""):
-        return "count_or_ratio"
-    s = unit.replace("Ω", "ohm").replace("µ", "u").replace("°", "deg").replace("²", "2").replace("³", "3")
-    s = s.replace("/", "_per_").replace("·", "_").replace("*", "_").replace(" ", "_")
-    s = re.sub(r"[^A-Za-z0-9_]", "_", s)
-    s = re.sub(r"_+", "_", s).strip("_")
-    return s or "unitless"
-
-
-def view_name(unit: str) -> str:
-    """'A' -> 'currents (A)', '1' -> 'counts and ratios', an unknown unit -> the unit itself."""
-    if unit in ("1", ""):
-        return "counts and ratios"
-    quantity = QUANTITY_OF_UNIT.get(unit)
-    return f"{quantity} ({unit})" if quantity else unit
-
-
-def entity_path(signal: SignalInfo) -> str:
-    return f"/{unit_slug(signal.unit)}/{signal.name}"
-
-
-def _unit_order(unit: str) -> tuple[int, str]:
-    order = TOP_UNITS + GRID_ORDER
-    return (order.index(unit), "") if unit in order else (len(order), unit)
-
-
-def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
-    """One TimeSeriesView per unit present (origin `/{unit_slug}`): currents and voltages large on
-    top, the other units in a grid below."""
-    units = sorted({s.unit for s in signals}, key=_unit_order)
-    views = {u: rrb.TimeSeriesView(origin=f"/{unit_slug(u)}", contents="$origin/**", name=view_name(u)) for u in units}
-    top = [views[u] for u in TOP_UNITS if u in views]
-    rest = [views[u] for u in units if u not in TOP_UNITS]
-    parts: list[rrb.Container | rrb.View] = list(top)
-    shares = [3.0] * len(top)
-    if rest:
-        columns = min(len(rest), 3)
-        parts.append(rrb.Grid(*rest, grid_columns=columns))
-        shares.append(2.0 * math.ceil(len(rest) / columns))
-    if not parts:
-        root: rrb.Container = rrb.Vertical()
-    elif len(parts) == 1 and isinstance(parts[0], rrb.Container):
-        root = parts[0]
-    else:
-        root = rrb.Vertical(*parts, row_shares=shares)
-    return rrb.Blueprint(
-        root,
-        rrb.BlueprintPanel(state="collapsed"),
-        rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline="sim_time"),
-        auto_views=False,
-    )
 
 
 # --- serving: bench/view/serve.py; spawning a native viewer -------------------------------------
@@ -156,6 +54,47 @@ def _viewer_executable() -> str | None:
 
 def _display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or sys.platform in ("darwin", "win32")
+
+
+def _spawn_viewer(name: str, grpc_port: int, memory_limit: str, rrd: Path | None) -> rr.RecordingStream | None:
+    """A native viewer spawned on `grpc_port` and a stream connected to it; None, said on stdout, when there is
+    no display (said once per process), the spawn failed, or the viewer does not listen."""
+    global _SAID_NO_DISPLAY
+    if not _display():
+        if not _SAID_NO_DISPLAY:
+            print(
+                "rerun: no display (DISPLAY/WAYLAND_DISPLAY unset): no viewer spawned"
+                + (f"; the recording is saved to {rrd}" if rrd else ""),
+                flush=True,
+            )
+            _SAID_NO_DISPLAY = True
+        return None
+    saved = f"; the recording is saved to {rrd}" if rrd else ""
+    live_rec = rr.RecordingStream(APPLICATION_ID, recording_id=name)
+    try:
+        # Not connect=True: a viewer that died at start (no usable display) would leave the
+        # stream buffering the whole run for a connection that never comes.
+        rr.spawn(
+            port=grpc_port,
+            connect=False,
+            memory_limit=memory_limit,
+            server_memory_limit=memory_limit,
+            hide_welcome_screen=True,
+            executable_path=_viewer_executable(),
+            recording=live_rec,
+        )
+    except Exception as exc:  # noqa: BLE001 - the .rrd still gets everything
+        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"rerun: no viewer spawned ({first_line}){saved}", flush=True)
+        return None
+    if listening(grpc_port, within_s=1.0):
+        live_rec.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
+        return live_rec
+    print(
+        f"rerun: the spawned viewer is not listening on port {grpc_port} (it failed to start, see above){saved}",
+        flush=True,
+    )
+    return None
 
 
 # --- the sink ------------------------------------------------------------------------------------
@@ -177,7 +116,6 @@ class RerunSink:
         memory_limit: str = "1GiB",
         bind: str = DEFAULT_BIND,
     ) -> None:
-        global _SAID_NO_DISPLAY
         if live not in ("none", "spawn", "serve"):
             raise ValueError(f"live must be 'none', 'spawn' or 'serve', not {live!r}")
         self.name = name
@@ -199,42 +137,7 @@ class RerunSink:
             wide = "" if ipaddress.ip_address(server.bind).is_loopback else "; other machines can watch"
             print(f"rerun: web viewer at {self._url} (listening on {server.where}{wide})", flush=True)
         elif live == "spawn":
-            if not _display():
-                if not _SAID_NO_DISPLAY:
-                    print(
-                        "rerun: no display (DISPLAY/WAYLAND_DISPLAY unset): no viewer spawned"
-                        + (f"; the recording is saved to {self.rrd}" if self.rrd else ""),
-                        flush=True,
-                    )
-                    _SAID_NO_DISPLAY = True
-            else:
-                saved = f"; the recording is saved to {self.rrd}" if self.rrd else ""
-                live_rec = rr.RecordingStream(APPLICATION_ID, recording_id=name)
-                try:
-                    # Not connect=True: a viewer that died at start (no usable display) would leave the
-                    # stream buffering the whole run for a connection that never comes.
-                    rr.spawn(
-                        port=grpc_port,
-                        connect=False,
-                        memory_limit=memory_limit,
-                        server_memory_limit=memory_limit,
-                        hide_welcome_screen=True,
-                        executable_path=_viewer_executable(),
-                        recording=live_rec,
-                    )
-                except Exception as exc:  # noqa: BLE001 - the .rrd still gets everything
-                    first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-                    print(f"rerun: no viewer spawned ({first_line}){saved}", flush=True)
-                else:
-                    if listening(grpc_port, within_s=1.0):
-                        live_rec.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
-                        self.live = live_rec
-                    else:
-                        print(
-                            f"rerun: the spawned viewer is not listening on port {grpc_port} "
-                            f"(it failed to start, see above){saved}",
-                            flush=True,
-                        )
+            self.live = _spawn_viewer(name, grpc_port, memory_limit, self.rrd)
 
         # The file last: a refused serve leaves no empty .rrd behind.
         self.file: rr.RecordingStream | None = None
@@ -348,15 +251,7 @@ class RerunSink:
                 rows.append((p, "events/faults", f"fault {f['fault']}: {f['description']}", "WARN"))
         for r in rep["reactions"]:
             rows.append((r["period"], f"events/reactions/{r['node']}", f"{r['node']}: {r['what']}", "INFO"))
-        views = blueprint_for(self._signals)
-        panel = rrb.TextLogView(origin="/events", name="Faults and reactions")
-        bp = rrb.Blueprint(
-            rrb.Vertical(views.root_container, panel, row_shares=[4.0, 1.0]) if views.root_container else panel,
-            rrb.BlueprintPanel(state="collapsed"),
-            rrb.SelectionPanel(state="collapsed"),
-            rrb.TimePanel(state="collapsed", timeline="period"),
-            auto_views=False,
-        )
+        bp = events_blueprint(self._signals)
         for rec in (self.file, self.live):
             if rec is None:
                 continue

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from bench.tools.perf.common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, TARGET_VCAN_RATIO
+from bench.tools.perf.common import TARGET_LOOP_MPS, TARGET_PLANT_MPS
+from bench.tools.perf.report_vcan import format_vcan
 
 
 def _fmt_target(ok: bool | None) -> str:
@@ -32,7 +33,8 @@ class _Lines(list):  # type: ignore[type-arg]
         return None if self.err(s) else s
 
 
-def _cores(r: dict[str, Any], L: _Lines) -> None:
+def _machine(r: dict[str, Any], L: _Lines) -> None:
+    """The machine the numbers were measured on (CPU, kernel, compilers, Python) and the command run."""
     m = L.sec(r, "machine", "machine")
     if m:
         for k in (
@@ -49,6 +51,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
             L.append(f"  {k:<20} {m.get(k)}")
         L.append(f"  {'command':<20} {r.get('command')}")
 
+
+def _plant_core(r: dict[str, Any], L: _Lines) -> None:
+    """The plant's C core alone (plant_perf): a table of periods/s per option set against its target."""
     p = L.sec(r, "plant_core", f"plant core (plant_perf; target >= {TARGET_PLANT_MPS:.0f} M periods/s)")
     if p:
         L.append(f"  {p['periods_per_case']} periods per option set")
@@ -61,6 +66,10 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
         if "rss_pages" in p:
             L.append(f"  plant_perf resident pages: {p['rss_pages']}")
 
+
+def _closed_loop(r: dict[str, Any], L: _Lines) -> None:
+    """Plant and controller in one process: the bare cores and direct mode against the loop target, then
+    direct mode's resident memory over 2 x 10^6 periods."""
     cl = L.sec(r, "closed_loop", f"plant + controller in-process (target >= {TARGET_LOOP_MPS:.0f} M periods/s)")
     if cl:
         b, d = cl["bare_cores"], cl["direct_mode"]
@@ -85,6 +94,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
             f"{mem['rss_growth_kB_second_1e6']:.0f} kB over the second -> {'flat' if mem['flat'] else 'NOT flat'}"
         )
 
+
+def _firmware(r: dict[str, Any], L: _Lines) -> None:
+    """The drive firmware's core on the host (drive_perf): ns per step, then callgrind's instructions per step."""
     fw = L.sec(r, "firmware", "firmware core (drive_perf, host)")
     if fw:
         t = fw["timing_ns"]
@@ -112,6 +124,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
             ):
                 L.append(f"    {label:<38} {ips[k]:8.1f} instructions")
 
+
+def _sweep_scaling(r: dict[str, Any], L: _Lines) -> None:
+    """bench sweep on Dask: points/s per worker count, the speed-up on 2 workers, the 10^4-point study."""
     sw = L.sec(r, "sweep_scaling", "bench sweep on Dask: 1,000 points of 2,000 periods; a 10^4-point study")
     if sw:
         for w, run in sw["runs"].items():
@@ -136,6 +151,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
                 f"({st['points_per_s']:.1f} points/s)"
             )
 
+
+def _rerun_live(r: dict[str, Any], L: _Lines) -> None:
+    """The Rerun live view: 10^6 periods into the served buffer, at decimation 1 and 10 (rate, memory)."""
     rl = L.sec(r, "rerun_live", "Rerun live view: 10^6 periods x 16 signals into the served (viewer-side) buffer")
     if rl:
         for key in ("decimate_1", "decimate_10"):
@@ -147,6 +165,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
                 f"(peak {d['peak_rss_kB'] / 1024:.0f} MiB), server memory limit {rl['server_memory_limit']}"
             )
 
+
+def _yao2020(r: dict[str, Any], L: _Lines) -> None:
+    """Yao 2020's identification against its RLS baseline: callgrind instructions per call, and the paper's ratio."""
     yc = L.sec(r, "yao2020_identification", "Yao 2020 identification vs RLS (callgrind, instructions per call)")
     if yc:
         ipc = yc["instructions_per_call"]
@@ -161,6 +182,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
             f"{yc['paper_us_on_150MHz_DSP']['ratio']:.0f}x)"
         )
 
+
+def _cortex_m4(r: dict[str, Any], L: _Lines) -> None:
+    """The Cortex-M4F build of the firmware core: compiler, flags and a size table per object."""
     cm = L.sec(r, "cortex_m4", "Cortex-M4F build of firmware_shim/core (arm-none-eabi-gcc)")
     if cm:
         L.append(f"  {cm['compiler']}; flags: {cm['flags']}")
@@ -170,6 +194,10 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
         tot = cm["total"]
         L.append(f"  {'total':<26}{tot['text']:>8}{tot['data']:>8}{tot['bss']:>8}")
 
+
+def _mcu(r: dict[str, Any], L: _Lines) -> None:
+    """The firmware as the Cortex-M4F image in the loop: image size, instructions per step and rate per drive,
+    Yao 2020's identification against RLS on the image."""
     mc = L.sec(r, "mcu", "the drive firmware as the Cortex-M4F image in the loop (bench run --drive mcu)")
     if mc:
         img = mc["image"]
@@ -192,6 +220,9 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
         )
         L.append(f"  ({mc['note']})")
 
+
+def _canopen(r: dict[str, Any], L: _Lines) -> None:
+    """The CANopen stack's frame handling in-process (co_perf): ns per kind of frame."""
     co = L.sec(r, "canopen", "CANopen frame handling (co_perf, in-process)")
     if co:
         for k, v in co.items():
@@ -199,97 +230,21 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
                 L.append(f"  {k[:-3]:<40} {v:8.1f} ns")
 
 
-def _vcan(r: dict[str, Any], L: _Lines) -> None:
-    head, err = L.head, L.err
-    if "vcan" not in r:
-        return
-    v = r.get("vcan")
-    head("lockstep over vcan0")
-    if v is None:
-        L.append("  skipped (--quick)")
-    elif not err(v):
-        L.append(
-            f"  where: {v['where']} (kernel {v.get('kernel')}, {v.get('logical_cpus')} CPUs), "
-            f"{v['wall_s_including_boot']:.0f} s including boot"
-        )
-        lock = v.get("lockstep", {})
-        if "error" in lock:
-            L.append(f"  real loop ERROR: {lock['error']}")
-        else:
-            L.append(
-                f"  real loop (capture_to_log, {lock['periods']} periods): {lock['periods_per_s']:.0f} periods/s "
-                f"(run_wall_s {lock['run_wall_s']:.2f}; missed commands "
-                f"{(lock.get('recorder') or {}).get('plant_missed_commands')})"
-            )
-        unrec = v.get("lockstep_unrecorded", {})
-        if unrec and "error" not in unrec:
-            fl6 = v.get("floor_6", {}).get("periods_per_s")
-            ratio_u = unrec["periods_per_s"] / fl6 if fl6 else None
-            L.append(
-                f"  real loop without the recorder:            {unrec['periods_per_s']:8.0f} periods/s"
-                + (f"; / floor of the same 6 frames {ratio_u:.2f}" if ratio_u else "")
-            )
-        for key, label in (
-            ("floor_4", "floor, 4 frames (SYNC, 2 meas, cmd)"),
-            ("floor_6", "floor, 6 frames (+2 drive trace PDOs)"),
-            ("floor_6_recorded", "floor, 6 frames + candump recorder"),
-        ):
-            fl = v.get(key, {})
-            if "error" in fl:
-                L.append(f"  {label}: ERROR {fl['error']}")
-                continue
-            ratio = fl.get("real_over_floor")
-            extra = ""
-            if "frames_recorded" in fl:
-                extra = f", recorded {fl['frames_recorded']}/{fl['frames_expected']} frames"
-            L.append(
-                f"  {label:<40} {fl['periods_per_s']:8.0f} periods/s  RTT median {fl['rtt_us']['median']:.0f} us "
-                f"p99 {fl['rtt_us']['p99']:.0f} us" + (f"; real/floor {ratio:.2f}" if ratio else "") + extra
-            )
-        # Same frames on the same bus: the loop without its recorder against the 6-frame floor, and the
-        # recorded loop against the 6-frame floor with the same recorder.
-        fl6 = (v.get("floor_6", {}) or {}).get("periods_per_s")
-        unrec_rate = (v.get("lockstep_unrecorded", {}) or {}).get("periods_per_s")
-        rec_ratio = (v.get("floor_6_recorded", {}) or {}).get("real_over_floor")
-        same = [r for r in ((unrec_rate / fl6) if unrec_rate and fl6 else None, rec_ratio) if r is not None]
-        L.append(
-            f"  target real/floor of the same frames >= {TARGET_VCAN_RATIO}: "
-            + (
-                ", ".join(f"{x:.2f}" for x in same) + " -> " + _fmt_target(min(same) >= TARGET_VCAN_RATIO)
-                if same
-                else "not measured"
-            )
-        )
-        ch = v.get("long_choice", {})
-        L.append(
-            f"  long run: {ch.get('periods')} periods chosen (measured rate x {ch.get('budget_s')} s budget, "
-            f"target {ch.get('target_periods')})"
-        )
-        for key in ("lockstep", "long"):
-            part = v.get(key, {})
-            rec = part.get("recorder")
-            if "error" in part:
-                L.append(f"  {key}: ERROR {part['error']}")
-            elif rec is None:
-                continue
-            elif "error" in rec:
-                L.append(f"  {key} recorder: ERROR {rec['error']}")
-            else:
-                c = rec["continuity"]
-                L.append(
-                    f"  {key:<9} recorder: SYNCs {rec['syncs_recorded']}/{rec['periods_expected']}, loop frames "
-                    f"{rec['loop_frames_recorded']}/{rec['loop_frames_expected']}, lost {rec['lost_frames']} "
-                    f"(sync gaps {c['sync_counter_gaps']}, missing meas {c['missing_measurements']}, "
-                    f"missing cmds {c['missing_commands']}, index mismatches {c['sample_index_mismatches']}); "
-                    f"{part['periods_per_s']:.0f} periods/s"
-                )
-                cl = rec["continuity_in_log_order"]
-                L.append(
-                    f"            decoded by kernel time stamp; in candump's log order "
-                    f"{rec['frames_out_of_time_order_in_log']} frames are out of time order -> "
-                    f"{cl['missing_commands']} commands would look missing, "
-                    f"{cl['missing_measurements']} measurements"
-                )
+def _cores(r: dict[str, Any], L: _Lines) -> None:
+    """The sections measured on this machine's cores and images, in the report's order."""
+    for section in (
+        _machine,
+        _plant_core,
+        _closed_loop,
+        _firmware,
+        _sweep_scaling,
+        _rerun_live,
+        _yao2020,
+        _cortex_m4,
+        _mcu,
+        _canopen,
+    ):
+        section(r, L)
 
 
 def _mb(kB: float | None) -> str:
@@ -387,7 +342,7 @@ def format_report(r: dict[str, Any]) -> str:
     L = _Lines()
     _cores(r, L)
     _pipeline(r, L)
-    _vcan(r, L)
+    format_vcan(r, L)
     from bench.tools.perf.soak import format_soak
 
     format_soak(r, L)

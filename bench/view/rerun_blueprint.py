@@ -1,0 +1,125 @@
+"""The layout of a run's Rerun recording: entities grouped by SI unit, `/{unit_slug}/{column}` (`/A/iq_A`,
+`/V_per_A/K1_active_V_A`, `/H/L_hat_H`, `/count_or_ratio/sync_counter`), and a blueprint with one time-series
+view per unit, so quantities of different units never share an axis; with faults, an events panel under the
+plots (bench/view/rerun_sink.py logs into it)."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import rerun.blueprint as rrb
+
+from bench.signals import SignalInfo
+
+# A readable view name per unit (the quantity plotted); any other unit is named by itself.
+QUANTITY_OF_UNIT: dict[str, str] = {
+    "A": "currents",
+    "V": "voltages",
+    "V/A": "gains",
+    "H": "inductances",
+    "Ω": "resistances",
+    "A²": "squared currents",
+    "Wb": "flux linkages",
+    "rad": "angles",
+    "rad/s": "speeds",
+    "rad/s²": "accelerations",
+    "N·m": "torques",
+    "kg·m²": "inertias",
+    "Hz": "frequencies",
+    "J": "energies",
+    "s": "times",
+    "Ω/(V·s)": "adaptation gains",
+    "H/(V·s)": "adaptation gains",
+}
+# Order of the views: currents and voltages on top (large), the others in a grid below in this
+# order, then any unit not listed here alphabetically.
+TOP_UNITS = ("A", "V")
+GRID_ORDER = (
+    "V/A",
+    "H",
+    "Ω",
+    "A²",
+    "Wb",
+    "rad",
+    "rad/s",
+    "rad/s²",
+    "N·m",
+    "kg·m²",
+    "Hz",
+    "J",
+    "s",
+    "Ω/(V·s)",
+    "H/(V·s)",
+    "1",
+)
+
+
+def unit_slug(unit: str) -> str:
+    """An entity-path-safe name of a unit: 'V/A' -> 'V_per_A', 'Ω' -> 'ohm', 'A²' -> 'A2', '1' -> 'count_or_ratio'."""
+    if unit in ("1", ""):
+        return "count_or_ratio"
+    s = unit.replace("Ω", "ohm").replace("µ", "u").replace("°", "deg").replace("²", "2").replace("³", "3")
+    s = s.replace("/", "_per_").replace("·", "_").replace("*", "_").replace(" ", "_")
+    s = re.sub(r"[^A-Za-z0-9_]", "_", s)
+    s = re.sub(r"_+", "_", s).strip("_")
+    return s or "unitless"
+
+
+def view_name(unit: str) -> str:
+    """'A' -> 'currents (A)', '1' -> 'counts and ratios', an unknown unit -> the unit itself."""
+    if unit in ("1", ""):
+        return "counts and ratios"
+    quantity = QUANTITY_OF_UNIT.get(unit)
+    return f"{quantity} ({unit})" if quantity else unit
+
+
+def entity_path(signal: SignalInfo) -> str:
+    return f"/{unit_slug(signal.unit)}/{signal.name}"
+
+
+def _unit_order(unit: str) -> tuple[int, str]:
+    order = TOP_UNITS + GRID_ORDER
+    return (order.index(unit), "") if unit in order else (len(order), unit)
+
+
+def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
+    """One TimeSeriesView per unit present (origin `/{unit_slug}`): currents and voltages large on
+    top, the other units in a grid below."""
+    units = sorted({s.unit for s in signals}, key=_unit_order)
+    views = {u: rrb.TimeSeriesView(origin=f"/{unit_slug(u)}", contents="$origin/**", name=view_name(u)) for u in units}
+    top = [views[u] for u in TOP_UNITS if u in views]
+    rest = [views[u] for u in units if u not in TOP_UNITS]
+    parts: list[rrb.Container | rrb.View] = list(top)
+    shares = [3.0] * len(top)
+    if rest:
+        columns = min(len(rest), 3)
+        parts.append(rrb.Grid(*rest, grid_columns=columns))
+        shares.append(2.0 * math.ceil(len(rest) / columns))
+    if not parts:
+        root: rrb.Container = rrb.Vertical()
+    elif len(parts) == 1 and isinstance(parts[0], rrb.Container):
+        root = parts[0]
+    else:
+        root = rrb.Vertical(*parts, row_shares=shares)
+    return rrb.Blueprint(
+        root,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="sim_time"),
+        auto_views=False,
+    )
+
+
+def events_blueprint(signals: list[SignalInfo]) -> rrb.Blueprint:
+    """The blueprint of `blueprint_for` with a text-log panel of the faults and the nodes' reactions
+    (origin `/events`) under the plots, on the period timeline."""
+    views = blueprint_for(signals)
+    panel = rrb.TextLogView(origin="/events", name="Faults and reactions")
+    return rrb.Blueprint(
+        rrb.Vertical(views.root_container, panel, row_shares=[4.0, 1.0]) if views.root_container else panel,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="period"),
+        auto_views=False,
+    )
