@@ -8,7 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from bench.faults.checks import CHECKS, base, run_checks
+from bench.faults.checks import CHECKS, run_checks
+from bench.faults.scenario import base
 from bench.paths import lost_in_vm
 from bench.scenario import ScenarioError, add_set_argument, parse, unselected_law
 

@@ -28,11 +28,11 @@ import numpy as np
 import rerun as rr
 
 from bench.signals import SignalInfo
-from bench.view.rerun_blueprint import blueprint_for, entity_path, events_blueprint, unit_slug, view_name
+from bench.view.rerun_blueprint import blueprint_for, entity_path, events_blueprint
 from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
 from bench.view.serve import serve as _serve
 
-__all__ = ["PORT_OPTIONS", "RerunSink", "ServeError", "blueprint_for", "entity_path", "unit_slug", "view_name"]
+__all__ = ["PORT_OPTIONS", "RerunSink", "ServeError"]
 
 APPLICATION_ID = "pmsm-hil-bench"
 TIMELINES = ("period", "t_s")  # chunk columns that are timelines, not signals

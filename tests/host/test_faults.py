@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from bench.faults.checks import CHECKS, base, run_checks, with_command_timeout, with_fault
+from bench.faults.checks import CHECKS, run_checks
+from bench.faults.scenario import base, with_command_timeout, with_fault
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.scenario import ScenarioError, load, parse

@@ -23,7 +23,8 @@ from rrd_util import read_recording
 
 from bench.signals import SignalInfo
 from bench.view import rerun_sink
-from bench.view.rerun_sink import RerunSink, ServeError, entity_path, unit_slug, view_name
+from bench.view.rerun_blueprint import entity_path, unit_slug, view_name
+from bench.view.rerun_sink import RerunSink, ServeError
 
 REPO = Path(__file__).resolve().parents[2]
 
