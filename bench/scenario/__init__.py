@@ -18,8 +18,8 @@ Layout (every key optional except where noted)::
     Lq_H = 4.54e-3
 
     [drive]                      # plant.eds "Inverter" and "Sensors", and the lockstep timeout
+    preset = "ideal"             # DRIVE_PRESETS: its values first, the section's own keys after and over them
     Vdc_V = 300
-    adc_noise_std_A = 0.0
 
     [controller]                 # drive.eds "Controller", "Outer loops", each current law's record (its
                                  # CurrentLaws key: "Online tuning", "Yao 2020 DPCC", ..., a user law's),
@@ -60,10 +60,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from canopen.objectdictionary import datatypes
+from canopen.objectdictionary import ODVariable, datatypes
 
-from bench.eds import Param, params
-from bench.laws import law_names, law_records
+from bench.eds import Param, enum, params
+from bench.eds import load as load_od
+from bench.laws import law_info, law_names, law_records
 from bench.scenario.faults import Fault, FaultError, parse_faults, refuse_lockstep_stalls
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -83,6 +84,10 @@ RATIOS = {
     "psi_hat_ratio": (("psi_hat_Wb", "psi_Wb"),),
 }
 PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
+# [drive] presets. "ideal", the papers' simulated drive: no dead time (You 2019 Sec. 5, "the drive losses were ignored
+# in the simulation": its 2 us of Table A1) and exact sensors (its 2500-line encoder of Sec. 6; no ADC noise or LSB:
+# ASSUMED, as in Yao 2020 Sec. V and Zhao 2022 Sec. 5.1, whose Simulink models give none); the trip level stays on.
+DRIVE_PRESETS = {"ideal": {"t_dead_s": 0.0, "encoder_lines": 0, "adc_noise_std_A": 0.0, "adc_lsb_A": 0.0}}
 TIMINGS = ("lockstep", "realtime")
 # Run statuses (bench/run/verdict/summary.py EXIT_CODES gives each its exit code).
 STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference", "law_fault")
@@ -170,6 +175,16 @@ def _setting(where: str, section: str, key: str, value: Any, tables: dict[str, d
             f"{where}: {full} = {value!r} is out of range: allowed {_fmt_range(p)} (from {p.node}.eds {p.obj})"
         )
     return Setting(full, p, value)
+
+
+def _drive_preset(where: str, values: dict[str, Any]) -> dict[str, Any]:
+    """[drive] with its preset expanded (DRIVE_PRESETS): the preset's values first, the section's own after and over."""
+    name = values.get("preset")
+    if name is None:
+        return values
+    if not isinstance(name, str) or name not in DRIVE_PRESETS:
+        raise ScenarioError(f"{where}: drive.preset = {name!r}: expected one of {', '.join(DRIVE_PRESETS)}")
+    return {**DRIVE_PRESETS[name], **{k: v for k, v in values.items() if k != "preset"}}
 
 
 def add_set_argument(p: Any, help: str) -> None:
@@ -267,7 +282,7 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         values = motor if section == "motor" else raw.get(section, {})
         if not isinstance(values, dict):
             raise ScenarioError(f"{where}: [{section}] must be a table")
-        for key, value in values.items():
+        for key, value in (_drive_preset(where, values) if section == "drive" else values).items():
             sc.settings.append(_setting(where, section, key, value, tables))
     events = raw.get("events", [])
     if not isinstance(events, list):
@@ -309,8 +324,6 @@ COMMAND_TIMEOUT = "drive.command_timeout_us"  # plant.eds 0x2003:04, set in the 
 
 def _value_at(sc: Scenario, key: str, period: int) -> float:
     """A setting's value in effect at a period: its EDS default, the scenario's, then its events' up to it."""
-    from bench.eds import load as load_od
-
     section, name = key.split(".", 1)
     p = _param_tables()[section][name]
     var = load_od(p.node)[p.index]
@@ -325,9 +338,6 @@ def controller_at_start(sc: Scenario) -> str:
     """The law the drive runs from period 0 (drive.eds Controller.controller by its ValueNames): the
     scenario's [controller] setting, then its period-0 events (in the order the bench writes them), else
     the EDS default."""
-    from bench.eds import enum
-    from bench.eds import load as load_od
-
     value = int(load_od("drive")["Controller"]["controller"].default)
     for s in [*sc.settings, *(s for e in sc.events if e.at_period == 0 for s in e.settings)]:
         if s.param is not None and (s.param.node, s.param.obj, s.param.name) == ("drive", "Controller", "controller"):
@@ -339,17 +349,11 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     """The trace TPDOs of a scenario without [trace]: the live quantities of the law it starts with
     (its record's Trace key in drive.eds, read by bench/laws.py). An event that switches laws later
     leaves the mapping as it is: the PDOs are mapped once, before the run."""
-    from bench.laws import law_info
-
     return dict(law_info(controller_at_start(sc)).trace)
 
 
 def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
     """[trace] pdo3/pdo4: drive.eds entries (by "Object.sub-entry" name) mapped into TPDO3/TPDO4."""
-    from canopen.objectdictionary import ODVariable
-
-    from bench.eds import load as load_od
-
     if not isinstance(table, dict):
         raise ScenarioError(f"{where}: [trace] must be a table with pdo3 / pdo4 lists")
     od = load_od("drive")

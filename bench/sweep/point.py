@@ -2,8 +2,9 @@
 point's overrides, in direct mode and in memory (no file written or read), reduced to one row.
 
 The row: the point's keys, the first iq step's metrics (bench/metrics.py), the run's status, the
-controller's identified values, the growth per period of the iq error's swing after the last
-reference change (stability: < 1 decays, > 1 grows), and the time the point took next to its loop's own time.
+controller's identified values, the growth per period of the iq error after the last reference change
+(bench/metrics.py error_growth, as the Zhao 2022 stability claim measures it: < 1 exactly when the error
+decays), and the time the point took next to its loop's own time.
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
+from bench.metrics import error_growth, growth_windows
+
 STEP_METRICS = ("periods_to_settle", "overshoot_pct", "overshoot_A", "steady_state_error_A")
 # A point's row: the columns a condition (--until) may name, the numeric ones a plot may show
 METRICS = (*STEP_METRICS, "error_growth_per_period", "max_phase_current_A", "status", "periods", "loop_s", "point_s")
 NUMERIC = tuple(m for m in METRICS if m != "status")
-# the float32 floor of the loop: an error envelope below this fraction of the step has decayed
-FLOOR = 1e-5
 
 
 class ErrorEnvelope:
@@ -44,25 +45,12 @@ class ErrorEnvelope:
 
 
 def growth_per_period(err: np.ndarray, last_change: int, step_A: float) -> float | None:
-    """Geometric growth per period of the iq error's swing after the last reference change, as the Zhao 2022
-    boundary claim measures it: the error's peak-to-peak over the window's last quarter against its second
-    quarter (a constant offset, e.g. from a resistance mismatch, swings by nothing). < 1: decays, > 1: grows;
-    0.0 when the swing is down at the loop's float32 floor; None when the window is too short."""
-    n = len(err) - last_change
-    if n < 16 or not math.isfinite(step_A) or step_A == 0.0:
+    """error_growth_per_period: the iq error's growth per period after the last reference change
+    (bench/metrics.py error_growth over growth_windows); None when the window is too short or there is no step."""
+    windows = growth_windows(len(err), last_change)
+    if windows is None or not math.isfinite(step_A) or step_A == 0.0:
         return None
-    q = n // 4
-    w1 = err[last_change + q : last_change + 2 * q]
-    w2 = err[len(err) - q :]
-    if not (np.all(np.isfinite(w1)) and np.all(np.isfinite(w2))):
-        return math.inf
-    m1, m2 = float(np.ptp(w1)), float(np.ptp(w2))
-    if m2 < FLOOR * abs(step_A):
-        return 0.0
-    if m1 == 0.0:
-        return math.inf
-    span = (len(err) - q) - (last_change + q)
-    return float((m2 / m1) ** (1.0 / span))
+    return error_growth(err, step_A, *windows).per_period
 
 
 def _number(v: Any) -> float | None:

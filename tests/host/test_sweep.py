@@ -5,6 +5,7 @@ boundary found by bisection against the closed-loop polynomial's (bench/claims/z
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -271,6 +272,44 @@ def test_grid_heatmap_and_csv(tmp_path: Path) -> None:
     assert table[("1.0", "1.0")]["periods_to_settle"] == 2  # matched: deadbeat
     assert table[("0.5", "1.0")]["periods_to_settle"] > 5  # L_hat = 0.5 L: slow
     assert (out / "heatmap_periods_to_settle.png").stat().st_size > 0
+
+
+def test_error_growth_is_the_stability_claims_judgement() -> None:
+    """bench/metrics.py error_growth, the Zhao 2022 boundary claim's measure and the sweep's error_growth_per_period:
+    < 1 exactly when the error decays. A cycle held by the voltage limit, over half the step and shrinking by a hair
+    (0.9999998 per period), does not decay: the error's swing alone (the sweep's former measure) read it as decaying."""
+    from bench.metrics import error_growth, growth_windows
+
+    k = np.arange(700)
+    step = 0.05
+
+    def judge(err: np.ndarray) -> tuple[float, bool]:
+        windows = growth_windows(len(err), 20)
+        assert windows is not None
+        g = error_growth(err, step, *windows)
+        return g.per_period, g.decays
+
+    held = 0.12 * 0.9999998**k * np.sin(2.1 * k)
+    assert judge(held) == (1.0, False)
+    growing = 1e-3 * 1.001**k * np.sin(2.1 * k)
+    g, decays = judge(growing)
+    assert g == pytest.approx(1.001, abs=5e-4) and not decays
+    decaying = 0.05 * 0.99**k * np.sin(2.1 * k)
+    g, decays = judge(decaying)
+    assert g == pytest.approx(0.99, abs=5e-4) and decays
+    assert judge(np.full(700, 1e-8)) == (0.0, True)  # down at the float32 floor
+    assert judge(np.where(k > 600, np.nan, 0.01))[0] == math.inf
+    assert growth_windows(30, 20) is None
+
+
+def test_error_growth_per_period_in_a_study(tmp_path: Path) -> None:
+    """On the Zhao 2022 motor: settled (at the float32 floor), decaying slowly (L/L0 = 0.704, root radius 0.995),
+    and past the boundary (L/L0 = 0.70), where the voltage limit holds the loop in a bounded cycle."""
+    out = tmp_path / "growth"
+    res = sweep(str(ZHAO), "--grid", "controller.L_hat_ratio=1.25,1.42,1.4286", "--serial", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    g = {r["controller.L_hat_ratio"]: r["error_growth_per_period"] for r in rows(out)}
+    assert g["1.25"] == 0.0 and 0.99 < g["1.42"] < 1.0 and g["1.4286"] >= 1.0, g
 
 
 def test_zhao2022_stability_boundary_by_bisection(tmp_path: Path) -> None:

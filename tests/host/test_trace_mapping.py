@@ -230,7 +230,7 @@ def _law_run(controller: str, **over: object):  # type: ignore[no-untyped-def]
     raw = {
         "scenario": {"name": f"trace-{controller}", "periods": 400, "expect": ["ok", "diverged", "tripped"]},
         "motor": {"preset": preset, "mech_mode": "locked"},
-        "drive": {"t_dead_s": 0.0, "encoder_lines": 0},
+        "drive": {"preset": "ideal"},
         "controller": {"controller": controller, **ctl},
         "events": [{"at_period": 40, "references": step or {"iq_ref_A": 1.0}}],
         **over,
