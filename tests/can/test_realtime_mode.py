@@ -1,6 +1,7 @@
 """Real-time mode over vcan, at a slow period with wide tolerances (a VM under QEMU's software
 emulation cannot pace periods of a few ms: its SYNC intervals jitter by about 2 ms; see docs/VM.md):
-SYNC at absolute deadlines every Ts, the loop closed in time, late/missing commands counted and the
+SYNC at absolute deadlines every Ts, the loop closed in time, late/missing commands counted as the plant
+flags them period by period (how many there are is the machine's load, not a property of the bench) and the
 lateness histogram readable by SDO."""
 
 from __future__ import annotations
@@ -52,9 +53,19 @@ def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
     assert np.median(dt) > 0.5 * TS_S
     # the loop worked: the step shows in the current
     assert abs(run.tr["iq_A"][-1] - 1.0) < 0.05
+    # Lateness is counted, whatever the machine's load made of it (a busy CI host starves the VM: 77 of 150
+    # commands missed their period once under two burners): the plant's missed_commands is the number of its
+    # measurements that flag the period before as missed (Measurement.status bit 2; a measurement the recorder
+    # did not get may hide one), and a late command is always one of a missed period (it was owed).
     counters = run.cap.counters
-    print(f"missed {counters['plant_missed_commands']}, late {counters['plant_late_commands']}")
-    assert counters["plant_missed_commands"] + counters["plant_late_commands"] < PERIODS // 4
+    missed, late = counters["plant_missed_commands"], counters["plant_late_commands"]
+    status = run.tr["status"]
+    known = np.isfinite(status)
+    flagged = int(np.count_nonzero(np.nan_to_num(status[known]).astype(np.int64) & 4))
+    unrecorded = int(np.count_nonzero(~known))
+    print(f"missed {missed} (flagged in {flagged} measurements, {unrecorded} unrecorded), late {late}")
+    assert flagged <= missed <= flagged + unrecorded
+    assert late <= missed
 
 
 def test_lateness_histogram_domain(vcan0: str) -> None:
