@@ -60,12 +60,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from canopen.objectdictionary import ODVariable, datatypes
-
 from bench.eds import Param, enum, params
 from bench.eds import load as load_od
 from bench.laws import law_info, law_names, law_records
 from bench.scenario.faults import Fault, FaultError, parse_faults, refuse_lockstep_stalls
+from bench.scenario.trace import TraceError, trace_table
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "motor": ("plant", ("Motor model",)),
@@ -236,6 +235,42 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     for key in raw:
         if key not in allowed_top:
             raise ScenarioError(f"{where}: unknown table [{key}]; allowed: {', '.join(sorted(allowed_top))}")
+    name, periods, seed, timing, expect_list = _head(raw, where)
+    tables = _param_tables()
+    sc = Scenario(
+        name=name,
+        periods=periods,
+        source=where,
+        description=str(raw["scenario"].get("description", "")),
+        seed=seed,
+        timing=timing,
+        raw=raw,
+        expect=tuple(expect_list),
+    )
+    motor = dict(raw.get("motor", {}))
+    preset = motor.pop("preset", "you2019")
+    if preset is not None and preset not in PRESETS:
+        raise ScenarioError(f"{where}: motor.preset = {preset!r}: expected one of {', '.join(PRESETS)}")
+    sc.preset = preset
+    for section in SECTION_OBJECTS:
+        values = motor if section == "motor" else raw.get(section, {})
+        if not isinstance(values, dict):
+            raise ScenarioError(f"{where}: [{section}] must be a table")
+        for key, value in (_drive_preset(where, values) if section == "drive" else values).items():
+            sc.settings.append(_setting(where, section, key, value, tables))
+    sc.events = _events(raw, where, periods, tables)
+    sc.events.sort(key=lambda e: e.at_period)
+    try:
+        sc.trace = trace_table(where, raw["trace"]) if "trace" in raw else default_trace(sc)
+        sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
+        refuse_lockstep_stalls(sc.faults, where, timing, sc.expect, lambda k: _value_at(sc, COMMAND_TIMEOUT, k))
+    except (FaultError, TraceError) as exc:
+        raise ScenarioError(str(exc)) from None
+    return sc
+
+
+def _head(raw: dict[str, Any], where: str) -> tuple[str, int, int, str, list[str]]:
+    """[scenario]: name, periods, seed, timing and the statuses it expects, each checked."""
     head = raw.get("scenario")
     if not isinstance(head, dict):
         raise ScenarioError(f"{where}: missing [scenario] table with at least name and periods")
@@ -262,28 +297,12 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         raise ScenarioError(
             f"{where}: scenario.expect = {expect!r}: expected one of {', '.join(STATUSES)} or a list of them"
         )
-    tables = _param_tables()
-    sc = Scenario(
-        name=name,
-        periods=periods,
-        source=where,
-        description=str(head.get("description", "")),
-        seed=seed,
-        timing=timing,
-        raw=raw,
-        expect=tuple(expect_list),
-    )
-    motor = dict(raw.get("motor", {}))
-    preset = motor.pop("preset", "you2019")
-    if preset is not None and preset not in PRESETS:
-        raise ScenarioError(f"{where}: motor.preset = {preset!r}: expected one of {', '.join(PRESETS)}")
-    sc.preset = preset
-    for section in SECTION_OBJECTS:
-        values = motor if section == "motor" else raw.get(section, {})
-        if not isinstance(values, dict):
-            raise ScenarioError(f"{where}: [{section}] must be a table")
-        for key, value in (_drive_preset(where, values) if section == "drive" else values).items():
-            sc.settings.append(_setting(where, section, key, value, tables))
+    return name, periods, seed, timing, expect_list
+
+
+def _events(raw: dict[str, Any], where: str, periods: int, tables: Any) -> list[Event]:
+    """[[events]]: each at a period of the run, changing something (not the motor preset)."""
+    out: list[Event] = []
     events = raw.get("events", [])
     if not isinstance(events, list):
         raise ScenarioError(f"{where}: events must be an array of tables ([[events]])")
@@ -308,15 +327,8 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
                 settings.append(_setting(w, section, key, value, tables))
         if not settings:
             raise ScenarioError(f"{w}: an event must change something")
-        sc.events.append(Event(at, settings))
-    sc.events.sort(key=lambda e: e.at_period)
-    sc.trace = _trace(where, raw["trace"]) if "trace" in raw else default_trace(sc)
-    try:
-        sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
-        refuse_lockstep_stalls(sc.faults, where, timing, sc.expect, lambda k: _value_at(sc, COMMAND_TIMEOUT, k))
-    except FaultError as exc:
-        raise ScenarioError(str(exc)) from None
-    return sc
+        out.append(Event(at, settings))
+    return out
 
 
 COMMAND_TIMEOUT = "drive.command_timeout_us"  # plant.eds 0x2003:04, set in the scenario's [drive]
@@ -350,33 +362,6 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     (its record's Trace key in drive.eds, read by bench/laws.py). An event that switches laws later
     leaves the mapping as it is: the PDOs are mapped once, before the run."""
     return dict(law_info(controller_at_start(sc)).trace)
-
-
-def _trace(where: str, table: Any) -> dict[int, tuple[str, ...]]:
-    """[trace] pdo3/pdo4: drive.eds entries (by "Object.sub-entry" name) mapped into TPDO3/TPDO4."""
-    if not isinstance(table, dict):
-        raise ScenarioError(f"{where}: [trace] must be a table with pdo3 / pdo4 lists")
-    od = load_od("drive")
-    out: dict[int, tuple[str, ...]] = {}
-    for key, names in table.items():
-        if key not in ("pdo3", "pdo4"):
-            raise ScenarioError(f"{where}: unknown key trace.{key}; allowed: pdo3, pdo4")
-        if not isinstance(names, list) or not all(isinstance(n, str) for n in names) or not names:
-            raise ScenarioError(f'{where}: trace.{key} must be a non-empty list of "Object.entry" names')
-        size = 0
-        for name in names:
-            obj, _, sub = name.partition(".")
-            try:
-                var = od[obj][sub] if sub else od[obj]
-            except KeyError:
-                raise ScenarioError(f"{where}: trace.{key}: {name!r} is not an entry of drive.eds") from None
-            if not isinstance(var, ODVariable) or not var.pdo_mappable or not var.readable:
-                raise ScenarioError(f"{where}: trace.{key}: {name!r} cannot be mapped into a TPDO")
-            size += len(var.encode_raw(0)) if var.data_type != datatypes.REAL32 else 4
-        if size > 8:
-            raise ScenarioError(f"{where}: trace.{key} needs {size} bytes; a PDO carries at most 8")
-        out[int(key[3:])] = tuple(names)
-    return out
 
 
 def load(path: Path, overrides: list[str] | None = None) -> Scenario:

@@ -297,12 +297,12 @@ def test_every_default_trace_fits_its_tpdo() -> None:
     from bench.eds import enum
 
     law_traces = _traces()
-    from bench.scenario import _trace
+    from bench.scenario.trace import trace_table
 
     assert set(law_traces) == set(enum("drive", "Controller", "controller"))
     for law, pdos in law_traces.items():
         assert set(pdos) <= {3, 4}
-        assert _trace(law, {f"pdo{n}": list(s) for n, s in pdos.items()}) == pdos
+        assert trace_table(law, {f"pdo{n}": list(s) for n, s in pdos.items()}) == pdos
 
 
 def test_default_trace_is_the_law_of_period_0() -> None:
