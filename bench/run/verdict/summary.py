@@ -241,8 +241,8 @@ def build_summary(
 
 
 def format_table(summary: dict[str, Any]) -> str:
-    """The step table; the tuning column (You 2019's online tuning) only for that controller."""
-    tuned = summary.get("identified", {}).get("controller") == "deadbeat_you2019"
+    """The step table; the tuning column (Online tuning.enable, as the bus showed it) when the run switched it on."""
+    tuned = any(s.get("tuning_on") for s in summary.get("steps", []))
     lines = [
         f"{'step':<8}{'at':>7}{'from->to A':>14}{'settle':>8}{'overshoot':>16}{'ss err A':>11}"
         + (f"{'tuning':>8}" if tuned else "")
