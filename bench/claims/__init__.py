@@ -95,6 +95,16 @@ def traced(pdos: dict[int, tuple[str, ...]]) -> Iterator[None]:
         _TRACE = old
 
 
+def with_sections(raw: dict[str, Any], sections: dict[str, Any]) -> dict[str, Any]:
+    """A claim's base scenario with a run's own tables merged in, key by key (its events replace the base's)."""
+    for key, value in sections.items():
+        if key == "events":
+            raw["events"] = value
+        else:
+            raw.setdefault(key, {}).update(value)
+    return raw
+
+
 def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames: bool = False) -> Run:
     """Run a scenario given as a TOML-shaped dict on `bus` ('direct' or a CAN channel), in memory.
     Under `bench reproduce` (RUN_ROOT set) the run's CAN log and summary are kept in RUN_ROOT/NAME;

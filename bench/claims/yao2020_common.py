@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.claims import with_sections
+
 PAPER = "Yao 2020"
 OBJ = "Yao 2020 DPCC"
 COL = "Yao_2020_DPCC_"
@@ -46,12 +48,7 @@ def base(name: str, preset: str, periods: int, **sections: dict[str, Any]) -> di
         "references": {"iq_ref_A": iq0},
         "events": [],
     }
-    for key, value in sections.items():
-        if key == "events":
-            raw["events"] = value
-        else:
-            raw.setdefault(key, {}).update(value)
-    return raw
+    return with_sections(raw, sections)
 
 
 def xy(R: float, L: float) -> tuple[float, float]:

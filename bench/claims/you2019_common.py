@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.claims import Run
+from bench.claims import Run, with_sections
 
 PAPER = "You 2019"
 STEP_AT = 20
@@ -25,12 +25,7 @@ def base(name: str, periods: int = 120, **sections: dict[str, Any]) -> dict[str,
         "controller": {"controller": "deadbeat_you2019", "Vmax_V": 139.0, "decoupling_enable": 1},
         "events": [{"at_period": STEP_AT, "references": {"iq_ref_A": 1.0}}],
     }
-    for key, value in sections.items():
-        if key == "events":
-            raw["events"] = value
-        else:
-            raw.setdefault(key, {}).update(value)
-    return raw
+    return with_sections(raw, sections)
 
 
 def model_gains(run: Run, L_key: str = "Lq_H") -> tuple[float, float]:

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.claims import ClaimResult, run_raw, traced
+from bench.claims import ClaimResult, run_raw, traced, with_sections
 from bench.metrics import error_growth
 
 PAPER = "Zhao 2022"
@@ -39,12 +39,7 @@ def base(name: str, periods: int, law: str, locked: bool = True, **sections: dic
         "controller": {"controller": law, "Vmax_V": VMAX},
         "events": [],
     }
-    for key, value in sections.items():
-        if key == "events":
-            raw["events"] = value
-        else:
-            raw.setdefault(key, {}).update(value)
-    return raw
+    return with_sections(raw, sections)
 
 
 def plant_terms(Rp: float, Lp: float, w: float) -> tuple[complex, complex]:
