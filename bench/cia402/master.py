@@ -14,16 +14,17 @@ from typing import Any
 import can
 import canopen
 from canopen.pdo.base import PdoMap
-from canopen.profiles.p402 import BaseNode402
+from canopen.profiles.p402 import BaseNode402, OperationMode, State402
 
-from bench.cia402.record import Layout, Pdo, state_name
+from bench.cia402.layout import REFERENCE_PDOS, Layout, Pdo, reference_pdo
+from bench.cia402.record import state_name
 
 BENCH_ID = 0x7F
 BENCH_HEARTBEAT_S = 0.1
 CONSUMER_MS = 500
-CST = 10
-RPDO_WANT = (0x6040, 0x6071)
-TPDO_WANT = ((0x6041, 0x6061, 0x6077, 0x6078), (0x6064, 0x606C))
+CST = OperationMode.CYCLIC_SYNCHRONOUS_TORQUE
+CST_SUPPORTED = OperationMode.SUPPORTED["CYCLIC SYNCHRONOUS TORQUE"]  # its bit in 0x6502
+DISABLE = State402.CW_DISABLE_VOLTAGE  # the controlword of the way out (and of the start)
 # How long an SDO answer is waited for (python canopen's default is 0.3 s): a drive answers in a few ms,
 # but the master's own Python may be descheduled for longer on a loaded machine or in the CI's VM (~50x
 # slower), and a cleanup read that gives up too early reports a disabled drive as not seen disabled
@@ -72,7 +73,10 @@ def _mapped(pdo: PdoMap) -> tuple[int, ...]:
 
 
 def _as_pdo(pdo: PdoMap) -> Pdo:
-    return Pdo(int(pdo.cob_id) & 0x7FF, tuple((v.index, int(v.length)) for v in pdo))
+    com = int(pdo.com_record.od.index)
+    name = f"TPDO{com - 0x1800 + 1}" if com >= 0x1800 else f"RPDO{com - 0x1400 + 1}"
+    entries = tuple((v.index, v.subindex, int(v.length)) for v in pdo)
+    return Pdo(name, int(pdo.cob_id or 0) & 0x7FF, int(pdo.trans_type or 0), entries)
 
 
 class Master:
@@ -98,16 +102,16 @@ class Master:
 
     def prepare(self, say: Callable[[str], None]) -> Layout:
         sdo = self.node.sdo
-        sdo[0x6040].raw = 0
+        sdo[0x6040].raw = DISABLE
         self.node.nmt.state = "PRE-OPERATIONAL"
         info = self.info
         info.rated_current_mA = int(sdo[0x6075].raw)
         info.rated_torque_mNm = int(sdo[0x6076].raw)
         info.supported_modes = int(sdo[0x6502].raw)
-        if not info.supported_modes & (1 << 9):
+        if not info.supported_modes & CST_SUPPORTED:
             raise DriveRefused(
                 f"drive 0x{self.drive_id:02X} does not support cyclic synchronous torque: 0x6502 = "
-                f"0x{info.supported_modes:08X} (bit 9 clear)"
+                f"0x{info.supported_modes:08X} (bit {CST_SUPPORTED.bit_length() - 1} clear)"
             )
         sync = int(sdo[0x1005].raw)
         if sync & (1 << 30):
@@ -122,13 +126,14 @@ class Master:
         sdo[0x6060].raw = CST
         mode = self._wait(lambda: int(sdo[0x6061].raw) == CST, 20)
         if not mode:
-            raise DriveRefused(f"drive 0x{self.drive_id:02X}: 0x6061 = {int(sdo[0x6061].raw)}, not CST (10)")
+            raise DriveRefused(f"drive 0x{self.drive_id:02X}: 0x6061 = {int(sdo[0x6061].raw)}, not CST ({CST})")
         self._watch_bench(say)
         assert self.rpdo is not None and self.tpdo_sw is not None
         tp = [_as_pdo(self.tpdo_sw)] + ([_as_pdo(self.tpdo_pos)] if self.tpdo_pos is not None else [])
         return Layout(
             self.drive_id,
             info.sync_cob,
+            info.sync_overflow,
             _as_pdo(self.rpdo),
             tp,
             info.rated_current_mA,
@@ -144,31 +149,34 @@ class Master:
         return False
 
     def _pdos(self, say: Callable[[str], None]) -> None:
+        """The drive's PDOs that map what drive.eds' REFERENCE_PDOS map (the RPDO all of it, a TPDO its first
+        entry), else those of drive.eds' numbers mapped by the bench as drive.eds maps them."""
         node = self.node
         node.rpdo.read()
         node.tpdo.read()
+        ref_r, *ref_t = (reference_pdo(name, self.drive_id) for name in REFERENCE_PDOS)
         own = "the drive's own mapping"
-        rpdo = next((p for p in node.rpdo.map.values() if set(RPDO_WANT) <= set(_mapped(p))), None)
+        rpdo = next((p for p in node.rpdo.map.values() if set(ref_r.objects) <= set(_mapped(p))), None)
         if rpdo is None:
-            rpdo, own = node.rpdo[4], "mapped by the bench"
+            rpdo, own = node.rpdo[ref_r.number], "mapped by the bench"
             rpdo.clear()
-            for index in RPDO_WANT:
-                rpdo.add_variable(index)
-            rpdo.trans_type = 255
+            for index, sub, _ in ref_r.entries:
+                rpdo.add_variable(index, sub)
+            rpdo.trans_type = ref_r.trans_type
         if rpdo.trans_type not in (*range(1, 241), 254, 255):
-            rpdo.trans_type = 255
+            rpdo.trans_type = ref_r.trans_type
         rpdo.enabled = True
         rpdo.save()
         tpdos = []
-        for n, want in zip((3, 4), TPDO_WANT, strict=True):
-            t = next((p for p in node.tpdo.map.values() if want[0] in _mapped(p)), None)
+        for ref in ref_t:
+            t = next((p for p in node.tpdo.map.values() if ref.objects[0] in _mapped(p)), None)
             how = "the drive's own mapping"
             if t is None:
-                t, how = node.tpdo[n], "mapped by the bench"
+                t, how = node.tpdo[ref.number], "mapped by the bench"
                 t.clear()
-                for index in want:
-                    t.add_variable(index)
-            t.trans_type = 1
+                for index, sub, _ in ref.entries:
+                    t.add_variable(index, sub)
+            t.trans_type = ref.trans_type
             t.enabled = True
             t.save()
             tpdos.append((t, how))
@@ -223,7 +231,7 @@ class Master:
         else:
             msgs = [can.Message(arbitration_id=info.sync_cob, data=[], is_extended_id=False)]
         assert self.rpdo is not None
-        self.rpdo[0x6040].raw = 0
+        self.rpdo[0x6040].raw = DISABLE
         self.rpdo[0x6071].raw = 0
         self.rpdo.start(self.cycle_s)  # canopen: bus.send_periodic (CAN_BCM); .raw = ... modifies its data
         self.tasks.append(self.bus.send_periodic(msgs, self.cycle_s))
@@ -248,7 +256,7 @@ class Master:
     def check(self, silence_s: float) -> None:
         if time.monotonic() - self.last_sw > silence_s:
             raise DriveStopped(f"no statusword TPDO for {silence_s:g} s")
-        state = state_name(int(self.node.statusword))
+        state = self.node.state  # canopen's State402.SW_MASK on the last statusword TPDO
         if state != "OPERATION ENABLED":
             code = ""
             if state == "FAULT":
@@ -272,7 +280,7 @@ class Master:
 
         if self.rpdo is not None:
             step("controlword 0 by RPDO", lambda: self._rpdo_zero())
-        step("controlword 0 by SDO", lambda: self.node.sdo[0x6040].__setattr__("raw", 0))
+        step("controlword 0 by SDO", lambda: self.node.sdo[0x6040].__setattr__("raw", DISABLE))
         time.sleep(2 * self.cycle_s)
         sw = step("statusword by SDO", lambda: int(self.node.sdo[0x6041].raw))
         time.sleep(3.5 * self.cycle_s)  # 3 more SYNCs from the running task
@@ -285,13 +293,13 @@ class Master:
             step("stopping a periodic task", task.stop)
         self.tasks.clear()
         step("NMT pre-operational", lambda: self.node.nmt.__setattr__("state", "PRE-OPERATIONAL"))
-        disabled = sw is not None and sw & 0x4F == 0x40
+        disabled = sw is not None and state_name(sw) == "SWITCH ON DISABLED"
         return disabled, sw
 
     def _rpdo_zero(self) -> None:
         assert self.rpdo is not None
         self.rpdo[0x6071].raw = 0
-        self.rpdo[0x6040].raw = 0
+        self.rpdo[0x6040].raw = DISABLE
         if self.rpdo.period is None:
             self.rpdo.transmit()
 

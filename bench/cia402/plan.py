@@ -14,9 +14,13 @@ the two heartbeats, worst-case bit stuffing: bench.tools.plan) is at most 80 %.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from bench.canbus import classic_frame_bits
 from bench.scenario import Scenario
+
+if TYPE_CHECKING:
+    from bench.cia402.layout import Layout
 
 CYCLES_MS = (1.0, 2.0, 5.0, 10.0)
 CYCLE_RANGE_MS = (1.0, 1000.0)
@@ -40,11 +44,22 @@ class Segment:
 
 @dataclass(frozen=True)
 class Frames:
-    """Data bytes of the frames of one cycle (defaults: the drive.eds PDO layout)."""
+    """Data bytes of the frames of one cycle."""
 
-    sync: int = 1  # 1 with a counter (0x1019 >= 2), else 0
-    rpdo: int = 4  # {0x6040, 0x6071}
-    tpdos: tuple[int, ...] = (7, 8)  # {0x6041, 0x6061, 0x6077, 0x6078}, {0x6064, 0x606C}
+    sync: int  # 1 with a counter (0x1019 >= 2), else 0
+    rpdo: int
+    tpdos: tuple[int, ...]
+
+    @classmethod
+    def of(cls, layout: Layout) -> Frames:
+        return cls(1 if layout.sync_overflow >= 2 else 0, layout.rpdo.size, tuple(p.size for p in layout.tpdos))
+
+    @classmethod
+    def reference(cls) -> Frames:
+        """Before the drive is read: drive.eds' PDOs (bench/cia402/layout.py)."""
+        from bench.cia402.layout import default_layout
+
+        return cls.of(default_layout())
 
 
 def per_mille(iq_A: float, rated_current_mA: int) -> int:
@@ -113,7 +128,7 @@ def bus_load(frames: Frames, cycle_s: float, bitrate: int) -> float:
 
 def choose_cycle(bitrate: int, cycle_ms: float | None, frames: Frames | None = None) -> tuple[float, float]:
     """(cycle in s, bus load). PlanError for a cycle out of range, or one that overloads the bus."""
-    frames = frames or Frames()
+    frames = frames or Frames.reference()
     if bitrate <= 0 or bitrate > 1_000_000:
         raise PlanError(f"--bitrate {bitrate}: classic CAN runs at 1 .. 1000000 bit/s")
     if cycle_ms is not None:

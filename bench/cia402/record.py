@@ -1,108 +1,66 @@
-"""The CiA 402 run's record: every frame in a candump log, decoded ONCE into a per-SYNC trace.
+"""The CiA 402 run's record: every frame in a candump log, decoded ONCE into a per-SYNC trace by the run's
+decoder (bench/run/decode/decoder.py, profile "cia402": no plant, no lockstep).
 
-The layout (SYNC COB-ID, the PDOs' COB-IDs and mappings) is what the master used; the decoder
-works on FRAME_DTYPE arrays (bench/run/bus/frames.py), never on a Python object per frame. Cycle k
-is the time from SYNC k to SYNC k+1: the statusword/position TPDOs the drive sends on SYNC k and
-the last RPDO the bench sent before SYNC k+1 belong to it.
+The decoder reads the layout off the bus: the SYNC's COB-ID and counter, the PDOs' COB-IDs and mappings and the
+drive's rated values are in the master's SDO transfers in the log; the master's Layout (what it read and wrote,
+bench/cia402/layout.py) is assumed before the first frame, so that a log without that traffic decodes too. The
+decoder works on FRAME_DTYPE arrays (bench/run/bus/frames.py), never on a Python object per frame. Cycle k is
+the time from SYNC k to SYNC k+1: the drive's TPDOs sent on SYNC k and the last RPDO the bench sent before
+SYNC k belong to it. States are canopen's (State402.SW_MASK).
 """
 
 from __future__ import annotations
 
 import csv
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from canopen.profiles.p402 import State402
 
-from bench.run.bus.frames import empty
+from bench.cia402.layout import Layout, default_layout
+from bench.run.decode.decoder import Decoder
+from bench.run.decode.sdo_log import NodeState
 from bench.run.record.canlog import read_frames
+from bench.run.record.sources import sorted_chunks
+from bench.signals import column_name
+
+__all__ = [
+    "Layout",
+    "Trace",
+    "decode",
+    "decode_log",
+    "default_layout",
+    "state_name",
+    "states_passed",
+    "tracking",
+    "write_csv",
+    "write_plot",
+]
 
 INC_PER_REV = 65536
-STATES: tuple[tuple[str, int, int], ...] = (  # CiA 402 statusword masks (as canopen's State402.SW_MASK)
-    ("NOT READY TO SWITCH ON", 0x4F, 0x00),
-    ("SWITCH ON DISABLED", 0x4F, 0x40),
-    ("READY TO SWITCH ON", 0x6F, 0x21),
-    ("SWITCHED ON", 0x6F, 0x23),
-    ("OPERATION ENABLED", 0x6F, 0x27),
-    ("FAULT", 0x4F, 0x08),
-    ("FAULT REACTION ACTIVE", 0x4F, 0x0F),
-    ("QUICK STOP ACTIVE", 0x6F, 0x07),
-)
-SIGNED = {0x6061, 0x6064, 0x606C, 0x6071, 0x6077, 0x6078}
+STATES = tuple(State402.SW_MASK)  # the statusword's states, in canopen's order (the plot's axis)
+# trace column <- the drive object a PDO carries it in, as sent (per mille of the rated value for 0x6077/0x6078)
+RAW = {
+    "statusword": 0x6041,
+    "mode_display": 0x6061,
+    "torque_actual_permille": 0x6077,
+    "current_actual_permille": 0x6078,
+    "position_inc": 0x6064,
+    "velocity_inc_s": 0x606C,
+    "controlword": 0x6040,
+    "target_torque_permille": 0x6071,
+}
 
 
 def state_name(statusword: int) -> str:
-    for name, mask, bits in STATES:
+    """The CiA 402 state a statusword says (canopen's BaseNode402.state, for a recorded value)."""
+    for name, (mask, bits) in State402.SW_MASK.items():
         if statusword & mask == bits:
             return name
     return "UNKNOWN"
-
-
-@dataclass(frozen=True)
-class Pdo:
-    cob_id: int
-    entries: tuple[tuple[int, int], ...]  # (index, bits) in mapping order
-
-    def fields(self) -> dict[int, tuple[int, int]]:
-        """index -> (byte offset, bytes)."""
-        out, off = {}, 0
-        for index, bits in self.entries:
-            out[index] = (off, bits // 8)
-            off += bits // 8
-        return out
-
-
-@dataclass
-class Layout:
-    drive_id: int
-    sync_cob: int
-    rpdo: Pdo
-    tpdos: list[Pdo]
-    rated_current_mA: int
-    rated_torque_mNm: int
-    cycle_s: float
-
-    def to_json(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-def default_layout(drive_id: int | None = None, cycle_s: float = 0.001) -> Layout:
-    """drive.eds' own PDOs: RPDO4 {0x6040, 0x6071}, TPDO3 {0x6041, 0x6061, 0x6077, 0x6078}, TPDO4
-    {0x6064, 0x606C}, the rated values' defaults (drive_id None: drive.eds' NodeID)."""
-    if drive_id is None:
-        from bench.eds import default_node_id
-
-        drive_id = default_node_id("drive")
-    return Layout(
-        drive_id,
-        0x80,
-        Pdo(0x500 + drive_id, ((0x6040, 16), (0x6071, 16))),
-        [
-            Pdo(0x380 + drive_id, ((0x6041, 16), (0x6061, 8), (0x6077, 16), (0x6078, 16))),
-            Pdo(0x480 + drive_id, ((0x6064, 32), (0x606C, 32))),
-        ],
-        4000,
-        1260,
-        cycle_s,
-    )
-
-
-def _field(data: np.ndarray, off: int, size: int, signed: bool) -> np.ndarray:
-    raw = np.ascontiguousarray(data[:, off : off + size]).view(f"<u{size}").reshape(-1)
-    return raw.view(f"<i{size}").astype(np.float64) if signed else raw.astype(np.float64)
-
-
-def _per_cycle(frames: np.ndarray, sync_pos: np.ndarray, cob: int) -> tuple[np.ndarray, np.ndarray]:
-    """(cycle index of the last frame of `cob` in each cycle or -1, that frame's row)."""
-    pos = np.flatnonzero(frames["cob_id"] == cob)
-    cyc = np.searchsorted(sync_pos, pos, side="right") - 1
-    keep = cyc >= 0
-    pos, cyc = pos[keep], cyc[keep]
-    last = np.full(len(sync_pos), -1, dtype=np.int64)
-    last[cyc] = pos  # later frames of a cycle overwrite earlier ones
-    return last, pos
 
 
 @dataclass
@@ -116,52 +74,59 @@ class Trace:
         return len(self.state)
 
 
-def decode(frames: np.ndarray, layout: Layout) -> Trace:
+def decoder(layout: Layout, eds: Path | None = None) -> Decoder:
+    """The run's decoder for a CiA 402 master's bus (eds: the drive's, when it is not drive.eds)."""
+    dec = Decoder(drive_id=layout.drive_id, profile="cia402", drive_eds=eds)
+    dec.sdo.drive.assume(layout.od_values())
+    return dec
+
+
+def decode(frames: np.ndarray, layout: Layout, eds: Path | None = None) -> Trace:
     """Frames in bus order -> one row per SYNC cycle (NaN where the cycle had no such PDO)."""
-    sync_pos = np.flatnonzero(frames["cob_id"] == layout.sync_cob)
-    n = len(sync_pos)
+    dec = decoder(layout, eds)
+    return _trace(dec, [dec.feed(frames), dec.finish()])
+
+
+def decode_log(path: Path, layout: Layout, eds: Path | None = None) -> Trace:
+    dec = decoder(layout, eds)
+    chunks = [dec.feed(chunk) for chunk in sorted_chunks(read_frames(path))]
+    return _trace(dec, [*chunks, dec.finish()])
+
+
+def _trace(dec: Decoder, chunks: list[dict[str, np.ndarray] | None]) -> Trace:
+    """The decoder's rows as the CiA 402 trace: its drive objects by index, in SI units where they have one."""
+    parts = [c for c in chunks if c is not None]
+    rows = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
+    n = len(rows.get("period", ()))
+    drive = dec.sdo.drive
+    raw = {name: _column(rows, drive, index, n) for name, index in RAW.items()}
+    i_rated = float(drive.values.get((0x6075, 0)) or 0) / 1000.0  # the rated values as the master read them
+    t_rated = float(drive.values.get((0x6076, 0)) or 0) / 1000.0
+    rad = 2 * math.pi / INC_PER_REV
+    sw = raw["statusword"]
     cols: dict[str, np.ndarray] = {
-        "t_s": (frames["t_us"][sync_pos].astype(np.float64) - float(frames["t_us"][sync_pos[0]])) / 1e6
-        if n
-        else np.zeros(0),
-        "cycle": np.arange(n, dtype=np.float64),
+        "t_s": rows.get("t_s", np.zeros(0)),
+        "cycle": rows.get("period", np.zeros(0, dtype=np.int64)).astype(np.float64),
+        "statusword": sw,
+        "mode_display": raw["mode_display"],
+        "torque_actual_permille": raw["torque_actual_permille"],
+        "torque_actual_Nm": raw["torque_actual_permille"] / 1000 * t_rated,
+        "current_actual_permille": raw["current_actual_permille"],
+        "current_actual_A": raw["current_actual_permille"] / 1000 * i_rated,
+        "position_rad": raw["position_inc"] * rad,
+        "velocity_rad_s": raw["velocity_inc_s"] * rad,
+        "controlword": raw["controlword"],
+        "target_torque_permille": raw["target_torque_permille"],
     }
-    values: dict[int, np.ndarray] = {}
-    sw_seen = np.zeros(n, dtype=bool)
-    for pdo in [layout.rpdo, *layout.tpdos]:
-        last, _ = _per_cycle(frames, sync_pos, pdo.cob_id)
-        has = last >= 0
-        if pdo is layout.rpdo:  # the bench's RPDO of a cycle is sent before its SYNC: take the previous cycle's
-            has_prev = np.r_[False, has[:-1]] if n else has
-            last = np.r_[-1, last[:-1]] if n else last
-            has = has_prev
-        data = frames["data"][np.where(has, last, 0)] if n else np.zeros((0, 8), np.uint8)
-        for index, (off, size) in pdo.fields().items():
-            v = _field(data, off, size, index in SIGNED) if n else np.zeros(0)
-            values[index] = np.where(has, v, np.nan)
-        if any(index == 0x6041 for index, _ in pdo.entries):
-            sw_seen = has
-    nan = np.full(n, np.nan)
-    i_rated, t_rated = layout.rated_current_mA / 1000.0, layout.rated_torque_mNm / 1000.0
-    sw = values.get(0x6041, nan)
-    cols["statusword"] = sw
-    cols["mode_display"] = values.get(0x6061, nan)
-    cols["torque_actual_permille"] = values.get(0x6077, nan)
-    cols["torque_actual_Nm"] = cols["torque_actual_permille"] / 1000 * t_rated
-    cols["current_actual_permille"] = values.get(0x6078, nan)
-    cols["current_actual_A"] = cols["current_actual_permille"] / 1000 * i_rated
-    cols["position_rad"] = values.get(0x6064, nan) * (2 * math.pi / INC_PER_REV)
-    cols["velocity_rad_s"] = values.get(0x606C, nan) * (2 * math.pi / INC_PER_REV)
-    cols["controlword"] = values.get(0x6040, nan)
-    cols["target_torque_permille"] = values.get(0x6071, nan)
     states = ["" if math.isnan(v) else state_name(int(v)) for v in sw.tolist()]
-    return Trace(cols, states, int(n - int(np.count_nonzero(sw_seen))))
+    return Trace(cols, states, int(np.count_nonzero(np.isnan(sw))))
 
 
-def decode_log(path: Path, layout: Layout) -> Trace:
-    chunks = list(read_frames(path))
-    frames = np.concatenate(chunks) if chunks else empty()
-    return decode(frames[np.argsort(frames["t_us"], kind="stable")], layout)
+def _column(rows: dict[str, np.ndarray], drive: NodeState, index: int, n: int) -> np.ndarray:
+    """The decoder's column of a drive object (sub-index 0), NaN when no PDO maps it."""
+    name = drive.qualname(index, 0)
+    col = rows.get(column_name(name)) if name is not None else None
+    return col if col is not None else np.full(n, np.nan)
 
 
 def states_passed(trace: Trace) -> list[str]:
@@ -228,10 +193,9 @@ def write_plot(trace: Trace, path: Path, title: str) -> None:
     ax1.set_ylabel("per mille of rated")
     ax1.legend(loc="best")
     ax1.set_title(title)
-    names = [name for name, _, _ in STATES]
-    codes = np.array([names.index(s) if s in names else np.nan for s in trace.state], dtype=np.float64)
+    codes = np.array([STATES.index(s) if s in STATES else np.nan for s in trace.state], dtype=np.float64)
     ax2.step(c["t_s"], codes, where="post")
-    ax2.set_yticks(range(len(names)), [n.title() for n in names], fontsize=6)
+    ax2.set_yticks(range(len(STATES)), [n.title() for n in STATES], fontsize=6)
     ax2.set_xlabel("time from the first SYNC, s")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

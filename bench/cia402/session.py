@@ -10,10 +10,11 @@ from pathlib import Path
 from typing import Any
 
 from bench.cia402 import NO_LOCKSTEP
+from bench.cia402.layout import Layout
 from bench.cia402.master import DriveRefused, DriveStopped, Master
 from bench.cia402.outcome import Interrupted, ignore_signals, raise_on_signals, summary_text, write_summary
 from bench.cia402.plan import Frames, PlanError, Segment, bus_load, ignored_keys, targets
-from bench.cia402.record import Layout, decode_log, states_passed, tracking, write_csv, write_plot
+from bench.cia402.record import decode_log, states_passed, tracking, write_csv, write_plot
 from bench.scenario import Scenario
 
 
@@ -63,9 +64,7 @@ class Session:
             master.start_heartbeat()
             layout = master.prepare(say)
             self.segs = targets(self.sc, master.info.rated_current_mA, master.info.max_torque_pm)
-            sizes = tuple(sum(bits for _, bits in p.entries) // 8 for p in layout.tpdos)
-            frames = Frames(1 if master.info.sync_overflow >= 2 else 0, 4, sizes)
-            self.load = bus_load(frames, self.cycle_s, self.args.bitrate or 1_000_000)
+            self.load = bus_load(Frames.of(layout), self.cycle_s, self.args.bitrate or 1_000_000)
             master.start_cycle()
             master.enable(say)
             self._play(master)
@@ -147,7 +146,7 @@ class Session:
         }
         if layout is not None and (self.partial / "bus.log").exists():
             try:
-                trace = decode_log(self.partial / "bus.log", layout)
+                trace = decode_log(self.partial / "bus.log", layout, self.eds)
                 summary.update(
                     states_passed=states_passed(trace),
                     cycles=len(trace),

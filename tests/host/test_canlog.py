@@ -15,7 +15,7 @@ import can
 import numpy as np
 import pytest
 
-from bench.run import canlog
+from bench.run.record import canlog
 from bench.run.bus.frames import FRAME_DTYPE
 from bench.run.record.canlog import LOG_FORMATS, CandumpWriter, export, read_frames
 

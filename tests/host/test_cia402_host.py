@@ -46,7 +46,7 @@ def test_profile_becomes_cst_targets() -> None:
 def test_cycle_planner() -> None:
     assert choose_cycle(1_000_000, None)[0] == 0.001
     assert choose_cycle(125_000, None)[0] == 0.005  # 2 ms would load the bus > 80 %
-    assert bus_load(Frames(), 0.002, 125_000) > 0.8
+    assert bus_load(Frames.reference(), 0.002, 125_000) > 0.8
     with pytest.raises(PlanError, match="no cycle"):
         choose_cycle(20_000, None)
     assert choose_cycle(20_000, 50)[0] == 0.05
@@ -94,10 +94,12 @@ def test_state_names() -> None:
     assert state_name(0x0008) == "FAULT"
 
 
-def _synthetic_log(path: Path, cycles: int, drop_sw_at: int) -> None:
-    """A run as the master and a drive with drive.eds' PDOs would put it on the bus."""
+def _synthetic_log(
+    path: Path, cycles: int, drop_sw_at: int, prelude: tuple[can.Message, ...] = (), motion_cob: int = 0x4A0
+) -> None:
+    """A run as the master and a drive with drive.eds' PDOs would put it on the bus (after `prelude`)."""
     t = 1_700_000_000.0
-    msgs = []
+    msgs = list(prelude)
     for k in range(cycles):
         target = 0 if k < 10 else 250
         actual = 0 if k < 12 else 240
@@ -107,7 +109,9 @@ def _synthetic_log(path: Path, cycles: int, drop_sw_at: int) -> None:
         if k != drop_sw_at:
             data = struct.pack("<HbhH", sw, 10, actual, actual)
             msgs.append(can.Message(timestamp=t + 4e-4, arbitration_id=0x3A0, data=data))
-        msgs.append(can.Message(timestamp=t + 5e-4, arbitration_id=0x4A0, data=struct.pack("<ii", 16384 * k, -65536)))
+        msgs.append(
+            can.Message(timestamp=t + 5e-4, arbitration_id=motion_cob, data=struct.pack("<ii", 16384 * k, -65536))
+        )
         if k % 5 == 0:
             msgs.append(can.Message(timestamp=t + 6e-4, arbitration_id=0x77F, data=[5]))
         t += 0.01
@@ -142,6 +146,35 @@ def test_decode_synthetic_log(tmp_path: Path) -> None:
     rows = list(csv.DictReader(open(tmp_path / "trace.csv")))
     assert len(rows) == 40 and rows[30]["state"] == "OPERATION ENABLED" and rows[20]["statusword"] == ""
     json.dumps(layout.to_json())  # summary.json keeps the layout
+
+
+def _sdo(t: float, index: int, sub: int, value: int, upload: bool = False) -> tuple[can.Message, can.Message]:
+    """An expedited SDO transfer of a 4-byte entry of drive 0x20 as the bus shows it: request, answer."""
+    where = struct.pack("<HB", index, sub)
+    if upload:
+        req, ans = b"\x40" + where + bytes(4), b"\x43" + where + struct.pack("<I", value)
+    else:
+        req, ans = b"\x23" + where + struct.pack("<I", value), b"\x60" + where + bytes(4)
+    return (
+        can.Message(timestamp=t, arbitration_id=0x620, data=req),
+        can.Message(timestamp=t + 1e-4, arbitration_id=0x5A0, data=ans),
+    )
+
+
+def test_the_layout_comes_from_the_bus(tmp_path: Path) -> None:
+    """The record decodes with the run's decoder (bench/run/decode, profile cia402), which reads the layout off
+    the master's SDO traffic in the log: a TPDO moved to another COB-ID and the rated current read from the
+    drive win over the layout assumed before the first frame (drive.eds' own)."""
+    t = 1_700_000_000.0 - 1.0
+    prelude = (*_sdo(t, 0x1803, 1, 0x4B0), *_sdo(t + 0.01, 0x6075, 0, 2000, upload=True))
+    log = tmp_path / "bus.log"
+    _synthetic_log(log, 40, drop_sw_at=20, prelude=prelude, motion_cob=0x4B0)
+    trace = decode_log(log, default_layout(0x20, 0.01))
+    c = trace.columns
+    assert len(trace) == 40 and trace.cycles_without_statusword == 1
+    assert c["position_rad"][3] == pytest.approx(3 * math.pi / 2)
+    assert c["current_actual_A"][30] == pytest.approx(240 / 1000 * 2.0)  # 0x6075 as read: 2 A
+    assert c["target_torque_permille"][10] == 250
 
 
 def test_cleanup_waits_for_a_slow_sdo_answer() -> None:

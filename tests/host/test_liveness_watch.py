@@ -93,7 +93,7 @@ def test_a_running_silent_node_of_ours_is_taken_for_starved_a_stopped_one_for_fr
     import subprocess
     from types import SimpleNamespace
 
-    from bench.run import liveness
+    from bench.run.bus import liveness
 
     node = SimpleNamespace(name="sleep", proc=subprocess.Popen(["sleep", "60"]))
     net = _Net()

@@ -88,3 +88,37 @@ def test_replay_is_named_from_the_log_and_lists_what_it_wrote(tmp_path: Path, lo
     assert "bus.log" not in names
     for n in names:
         assert "*" in n or "plots" in n or (out / n).is_file(), n
+
+
+def test_a_claim_runs_log_replays_to_the_trace_it_decoded(tmp_path: Path) -> None:
+    """`bench reproduce` decodes each run once, as it runs (its traces.npy, from which the run's recording and
+    figure are made): the CAN log it keeps beside them must replay to that trace and summary, bit for bit. A
+    claim run in direct mode writes its log with the candump writer while it runs (bench/claims run_raw)."""
+    import numpy as np
+
+    from bench import claims
+    from bench.claims import run_raw
+    from bench.claims.you2019 import base
+    from bench.reproduce.views import kept_traces
+    from bench.run.pipeline import replay_log
+
+    old = claims.RUN_ROOT
+    claims.RUN_ROOT = tmp_path / "runs"
+    claims.RUN_ROOT.mkdir()
+    try:
+        with kept_traces():
+            run = run_raw(base("you2019-replay-truth"), "direct")
+    finally:
+        claims.RUN_ROOT = old
+        claims.RUNS_USED.clear()
+    assert run.out is not None
+    kept = np.load(run.out / "traces.npy")
+    res = replay_log(run.out / "bus.log", keep_trace=True)
+    assert res.trace is not None and len(kept) == res.summary["periods"] > 0
+    assert set(kept.dtype.names or ()) == set(res.trace)
+    for name in kept.dtype.names or ():
+        np.testing.assert_array_equal(kept[name], res.trace[name].astype(kept[name].dtype), err_msg=name)
+        np.testing.assert_array_equal(kept[name], run.tr[name].astype(kept[name].dtype), err_msg=name)
+    summary = json.loads((run.out / "summary.json").read_text())
+    for key in ("status", "periods", "steps", "identified", "plant", "controller", "counters", "bus_stats"):
+        assert summary[key] == res.summary[key], key

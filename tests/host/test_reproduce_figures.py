@@ -1,7 +1,7 @@
 """`bench reproduce`'s report shows each claim with its own runs: a claim function that returns
 several results names the run(s) of each (ClaimResult.runs), the report's section of a claim links
-only those runs, and the runs' figures and Rerun recordings are made from their CAN logs.
-Direct mode, one fast claim function (two 120-period runs)."""
+only those runs, and the runs' figures and Rerun recordings are made from the trace each run decoded
+(its traces.npy: the log is not decoded again). Direct mode, one fast claim function (two 120-period runs)."""
 
 from __future__ import annotations
 
@@ -49,10 +49,13 @@ def test_each_claim_shows_its_own_runs(run_root: Path) -> None:
     for r in recs:
         ratio = r["claim_id"].split("-L")[1]
         assert r["runs"] == [f"you2019-Lhat-{ratio}"], r["runs"]
-    assert rep.postprocess_runs(run_root) == 0
+    for r in recs:  # the claim's run wrote its trace as it decoded it, nothing else yet
+        run = run_root / "runs" / r["runs"][0]
+        assert (run / "traces.npy").stat().st_size > 0 and not (run / "run.rrd").exists()
+    assert rep.make_views(run_root) == 0
     for r in recs:
         run = run_root / "runs" / r["runs"][0]
-        for f in ("bus.log", "summary.json", "run.rrd", "overview.png"):
+        for f in ("bus.log", "summary.json", "traces.npy", "run.rrd", "overview.png"):
             assert (run / f).stat().st_size > 0, (run, f)
     rep.write_reports(run_root, recs, "direct", 1.0)
     md = _sections((run_root / "report.md").read_text(), r"\n### (\S+): ", "")

@@ -1,9 +1,10 @@
 """`bench reproduce`: every claim of the three papers gets a verdict (all papers in direct mode), the
 HTML report renders in a real browser (headless Chromium) with no broken image (a screenshot is saved
-next to the report), each claim links its own runs made from their CAN logs; and the claims of one paper
-over vcan (the VM supplies it on hosts without CAN: the claims run there, the figures on the host) give
-the same verdicts and numbers as in direct mode. (Lockstep over vcan = direct bit for bit is checked
-frame by frame in tests/can; the whole set over vcan takes ~10 minutes here, this paper ~2.)"""
+next to the report), each claim links its own runs, whose figures are made from the trace each run decoded
+(once: the log is not decoded again); and the claims of one paper over vcan (the VM supplies it on hosts
+without CAN: the claims run there, the figures on the host) give the same verdicts and numbers as in direct
+mode. (Lockstep over vcan = direct bit for bit is checked frame by frame in tests/can; the whole set over vcan
+takes ~10 minutes here, this paper ~2.)"""
 
 from __future__ import annotations
 
@@ -88,26 +89,26 @@ def test_a_papers_claims_over_vcan_are_those_of_direct_mode(report: Path, report
     log = (report_vcan / "reproduce.log").read_text()
     if not probe_af_can().af_can:  # the claims ran in the VM, their figures were made here
         assert "inside the VM" in log, log[-2000:]
-    for c in claims:  # the runs' figures made on the host from the logs the VM wrote
+    for c in claims:  # the runs' figures made on the host from the traces the VM's runs decoded
         for run in c["runs"]:
-            for f in ("bus.log", "summary.json", "run.rrd", "overview.png"):
+            for f in ("bus.log", "summary.json", "traces.npy", "run.rrd", "overview.png"):
                 assert (report_vcan / "runs" / run / f).exists(), (c["claim_id"], run, f)
 
 
-def test_each_claim_shows_its_own_runs_made_from_their_logs(report: Path) -> None:
-    """The runs' recordings and figures are made on the host from their CAN logs (wherever the
+def test_each_claim_shows_its_own_runs_made_from_their_traces(report: Path) -> None:
+    """The runs' recordings and figures are made on the host from the traces the runs decoded (wherever the
     claims ran), and each claim's section links its own runs only."""
     import re
 
     log = (report / "reproduce.log").read_text()
     assert "reproduce [1/" in log or "in the VM" in log, log[-2000:]
-    assert re.search(r"postprocess \[\d+/\d+\]", log), log[-2000:]
+    assert re.search(r"views \[\d+/\d+\]", log), log[-2000:]
     claims = json.loads((report / "report.json").read_text())["claims"]
     page = (report / "report.html").read_text()
     for c in claims:
         assert c["runs"], f"{c['claim_id']} has no run"
         for run in c["runs"]:
-            for f in ("bus.log", "summary.json", "run.rrd", "overview.png"):
+            for f in ("bus.log", "summary.json", "traces.npy", "run.rrd", "overview.png"):
                 assert (report / "runs" / run / f).exists(), (c["claim_id"], run, f)
         section = page.split(f"<section id='{c['claim_id']}'")[1].split("</section>")[0]
         linked = set(re.findall(r"runs/([^/']+)/", section))

@@ -2,10 +2,10 @@
 transfer on the bus, decoded with the EDS into the nodes' object-dictionary state.
 
 A run's log is self-describing this way: the PDO layout (the master reads and writes
-0x1800/0x1A00), the plant's parameters (read by SDO at configuration), every setting and
-reference step with the period it took effect, and the statuses read at the end are all
-SDO transfers on the bus. `bench run` and `bench replay` of its log derive the same
-summary from the same frames.
+0x1800/0x1A00, and a CiA 402 master its drive's 0x1400/0x1600), the plant's parameters (read by
+SDO at configuration), every setting and reference step with the period it took effect, and the
+statuses read at the end are all SDO transfers on the bus. `bench run` and `bench replay` of its
+log derive the same summary from the same frames.
 
 Hand-written because python `canopen` decodes SDO only as a client of a live node; it has
 no passive decoder for recorded traffic. Only expedited transfers are decoded (every
@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, field
+from pathlib import Path
 
+import canopen
 import numpy as np
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
@@ -54,9 +56,13 @@ class NodeState:
     node_id: int
     values: dict[tuple[int, int], float] = field(default_factory=dict)
     pending: tuple[int, int, int, int, bytes] | None = None  # (ccs, index, sub, command, data) of the open request
+    eds: Path | None = None  # the node's EDS when it is not the project's (a drive the bench did not build)
+    written: set[tuple[int, int]] = field(default_factory=set)  # entries a confirmed download set (or assumed)
 
     def __post_init__(self) -> None:
-        self.od = load_od(self.name, self.node_id)
+        self.od = (
+            load_od(self.name, self.node_id) if self.eds is None else canopen.import_od(str(self.eds), self.node_id)
+        )
         self.vars: dict[tuple[int, int], ODVariable] = {}
         for obj in self.od.values():
             subs = (
@@ -76,6 +82,12 @@ class NodeState:
         if v is None:
             return None
         return f"{v.parent.name}.{v.name}" if isinstance(v.parent, (ODRecord, ODArray)) else v.name
+
+    def assume(self, values: dict[tuple[int, int], float]) -> None:
+        """Entries as a master set them before the record began (a log whose configuration traffic is not in
+        it): as if downloaded by SDO; the transfers on the bus still change them."""
+        self.values.update(values)
+        self.written.update(values)
 
     def get(self, name: str, sub: str | None = None) -> float | None:
         obj = self.od[name]
@@ -116,16 +128,22 @@ class NodeState:
         if value is None:
             return None
         self.values[(index, sub)] = value
+        if kind == "w":
+            self.written.add((index, sub))
         return kind, index, sub, value
 
 
 class SdoLog:
     """The SDO traffic of a run, followed frame by frame (only SDO frames reach Python)."""
 
-    def __init__(self, plant_id: int, drive_id: int) -> None:
-        self.nodes = {plant_id: NodeState("plant", plant_id), drive_id: NodeState("drive", drive_id)}
-        self.plant = self.nodes[plant_id]
-        self.drive = self.nodes[drive_id]
+    def __init__(self, plant_id: int | None, drive_id: int, drive_eds: Path | None = None) -> None:
+        """plant_id None: no plant node on the bus (the CiA 402 profile: the bench is the master of a drive);
+        drive_eds: the drive's EDS when it is not the project's drive.eds."""
+        plant = None if plant_id is None else NodeState("plant", plant_id)
+        self.drive = NodeState("drive", drive_id, eds=drive_eds)
+        self._plant = plant
+        self.states = (self.drive,) if plant is None else (plant, self.drive)  # the nodes on the bus, plant first
+        self.nodes = {s.node_id: s for s in self.states}
         self.writes: list[SdoWrite] = []
         self.transfers = 0  # completed expedited transfers seen (0: a log without configuration traffic)
         self._req_ids = np.array([0x600 + i for i in self.nodes], dtype=np.uint16)
@@ -160,9 +178,30 @@ class SdoLog:
 
     # ------------------------------------------------------------------ what the state tells
     @property
+    def plant(self) -> NodeState:
+        if self._plant is None:
+            raise AttributeError("no plant node on this bus (the CiA 402 profile)")
+        return self._plant
+
+    @property
+    def plant_id(self) -> int | None:
+        return None if self._plant is None else self._plant.node_id
+
+    @property
+    def sync_node(self) -> NodeState:
+        """Whose SYNC settings the bus follows: the plant's (it produces SYNC), else the drive's (a CiA 402
+        master produces SYNC as the drive's 0x1005 and 0x1019 say)."""
+        return self.drive if self._plant is None else self._plant
+
+    @property
     def sync_cob_id(self) -> int:
-        v = self.plant.get("COB-ID SYNC message")
+        v = self.sync_node.values.get((0x1005, 0))  # COB-ID SYNC message
         return int(v or 0x80) & 0x7FF
+
+    @property
+    def sync_overflow(self) -> float | None:
+        """The SYNC counter's overflow value (0x1019; below 2: SYNC without a counter)."""
+        return self.sync_node.values.get((0x1019, 0))
 
     def changes(self, name: str, node: str = "drive") -> list[tuple[int, float]]:
         """(period, value) of every confirmed write of `name` ('Object.sub'), in bus order."""
