@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
@@ -107,12 +106,13 @@ def with_sections(raw: dict[str, Any], sections: dict[str, Any]) -> dict[str, An
 
 def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames: bool = False) -> Run:
     """Run a scenario given as a TOML-shaped dict on `bus` ('direct' or a CAN channel), in memory.
-    Under `bench reproduce` (RUN_ROOT set) the run's CAN log and summary are kept in RUN_ROOT/NAME;
-    `bench reproduce` makes its plots and Rerun recording from that log (bench/reproduce.py)."""
+    Under `bench reproduce` (RUN_ROOT set) the run's CAN log, decoded trace (traces.npy) and summary are kept in
+    RUN_ROOT/NAME (or `out`); `bench reproduce` makes its plots and Rerun recording from that trace
+    (bench/reproduce/views.py)."""
     import json
 
     from bench.run.record.canlog import CandumpWriter
-    from bench.run.sinks import FrameCollector
+    from bench.run.sinks import TRACES_FILE, FrameCollector, TraceFileSink
 
     if _TRACE is not None and "trace" not in raw:
         raw = {**raw, "trace": {f"pdo{n}": list(names) for n, names in _TRACE.items()}}
@@ -125,10 +125,12 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
             n += 1
         RUNS_USED.append(out.name)
     frame_sinks: list[Any] = []
+    sinks: list[Any] = []
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        sinks.append(TraceFileSink(out / TRACES_FILE))
         if bus == "direct":
-            frame_sinks.append(CandumpWriter(out / "bus.log", "direct", int(time.time() * 1e6)))
+            frame_sinks.append(CandumpWriter(out / "bus.log", "direct"))
     collector = FrameCollector() if keep_frames else None
     if collector is not None:
         frame_sinks.append(collector)
@@ -136,7 +138,7 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
     if out is None and bus != "direct":
         tmp = Path(tempfile.mkdtemp(prefix=f"claim-{sc.name}-"))
     try:
-        res = run_scenario(sc, RunOptions(bus=bus, out=out or tmp), frame_sinks=frame_sinks, keep_trace=True)
+        res = run_scenario(sc, RunOptions(bus=bus, out=out or tmp), sinks, frame_sinks, keep_trace=True)
     finally:
         for fs in frame_sinks:
             fs.close()

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.reproduce.report import PAPERS, publish, refusal, write_reports
-from bench.reproduce.views import kept_traces, make_views
+from bench.reproduce.views import make_views
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -53,15 +53,14 @@ def _load_functions(papers: list[str]) -> list[tuple[str, str, Any]]:
 def run_claim_function(fn: Any, bus: str, code: str, paper: str) -> list[dict[str, Any]]:
     """Run one claim function; its records, each with the runs whose figure shows it: the result's own
     `runs`, else the function's runs when it made one result only (several results without `runs`:
-    no figure rather than another claim's). The runs kept write their decoded trace (views.kept_traces)."""
+    no figure rather than another claim's). The runs kept write their decoded trace (claims.run_raw)."""
     from bench import claims
     from bench.claims import ClaimResult
 
     claims.RUNS_USED.clear()
     t0 = time.monotonic()
     try:
-        with kept_traces():
-            res = fn(bus)
+        res = fn(bus)
         recs = [r.to_dict() for r in (res if isinstance(res, list) else [res])]
     except Exception as exc:  # noqa: BLE001 - a claim that crashes is reported, not hidden
         traceback.print_exc()

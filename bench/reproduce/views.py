@@ -1,5 +1,5 @@
 """Each kept run's Rerun recording (run.rrd) and overview figure (overview.png), made from the trace the run
-decoded: its traces.npy, written by the run's own pipeline as it decodes (`kept_traces`). The CAN log is never
+decoded: its traces.npy, written by the run's own pipeline as it decodes (bench/claims run_raw). The CAN log is never
 decoded again; that a log replays to the run's trace is the tests' to check (tests/host/test_replay_truth.py).
 Wherever the claims ran (here, or in the VM over vcan), the views are made here from the run's folder."""
 
@@ -7,45 +7,11 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from bench.run import RunOptions, RunResult
-    from bench.run.sinks import Sink
-    from bench.scenario import Scenario
-
-
-@contextmanager
-def kept_traces() -> Iterator[None]:
-    """Inside, every claim run kept under bench.claims.RUN_ROOT also writes its decoded trace (traces.npy, the
-    run pipeline's TraceFileSink) into its folder. bench/claims has no way to give a run more sinks, so its
-    `run_scenario` is wrapped for the time being (restored on the way out)."""
-    from bench import claims
-    from bench.run.sinks import TRACES_FILE, TraceFileSink
-
-    inner = claims.run_scenario
-
-    def run_scenario(
-        sc: Scenario,
-        opts: RunOptions | None = None,
-        sinks: list[Sink] | None = None,
-        frame_sinks: list[Any] | None = None,
-        keep_trace: bool = False,
-        progress: Any = None,
-    ) -> RunResult:
-        out = opts.out if opts is not None else None
-        if out is not None and claims.RUN_ROOT is not None and out.parent == claims.RUN_ROOT:
-            sinks = [*(sinks or []), TraceFileSink(out / TRACES_FILE)]
-        return inner(sc, opts, sinks, frame_sinks, keep_trace, progress)
-
-    claims.run_scenario = run_scenario
-    try:
-        yield
-    finally:
-        claims.run_scenario = inner
+    pass
 
 
 def make_views(out: Path) -> int:

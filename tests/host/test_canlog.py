@@ -15,8 +15,8 @@ import can
 import numpy as np
 import pytest
 
-from bench.run.record import canlog
 from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.record import canlog
 from bench.run.record.canlog import LOG_FORMATS, CandumpWriter, export, read_frames
 
 LINE_RE = re.compile(rb"^\(\d{10}\.\d{6}\) vcan0 [0-9A-F]{3}#(?:[0-9A-F]{2}){0,8}$")

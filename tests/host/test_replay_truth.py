@@ -99,15 +99,13 @@ def test_a_claim_runs_log_replays_to_the_trace_it_decoded(tmp_path: Path) -> Non
     from bench import claims
     from bench.claims import run_raw
     from bench.claims.you2019 import base
-    from bench.reproduce.views import kept_traces
     from bench.run.pipeline import replay_log
 
     old = claims.RUN_ROOT
     claims.RUN_ROOT = tmp_path / "runs"
     claims.RUN_ROOT.mkdir()
     try:
-        with kept_traces():
-            run = run_raw(base("you2019-replay-truth"), "direct")
+        run = run_raw(base("you2019-replay-truth"), "direct")
     finally:
         claims.RUN_ROOT = old
         claims.RUNS_USED.clear()
