@@ -17,5 +17,12 @@ def emcy_names() -> dict[int, str]:
 
 
 def emcy_codes(*names: str) -> list[int]:
-    """The codes of these names (lower case, without prefix)."""
-    return [c for c, n in emcy_names().items() if n in names]
+    """The codes of these names (lower case, without prefix), in their order; a name no EDS declares is a KeyError
+    (a renamed [EmergencyCodes] key must not quietly turn a status off)."""
+    by_name = {n: c for c, n in emcy_names().items()}
+    missing = [n for n in names if n not in by_name]
+    if missing:
+        raise KeyError(
+            f"EMCY {', '.join(missing)}: no such name in the EDS files' [EmergencyCodes] ({', '.join(by_name)})"
+        )
+    return [by_name[n] for n in names]

@@ -96,7 +96,7 @@ def check_duplicate_measurement(bus: str, law: Law) -> FaultCheck:
     raw = base("fc-duplicate-measurement", law=law)
     f = {"kind": "duplicate", "frame": "plant.TPDO2", "at_period": p}
     clean, hit = _pair(raw, with_fault(raw, ["ok"], f), bus)
-    late = emcys(hit, 0xFF02, "drive")
+    late = emcys(hit, "meas_late", "drive")
     same = all(np.array_equal(hit.tr[c], clean.tr[c], equal_nan=True) for c in ("iq_A", "id_A", "vd_V", "vq_V"))
     return FaultCheck(
         "duplicate-measurement",
@@ -118,7 +118,7 @@ def check_reorder_measurement(bus: str, law: Law) -> FaultCheck:
     raw = base("fc-reorder-measurement", law=law)
     f = {"kind": "reorder", "frame": "plant.TPDO1", "at_period": p}
     clean, hit = _pair(raw, with_fault(raw, ["ok"], f), bus)
-    late = emcys(hit, 0xFF02, "drive")
+    late = emcys(hit, "meas_late", "drive")
     rec = recovered(hit, clean, p, 1.0)
     return FaultCheck(
         "reorder-measurement",
@@ -135,7 +135,7 @@ def check_drop_sync(bus: str, law: Law) -> FaultCheck:
     p = STEP_AT + 5
     raw = base("fc-drop-sync", law=law)
     clean, hit = _pair(raw, with_fault(raw, ["ok"], {"kind": "drop", "frame": "SYNC", "at_period": p}), bus)
-    late = emcys(hit, 0xFF02, "drive")
+    late = emcys(hit, "meas_late", "drive")
     same = all(np.array_equal(hit.tr[c], clean.tr[c], equal_nan=True) for c in ("iq_A", "vq_V"))
     return FaultCheck(
         "drop-sync",
@@ -153,7 +153,7 @@ def check_short_measurement(bus: str, law: Law) -> FaultCheck:
     raw = base("fc-short-measurement", law=law)
     f = {"kind": "corrupt", "frame": "plant.TPDO1", "at_period": p, "dlc": 4}
     clean, hit = _pair(raw, with_fault(raw, ["ok"], f), bus)
-    length = emcys(hit, 0x8210, "drive")
+    length = emcys(hit, "pdo_length", "drive")
     rec = recovered(hit, clean, p, 1.0)
     return FaultCheck(
         "short-measurement",
@@ -185,7 +185,7 @@ def check_non_finite_measurement(bus: str, law: Law) -> FaultCheck:
     p = int(clean.tr["period"][where[0]])
     f = {"kind": "corrupt", "frame": "plant.TPDO1", "at_period": p, "bit": 62}
     hit = _run(with_fault(raw, ["ok"], f), bus)  # the recorder (side a) sees the frame as the plant sent it
-    nf = emcys(hit, 0xFF05, "drive")
+    nf = emcys(hit, "non_finite", "drive")
     rejected = int(np.nanmax(hit.tr["Safe_state_non_finite_rejected"]))
     vq_ok = bool(np.all(np.isfinite(hit.tr["vq_V"][hit.tr["period"] >= p])))
     rec = recovered(hit, clean, p, 1.5)
@@ -205,7 +205,7 @@ def check_measurement_timeout(bus: str, law: Law) -> FaultCheck:
     raw = with_command_timeout(base("fc-meas-timeout", law=law))
     f = {"kind": "drop", "frame": "plant.TPDO2", "at_period": p, "periods": n}
     hit = _run(with_fault(raw, ["frames_lost"], f), bus)
-    safe = emcys(hit, 0xFF03, "drive")
+    safe = emcys(hit, "safe_meas_timeout", "drive")
     tr = hit.tr
     after = tr["period"] >= p + n
     reason = tr["Safe_state_reason"]
@@ -258,7 +258,7 @@ def check_heartbeat_loss(bus: str, law: Law) -> FaultCheck:
     hit = _run(with_fault(raw, ["ok"], f), bus)
     ts = hit.result.summary["Ts_s"]
     rep = hit.result.summary["faults"]["injected"][0]
-    safe = emcys(hit, 0xFF04, "drive")
+    safe = emcys(hit, "safe_heartbeat", "drive")
     first_drop = rep["first_period"]
     # the last heartbeat the drive heard went out one producer time before the first one dropped
     hb_s, consumer_s = 0.1, 1.0
@@ -292,8 +292,8 @@ def check_kill(bus: str, law: Law, node: str) -> FaultCheck:
     hit = _run(with_fault(raw, ["node_lost"], {"kind": "kill", "node": node, "at_period": p}), bus)
     s = hit.result.summary
     other = "drive" if node == "plant" else "plant"
-    lost = emcys(hit, 0x8130, other)
-    safe = emcys(hit, 0xFF04, "drive") if node == "plant" else []
+    lost = emcys(hit, "heartbeat", other)
+    safe = emcys(hit, "safe_heartbeat", "drive") if node == "plant" else []
     stopped = s["stopped"] or {}
     ok = s["status"] == "node_lost" and stopped.get("node") == node and bool(lost)
     if node == "plant":

@@ -8,9 +8,12 @@ from typing import Any
 import numpy as np
 
 from bench.claims import Run
+from bench.emcy import emcy_codes
 
 
-def emcys(run: Run, code: int, node: str | None = None) -> list[dict[str, Any]]:
+def emcys(run: Run, name: str, node: str | None = None) -> list[dict[str, Any]]:
+    """The run's EMCYs of this name (the EDS's [EmergencyCodes]: bench/emcy.py), from this node when given."""
+    (code,) = emcy_codes(name)
     return [e for e in run.result.summary["emcy"] if int(e["code"], 16) == code and (node is None or e["node"] == node)]
 
 

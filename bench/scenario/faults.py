@@ -267,8 +267,10 @@ def refuse_lockstep_stalls(
     `command_timeout_us(period)`: the value in effect at that period (the scenario's, its events')."""
     if timing != "lockstep" or "frames_lost" in expect:
         return
+    from bench.eds import default_node_id
+
     loop = loop_frames()
-    names = cob_ids(0x10, 0x20)
+    names = cob_ids(default_node_id("plant"), default_node_id("drive"))
     for f in faults:
         if command_timeout_us(f.at_period) > 0:
             continue

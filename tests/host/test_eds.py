@@ -335,3 +335,12 @@ def test_cia301_details(node: str) -> None:
     text = (EDS_DIR / f"{node}.eds").read_text()
     bad = [ln for ln in text.splitlines() if ln.startswith("Description=") and "=" in ln[len("Description=") :]]
     assert not bad, bad[:3]
+
+
+def test_an_emcy_name_no_eds_declares_is_refused() -> None:
+    """A renamed [EmergencyCodes] key must not quietly turn off what its code judges (the status law_fault)."""
+    from bench.emcy import emcy_codes
+
+    assert emcy_codes("safe_overrun", "heartbeat") == [0xFF07, 0x8130]
+    with pytest.raises(KeyError, match="safe_overrun_renamed"):
+        emcy_codes("heartbeat", "safe_overrun_renamed")

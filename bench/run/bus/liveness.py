@@ -28,10 +28,11 @@ from typing import Any
 
 import canopen
 
+from bench.emcy import emcy_codes
 from bench.run.bus.nodes import NodeProcess
 
-NMT_STATES = {0x00: "INITIALISING (boot-up)", 0x04: "STOPPED", 0x05: "OPERATIONAL", 0x7F: "PRE-OPERATIONAL"}
-EMCY_HEARTBEAT = 0x8130
+NMT_STATES = canopen.nmt.NMT_STATES  # a heartbeat's state byte -> its name (CiA 301)
+EMCY_HEARTBEAT = emcy_codes("heartbeat")[0]  # a node's heartbeat consumer lost its producer (common.ini)
 WATCH_S = 0.1  # how often the watcher thread judges
 # A watcher that wakes this much later than it asked was not running itself (a loaded machine, the VM's
 # vCPUs descheduled by the host: the whole guest stops, and its clock jumps when it runs again): the silence
