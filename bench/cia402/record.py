@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from canopen.profiles.p402 import State402
 
-from bench.cia402.layout import Layout, default_layout
+from bench.cia402.layout import Layout
 from bench.run.decode.decoder import Decoder
 from bench.run.decode.sdo_log import NodeState
 from bench.run.record.canlog import read_frames
@@ -28,11 +28,9 @@ from bench.run.record.sources import sorted_chunks
 from bench.signals import column_name
 
 __all__ = [
-    "Layout",
     "Trace",
     "decode",
     "decode_log",
-    "default_layout",
     "state_name",
     "states_passed",
     "tracking",

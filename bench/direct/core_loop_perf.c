@@ -4,7 +4,7 @@
  * Same timing as the lockstep loop (docs/ARCHITECTURE.md): the command computed
  * from sample k is actuated at SYNC k+1 and held over [k+1, k+2].
  *
- * Exported for bench/perf.py (ctypes): hil_core_loop_ns(periods) returns the
+ * Exported for bench/tools/perf/cores.py (ctypes): hil_core_loop_ns(periods) returns the
  * wall time per period in ns; hil_core_loop_iq_A() returns the plant's true iq at
  * the end of the last run (a sanity check that the loop really regulated).
  * Compiled into build/libhil.so (which links the plant and firmware cores).

@@ -6,7 +6,7 @@
  * same scenario decode to identical traces. Simulated time advances by Ts per SYNC.
  *
  * The Python side talks to the nodes as a CANopen master through hil_send/hil_recv
- * (bench/direct.py wraps them as a python-can bus, so `canopen` works unchanged).
+ * (bench/run/bus/direct.py wraps them as a python-can bus, so `canopen` works unchanged).
  */
 #include <stdint.h>
 #include <string.h>

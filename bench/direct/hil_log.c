@@ -4,7 +4,7 @@
  * can.Message (and a few str objects) per frame, ~10 µs to write and ~13 µs to read a frame,
  * ~90 µs a control period of ~8 frames: 18 s to write the log of 2e5 periods and as long to
  * read it back. Here (~0.1 µs a frame either way) a frame is a 24-byte hil_frame_t in a numpy
- * array (bench/run/canlog.py), formatted / parsed with hand-rolled decimal and hex (no
+ * array (bench/run/record/canlog.py), formatted / parsed with hand-rolled decimal and hex (no
  * printf/scanf per field or byte), and python-can's own readers stay the reference: the
  * tests round-trip every line written here through CanutilsLogReader.
  *
@@ -165,7 +165,7 @@ uint64_t hil_log_format(const hil_frame_t *f, uint32_t n, uint64_t t0_us, const 
 /* ------------------------------------------------------------------ parser */
 
 /* What hil_log_parse_counted saw in the lines it used (ctypes mirror: _LogCounts in
- * bench/run/canlog.py). */
+ * bench/run/record/canlog.py). */
 typedef struct {
     uint64_t lines;            /* lines used, each ended by '\n' */
     uint64_t skipped;          /* frames that are not an 11-bit data frame of <= 8 bytes */

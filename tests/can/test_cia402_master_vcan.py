@@ -110,7 +110,8 @@ def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
     assert proc.returncode == 130, (stdout, stderr)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["final_state"] == "SWITCH ON DISABLED"
-    from bench.cia402.record import decode_log, default_layout
+    from bench.cia402.layout import default_layout
+    from bench.cia402.record import decode_log
 
     trace = decode_log(out / "bus.log", default_layout(DRIVE_ID, CYCLE_MS / 1000))
     last = [s for s in trace.state if s]

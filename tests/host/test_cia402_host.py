@@ -14,8 +14,9 @@ import can
 import numpy as np
 import pytest
 
+from bench.cia402.layout import default_layout
 from bench.cia402.plan import Frames, PlanError, bus_load, choose_cycle, ignored_keys, per_mille, targets
-from bench.cia402.record import decode_log, default_layout, state_name, states_passed, tracking, write_csv
+from bench.cia402.record import decode_log, state_name, states_passed, tracking, write_csv
 from bench.paths import REPO
 from bench.scenario import load
 

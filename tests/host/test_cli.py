@@ -99,3 +99,19 @@ def test_docs_name_only_commands_that_exist() -> None:
                 if m.group(1) not in commands:
                     bad.append(f"{doc.name}: `{code}`")
     assert not bad, bad
+
+
+def test_the_readme_lists_every_exit_code() -> None:
+    """README's "Exit status" paragraph, the one hand-written copy (bench run --help is generated from EXIT_CODES):
+    every code of the table, and no other."""
+    import re
+
+    from bench.paths import REPO
+    from bench.run.command import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INTERRUPTED
+    from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+
+    text = (REPO / "README.md").read_text()
+    para = text[text.index("**Exit status**") :].split("\n\n")[0]
+    listed = {int(n) for n in re.findall(r"(?:^|[\s,;:(])(\d{1,3}) (?=[a-z])", para)}
+    codes = {*EXIT_CODES.values(), EXIT_EXPECTATION_NOT_MET, EXIT_FAILURE, EXIT_BAD_INPUT, EXIT_INTERRUPTED}
+    assert listed == codes

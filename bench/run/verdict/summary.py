@@ -13,6 +13,8 @@ Status (one word, and a distinct exit code for each bad one):
                EMCY 0x8130 from the other): the run stopped there, named the node, kept what it had
   interference a frame the loop did not send on one of its own identifiers (a second SYNC producer, a
                duplicate measurement or command): the nodes may have acted on it
+  law_fault    the drive refused its current law's command (non-finite or beyond Vmax_V) or, on a bare-metal
+               target, its step overran the period: EMCY safe_law_output / safe_overrun, its safe state
 A scenario may expect a bad status (scenario.expect); the run then passes when it gets it.
 """
 
