@@ -63,10 +63,12 @@ def _out(args: argparse.Namespace, sc: Scenario) -> Path:
 
 def validate(args: argparse.Namespace) -> tuple[Scenario, float, float, list[Segment], Path, Path]:
     """Everything checked before the drive is touched; ScenarioError/PlanError = exit 2."""
+    from bench.cia402.master import BENCH_ID
+
     if not 1 <= args.drive_id <= 127:
         raise PlanError(f"--drive-id = {args.drive_id}: a node-ID is 1 .. 127")
-    if args.drive_id == 0x7F:
-        raise PlanError("--drive-id 0x7F is the bench's own heartbeat node-ID")
+    if args.drive_id == BENCH_ID:
+        raise PlanError(f"--drive-id 0x{BENCH_ID:02X} is the bench's own heartbeat node-ID")
     if args.bus == "direct":
         raise PlanError("--drive-profile cia402 needs a CAN bus (--bus vcan0, can0, ...)")
     lockstep_only = {

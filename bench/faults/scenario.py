@@ -29,7 +29,7 @@ def base(name: str, periods: int = 120, law: Law = (), **over: Any) -> dict[str,
     raw: dict[str, Any] = {
         "scenario": {"name": name, "periods": periods, "expect": ["ok"]},
         "motor": {"preset": "you2019", "mech_mode": "locked"},
-        "drive": {"t_dead_s": 0.0, "encoder_lines": 0, "command_timeout_us": 0},
+        "drive": {"preset": "ideal", "command_timeout_us": 0},
         "controller": {"controller": "deadbeat_you2019", "Vmax_V": 139.0},
         "events": [{"at_period": STEP_AT, "references": {"iq_ref_A": 1.0}}],
         "trace": copy.deepcopy(TRACE),
