@@ -1,8 +1,8 @@
 """The EDS files, read with `canopen` (the single source of truth of the CANopen contract).
 
-What `canopen` does not read (REAL32 LowLimit/HighLimit, ValueNames, the EMCY codes of [EmergencyCodes], the
-shared protocols/eds/common.ini) is read by protocols/eds_reader.py, the one EDS reader of the bench and of
-protocols/gen_od.py (which generates the C from the same files through it).
+What `canopen` does not read (REAL32 LowLimit/HighLimit, ValueNames, BitNames, the EMCY codes of
+[EmergencyCodes], the shared protocols/eds/common.ini) is read by protocols/eds_reader.py, the one EDS reader of
+the bench and of protocols/gen_od.py (which generates the C from the same files through it).
 """
 
 from __future__ import annotations
@@ -95,6 +95,15 @@ def value_names(path: Path, var: ODVariable) -> tuple[str, ...]:
 def enum(node: str, obj: str, name: str) -> dict[str, int]:
     """Value of each name of an enumerated entry, e.g. enum("drive", "Controller", "controller")."""
     return {n: i for i, n in enumerate(value_names(eds_path(node), load(node)[obj][name]))}
+
+
+def bits(node: str, obj: str, name: str) -> dict[str, int]:
+    """Mask of each named bit of a bit-field entry (key BitNames of its EDS section, bit 0 first; gen_od.py writes
+    the same masks as the C's <NODE>_<ENTRY>_<BIT>), e.g. bits("plant", "Measurement", "status") ==
+    {"trip": 0x01, "holding": 0x02, "missed": 0x04, "held": 0x08}; {} for an entry without BitNames."""
+    path = eds_path(node)
+    names = reader.bit_names(_raw(str(path)), load(node)[obj][name], str(path))
+    return {n: 1 << bit for bit, n in enumerate(names) if n}
 
 
 def _cached(what: str, node: str, build: Callable[[], T]) -> T:

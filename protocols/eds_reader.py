@@ -2,9 +2,16 @@
 them through this module.
 
 `canopen` reads the objects (:func:`import_od`). What it ignores is read here from the same files as INI text
-(:func:`parse`): the LowLimit/HighLimit of a REAL32 entry, the ValueNames of an enumerated entry, a node's
-manufacturer EMCY codes (its [EmergencyCodes] section) and the shared file protocols/eds/common.ini (what both
-nodes share and neither node's EDS holds: the CANopen stack's own EMCY codes, the fault injector's table size).
+(:func:`parse`): the LowLimit/HighLimit of a REAL32 entry, the ValueNames of an enumerated entry, the BitNames
+of a bit-field entry, a node's manufacturer EMCY codes (its [EmergencyCodes] section) and the shared file
+protocols/eds/common.ini (what both nodes share and neither node's EDS holds: the CANopen stack's own EMCY codes,
+the fault injector's table size).
+
+A bit-field entry (an UNSIGNED8/16/32 whose bits are flags, e.g. plant.eds 0x2100:05 Measurement.status) names its
+bits in its section as an enumerated entry names its values: ``BitNames=trip,holding,missed,held`` names bit 0, 1,
+2, 3 (ValueNames=a,b names the values 0, 1); an empty name leaves a bit unnamed (``BitNames=a,,c``). Each name is a
+lower-case C identifier. gen_od.py writes ``#define <NODE>_<ENTRY>_<NAME> 0x<mask>u`` (PLANT_STATUS_HELD 0x08u) into
+od_<node>_fields.h; the bench reads the masks with bench.eds.bits.
 
 An [EmergencyCodes] section (not a CiA 306 section: EDS readers skip it) holds one line per code,
 ``<name>=<code> [description]``: a lower-case C identifier, four hex digits, a few words. gen_od.py writes it as
@@ -24,12 +31,12 @@ from pathlib import Path
 from typing import NamedTuple
 
 import canopen
-from canopen.objectdictionary import ODArray, ODRecord, ODVariable
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 
 COMMON = "common.ini"  # beside the EDS files: what both nodes share (see the module's docstring)
 EMCY_SECTION = "EmergencyCodes"
 FAULT_SECTION = "FaultInjector"  # in common.ini: the injector's fixed sizes (protocols/faults/fault_injector.h)
-EMCY_NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
+C_NAME = re.compile(r"[a-z][a-z0-9_]*\Z")  # a lower-case C identifier: an EMCY code's name, a bit's name
 EMCY_VALUE = re.compile(r"0x([0-9A-Fa-f]{4})(?:\s+(.*))?\Z")
 FAULT_KEY = re.compile(r"[A-Z][A-Za-z0-9]*\Z")
 
@@ -87,6 +94,29 @@ def value_names(raw: configparser.ConfigParser, var: ODVariable) -> tuple[str, .
     return tuple(n.strip() for n in raw.get(sec, "ValueNames").split(","))
 
 
+BIT_WIDTH = {datatypes.UNSIGNED8: 8, datatypes.UNSIGNED16: 16, datatypes.UNSIGNED32: 32}
+
+
+def bit_names(raw: configparser.ConfigParser, var: ODVariable, where: str = "") -> tuple[str, ...]:
+    """The names of a bit-field entry's bits 0, 1, ... (key BitNames of its section: the C #defines of the masks,
+    the bench's names), "" for a bit left unnamed; () for an entry without the key. Refused (`where` names the file):
+    a name that is no lower-case C identifier or is given twice, more names than the entry has bits, an entry that is
+    not UNSIGNED8/16/32 or that has ValueNames too."""
+    sec = section_of(var)
+    if not raw.has_option(sec, "BitNames"):
+        return ()
+    names = tuple(n.strip() for n in raw.get(sec, "BitNames").split(","))
+    named = [n for n in names if n]
+    what = f"{where} [{sec}] {var.name}: BitNames={raw.get(sec, 'BitNames')}"
+    if var.data_type not in BIT_WIDTH or raw.has_option(sec, "ValueNames"):
+        raise EdsError(f"{what}: only an UNSIGNED8/16/32 entry without ValueNames has named bits")
+    if not named or not all(C_NAME.match(n) for n in named) or len(set(named)) != len(named):
+        raise EdsError(f"{what}: want distinct lower-case C identifiers, bit 0 first (an empty name: a bit unnamed)")
+    if len(names) > BIT_WIDTH[var.data_type]:
+        raise EdsError(f"{what}: {len(names)} bits, the entry has {BIT_WIDTH[var.data_type]}")
+    return names
+
+
 def default_node_id(raw: configparser.ConfigParser) -> int:
     """[DeviceComissioning] NodeID (the C nodes' OD_<NODE>_DEFAULT_NODE_ID comes from the same key)."""
     return int(raw.get("DeviceComissioning", "NodeID"), 0)
@@ -127,7 +157,7 @@ def emcy_codes(raw: configparser.ConfigParser, where: str) -> tuple[EmcyCode, ..
     out: list[EmcyCode] = []
     for name, value in raw.items(EMCY_SECTION):
         m = EMCY_VALUE.match(value.strip())
-        if not EMCY_NAME.match(name) or m is None:
+        if not C_NAME.match(name) or m is None:
             raise EdsError(
                 f"{where} [{EMCY_SECTION}] {name}={value}: want <name>=0x<four hex digits> [description], "
                 "the name a lower-case C identifier"

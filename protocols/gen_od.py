@@ -20,8 +20,11 @@ The EMCY codes come from the EDS too: a node's own from its [EmergencyCodes] sec
 shared protocols/eds/common.ini, with the fault injector's table size
 (`CO_EMCY_<NAME>`, `FI_MAX_RULES`: protocols/generated/eds_common.h).
 
+So do the masks of a bit-field entry's bits, named by the key BitNames of its section
+(`#define <NODE>_<ENTRY>_<BIT>` in od_<node>_fields.h: PLANT_STATUS_* of Measurement.status).
+
 The EDS files are read through protocols/eds_reader.py, the bench's reader too (what
-`canopen` ignores: REAL32 limits, ValueNames, EMCY codes). The generator stands on its own
+`canopen` ignores: REAL32 limits, ValueNames, BitNames, EMCY codes). The generator stands on its own
 (python with `canopen`, nothing of the bench): firmware builds can run it anywhere.
 """
 
@@ -163,7 +166,8 @@ def load(
             area.append(f"{rtype} {oname};")
             if index >= 0x2000:
                 field_lists.append(_field_list(macro_base, obj, oname, subs))
-    return od, entries, record_types, comm_fields, mfr_fields, [], defines + field_lists + _enums(node, od, raw)
+    extras = _enums(node, od, raw) + _bits(node, od, raw, f"{node}.eds")  # enumerations, named bits
+    return od, entries, record_types, comm_fields, mfr_fields, [], defines + field_lists + extras
 
 
 def _field_list(macro_base: str, obj: ODRecord | ODArray, oname: str, subs: list[ODVariable]) -> str:
@@ -213,6 +217,22 @@ def _enums(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigPars
                 base = f"OD_{node.upper()}_{c_ident(var.name).upper()}"
                 rows = ",\n".join(f"    {base}_{n.upper()} = {i}" for i, n in enumerate(names))
                 out.append(f"/* 0x{var.index:04X}:{var.subindex:02X} {obj.name}.{var.name} */\nenum {{\n{rows}\n}};\n")
+    return out
+
+
+def _bits(node: str, od: canopen.ObjectDictionary, raw: configparser.ConfigParser, source: str) -> list[str]:
+    """`#define <NODE>_<ENTRY>_<NAME> 0x<mask>u` of each named bit of a bit-field entry (key BitNames of its section:
+    protocols/eds_reader.py), e.g. PLANT_STATUS_HELD 0x08u of plant.eds 0x2100:05 Measurement.status."""
+    out = []
+    for obj in od.values():
+        for var in [obj] if isinstance(obj, ODVariable) else obj.values():
+            names = eds_reader.bit_names(raw, var, source)
+            if names:
+                base = f"{node.upper()}_{c_ident(var.name).upper()}"
+                digits = eds_reader.BIT_WIDTH[var.data_type] // 4
+                rows = [f"#define {base}_{n.upper()} 0x{1 << bit:0{digits}X}u" for bit, n in enumerate(names) if n]
+                head = f"/* 0x{var.index:04X}:{var.subindex:02X} {obj.name}.{var.name} bits (BitNames of {source}) */"
+                out.append("\n".join([head, *rows, ""]))
     return out
 
 
@@ -347,8 +367,8 @@ def render(node: str, eds_dir: Path | None = None) -> dict[str, str]:
     f: list[str] = [
         f"/* od_{node}_fields.h - {src_note}",
         " * Plain C, no CANopen: the cores include it for the names, defaults and enumerations",
-        " * of the EDS (one source), the node app for its copy tables (co_field_map.h) and the",
-        f" * node's own EMCY codes ({up}_EMCY_*). */",
+        " * of the EDS (one source), the node app for its copy tables (co_field_map.h), the bits",
+        f" * of its bit-field entries (BitNames) and the node's own EMCY codes ({up}_EMCY_*). */",
         f"#ifndef OD_{up}_FIELDS_H",
         f"#define OD_{up}_FIELDS_H",
         "",

@@ -8,7 +8,10 @@ from typing import Any
 import numpy as np
 
 from bench.claims import Run
+from bench.eds import bits
 from bench.emcy import emcy_codes
+
+HELD = bits("plant", "Measurement", "status")["held"]  # no command frame since the previous SYNC (plant.eds)
 
 
 def emcys(run: Run, name: str, node: str | None = None) -> list[dict[str, Any]]:
@@ -25,7 +28,7 @@ def at(events: list[dict[str, Any]], p: int) -> bool:
 
 def held(run: Run) -> list[int]:
     st = np.nan_to_num(run.tr["status"]).astype(np.int64)
-    return run.tr["period"][(st & 8) != 0].astype(int).tolist()
+    return run.tr["period"][(st & HELD) != 0].astype(int).tolist()
 
 
 def deviation_after(a: Run, b: Run, col: str, start: int) -> float:

@@ -13,9 +13,7 @@
 
 #include "drive_app.h"
 #include "od_drive.h"
-
-/* plant.eds 0x2100:05 status, bit 1: run_periods reached 0 at this sample, the plant holds */
-#define PLANT_STATUS_HOLDING_BIT 0x02u
+#include "od_plant_fields.h" /* PLANT_STATUS_HOLDING: plant.eds 0x2100:05 BitNames (the plant holds at this sample) */
 
 static inline od_drive_mfr_t *mfr_of(const co_node_t *node) { return &((od_drive_ram_t *)node->od->ram)->mfr; }
 

@@ -89,7 +89,7 @@ void drive_app_on_measurement(drive_app_t *app, co_node_t *node)
     app->n_pending = 0u;
     /* the measurement timeout is armed by a measurement, and disarmed by one whose status says the plant
      * holds (plant.eds 0x2100:05 bit 1, end of a run segment): SYNCs after that are not the plant's */
-    app->meas_seen = (m->x2100_Measurement.status & PLANT_STATUS_HOLDING_BIT) ? 0u : 1u;
+    app->meas_seen = (m->x2100_Measurement.status & PLANT_STATUS_HOLDING) ? 0u : 1u;
     app->syncs_without_meas = 0u;
 
     if (!app->rpdo1_fresh) drive_app_count_late(app, DRIVE_LATE_RPDO2_WITHOUT_RPDO1, si, sc);

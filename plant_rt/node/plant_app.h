@@ -46,14 +46,11 @@
 #include <stdint.h>
 
 #include "co_node.h"
-#include "od_plant_fields.h" /* the plant's EMCY codes PLANT_EMCY_* ([EmergencyCodes] of plant.eds) */
+/* od_plant_fields.h: the plant's EMCY codes PLANT_EMCY_* ([EmergencyCodes] of plant.eds) and the bits of
+ * 0x2100:05 Measurement.status, PLANT_STATUS_TRIP, _HOLDING, _MISSED, _HELD (its BitNames in plant.eds;
+ * what each means: its Description there). */
+#include "od_plant_fields.h"
 #include "pmsm_plant.h"
-
-/* Bits of 0x2100:05 status. */
-#define PLANT_STATUS_TRIP 0x01u    /* over-current trip latched */
-#define PLANT_STATUS_HOLDING 0x02u /* run_periods reached 0 at this sample: the plant holds */
-#define PLANT_STATUS_MISSED 0x04u  /* the period before this sample ended without its command */
-#define PLANT_STATUS_HELD 0x08u    /* no command frame came since the previous SYNC: the one before is held */
 
 /* Real-time arrival histogram (0x2006): bin i counts commands whose arrival
  * minus the next SYNC deadline is in [i*10 - 160, i*10 - 150) us; bin 0 also

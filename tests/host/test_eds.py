@@ -344,3 +344,113 @@ def test_an_emcy_name_no_eds_declares_is_refused() -> None:
     assert emcy_codes("safe_overrun", "heartbeat") == [0xFF07, 0x8130]
     with pytest.raises(KeyError, match="safe_overrun_renamed"):
         emcy_codes("heartbeat", "safe_overrun_renamed")
+
+
+# ------------------------------------------------------------------ named bits (BitNames): Measurement.status
+STATUS = ("plant", "Measurement", "status")  # plant.eds 0x2100:05, BitNames=trip,holding,missed,held
+BIT_DEFINE = re.compile(r"^\s*#\s*define\s+(PLANT_STATUS_\w+)\s+0x([0-9A-Fa-f]+)u?\b", re.M)
+
+
+def bit_mismatches(header: str, masks: dict[str, int]) -> list[str]:
+    """A generated header's PLANT_STATUS_* #defines against the EDS's masks: one missing, one extra, one different."""
+    defined = {m: int(v, 16) for m, v in BIT_DEFINE.findall(header)}
+    want = {f"PLANT_STATUS_{n.upper()}": m for n, m in masks.items()}
+    return sorted(
+        f"{k}: C {defined.get(k)}, EDS {want.get(k)}"
+        for k in defined.keys() | want.keys()
+        if defined.get(k) != want.get(k)
+    )
+
+
+def python_mask_mismatches(masks: dict[str, int]) -> list[str]:
+    """The masks of Measurement.status the bench's Python uses, each against the EDS's mask of its bit."""
+    from bench.faults import measure
+    from bench.run.decode import rows
+    from bench.run.verdict import faults, watch
+
+    used = {
+        "rows.PLANT_STATUS_MISSED": (rows.PLANT_STATUS_MISSED, "missed"),
+        "StatusWatch.BITS['tripped']": (faults.StatusWatch.BITS["tripped"], "trip"),
+        "StatusWatch.BITS['missed']": (faults.StatusWatch.BITS["missed"], "missed"),
+        "StatusWatch.BITS['held']": (faults.StatusWatch.BITS["held"], "held"),
+        "measure.HELD": (measure.HELD, "held"),
+        "watch.STATUS_TRIP": (watch.STATUS_TRIP, "trip"),
+    }
+    return [f"{k} = {v:#x}, EDS {bit} = {masks.get(bit)}" for k, (v, bit) in used.items() if masks.get(bit) != v]
+
+
+def test_status_bits_are_the_eds_ones(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Measurement.status's bits are named once, by BitNames in plant.eds: the generated PLANT_STATUS_* the C sees
+    through plant_app.h, and the masks of the bench's Python (bench.eds.bits), equal the EDS's; none is written by
+    hand."""
+    from bench.eds import bits
+    from bench.run.decode import rows
+
+    masks = bits(*STATUS)
+    assert {"trip", "holding", "missed", "held"} <= masks.keys()
+    assert all(m and m & (m - 1) == 0 for m in masks.values()) and len(set(masks.values())) == len(masks)
+    header = (REPO / "protocols" / "generated" / "od_plant_fields.h").read_text()
+    assert bit_mismatches(header, masks) == []
+    checks = {f"PLANT_STATUS_{n.upper()}": m for n, m in masks.items()}
+    res = _static_asserts(tmp_path, "plant_app.h", checks)
+    assert res.returncode == 0, res.stderr
+    hand = [
+        f"{p.relative_to(REPO)}: #define {m}"
+        for p in _hand_written_c()
+        for m, _ in BIT_DEFINE.findall(_code(p.read_text()))
+        if m in checks
+    ]
+    assert hand == []  # no second place in C
+    assert python_mask_mismatches(masks) == []
+    for module in ("run/decode/rows.py", "run/verdict/faults.py", "faults/measure.py", "run/verdict/watch.py"):
+        assert 'bits("plant", "Measurement", "status")' in (REPO / "bench" / module).read_text(), module
+    # the checks bite: a generated value that is not the EDS's, a bit missing, the C and the Python disagreeing
+    assert bit_mismatches(header, {**masks, "held": 0x100}) == [f"PLANT_STATUS_HELD: C {masks['held']}, EDS 256"]
+    assert bit_mismatches(header, {**masks, "lost": 0x100}) == ["PLANT_STATUS_LOST: C None, EDS 256"]
+    assert _static_asserts(tmp_path, "plant_app.h", {**checks, "PLANT_STATUS_MISSED": 0x100}).returncode != 0
+    monkeypatch.setattr(rows, "PLANT_STATUS_MISSED", 0x100)
+    assert python_mask_mismatches(masks) == [f"rows.PLANT_STATUS_MISSED = 0x100, EDS missed = {masks['missed']}"]
+
+
+def _plant_eds_with(tmp_path: Path, section: str, keys: str) -> Path:
+    """plant.eds in tmp_path/eds with `keys` (lines) added to `section` (BitNames=... of 2100sub5 replaced)."""
+    text = re.sub(r"^BitNames=.*\n", "", (EDS_DIR / "plant.eds").read_text(), flags=re.M)
+    head = f"[{section}]\n"
+    assert head in text
+    d = tmp_path / "eds"
+    d.mkdir(exist_ok=True)
+    (d / "plant.eds").write_text(text.replace(head, head + keys + "\n", 1))
+    return d
+
+
+def test_the_generator_writes_the_bits_the_eds_names(tmp_path: Path) -> None:
+    """Another BitNames gives other #defines: the C comes from the EDS (an unnamed bit, a fifth one)."""
+    import bench.eds
+
+    d = _plant_eds_with(tmp_path, "2100sub5", "BitNames=trip,,missed,held,lost")
+    header = _gen_od().render("plant", d)["od_plant_fields.h"]
+    var = bench.eds.load("plant")["Measurement"]["status"]
+    names = bench.eds.reader.bit_names(bench.eds.reader.parse(d / "plant.eds"), var)
+    assert names == ("trip", "", "missed", "held", "lost")
+    masks = {n: 1 << i for i, n in enumerate(names) if n}
+    assert bit_mismatches(header, masks) == []
+    assert "#define PLANT_STATUS_LOST 0x10u" in header and "PLANT_STATUS_HOLDING" not in header
+    assert bit_mismatches(header, bench.eds.bits(*STATUS)) != []  # not the repository's
+
+
+@pytest.mark.parametrize(
+    ("section", "keys", "says"),
+    [
+        ("2100sub5", "BitNames=trip,Holding", "lower-case C identifiers"),
+        ("2100sub5", "BitNames=trip,trip", "lower-case C identifiers"),
+        ("2100sub5", "BitNames=,", "lower-case C identifiers"),
+        ("2100sub5", "BitNames=" + ",".join(f"b{i}" for i in range(9)), "9 bits, the entry has 8"),
+        ("2100sub5", "BitNames=trip\nValueNames=a,b", "without ValueNames"),
+        ("2100sub1", "BitNames=trip", "only an UNSIGNED8/16/32 entry"),  # i_a_A, a REAL32
+    ],
+)
+def test_the_reader_refuses_bits_named_badly(tmp_path: Path, section: str, keys: str, says: str) -> None:
+    d = _plant_eds_with(tmp_path, section, keys)
+    gen = _gen_od()
+    with pytest.raises(gen.EdsError, match=re.escape(says)):
+        gen.render("plant", d)

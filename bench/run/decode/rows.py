@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.eds import bits
 from bench.run.decode.counts import DecodeStats, PdoStats
 from bench.run.decode.layout import BusLayout, PdoLayout
 from bench.run.decode.sdo_log import SdoLog
@@ -23,7 +24,8 @@ from bench.signals import column_name
 
 SQRT3 = math.sqrt(3.0)
 REFERENCES = ("iq_ref_A", "id_ref_A")
-PLANT_STATUS_MISSED = 0x04  # Measurement.status: the period before this sample ended without its command
+# Measurement.status: the period before this sample ended without its command (plant.eds BitNames)
+PLANT_STATUS_MISSED = bits("plant", "Measurement", "status")["missed"]
 
 
 @dataclass

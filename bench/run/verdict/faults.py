@@ -1,24 +1,26 @@
 """What was injected and how the nodes reacted, with their periods: summary.json "faults".
 
 Sources, each read once: the injector's own log (every action, its period and rule), the EMCYs the
-decoder found on the bus, and the plant's status bits in the trace (bit 3 held: no command since the
-previous SYNC; bit 2 missed; bit 0 trip). EMCY codes are named by bench/emcy.py."""
+decoder found on the bus, and the plant's status bits in the trace (held: no command since the previous SYNC;
+missed; trip: the BitNames of plant.eds's Measurement.status). EMCY codes are named by bench/emcy.py."""
 
 from __future__ import annotations
 
 from typing import Any
 
+from bench.eds import bits
 from bench.emcy import emcy_names
 from bench.run.bus.gateway import KINDS
 from bench.scenario.faults import Fault
 
 MAX_LISTED = 200  # reactions listed one by one (all are counted)
+STATUS = bits("plant", "Measurement", "status")  # the masks of Measurement.status's bits (plant.eds BitNames)
 
 
 class StatusWatch:
     """The plant's status bits per period, as the trace chunks pass (only the periods that have one)."""
 
-    BITS = {"tripped": 1, "missed": 4, "held": 8}
+    BITS = {"tripped": STATUS["trip"], "missed": STATUS["missed"], "held": STATUS["held"]}  # summary's key: mask
 
     def __init__(self) -> None:
         self.periods: dict[str, list[int]] = {k: [] for k in self.BITS}

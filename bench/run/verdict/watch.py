@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.eds import bits
 from bench.emcy import emcy_codes
 from bench.run.decode.decoder import Decoder
 from bench.run.verdict.faults import StatusWatch
@@ -16,6 +17,8 @@ from bench.run.verdict.summary import divergence_bound_A, plant_values, verdict
 # The drive's EMCYs of a safe state its current law caused (status law_fault): its command non-finite or
 # beyond Vmax_V (0xFF06), a step longer than the period on a bare-metal target (0xFF07).
 LAW_FAULT_EMCY = frozenset(emcy_codes("safe_law_output", "safe_overrun"))
+# The plant's inverter trip latched (Measurement.status, plant.eds BitNames)
+STATUS_TRIP = bits("plant", "Measurement", "status")["trip"]
 
 
 class LoopWatch:
@@ -42,7 +45,7 @@ class LoopWatch:
             self.status.add(chunk["period"], chunk["status"])
         if self.first_trip_period is None and "status" in chunk:
             st = chunk["status"]
-            hit = np.nonzero(np.isfinite(st) & (np.nan_to_num(st).astype(np.int64) & 1 == 1))[0]
+            hit = np.nonzero(np.isfinite(st) & ((np.nan_to_num(st).astype(np.int64) & STATUS_TRIP) != 0))[0]
             if len(hit):
                 self.first_trip_period = int(chunk["period"][hit[0]])
 
