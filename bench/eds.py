@@ -59,14 +59,15 @@ def section_of(var: ODVariable) -> str:
 
 
 @cache
-def _raw(path: str) -> configparser.ConfigParser:
+def raw_eds(path: str) -> configparser.ConfigParser:
+    """An EDS file as INI text (the keys canopen does not read: ValueNames, BitNames, CurrentLaws ...), read once."""
     return reader.parse(path)  # type: ignore[no-any-return]
 
 
 def default_node_id(node: str) -> int:
     """A node's default node-ID: its EDS's [DeviceComissioning] NodeID (plant 0x10, drive 0x20; the C nodes'
     OD_<NODE>_DEFAULT_NODE_ID is generated from the same key)."""
-    return reader.default_node_id(_raw(str(eds_path(node))))  # type: ignore[no-any-return]
+    return reader.default_node_id(raw_eds(str(eds_path(node))))  # type: ignore[no-any-return]
 
 
 def add_node_id_arguments(p: Any) -> None:
@@ -83,13 +84,13 @@ def add_node_id_arguments(p: Any) -> None:
 
 def float_limits(path: Path, var: ODVariable) -> tuple[float | None, float | None]:
     """LowLimit/HighLimit of a REAL32 entry (`canopen` parses only the integer ones)."""
-    return reader.float_limits(_raw(str(path)), var)  # type: ignore[no-any-return]
+    return reader.float_limits(raw_eds(str(path)), var)  # type: ignore[no-any-return]
 
 
 def value_names(path: Path, var: ODVariable) -> tuple[str, ...]:
     """Names of an enumerated entry's values 0, 1, ... (key ValueNames of its EDS section, also read by
     protocols/gen_od.py for the C enumerations); () for a plain number."""
-    return reader.value_names(_raw(str(path)), var)  # type: ignore[no-any-return]
+    return reader.value_names(raw_eds(str(path)), var)  # type: ignore[no-any-return]
 
 
 def enum(node: str, obj: str, name: str) -> dict[str, int]:
@@ -102,7 +103,7 @@ def bits(node: str, obj: str, name: str) -> dict[str, int]:
     the same masks as the C's <NODE>_<ENTRY>_<BIT>), e.g. bits("plant", "Measurement", "status") ==
     {"trip": 0x01, "holding": 0x02, "missed": 0x04, "held": 0x08}; {} for an entry without BitNames."""
     path = eds_path(node)
-    names = reader.bit_names(_raw(str(path)), load(node)[obj][name], str(path))
+    names = reader.bit_names(raw_eds(str(path)), load(node)[obj][name], str(path))
     return {n: 1 << bit for bit, n in enumerate(names) if n}
 
 
@@ -144,7 +145,7 @@ def fault_injector_size(key: str) -> int:
     """A fixed size of the fault injector from [FaultInjector] of common.ini (MaxRules: its rule table,
     FI_MAX_RULES in the C, generated from the same key)."""
     path = common_path()
-    return reader.fault_injector(_raw(str(path)), str(path))[key]  # type: ignore[no-any-return]
+    return reader.fault_injector(raw_eds(str(path)), str(path))[key]  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import ODRecord, ODVariable, datatypes
 
-from bench.eds import _raw, eds_path, load, section_of, value_names
+from bench.eds import eds_path, load, raw_eds, section_of, value_names
 
 LAW_ENTRY = ("Controller", "controller")
 # The drive's own view, traced for a law without a record: its measured currents, the iq reference in
@@ -88,7 +88,7 @@ def law_names(path: Path | None = None) -> tuple[str, ...]:
 
 def law_records(path: Path | None = None) -> tuple[str, ...]:
     """The laws' records by object name, in index order (their parameters are a scenario's [controller] keys)."""
-    raw = _raw(str(_path(path)))
+    raw = raw_eds(str(_path(path)))
     od = _od(path)
     return tuple(
         od[i].name
@@ -98,7 +98,7 @@ def law_records(path: Path | None = None) -> tuple[str, ...]:
 
 
 def _record_of(law: str, path: Path | None) -> ODRecord | None:
-    raw = _raw(str(_path(path)))
+    raw = raw_eds(str(_path(path)))
     for obj in _od(path).values():
         sec = f"{obj.index:04X}"
         if isinstance(obj, ODRecord) and raw.has_option(sec, "CurrentLaws"):
@@ -140,7 +140,7 @@ def _law_info(law: str, path: Path | None) -> LawInfo:
     rec = _record_of(law, path)
     if rec is None:
         return LawInfo(law, None, None, (), dict(DRIVE_VIEW))
-    raw = _raw(str(_path(path)))
+    raw = raw_eds(str(_path(path)))
     sec = f"{rec.index:04X}"
     given = _key(raw, sec, "Results", law)
     results = _names(given) if given is not None else tuple(v.name for v in _status(rec))
