@@ -12,12 +12,14 @@ CC      ?= gcc
 LAW     ?=
 PYTHON  ?= $(if $(wildcard .venv/bin/python),.venv/bin/python,python3)
 OPT     ?= -O2 -g
+# -ffile-prefix-map=<source folder>=. for a build that keeps no path of its machine (setup.py: a package).
+PATHMAP ?=
 WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wdouble-promotion
 CSTD    := -std=c11
 # Portable cores: no OS headers, float32-clean in the firmware.
-CFLAGS_CORE := $(CSTD) $(OPT) $(WARN) -fPIC
+CFLAGS_CORE := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -fPIC
 CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
-CFLAGS_HOST := $(CSTD) $(OPT) $(WARN) -D_GNU_SOURCE -fPIC
+CFLAGS_HOST := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -D_GNU_SOURCE -fPIC
 INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
        -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Iprotocols/faults -Itests/c
 
@@ -90,7 +92,7 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node) $(BUILD)/bin/fault_gateway
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup fuzz format mcu sanitize law
+.PHONY: all clean demo test setup fuzz format mcu sanitize law package
 
 # The drive firmware as a bare-metal Cortex-M4F image (QEMU mps2-an386; docs/PORTING.md):
 # the portable CANopen slave, drive app and cores, the port layer (firmware_shim/port)
@@ -101,7 +103,7 @@ MCU_CC    := arm-none-eabi-gcc
 MCU_DIR   := firmware_shim/mcu/mps2_an386
 MCU_BUILD := $(BUILD)/mcu
 MCU_ARCH  := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
-MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off \
+MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(PATHMAP) $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off \
               -ffunction-sections -fdata-sections -ffreestanding -fno-common
 MCU_INC   := $(INC) -I$(MCU_DIR)
 MCU_SRC   := $(CO_SRC) $(FW_SRC) $(SHIM_APP_SRC) $(wildcard firmware_shim/port/*.c) \
@@ -147,6 +149,10 @@ $(SAN_DIR)/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) pro
 
 all: $(LIBCO) $(LIBSCAN) $(PROTO_TOOLS) $(PROTO_TESTS) $(PLANT_TOOLS) $(PLANT_TESTS) \
      $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB) $(if $(HAVE_MCU_CC),mcu) sanitize
+
+# What an installed package runs (setup.py makes it at install time in the package's copy of the sources,
+# bench/_root): the node processes, the gateway, libhil.so, the tools, the MCU image when its toolchain is there.
+package: $(NODE_BINS) $(SHLIB) $(PROTO_TOOLS) $(PLANT_TOOLS) $(FW_TOOLS) $(if $(HAVE_MCU_CC),mcu)
 
 setup:
 	@bash scripts/setup.sh

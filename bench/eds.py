@@ -23,7 +23,7 @@ from typing import Any, TypeVar
 import canopen
 from canopen.objectdictionary import ODVariable, datatypes
 
-from bench.paths import BUILD, EDS_DIR, REPO
+from bench.paths import EDS_DIR, REPO, STATE
 
 T = TypeVar("T")
 
@@ -112,7 +112,7 @@ def _cached(what: str, node: str, build: Callable[[], T]) -> T:
     an EDS costs ~0.1 s of every command's start; unpickling it a few ms."""
     path = eds_path(node)
     key = hashlib.sha256(path.read_bytes() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
-    cache = BUILD / "eds-cache" / f"{node}-{key}.pickle"
+    cache = STATE / "eds-cache" / f"{node}-{key}.pickle"
     try:
         return pickle.loads(cache.read_bytes())  # type: ignore[no-any-return]
     except (OSError, pickle.PickleError, EOFError, AttributeError):

@@ -14,7 +14,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent  # not bench.paths: it reads BENCH_BUILD_DIR once, at import
+from bench.root import REPO, STATE  # not bench.paths: it reads BENCH_BUILD_DIR once, at import
+
 COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
 HELP = (
     "a user's current law: a folder of one or two C files and law.eds (one record in 0x2400..0x24FF naming "
@@ -63,7 +64,7 @@ def law_name(law: Path) -> str:
     return m.group(1)
 
 
-def build(law: Path, repo: Path) -> Path:
+def build(law: Path, repo: Path = REPO, state: Path = STATE) -> Path:
     """`make LAW=law` with progress on stderr; the build folder, or LawBuildError."""
     law = Path(os.path.abspath(law))  # not resolve(): a link from a path without white space stays one
     if re.search(r"\s", str(law)):
@@ -72,8 +73,9 @@ def build(law: Path, repo: Path) -> Path:
             "from a path without (ln -s '<folder>' /tmp/my_law; --law /tmp/my_law)"
         )
     name = law_name(law)
-    out = repo / "build" / "laws" / name
-    cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD=build/laws/{name}", f"-j{os.cpu_count() or 1}"]
+    out = state / "laws" / name
+    cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD={out}", f"PYTHON={sys.executable}"]
+    cmd.append(f"-j{os.cpu_count() or 1}")
     print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
@@ -114,7 +116,7 @@ def _failure(lines: list[str], law: Path) -> str:
 def use(law: Path) -> int:
     """Build the law and point this process (and its children) at the build; 0, or 2 after a one-line refusal."""
     try:
-        out = build(law, REPO)
+        out = build(law)
     except LawBuildError as exc:
         print(f"bench: --law {law}: {exc}", file=sys.stderr)
         return 2

@@ -1,4 +1,5 @@
-"""Where the bench finds its own files: the repository, the C build, the EDS files.
+"""Where the bench finds its own files: the repository (or an installed package's copy: bench/root.py), the C
+build, the EDS files.
 
 BENCH_BUILD_DIR chooses another build: a user's law (`bench run ... --law DIR`, bench/law.py, builds
 build/laws/<law name>/), whose node binaries, libhil.so, MCU image and merged EDS files (its eds/) the
@@ -11,11 +12,18 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+from bench.root import REPO, STATE
+
 BUILD = Path(os.environ.get("BENCH_BUILD_DIR") or REPO / "build").resolve()
 BIN = BUILD / "bin"
 EDS_DIR = BUILD / "eds" if os.environ.get("BENCH_BUILD_DIR") else REPO / "protocols" / "eds"
 VECTORS_DIR = REPO / "protocols" / "vectors"
+MISSING_BUILD = (
+    "reinstall pmsm-hil-bench (its C build is made at install time: pip install --force-reinstall <repository>)"
+    if REPO.name == "_root"
+    else f"run `make all` (or `make demo`) in {REPO}"
+)
+__all__ = ["BIN", "BUILD", "EDS_DIR", "MISSING_BUILD", "REPO", "STATE", "VECTORS_DIR", "binary", "lost_in_vm"]
 
 
 def binary(name: str) -> Path:
@@ -23,7 +31,7 @@ def binary(name: str) -> Path:
     build of the node processes (build/sanitize/bin: ASan + UBSan, `make sanitize`)."""
     path = Path(os.environ.get("BENCH_BIN_DIR") or BIN) / name
     if not path.exists():
-        raise FileNotFoundError(f"{path} is missing: run `make all` (or `make demo`) in {REPO}")
+        raise FileNotFoundError(f"{path} is missing: {MISSING_BUILD}")
     return path
 
 

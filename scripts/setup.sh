@@ -50,7 +50,7 @@ if [ ! -f "$stamp" ]; then
     log "creating .venv with the pinned dependencies of pyproject.toml"
     [ -x .venv/bin/python ] || "$PY" -m venv .venv
     .venv/bin/pip install -q --disable-pip-version-check --upgrade pip==24.3.1
-    .venv/bin/pip install -q --disable-pip-version-check -e .
+    .venv/bin/pip install -q --disable-pip-version-check -e ".[dev]"
     rm -f .venv/.installed-*
     # Pre-compile so a guest VM (read-only view of the venv) never writes .pyc.
     .venv/bin/python -m compileall -q .venv/lib >/dev/null 2>&1 || true

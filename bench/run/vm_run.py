@@ -27,13 +27,13 @@ def run_in_vm_capture(args: argparse.Namespace, sc: Scenario, partial: Path, out
     candump's log on the shared folder and feeds the same pipeline as it grows (live view included)."""
     import uuid
 
-    from bench.paths import REPO
+    from bench.paths import STATE
     from bench.run.bus.vm import run_in_vm
     from bench.run.pipeline import Pipeline
     from bench.run.record.sources import LogFollower
 
-    # The guest's /tmp is its own: stage the capture in the repository (always shared with the VM).
-    stage = REPO / "build" / "capture" / uuid.uuid4().hex[:12]
+    # The guest's /tmp is its own: stage the capture in the bench's working folder (always shared with the VM).
+    stage = STATE / "capture" / uuid.uuid4().hex[:12]
     stage.mkdir(parents=True)
     pipe = Pipeline(args.plant_id, args.drive_id, outputs.sinks, outputs.frame_sinks, sc.expect)
     follower = LogFollower(stage / "candump.log")

@@ -97,6 +97,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
         "ground",
         (
             "bench",
+            "bench.root",
             "bench.paths",
             "bench.stop",
             "bench.eds",
@@ -120,6 +121,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
     ("studies and masters", ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults")),
     ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
     ("the command line", ("bench.cli", "bench.cli_tools", "bench.cli_runs")),
+    ("the pytest plugin", ("bench.pytest_plugin",)),
 ]
 
 

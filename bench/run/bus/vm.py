@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.paths import REPO
+from bench.paths import REPO, STATE
+from bench.root import INSTALLED
 from bench.stop import deferred
 
 # Variables forwarded into the guest (everything else is dropped by virtme-ng).
@@ -179,13 +180,14 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     vng = vng_path()
     assert vng is not None
     cwd = _check_path(cwd or Path.cwd())
-    jobs = REPO / "build" / "vm"
+    jobs = STATE / "vm"
     job = jobs / f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:8]}"
     job.mkdir(parents=True, exist_ok=True)
     status_file = job / "status"
     script = job / "job.sh"
-    rwdirs = {_check_path(REPO)}
-    if not cwd.is_relative_to(REPO):
+    home = STATE if INSTALLED else REPO  # a clone is shared whole; a package only its working folder
+    rwdirs = {_check_path(home)}
+    if not cwd.is_relative_to(home):
         rwdirs.add(cwd)
     rwdirs.update(_check_path(p) for p in opts.rwdirs)
     script.write_text(

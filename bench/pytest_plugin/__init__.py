@@ -1,0 +1,137 @@
+"""The bench's pytest plugin (entry point pytest11 `pmsm_hil`: installing pmsm-hil-bench enables it).
+
+    def test_matched_deadbeat_settles_in_two_periods(hil_run):
+        run = hil_run("scenarios/you2019_step.toml", {"scenario.periods": 60})
+        run.expect_status("ok").expect_settles_within(2, signal="iq").expect_overshoot_below(1.0)
+        assert abs(run["iq_A"][-1] - 1.0) < 0.01
+
+Fixtures: `hil_run` (a callable: one `bench run` per call, its result a HilRun; fixture.py says its arguments)
+and `hil_bus` (the session's bus). Options (and ini keys): --hil-bus (hil_bus; direct, vcan0, can0 ...; default
+direct), --hil-law=DIR (hil_law; a user's current law, built at the session's start as `bench run --law`
+does), --hil-out=DIR (hil_out; the run folders, default <rootdir>/hil-runs); the DIR options with "=": pytest
+takes a separate DIR for a test path when it looks for its rootdir. A bus that is not there, the VM
+fallback not ready, a law that does not build: pytest stops with "ERROR: ..." before any test. A failing
+test's report names each run's folder, bus log and Rerun recording; its key figures are JUnit properties.
+
+This module is imported by every pytest session where the package is installed: it imports nothing of the
+bench at its top, only in the hooks and fixtures that need it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Generator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pytest
+
+from bench.pytest_plugin.state import RUN_TEXTS, SETTINGS, Settings
+
+if TYPE_CHECKING:
+    from bench.pytest_plugin.fixture import HilRunner
+
+__all__ = ["HilRun", "Step", "load_run"]
+
+
+def __getattr__(name: str) -> Any:
+    """HilRun, Step and load_run on demand (the plugin stays cheap to load)."""
+    if name in ("HilRun", "load_run"):
+        from bench.pytest_plugin import result
+
+        return getattr(result, name)
+    if name == "Step":
+        from bench.pytest_plugin.steps import Step
+
+        return Step
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("pmsm-hil", "PMSM HIL bench (bench.pytest_plugin; the hil_run fixture)")
+    options = (
+        (
+            "bus",
+            "BUS",
+            "the bus of hil_run's runs: direct (in-process, default), vcan0 (the VM supplies it on hosts without "
+            "kernel CAN), can0, ... (bench run --bus); checked at the session's start",
+        ),
+        (
+            "law",
+            "DIR",
+            "a user's current-law folder (C files and law.eds), built at the session's start and used by every run "
+            "(bench run --law); the scenarios must select it",
+        ),
+        ("out", "DIR", "where the run folders go, one sub-folder per test (default: hil-runs under the rootdir)"),
+    )
+    # --hil-law=DIR rather than --hil-law DIR: pytest looks for its rootdir before it loads plugins, and takes a
+    # folder after an option it does not know yet for a test path (pytest-dev/pytest#8846)
+    eq = "; write --hil-{name}=DIR (pytest would take a separate DIR for a test path when it looks for its rootdir)"
+    for name, metavar, text in options:
+        note = eq.format(name=name) if metavar == "DIR" else ""
+        group.addoption(f"--hil-{name}", dest=f"hil_{name}", default=None, metavar=metavar, help=text + note)
+        parser.addini(f"hil_{name}", f"as --hil-{name} (the command line wins); relative to the ini file", default="")
+
+
+def _path(config: pytest.Config, name: str) -> Path | None:
+    """An option's folder: the command line's relative to the invocation folder, the ini's to the ini file's."""
+    given = config.getoption(f"hil_{name}")
+    if given:
+        return (config.invocation_params.dir / Path(given).expanduser()).absolute()
+    ini = str(config.getini(f"hil_{name}") or "")
+    if ini:
+        base = config.inipath.parent if config.inipath else config.rootpath
+        return (base / Path(ini).expanduser()).absolute()
+    return None
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    cli, ini = config.getoption("hil_bus"), str(config.getini("hil_bus") or "")
+    out = _path(config, "out") or config.rootpath / "hil-runs"
+    option = "--hil-bus" if cli or not ini else f"{config.inipath or 'the ini file'}: hil_bus"
+    config.stash[SETTINGS] = Settings(bus=cli or ini or "direct", law=_path(config, "law"), out=out, bus_option=option)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """The bus is there (or the VM can supply it) and the law builds, before any test: else a usage error."""
+    config = session.config
+    settings = config.stash[SETTINGS]
+    if settings.bus != "direct":
+        from bench.pytest_plugin.checks import bus_problem
+
+        problem = settings.bus_problems[settings.bus] = bus_problem(settings.bus, settings.bus_option)
+        if problem is not None:
+            raise pytest.UsageError(problem)
+    if settings.law is not None and not (hasattr(config, "workerinput") and os.environ.get("BENCH_LAW")):
+        from bench.pytest_plugin.checks import restore, use_law
+
+        before = use_law(settings.law)
+        config.add_cleanup(lambda: restore(before))
+
+
+@pytest.fixture(scope="session")
+def hil_bus(pytestconfig: pytest.Config) -> str:
+    """The session's bus (--hil-bus, ini hil_bus; default direct)."""
+    return pytestconfig.stash[SETTINGS].bus
+
+
+@pytest.fixture
+def hil_run(request: pytest.FixtureRequest) -> HilRunner:
+    """Runs a scenario: hil_run(scenario, overrides=None, *, bus=None, name=None, faults=None, events=None,
+    timeout=None, extra_args=()) returns the run's HilRun (summary, steps, status, exit code, traces, folder);
+    bench/pytest_plugin/fixture.py (HilRunner) says more."""
+    from bench.pytest_plugin.fixture import HilRunner
+
+    return HilRunner(request, request.config.stash[SETTINGS])
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, Any, Any]:
+    """A failing test that ran scenarios: a report section naming each run's folder, bus log and recording."""
+    report = yield
+    texts = item.stash.get(RUN_TEXTS, None)
+    if texts and report.failed:
+        title = "HIL run" if len(texts) == 1 else f"HIL runs ({len(texts)})"
+        report.sections.append((title, "\n\n".join(texts)))
+    return report

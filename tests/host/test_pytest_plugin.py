@@ -1,0 +1,350 @@
+"""The pytest plugin (bench/pytest_plugin/): the hil_run fixture over the direct bus, its spec-like assertions and
+their messages, the failing test's report section and JUnit properties, and bad input (a missing scenario, a
+bus that is not there, a law that does not build) refused by name before any run, with no traceback of the
+plugin. Each session is a pytest in a subprocess that loads the plugin with -p (pyproject.toml's pytest11 entry
+point, what an installed package uses, is checked on its own)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from bench.pytest_plugin.result import HilRun, load_run
+from bench.pytest_plugin.runner import override_list, sanitize, table_overrides, tail
+from bench.pytest_plugin.toml_text import dumps
+
+pytest_plugins = ["pytester"]
+
+REPO = Path(__file__).resolve().parents[2]
+STEP = REPO / "scenarios" / "you2019_step.toml"
+ZERO_LAW = REPO / "tests" / "laws" / "zero_law"
+ZERO_LAW_SCENARIO = REPO / "tests" / "laws" / "zero_law.toml"
+PLUGIN_FRAMES = "bench/pytest_plugin"  # a frame of the plugin in a report: a traceback inside it
+
+
+def _env() -> dict[str, str]:
+    """The sessions load the plugin with -p, and no plugin by entry point: whether pytest finds the package's
+    entry point depends on where it looks (an installed package; a clone's egg-info in the current folder), and
+    a plugin registered twice is an error. pyproject.toml's entry point is checked on its own."""
+    return {**os.environ, "PYTEST_DISABLE_PLUGIN_AUTOLOAD": "1"}
+
+
+PLUGIN = ("-p", "bench.pytest_plugin", "-p", "no:cacheprovider")
+
+
+@pytest.fixture
+def hil_pytester(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch) -> pytest.Pytester:
+    """pytester for a session in a subprocess that loads the plugin by -p (_env), with an ini of its own."""
+    monkeypatch.setenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", "1")
+    pytester.makeini("[pytest]\n")  # the rootdir: the run folders go to its hil-runs/
+    return pytester
+
+
+def _run(pytester: pytest.Pytester, *args: str) -> pytest.RunResult:
+    return pytester.runpytest_subprocess(*PLUGIN, *args)
+
+
+def _output(result: pytest.RunResult) -> str:
+    return "\n".join(result.outlines + result.errlines)
+
+
+# ------------------------------------------------------------------ a session over the direct bus
+
+SESSION = f"""
+STEP = {str(STEP)!r}
+
+
+def test_matched_deadbeat_meets_its_spec(hil_run, hil_bus):
+    run = hil_run(STEP, {{"scenario.periods": 60}})
+    run.expect_status("ok").expect_status().expect_settles_within(2, signal="iq")
+    run.expect_overshoot_below(1.0).expect_steady_state_error_below(0.01).expect_no_emcy()
+    assert hil_bus == "direct" and run.bus == "direct" and run.exit_code == 0
+    assert run["iq_A"].shape == (60,) and "iq_ref_A" in run.columns and run["period"][-1] == 59
+    assert abs(run["iq_A"][-1] - 1.0) < 0.01
+    step = run.step("iq")
+    assert (step.at_period, step.from_A, step.to_A, step.periods_to_settle) == (20, 0.0, 1.0, 2)
+    assert run.summary["bus_stats"]["lost_frames"] == 0
+    assert run.bus_log.is_file() and run.recording is not None and run.recording.is_file()
+
+
+def test_mismatched_inductance_overshoots(hil_run):
+    hil_run(STEP, {{"scenario.periods": 60}}).expect_overshoot_below(1.0)
+    run = hil_run(STEP, ["scenario.periods=60", "controller.L_hat_ratio=1.6"])
+    run.expect_status("ok")
+    run.expect_overshoot_below(10)
+
+
+def test_a_scenario_as_a_dict(hil_run):
+    scenario = {{
+        "scenario": {{"name": "dict step", "periods": 40}},
+        "motor": {{"preset": "you2019", "mech_mode": "locked"}},
+        "drive": {{"preset": "ideal"}},
+        "controller": {{"controller": "deadbeat_you2019", "Vmax_V": 139.0}},
+        "events": [{{"at_period": 10, "references": {{"iq_ref_A": 1.0}}}}],
+    }}
+    run = hil_run(scenario)
+    run.expect_status("ok").expect_settles_within(2)
+    assert run.folder.name == "dict_step" and (run.folder.parent / "dict_step.toml").is_file()
+    assert run.step().at_period == 10 and len(run["iq_A"]) == 40
+
+
+def test_a_missing_scenario(hil_run):
+    hil_run("no_such_scenario.toml")
+
+
+def test_a_key_the_eds_does_not_know(hil_run):
+    hil_run(STEP, {{"controller.no_such_key": 1}})
+"""
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[pytest.RunResult, Path]:
+    """One pytest session of SESSION, run once for the tests that read it (each of its runs is a bench run)."""
+    root = tmp_path_factory.mktemp("plugin_session").resolve()
+    (root / "test_spec.py").write_text(SESSION)
+    (root / "pytest.ini").write_text("[pytest]\n")
+    cmd = [sys.executable, "-m", "pytest", *PLUGIN, "--junitxml=junit.xml", "test_spec.py"]
+    proc = subprocess.run(cmd, cwd=root, env=_env(), capture_output=True, text=True, timeout=900)
+    return pytest.RunResult(proc.returncode, proc.stdout.splitlines(), proc.stderr.splitlines(), 0.0), root
+
+
+def test_the_session_passes_and_fails_where_it_should(session: tuple[pytest.RunResult, Path]) -> None:
+    result, root = session
+    assert result.parseoutcomes() == {"passed": 2, "failed": 3}, _output(result)
+    assert result.ret == pytest.ExitCode.TESTS_FAILED
+    cases = ET.parse(root / "junit.xml").getroot().iter("testcase")
+    failed = {c.get("name") for c in cases if c.find("failure") is not None}
+    assert failed == {
+        "test_mismatched_inductance_overshoots",
+        "test_a_missing_scenario",
+        "test_a_key_the_eds_does_not_know",
+    }, _output(result)
+    assert (root / "hil-runs" / "test_spec.py_test_matched_deadbeat_meets_its_spec" / "you2019_step").is_dir()
+
+
+def test_a_broken_bound_names_the_measured_figure_the_bound_and_the_run(
+    session: tuple[pytest.RunResult, Path],
+) -> None:
+    result, root = session
+    out = _output(result)
+    folder = root / "hil-runs" / "test_spec.py_test_mismatched_inductance_overshoots"
+    second = folder / "you2019_step-2"  # the test's second run of the scenario
+    summary = json.loads((second / "summary.json").read_text())
+    measured = summary["steps"][0]["overshoot_pct"]
+    assert measured > 10
+    assert f"iq step at period 20 (0.00 → 1.00 A) overshoots by {measured:.3g} %" in out, out
+    assert "bound: below 10 %." in out and f"Run: {second}" in out, out
+    # the report section names both runs, their bus logs and recordings, and how to view one
+    assert "HIL runs (2)" in out, out
+    for run in (folder / "you2019_step", second):
+        assert f"run folder:  {run}" in out and f"bus log:     {run / 'bus.log'}" in out, out
+        assert f"{run / 'run.rrd'}" in out, out
+    assert f"rerun {second / 'run.rrd'}" in out, out
+    assert PLUGIN_FRAMES not in out and "Traceback" not in out, out
+
+
+def test_the_key_figures_are_junit_properties(session: tuple[pytest.RunResult, Path]) -> None:
+    _, root = session
+    cases = {c.get("name"): c for c in ET.parse(root / "junit.xml").getroot().iter("testcase")}
+    props = {name: [(p.get("name"), p.get("value")) for p in case.iter("property")] for name, case in cases.items()}
+    failed = dict(props["test_mismatched_inductance_overshoots"])
+    assert failed["hil_status"] == "ok" and failed["hil_exit_code"] == "0", failed
+    assert failed["hil_iq_p20_settle_periods"] == "2", failed  # the matched run
+    assert float(failed["hil_run2_iq_p20_overshoot_pct"]) > 10, failed  # the mismatched one
+    assert Path(failed["hil_run2_run_folder"]).name == "you2019_step-2", failed
+    assert math.isfinite(float(failed["hil_run2_iq_p20_ss_error_A"])), failed
+    passed = dict(props["test_matched_deadbeat_meets_its_spec"])
+    assert passed["hil_status"] == "ok" and Path(passed["hil_run_folder"], "summary.json").is_file(), passed
+    assert not props["test_a_missing_scenario"], "no run, no figures"
+
+
+def test_bad_scenarios_fail_by_name_before_any_run(session: tuple[pytest.RunResult, Path]) -> None:
+    result, root = session
+    out = _output(result)
+    assert "hil_run: scenario file 'no_such_scenario.toml' not found" in out, out
+    assert f"{STEP}: unknown key 'controller.no_such_key'; allowed in [controller]" in out, out
+    assert "During handling" not in out and PLUGIN_FRAMES not in out and "Traceback" not in out, out
+    runs = root / "hil-runs"
+    assert not list((runs / "test_spec.py_test_a_key_the_eds_does_not_know").glob("*/summary.json"))
+
+
+# ------------------------------------------------------------------ session-start refusals
+
+
+def test_a_bus_that_is_not_there_is_an_error_before_any_test(hil_pytester: pytest.Pytester) -> None:
+    hil_pytester.makepyfile("def test_never_runs(hil_run):\n    raise SystemExit('ran')\n")
+    result = _run(hil_pytester, "--hil-bus", "nosuchbus0")
+    out = _output(result)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR, out
+    assert "ERROR: --hil-bus nosuchbus0: " in out and "test_never_runs" not in out, out
+    assert "Traceback" not in out and PLUGIN_FRAMES not in out, out
+
+
+def _law(tmp_path: Path, name: str) -> Path:
+    """tests/laws/zero_law as a law of another name (its own build folder: tests may run side by side)."""
+    law = tmp_path / name
+    shutil.copytree(ZERO_LAW, law)
+    for f in law.iterdir():
+        text = f.read_text().replace("CurrentLaws=zero_law", f"CurrentLaws={name}")
+        f.write_text(text.replace("current_law_zero_law", f"current_law_{name}"))
+    return law
+
+
+def test_a_law_that_does_not_build_is_an_error_naming_the_file(hil_pytester: pytest.Pytester, tmp_path: Path) -> None:
+    law = _law(tmp_path, "hil_plugin_broken_law")
+    src = law / "zero_law.c"
+    src.write_text(src.read_text().replace("->steps++;", "->steps++ not_c;"))
+    hil_pytester.makepyfile("def test_never_runs(hil_run):\n    raise SystemExit('ran')\n")
+    result = _run(hil_pytester, f"--hil-law={law}")
+    out = _output(result)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR, out
+    assert f"ERROR: --hil-law {law}: the law in {law} does not compile" in out, out
+    assert f"{src}:" in out and "error:" in out and "test_never_runs" not in out, out
+    assert "Traceback" not in out and PLUGIN_FRAMES not in out, out
+
+
+def test_the_runs_use_the_law_of_hil_law(hil_pytester: pytest.Pytester, tmp_path: Path) -> None:
+    """--hil-law builds the law and every run uses that build (the zero law commands 0 V: iq stays 0), and the
+    scenario is checked against the law's own EDS (its controller name, its record's keys)."""
+    law = _law(tmp_path, "hil_plugin_law")
+    hil_pytester.makepyfile(
+        f"""
+        def test_zero_law(hil_run):
+            run = hil_run({str(ZERO_LAW_SCENARIO)!r}, {{"controller.controller": "hil_plugin_law"}})
+            run.expect_status("ok")
+            assert abs(run["iq_A"]).max() < 1e-6 and run.step("iq").periods_to_settle is None
+
+        def test_a_key_of_the_law_checked(hil_run):
+            hil_run({str(ZERO_LAW_SCENARIO)!r}, {{"controller.controller": "hil_plugin_law", "controller.gain": -1}})
+        """
+    )
+    result = _run(hil_pytester, f"--hil-law={law}")
+    out = _output(result)
+    assert result.parseoutcomes() == {"passed": 1, "failed": 1}, out
+    assert "controller.gain = -1" in out and "Traceback" not in out, out
+
+
+# ------------------------------------------------------------------ the pieces, without a run
+
+
+def _fake_run(tmp_path: Path, steps: list[dict[str, Any]], **summary: Any) -> HilRun:
+    body = {"status": "ok", "status_expected": True, "expect": ["ok"], "emcy": [], "steps": steps, **summary}
+    body["files"] = {"log": "bus.log", "recording": "run.rrd", "traces": "traces.npy", "plots": []}
+    (tmp_path / "summary.json").write_text(json.dumps(body))
+    return load_run(tmp_path, 0 if body["status_expected"] else 7)
+
+
+def _step(
+    signal: str = "iq", at: int = 20, settle: int | None = 2, over: float = 0.0, err: float = 0.0
+) -> dict[str, Any]:
+    return {
+        "signal": signal,
+        "at_period": at,
+        "from_A": 0.0,
+        "to_A": 1.0,
+        "periods_to_settle": settle,
+        "overshoot_pct": over,
+        "overshoot_A": over / 100,
+        "steady_state_error_A": err,
+        "window_periods": 40,
+    }
+
+
+def _message(fn: Any, *args: Any, **kwargs: Any) -> str:
+    with pytest.raises(AssertionError) as info:
+        fn(*args, **kwargs)
+    return str(info.value)
+
+
+def test_the_helpers_say_what_was_measured_against_which_bound(tmp_path: Path) -> None:
+    run = _fake_run(tmp_path, [_step(settle=7, over=12.5, err=-0.03), _step("id", 50, settle=None)])
+    m = _message(run.expect_settles_within, 3, "iq")
+    assert m == f"iq step at period 20 (0.00 → 1.00 A) settles in 7 periods; bound: within 3 periods.\nRun: {tmp_path}"
+    m = _message(run.expect_settles_within, 10)
+    assert "id step at period 50 (0.00 → 1.00 A) never settles" in m and "iq step" not in m, m
+    m = _message(run.expect_overshoot_below, 5)
+    assert "iq step at period 20 (0.00 → 1.00 A) overshoots by 12.5 % (0.125 A); bound: below 5 %." in m, m
+    m = _message(run.expect_steady_state_error_below, 0.01, "iq")
+    assert "has a steady-state error of -0.03 A; bound: below 0.01 A in magnitude." in m, m
+    run.expect_settles_within(7, "iq").expect_overshoot_below(12.6).expect_steady_state_error_below(0.031, "iq")
+    m = _message(run.expect_status, "diverged", "tripped")
+    assert m == f"the run's status is ok (exit status 0); expected: diverged or tripped.\nRun: {tmp_path}"
+
+
+def test_no_helper_passes_on_nothing(tmp_path: Path) -> None:
+    run = _fake_run(tmp_path, [])
+    for check in (run.expect_settles_within, run.expect_overshoot_below, run.expect_steady_state_error_below):
+        assert "no reference step to check" in _message(check, 1)
+    run = _fake_run(tmp_path, [_step()])
+    assert "no id step to check settling on; the run's steps: iq step at period 20" in _message(
+        run.expect_settles_within, 5, "id"
+    )
+    with pytest.raises(LookupError, match="the run has 0 id steps"):
+        run.step("id")
+
+
+def test_status_emcy_and_the_scenarios_own_expectation(tmp_path: Path) -> None:
+    emcy = [{"node": "drive", "code": "0x2310", "period": 31}]
+    run = _fake_run(tmp_path, [_step()], status="tripped", status_expected=False, emcy=emcy)
+    m = _message(run.expect_status)
+    assert m.startswith("the run's status is tripped (exit status 7); expected: ok (the scenario's expect)."), m
+    assert "the run saw 1 EMCY message(s): drive 0x2310 at period 31; expected: none." in _message(run.expect_no_emcy)
+    expected = _fake_run(tmp_path, [_step()], status="diverged", expect=["diverged", "tripped"])
+    expected.expect_status().expect_status("diverged")
+
+
+def test_a_dict_scenario_is_written_as_toml_that_reads_back() -> None:
+    scenario = {
+        "scenario": {"name": 'a "quoted" name ü', "periods": 40, "expect": ["diverged", "tripped"]},
+        "controller": {"L_hat_ratio": 0.5, "enable": True, "Vmax_V": 1e-5, "limit": math.inf},
+        "trace": {"pdo3": ["Online tuning.det_A2", "Online tuning.K1_hat_V_A"]},
+        "events": [{"at_period": 10, "references": {"iq_ref_A": 1.0}}, {"at_period": 20, "controller": {}}],
+        "faults": [{"kind": "drop", "frame": "drive.TPDO1", "at_period": 21}],
+    }
+    assert tomllib.loads(dumps(scenario)) == scenario
+    assert override_list({"controller.L_hat_ratio": 0.5, "controller.controller": "pi"}) == [
+        "controller.L_hat_ratio=0.5",
+        'controller.controller="pi"',
+    ]
+    assert override_list(["a.b=1"]) == ["a.b=1"] and override_list("a.b=1") == ["a.b=1"]
+
+
+def test_faults_and_events_of_a_call_run_after_the_scenarios_own(tmp_path: Path) -> None:
+    from bench.scenario import load
+
+    path = tmp_path / "s.toml"
+    path.write_text(STEP.read_text() + '\n[[faults]]\nkind = "drop"\nframe = "drive.TPDO1"\nat_period = 30\n')
+    drop = {"kind": "drop", "frame": "drive.TPDO1", "at_period": 21}
+    sets = table_overrides(path, {"faults": [drop], "events": [{"at_period": 40, "references": {"iq_ref_A": 0.5}}]})
+    assert table_overrides(path, {"faults": None, "events": []}) == []
+    sc = load(path, [*sets, "drive.command_timeout_us=20000"])  # the plant goes on without a dropped command
+    assert [f.at_period for f in sc.faults] == [30, 21] and sc.event_periods() == [20, 40]
+
+
+def test_names_and_output_tails() -> None:
+    assert sanitize("tests/test_x.py::test_a[L=0.5, R=1]") == "tests_test_x.py_test_a_L_0.5_R_1"
+    long = sanitize("x" * 300)
+    assert len(long) == 100 and long != sanitize("x" * 301)
+    assert tail("a\n  run: 1/9\r  run: 9/9 done\r\nb\n\n", 2) == "  run: 9/9 done\nb"
+
+
+def test_installing_the_package_enables_the_plugin() -> None:
+    entry = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["entry-points"]["pytest11"]
+    assert entry == {"pmsm_hil": "bench.pytest_plugin"}
+
+
+def test_the_plugin_is_cheap_to_import() -> None:
+    """Every pytest session of an installed package loads it: no numpy, no bench module beyond its own face."""
+    code = "import sys, bench.pytest_plugin; print(sorted(m for m in sys.modules if m.startswith(('bench', 'numpy'))))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60)
+    assert out.stdout.split() == ["['bench',", "'bench.pytest_plugin',", "'bench.pytest_plugin.state']"], out.stdout

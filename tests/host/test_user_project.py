@@ -1,0 +1,153 @@
+"""Issue 28: the bench as a user's CI has it. A fresh virtual environment outside the clone, `pip install` of
+the repository (the C nodes built at install time), then the example project examples/ci_project run by
+pytest with the plugin the package enables: in direct mode, with a broken expectation, over vcan (the VM
+fallback on this host), and `bench run|sweep|replay` from a folder that is not the clone. The wheel's
+contents are listed against the build they must carry."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import venv
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from bench.paths import REPO
+
+EXAMPLE = REPO / "examples" / "ci_project"
+PIP_TIMEOUT_S = 1800
+
+
+def _run(argv: list[str], cwd: Path, timeout: float = 1800) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("BENCH_", "PYTEST_", "VIRTUAL_ENV"))}
+    env.pop("PYTHONPATH", None)
+    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def user(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A fresh venv with the package installed from the repository, as `pip install <path>` does."""
+    home = tmp_path_factory.mktemp("user")
+    env_dir = home / "venv"
+    venv.EnvBuilder(with_pip=True).create(env_dir)
+    res = _run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "-q", str(REPO)], home, PIP_TIMEOUT_S)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return home
+
+
+def _project(user: Path, name: str) -> Path:
+    dst = user / name
+    shutil.copytree(EXAMPLE, dst, ignore=shutil.ignore_patterns("__pycache__", "hil-runs", ".pytest_cache"))
+    return dst
+
+
+def _pytest(user: Path, project: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    py = str(user / "venv" / "bin" / "python")
+    return _run([py, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-rA", *args], project)
+
+
+def test_the_installed_package_is_not_the_clone(user: Path) -> None:
+    code = "import bench.root as r, bench.paths as p; print(r.INSTALLED, r.REPO, p.binary('plant_node'))"
+    res = _run([str(user / "venv" / "bin" / "python"), "-c", code], user)
+    assert res.returncode == 0, res.stderr
+    installed, root, plant = res.stdout.split()
+    assert installed == "True" and not Path(root).is_relative_to(REPO) and Path(plant).is_relative_to(root)
+
+
+def test_the_example_project_passes_in_direct_mode(user: Path) -> None:
+    project = _project(user, "direct")
+    res = _pytest(user, project, "--junitxml", "junit.xml")
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
+    assert re.search(r"\b3 passed\b", res.stdout), res.stdout[-2000:]
+    junit = (project / "junit.xml").read_text()
+    assert 'name="hil_status" value="ok"' in junit and 'name="hil_status" value="frames_lost"' in junit
+    assert len(list((project / "hil-runs").rglob("summary.json"))) == 3
+
+
+def test_a_broken_expectation_fails_with_the_measured_figure_and_the_run_folder(user: Path) -> None:
+    project = _project(user, "broken")
+    test = project / "test_current_loop.py"
+    text = test.read_text()
+    assert "run.expect_settles_within(5)" in text
+    test.write_text(text.replace("run.expect_settles_within(5)", "run.expect_settles_within(2)", 1))
+    res = _pytest(user, project)
+    out = res.stdout
+    assert res.returncode == 1 and re.search(r"\b1 failed, 2 passed\b", out), out[-4000:]
+    assert re.search(r"settles in 4 periods", out) and "within 2 periods" in out, out[-4000:]
+    folders = [Path(m) for m in re.findall(r"Run: (\S+)", out)]
+    assert folders and all((f / "summary.json").is_file() for f in folders), out[-4000:]
+    assert "bus.log" in out and "run.rrd" in out
+
+
+def test_bench_run_sweep_and_replay_outside_the_clone(user: Path) -> None:
+    work = user / "work"
+    work.mkdir()
+    bench = str(user / "venv" / "bin" / "bench")
+    scenario = str(EXAMPLE / "scenarios" / "iq_step.toml")
+    run = _run([bench, "run", scenario, "--bus", "direct", "--no-viewer", "--out", "run1"], work)
+    assert run.returncode == 0 and (work / "run1" / "traces.npy").is_file(), run.stdout[-2000:] + run.stderr
+    sweep = [bench, "sweep", scenario, "--grid", "controller.L_hat_ratio=0.8,1.2", "--out", "sweep1"]
+    res = _run(sweep, work)
+    assert res.returncode == 0 and (work / "sweep1" / "sweep.parquet").is_file(), res.stdout[-2000:] + res.stderr
+    replay = _run([bench, "replay", "run1/bus.log", "--no-viewer", "--out", "replay1"], work)
+    assert replay.returncode == 0, replay.stdout[-2000:] + replay.stderr
+    import numpy as np
+
+    ran, replayed = np.load(work / "run1" / "traces.npy"), np.load(work / "replay1" / "traces.npy")
+    assert ran.dtype.names == replayed.dtype.names
+    assert all(np.array_equal(ran[n], replayed[n], equal_nan=True) for n in ran.dtype.names)
+
+
+def test_the_example_project_passes_over_vcan(user: Path) -> None:
+    """Over vcan0: the host's own when its kernel has CAN, else each run's bus half in the VM."""
+    project = _project(user, "vcan")
+    res = _pytest(user, project, "--hil-bus", "vcan0")
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
+    assert re.search(r"\b3 passed\b", res.stdout), res.stdout[-2000:]
+    summaries = list((project / "hil-runs").rglob("summary.json"))
+    assert len(summaries) == 3 and all('"bus": "vcan0"' in s.read_text() for s in summaries)
+
+
+def _expected_build() -> set[str]:
+    """What `make package` leaves for a run: the node processes, the gateway, libhil.so and every tool."""
+    tools = [
+        p.stem for d in ("protocols/tools", "plant_rt/tools", "firmware_shim/tools") for p in (REPO / d).glob("*.c")
+    ]
+    names = {f"build/bin/{t}" for t in [*tools, "plant_node", "drive_node", "fault_gateway"]} | {"build/libhil.so"}
+    if shutil.which("arm-none-eabi-gcc"):
+        names |= {"build/mcu/drive_mcu.elf", "build/mcu/drive_mcu.bin"}
+    return names
+
+
+def _tracked(*folders: str) -> set[str]:
+    res = subprocess.run(["git", "ls-files", *folders], cwd=REPO, capture_output=True, text=True, check=True)
+    return set(res.stdout.split())
+
+
+def test_the_wheel_holds_the_build_and_no_path_of_its_machine(tmp_path: Path) -> None:
+    res = _run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path), str(REPO)], tmp_path)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    (wheel,) = tmp_path.glob("pmsm_hil_bench-*.whl")
+    assert re.search(r"-cp3\d+-cp3\d+-linux_\w+\.whl$", wheel.name), wheel.name  # compiled: a platform wheel
+    z = zipfile.ZipFile(wheel)
+    names = set(z.namelist())
+    root = "bench/_root/"
+    built = {n[len(root) :] for n in names if n.startswith(root + "build/")}
+    assert _expected_build() <= built, sorted(_expected_build() - built)
+    assert not [n for n in built if n.endswith((".o", ".d", ".a"))]
+    python = {p for p in _tracked("bench") if p.endswith(".py")}
+    assert python <= names, sorted(python - names)
+    sources = {p for p in _tracked("protocols", "plant_rt", "firmware_shim", "scenarios", "bench/direct", "Makefile")}
+    needed = {p for p in sources if "/tests/" not in p and "/fuzz/" not in p and not Path(p).name.startswith(".")}
+    assert {root + p for p in needed} <= names, sorted({root + p for p in needed} - names)[:10]
+    entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
+    points = z.read(entry).decode()
+    assert "bench = bench.cli:main" in points and "pmsm_hil = bench.pytest_plugin" in points
+    machine = [str(REPO).encode(), b"build/setuptools"]
+    leaks = [n for n in names if any(m in z.read(n) for m in machine)]
+    assert not leaks, leaks
