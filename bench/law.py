@@ -1,13 +1,16 @@
 """`bench ... --law DIR`: build a user's current law (a folder: C files and law.eds) and run with it.
 
-`make LAW=DIR` builds the drive with the law into build/laws/<law name>/ (the Makefile; gen_od.py --law
-merges law.eds into drive.eds there); the command then runs with that build: BENCH_BUILD_DIR (bench/paths.py)
+`make LAW=DIR` builds the drive with the law (the Makefile; gen_od.py --law merges law.eds into drive.eds) into
+laws/<law name>-<hash of DIR's path>/ of the bench's working folder (bench/root.py STATE: build/ in a clone); the
+command then runs with that build: BENCH_BUILD_DIR (bench/paths.py)
 points the node binaries, libhil.so, the MCU image and the EDS files at it. The CLI does this before any
 module reads an EDS (bench/cli.py). Nothing is written in the user's folder.
 """
 
 from __future__ import annotations
 
+import fcntl
+import hashlib
 import os
 import re
 import subprocess
@@ -19,8 +22,8 @@ from bench.root import REPO, STATE  # not bench.paths: it reads BENCH_BUILD_DIR 
 COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
 HELP = (
     "a user's current law: a folder of one or two C files and law.eds (one record in 0x2400..0x24FF naming "
-    "the law in CurrentLaws=NAME); built first (make LAW=DIR into build/laws/NAME/), then used: select it "
-    'with [controller] controller = "NAME" (docs/YOUR_CONTROLLER.md)'
+    "the law in CurrentLaws=NAME); built first (make LAW=DIR into build/laws/NAME-<hash of DIR>/), then used: "
+    'select it with [controller] controller = "NAME" (docs/YOUR_CONTROLLER.md)'
 )
 CURRENT_LAWS = re.compile(r"^\s*CurrentLaws\s*=\s*([A-Za-z0-9_]*)", re.MULTILINE)
 COMPILE = re.compile(r"\s-c\s+(\S+\.c)\s+-o\s")
@@ -73,21 +76,30 @@ def build(law: Path, repo: Path = REPO, state: Path = STATE) -> Path:
             "from a path without (ln -s '<folder>' /tmp/my_law; --law /tmp/my_law)"
         )
     name = law_name(law)
-    out = state / "laws" / name
+    out = build_folder(law, name, state)
     cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD={out}", f"PYTHON={sys.executable}"]
     cmd.append(f"-j{os.cpu_count() or 1}")
     print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines: list[str] = []
-    assert proc.stdout is not None
-    for line in proc.stdout:
-        lines.append(line.rstrip("\n"))
-        m = COMPILE.search(line)
-        if m:
-            print(f"  cc {m.group(1)}", file=sys.stderr, flush=True)
-    if proc.wait() != 0:
-        raise LawBuildError(_failure(lines, law))
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out.with_name(out.name + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # another command building this folder now: after it, make finds it done
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        lines: list[str] = []
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line.rstrip("\n"))
+            m = COMPILE.search(line)
+            if m:
+                print(f"  cc {m.group(1)}", file=sys.stderr, flush=True)
+        if proc.wait() != 0:
+            raise LawBuildError(_failure(lines, law))
     return out
+
+
+def build_folder(law: Path, name: str, state: Path = STATE) -> Path:
+    """laws/<law name>-<8 hex of the folder's path>: a folder of its own per law folder, so that two folders of the
+    same law name (a copy under change, two CI jobs on one machine) never build over each other's binaries."""
+    return state / "laws" / f"{name}-{hashlib.sha256(str(law).encode()).hexdigest()[:8]}"
 
 
 DIAGNOSTIC = re.compile(r": (fatal )?error: |undefined reference to ")
@@ -121,5 +133,5 @@ def use(law: Path) -> int:
         print(f"bench: --law {law}: {exc}", file=sys.stderr)
         return 2
     os.environ["BENCH_BUILD_DIR"] = str(out)
-    os.environ["BENCH_LAW"] = out.name  # its name: a run that never selects it is refused (scenario.py)
+    os.environ["BENCH_LAW"] = law_name(law)  # its name: a run that never selects it is refused (scenario.py)
     return 0

@@ -30,6 +30,12 @@ def bus_problem(bus: str, option: str = "--hil-bus") -> str | None:
         if "no such CAN interface" in text:
             text += _create_hint(bus)
         return text
+    if in_vm and not bus.startswith("vcan"):
+        return (
+            f"{option} {bus}: this host's kernel has no SocketCAN, so there is no {bus} here; `bench run --bus {bus}` "
+            "would run an emulated CAN controller in the bench's VM, not a physical adapter: use vcan0 (or direct) "
+            f"on this host, and {bus} on a host that has the adapter"
+        )
     if in_vm:
         from bench.run.bus.vm import readiness
 
@@ -52,13 +58,13 @@ def build_law(law: Path) -> tuple[Path, str]:
     """`make LAW=law` (bench/law.py): (its build folder, the law's name), or the refusal as a UsageError."""
     import pytest
 
-    from bench.law import LawBuildError, build
+    from bench.law import LawBuildError, build, law_name
 
     try:
         out = build(law)
     except LawBuildError as exc:
         raise pytest.UsageError(f"--hil-law {law}: {exc}") from None
-    return out, out.name
+    return out, law_name(law)
 
 
 def use_law(law: Path) -> dict[str, str | None]:

@@ -93,10 +93,20 @@ class HilRunner:
             props = [("status", "no summary"), ("exit_code", run.exit_code), ("run_folder", run.folder)]
             self._node.user_properties.extend((prefix + k, str(v)) for k, v in props)
             refuse(run.message)
-        texts.append(report_text(run))
+        texts.append(report_text(run) + "\n" + self._reproduce(cmd))
         self._node.user_properties.extend(junit_properties(run, prefix))
+        if self._settings.law is not None:
+            self._node.user_properties.append((prefix + "law", str(self._settings.law)))
         self.history.append(run)
         return run
+
+    def _reproduce(self, cmd: list[str]) -> str:
+        """The run as a command line: `bench run` with the test's overrides, faults and events (and its law)."""
+        import shlex
+
+        law = [] if self._settings.law is None else [f"--law={self._settings.law}"]
+        line = shlex.join(["bench", *cmd[3:], *law])
+        return f"reproduce:   {line}" + (f"\nlaw:         {self._settings.law}" if law else "")
 
     def _check_bus(self, bus: str) -> None:
         """A bus other than the session's (checked at its start) is checked at its first use."""

@@ -24,7 +24,7 @@ from bench.run.bus.buses import bus_problem
 from bench.run.outputs import Outputs, print_result
 from bench.run.record.canlog import LOG_FORMATS
 from bench.run.vm_run import run_in_vm_capture
-from bench.scenario import Scenario, ScenarioError, add_set_argument, load, unselected_law
+from bench.scenario import Scenario, ScenarioError, add_set_argument, load, scenario_path, unselected_law
 
 
 def default_out(sc: Scenario) -> Path:
@@ -50,7 +50,7 @@ def exit_codes_help() -> str:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """`bench run`'s own options: the scenario, the bus and the nodes, then the outputs."""
-    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
+    p.add_argument("scenario", type=scenario_path, help="scenario TOML file (see scenarios/)")
     add_set_argument(
         p,
         "override a scenario value with a dotted key following the TOML layout, "

@@ -88,6 +88,7 @@ PRESETS = ("you2019", "yao2020_low", "yao2020_high", "zhao2022")
 # ASSUMED, as in Yao 2020 Sec. V and Zhao 2022 Sec. 5.1, whose Simulink models give none); the trip level stays on.
 DRIVE_PRESETS = {"ideal": {"t_dead_s": 0.0, "encoder_lines": 0, "adc_noise_std_A": 0.0, "adc_lsb_A": 0.0}}
 TIMINGS = ("lockstep", "realtime")
+SCENARIO_KEYS = ("name", "description", "periods", "seed", "timing", "expect")
 # Run statuses (bench/run/verdict/summary.py EXIT_CODES gives each its exit code).
 STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference", "law_fault")
 
@@ -275,7 +276,7 @@ def _head(raw: dict[str, Any], where: str) -> tuple[str, int, int, str, list[str
     if not isinstance(head, dict):
         raise ScenarioError(f"{where}: missing [scenario] table with at least name and periods")
     for key in head:
-        if key not in {"name", "description", "periods", "seed", "timing", "expect"}:
+        if key not in SCENARIO_KEYS:
             raise ScenarioError(
                 f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, timing, expect"
             )
@@ -364,7 +365,24 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
     return dict(law_info(controller_at_start(sc)).trace)
 
 
+def bundled(path: Path) -> Path:
+    """`path`, or the bench's own scenario of that relative name (scenarios/you2019_step.toml, the examples) when
+    this folder has none: the README's commands work from any folder, also with an installed package."""
+    if path.exists() or path.is_absolute():
+        return path
+    from bench.paths import REPO
+
+    own = REPO / path
+    return own if own.is_file() else path
+
+
+def scenario_path(text: str) -> Path:
+    """argparse's type of a command's scenario argument (bundled())."""
+    return bundled(Path(text))
+
+
 def load(path: Path, overrides: list[str] | None = None) -> Scenario:
+    path = bundled(path)
     where = str(path)
     try:
         text = path.read_text()
@@ -380,6 +398,39 @@ def loads(text: str, where: str, overrides: list[str] | None = None) -> Scenario
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: not valid TOML: {exc}") from exc
-    if overrides:
-        raw = apply_overrides(raw, overrides, where)
-    return parse(raw, where)
+    if not overrides:
+        return parse(raw, where)
+    try:
+        return parse(apply_overrides(raw, overrides, where), where)
+    except ScenarioError as exc:
+        raise _blame_override(raw, overrides, where, exc) from None
+
+
+def _blame_override(raw: dict[str, Any], overrides: list[str], where: str, exc: ScenarioError) -> ScenarioError:
+    """A refusal that an override caused names that override (with the nearest known key), not the file: the
+    file alone parses, and the first override after which it does not is the one."""
+    try:
+        parse(raw, where)
+    except ScenarioError:
+        return exc  # the file itself
+    for n in range(1, len(overrides) + 1):
+        try:
+            parse(apply_overrides(raw, overrides[:n], where), where)
+        except ScenarioError as err:
+            item = overrides[n - 1]
+            text = str(err).removeprefix(f"{where}: ")
+            return ScenarioError(f"--set {item} (on {where}): {text}{_nearest(item.partition('=')[0].strip())}")
+    return exc
+
+
+def _nearest(key: str) -> str:
+    """ "; did you mean section.key?" for a misspelt override key, or ""."""
+    import difflib
+
+    tables = _param_tables()
+    known = [f"{t}.{k}" for t, params in tables.items() for k in params] + [f"scenario.{k}" for k in SCENARIO_KEYS]
+    known += [f"controller.{k}" for k in RATIOS] + ["motor.preset", "drive.preset"]
+    if key in known:
+        return ""
+    close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
+    return f"; did you mean {close[0]}?" if close else ""

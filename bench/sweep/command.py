@@ -20,8 +20,16 @@ if TYPE_CHECKING:
     from bench.sweep.table import TableWriter
 
 
+def _scenario_path(text: str) -> Path:
+    """The scenario argument (bench.scenario.bundled: the bench's own scenarios from any folder), imported when
+    used: the module reads the EDS."""
+    from bench.scenario import bundled
+
+    return bundled(Path(text))
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", type=Path, help="the scenario every point starts from (TOML)")
+    p.add_argument("scenario", type=_scenario_path, help="the scenario every point starts from (TOML)")
     g = p.add_argument_group("the study")
     g.add_argument(
         "--grid",

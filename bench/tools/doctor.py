@@ -7,8 +7,9 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 
-from bench import canbus
-from bench.paths import BIN, REPO
+from bench import canbus, mcu
+from bench.paths import BIN, MISSING_BUILD
+from bench.root import INSTALLED
 from bench.run.bus import vm
 
 
@@ -97,7 +98,16 @@ def collect() -> tuple[list[Check], str]:
             )
         )
     built = (BIN / "can_pingpong").exists()
-    checks.append(Check("C build", built, str(BIN) if built else "not built", "" if built else f"make -C {REPO} all"))
+    where = f"{BIN} ({'installed package' if INSTALLED else 'clone'})"
+    checks.append(Check("C build", built, where if built else "not built", "" if built else MISSING_BUILD))
+    image = mcu.ELF.exists()
+    fix = (
+        "apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi, then reinstall pmsm-hil-bench"
+        if INSTALLED
+        else "make mcu (needs gcc-arm-none-eabi)"
+    )
+    detail = str(mcu.ELF) if image else "not built"
+    checks.append(Check("Cortex-M4F image (--drive mcu)", image, detail, "" if image else fix, optional=True))
     if canbus.host_has_vcan():
         mode = "host"
     elif vm_ok:

@@ -57,6 +57,17 @@ def test_the_installed_package_is_not_the_clone(user: Path) -> None:
     assert res.returncode == 0, res.stderr
     installed, root, plant = res.stdout.split()
     assert installed == "True" and not Path(root).is_relative_to(REPO) and Path(plant).is_relative_to(root)
+    doctor = _run([str(user / "venv" / "bin" / "bench"), "doctor"], user)
+    assert re.search(r"C build +\S+/bench/_root/build/bin \(installed package\)", doctor.stdout), doctor.stdout
+
+
+def test_without_a_c_compiler_pip_says_which_package_to_install(tmp_path: Path) -> None:
+    env = {**os.environ, "CC": "no-such-cc"}
+    argv = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", str(tmp_path), str(REPO)]
+    res = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=PIP_TIMEOUT_S)
+    out = res.stdout + res.stderr
+    assert res.returncode != 0 and not list(tmp_path.glob("*.whl")), out[-3000:]
+    assert "`no-such-cc` is not installed" in out and "apt-get install build-essential" in out, out[-3000:]
 
 
 def test_the_example_project_passes_in_direct_mode(user: Path) -> None:
@@ -91,7 +102,9 @@ def test_bench_run_sweep_and_replay_outside_the_clone(user: Path) -> None:
     scenario = str(EXAMPLE / "scenarios" / "iq_step.toml")
     run = _run([bench, "run", scenario, "--bus", "direct", "--no-viewer", "--out", "run1"], work)
     assert run.returncode == 0 and (work / "run1" / "traces.npy").is_file(), run.stdout[-2000:] + run.stderr
-    sweep = [bench, "sweep", scenario, "--grid", "controller.L_hat_ratio=0.8,1.2", "--out", "sweep1"]
+    # the bench's own scenario by the README's relative name, from a folder that has none (bench.scenario.bundled)
+    own = "scenarios/you2019_step.toml"
+    sweep = [bench, "sweep", own, "--grid", "controller.L_hat_ratio=0.8,1.2", "--out", "sweep1"]
     res = _run(sweep, work)
     assert res.returncode == 0 and (work / "sweep1" / "sweep.parquet").is_file(), res.stdout[-2000:] + res.stderr
     replay = _run([bench, "replay", "run1/bus.log", "--no-viewer", "--out", "replay1"], work)
