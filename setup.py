@@ -21,6 +21,11 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 from setuptools.dist import Distribution
 
+try:
+    from setuptools.command.bdist_wheel import bdist_wheel
+except ImportError:  # setuptools < 70.1: the wheel package's
+    from wheel.bdist_wheel import bdist_wheel
+
 HERE = Path(__file__).resolve().parent
 # What the C build of an installed package reads (and the scenarios `bench demo`/`perf` run).
 SOURCES = ("Makefile", "protocols", "plant_rt", "firmware_shim", "bench/direct", "scenarios")
@@ -36,10 +41,18 @@ MCU_MISSING = (
 
 
 class BinaryDistribution(Distribution):
-    """The wheel holds compiled programs: tag it for this platform, not as pure Python."""
+    """The wheel holds compiled programs: a platform wheel, not pure Python."""
 
     def has_ext_modules(self) -> bool:
         return True
+
+
+class PlatformWheel(bdist_wheel):
+    """py3-none-<platform>: the programs and libhil.so (loaded by ctypes) use no Python ABI, so one wheel serves
+    every Python the project supports on this platform."""
+
+    def get_tag(self) -> tuple[str, str, str]:
+        return ("py3", "none", super().get_tag()[2])
 
 
 def _check_tools() -> None:
@@ -56,6 +69,11 @@ def _check_tools() -> None:
 def build_native(root: Path) -> None:
     """Copy the C sources into `root` and run `make package` there; nothing of the build machine is kept."""
     _check_tools()
+    if any(c.isspace() for c in str(root)):
+        sys.exit(
+            f"pmsm-hil-bench: cannot build in {root}: make cannot take a path with white space; "
+            "install from a folder whose path has none"
+        )
     if root.exists():
         shutil.rmtree(root)
     for rel in SOURCES:
@@ -92,7 +110,7 @@ class BuildWithNodes(build_py):
 
 
 setup(
-    cmdclass={"build_py": BuildWithNodes},
+    cmdclass={"build_py": BuildWithNodes, "bdist_wheel": PlatformWheel},
     distclass=BinaryDistribution,
     options={"build": {"build_base": "build/setuptools"}},
 )

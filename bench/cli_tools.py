@@ -166,7 +166,16 @@ def add_export(sub: Any) -> None:
 
 
 def _cmd_perf(args: argparse.Namespace) -> int:
+    from bench.root import INSTALLED
     from bench.tools.perf import main as perf_main
+
+    if INSTALLED:
+        print(
+            "bench perf: measures the bench in a clone of its repository (it builds the peers with scripts/peers.sh "
+            "and keeps its files in build/perf): run it there, not from an installed package",
+            file=sys.stderr,
+        )
+        return 2
 
     return perf_main(args)
 

@@ -8,6 +8,7 @@ the bench and of protocols/gen_od.py (which generates the C from the same files 
 from __future__ import annotations
 
 import configparser
+import functools
 import hashlib
 import importlib.util
 import os
@@ -107,11 +108,18 @@ def bits(node: str, obj: str, name: str) -> dict[str, int]:
     return {n: 1 << bit for bit, n in enumerate(names) if n}
 
 
+@functools.cache
+def _code_key() -> bytes:
+    """The code that builds what the cache keeps (this module and the EDS reader): two installs of different
+    bench versions share the working folder's cache, never each other's pickles."""
+    return hashlib.sha256(Path(__file__).read_bytes() + (REPO / "protocols" / "eds_reader.py").read_bytes()).digest()
+
+
 def _cached(what: str, node: str, build: Callable[[], T]) -> T:
     """`build()` memoized on disk, keyed by the EDS file's content and the canopen version: parsing
     an EDS costs ~0.1 s of every command's start; unpickling it a few ms."""
     path = eds_path(node)
-    key = hashlib.sha256(path.read_bytes() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
+    key = hashlib.sha256(path.read_bytes() + _code_key() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
     cache = STATE / "eds-cache" / f"{node}-{key}.pickle"
     try:
         return pickle.loads(cache.read_bytes())  # type: ignore[no-any-return]

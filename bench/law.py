@@ -13,6 +13,7 @@ import fcntl
 import hashlib
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -80,20 +81,48 @@ def build(law: Path, repo: Path = REPO, state: Path = STATE) -> Path:
     cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD={out}", f"PYTHON={sys.executable}"]
     cmd.append(f"-j{os.cpu_count() or 1}")
     print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out.with_name(out.name + ".lock"), "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # another command building this folder now: after it, make finds it done
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        lines: list[str] = []
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            lines.append(line.rstrip("\n"))
-            m = COMPILE.search(line)
-            if m:
-                print(f"  cc {m.group(1)}", file=sys.stderr, flush=True)
-        if proc.wait() != 0:
-            raise LawBuildError(_failure(lines, law))
+    _prune(out, name)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out.with_name(out.name + ".lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # another command building this folder now: after it, make finds it done
+            lines = _make(cmd)
+    except OSError as exc:
+        where = exc.filename or out
+        raise LawBuildError(
+            f"cannot build in {where}: {exc.strerror} (make and a C compiler are needed; the build goes to the "
+            "bench's working folder: BENCH_CACHE_DIR chooses another for an installed package)"
+        ) from None
+    if lines is not None:
+        raise LawBuildError(_failure(lines, law))
     return out
+
+
+def _make(cmd: list[str]) -> list[str] | None:
+    """Run make with the compiled files shown on stderr; None when it succeeded, else its output's lines."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        lines.append(line.rstrip("\n"))
+        m = COMPILE.search(line)
+        if m:
+            print(f"  cc {m.group(1)}", file=sys.stderr, flush=True)
+    return None if proc.wait() == 0 else lines
+
+
+def _prune(out: Path, name: str) -> None:
+    """The builds of this law's name whose folder is gone (a test's temporary copy, a deleted checkout): removed,
+    so that one folder per law folder does not pile up."""
+    for other in out.parent.glob(f"{name}-*"):
+        source = other / "law.from"
+        try:
+            gone = other != out and other.is_dir() and not Path(source.read_text().strip()).is_dir()
+        except OSError:
+            continue
+        if gone:
+            shutil.rmtree(other, ignore_errors=True)
+            other.with_name(other.name + ".lock").unlink(missing_ok=True)
 
 
 def build_folder(law: Path, name: str, state: Path = STATE) -> Path:

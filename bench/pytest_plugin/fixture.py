@@ -49,7 +49,10 @@ class HilRunner:
     def __init__(self, request: pytest.FixtureRequest, settings: Settings) -> None:
         self._settings = settings
         self._node = request.node
-        self._search = [Path.cwd(), request.path.parent, request.config.rootpath]
+        from bench.root import REPO
+
+        # last, the bench's own (scenarios/you2019_step.toml, examples/...), as bench run finds them
+        self._search = [Path.cwd(), request.path.parent, request.config.rootpath, REPO]
         self._runs = RunFolders(settings.out / sanitize(request.node.nodeid))
         self.history: list[HilRun] = []
 

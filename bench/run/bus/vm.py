@@ -131,6 +131,8 @@ def _guest_script(
     env_lines += [
         "export HOME=/tmp/vmhome XDG_CACHE_HOME=/tmp/vmhome/.cache MPLCONFIGDIR=/tmp/vmhome/mpl",
         "export PYTHONDONTWRITEBYTECODE=1 BENCH_IN_VM=1",
+        # an installed bench's working folder is the host's (shared), not the guest's own $HOME
+        *([f"export BENCH_CACHE_DIR={shlex.quote(str(STATE))}"] if INSTALLED else []),
         # the folders that reach the host: a command's output elsewhere is refused (bench.paths.lost_in_vm)
         f"export BENCH_VM_SHARED={shlex.quote(os.pathsep.join(map(str, shared)))}",
         "mkdir -p /tmp/vmhome/.cache /tmp/vmhome/mpl",
@@ -182,7 +184,12 @@ def run_in_vm(cmd: list[str], options: VmOptions | None = None, cwd: Path | None
     cwd = _check_path(cwd or Path.cwd())
     jobs = STATE / "vm"
     job = jobs / f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:8]}"
-    job.mkdir(parents=True, exist_ok=True)
+    try:
+        job.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise VmError(
+            f"cannot make the VM's job folder {job}: {exc.strerror} (BENCH_CACHE_DIR chooses another)"
+        ) from None
     status_file = job / "status"
     script = job / "job.sh"
     home = STATE if INSTALLED else REPO  # a clone is shared whole; a package only its working folder
