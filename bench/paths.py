@@ -2,9 +2,9 @@
 build, the EDS files.
 
 BENCH_BUILD_DIR chooses another build: a user's law (`bench run ... --law DIR`, bench/law.py, builds
-build/laws/<law name>/), whose node binaries, libhil.so, MCU image and merged EDS files (its eds/) the
-bench then uses. Read once, at import: the CLI sets it before any module reads an EDS (`bench vm`
-forwards it into the VM, as every BENCH_* variable).
+laws/<law name>-<hash>/ of the working folder STATE), whose node binaries, libhil.so, MCU image and merged
+EDS files (its eds/) the bench then uses. Read once, at import: the CLI sets it before any module reads an EDS
+(`bench vm` forwards it into the VM, as every BENCH_* variable).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from bench.root import REPO, STATE
+from bench.root import INSTALLED, REPO, STATE
 
 BUILD = Path(os.environ.get("BENCH_BUILD_DIR") or REPO / "build").resolve()
 BIN = BUILD / "bin"
@@ -20,7 +20,7 @@ EDS_DIR = BUILD / "eds" if os.environ.get("BENCH_BUILD_DIR") else REPO / "protoc
 VECTORS_DIR = REPO / "protocols" / "vectors"
 MISSING_BUILD = (
     "reinstall pmsm-hil-bench (its C build is made at install time: pip install --force-reinstall <repository>)"
-    if REPO.name == "_root"
+    if INSTALLED
     else f"run `make all` (or `make demo`) in {REPO}"
 )
 __all__ = ["BIN", "BUILD", "EDS_DIR", "MISSING_BUILD", "REPO", "STATE", "VECTORS_DIR", "binary", "lost_in_vm"]

@@ -277,9 +277,7 @@ def _head(raw: dict[str, Any], where: str) -> tuple[str, int, int, str, list[str
         raise ScenarioError(f"{where}: missing [scenario] table with at least name and periods")
     for key in head:
         if key not in SCENARIO_KEYS:
-            raise ScenarioError(
-                f"{where}: unknown key scenario.{key}; allowed: name, description, periods, seed, timing, expect"
-            )
+            raise ScenarioError(f"{where}: unknown key scenario.{key}; allowed: {', '.join(SCENARIO_KEYS)}")
     name = head.get("name")
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"{where}: scenario.name must be a non-empty string")
@@ -366,8 +364,9 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
 
 
 def bundled(path: Path) -> Path:
-    """`path`, or the bench's own scenario of that relative name (scenarios/you2019_step.toml, the examples) when
-    this folder has none: the README's commands work from any folder, also with an installed package."""
+    """`path`, or the bench's own scenario of that relative name (scenarios/you2019_step.toml; in a clone also
+    examples/...) when this folder has none: the README's commands work from any folder, also with an installed
+    package."""
     if path.exists() or path.is_absolute():
         return path
     from bench.paths import REPO
