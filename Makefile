@@ -249,7 +249,7 @@ $(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $
 HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(PLANT_APP_SRC) $(SHIM_APP_SRC) $(wildcard bench/direct/*.c) $(FAULT_SRC)
 $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
-	$(CC) -shared $^ -lm -o $@
+	$(CC) -shared $^ -lm -pthread -o $@
 
 clean:
 	rm -rf $(BUILD)

@@ -21,6 +21,7 @@
 #include "plant_app.h"
 
 #include "hil_frame.h" /* hil_frame_t, 24 bytes; numpy dtype FRAME_DTYPE */
+#include "hil_internal.h"
 
 #define MASTER_Q 1024u
 #define FROZEN_Q 4096u    /* frames waiting for a frozen node (a socket buffer's worth) */
@@ -94,6 +95,10 @@ static void hear(uint8_t side, const co_frame_t *f)
             ++H.fz_dropped;
         return;
     }
+    if (hil_rt_active) {
+        hil_rt_push(side, f, H.now_us); /* real time: the node's own thread takes it */
+        return;
+    }
     co_node_process(node_of(side), f, H.now_us);
 }
 
@@ -144,17 +149,34 @@ static void deliver(void)
     }
 }
 
-/* The nodes' timers (heartbeats, consumers, SDO timeouts) on simulated time, when due. */
-static void tick(void)
+/* One node's timers (heartbeats, consumers, SDO timeouts), when due. */
+void hil_timers(uint8_t s)
 {
-    for (uint8_t s = 0; s < 2u; ++s) {
-        if (H.killed[s] || H.frozen[s] || H.now_us < H.next_tick_us[s]) continue;
-        co_node_tick(node_of(s), H.now_us);
-        H.next_tick_us[s] = H.now_us + co_node_next_event_us(node_of(s), H.now_us, TICK_MAX_US);
-    }
+    if (H.killed[s] || H.frozen[s] || H.now_us < H.next_tick_us[s]) return;
+    co_node_tick(node_of(s), H.now_us);
+    H.next_tick_us[s] = H.now_us + co_node_next_event_us(node_of(s), H.now_us, TICK_MAX_US);
+}
+
+/* The injector's held frames that are due, and every frame queued on the bus. */
+void hil_fi_tick(void)
+{
     fi_tick(&H.fi, H.now_us);
     deliver();
 }
+
+/* The nodes' timers on simulated time, when due. */
+static void tick(void)
+{
+    for (uint8_t s = 0; s < 2u; ++s) hil_timers(s);
+    hil_fi_tick();
+}
+
+co_node_t *hil_node_of(uint8_t side) { return node_of(side); }
+plant_app_t *hil_plant_app(void) { return &H.plant; }
+void hil_deliver(void) { deliver(); }
+void hil_set_now_us(int64_t t_us) { H.now_us = t_us; }
+int hil_side_live(uint8_t side) { return !H.killed[side] && !H.frozen[side]; }
+void hil_set_running(int on) { H.running = on; }
 
 int hil_open(uint8_t plant_id, uint8_t drive_id)
 {
@@ -198,6 +220,19 @@ void hil_set_recorder(hil_frame_t *buf, uint32_t capacity)
     H.rec_cap = capacity;
     H.rec_n = 0;
     H.rec_dropped = 0;
+}
+
+/* The frames recorded so far (their count, returned) and a fresh buffer for the next ones, in one step under
+ * the bus lock (real time: the nodes' threads record while the caller takes). */
+uint32_t hil_take(hil_frame_t *buf, uint32_t capacity)
+{
+    hil_rt_lock();
+    uint32_t n = H.rec_n;
+    H.rec = buf;
+    H.rec_cap = capacity;
+    H.rec_n = 0;
+    hil_rt_unlock();
+    return n;
 }
 
 uint32_t hil_recorded(void) { return H.rec_n; }

@@ -178,10 +178,6 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         if (unselected := unselected_law([sc])) is not None:
             raise ScenarioError(unselected)
         _check_args(args)
-        if args.bus == "direct" and sc.timing == "realtime":
-            from bench.run.pipeline import DIRECT_IS_LOCKSTEP
-
-            raise ScenarioError(DIRECT_IS_LOCKSTEP)
     except ScenarioError as exc:
         print(f"bench run: {exc}", file=sys.stderr)
         return 2, None, None

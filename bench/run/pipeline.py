@@ -190,12 +190,6 @@ class Pipeline:
         )
 
 
-DIRECT_IS_LOCKSTEP = (
-    "scenario.timing = realtime needs a CAN bus (--bus vcan0, can0, ...): the direct bus calls both nodes in "
-    "one process, period by period, so it runs lockstep only"
-)
-
-
 def _configure_and_run(
     sess: Session, progress: Progress | None = None, tick: Callable[[], None] | None = None
 ) -> tuple[float, dict[str, Any] | None]:
@@ -231,8 +225,6 @@ def run_scenario(
     from bench.run.record.sources import CandumpSource, DirectSource, ListenerSource
 
     opts = opts or RunOptions()
-    if opts.bus == "direct" and sc.timing == "realtime":
-        raise ValueError(DIRECT_IS_LOCKSTEP)
     sinks = list(sinks or [])
     collector = TraceCollector() if keep_trace else None
     if collector is not None:

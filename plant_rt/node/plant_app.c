@@ -44,15 +44,9 @@ static bool is_model_entry(const co_od_entry_t *e)
 
 static void attach_domain(plant_app_t *app)
 {
-    M.x2006_lateness_histogram.data = app->hist_bytes;
-    M.x2006_lateness_histogram.size = (uint32_t)sizeof app->hist_bytes;
-    M.x2006_lateness_histogram.capacity = 0u; /* read-only */
-}
-
-static void hist_clear(plant_app_t *app)
-{
-    memset(app->hist, 0, sizeof app->hist);
-    memset(app->hist_bytes, 0, sizeof app->hist_bytes);
+    M.x2006_timing_histograms.data = app->hist_bytes;
+    M.x2006_timing_histograms.size = (uint32_t)sizeof app->hist_bytes;
+    M.x2006_timing_histograms.capacity = 0u; /* read-only */
 }
 
 static void reset_tracking(plant_app_t *app)
@@ -81,7 +75,7 @@ static void model_reset(plant_app_t *app)
     app->drive_lost = false;
     app->trip_emcy = 0u;
     reset_tracking(app);
-    hist_clear(app);
+    plant_app_timing_reset(app);
     attach_domain(app);
 }
 
@@ -239,6 +233,16 @@ static void hook_post_write(void *user, co_node_t *node, const co_od_entry_t *e)
         default: break;
         }
     }
+    if (e->index == OD_PLANT_REALTIME_TIMING_IDX && e->subindex == OD_PLANT_REALTIME_TIMING_RESET_SUB) {
+        if (M.x2007_realtime_timing.reset == 1u) plant_app_timing_reset(app);
+        M.x2007_realtime_timing.reset = 0u;
+    }
+}
+
+/* 0x2007 is read: its figures from the statistics (the percentiles are computed here, not per period). */
+static void hook_pre_read(void *user, co_node_t *node, const co_od_entry_t *e)
+{
+    if (e->index == OD_PLANT_REALTIME_TIMING_IDX) plant_app_timing_publish(user_app(user, node));
 }
 
 static void hook_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
@@ -287,8 +291,6 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     ++app->syncs;
     app->last_sync_us = now;
     app->wait_start_us = now;
-    app->sched_us[app->k % PLANT_APP_SCHED_RING] =
-        M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME ? app->tick_sched_us : now;
     app->cmd_ready = false;
     app->cmd_seen = false;
     app->late_in_period = false;
@@ -354,7 +356,7 @@ static void hook_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
 static const co_hooks_t k_hooks = {
     .pre_write = hook_pre_write,
     .post_write = hook_post_write,
-    .pre_read = NULL,
+    .pre_read = hook_pre_read,
     .on_sync = hook_on_sync,
     .on_rpdo = hook_on_rpdo,
     .on_nmt = hook_on_nmt,

@@ -12,8 +12,10 @@
  *   0x2004         motor preset: writing a name loads it into 0x2000-0x2002
  *                  (unknown name -> abort 0x06090030).
  *   0x2005         true state after the last SYNC.
- *   0x2006         DOMAIN, 32 x UNSIGNED32 LE: real-time command arrival
- *                  histogram (see PLANT_APP_HIST_*).
+ *   0x2006         DOMAIN: the real-time timing histograms (plant_rtstats.h).
+ *   0x2007         real-time timing: SYNC lateness and turnaround (min, mean,
+ *                  p50, p99, p99.9, max; the percentiles computed when read),
+ *                  overruns, the worst period; write 1 to :12 reset.
  *   0x2100         the sample taken at the last SYNC (TPDO1/TPDO2).
  *   0x2102         the voltage command (synchronous RPDO1).
  *
@@ -50,14 +52,8 @@
  * 0x2100:05 Measurement.status, PLANT_STATUS_TRIP, _HOLDING, _MISSED, _HELD (its BitNames in plant.eds;
  * what each means: its Description there). */
 #include "od_plant_fields.h"
+#include "plant_rtstats.h"
 #include "pmsm_plant.h"
-
-/* Real-time arrival histogram (0x2006): bin i counts commands whose arrival
- * minus the next SYNC deadline is in [i*10 - 160, i*10 - 150) us; bin 0 also
- * holds earlier ones, bin 31 later ones (overflow). Bins 16..31 are late. */
-#define PLANT_APP_HIST_BINS 32u
-#define PLANT_APP_HIST_BIN_US 10
-#define PLANT_APP_HIST_ORIGIN_US (-160)
 
 /* Command accounting: the n-th command frame answers sample n, so after a
  * missed period the next arrival is taken as that late command (0x2003:06)
@@ -129,10 +125,9 @@ typedef struct {
     uint16_t trip_emcy;        /* the EMCY code the active trip raised (cleared with it) */
 
     /* real time */
-    int64_t tick_sched_us;                  /* deadline of the SYNC being produced */
-    int64_t sched_us[PLANT_APP_SCHED_RING]; /* deadline of SYNC j at [j % ring] */
-    uint32_t hist[PLANT_APP_HIST_BINS];
-    uint8_t hist_bytes[PLANT_APP_HIST_BINS * 4u]; /* the DOMAIN 0x2006 buffer */
+    plant_rtstats_t lateness;                         /* SYNC: its time minus its deadline */
+    plant_rtstats_t turnaround;                       /* command arrival minus its period's SYNC */
+    uint8_t hist_bytes[2u * PLANT_RTSTATS_BINS * 4u]; /* the DOMAIN 0x2006: lateness, then turnaround */
 } plant_app_t;
 
 /* Zero the app and load the OD defaults into the model (callable before co_node_init). */
@@ -149,10 +144,10 @@ const co_hooks_t *plant_app_hooks(void);
 int64_t plant_app_poll(plant_app_t *app, int64_t now_us);
 
 /* Real-time mode: the transport calls this at each absolute deadline (every
- * plant_app_period_ns); lateness_us = now_us - deadline. Counts a miss if no
- * command arrived, produces the SYNC. Returns the SYNC counter or -1 (not
- * running / not in real-time mode). */
-int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_us);
+ * plant_app_period_ns); lateness_ns = now - deadline. Counts a miss (an overrun)
+ * if no command arrived, times the SYNC (0x2007), produces it. Returns the SYNC
+ * counter or -1 (not running / not in real-time mode). */
+int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_ns);
 
 /* NMT OPERATIONAL and run_periods > 0. */
 bool plant_app_running(const plant_app_t *app);

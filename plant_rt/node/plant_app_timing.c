@@ -1,22 +1,39 @@
 /* plant_app_timing.c - the plant app's periods (see plant_app.h): which command answers which
- * sample (late, missed), the lateness histogram (0x2006), and the drivers that produce the SYNCs
- * (lockstep poll, real-time tick).  Portable: no OS headers. */
+ * sample (late, missed), the real-time timing (0x2006 histograms, 0x2007 figures), and the drivers
+ * that produce the SYNCs (lockstep poll, real-time tick).  Portable: no OS headers. */
 #include <math.h>
+#include <string.h>
 
 #include "plant_app.h"
 #include "plant_app_internal.h"
 
-static void hist_add(plant_app_t *app, int64_t lateness_us)
+void plant_app_timing_reset(plant_app_t *app)
 {
-    int64_t b = (lateness_us - PLANT_APP_HIST_ORIGIN_US);
-    b = b < 0 ? 0 : b / PLANT_APP_HIST_BIN_US;
-    if (b >= (int64_t)PLANT_APP_HIST_BINS) b = PLANT_APP_HIST_BINS - 1;
-    uint32_t v = ++app->hist[b];
-    uint8_t *p = &app->hist_bytes[b * 4];
-    p[0] = (uint8_t)v;
-    p[1] = (uint8_t)(v >> 8);
-    p[2] = (uint8_t)(v >> 16);
-    p[3] = (uint8_t)(v >> 24);
+    plant_rtstats_init(&app->lateness, app->hist_bytes);
+    plant_rtstats_init(&app->turnaround, app->hist_bytes + PLANT_RTSTATS_BINS * 4u);
+    od_plant_realtime_timing_t *t = &M.x2007_realtime_timing;
+    memset(t, 0, sizeof *t);
+}
+
+void plant_app_timing_publish(plant_app_t *app)
+{
+    od_plant_realtime_timing_t *t = &M.x2007_realtime_timing;
+    const plant_rtstats_t *l = &app->lateness, *r = &app->turnaround;
+    t->periods = (uint32_t)l->n;
+    t->sync_lateness_min_us = (float)((double)l->min_ns * 1e-3);
+    t->sync_lateness_mean_us = (float)plant_rtstats_mean_us(l);
+    t->sync_lateness_p50_us = (float)plant_rtstats_quantile_us(l, 0.5);
+    t->sync_lateness_p99_us = (float)plant_rtstats_quantile_us(l, 0.99);
+    t->sync_lateness_p99_9_us = (float)plant_rtstats_quantile_us(l, 0.999);
+    t->sync_lateness_max_us = (float)((double)l->max_ns * 1e-3);
+    t->worst_period = (uint32_t)l->max_at;
+    t->commands_timed = (uint32_t)r->n;
+    t->turnaround_min_us = (float)((double)r->min_ns * 1e-3);
+    t->turnaround_mean_us = (float)plant_rtstats_mean_us(r);
+    t->turnaround_p50_us = (float)plant_rtstats_quantile_us(r, 0.5);
+    t->turnaround_p99_us = (float)plant_rtstats_quantile_us(r, 0.99);
+    t->turnaround_p99_9_us = (float)plant_rtstats_quantile_us(r, 0.999);
+    t->turnaround_max_us = (float)((double)r->max_ns * 1e-3);
 }
 
 static int64_t period_us(const plant_app_t *app) { return (int64_t)llround(app->cfg.Ts_s * 1e6); }
@@ -38,18 +55,17 @@ const co_pdo_t *plant_app_cmd_rpdo(const plant_app_t *app)
 void plant_app_note_arrival(plant_app_t *app, int64_t t_us)
 {
     ++app->commands;
-    int64_t deadline;
     if (app->owed > 0u) {
-        uint64_t p = app->k >= app->owed ? app->k - app->owed : 0u; /* period it was meant for */
-        deadline = app->sched_us[(p + 1u) % PLANT_APP_SCHED_RING];
         --app->owed;
         ++M.x2003_run_control.late_commands;
         app->late_in_period = true;
-    } else {
-        app->cmd_ready = true;
-        deadline = app->sched_us[app->k % PLANT_APP_SCHED_RING] + period_us(app);
+        return;
     }
-    if (app->started && M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME) hist_add(app, t_us - deadline);
+    app->cmd_ready = true;
+    /* real time: the turnaround of a command of its own period, from that period's SYNC (a late one is an
+     * overrun, counted at the deadline it missed) */
+    if (app->started && M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME)
+        plant_rtstats_add(&app->turnaround, (t_us - app->last_sync_us) * 1000, app->k);
 }
 
 static void scan_arrivals(plant_app_t *app)
@@ -140,7 +156,7 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us)
     return left;
 }
 
-int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_us)
+int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_ns)
 {
     if (!app->node) return -1;
     scan_arrivals(app);
@@ -148,12 +164,11 @@ int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_u
         app->paused = true;
         return -1;
     }
-    if (app->started && !app->paused && !app->cmd_ready) handle_miss(app);
-    if (lateness_us > 0) {
-        if (lateness_us > (int64_t)M.x2003_run_control.max_sync_lateness_us)
-            M.x2003_run_control.max_sync_lateness_us = lateness_us > 0xFFFFFFFF ? 0xFFFFFFFFu : (uint32_t)lateness_us;
-        if (lateness_us > period_us(app)) ++M.x2003_run_control.sync_overruns;
+    if (app->started && !app->paused && !app->cmd_ready) {
+        handle_miss(app);
+        ++M.x2007_realtime_timing.overruns;
     }
-    app->tick_sched_us = now_us - lateness_us;
+    plant_rtstats_add(&app->lateness, lateness_ns, app->started ? app->k + 1u : 0u); /* k of this SYNC */
+    if (lateness_ns > period_us(app) * 1000) ++M.x2007_realtime_timing.sync_overruns;
     return produce(app, now_us);
 }

@@ -5,28 +5,25 @@
  * Lockstep (0x2003:01 = 0): co_runtime_run() with plant_app_poll() as the app
  * poll: a SYNC goes out as soon as the command for the current period arrived
  * (or after 0x2003:04 command_timeout_us).
- * Real time (0x2003:01 = 1): absolute-deadline loop, SYNC every Ts_s
- * (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)), frames drained between
- * deadlines. Tries SCHED_FIFO and mlockall (one line says if not permitted).
+ * Real time (0x2003:01 = 1): plant_pacing_loop (plant_pacing.h), SYNC every Ts_s
+ * at absolute deadlines, frames drained between deadlines. Tries SCHED_FIFO and
+ * mlockall (one line says if not permitted and how to grant them); the timing
+ * statistics in 0x2007 (and 0x2006).
  * SIGINT/SIGTERM: clean exit (status 0).
  */
 #include <errno.h>
 #include <poll.h>
-#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 #include <time.h>
 
 #include "co_runtime.h"
 #include "od_plant.h"
 #include "plant_app.h"
+#include "plant_pacing.h"
 
 #define EXIT_USAGE 64
-#define RT_GUARD_US 30      /* stop waiting for frames this long before a deadline */
-#define RT_SERVE_MIN_US 200 /* wait on the socket between deadlines only if this much time is left */
-#define IDLE_WAIT_US 10000  /* real-time mode while holding: frame wait slice */
 
 static plant_app_t g_app;
 static co_runtime_t g_rt;
@@ -53,42 +50,6 @@ static void usage(FILE *f)
             (unsigned)OD_PLANT_DEFAULT_NODE_ID);
 }
 
-static int64_t mono_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000LL + ts.tv_nsec;
-}
-
-static void sleep_until_ns(int64_t t_ns)
-{
-    struct timespec ts = {.tv_sec = (time_t)(t_ns / 1000000000LL), .tv_nsec = (long)(t_ns % 1000000000LL)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
-        if (co_runtime_stop_requested()) return;
-    }
-}
-
-static void try_realtime_priority(void)
-{
-    static int done;
-    if (done) return;
-    done = 1;
-    struct sched_param sp;
-    memset(&sp, 0, sizeof sp);
-    sp.sched_priority = 80;
-    int fifo = sched_setscheduler(0, SCHED_FIFO, &sp) == 0;
-    int fifo_err = fifo ? 0 : errno;
-    int locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-    int lock_err = locked ? 0 : errno;
-    if (fifo && locked)
-        printf("plant_node: real-time mode: SCHED_FIFO priority 80, memory locked\n");
-    else
-        printf("plant_node: real-time mode: %s%s%s%s (needs root or CAP_SYS_NICE/CAP_IPC_LOCK); timing may jitter\n",
-               fifo ? "SCHED_FIFO on" : "SCHED_FIFO not permitted: ", fifo ? "" : strerror(fifo_err),
-               locked ? ", memory locked" : ", mlockall not permitted: ", locked ? "" : strerror(lock_err));
-    fflush(stdout);
-}
-
 /* Lockstep app poll; leaves co_runtime_run when real-time mode is selected. */
 static int64_t lockstep_poll(void *user, co_runtime_t *rt, int64_t now_us)
 {
@@ -98,57 +59,65 @@ static int64_t lockstep_poll(void *user, co_runtime_t *rt, int64_t now_us)
     return plant_app_poll(app, now_us);
 }
 
-/* Serve frames until until_ns. co_runtime_wait_one() waits in whole
- * milliseconds (poll()), far too coarse for a 55 us period, so wait on the
- * socket with ppoll() (ns timeout) and drain what arrived. */
-static void serve_until_ns(co_runtime_t *rt, int64_t until_ns)
+/* ---- real time over SocketCAN: the transport of plant_pacing_loop ---- */
+
+/* Serve frames until until_ns. co_runtime_wait_one() waits in whole milliseconds (poll()), far too
+ * coarse for a 55 us period, so wait on the socket with ppoll() (ns timeout) and drain what arrived
+ * (each frame with its kernel receive time: a command's arrival is timed as the bus delivered it). */
+static void rt_serve_until(void *user, int64_t until_ns)
 {
+    co_runtime_t *rt = (co_runtime_t *)user;
     for (;;) {
-        int64_t rem_ns = until_ns - mono_ns();
+        int64_t rem_ns = until_ns - plant_pacing_now_ns();
         if (rem_ns <= 0 || co_runtime_stop_requested()) break;
         struct pollfd p = {.fd = rt->fd, .events = POLLIN, .revents = 0};
         struct timespec to = {.tv_sec = (time_t)(rem_ns / 1000000000LL), .tv_nsec = (long)(rem_ns % 1000000000LL)};
         int r = ppoll(&p, 1, &to, NULL);
         if (r < 0 && errno != EINTR) break;
         if (r > 0) co_runtime_drain(rt);
-        int64_t now_us = mono_ns() / 1000;
+        int64_t now_us = plant_pacing_now_ns() / 1000;
         co_node_tick(&rt->node, now_us);
         (void)plant_app_poll(&g_app, now_us); /* arrival bookkeeping only in real-time mode */
         if (!plant_app_realtime_mode(&g_app)) break;
     }
 }
 
-/* Real-time mode: absolute deadlines every Ts. Returns when the mode changes or on a signal. */
+/* The frames queued by the deadline (a burst is bounded for co_runtime_run's timers; here the tick follows at
+ * once): a backlog after a deschedule (1,024 frames: ~10 ms of a full bus) is caught up in this period, not
+ * spread over many; a flood beyond it still leaves the SYNC its turn. */
+static void rt_drain(void *user)
+{
+    co_runtime_t *rt = (co_runtime_t *)user;
+    for (int burst = 0; burst < 16 && co_runtime_drain(rt) == CO_RUNTIME_BURST_MAX; ++burst) {
+    }
+}
+
+static void rt_tick(void *user, int64_t now_ns, int64_t lateness_ns)
+{
+    co_runtime_t *rt = (co_runtime_t *)user;
+    plant_app_realtime_tick(&g_app, now_ns / 1000, lateness_ns);
+    co_node_tick(&rt->node, now_ns / 1000);
+}
+
+static int rt_stop(void *user)
+{
+    (void)user;
+    return co_runtime_stop_requested();
+}
+
 static void realtime_loop(co_runtime_t *rt)
 {
-    try_realtime_priority();
-    int64_t deadline_ns = 0;
-    while (!co_runtime_stop_requested() && plant_app_realtime_mode(&g_app)) {
-        if (!plant_app_running(&g_app)) {
-            /* holding: serve SDO/NMT, restart the deadline grid when running again */
-            serve_until_ns(rt, mono_ns() + (int64_t)IDLE_WAIT_US * 1000);
-            co_node_tick(&rt->node, mono_ns() / 1000);
-            deadline_ns = 0;
-            continue;
-        }
-        int64_t period_ns = plant_app_period_ns(&g_app);
-        if (deadline_ns == 0) deadline_ns = mono_ns() + period_ns;
-        /* short periods: one absolute sleep per period (each wake-up costs tens of us) */
-        if (deadline_ns - mono_ns() > (int64_t)RT_SERVE_MIN_US * 1000)
-            serve_until_ns(rt, deadline_ns - (int64_t)RT_GUARD_US * 1000);
-        sleep_until_ns(deadline_ns);
-        /* the frames queued by the deadline (a burst is bounded for co_runtime_run's timers; here the tick
-         * follows at once): a backlog after a deschedule (1,024 frames: ~10 ms of a full bus) is caught up in
-         * this period, not spread over many; a flood beyond it still leaves the SYNC its turn */
-        for (int burst = 0; burst < 16 && co_runtime_drain(rt) == CO_RUNTIME_BURST_MAX; ++burst) {
-        }
-        int64_t now_ns = mono_ns();
-        int64_t now_us = now_ns / 1000;
-        plant_app_realtime_tick(&g_app, now_us, (now_ns - deadline_ns) / 1000);
-        co_node_tick(&rt->node, now_us);
-        deadline_ns += plant_app_period_ns(&g_app);                                   /* Ts applied at this SYNC */
-        if (deadline_ns < now_ns - 100 * period_ns) deadline_ns = now_ns + period_ns; /* far behind: re-grid */
+    static int announced;
+    if (!announced) {
+        printf("plant_node: real-time mode: %s\n", plant_pacing_priority(PLANT_PACING_PRIORITY));
+        fflush(stdout);
+        announced = 1;
     }
+    rt->rx_stamps = 1;
+    const plant_pacing_io_t io = {
+        .user = rt, .serve_until = rt_serve_until, .drain = rt_drain, .tick = rt_tick, .stop = rt_stop};
+    plant_pacing_loop(&g_app, &io);
+    rt->rx_stamps = 0;
 }
 
 int main(int argc, char **argv)

@@ -1,5 +1,6 @@
 /* test_node_lockstep.c - lockstep SYNC production, missed and late commands,
  * run_periods holding, and the real-time tick (time driven by hand). */
+#include <math.h>
 #include <stdio.h>
 
 #include "check.h"
@@ -163,7 +164,7 @@ static void test_realtime_tick(void)
             plant_app_poll(&tb->app, tb->bus.now_us);
         }
         tb->bus.now_us = next + 3; /* woke 3 us late */
-        plant_app_realtime_tick(&tb->app, tb->bus.now_us, 3);
+        plant_app_realtime_tick(&tb->app, tb->bus.now_us, 3000);
         tb_deliver(tb);
         if (offs[j] >= 0 && offs[j] < 1000) {
             tb->bus.now_us = next + offs[j];
@@ -172,24 +173,50 @@ static void test_realtime_tick(void)
         }
         deadline = next;
     }
-    uint32_t *h = tb->app.hist;
-    printf("real time: SYNCs %u, missed %u, late %u, max SYNC lateness %u us; histogram:", (unsigned)tb->n_sync,
-           (unsigned)RC.missed_commands, (unsigned)RC.late_commands, (unsigned)RC.max_sync_lateness_us);
-    for (unsigned b = 0; b < PLANT_APP_HIST_BINS; ++b)
-        if (h[b]) printf(" [%d us: %u]", (int)b * PLANT_APP_HIST_BIN_US + PLANT_APP_HIST_ORIGIN_US, (unsigned)h[b]);
-    printf("\n");
+    /* turnarounds timed (commands of their own period, from its SYNC): 1015-1000, 1105-1058, (late: not
+     * timed), (none), 1245-1223, 1300-1278 us; SYNC lateness 0 once, then 3 us six times */
     CHECK(tb->n_sync == 7, "n_sync %u", (unsigned)tb->n_sync);
-    /* -40, -5: on time; +12: a miss, then late (+12 after its deadline); none: a
-     * miss in a period where only a late command came -> the accounting
-     * resynchronises at once (real time), so both -30 are on time. */
-    CHECK(h[(160 - 40) / 10] == 1 && h[(160 - 5 - 5) / 10] == 1 && h[(160 + 12) / 10] == 1, "histogram bins");
-    CHECK(h[(160 - 30) / 10] == 2, "bin -30");
     CHECK(RC.missed_commands == 2 && RC.late_commands == 1, "missed %u late %u", (unsigned)RC.missed_commands,
           (unsigned)RC.late_commands);
-    CHECK(RC.max_sync_lateness_us == 3, "max lateness");
-    const co_domain_t *d = &OD_PLANT.mfr.x2006_lateness_histogram;
-    CHECK(d->data == tb->app.hist_bytes && d->size == 128 && d->data[4 * 13] == 2 && d->data[4 * 17] == 1,
+    float f[19];
+    for (uint8_t sub = 1; sub <= 17; ++sub) {
+        uint8_t buf[4] = {0, 0, 0, 0};
+        uint32_t n = 0, segments = 0;
+        CHECK(testbus_sdo_upload(&tb->bus, 0x2007, sub, buf, sizeof buf, &n, &segments) == 0 && n == 4,
+              "0x2007:%u read", sub);
+        memcpy(&f[sub], buf, 4);
+    }
+    uint32_t u[19];
+    memcpy(u, f, sizeof u);
+    printf("real time: SYNCs %u, missed %u, late %u; lateness min %.1f mean %.2f p50 %.1f max %.1f us; "
+           "turnaround min %.1f mean %.2f p50 %.1f p99 %.1f max %.1f us; overruns %u\n",
+           (unsigned)tb->n_sync, (unsigned)RC.missed_commands, (unsigned)RC.late_commands, (double)f[2], (double)f[3],
+           (double)f[4], (double)f[7], (double)f[8], (double)f[9], (double)f[10], (double)f[11], (double)f[13],
+           (unsigned)u[15]);
+    CHECK(u[1] == 7 && u[14] == 4, "periods %u commands timed %u", (unsigned)u[1], (unsigned)u[14]);
+    CHECK(f[2] == 0.0f && f[7] == 3.0f && fabs((double)f[3] - 18.0 / 7.0) < 1e-5, "lateness min/max/mean");
+    CHECK(f[4] == 3.0f && f[5] == 3.0f, "lateness p50 %g p99 %g (a bin's upper edge, at most the max)", (double)f[4],
+          (double)f[5]);
+    CHECK(f[8] == 15.0f && f[13] == 47.0f && f[9] == 26.5f, "turnaround min/max/mean");
+    CHECK(f[10] == 23.0f && f[11] == 47.0f && f[12] == 47.0f, "turnaround p50 %g p99 %g p99.9 %g", (double)f[10],
+          (double)f[11], (double)f[12]);
+    CHECK(u[15] == 2 && u[16] == 0 && u[17] == 1, "overruns %u sync_overruns %u worst period %u", (unsigned)u[15],
+          (unsigned)u[16], (unsigned)u[17]);
+    const co_domain_t *d = &OD_PLANT.mfr.x2006_timing_histograms;
+    const uint32_t T = PLANT_RTSTATS_BINS * 4u; /* the turnaround's histogram follows the lateness' */
+    CHECK(d->data == tb->app.hist_bytes && d->size == 2u * T && d->data[0] == 1 && d->data[4 * 3] == 6 &&
+              d->data[T + 4 * 15] == 1 && d->data[T + 4 * 22] == 2 && d->data[T + 4 * 47] == 1,
           "DOMAIN 0x2006");
+    /* a period beyond the linear bins: 16 per octave */
+    CHECK(plant_rtstats_bin(63) == 63 && plant_rtstats_bin(64) == 64 && plant_rtstats_bin(67) == 64 &&
+              plant_rtstats_bin(68) == 65 && plant_rtstats_bin(128) == 80 &&
+              plant_rtstats_bin(1 << 20) == PLANT_RTSTATS_BINS - 1,
+          "log-linear bins");
+    /* reset clears the figures and the histograms */
+    CHECK(tb_w_u8(tb, 0x2007, OD_PLANT_REALTIME_TIMING_RESET_SUB, 1) == 0, "reset write");
+    CHECK(tb->app.lateness.n == 0 && tb->app.turnaround.n == 0 && d->data[4 * 3] == 0 &&
+              OD_PLANT.mfr.x2007_realtime_timing.overruns == 0,
+          "reset");
 }
 
 int main(void)

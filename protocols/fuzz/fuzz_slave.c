@@ -40,9 +40,9 @@ static void on_reset(void *user, co_node_t *node, int comm_only)
     OD_DRIVE.mfr.x2301_trace_buffer.data = g_domain;
     OD_DRIVE.mfr.x2301_trace_buffer.size = sizeof g_domain;
     OD_DRIVE.mfr.x2301_trace_buffer.capacity = sizeof g_domain;
-    OD_PLANT.mfr.x2006_lateness_histogram.data = g_domain;
-    OD_PLANT.mfr.x2006_lateness_histogram.size = 128;
-    OD_PLANT.mfr.x2006_lateness_histogram.capacity = 0;
+    OD_PLANT.mfr.x2006_timing_histograms.data = g_domain;
+    OD_PLANT.mfr.x2006_timing_histograms.size = 128;
+    OD_PLANT.mfr.x2006_timing_histograms.capacity = 0;
 }
 
 static uint8_t

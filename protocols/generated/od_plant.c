@@ -178,7 +178,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2002_Sensors.encoder_lines = 0x9C4u,
     .mfr.x2002_Sensors.adc_offset_b_A = 0.0f,
     .mfr.x2002_Sensors.adc_full_scale_A = 0.0f,
-    .mfr.x2003_run_control.highest_sub_index_supported = 0xBu,
+    .mfr.x2003_run_control.highest_sub_index_supported = 0x9u,
     .mfr.x2003_run_control.mode = 0x0u,
     .mfr.x2003_run_control.run_periods = 0x0u,
     .mfr.x2003_run_control.period_index = 0x0u,
@@ -188,8 +188,6 @@ static const od_plant_ram_t defaults = {
     .mfr.x2003_run_control.trip_clear = 0x0u,
     .mfr.x2003_run_control.trip_active = 0x0u,
     .mfr.x2003_run_control.state = 0x0u,
-    .mfr.x2003_run_control.sync_overruns = 0x0u,
-    .mfr.x2003_run_control.max_sync_lateness_us = 0x0u,
     .mfr.x2004_motor_preset = "you2019",
     .mfr.x2005_plant_state.highest_sub_index_supported = 0x6u,
     .mfr.x2005_plant_state.id_A = 0.0f,
@@ -198,6 +196,25 @@ static const od_plant_ram_t defaults = {
     .mfr.x2005_plant_state.theta_m_rad = 0.0f,
     .mfr.x2005_plant_state.torque_Nm = 0.0f,
     .mfr.x2005_plant_state.energy_in_J = 0.0f,
+    .mfr.x2007_realtime_timing.highest_sub_index_supported = 0x12u,
+    .mfr.x2007_realtime_timing.periods = 0x0u,
+    .mfr.x2007_realtime_timing.sync_lateness_min_us = 0.0f,
+    .mfr.x2007_realtime_timing.sync_lateness_mean_us = 0.0f,
+    .mfr.x2007_realtime_timing.sync_lateness_p50_us = 0.0f,
+    .mfr.x2007_realtime_timing.sync_lateness_p99_us = 0.0f,
+    .mfr.x2007_realtime_timing.sync_lateness_p99_9_us = 0.0f,
+    .mfr.x2007_realtime_timing.sync_lateness_max_us = 0.0f,
+    .mfr.x2007_realtime_timing.turnaround_min_us = 0.0f,
+    .mfr.x2007_realtime_timing.turnaround_mean_us = 0.0f,
+    .mfr.x2007_realtime_timing.turnaround_p50_us = 0.0f,
+    .mfr.x2007_realtime_timing.turnaround_p99_us = 0.0f,
+    .mfr.x2007_realtime_timing.turnaround_p99_9_us = 0.0f,
+    .mfr.x2007_realtime_timing.turnaround_max_us = 0.0f,
+    .mfr.x2007_realtime_timing.commands_timed = 0x0u,
+    .mfr.x2007_realtime_timing.overruns = 0x0u,
+    .mfr.x2007_realtime_timing.sync_overruns = 0x0u,
+    .mfr.x2007_realtime_timing.worst_period = 0x0u,
+    .mfr.x2007_realtime_timing.reset = 0x0u,
     .mfr.x2100_Measurement.highest_sub_index_supported = 0x6u,
     .mfr.x2100_Measurement.i_a_A = 0.0f,
     .mfr.x2100_Measurement.i_b_A = 0.0f,
@@ -395,8 +412,6 @@ static const co_od_entry_t entries[] = {
     {0x2003u, 0x07u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.trip_clear), &OD_PLANT.mfr.x2003_run_control.trip_clear, {.i = 0}, {.i = 1}}, /* trip_clear */
     {0x2003u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.trip_active), &OD_PLANT.mfr.x2003_run_control.trip_active, {.i = 0}, {.i = 0}}, /* trip_active */
     {0x2003u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2003_run_control.state), &OD_PLANT.mfr.x2003_run_control.state, {.i = 0}, {.i = 0}}, /* state */
-    {0x2003u, 0x0Au, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.sync_overruns), &OD_PLANT.mfr.x2003_run_control.sync_overruns, {.i = 0}, {.i = 0}}, /* sync_overruns */
-    {0x2003u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.max_sync_lateness_us), &OD_PLANT.mfr.x2003_run_control.max_sync_lateness_us, {.i = 0}, {.i = 0}}, /* max_sync_lateness_us */
     {0x2004u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_PLANT.mfr.x2004_motor_preset, {.i = 0}, {.i = 0}}, /* Motor preset */
     {0x2005u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported), &OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2005u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.id_A), &OD_PLANT.mfr.x2005_plant_state.id_A, {.i = 0}, {.i = 0}}, /* id_A */
@@ -405,7 +420,26 @@ static const co_od_entry_t entries[] = {
     {0x2005u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.theta_m_rad), &OD_PLANT.mfr.x2005_plant_state.theta_m_rad, {.i = 0}, {.i = 0}}, /* theta_m_rad */
     {0x2005u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.torque_Nm), &OD_PLANT.mfr.x2005_plant_state.torque_Nm, {.i = 0}, {.i = 0}}, /* torque_Nm */
     {0x2005u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.energy_in_J), &OD_PLANT.mfr.x2005_plant_state.energy_in_J, {.i = 0}, {.i = 0}}, /* energy_in_J */
-    {0x2006u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ, 0, &OD_PLANT.mfr.x2006_lateness_histogram, {.i = 0}, {.i = 0}}, /* Lateness histogram */
+    {0x2006u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ, 0, &OD_PLANT.mfr.x2006_timing_histograms, {.i = 0}, {.i = 0}}, /* Timing histograms */
+    {0x2007u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.highest_sub_index_supported), &OD_PLANT.mfr.x2007_realtime_timing.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2007u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.periods), &OD_PLANT.mfr.x2007_realtime_timing.periods, {.i = 0}, {.i = 0}}, /* periods */
+    {0x2007u, 0x02u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_min_us), &OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_min_us, {.i = 0}, {.i = 0}}, /* sync_lateness_min_us */
+    {0x2007u, 0x03u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_mean_us), &OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_mean_us, {.i = 0}, {.i = 0}}, /* sync_lateness_mean_us */
+    {0x2007u, 0x04u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_p50_us), &OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_p50_us, {.i = 0}, {.i = 0}}, /* sync_lateness_p50_us */
+    {0x2007u, 0x05u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_p99_us), &OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_p99_us, {.i = 0}, {.i = 0}}, /* sync_lateness_p99_us */
+    {0x2007u, 0x06u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_p99_9_us), &OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_p99_9_us, {.i = 0}, {.i = 0}}, /* sync_lateness_p99_9_us */
+    {0x2007u, 0x07u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_max_us), &OD_PLANT.mfr.x2007_realtime_timing.sync_lateness_max_us, {.i = 0}, {.i = 0}}, /* sync_lateness_max_us */
+    {0x2007u, 0x08u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.turnaround_min_us), &OD_PLANT.mfr.x2007_realtime_timing.turnaround_min_us, {.i = 0}, {.i = 0}}, /* turnaround_min_us */
+    {0x2007u, 0x09u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.turnaround_mean_us), &OD_PLANT.mfr.x2007_realtime_timing.turnaround_mean_us, {.i = 0}, {.i = 0}}, /* turnaround_mean_us */
+    {0x2007u, 0x0Au, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.turnaround_p50_us), &OD_PLANT.mfr.x2007_realtime_timing.turnaround_p50_us, {.i = 0}, {.i = 0}}, /* turnaround_p50_us */
+    {0x2007u, 0x0Bu, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.turnaround_p99_us), &OD_PLANT.mfr.x2007_realtime_timing.turnaround_p99_us, {.i = 0}, {.i = 0}}, /* turnaround_p99_us */
+    {0x2007u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.turnaround_p99_9_us), &OD_PLANT.mfr.x2007_realtime_timing.turnaround_p99_9_us, {.i = 0}, {.i = 0}}, /* turnaround_p99_9_us */
+    {0x2007u, 0x0Du, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.turnaround_max_us), &OD_PLANT.mfr.x2007_realtime_timing.turnaround_max_us, {.i = 0}, {.i = 0}}, /* turnaround_max_us */
+    {0x2007u, 0x0Eu, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.commands_timed), &OD_PLANT.mfr.x2007_realtime_timing.commands_timed, {.i = 0}, {.i = 0}}, /* commands_timed */
+    {0x2007u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.overruns), &OD_PLANT.mfr.x2007_realtime_timing.overruns, {.i = 0}, {.i = 0}}, /* overruns */
+    {0x2007u, 0x10u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_overruns), &OD_PLANT.mfr.x2007_realtime_timing.sync_overruns, {.i = 0}, {.i = 0}}, /* sync_overruns */
+    {0x2007u, 0x11u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.worst_period), &OD_PLANT.mfr.x2007_realtime_timing.worst_period, {.i = 0}, {.i = 0}}, /* worst_period */
+    {0x2007u, 0x12u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2007_realtime_timing.reset), &OD_PLANT.mfr.x2007_realtime_timing.reset, {.i = 0}, {.i = 1}}, /* reset */
     {0x2100u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported), &OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2100u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_a_A), &OD_PLANT.mfr.x2100_Measurement.i_a_A, {.i = 0}, {.i = 0}}, /* i_a_A */
     {0x2100u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_b_A), &OD_PLANT.mfr.x2100_Measurement.i_b_A, {.i = 0}, {.i = 0}}, /* i_b_A */

@@ -259,7 +259,8 @@ typedef struct {
     od_plant_run_control_t x2003_run_control;
     char x2004_motor_preset[33];
     od_plant_plant_state_t x2005_plant_state;
-    co_domain_t x2006_lateness_histogram;
+    co_domain_t x2006_timing_histograms;
+    od_plant_realtime_timing_t x2007_realtime_timing;
     od_plant_measurement_t x2100_Measurement;
     od_plant_voltage_command_t x2102_voltage_command;
 } od_plant_mfr_t;

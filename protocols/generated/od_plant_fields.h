@@ -215,8 +215,6 @@
 #define OD_PLANT_RUN_CONTROL_TRIP_CLEAR_SUB 0x07u
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_SUB 0x08u
 #define OD_PLANT_RUN_CONTROL_STATE_SUB 0x09u
-#define OD_PLANT_RUN_CONTROL_SYNC_OVERRUNS_SUB 0x0Au
-#define OD_PLANT_RUN_CONTROL_MAX_SYNC_LATENESS_US_SUB 0x0Bu
 #define OD_PLANT_MOTOR_PRESET_IDX 0x2004u
 #define OD_PLANT_PLANT_STATE_IDX 0x2005u
 #define OD_PLANT_PLANT_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
@@ -226,7 +224,27 @@
 #define OD_PLANT_PLANT_STATE_THETA_M_RAD_SUB 0x04u
 #define OD_PLANT_PLANT_STATE_TORQUE_NM_SUB 0x05u
 #define OD_PLANT_PLANT_STATE_ENERGY_IN_J_SUB 0x06u
-#define OD_PLANT_LATENESS_HISTOGRAM_IDX 0x2006u
+#define OD_PLANT_TIMING_HISTOGRAMS_IDX 0x2006u
+#define OD_PLANT_REALTIME_TIMING_IDX 0x2007u
+#define OD_PLANT_REALTIME_TIMING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_PLANT_REALTIME_TIMING_PERIODS_SUB 0x01u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_MIN_US_SUB 0x02u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_MEAN_US_SUB 0x03u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_P50_US_SUB 0x04u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_P99_US_SUB 0x05u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_P99_9_US_SUB 0x06u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_MAX_US_SUB 0x07u
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_MIN_US_SUB 0x08u
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_MEAN_US_SUB 0x09u
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_P50_US_SUB 0x0Au
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_P99_US_SUB 0x0Bu
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_P99_9_US_SUB 0x0Cu
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_MAX_US_SUB 0x0Du
+#define OD_PLANT_REALTIME_TIMING_COMMANDS_TIMED_SUB 0x0Eu
+#define OD_PLANT_REALTIME_TIMING_OVERRUNS_SUB 0x0Fu
+#define OD_PLANT_REALTIME_TIMING_SYNC_OVERRUNS_SUB 0x10u
+#define OD_PLANT_REALTIME_TIMING_WORST_PERIOD_SUB 0x11u
+#define OD_PLANT_REALTIME_TIMING_RESET_SUB 0x12u
 #define OD_PLANT_MEASUREMENT_IDX 0x2100u
 #define OD_PLANT_MEASUREMENT_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_MEASUREMENT_I_A_A_SUB 0x01u
@@ -371,8 +389,6 @@ typedef struct {
     uint8_t trip_clear;
     uint8_t trip_active;
     uint8_t state;
-    uint32_t sync_overruns;
-    uint32_t max_sync_lateness_us;
 } od_plant_run_control_t;
 
 
@@ -389,9 +405,7 @@ typedef struct {
     X(0x2003u, 0x05u, x2003_run_control, missed_commands, 0u) \
     X(0x2003u, 0x06u, x2003_run_control, late_commands, 0u) \
     X(0x2003u, 0x08u, x2003_run_control, trip_active, 0u) \
-    X(0x2003u, 0x09u, x2003_run_control, state, 0u) \
-    X(0x2003u, 0x0Au, x2003_run_control, sync_overruns, 0u) \
-    X(0x2003u, 0x0Bu, x2003_run_control, max_sync_lateness_us, 0u)
+    X(0x2003u, 0x09u, x2003_run_control, state, 0u)
 
 #define OD_PLANT_RUN_CONTROL_MODE_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_RUN_PERIODS_DEFAULT 0u
@@ -402,8 +416,6 @@ typedef struct {
 #define OD_PLANT_RUN_CONTROL_TRIP_CLEAR_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_STATE_DEFAULT 0u
-#define OD_PLANT_RUN_CONTROL_SYNC_OVERRUNS_DEFAULT 0u
-#define OD_PLANT_RUN_CONTROL_MAX_SYNC_LATENESS_US_DEFAULT 0u
 
 /* 0x2005 Plant state */
 typedef struct {
@@ -432,6 +444,73 @@ typedef struct {
 #define OD_PLANT_PLANT_STATE_THETA_M_RAD_DEFAULT 0.0f
 #define OD_PLANT_PLANT_STATE_TORQUE_NM_DEFAULT 0.0f
 #define OD_PLANT_PLANT_STATE_ENERGY_IN_J_DEFAULT 0.0f
+
+/* 0x2007 Realtime timing */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint32_t periods;
+    float sync_lateness_min_us;
+    float sync_lateness_mean_us;
+    float sync_lateness_p50_us;
+    float sync_lateness_p99_us;
+    float sync_lateness_p99_9_us;
+    float sync_lateness_max_us;
+    float turnaround_min_us;
+    float turnaround_mean_us;
+    float turnaround_p50_us;
+    float turnaround_p99_us;
+    float turnaround_p99_9_us;
+    float turnaround_max_us;
+    uint32_t commands_timed;
+    uint32_t overruns;
+    uint32_t sync_overruns;
+    uint32_t worst_period;
+    uint8_t reset;
+} od_plant_realtime_timing_t;
+
+
+/* 0x2007 Realtime timing, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_PLANT_REALTIME_TIMING_PARAMS(X) \
+    X(0x2007u, 0x12u, x2007_realtime_timing, reset, 0u)
+
+/* 0x2007 Realtime timing, status: X(index, subindex, record, field, EDS default) */
+#define OD_PLANT_REALTIME_TIMING_STATUS(X) \
+    X(0x2007u, 0x01u, x2007_realtime_timing, periods, 0u) \
+    X(0x2007u, 0x02u, x2007_realtime_timing, sync_lateness_min_us, 0.0f) \
+    X(0x2007u, 0x03u, x2007_realtime_timing, sync_lateness_mean_us, 0.0f) \
+    X(0x2007u, 0x04u, x2007_realtime_timing, sync_lateness_p50_us, 0.0f) \
+    X(0x2007u, 0x05u, x2007_realtime_timing, sync_lateness_p99_us, 0.0f) \
+    X(0x2007u, 0x06u, x2007_realtime_timing, sync_lateness_p99_9_us, 0.0f) \
+    X(0x2007u, 0x07u, x2007_realtime_timing, sync_lateness_max_us, 0.0f) \
+    X(0x2007u, 0x08u, x2007_realtime_timing, turnaround_min_us, 0.0f) \
+    X(0x2007u, 0x09u, x2007_realtime_timing, turnaround_mean_us, 0.0f) \
+    X(0x2007u, 0x0Au, x2007_realtime_timing, turnaround_p50_us, 0.0f) \
+    X(0x2007u, 0x0Bu, x2007_realtime_timing, turnaround_p99_us, 0.0f) \
+    X(0x2007u, 0x0Cu, x2007_realtime_timing, turnaround_p99_9_us, 0.0f) \
+    X(0x2007u, 0x0Du, x2007_realtime_timing, turnaround_max_us, 0.0f) \
+    X(0x2007u, 0x0Eu, x2007_realtime_timing, commands_timed, 0u) \
+    X(0x2007u, 0x0Fu, x2007_realtime_timing, overruns, 0u) \
+    X(0x2007u, 0x10u, x2007_realtime_timing, sync_overruns, 0u) \
+    X(0x2007u, 0x11u, x2007_realtime_timing, worst_period, 0u)
+
+#define OD_PLANT_REALTIME_TIMING_PERIODS_DEFAULT 0u
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_MIN_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_MEAN_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_P50_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_P99_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_P99_9_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_SYNC_LATENESS_MAX_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_MIN_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_MEAN_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_P50_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_P99_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_P99_9_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_TURNAROUND_MAX_US_DEFAULT 0.0f
+#define OD_PLANT_REALTIME_TIMING_COMMANDS_TIMED_DEFAULT 0u
+#define OD_PLANT_REALTIME_TIMING_OVERRUNS_DEFAULT 0u
+#define OD_PLANT_REALTIME_TIMING_SYNC_OVERRUNS_DEFAULT 0u
+#define OD_PLANT_REALTIME_TIMING_WORST_PERIOD_DEFAULT 0u
+#define OD_PLANT_REALTIME_TIMING_RESET_DEFAULT 0u
 
 /* 0x2100 Measurement */
 typedef struct {

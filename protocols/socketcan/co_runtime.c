@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "co_socketcan.h"
@@ -58,11 +59,22 @@ int co_runtime_open(co_runtime_t *rt, const char *iface, const co_od_t *od, uint
 int co_runtime_wait_one(co_runtime_t *rt, int64_t timeout_us)
 {
     co_frame_t f;
-    int r = co_socketcan_recv(rt->fd, &f, timeout_us, NULL);
+    int64_t rx_ns = 0;
+    int r = co_socketcan_recv(rt->fd, &f, timeout_us, &rx_ns);
     if (r < 0) return -1;
     if (r == 1) {
         ++rt->frames_in;
-        co_node_process(&rt->node, &f, co_socketcan_now_us());
+        /* the frame's time: now, or with rx_stamps the kernel's receive time stamp (CLOCK_REALTIME) on the
+         * monotonic clock, when there is one and it is neither in the future nor a second old (a clock step) */
+        int64_t now = co_socketcan_now_us();
+        int64_t at = now;
+        if (rt->rx_stamps && rx_ns > 0) {
+            struct timespec wall;
+            clock_gettime(CLOCK_REALTIME, &wall);
+            int64_t age_us = ((int64_t)wall.tv_sec * 1000000000LL + wall.tv_nsec - rx_ns) / 1000;
+            if (age_us >= 0 && age_us < 1000000) at = now - age_us;
+        }
+        co_node_process(&rt->node, &f, at);
     }
     return r;
 }

@@ -33,6 +33,7 @@ struct co_runtime {
     void *user;
     volatile int stop;
     uint32_t frames_in;
+    int rx_stamps; /* non-zero: a frame is processed at its kernel receive time (real-time pacing), else now */
 };
 
 /* Parse the common options: --iface NAME (default vcan0), --node-id N (1..127).

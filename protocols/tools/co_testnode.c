@@ -22,9 +22,9 @@ static void on_reset(void *user, co_node_t *node, int communication_only)
     (void)node;
     if (communication_only) return;
     /* Give the DOMAIN objects a buffer so segmented transfers can be tested. */
-    OD_PLANT.mfr.x2006_lateness_histogram.data = g_domain;
-    OD_PLANT.mfr.x2006_lateness_histogram.size = 128;
-    OD_PLANT.mfr.x2006_lateness_histogram.capacity = 0;
+    OD_PLANT.mfr.x2006_timing_histograms.data = g_domain;
+    OD_PLANT.mfr.x2006_timing_histograms.size = 128;
+    OD_PLANT.mfr.x2006_timing_histograms.capacity = 0;
     OD_DRIVE.mfr.x2301_trace_buffer.data = g_domain;
     OD_DRIVE.mfr.x2301_trace_buffer.size = 300;
     OD_DRIVE.mfr.x2301_trace_buffer.capacity = 0;

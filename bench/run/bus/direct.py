@@ -70,6 +70,12 @@ class Hil:
         self.lib.hil_node_state.argtypes = [ctypes.c_uint32]
         self.lib.hil_node_state.restype = ctypes.c_uint32
         self.lib.hil_linger.argtypes = [ctypes.c_int64]
+        self.lib.hil_take.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+        self.lib.hil_take.restype = ctypes.c_uint32
+        self.lib.hil_run_realtime.argtypes = [ctypes.c_uint32]
+        self.lib.hil_run_realtime.restype = ctypes.c_int32
+        self.lib.hil_realtime_note.restype = ctypes.c_char_p
+        self.lib.hil_rt_dropped.restype = ctypes.c_uint64
         assert self.lib.hil_frame_size() == FRAME_DTYPE.itemsize
         assert self.lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
         self._rec: np.ndarray | None = None
@@ -115,23 +121,39 @@ class Hil:
             self.lib.hil_set_recorder(self._rec.ctypes.data, capacity)
 
     def take(self) -> np.ndarray:
-        """The frames recorded since the last call. The recorder moves on to a fresh buffer (no copy)."""
+        """The frames recorded since the last call. The recorder moves on to a fresh buffer (no copy), in one
+        step in C (in real time the nodes' threads record meanwhile)."""
         assert self._rec is not None
+        fresh = np.empty(len(self._rec), dtype=FRAME_DTYPE)
         with self._lock:
-            n = self.lib.hil_recorded()
-            if self.lib.hil_record_dropped():
+            if self.lib.hil_record_dropped() or self.lib.hil_rt_dropped():
                 raise RuntimeError(
-                    f"direct recorder overflow: {self.lib.hil_record_dropped()} frames dropped "
-                    f"(buffer of {len(self._rec)} frames)"
+                    f"direct recorder overflow: {self.lib.hil_record_dropped() + self.lib.hil_rt_dropped()} frames "
+                    f"dropped (buffer of {len(self._rec)} frames)"
                 )
-            out = self._rec[:n]
-            self._rec = np.empty(len(self._rec), dtype=FRAME_DTYPE)
-            self.lib.hil_set_recorder(self._rec.ctypes.data, len(self._rec))
+            n = self.lib.hil_take(fresh.ctypes.data, len(fresh))
+            out, self._rec = self._rec[:n], fresh
         return out
 
     def run(self, max_periods: int) -> int:
         with self._lock:
             return int(self.lib.hil_run(max_periods))
+
+    def run_realtime(self, max_periods: int) -> int:
+        """The loop in real time (hil_realtime.c): the plant and the drive on threads of their own, the plant
+        paced as plant_node paces itself, until the plant holds. Not under the lock: `take` runs meanwhile."""
+        got = int(self.lib.hil_run_realtime(max_periods))
+        if got < 0:
+            raise RuntimeError("direct real time: the plant's or the drive's thread could not be started")
+        return got
+
+    def stop(self) -> None:
+        """Ask a real-time run to stop (Ctrl-C): it returns at its next deadline."""
+        self.lib.hil_stop()
+
+    def realtime_note(self) -> str:
+        """What the plant's thread got of SCHED_FIFO / mlockall, in one line (after a real-time run)."""
+        return (self.lib.hil_realtime_note() or b"").decode()
 
     def nodes_down(self) -> dict[str, int]:
         """The nodes out of the loop: name -> 0xFF killed, else its NMT state (not OPERATIONAL)."""

@@ -207,9 +207,13 @@ class Rows:
             pos, per, dup = pos[keep], per[keep], dup[keep] & ~safe[keep]
         if not dup.any():
             return pos, per
-        if is_cmd and (late.realtime or (late.late_ok is not None and np.isin(per[dup], late.late_ok).all())):
+        if (pdo.node == "drive" and late.realtime) or (
+            is_cmd and late.late_ok is not None and np.isin(per[dup], late.late_ok).all()
+        ):
             # a late command lands in the next period (the plant counts it late, 0x2003 late_commands, and never
-            # applies it): the drive's own frame, not interference; the period's own command is the last one
+            # applies it): the drive's own frame, not interference; the period's own command is the last one.
+            # In real time a drive that answers two SYNCs at once (it was not scheduled in time) sends its other
+            # synchronous TPDOs (trace) twice in the period too: its own frames, the last one kept
             last = np.r_[per[1:] != per[:-1], True]
             return pos[last], per[last]
         # a PDO twice in a period that holds the next period's sample: the SYNC between them was lost

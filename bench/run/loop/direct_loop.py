@@ -19,9 +19,11 @@ class DirectLoop:
     frames) is called on the loop's thread after each chunk; `on_stop` when a segment ends or is interrupted,
     so that a waiting loop thread is released."""
 
-    def __init__(self, hil: Hil, opts: RunOptions) -> None:
+    def __init__(self, hil: Hil, opts: RunOptions, realtime: bool = False) -> None:
         self.hil = hil
         self.opts = opts
+        self.realtime = realtime
+        self._told = False
         self.on_chunk: Callable[[], None] | None = None
         self.on_stop: Callable[[], None] | None = None
 
@@ -38,7 +40,9 @@ class DirectLoop:
 
         def produce() -> None:
             try:
-                while ran[0] < n and not stop.is_set():  # in chunks: bounded memory, Ctrl-C seen promptly
+                if self.realtime:
+                    ran[0] = self._run_realtime(n, ready)
+                while ran[0] < n and not stop.is_set() and not self.realtime:  # in chunks: bounded memory
                     got = self.hil.run(min(self.opts.chunk_periods, n - ran[0]))
                     if got == 0:
                         break
@@ -62,6 +66,8 @@ class DirectLoop:
                     tick()
         finally:
             stop.set()
+            if self.realtime:
+                self.hil.stop()
             if self.on_stop is not None:
                 self.on_stop()
             th.join()
@@ -71,6 +77,32 @@ class DirectLoop:
             tick()
         if ran[0] != n:
             self._direct_stopped(ran[0], n)
+
+    def _run_realtime(self, n: int, ready: threading.Event) -> int:
+        """The segment in real time: one C call (its threads pace the periods), while this thread takes what the
+        recorder holds every 0.2 s (`on_chunk`), so that the decoding goes on meanwhile and memory stays bounded."""
+        got: list[int] = [0]
+        errors: list[BaseException] = []
+
+        def loop() -> None:
+            try:
+                got[0] = self.hil.run_realtime(n)
+            except BaseException as exc:  # noqa: BLE001 - re-raised below
+                errors.append(exc)
+
+        th = threading.Thread(target=loop, daemon=True, name="bench-direct-realtime")
+        th.start()
+        while th.is_alive():
+            th.join(0.2)
+            if self.on_chunk is not None:
+                self.on_chunk()
+            ready.set()
+        if errors:
+            raise errors[0]
+        if not self._told:
+            print(f"bench run: real time: {self.hil.realtime_note()}", flush=True)
+            self._told = True
+        return got[0]
 
     def _direct_stopped(self, ran: int, n: int) -> None:
         """Why the in-process loop stopped early, named as the liveness monitor names it on a bus: a node

@@ -4,6 +4,7 @@ the plant values the verdict needs. The verdict (run/verdict/summary.py) reads t
 
 from __future__ import annotations
 
+from bench.eds import load
 from bench.laws import result_reads
 
 # What each law identifies or applies (read by SDO at the end of every run, and so in the log), and the
@@ -29,3 +30,13 @@ PLANT_VALUES = (
     ("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode", "omega_imposed_rad_s")),
     ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")),
 )
+
+
+def _realtime_reads() -> tuple[str, str, tuple[str, ...]]:
+    """The plant's real-time timing (0x2007), read at the end of a real-time run: every entry the plant
+    reports (its read-only ones, from plant.eds); the plant computes the percentiles when they are read."""
+    rec = load("plant")["Realtime timing"]
+    return ("plant", rec.name, tuple(v.name for v in rec.values() if v.subindex > 0 and v.access_type == "ro"))
+
+
+REALTIME_READS = _realtime_reads()

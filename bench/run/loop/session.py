@@ -34,7 +34,7 @@ from bench.run.bus.slcan_bridge import SlcanBridge
 from bench.run.loop.bus_loop import BusLoop
 from bench.run.loop.configure import Configurator, SettingRefused
 from bench.run.loop.direct_loop import DirectLoop
-from bench.run.loop.reads import END_READS, STEP_COST
+from bench.run.loop.reads import END_READS, REALTIME_READS, STEP_COST
 from bench.run.options import MCU_STALL_S, RunOptions
 from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
@@ -118,7 +118,7 @@ class Session:
             if self.sc.faults:
                 self.hil.set_faults(rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id))
             self.net.bus = DirectBus(self.hil)
-            self.direct = DirectLoop(self.hil, self.opts)
+            self.direct = DirectLoop(self.hil, self.opts, realtime=self.sc.timing == "realtime")
         else:
             self._open_bus()
         self.net.connect()
@@ -322,7 +322,11 @@ class Session:
         if self.liveness is not None:
             self.liveness.disarm()
         out: dict[str, float] = {}
-        reads = END_READS + ((STEP_COST,) if self.opts.drive == "mcu" else ())
+        reads = (
+            END_READS
+            + ((REALTIME_READS,) if self.sc.timing == "realtime" else ())
+            + ((STEP_COST,) if self.opts.drive == "mcu" else ())
+        )
         for node_name, obj, names in reads:
             node = self.plant if node_name == "plant" else self.drive
             for name in names:

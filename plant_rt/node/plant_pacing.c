@@ -1,0 +1,95 @@
+/* plant_pacing.c - see plant_pacing.h. */
+#include "plant_pacing.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <sched.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <time.h>
+#include <unistd.h>
+
+#define GUARD_US 30      /* stop serving frames this long before a deadline */
+#define SERVE_MIN_US 200 /* serve frames between deadlines only if this much time is left */
+#define IDLE_WAIT_US 10000
+
+int64_t plant_pacing_now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000LL + ts.tv_nsec;
+}
+
+static void sleep_until_ns(int64_t t_ns, const plant_pacing_io_t *io)
+{
+    struct timespec ts = {.tv_sec = (time_t)(t_ns / 1000000000LL), .tv_nsec = (long)(t_ns % 1000000000LL)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+        if (io->stop(io->user)) return;
+    }
+}
+
+const char *plant_pacing_priority(int priority)
+{
+    static char line[320];
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = priority;
+    int fifo = sched_setscheduler(0, SCHED_FIFO, &sp) == 0; /* Linux: the calling thread */
+    int fifo_err = fifo ? 0 : errno;
+    /* the memory once per process (MCL_FUTURE keeps it so: a second call would walk every page again) */
+    static int locked = -1, lock_err;
+    if (locked < 0) {
+        locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+        lock_err = locked ? 0 : errno;
+    }
+    /* CPU idle states held off while the process runs, as cyclictest does (/dev/cpu_dma_latency = 0): a deep
+     * idle state's exit latency would add to every deadline's */
+    static int dma_fd = -2;
+    if (dma_fd == -2) {
+        dma_fd = open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+        const int32_t zero = 0;
+        if (dma_fd >= 0 && write(dma_fd, &zero, sizeof zero) != (ssize_t)sizeof zero) {
+            close(dma_fd);
+            dma_fd = -1;
+        }
+    }
+    if (fifo && locked) {
+        snprintf(line, sizeof line, "SCHED_FIFO priority %d, memory locked%s", priority,
+                 dma_fd >= 0 ? ", CPU idle states held off" : "");
+    } else {
+        char what[160];
+        snprintf(what, sizeof what, "%s%s%s%s%s", fifo ? "" : "SCHED_FIFO not permitted (",
+                 fifo ? "" : strerror(fifo_err), fifo ? "" : ")", !fifo && !locked ? ", " : "",
+                 locked ? "" : "mlockall not permitted (");
+        snprintf(line, sizeof line,
+                 "%s%s%s: timing may jitter; grant both from the shell that runs the bench with "
+                 "`sudo prlimit --pid $$ --rtprio=99 --memlock=unlimited`",
+                 what, locked ? "" : strerror(lock_err), locked ? "" : ")");
+    }
+    return line;
+}
+
+void plant_pacing_loop(plant_app_t *app, const plant_pacing_io_t *io)
+{
+    int64_t deadline_ns = 0;
+    while (!io->stop(io->user) && plant_app_realtime_mode(app)) {
+        if (!plant_app_running(app)) {
+            /* holding: serve SDO/NMT, restart the deadline grid when running again */
+            io->serve_until(io->user, plant_pacing_now_ns() + (int64_t)IDLE_WAIT_US * 1000);
+            deadline_ns = 0;
+            continue;
+        }
+        int64_t period_ns = plant_app_period_ns(app);
+        if (deadline_ns == 0) deadline_ns = plant_pacing_now_ns() + period_ns;
+        /* short periods: one absolute sleep per period (each wake-up costs tens of us) */
+        if (deadline_ns - plant_pacing_now_ns() > (int64_t)SERVE_MIN_US * 1000)
+            io->serve_until(io->user, deadline_ns - (int64_t)GUARD_US * 1000);
+        sleep_until_ns(deadline_ns, io);
+        io->drain(io->user); /* the frames queued by the deadline */
+        int64_t now_ns = plant_pacing_now_ns();
+        io->tick(io->user, now_ns, now_ns - deadline_ns);
+        deadline_ns += plant_app_period_ns(app);                                      /* Ts applied at this SYNC */
+        if (deadline_ns < now_ns - 100 * period_ns) deadline_ns = now_ns + period_ns; /* far behind: re-grid */
+    }
+}

@@ -1,0 +1,36 @@
+/* plant_pacing.h - the plant's real-time pacing, shared by every transport (plant_node over SocketCAN,
+ * the bench's direct mode on threads): SYNC at absolute CLOCK_MONOTONIC deadlines every Ts, frames served
+ * between deadlines, SCHED_FIFO and mlockall when permitted.  POSIX (the one file of the plant app with OS
+ * headers: the pacing is the operating system's part). */
+#ifndef PLANT_PACING_H
+#define PLANT_PACING_H
+
+#include <stdint.h>
+
+#include "plant_app.h"
+
+#define PLANT_PACING_PRIORITY 80 /* SCHED_FIFO priority of the plant's pacing thread */
+
+/* What the transport does for the loop (user: its own pointer). */
+typedef struct {
+    void *user;
+    /* Take and process frames until until_ns (CLOCK_MONOTONIC) or until real-time mode ends; the node's timers
+     * and plant_app_poll() after each batch. */
+    void (*serve_until)(void *user, int64_t until_ns);
+    /* Process the frames that are already there, without waiting. */
+    void (*drain)(void *user);
+    /* The deadline: plant_app_realtime_tick(app, now, lateness_ns) and the node's timers. */
+    void (*tick)(void *user, int64_t now_ns, int64_t lateness_ns);
+    /* Non-zero: leave the loop (a signal, the end of a segment). */
+    int (*stop)(void *user);
+} plant_pacing_io_t;
+
+int64_t plant_pacing_now_ns(void);
+/* SCHED_FIFO at `priority` for the calling thread and, once per process, mlockall(MCL_CURRENT | MCL_FUTURE);
+ * returns one line saying what was got, and for what was not, why and the command that grants it (a static
+ * buffer). */
+const char *plant_pacing_priority(int priority);
+/* The absolute-deadline loop: returns when real-time mode ends or io->stop() says so. */
+void plant_pacing_loop(plant_app_t *app, const plant_pacing_io_t *io);
+
+#endif /* PLANT_PACING_H */
