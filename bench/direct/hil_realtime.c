@@ -50,7 +50,7 @@ static struct {
     int drive_done;
     int drive_ready; /* the drive's thread is waiting for frames: the first SYNC may go */
     int plant_cpu, drive_cpu;
-    char note[320];
+    char note[512];
 } R;
 
 static void init_once(void)
@@ -107,17 +107,6 @@ static void wait_frames(uint8_t side, int64_t until_ns)
     if (R.in[side].head != R.in[side].tail) return;
     struct timespec ts = {.tv_sec = (time_t)(until_ns / 1000000000LL), .tv_nsec = (long)(until_ns % 1000000000LL)};
     (void)pthread_cond_timedwait(&R.in[side].cv, &g_lock, &ts);
-}
-
-/* Keep the calling thread on one CPU (the plant and the drive on two different ones, when there are two:
- * neither preempts the other, and the scheduler does not move them mid-run); -1: anywhere. */
-static void pin_to(int cpu)
-{
-    if (cpu < 0) return;
-    cpu_set_t set;
-    CPU_ZERO(&set);
-    CPU_SET(cpu, &set);
-    (void)pthread_setaffinity_np(pthread_self(), sizeof set, &set);
 }
 
 /* ---- the plant's thread: the transport of plant_pacing_loop ---- */
@@ -178,8 +167,7 @@ static int plant_stop(void *user)
 static void *plant_main(void *arg)
 {
     plant_app_t *app = (plant_app_t *)arg;
-    strncpy(R.note, plant_pacing_priority(PLANT_PACING_PRIORITY), sizeof R.note - 1u);
-    pin_to(R.plant_cpu);
+    strncpy(R.note, plant_pacing_priority(PLANT_PACING_PRIORITY, R.plant_cpu), sizeof R.note - 1u);
     while (!__atomic_load_n(&R.drive_ready, __ATOMIC_ACQUIRE)) sched_yield(); /* the drive listens first */
     hil_rt_lock();
     R.progress_ns = plant_pacing_now_ns();
@@ -222,7 +210,7 @@ static void *drive_main(void *arg)
     (void)arg;
     struct sched_param sp = {.sched_priority = DRIVE_PRIORITY};
     (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); /* the plant's line says what is permitted */
-    pin_to(R.drive_cpu);
+    (void)plant_pacing_pin(R.drive_cpu);
     __atomic_store_n(&R.drive_ready, 1, __ATOMIC_RELEASE);
     hil_rt_lock();
     int64_t answered_ns = 0;
@@ -256,8 +244,8 @@ int32_t hil_run_realtime(uint32_t max_periods)
     R.drive_done = 0;
     R.drive_ready = 0;
     long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
-    R.plant_cpu = ncpu >= 2 ? 0 : -1;
-    R.drive_cpu = ncpu >= 2 ? (int)ncpu - 1 : -1;
+    R.plant_cpu = plant_pacing_default_cpu();
+    R.drive_cpu = R.plant_cpu >= 0 ? (int)ncpu - 1 : -1; /* the plant's CPU is not the drive's */
     for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0;
     hil_rt_active = 1;
     hil_set_running(1);

@@ -185,7 +185,8 @@ class Pipeline:
             expected,
             summary,
             list(dec.signals),
-            envelopes={n: e.arrays() for n, e in self.envelopes.items()},
+            # the signals', and a real-time run's timing (bench/run/verdict/realtime.py: the overview's last panel)
+            envelopes={**{n: e.arrays() for n, e in self.envelopes.items()}, **watch.timing_envelopes},
             step_windows=self.windows.windows(),
         )
 

@@ -90,7 +90,17 @@ DRIVE_PRESETS = {"ideal": {"t_dead_s": 0.0, "encoder_lines": 0, "adc_noise_std_A
 TIMINGS = ("lockstep", "realtime")
 SCENARIO_KEYS = ("name", "description", "periods", "seed", "timing", "expect")
 # Run statuses (bench/run/verdict/summary.py EXIT_CODES gives each its exit code).
-STATUSES = ("ok", "tripped", "diverged", "non_finite", "frames_lost", "node_lost", "interference", "law_fault")
+STATUSES = (
+    "ok",
+    "tripped",
+    "diverged",
+    "non_finite",
+    "frames_lost",
+    "node_lost",
+    "interference",
+    "law_fault",
+    "realtime_overrun",
+)
 
 
 class ScenarioError(ValueError):

@@ -169,7 +169,7 @@ def parse_faults(
                 if timing != "realtime":
                     raise FaultError(
                         f"{w}.delay_us: microseconds mean something only in real time (scenario.timing = "
-                        "'realtime', on a CAN bus); in lockstep use delay_periods"
+                        "'realtime'); in lockstep use delay_periods"
                     )
             else:
                 f["delay_periods"] = _int(w, "delay_periods", dp, 1, 1_000_000)

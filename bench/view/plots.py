@@ -1,5 +1,6 @@
 """Plots of a run, from its result (no file read back): one per reference step, and an
-overview of the whole run (min/max envelopes: a run of any length costs the same).
+overview of the whole run (min/max envelopes: a run of any length costs the same); a real-time
+run's overview ends with a timing panel (its envelopes named by bench/run/verdict/realtime.py).
 
 SVG through pygal: it imports in ~0.1 s where matplotlib takes ~1 s, which is most of a short
 run's wall time; SVG is what browsers, the reports and GitHub show, and it stays sharp when
@@ -15,8 +16,10 @@ import numpy as np
 import pygal
 from pygal.style import Style
 
+from bench.run.verdict.realtime import ENVELOPE, LATENESS_ENV, PLANT_ENV, TURNAROUND_ENV
 from bench.signals import unit_of
 
+LOG_FLOOR_US = 0.1  # the timing panel's logarithmic axis starts here (a SYNC on its grid is 0 us late)
 # Bus bookkeeping, not signals of the loop: in the summary, not in the overview.
 BOOKKEEPING = {"sync_counter", "sample_index"}
 STYLE = Style(
@@ -155,17 +158,20 @@ def overview_plot(
     max_panels: int = 8,
 ) -> Path | None:
     """Every traced signal over the whole run, one panel per unit (as in the Rerun view): the min and
-    the max over each bucket of periods (equal where a bucket is one period); references as lines."""
+    the max over each bucket of periods (equal where a bucket is one period); references as lines. A
+    real-time run's timing last (`timing_chart`)."""
     by_unit: dict[str, list[str]] = {}
     for n in envelopes:
-        if n not in BOOKKEEPING:
+        if n not in BOOKKEEPING and not n.startswith(ENVELOPE):
             by_unit.setdefault(unit_of(n), []).append(n)
     order = sorted(by_unit, key=lambda u: (u not in ("A", "V"), u != "A", u))[:max_panels]
-    if not order:
+    timing = timing_chart(envelopes, ts_s)
+    if not order and timing is None:
         return None
     charts = []
+    last = len(order) - 1 if timing is None else len(order)
     for j, unit in enumerate(order):
-        c = _chart(title if j == 0 else "", "simulated time (s)" if j == len(order) - 1 else "", unit, height=250)
+        c = _chart(title if j == 0 else "", "simulated time (s)" if j == last else "", unit, height=250)
         for n in by_unit[unit]:
             start, lo, hi = _coarser(*envelopes[n], points=250)
             t = start * ts_s
@@ -175,6 +181,67 @@ def overview_plot(
                 c.add(f"{n} max", _pts(t, hi, steps=True))
                 c.add(f"{n} min", _pts(t, lo, steps=True))
         charts.append(c)
+    if timing is not None:
+        if not order:
+            timing.config.title = f"{title}: {timing.config.title}"
+        charts.append(timing)
     path = out / name
     path.write_text(_svg(*charts))
     return path
+
+
+def timing_chart(envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], ts_s: float) -> pygal.XY | None:
+    """A real-time run's timing, per bucket of periods: the bus-side SYNC lateness (its grid anchored per segment)
+    and the turnaround (SYNC to the command), the largest of each bucket, with the period Ts as a line; the plant's
+    own p99 and max in the title. A logarithmic axis (decades, values below LOG_FLOOR_US drawn at it) when the worst
+    is far beyond the usual. None in lockstep."""
+    series = [
+        (n, label) for n, label in ((LATENESS_ENV, "SYNC lateness"), (TURNAROUND_ENV, "turnaround")) if n in envelopes
+    ]
+    if not series:
+        return None
+    ts_us = ts_s * 1e6
+    curves = {label: _coarser(*envelopes[n], points=250) for n, label in series}
+    peaks = np.concatenate([hi for _, _, hi in curves.values()])
+    peaks = peaks[np.isfinite(peaks) & (peaks > 0)]
+    log = bool(len(peaks)) and float(peaks.max()) > 20.0 * max(float(np.median(peaks)), LOG_FLOOR_US)
+    start = next(iter(curves.values()))[0]
+    c = _chart(_timing_title(envelopes), "simulated time (s)", f"µs, {_bucket(start)}", height=290)
+    c.config.legend_at_bottom_columns = 3
+
+    def y(v: np.ndarray) -> np.ndarray:  # pygal's XY scales x too when logarithmic: decades drawn by hand
+        return np.log10(np.maximum(v, LOG_FLOOR_US)) if log else v
+
+    if log:
+        top = max(float(peaks.max()), ts_us)
+        c.config.y_labels = list(range(int(np.log10(LOG_FLOOR_US)), int(np.ceil(np.log10(top))) + 1))
+        c.config.value_formatter = lambda v: f"{10**v:.6g}"
+        c.config.y_title += " (log)"
+    t_end = 0.0
+    for label, (start, _, hi) in curves.items():
+        t = start * ts_s
+        t_end = max(t_end, float(t[-1]) if len(t) else 0.0)
+        c.add(f"{label} (bus)", _pts(t, y(hi), steps=True))
+    c.add(f"Ts = {ts_us:.4g} µs", _pts(np.array([0.0, t_end]), y(np.array([ts_us, ts_us]))))
+    return c
+
+
+def _bucket(start: np.ndarray) -> str:
+    """What a point is: one period, or the largest of a bucket of periods."""
+    k = int(start[1] - start[0]) if len(start) > 1 else 1
+    return "per period" if k == 1 else f"max per {k} periods"
+
+
+def _timing_title(envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]) -> str:
+    """'real-time timing; plant: SYNC lateness p99 12.0 µs, max 412.3 µs; turnaround p99 ..., max ...'."""
+
+    def fig(name: str) -> str:
+        env = envelopes.get(PLANT_ENV + name)
+        return "-" if env is None or not len(env[2]) else f"{float(env[2][0]):.4g} µs"
+
+    parts = [
+        f"{what} p99 {fig(f'{key}_p99_us')}, max {fig(f'{key}_max_us')}"
+        for what, key in (("SYNC lateness", "sync_lateness"), ("turnaround", "turnaround"))
+    ]
+    plant = any(n.startswith(PLANT_ENV) for n in envelopes)
+    return "real-time timing" + (f"; plant: {'; '.join(parts)}" if plant else "")

@@ -1,7 +1,8 @@
 """The layout of a run's Rerun recording: entities grouped by SI unit, `/{unit_slug}/{column}` (`/A/iq_A`,
 `/V_per_A/K1_active_V_A`, `/H/L_hat_H`, `/count_or_ratio/sync_counter`), and a blueprint with one time-series
-view per unit, so quantities of different units never share an axis; with faults, an events panel under the
-plots (bench/view/rerun_sink.py logs into it)."""
+view per unit, so quantities of different units never share an axis; in a real-time run a timing view of the SYNC
+lateness and the turnaround per period (`/timing/...`, us); with faults, an events panel under the plots
+(bench/view/rerun_sink.py logs into both)."""
 
 from __future__ import annotations
 
@@ -53,6 +54,8 @@ GRID_ORDER = (
     "H/(V·s)",
     "1",
 )
+TIMING = "timing"  # the entities of a real-time run's timing, /timing/sync_lateness_us and /timing/turnaround_us
+TIMING_VIEW = "real-time timing (µs): SYNC lateness, turnaround"
 
 
 def unit_slug(unit: str) -> str:
@@ -83,15 +86,18 @@ def _unit_order(unit: str) -> tuple[int, str]:
     return (order.index(unit), "") if unit in order else (len(order), unit)
 
 
-def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
+def blueprint_for(signals: list[SignalInfo], timing: bool = False) -> rrb.Blueprint:
     """One TimeSeriesView per unit present (origin `/{unit_slug}`): currents and voltages large on
-    top, the other units in a grid below."""
+    top, the other units in a grid below; `timing` (a real-time run): the timing view under the top ones."""
     units = sorted({s.unit for s in signals}, key=_unit_order)
     views = {u: rrb.TimeSeriesView(origin=f"/{unit_slug(u)}", contents="$origin/**", name=view_name(u)) for u in units}
     top = [views[u] for u in TOP_UNITS if u in views]
     rest = [views[u] for u in units if u not in TOP_UNITS]
     parts: list[rrb.Container | rrb.View] = list(top)
     shares = [3.0] * len(top)
+    if timing:
+        parts.append(rrb.TimeSeriesView(origin=f"/{TIMING}", contents="$origin/**", name=TIMING_VIEW))
+        shares.append(2.0)
     if rest:
         columns = min(len(rest), 3)
         parts.append(rrb.Grid(*rest, grid_columns=columns))
@@ -111,10 +117,10 @@ def blueprint_for(signals: list[SignalInfo]) -> rrb.Blueprint:
     )
 
 
-def events_blueprint(signals: list[SignalInfo]) -> rrb.Blueprint:
+def events_blueprint(signals: list[SignalInfo], timing: bool = False) -> rrb.Blueprint:
     """The blueprint of `blueprint_for` with a text-log panel of the faults and the nodes' reactions
     (origin `/events`) under the plots, on the period timeline."""
-    views = blueprint_for(signals)
+    views = blueprint_for(signals, timing)
     panel = rrb.TextLogView(origin="/events", name="Faults and reactions")
     return rrb.Blueprint(
         rrb.Vertical(views.root_container, panel, row_shares=[4.0, 1.0]) if views.root_container else panel,

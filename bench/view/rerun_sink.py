@@ -5,7 +5,10 @@ served from this process.
 Entities are grouped by SI unit, `/{unit_slug}/{column}`, under a blueprint of one time-series view
 per unit (bench/view/rerun_blueprint.py). Timelines: `period` (sequence, the control-period index)
 and `sim_time` (duration, simulated seconds). Each chunk is logged with one `send_columns` call per
-signal.
+signal. A real-time run's chunks carry each period's SYNC and command time stamps
+(bench/run/verdict/realtime.py): its turnaround goes to `/timing/turnaround_us` as the chunks come, its
+SYNC lateness to `/timing/sync_lateness_us` at the end (the grid of a segment is anchored on the segment's
+earliest SYNC, known when the run is over: the summary's realtime block names the segments), in a timing view.
 
 Serving happens once per process (bench/view/serve.py): the first serve-mode sink starts the
 server (gRPC and the web viewer, on 127.0.0.1 unless `bind` says otherwise), and it stays up until
@@ -27,8 +30,9 @@ from typing import Any, Literal
 import numpy as np
 import rerun as rr
 
+from bench.run.verdict.realtime import COMMAND_T, SYNC_T, TIMING_COLUMNS, BusTiming, summary_segments
 from bench.signals import SignalInfo
-from bench.view.rerun_blueprint import blueprint_for, entity_path, events_blueprint
+from bench.view.rerun_blueprint import TIMING, blueprint_for, entity_path, events_blueprint
 from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
 from bench.view.serve import serve as _serve
 
@@ -36,6 +40,7 @@ __all__ = ["PORT_OPTIONS", "RerunSink", "ServeError"]
 
 APPLICATION_ID = "pmsm-hil-bench"
 TIMELINES = ("period", "t_s")  # chunk columns that are timelines, not signals
+LATENESS_PATH, TURNAROUND_PATH = f"/{TIMING}/sync_lateness_us", f"/{TIMING}/turnaround_us"
 
 
 # --- serving: bench/view/serve.py; spawning a native viewer -------------------------------------
@@ -127,6 +132,7 @@ class RerunSink:
         self._warned: set[str] = set()
         self._rows_seen = 0
         self._begun = self._ended = self._closed = False
+        self._timing = BusTiming()  # a real-time run's time stamps, for its SYNC lateness at the end
         self._owns_server = False
 
         self.live: rr.RecordingStream | None = None
@@ -202,32 +208,65 @@ class RerunSink:
                 )
                 continue
             columns.append((self._paths[sig.name], col.astype(np.float64, copy=False)))
-        for name in chunk.keys() - self._paths.keys() - set(TIMELINES):
+        if SYNC_T in chunk:
+            columns.append((TURNAROUND_PATH, self._timed(chunk)))
+        for name in chunk.keys() - self._paths.keys() - set(TIMELINES) - set(TIMING_COLUMNS):
             self._warn_once("undeclared:" + name, f"column {name} was not declared in begin(); not logged")
 
+        self._log(columns, period, t_s, self._rows_seen)
+        self._rows_seen += n
+
+    def _log(self, columns: list[tuple[str, np.ndarray]], period: np.ndarray, t_s: np.ndarray, seen: int) -> None:
+        """Rows to the file (all) and the live viewer (every live_decimate-th; `seen`: rows before these)."""
         if self.file is not None:
             self._send(self.file, columns, period, t_s)
             # Block until this chunk is encoded to the file: the stream's queue would otherwise
             # grow with the run when logging outpaces the file writer.
             self.file.flush()
         if self.live is not None:
-            first = (-self._rows_seen) % self.live_decimate
+            first = (-seen) % self.live_decimate
             sl = slice(first, None, self.live_decimate)
-            if first < n:
+            if first < len(period):
                 self._send(
                     self.live,
                     [(p, np.ascontiguousarray(v[sl])) for p, v in columns],
                     np.ascontiguousarray(period[sl]),
                     np.ascontiguousarray(t_s[sl]),
                 )
-        self._rows_seen += n
+
+    def _timed(self, chunk: dict[str, np.ndarray]) -> np.ndarray:
+        """A real-time chunk's time stamps kept (the blueprint gets its timing view with the first); its turnaround."""
+        if not self._timing:
+            bp = blueprint_for(self._signals, timing=True)
+            for rec in (self.file, self.live):
+                if rec is not None:
+                    rec.send_blueprint(bp, make_active=rec is self.live, make_default=True)
+        self._timing.add(chunk)
+        sync = np.asarray(chunk[SYNC_T], dtype=np.float64)
+        cmd = np.asarray(chunk[COMMAND_T], dtype=np.float64) if COMMAND_T in chunk else np.full(len(sync), np.nan)
+        return cmd - sync
+
+    def _lateness(self, summary: dict[str, Any]) -> None:
+        """The SYNC lateness of every period, on the grid of its segment (the summary's realtime block)."""
+        segs = summary_segments(summary)
+        if not self._timing or segs is None:
+            return
+        pp = self._timing.per_period(segs)
+        if len(pp.period):
+            ts_s = float(summary.get("Ts_s") or 0.0)
+            self._log([(LATENESS_PATH, pp.lateness)], pp.period, pp.period * ts_s, int(pp.period[0]))
 
     def end(self, summary: dict[str, Any] | None = None) -> None:
-        """Flush everything; the .rrd is complete and readable afterwards. Serving goes on.
-        `summary` (as bench.run.sinks.Sink passes it) is not used."""
+        """Flush everything; the .rrd is complete and readable afterwards. Serving goes on. From `summary` (as
+        bench.run.sinks.Sink passes it): a real-time run's segments (the SYNC lateness), the faults (events)."""
         if self._ended:
             return
         self._ended = True
+        if summary:
+            try:
+                self._lateness(summary)
+            except Exception as exc:  # noqa: BLE001 - the recording must still be closed
+                self._warn_once("timing", f"the SYNC lateness was not logged ({exc})")
         if summary and summary.get("faults"):
             try:
                 self._fault_events(summary["faults"])
@@ -251,7 +290,7 @@ class RerunSink:
                 rows.append((p, "events/faults", f"fault {f['fault']}: {f['description']}", "WARN"))
         for r in rep["reactions"]:
             rows.append((r["period"], f"events/reactions/{r['node']}", f"{r['node']}: {r['what']}", "INFO"))
-        bp = events_blueprint(self._signals)
+        bp = events_blueprint(self._signals, timing=bool(self._timing))
         for rec in (self.file, self.live):
             if rec is None:
                 continue

@@ -27,11 +27,12 @@
 
 static plant_app_t g_app;
 static co_runtime_t g_rt;
+static int g_cpu = -2; /* --cpu: -2 the default (plant_pacing_default_cpu), -1 anywhere */
 
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: plant_node [--iface NAME] [--node-id N] [--realtime] [--help]\n"
+            "usage: plant_node [--iface NAME] [--node-id N] [--realtime] [--cpu N] [--help]\n"
             "\n"
             "PMSM plant emulator as a CANopen slave (OD: protocols/eds/plant.eds).\n"
             "It is the SYNC producer: SYNC k -> TPDO1 {i_a_A, i_b_A}, TPDO2 {theta_m_rad,\n"
@@ -41,6 +42,8 @@ static void usage(FILE *f)
             "  --iface NAME   SocketCAN interface (default vcan0)\n"
             "  --node-id N    CANopen node-ID, 1..127 (default %u)\n"
             "  --realtime     start in real-time mode (same as SDO 0x2003:01 = 1)\n"
+            "  --cpu N        real time: keep the pacing on CPU N (-1: anywhere; default 0\n"
+            "                 on a machine with two CPUs or more)\n"
             "  --help         this text\n"
             "\n"
             "Nothing runs until the master sends NMT start and writes 0x2003:02\n"
@@ -109,7 +112,8 @@ static void realtime_loop(co_runtime_t *rt)
 {
     static int announced;
     if (!announced) {
-        printf("plant_node: real-time mode: %s\n", plant_pacing_priority(PLANT_PACING_PRIORITY));
+        printf("plant_node: real-time mode: %s\n",
+               plant_pacing_priority(PLANT_PACING_PRIORITY, g_cpu == -2 ? plant_pacing_default_cpu() : g_cpu));
         fflush(stdout);
         announced = 1;
     }
@@ -136,13 +140,22 @@ int main(int argc, char **argv)
     for (; i < argc; ++i) {
         if (strcmp(argv[i], "--realtime") == 0) {
             realtime = 1;
+        } else if (strcmp(argv[i], "--cpu") == 0 && i + 1 < argc) {
+            char *end = NULL;
+            long cpu = strtol(argv[++i], &end, 10);
+            if (end == argv[i] || *end != '\0' || cpu < -1 || cpu >= 1024) {
+                fprintf(stderr, "plant_node: --cpu '%s': a CPU number 0..1023, or -1 for any\n", argv[i]);
+                return EXIT_USAGE;
+            }
+            g_cpu = (int)cpu;
         } else if (strcmp(argv[i], "--iface") == 0 || strcmp(argv[i], "--node-id") == 0) {
             fprintf(stderr, "plant_node: %s needs a value (%s)\n", argv[i],
                     strcmp(argv[i], "--iface") == 0 ? "a SocketCAN interface name, e.g. vcan0" : "1..127");
             return EXIT_USAGE;
         } else {
             fprintf(stderr,
-                    "plant_node: unknown option '%s' (allowed: --iface NAME, --node-id 1..127, --realtime, --help)\n",
+                    "plant_node: unknown option '%s' (allowed: --iface NAME, --node-id 1..127, --realtime, --cpu N, "
+                    "--help)\n",
                     argv[i]);
             return EXIT_USAGE;
         }

@@ -29,9 +29,20 @@ static void sleep_until_ns(int64_t t_ns, const plant_pacing_io_t *io)
     }
 }
 
-const char *plant_pacing_priority(int priority)
+int plant_pacing_default_cpu(void) { return sysconf(_SC_NPROCESSORS_ONLN) >= 2 ? 0 : -1; }
+
+int plant_pacing_pin(int cpu)
 {
-    static char line[320];
+    if (cpu < 0) return 0;
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+    return sched_setaffinity(0, sizeof set, &set) == 0 ? 0 : errno; /* Linux: the calling thread */
+}
+
+const char *plant_pacing_priority(int priority, int cpu)
+{
+    static char line[512];
     struct sched_param sp;
     memset(&sp, 0, sizeof sp);
     sp.sched_priority = priority;
@@ -54,18 +65,21 @@ const char *plant_pacing_priority(int priority)
             dma_fd = -1;
         }
     }
+    int pin_err = plant_pacing_pin(cpu);
+    char where[80] = "";
+    if (cpu >= 0 && pin_err == 0) snprintf(where, sizeof where, ", on CPU %d", cpu);
+    if (cpu >= 0 && pin_err != 0) snprintf(where, sizeof where, ", not kept on CPU %d (%s)", cpu, strerror(pin_err));
+    const char *idle = dma_fd >= 0 ? ", CPU idle states held off" : "";
     if (fifo && locked) {
-        snprintf(line, sizeof line, "SCHED_FIFO priority %d, memory locked%s", priority,
-                 dma_fd >= 0 ? ", CPU idle states held off" : "");
+        snprintf(line, sizeof line, "SCHED_FIFO priority %d, memory locked%s%s", priority, idle, where);
     } else {
-        char what[160];
-        snprintf(what, sizeof what, "%s%s%s%s%s", fifo ? "" : "SCHED_FIFO not permitted (",
-                 fifo ? "" : strerror(fifo_err), fifo ? "" : ")", !fifo && !locked ? ", " : "",
-                 locked ? "" : "mlockall not permitted (");
+        char fifo_text[96] = "", lock_text[96] = "";
+        if (!fifo) snprintf(fifo_text, sizeof fifo_text, "SCHED_FIFO not permitted (%s)", strerror(fifo_err));
+        if (!locked) snprintf(lock_text, sizeof lock_text, "mlockall not permitted (%s)", strerror(lock_err));
         snprintf(line, sizeof line,
-                 "%s%s%s: timing may jitter; grant both from the shell that runs the bench with "
+                 "%s%s%s%s%s: timing may jitter; grant both from the shell that runs the bench with "
                  "`sudo prlimit --pid $$ --rtprio=99 --memlock=unlimited`",
-                 what, locked ? "" : strerror(lock_err), locked ? "" : ")");
+                 fifo_text, !fifo && !locked ? ", " : "", lock_text, idle, where);
     }
     return line;
 }

@@ -26,10 +26,16 @@ typedef struct {
 } plant_pacing_io_t;
 
 int64_t plant_pacing_now_ns(void);
-/* SCHED_FIFO at `priority` for the calling thread and, once per process, mlockall(MCL_CURRENT | MCL_FUTURE);
- * returns one line saying what was got, and for what was not, why and the command that grants it (a static
- * buffer). */
-const char *plant_pacing_priority(int priority);
+/* The CPU the plant's pacing thread is kept on: 0 on a machine with two or more, else -1 (anywhere): the
+ * scheduler does not move it mid-run; the other CPUs are left to the drive (direct mode: the last one). */
+int plant_pacing_default_cpu(void);
+/* For the calling thread: SCHED_FIFO at `priority`, kept on `cpu` (-1: anywhere) and, once per process,
+ * mlockall(MCL_CURRENT | MCL_FUTURE) and CPU idle states held off (/dev/cpu_dma_latency = 0, as cyclictest
+ * does); returns one line saying what was got, and for what was not, why and the command that grants it (a
+ * static buffer). */
+const char *plant_pacing_priority(int priority, int cpu);
+/* Keep the calling thread on one CPU (-1: anywhere); 0 or an errno. */
+int plant_pacing_pin(int cpu);
 /* The absolute-deadline loop: returns when real-time mode ends or io->stop() says so. */
 void plant_pacing_loop(plant_app_t *app, const plant_pacing_io_t *io);
 

@@ -1,12 +1,14 @@
 """Real-time mode over vcan, at a slow period with wide tolerances (a VM under QEMU's software
 emulation cannot pace periods of a few ms: its SYNC intervals jitter by about 2 ms; see docs/VM.md):
 SYNC at absolute deadlines every Ts, the loop closed in time, late/missing commands counted as the plant
-flags them period by period (how many there are is the machine's load, not a property of the bench) and the
-lateness histogram readable by SDO."""
+flags them period by period (how many there are is the machine's load, not a property of the bench), the
+summary's realtime block with the plant's timing record and the bus-side timing (consistent, never timed), and
+the timing histograms readable by SDO."""
 
 from __future__ import annotations
 
 import struct
+from typing import Any
 
 import numpy as np
 
@@ -18,13 +20,13 @@ PERIODS = 150
 
 def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
     # In real time a command that misses its period is late or lost (counted below): the run may end
-    # frames_lost in a VM, which cannot pace sub-ms work reliably.
+    # realtime_overrun (the plant counted it) or frames_lost in a VM, which cannot pace sub-ms work reliably.
     raw = {
         "scenario": {
             "name": "realtime-slow",
             "periods": PERIODS,
             "timing": "realtime",
-            "expect": ["ok", "frames_lost"],
+            "expect": ["ok", "frames_lost", "realtime_overrun"],
         },
         "motor": {"preset": "you2019", "mech_mode": "locked"},
         "drive": {"Ts_s": TS_S, "t_dead_s": 0.0, "encoder_lines": 0},
@@ -66,13 +68,44 @@ def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
     print(f"missed {missed} (flagged in {flagged} measurements, {unrecorded} unrecorded), late {late}")
     assert flagged <= missed <= flagged + unrecorded
     assert late <= missed
+    _check_realtime_block(run.result.summary)
+
+
+def _ordered(six: dict[str, Any], where: str) -> None:
+    """min <= p50 <= p99 <= p99_9 <= max, and the mean within [min, max]: whatever the machine made of them."""
+    assert six["min"] <= six["p50"] <= six["p99"] <= six["p99_9"] <= six["max"], (where, six)
+    assert six["min"] <= six["mean"] <= six["max"], (where, six)
+
+
+def _check_realtime_block(s: dict[str, Any]) -> None:
+    """summary.json's realtime block: the plant's record 0x2007 read at the end and the bus-side view, both
+    over every period run."""
+    rt = s["realtime"]
+    plant, bus = rt["plant"], rt["bus"]
+    print(f"realtime: plant {plant}; bus {bus}")
+    assert rt["period_us"] == TS_S * 1e6
+    assert plant["periods"] == PERIODS == s["periods"]
+    assert "reset" not in plant and {"missed_commands", "late_commands"} <= plant.keys()
+    for what in ("sync_lateness", "turnaround"):
+        _ordered({k: plant[f"{what}_{k}_us"] for k in ("min", "mean", "p50", "p99", "p99_9", "max")}, f"plant {what}")
+    assert 0 <= plant["commands_timed"] <= PERIODS and 0 <= plant["worst_period"] < PERIODS
+    if plant["overruns"] or plant["sync_overruns"]:  # the status it makes (unless a frame was lost before)
+        assert s["status_flags"]["realtime_overrun"] and s["status"] in ("realtime_overrun", "frames_lost"), s["status"]
+    else:
+        assert not s["status_flags"]["realtime_overrun"] and s["status"] != "realtime_overrun"
+    assert bus is not None, "no bus-side timing: the decoder gave no time stamps"
+    assert bus["periods"] == PERIODS
+    for what in ("sync_lateness_us", "turnaround_us", "sync_interval_us"):
+        _ordered(bus[what], f"bus {what}")
+    assert bus["sync_lateness_us"]["min"] == 0.0  # each segment's grid is anchored on its earliest SYNC
+    assert 0 < bus["commands_timed"] <= PERIODS and len(bus["segments"]) == 2  # the event at period 50: a hold
 
 
 def test_lateness_histogram_domain(vcan0: str) -> None:
     from canopen_helpers import node_target
 
     with node_target("plant_node", [], "plant", 0x10, vcan0) as t:
-        data = t.node.sdo["Lateness histogram"].raw  # DOMAIN: segmented upload
-        assert len(data) == 128
-        bins = struct.unpack("<32I", data)
+        data = t.node.sdo["Timing histograms"].raw  # DOMAIN: segmented upload
+        assert len(data) == 2 * 288 * 4  # SYNC lateness, then turnaround: 288 x UNSIGNED32 each (plant.eds 0x2006)
+        bins = struct.unpack("<576I", data)
         assert sum(bins) == 0  # nothing ran yet

@@ -260,6 +260,40 @@ def test_a_drive_late_for_its_sync_in_real_time_is_late_not_interference(
             np.testing.assert_array_equal(tr[name], tr0[name], err_msg=name)  # trace TPDOs in their own rows
 
 
+def test_a_drive_two_syncs_behind_in_real_time_answers_three_at_once_not_interference(
+    clean: tuple[RunResult, np.ndarray],
+) -> None:
+    # Real time on a busy machine: the drive missed SYNCs k and k+1 (it was not scheduled) and answers k, k+1
+    # and k+2 together after SYNC k+2. Its trace TPDOs of the three go to their three rows (they were free);
+    # the two commands that came too late are missing in their periods (frames_lost), not interference.
+    res0, frames = clean
+    f = _as_realtime(frames)
+    lo, hi = _loop_span(f)
+    sync = np.flatnonzero(f["cob_id"] == 0x080)
+    sync = sync[(sync >= lo) & (sync < hi)]
+    k = len(sync) // 2
+    late = [np.arange(sync[j], sync[j + 1]) for j in (k, k + 1)]
+    late = [span[f["sender"][span] == 1] for span in late]
+    assert all(len(d) == 3 for d in late)
+    after = sync[k + 2] + 3  # after SYNC k+2 and the plant's two measurements
+    moved = np.r_[late[0], late[1]]
+    keep = np.setdiff1d(np.arange(0, after), moved)
+    order = np.r_[keep, moved, np.arange(after, len(f))]
+    res = _decode(f[order])
+    bs = res.summary["bus_stats"]
+    assert bs["interference"]["frames"] == 0, bs["interference"]
+    assert bs["lost_frames"] == 2, bs
+    tr0, tr = res0.trace, res.trace
+    assert tr0 is not None and tr is not None
+    rows = np.zeros(len(tr["period"]), dtype=bool)
+    rows[[k, k + 1]] = True
+    for name in tr0:
+        if np.isnan(tr[name][rows]).all() and not np.isnan(tr0[name][rows]).all():
+            np.testing.assert_array_equal(tr[name][~rows], tr0[name][~rows], err_msg=name)  # the commands
+        else:
+            np.testing.assert_array_equal(tr[name], tr0[name], err_msg=name)  # trace TPDOs in their own rows
+
+
 def test_a_trace_tpdo_reordered_after_the_next_sync_is_late_not_interference(
     clean: tuple[RunResult, np.ndarray],
 ) -> None:

@@ -84,6 +84,10 @@ class Rows:
         late = self._late(buf, period_of, r0, r1) if self.hil else None
         miss_meas = np.zeros(n, dtype=bool)
         miss_cmd = np.zeros(n, dtype=bool)
+        # real time: each period's SYNC and command time stamps (bench/run/verdict/realtime.py), not trace signals
+        timed = late is not None and late.realtime
+        if timed:
+            out["sync_t_us"], out["command_t_us"] = t_us, np.full(n, np.nan)
         for cob_id, ps in st.pdos.items():
             pdo = ps.pdo
             pos = np.flatnonzero(cob == cob_id)
@@ -105,6 +109,8 @@ class Rows:
                 miss_meas |= ~got
             elif self.hil and pdo.node == "drive" and any(q.startswith("Voltage command.") for q, _ in pdo.signals):
                 miss_cmd |= ~got
+                if timed:
+                    out["command_t_us"][per - r0] = buf["t_us"][pos].astype(np.float64)
         st.missing_measurements += int(miss_meas.sum())
         st.missing_commands += int(miss_cmd.sum())
         st.lost(out["period"][miss_meas | miss_cmd])
@@ -207,13 +213,9 @@ class Rows:
             pos, per, dup = pos[keep], per[keep], dup[keep] & ~safe[keep]
         if not dup.any():
             return pos, per
-        if (pdo.node == "drive" and late.realtime) or (
-            is_cmd and late.late_ok is not None and np.isin(per[dup], late.late_ok).all()
-        ):
+        if is_cmd and (late.realtime or (late.late_ok is not None and np.isin(per[dup], late.late_ok).all())):
             # a late command lands in the next period (the plant counts it late, 0x2003 late_commands, and never
-            # applies it): the drive's own frame, not interference; the period's own command is the last one.
-            # In real time a drive that answers two SYNCs at once (it was not scheduled in time) sends its other
-            # synchronous TPDOs (trace) twice in the period too: its own frames, the last one kept
+            # applies it): the drive's own frame, not interference; the period's own command is the last one
             last = np.r_[per[1:] != per[:-1], True]
             return pos[last], per[last]
         # a PDO twice in a period that holds the next period's sample: the SYNC between them was lost
@@ -222,7 +224,7 @@ class Rows:
         lost = dup & np.isin(per + shift, late.misaligned)
         drop = np.zeros_like(dup)
         if shift:
-            per, dup, drop = _late_to_free_row(per, dup & ~lost, r0)
+            per, dup, drop = _late_to_free_row(per, dup & ~lost, r0, late.realtime)
             dup |= lost
         st.interfere(pdo.cob_id, per[dup & ~lost])
         st.lost(per[lost])
@@ -326,25 +328,38 @@ def _field_bytes(
     return per[ok], buf["data"][pos[ok], off : off + size]
 
 
-def _late_to_free_row(per: np.ndarray, dup: np.ndarray, r0: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _late_to_free_row(
+    per: np.ndarray, dup: np.ndarray, r0: int, realtime: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A synchronous drive TPDO that arrives after the next SYNC is late, not foreign, when the row before
     has none of its own: a transport that reorders (SLCAN through a kernel on several CPUs, a controller
     that sends by priority: the command before the trace TPDOs, and the plant answers the command with the
     next SYNC at once), or a drive late for its SYNC in real time. `per`: the rows of one PDO's frames in
     bus order; `dup[i]`: frame i shares its row with frame i-1. Of such a pair the earlier frame moves to
     the row before when that row is free (before r0 it was emitted with the last chunk: the frame is
-    dropped). Returns the new rows, the duplicates left (interference) and the frames dropped."""
+    dropped). In real time a drive that missed several SYNCs answers them all at once: a run of m frames in
+    a row moves to the m - 1 rows before it when they are all free; in lockstep a run of three is not a
+    late pair. Returns the new rows, the duplicates left (interference) and the frames dropped."""
     drop = np.zeros_like(dup)
-    second = np.flatnonzero(dup)
-    if len(second) == 0:
+    if not dup.any():
         return per, dup, drop
-    first = second - 1
-    row = per[first] - 1
-    free = ~np.isin(row, per) & ~dup[first]  # the row before has no frame, and it is a pair, not three
     per, dup = per.copy(), dup.copy()
-    move, gone = first[free & (row >= r0)], first[free & (row < r0)]
-    per[move] -= 1
-    dup[move + 1] = False
-    dup[gone + 1] = False
-    drop[gone] = True
+    has = set(per.tolist())
+    starts = np.flatnonzero(~dup & np.r_[dup[1:], False])  # a frame followed by frames of its row
+    for a in starts:
+        b = a + 1
+        while b + 1 < len(dup) and dup[b + 1]:
+            b += 1
+        m = b - a  # frames a .. b-1 move to the rows before per[b]
+        if m > 1 and not realtime:
+            continue
+        rows = per[b] - np.arange(m, 0, -1)
+        if any(int(r) in has for r in rows):
+            continue
+        for i, r in zip(range(a, b), rows, strict=True):
+            if r >= r0:
+                per[i] = r
+            else:
+                drop[i] = True
+        dup[a + 1 : b + 1] = False
     return per, dup, drop

@@ -15,6 +15,11 @@ Status (one word, and a distinct exit code for each bad one):
                duplicate measurement or command): the nodes may have acted on it
   law_fault    the drive refused its current law's command (non-finite or beyond Vmax_V) or, on a bare-metal
                target, its step overran the period: EMCY safe_law_output / safe_overrun, its safe state
+  realtime_overrun  a real-time run whose plant counted overruns (plant.eds "Realtime timing": a command not at
+               the plant by the next SYNC deadline, or a SYNC more than a period late); before frames_lost at the
+               same period: in real time a command that misses its period is also missing from it
+A real-time run's summary has a "realtime" block: the plant's timing record and the bus-side timing
+(bench/run/verdict/realtime.py); a lockstep run's has none.
 A scenario may expect a bad status (scenario.expect); the run then passes when it gets it.
 """
 
@@ -42,11 +47,21 @@ EXIT_CODES = {
     "node_lost": 8,
     "interference": 9,
     "law_fault": 10,
+    "realtime_overrun": 11,
 }
 EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
 # at the same period, the root cause first
-PRIORITY = ("node_lost", "interference", "non_finite", "law_fault", "diverged", "tripped", "frames_lost")
+PRIORITY = (
+    "node_lost",
+    "interference",
+    "non_finite",
+    "law_fault",
+    "diverged",
+    "tripped",
+    "realtime_overrun",
+    "frames_lost",
+)
 
 
 def _num(v: float | None) -> float | int | None:
@@ -198,9 +213,11 @@ def build_summary(
     timing: dict[str, float],
     links: dict[str, dict[str, Any]],
 ) -> dict[str, Any]:
-    """summary.json (without "faults"): the verdict, the steps, what the bus showed of both nodes."""
+    """summary.json (without "faults"): the verdict, the steps, what the bus showed of both nodes; a real-time
+    run's "realtime" block, which LoopWatch.judge left in `bstats` (it has the chunks' time stamps)."""
     ctl = dec.sdo.drive
-    return {
+    rt = bstats.pop("realtime", None)
+    out = {
         "schema_version": SCHEMA_VERSION,
         "scenario": scenario,
         "bus": bus,
@@ -240,6 +257,9 @@ def build_summary(
         # each SocketCAN interface (kind, state, bit rate, error counters) before and after the run
         "can_links": links,
     }
+    if rt is not None:
+        out["realtime"] = rt
+    return out
 
 
 def format_table(summary: dict[str, Any]) -> str:

@@ -1,6 +1,7 @@
 """What the verdict needs from the trace chunks as they pass (Pipeline feeds it), and the verdict itself: the
 largest phase current and the first period beyond the divergence bound, the first trip, the plant's status
-bits, then the status flags, the first period of each and the run's status."""
+bits, a real-time run's SYNC and command time stamps (bench/run/verdict/realtime.py), then the status flags, the
+first period of each and the run's status."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 from bench.eds import bits
 from bench.emcy import emcy_codes
 from bench.run.decode.decoder import Decoder
+from bench.run.verdict import realtime
 from bench.run.verdict.faults import StatusWatch
 from bench.run.verdict.summary import divergence_bound_A, plant_values, verdict
 
@@ -28,11 +30,15 @@ class LoopWatch:
         self.first_trip_period: int | None = None
         self.first_beyond_bound_period: int | None = None
         self.status = StatusWatch()  # the plant's status bits per period (held, missed, trip)
+        self.timing = realtime.BusTiming()  # a real-time run's SYNC and command time stamps per period
+        # the overview's timing series of a real-time run (realtime.envelopes), set by judge()
+        self.timing_envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def begin(self, dec: Decoder) -> None:
         self.bound_A = divergence_bound_A(plant_values(dec))  # the plant as configured
 
     def add(self, chunk: dict[str, np.ndarray]) -> None:
+        self.timing.add(chunk)
         phase = [
             np.abs(np.nan_to_num(chunk[c], nan=0.0, posinf=0.0, neginf=0.0)) for c in ("i_a_A", "i_b_A") if c in chunk
         ]
@@ -57,7 +63,9 @@ class LoopWatch:
         stopped: dict[str, Any] | None,
         expect: tuple[str, ...],
     ) -> tuple[str, int, bool, dict[str, bool], list[int]]:
-        """(status, exit code, expected, status flags, oscillating steps' periods); `bstats` gets planned_periods."""
+        """(status, exit code, expected, status flags, oscillating steps' periods). `bstats` gets planned_periods,
+        and in a real-time run "realtime": summary.json's realtime block (realtime.block), which build_summary
+        moves to the top level."""
         trip_active = dec.sdo.plant.get("Run control", "trip_active")
         # A loop that never settles and still swings over half its step at the end of the window
         # oscillates (an unstable loop held by the voltage limit): diverged, though bounded.
@@ -75,6 +83,9 @@ class LoopWatch:
         # bare-metal target) and entered its safe state: its EMCY, the first one's period
         law_faults = [e["period"] for e in dec.emcy if e["node"] == "drive" and int(e["code"], 16) in LAW_FAULT_EMCY]
         bound = self.bound_A
+        rt = self._realtime(dec)
+        if rt is not None:
+            bstats["realtime"] = rt
         flags = {
             "law_fault": bool(law_faults),
             "non_finite": bool(bstats["non_finite_values"]),
@@ -94,8 +105,25 @@ class LoopWatch:
             "interference": bstats["interference"]["first_period"],
             "frames_lost": dec.stats.first_lost_period,
         }
+        if rt is not None:  # a real-time run: the plant counted overruns (a lockstep run's flags stay as they were)
+            flags["realtime_overrun"] = realtime.overran(rt)
+            first["realtime_overrun"] = realtime.first_overrun(rt, dec.stats.first_lost_period)
         if stopped:
             at = stopped.get("at_period")
             first[stopped["status"]] = at if at is not None else dec.stats.periods
         status, code, expected = verdict(flags, expect, first)
         return status, code, expected, flags, oscillating
+
+    def _realtime(self, dec: Decoder) -> dict[str, Any] | None:
+        """A real-time run's block (None in lockstep), with the bus view when the chunks carried time stamps; the
+        overview's timing series with it."""
+        if not realtime.is_realtime(dec):
+            return None
+        if not self.timing:
+            return realtime.block(dec, None)
+        segs = realtime.segments(dec)
+        pp = self.timing.per_period(segs)
+        rt = realtime.block(dec, realtime.bus_view(pp, segs))
+        assert rt is not None
+        self.timing_envelopes = realtime.envelopes(pp, rt["plant"])
+        return rt
