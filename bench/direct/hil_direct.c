@@ -176,10 +176,20 @@ plant_app_t *hil_plant_app(void) { return &H.plant; }
 void hil_deliver(void) { deliver(); }
 void hil_set_now_us(int64_t t_us) { H.now_us = t_us; }
 int hil_side_live(uint8_t side) { return !H.killed[side] && !H.frozen[side]; }
+int hil_side_killed(uint8_t side) { return H.killed[side]; }
+/* A frame that reached a node's inbox before the node froze: it waits with the frames sent to it since. */
+void hil_frozen_frame(const co_frame_t *f)
+{
+    if (H.fz_n < FROZEN_Q)
+        H.fz[H.fz_n++] = *f;
+    else
+        ++H.fz_dropped;
+}
 void hil_set_running(int on) { H.running = on; }
 
 int hil_open(uint8_t plant_id, uint8_t drive_id)
 {
+    hil_rt_reset();
     memset(&H, 0, sizeof H);
     H.now_us = 0;
     co_membus_init(&H.bus, NULL, NULL);
@@ -206,9 +216,12 @@ int hil_faults(const char *text, char *err, uint32_t err_len) { return fi_parse_
 /* The injector's log: copies up to max events, returns how many there are in all. */
 uint32_t hil_fault_log(fi_event_t *out, uint32_t max)
 {
+    hil_rt_lock();
     uint32_t n = H.fi.n_log < max ? H.fi.n_log : max;
     if (out != NULL && n != 0u) memcpy(out, H.fi.log, n * sizeof *out);
-    return H.fi.n_log;
+    uint32_t all = H.fi.n_log;
+    hil_rt_unlock();
+    return all;
 }
 uint32_t hil_fault_event_size(void) { return (uint32_t)sizeof(fi_event_t); }
 uint64_t hil_fault_overflows(void) { return H.fi.log_overflow + H.fi.held_overflow + H.fz_dropped; }
@@ -246,17 +259,21 @@ int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
     f.cob_id = cob_id & 0x7FFu;
     f.dlc = dlc > 8 ? 8 : dlc;
     memcpy(f.data, data, f.dlc);
-    if (co_membus_inject(&H.bus, &f) != 0) return -1;
-    deliver();
-    return 0;
+    hil_rt_lock();
+    int rc = co_membus_inject(&H.bus, &f) != 0 ? -1 : 0;
+    if (rc == 0) deliver();
+    hil_rt_unlock();
+    return rc;
 }
 
 /* Next frame of the nodes for the master; returns 1 when one was copied. */
 int hil_recv(hil_frame_t *out)
 {
-    if (H.mq_head == H.mq_tail) return 0;
-    *out = H.mq[H.mq_head++ % MASTER_Q];
-    return 1;
+    hil_rt_lock();
+    int got = H.mq_head != H.mq_tail;
+    if (got) *out = H.mq[H.mq_head++ % MASTER_Q];
+    hil_rt_unlock();
+    return got;
 }
 
 /* Nodes that are no longer in the loop: bit 0 the plant, bit 1 the drive (killed by a fault, or out
@@ -264,21 +281,27 @@ int hil_recv(hil_frame_t *out)
 uint32_t hil_nodes_down(void)
 {
     uint32_t down = 0;
+    hil_rt_lock();
     for (uint8_t s = 0; s < 2u; ++s)
         if (H.killed[s] || node_of(s)->nmt != CO_NMT_OPERATIONAL) down |= 1u << s;
+    hil_rt_unlock();
     return down;
 }
 
 /* The node's state: 0xFF killed, else its NMT state (co_nmt_state_t). */
 uint32_t hil_node_state(uint32_t side)
 {
-    return H.killed[side & 1u] ? 0xFFu : (uint32_t)node_of((uint8_t)(side & 1u))->nmt;
+    hil_rt_lock();
+    uint32_t st = H.killed[side & 1u] ? 0xFFu : (uint32_t)node_of((uint8_t)(side & 1u))->nmt;
+    hil_rt_unlock();
+    return st;
 }
 
 /* After a node was lost: simulated time goes on for `us` with the nodes' timers only (no new period),
  * so that the survivor's reaction (its heartbeat consumer) is recorded as on a bus. */
 void hil_linger(int64_t us)
 {
+    hil_rt_lock();
     const int64_t end = H.now_us + us;
     H.running = 1;
     while (H.now_us < end) {
@@ -290,6 +313,7 @@ void hil_linger(int64_t us)
         tick();
     }
     H.running = 0;
+    hil_rt_unlock();
 }
 
 /* Run the lockstep loop until the plant holds (run_periods exhausted) or max_periods
@@ -299,6 +323,7 @@ void hil_linger(int64_t us)
  * STALL_US of simulated time without a SYNC the loop gives up (the caller names the stall). */
 uint32_t hil_run(uint32_t max_periods)
 {
+    hil_rt_lock();
     uint32_t n = 0;
     int64_t idle_since = H.now_us;
     H.running = 1;
@@ -328,6 +353,7 @@ uint32_t hil_run(uint32_t max_periods)
         tick();
     }
     H.running = 0;
+    hil_rt_unlock();
     return n;
 }
 

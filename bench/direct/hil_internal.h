@@ -17,6 +17,8 @@ void hil_timers(uint8_t side);
 void hil_fi_tick(void);
 void hil_set_now_us(int64_t t_us);
 int hil_side_live(uint8_t side);
+int hil_side_killed(uint8_t side);
+void hil_frozen_frame(const co_frame_t *f);
 void hil_set_running(int on);
 uint32_t hil_nodes_down(void);
 int64_t hil_now_us(void);
@@ -25,7 +27,11 @@ int64_t hil_now_us(void);
 extern volatile int hil_rt_active;
 /* A frame for side `side` (FI_SIDE_A plant, FI_SIDE_B drive), delivered at t_us: queued for its thread. */
 void hil_rt_push(uint8_t side, const co_frame_t *f, int64_t t_us);
+/* The one lock of direct mode (recursive, priority inheritance): every hil_* entry point Python calls takes it,
+ * so that Python's threads never meet the nodes' threads of a real-time run in the middle of a frame. */
 void hil_rt_lock(void);
 void hil_rt_unlock(void);
+/* Forget a previous run's stop request and counters (hil_open). */
+void hil_rt_reset(void);
 
 #endif /* HIL_INTERNAL_H */

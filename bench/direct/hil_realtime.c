@@ -1,16 +1,17 @@
 /* hil_realtime.c - direct mode in real time: the plant and the drive node apps on threads of their own over
  * the in-process bus, the plant paced by plant_pacing_loop exactly as plant_node paces itself (absolute
- * CLOCK_MONOTONIC deadlines, SCHED_FIFO, mlockall); a frame reaches the other node's thread through its inbox,
- * stamped with the time it was sent (its arrival on a bus), and the recorder keeps that time.
+ * CLOCK_MONOTONIC deadlines, SCHED_FIFO, mlockall, its CPU); a frame reaches the other node's thread through
+ * its inbox, stamped with the time it was sent (its arrival on a bus), and the recorder keeps that time.
  *
- * One lock (priority inheritance) guards the bus, the injector, the recorder and the nodes; each thread holds
- * it only to process its frames and timers, never while it sleeps.  Time stamps: the bench's time line (us)
- * continues across calls: at each call, now = (CLOCK_MONOTONIC - base) with base chosen so that it starts at
- * the time the previous segment ended. */
+ * One lock (recursive, priority inheritance) guards the bus, the injector, the recorder and the nodes; each
+ * thread holds it only to process its frames and timers, never while it sleeps or polls.  Time stamps: the
+ * bench's time line (us) never goes back and continues across calls: at each call, now = CLOCK_MONOTONIC -
+ * base, with base chosen so that it starts where the previous segment ended. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <pthread.h>
 #include <sched.h>
+#include <semaphore.h>
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
@@ -20,9 +21,10 @@
 #include "od_plant.h"
 #include "plant_pacing.h"
 
-#define INBOX 8192u             /* frames waiting for a node's thread */
-#define STALL_NS 1000000000LL   /* wall time without a SYNC (or the hold) after which the run gives up */
-#define DRIVE_WAKE_NS 2000000LL /* the drive's thread looks at its timers at least this often */
+#define INBOX 65536u                               /* frames waiting for a node's thread (a CAN controller's FIFO) */
+#define STALL_NS 1000000000LL                      /* wall time without a SYNC (or the hold): the run gives up */
+#define DRIVE_WAKE_NS 2000000LL                    /* the drive's thread looks at its timers at least this often */
+#define DRIVE_LOCK_SPIN_NS 20000LL                 /* ... polls the lock this long before it waits for it */
 #define DRIVE_PRIORITY (PLANT_PACING_PRIORITY - 1) /* the plant's SYNC comes first */
 
 typedef struct {
@@ -32,7 +34,7 @@ typedef struct {
 
 typedef struct {
     rt_item_t q[INBOX];
-    uint32_t head, tail;
+    uint32_t head, tail; /* tail: written under the lock, read by the drive's poll without it (atomics) */
     uint64_t dropped;
     pthread_cond_t cv;
 } rt_inbox_t;
@@ -45,10 +47,11 @@ static struct {
     rt_inbox_t in[2];
     int64_t base_ns;
     uint32_t syncs_at_start, max_periods;
-    int64_t progress_ns; /* the last SYNC (or the start) */
-    volatile int stop_req;
-    int drive_done;
-    int drive_ready; /* the drive's thread is waiting for frames: the first SYNC may go */
+    int64_t progress_ns;      /* the last SYNC (or the start) */
+    int64_t next_deadline_ns; /* the plant's next deadline (atomic): the drive polls from half a period before */
+    int stop_req;             /* hil_stop (atomic) */
+    int drive_done;           /* atomic */
+    sem_t plant_ready, drive_ready;
     int plant_cpu, drive_cpu;
     char note[512];
 } R;
@@ -64,6 +67,8 @@ static void init_once(void)
     pthread_condattr_init(&ca);
     pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
     for (int s = 0; s < 2; ++s) pthread_cond_init(&R.in[s].cv, &ca);
+    sem_init(&R.plant_ready, 0, 0);
+    sem_init(&R.drive_ready, 0, 0);
 }
 
 void hil_rt_lock(void)
@@ -73,12 +78,26 @@ void hil_rt_lock(void)
 }
 void hil_rt_unlock(void) { pthread_mutex_unlock(&g_lock); }
 
-static int64_t now_us_of(int64_t mono_ns) { return (mono_ns - R.base_ns) / 1000; }
+void hil_rt_reset(void)
+{
+    hil_rt_lock();
+    __atomic_store_n(&R.stop_req, 0, __ATOMIC_RELEASE);
+    for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0, R.in[s].dropped = 0;
+    hil_rt_unlock();
+}
+
+/* The bench's time now, never before a time already given (lock held). */
+static int64_t advance_now(void)
+{
+    int64_t t = (plant_pacing_now_ns() - R.base_ns) / 1000;
+    if (t > hil_now_us()) hil_set_now_us(t);
+    return hil_now_us();
+}
 
 void hil_rt_push(uint8_t side, const co_frame_t *f, int64_t t_us)
 {
     rt_inbox_t *b = &R.in[side];
-    if (b->tail - b->head >= INBOX) {
+    if (b->tail - b->head >= INBOX) { /* the node's receive FIFO overflowed: the frame is lost to it */
         ++b->dropped;
         return;
     }
@@ -87,8 +106,9 @@ void hil_rt_push(uint8_t side, const co_frame_t *f, int64_t t_us)
     pthread_cond_signal(&b->cv);
 }
 
-/* Process the frames waiting for `side`, each at its arrival time (lock held); returns whether the node had
- * a SYNC among them. */
+/* Process the frames waiting for `side` in order, each at its arrival time, and send what the node answers at
+ * the time it answers (lock held). A node killed meanwhile hears nothing more; a frozen one keeps them for its
+ * thaw. Returns whether the node had a SYNC among them. */
 static int take_frames(uint8_t side)
 {
     rt_inbox_t *b = &R.in[side];
@@ -96,7 +116,13 @@ static int take_frames(uint8_t side)
     const uint32_t syncs = node->syncs;
     while (b->head != b->tail) {
         rt_item_t it = b->q[b->head++ % INBOX];
+        if (hil_side_killed(side)) continue;
+        if (!hil_side_live(side)) {
+            hil_frozen_frame(&it.f);
+            continue;
+        }
         co_node_process(node, &it.f, it.t_us);
+        advance_now(); /* what it sends goes out now, after its work */
         hil_deliver();
     }
     return node->syncs != syncs;
@@ -109,55 +135,50 @@ static void wait_frames(uint8_t side, int64_t until_ns)
     (void)pthread_cond_timedwait(&R.in[side].cv, &g_lock, &ts);
 }
 
+static int stop_requested(void) { return __atomic_load_n(&R.stop_req, __ATOMIC_ACQUIRE); }
+
 /* ---- the plant's thread: the transport of plant_pacing_loop ---- */
 
 static void plant_serve_until(void *user, int64_t until_ns)
 {
     plant_app_t *app = (plant_app_t *)user;
     hil_rt_lock();
-    while (!R.stop_req) {
-        int64_t now_ns = plant_pacing_now_ns();
-        if (now_ns >= until_ns) break;
+    while (!stop_requested()) {
+        if (plant_pacing_now_ns() >= until_ns) break;
         wait_frames(FI_SIDE_A, until_ns);
-        int64_t now_us = now_us_of(plant_pacing_now_ns());
-        hil_set_now_us(now_us);
+        advance_now();
         take_frames(FI_SIDE_A);
         hil_timers(FI_SIDE_A);
         hil_fi_tick();
-        (void)plant_app_poll(app, now_us); /* arrivals; the hold's announcement */
+        if (hil_side_live(FI_SIDE_A)) (void)plant_app_poll(app, hil_now_us()); /* arrivals; the hold */
         hil_deliver();
         if (!plant_app_realtime_mode(app) || !plant_app_running(app)) break;
     }
     hil_rt_unlock();
 }
 
-static void plant_drain(void *user)
-{
-    (void)user;
-    hil_rt_lock();
-    hil_set_now_us(now_us_of(plant_pacing_now_ns()));
-    take_frames(FI_SIDE_A);
-    hil_rt_unlock();
-}
-
-static void plant_tick(void *user, int64_t now_ns, int64_t lateness_ns)
+static int64_t plant_tick(void *user, int64_t deadline_ns)
 {
     plant_app_t *app = (plant_app_t *)user;
     hil_rt_lock();
-    int64_t now_us = now_us_of(now_ns);
-    hil_set_now_us(now_us);
-    if (hil_side_live(FI_SIDE_A) && plant_app_realtime_tick(app, now_us, lateness_ns) >= 0) R.progress_ns = now_ns;
+    take_frames(FI_SIDE_A); /* what arrived by now, in the same hold of the lock as the SYNC */
+    const int64_t now_ns = plant_pacing_now_ns();
+    const int64_t now_us = advance_now();
+    if (hil_side_live(FI_SIDE_A) && plant_app_realtime_tick(app, now_us, now_ns - deadline_ns) >= 0)
+        R.progress_ns = now_ns;
+    __atomic_store_n(&R.next_deadline_ns, deadline_ns + plant_app_period_ns(app), __ATOMIC_RELEASE);
     hil_timers(FI_SIDE_A);
     hil_fi_tick();
     hil_rt_unlock();
+    return now_ns;
 }
 
 static int plant_stop(void *user)
 {
     plant_app_t *app = (plant_app_t *)user;
-    if (R.stop_req) return 1;
+    if (stop_requested()) return 1;
     hil_rt_lock();
-    int stop = hil_nodes_down() != 0u || app->syncs - R.syncs_at_start > R.max_periods ||
+    int stop = hil_nodes_down() != 0u || app->syncs - R.syncs_at_start >= R.max_periods ||
                (!plant_app_running(app) && OD_PLANT.mfr.x2003_run_control.state == 0u) ||
                plant_pacing_now_ns() - R.progress_ns > STALL_NS;
     hil_rt_unlock();
@@ -168,60 +189,61 @@ static void *plant_main(void *arg)
 {
     plant_app_t *app = (plant_app_t *)arg;
     strncpy(R.note, plant_pacing_priority(PLANT_PACING_PRIORITY, R.plant_cpu), sizeof R.note - 1u);
-    while (!__atomic_load_n(&R.drive_ready, __ATOMIC_ACQUIRE)) sched_yield(); /* the drive listens first */
+    sem_post(&R.plant_ready);
+    while (sem_wait(&R.drive_ready) != 0 && errno == EINTR) { /* the drive listens before the first SYNC */
+    }
     hil_rt_lock();
     R.progress_ns = plant_pacing_now_ns();
     hil_rt_unlock();
     const plant_pacing_io_t io = {
-        .user = app, .serve_until = plant_serve_until, .drain = plant_drain, .tick = plant_tick, .stop = plant_stop};
+        .user = app, .serve_until = plant_serve_until, .tick = plant_tick, .stop = plant_stop};
     plant_pacing_loop(app, &io);
     return NULL;
 }
 
 /* ---- the drive's thread: it answers what arrives, as drive_node does on its socket ---- */
 
-/* Wait for the drive's frames without the scheduler (a wake-up costs tens of us on a virtual machine: most
- * of a period): after answering a SYNC, sleep until half a period before the next one is due, then poll the
- * inbox, and take the lock by polling it too. A controller on a core of its own, which is idle for half of
- * the period (a thread that polled all the time would be stopped by the kernel's real-time throttling,
- * sched_rt_runtime_us: 50 ms every second). Returns with the lock held. */
-static void drive_wait(int64_t answered_ns)
+/* Wait for the drive's frames without the scheduler where it matters (a wake-up costs tens of us on a virtual
+ * machine: most of a period): sleep until half a period before the plant's next deadline (not at all while the
+ * plant catches up: its deadlines are past), then poll the inbox, then the lock. A controller on a core of its
+ * own that is idle half of the period (a thread that polled all the time would be stopped by the kernel's
+ * real-time throttling, sched_rt_runtime_us: 50 ms of every second). Returns with the lock held. */
+static void drive_wait(void)
 {
-    const int64_t period_ns = plant_app_period_ns(hil_plant_app());
-    const int64_t wake_ns = answered_ns + period_ns / 2;
-    if (answered_ns > 0 && plant_pacing_now_ns() < wake_ns) {
+    const int64_t wake_ns =
+        __atomic_load_n(&R.next_deadline_ns, __ATOMIC_ACQUIRE) - plant_app_period_ns(hil_plant_app()) / 2;
+    if (plant_pacing_now_ns() < wake_ns) {
         struct timespec ts = {.tv_sec = (time_t)(wake_ns / 1000000000LL), .tv_nsec = (long)(wake_ns % 1000000000LL)};
         (void)clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
     }
     const int64_t end = plant_pacing_now_ns() + DRIVE_WAKE_NS;
     rt_inbox_t *b = &R.in[FI_SIDE_B];
     int got = 0;
-    while (!got && plant_pacing_now_ns() < end) {
-        if (__atomic_load_n(&b->tail, __ATOMIC_ACQUIRE) != b->head) got = 1;
-        if (__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE)) break;
-    }
-    while (got && plant_pacing_now_ns() < end)
+    while (!got && plant_pacing_now_ns() < end && !__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE))
+        got = __atomic_load_n(&b->tail, __ATOMIC_ACQUIRE) != b->head;
+    const int64_t lock_end = plant_pacing_now_ns() + DRIVE_LOCK_SPIN_NS;
+    while (got && plant_pacing_now_ns() < lock_end)
         if (pthread_mutex_trylock(&g_lock) == 0) return;
-    hil_rt_lock();
+    hil_rt_lock(); /* a holder of lower priority is lifted by priority inheritance */
 }
 
 static void *drive_main(void *arg)
 {
     (void)arg;
+    (void)plant_pacing_pin(R.drive_cpu); /* first: never on the plant's CPU at FIFO priority */
     struct sched_param sp = {.sched_priority = DRIVE_PRIORITY};
     (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); /* the plant's line says what is permitted */
-    (void)plant_pacing_pin(R.drive_cpu);
-    __atomic_store_n(&R.drive_ready, 1, __ATOMIC_RELEASE);
+    sem_post(&R.drive_ready);
+    while (sem_wait(&R.plant_ready) != 0 && errno == EINTR) {
+    }
     hil_rt_lock();
-    int64_t answered_ns = 0;
-    while (!R.drive_done) {
+    while (!__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE)) {
         if (R.in[FI_SIDE_B].head == R.in[FI_SIDE_B].tail) {
             hil_rt_unlock();
-            drive_wait(answered_ns);
+            drive_wait();
         }
-        int64_t now_ns = plant_pacing_now_ns();
-        hil_set_now_us(now_us_of(now_ns));
-        answered_ns = take_frames(FI_SIDE_B) ? now_ns : 0;
+        advance_now();
+        take_frames(FI_SIDE_B);
         hil_timers(FI_SIDE_B);
         hil_fi_tick();
     }
@@ -229,9 +251,24 @@ static void *drive_main(void *arg)
     return NULL;
 }
 
+/* After the threads: what is still queued, in order (the drive's answers to the last SYNCs, the plant's taking
+ * of them, its hold), until both inboxes are empty (lock held). */
+static void drain_both(plant_app_t *app)
+{
+    for (int round = 0; round < 64; ++round) {
+        advance_now();
+        int any = R.in[FI_SIDE_A].head != R.in[FI_SIDE_A].tail || R.in[FI_SIDE_B].head != R.in[FI_SIDE_B].tail;
+        take_frames(FI_SIDE_B);
+        take_frames(FI_SIDE_A);
+        if (hil_side_live(FI_SIDE_A)) (void)plant_app_poll(app, hil_now_us());
+        hil_deliver();
+        if (!any) break;
+    }
+}
+
 /* Run in real time until the plant holds (run_periods exhausted, the last command in), a node is lost, the
- * loop stalls (STALL_NS without a SYNC) or hil_stop(); at most max_periods SYNCs. Returns the SYNCs produced
- * (-1: a thread could not be started). */
+ * loop stalls (STALL_NS without a SYNC), hil_stop(), or max_periods SYNCs were produced. Returns the SYNCs
+ * produced (-1: a thread could not be started). */
 int32_t hil_run_realtime(uint32_t max_periods)
 {
     plant_app_t *app = hil_plant_app();
@@ -240,13 +277,12 @@ int32_t hil_run_realtime(uint32_t max_periods)
     R.syncs_at_start = app->syncs;
     R.max_periods = max_periods;
     R.progress_ns = plant_pacing_now_ns();
-    R.stop_req = 0;
+    R.next_deadline_ns = 0;
     R.drive_done = 0;
-    R.drive_ready = 0;
+    for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0;
     long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
     R.plant_cpu = plant_pacing_default_cpu();
     R.drive_cpu = R.plant_cpu >= 0 ? (int)ncpu - 1 : -1; /* the plant's CPU is not the drive's */
-    for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0;
     hil_rt_active = 1;
     hil_set_running(1);
     hil_rt_unlock();
@@ -254,23 +290,27 @@ int32_t hil_run_realtime(uint32_t max_periods)
     pthread_t plant, drive;
     int ok_drive = pthread_create(&drive, NULL, drive_main, NULL) == 0;
     int ok_plant = ok_drive && pthread_create(&plant, NULL, plant_main, app) == 0;
-    if (ok_plant) pthread_join(plant, NULL);
-    hil_rt_lock();
+    if (ok_plant) {
+        pthread_join(plant, NULL);
+    } else if (ok_drive) {
+        sem_post(&R.plant_ready); /* release the drive's thread */
+    }
     __atomic_store_n(&R.drive_done, 1, __ATOMIC_RELEASE);
-    pthread_cond_signal(&R.in[FI_SIDE_B].cv);
-    hil_rt_unlock();
     if (ok_drive) pthread_join(drive, NULL);
+    while (sem_trywait(&R.plant_ready) == 0 || sem_trywait(&R.drive_ready) == 0) { /* leave both at zero */
+    }
     hil_rt_lock();
+    drain_both(app);
     hil_rt_active = 0;
     hil_set_running(0);
-    /* what is still queued for a node is heard as in lockstep (at once) */
-    for (uint8_t s = 0; s < 2u; ++s) take_frames(s);
+    __atomic_store_n(&R.stop_req, 0, __ATOMIC_RELEASE); /* a stop asked for is this run's */
     hil_rt_unlock();
     return ok_plant ? (int32_t)(app->syncs - R.syncs_at_start) : -1;
 }
 
-void hil_stop(void) { R.stop_req = 1; }
-/* What the plant's thread got of SCHED_FIFO / mlockall (one line), after hil_run_realtime. */
+/* Ask a real-time run to return at its next deadline (Ctrl-C); also before it started. */
+void hil_stop(void) { __atomic_store_n(&R.stop_req, 1, __ATOMIC_RELEASE); }
+/* What the plant's thread got of SCHED_FIFO / mlockall / its CPU (one line), after hil_run_realtime. */
 const char *hil_realtime_note(void) { return R.note; }
-/* Frames a node's inbox could not take (real time). */
+/* Frames a node's receive FIFO could not take (real time; since hil_open). */
 uint64_t hil_rt_dropped(void) { return R.in[0].dropped + R.in[1].dropped; }

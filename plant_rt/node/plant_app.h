@@ -115,6 +115,7 @@ typedef struct {
     bool cmd_ready;         /* the command for the current period arrived */
     bool cmd_seen;          /* the buffered RPDO has been accounted for */
     int64_t cmd_seen_rx_us; /* its reception time */
+    int64_t cmd_arrival_us; /* when the command of the current period arrived (real time: overrun if late) */
     bool late_in_period;    /* a command classified late arrived in this period */
     uint32_t owed;          /* commands of missed periods that may still arrive */
     uint32_t late_timeout_streak;
@@ -144,8 +145,9 @@ const co_hooks_t *plant_app_hooks(void);
 int64_t plant_app_poll(plant_app_t *app, int64_t now_us);
 
 /* Real-time mode: the transport calls this at each absolute deadline (every
- * plant_app_period_ns); lateness_ns = now - deadline. Counts a miss (an overrun)
- * if no command arrived, times the SYNC (0x2007), produces it. Returns the SYNC
+ * plant_app_period_ns), after taking the frames that arrived; lateness_ns = now -
+ * deadline. Counts an overrun if the command was not in by the deadline (a miss
+ * if it is not in at all), times the SYNC (0x2007), produces it. Returns the SYNC
  * counter or -1 (not running / not in real-time mode). */
 int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_ns);
 

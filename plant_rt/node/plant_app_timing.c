@@ -62,6 +62,7 @@ void plant_app_note_arrival(plant_app_t *app, int64_t t_us)
         return;
     }
     app->cmd_ready = true;
+    app->cmd_arrival_us = t_us;
     /* real time: the turnaround of a command of its own period, from that period's SYNC (a late one is an
      * overrun, counted at the deadline it missed) */
     if (app->started && M.x2003_run_control.mode == OD_PLANT_MODE_REALTIME)
@@ -164,8 +165,12 @@ int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_n
         app->paused = true;
         return -1;
     }
+    /* an overrun: the command was not at the plant by the deadline (missed: the SYNC goes without it; or it came
+     * after the deadline, before this late SYNC: applied, but late all the same) */
     if (app->started && !app->paused && !app->cmd_ready) {
         handle_miss(app);
+        ++M.x2007_realtime_timing.overruns;
+    } else if (app->started && !app->paused && app->cmd_arrival_us > now_us - lateness_ns / 1000) {
         ++M.x2007_realtime_timing.overruns;
     }
     plant_rtstats_add(&app->lateness, lateness_ns, app->started ? app->k + 1u : 0u); /* k of this SYNC */

@@ -85,21 +85,18 @@ static void rt_serve_until(void *user, int64_t until_ns)
     }
 }
 
-/* The frames queued by the deadline (a burst is bounded for co_runtime_run's timers; here the tick follows at
- * once): a backlog after a deschedule (1,024 frames: ~10 ms of a full bus) is caught up in this period, not
- * spread over many; a flood beyond it still leaves the SYNC its turn. */
-static void rt_drain(void *user)
+/* The deadline: the frames queued by then (a burst is bounded for co_runtime_run's timers; here the tick follows
+ * at once: a backlog after a deschedule, 1,024 frames or ~10 ms of a full bus, is caught up in this period, not
+ * spread over many; a flood beyond it still leaves the SYNC its turn), then the SYNC. */
+static int64_t rt_tick(void *user, int64_t deadline_ns)
 {
     co_runtime_t *rt = (co_runtime_t *)user;
     for (int burst = 0; burst < 16 && co_runtime_drain(rt) == CO_RUNTIME_BURST_MAX; ++burst) {
     }
-}
-
-static void rt_tick(void *user, int64_t now_ns, int64_t lateness_ns)
-{
-    co_runtime_t *rt = (co_runtime_t *)user;
-    plant_app_realtime_tick(&g_app, now_ns / 1000, lateness_ns);
+    int64_t now_ns = plant_pacing_now_ns();
+    plant_app_realtime_tick(&g_app, now_ns / 1000, now_ns - deadline_ns);
     co_node_tick(&rt->node, now_ns / 1000);
+    return now_ns;
 }
 
 static int rt_stop(void *user)
@@ -118,8 +115,7 @@ static void realtime_loop(co_runtime_t *rt)
         announced = 1;
     }
     rt->rx_stamps = 1;
-    const plant_pacing_io_t io = {
-        .user = rt, .serve_until = rt_serve_until, .drain = rt_drain, .tick = rt_tick, .stop = rt_stop};
+    const plant_pacing_io_t io = {.user = rt, .serve_until = rt_serve_until, .tick = rt_tick, .stop = rt_stop};
     plant_pacing_loop(&g_app, &io);
     rt->rx_stamps = 0;
 }

@@ -100,9 +100,7 @@ void plant_pacing_loop(plant_app_t *app, const plant_pacing_io_t *io)
         if (deadline_ns - plant_pacing_now_ns() > (int64_t)SERVE_MIN_US * 1000)
             io->serve_until(io->user, deadline_ns - (int64_t)GUARD_US * 1000);
         sleep_until_ns(deadline_ns, io);
-        io->drain(io->user); /* the frames queued by the deadline */
-        int64_t now_ns = plant_pacing_now_ns();
-        io->tick(io->user, now_ns, now_ns - deadline_ns);
+        int64_t now_ns = io->tick(io->user, deadline_ns);
         deadline_ns += plant_app_period_ns(app);                                      /* Ts applied at this SYNC */
         if (deadline_ns < now_ns - 100 * period_ns) deadline_ns = now_ns + period_ns; /* far behind: re-grid */
     }

@@ -17,10 +17,9 @@ typedef struct {
     /* Take and process frames until until_ns (CLOCK_MONOTONIC) or until real-time mode ends; the node's timers
      * and plant_app_poll() after each batch. */
     void (*serve_until)(void *user, int64_t until_ns);
-    /* Process the frames that are already there, without waiting. */
-    void (*drain)(void *user);
-    /* The deadline: plant_app_realtime_tick(app, now, lateness_ns) and the node's timers. */
-    void (*tick)(void *user, int64_t now_ns, int64_t lateness_ns);
+    /* The deadline has passed: take the frames that arrived, read the clock, plant_app_realtime_tick(app, now,
+     * now - deadline_ns) and the node's timers; returns now (CLOCK_MONOTONIC ns). */
+    int64_t (*tick)(void *user, int64_t deadline_ns);
     /* Non-zero: leave the loop (a signal, the end of a segment). */
     int (*stop)(void *user);
 } plant_pacing_io_t;

@@ -219,10 +219,46 @@ static void test_realtime_tick(void)
           "reset");
 }
 
+/* A command after its deadline but before a late SYNC: applied (it was there when the SYNC went out), and still
+ * an overrun (0x2007:0F: not at the plant by the deadline); not a miss. */
+static void test_realtime_overrun_before_a_late_sync(void)
+{
+    tb_t *tb = &g_tb;
+    tb_init(tb);
+    tb_w_u8(tb, 0x2003, OD_PLANT_RUN_CONTROL_MODE_SUB, 1);
+    tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 0xFFFFFFFFu);
+    tb_nmt(tb, 0x01u);
+    tb->bus.now_us = 1000; /* deadlines 1000, 1055, 1110 (Ts 55 us) */
+    plant_app_realtime_tick(&tb->app, tb->bus.now_us, 0);
+    tb_deliver(tb);
+    tb->bus.now_us = 1060; /* 5 us after the deadline */
+    tb_cmd(tb, 1.0f, 0.0f);
+    plant_app_poll(&tb->app, tb->bus.now_us);
+    tb->bus.now_us = 1075; /* the SYNC 20 us late */
+    plant_app_realtime_tick(&tb->app, tb->bus.now_us, 20000);
+    tb_deliver(tb);
+    tb->bus.now_us = 1100; /* on time */
+    tb_cmd(tb, 1.0f, 0.0f);
+    plant_app_poll(&tb->app, tb->bus.now_us);
+    tb->bus.now_us = 1110;
+    plant_app_realtime_tick(&tb->app, tb->bus.now_us, 0);
+    tb_deliver(tb);
+    uint8_t buf[4] = {0, 0, 0, 0};
+    uint32_t n = 0, segments = 0, overruns = 0;
+    CHECK(testbus_sdo_upload(&tb->bus, 0x2007, OD_PLANT_REALTIME_TIMING_OVERRUNS_SUB, buf, sizeof buf, &n, &segments) ==
+              0,
+          "0x2007 overruns read");
+    memcpy(&overruns, buf, 4);
+    CHECK(overruns == 1 && RC.missed_commands == 0 && RC.late_commands == 0, "overruns %u missed %u late %u",
+          (unsigned)overruns, (unsigned)RC.missed_commands, (unsigned)RC.late_commands);
+    printf("real time: a command 5 us after its deadline, before a SYNC 20 us late: applied, 1 overrun, 0 missed\n");
+}
+
 int main(void)
 {
     test_holds_and_timeout();
     test_run_periods();
     test_realtime_tick();
+    test_realtime_overrun_before_a_late_sync();
     return check_finish("test_node_lockstep");
 }

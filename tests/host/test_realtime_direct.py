@@ -74,7 +74,7 @@ def test_real_time_equals_lockstep_up_to_the_first_flagged_period(tmp_path: Path
     # the sample after a period whose command was missed says so (its status bit); that period's command, and
     # the drive's trace of the period before (its synchronous TPDOs are one period behind), are the first that
     # may differ
-    end = int(flagged[0]) - 2 if len(flagged) else len(a)
+    end = max(0, int(flagged[0]) - 2) if len(flagged) else len(a)
     for name in a.dtype.names:
         assert np.array_equal(a[name][:end], b[name][:end], equal_nan=True), name
     assert plant["periods"] == 200 and plant["commands_timed"] <= 200

@@ -187,8 +187,7 @@ def test_bus_view_from_frames_and_from_their_log(frames: tuple[np.ndarray, Any],
     res = _decode(f)
     rt = res.summary["realtime"]
     bus = rt["bus"]
-    if bus is None:
-        pytest.skip("the decoder gives no per-period time stamps yet (rows.py: sync_t_us / command_t_us)")
+    assert bus is not None, "the decoder gave no per-period time stamps (rows.py: sync_t_us / command_t_us)"
     assert rt["period_us"] == 55.0 and res.summary["periods"] == 200 == bus["periods"]
     assert bus["segments"] == [{"from_period": 0, "period_us": 55.0}, {"from_period": 20, "period_us": 55.0}]
     # 21 zeros (segment 1, SYNC 33), 174 threes, 30 .. 150 (SYNCs 54 .. 50): p50 the 100th, p99 the 198th (90)
@@ -291,3 +290,20 @@ def test_rerun_has_the_timing_per_period(tmp_path: Path) -> None:
     np.testing.assert_array_equal(rec["/timing/sync_lateness_us"]["value"], LATE)
     np.testing.assert_array_equal(rec["/timing/turnaround_us"]["value"], DELAY)
     np.testing.assert_array_equal(rec["/timing/sync_lateness_us"]["period"], period)
+
+
+def test_a_sync_more_than_100_periods_late_starts_a_new_grid() -> None:
+    # the plant re-grids after a SYNC over 100 periods late (plant_pacing.c): the SYNCs after it are on time on
+    # the new grid, not all 50 ms late
+    ts = 100.0
+    t = np.arange(12) * ts
+    t[2] += 30.0
+    t[5:] += 50_000.0
+    pp = realtime.per_period(np.arange(12), t, t + 5.0, [(0, ts)])
+    assert pp.lateness.tolist() == [0.0, 0.0, 30.0, 0.0, 0.0, 50_000.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    assert pp.sync_late.tolist() == [False] * 5 + [True] + [False] * 6
+    # a stall under 100 periods: the plant catches up on its grid, the SYNCs after it are late on it
+    t2 = np.arange(12) * ts
+    t2[5:] += np.maximum(0.0, 5_000.0 - (np.arange(7) * ts))
+    pp2 = realtime.per_period(np.arange(12), t2, t2 + 5.0, [(0, ts)])
+    assert pp2.lateness[5] == 5_000.0 and pp2.lateness[6] == 4_900.0

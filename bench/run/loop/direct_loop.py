@@ -24,6 +24,7 @@ class DirectLoop:
         self.opts = opts
         self.realtime = realtime
         self._told = False
+        self._overflows = 0
         self.on_chunk: Callable[[], None] | None = None
         self.on_stop: Callable[[], None] | None = None
 
@@ -64,10 +65,12 @@ class DirectLoop:
                 ready.clear()
                 if tick:
                     tick()
+        except BaseException:
+            if self.realtime:
+                self.hil.stop()  # the C threads return at their next deadline
+            raise
         finally:
             stop.set()
-            if self.realtime:
-                self.hil.stop()
             if self.on_stop is not None:
                 self.on_stop()
             th.join()
@@ -92,16 +95,29 @@ class DirectLoop:
 
         th = threading.Thread(target=loop, daemon=True, name="bench-direct-realtime")
         th.start()
-        while th.is_alive():
-            th.join(0.2)
-            if self.on_chunk is not None:
-                self.on_chunk()
-            ready.set()
+        try:
+            while th.is_alive():
+                th.join(0.2)
+                if self.on_chunk is not None:
+                    self.on_chunk()
+                ready.set()
+        finally:
+            if th.is_alive():  # taking the frames failed: the C threads must not outlive the loop
+                self.hil.stop()
+                th.join()
         if errors:
             raise errors[0]
         if not self._told:
             print(f"bench run: real time: {self.hil.realtime_note()}", flush=True)
             self._told = True
+        lost = self.hil.receive_overflows()
+        if lost > self._overflows:
+            print(
+                f"bench run: real time: {lost - self._overflows} frames overflowed a node's receive FIFO "
+                "(the node was not scheduled for that long): lost to it, as on a CAN controller",
+                flush=True,
+            )
+            self._overflows = lost
         return got[0]
 
     def _direct_stopped(self, ran: int, n: int) -> None:

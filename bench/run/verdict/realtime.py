@@ -113,6 +113,18 @@ class PerPeriod:
     sync_late: np.ndarray  # bool: the SYNC more than one period late on its segment's grid
 
 
+def _grids(seg: np.ndarray, off: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """The plant's deadline grids: one per segment, and a new one after a SYNC more than 100 periods late (the
+    plant then starts its grid afresh from that SYNC: plant_pacing.c "far behind: re-grid"), seen as a jump of
+    its offset t_k - k Ts by more than 100 Ts."""
+    if len(seg) == 0:
+        return seg
+    with np.errstate(invalid="ignore"):
+        jump = np.r_[False, np.nan_to_num(np.diff(off), nan=0.0) > 100 * ts[1:]]
+    new = np.r_[True, seg[1:] != seg[:-1]] | np.r_[False, jump[:-1]]  # the grid restarts after the late SYNC
+    return np.cumsum(new) - 1
+
+
 def per_period(period: np.ndarray, sync_t: np.ndarray, cmd_t: np.ndarray, segs: list[tuple[int, float]]) -> PerPeriod:
     """The bus-side timing of each period from its SYNC's and command's time stamps (any common origin: subtract
     one first so that float64 keeps them to the nanosecond); `segs` as `segments` gives them."""
@@ -123,9 +135,10 @@ def per_period(period: np.ndarray, sync_t: np.ndarray, cmd_t: np.ndarray, segs: 
     seg = np.clip(np.searchsorted(starts, period, side="right") - 1, 0, None)
     off = sync_t - period * ts[seg]
     ok = np.isfinite(off)
-    anchor = np.full(len(starts), np.inf)
-    np.minimum.at(anchor, seg[ok], off[ok])
-    lateness = off - anchor[seg]
+    grid = _grids(seg, off, ts[seg])
+    anchor = np.full(int(grid.max()) + 1 if len(grid) else 1, np.inf)
+    np.minimum.at(anchor, grid[ok], off[ok])
+    lateness = off - anchor[grid]
     interval = np.full(len(period), np.nan)
     if len(period) > 1:
         same = (np.diff(period) == 1) & (seg[1:] == seg[:-1])
@@ -231,9 +244,9 @@ def first_overrun(rt: dict[str, Any], first_lost: int | None) -> int | None:
     before the next SYNC, or whose SYNC was a period late. Without time stamps, the first period with a lost
     frame (in real time a command that misses its period is missing from it)."""
     bus = rt.get("bus")
-    if bus and bus.get("periods"):
-        return bus.get("first_overrun_period")  # type: ignore[no-any-return]
-    return first_lost
+    if bus and bus.get("periods") and bus.get("first_overrun_period") is not None:
+        return int(bus["first_overrun_period"])
+    return first_lost  # also when only the plant saw it (a command after its deadline, before a late SYNC)
 
 
 def envelopes(pp: PerPeriod, plant: dict[str, Any]) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
