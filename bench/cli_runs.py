@@ -32,9 +32,10 @@ def add_run(sub: Any) -> None:
         "run",
         help="run a scenario: configure by SDO, run, record every frame, summarize",
         description="Bring the bus up (host or VM), start the plant and drive processes, reset them "
-        "by NMT, configure them by SDO from the EDS, run the scenario in lockstep, record "
-        "every frame, and write summary.json, traces.npy, the CAN log, SVG plots and a "
-        f"Rerun recording. The exit status is the run's verdict: {exit_codes_help()}. "
+        "by NMT, configure them by SDO from the EDS, run the scenario in lockstep (or, with "
+        "--set scenario.timing=realtime, in real time on any bus, direct included: SYNC at absolute deadlines, the "
+        "plant's and the bus's timing in summary.json), record every frame, and write summary.json, traces.npy, the "
+        f"CAN log, SVG plots and a Rerun recording. The exit status is the run's verdict: {exit_codes_help()}. "
         "Example: bench run scenarios/you2019_step.toml --bus direct",
     )
     add_arguments(r)
