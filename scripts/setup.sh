@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One-shot, idempotent set-up of everything the bench needs on a Debian machine:
-#   1. Debian packages (C toolchains, clang-format, can-utils; the QEMU/virtme-ng
+#   1. Debian packages (C toolchains, clang-format, can-utils, rt-tests; the QEMU/virtme-ng
 #      fallback only when the host kernel has no SocketCAN),
 #   2. the Python virtual environment .venv with the pinned dependencies of
 #      pyproject.toml and the `bench` command,
@@ -24,8 +24,9 @@ EOF
 }
 
 # ---------------------------------------------------------------- Debian packages
+# rt-tests: cyclictest, the scheduler's own latency beside the plant's (bench perf --only realtime)
 PKGS=(gcc make clang libclang-rt-14-dev clang-format can-utils valgrind gcc-arm-none-eabi
-      libnewlib-arm-none-eabi qemu-system-arm iproute2 kmod chromium)
+      libnewlib-arm-none-eabi qemu-system-arm iproute2 kmod chromium rt-tests)
 if have_host_can; then
     log "host kernel has SocketCAN: no VM fallback needed"
 else

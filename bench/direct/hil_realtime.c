@@ -14,7 +14,6 @@
 #include <semaphore.h>
 #include <string.h>
 #include <time.h>
-#include <unistd.h>
 
 #include "fault_injector.h"
 #include "hil_internal.h"
@@ -280,9 +279,8 @@ int32_t hil_run_realtime(uint32_t max_periods)
     R.next_deadline_ns = 0;
     R.drive_done = 0;
     for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0;
-    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
-    R.plant_cpu = plant_pacing_default_cpu();
-    R.drive_cpu = R.plant_cpu >= 0 ? (int)ncpu - 1 : -1; /* the plant's CPU is not the drive's */
+    R.plant_cpu = plant_pacing_default_cpu(); /* the plant's CPU is not the drive's */
+    R.drive_cpu = plant_pacing_other_cpu();
     hil_rt_active = 1;
     hil_set_running(1);
     hil_rt_unlock();

@@ -352,13 +352,15 @@ def _realtime_line(rt: dict[str, Any]) -> str:
 
 
 def _realtime_overrun(s: dict[str, Any]) -> str:
-    """'37 overruns in 1000 periods at Ts = 5.0 us: the command was not at the plant by the next SYNC; worst SYNC
-    lateness 412.3 us at period 18' (the plant's figures, summary.json realtime.plant)."""
+    """'37 overruns in 1000 periods at Ts = 5.0 us: the command was not at the plant by its deadline (12 missed
+    their SYNC); worst SYNC lateness 412.3 us at period 18' (the plant's figures, summary.json realtime.plant)."""
     rt = s.get("realtime") or {}
     p = rt.get("plant") or {}
     n, late = p.get("overruns") or 0, p.get("sync_overruns") or 0
     where = f"in {p.get('periods', s.get('periods'))} periods at Ts = {_us(rt.get('period_us'))} us"
-    parts = [f"{n} overruns {where}: the command was not at the plant by the next SYNC"] if n else []
+    missed = p.get("missed_commands") or 0
+    parts = [f"{n} overruns {where}: the command was not at the plant by its deadline ({missed} missed their SYNC)"]
+    parts = parts if n else []
     if late:
         parts.append(f"{late} SYNCs more than one period late" + ("" if n else f" {where}"))
     parts.append(f"worst SYNC lateness {_us(p.get('sync_lateness_max_us'))} us at period {p.get('worst_period')}")

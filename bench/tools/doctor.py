@@ -39,6 +39,10 @@ def _py_version(dist: str) -> str | None:
         return None
 
 
+# Tools whose path is shown rather than a version line (candump prints none)
+WHICH_ONLY = ("candump (can-utils)",)
+
+
 def collect() -> tuple[list[Check], str]:
     """All checks, and the way CAN work will run here ('host', 'vm' or 'none')."""
     checks: list[Check] = []
@@ -90,8 +94,9 @@ def collect() -> tuple[list[Check], str]:
             "gcc-arm-none-eabi libnewlib-arm-none-eabi",
         ),
         ("candump (can-utils)", ["candump", "-h"], True, "can-utils"),
+        ("cyclictest (rt-tests)", ["cyclictest", "--help"], True, "rt-tests"),
     ):
-        ver = _version(cmd) if label != "candump (can-utils)" else shutil.which("candump")
+        ver = _version(cmd) if label not in WHICH_ONLY else shutil.which(cmd[0])
         checks.append(
             Check(
                 label, ver is not None, ver or "not found", "" if ver else f"apt-get install {pkg}", optional=optional

@@ -29,7 +29,32 @@ static void sleep_until_ns(int64_t t_ns, const plant_pacing_io_t *io)
     }
 }
 
-int plant_pacing_default_cpu(void) { return sysconf(_SC_NPROCESSORS_ONLN) >= 2 ? 0 : -1; }
+/* The CPUs this process may run on (taskset, cpusets, isolcpus given to it): the first and the last. */
+static int allowed_cpus(int *first, int *last)
+{
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    if (sched_getaffinity(0, sizeof set, &set) != 0) return 0;
+    *first = *last = -1;
+    for (int c = 0; c < CPU_SETSIZE; ++c) {
+        if (!CPU_ISSET(c, &set)) continue;
+        if (*first < 0) *first = c;
+        *last = c;
+    }
+    return CPU_COUNT(&set);
+}
+
+int plant_pacing_default_cpu(void)
+{
+    int first = -1, last = -1;
+    return allowed_cpus(&first, &last) >= 2 ? first : -1;
+}
+
+int plant_pacing_other_cpu(void)
+{
+    int first = -1, last = -1;
+    return allowed_cpus(&first, &last) >= 2 ? last : -1;
+}
 
 int plant_pacing_pin(int cpu)
 {

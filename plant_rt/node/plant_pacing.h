@@ -25,9 +25,11 @@ typedef struct {
 } plant_pacing_io_t;
 
 int64_t plant_pacing_now_ns(void);
-/* The CPU the plant's pacing thread is kept on: 0 on a machine with two or more, else -1 (anywhere): the
- * scheduler does not move it mid-run; the other CPUs are left to the drive (direct mode: the last one). */
+/* The CPU the plant's pacing thread is kept on: the first of those the process may use (taskset, cpusets) when
+ * it may use two or more, else -1 (anywhere): the scheduler does not move it mid-run. */
 int plant_pacing_default_cpu(void);
+/* The CPU for the drive beside it (direct mode): the last of those, -1 when there is one. */
+int plant_pacing_other_cpu(void);
 /* For the calling thread: SCHED_FIFO at `priority`, kept on `cpu` (-1: anywhere) and, once per process,
  * mlockall(MCL_CURRENT | MCL_FUTURE) and CPU idle states held off (/dev/cpu_dma_latency = 0, as cyclictest
  * does); returns one line saying what was got, and for what was not, why and the command that grants it (a

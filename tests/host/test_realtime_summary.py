@@ -248,10 +248,10 @@ def test_overrun_flag_and_message() -> None:
     assert realtime.overran(rt) and not realtime.overran({"plant": {"overruns": 0, "sync_overruns": 0}})
     assert realtime.overran({"plant": {"overruns": 0, "sync_overruns": 2}}) and not realtime.overran(None)
     assert realtime.first_overrun(rt, 9) == 9  # no time stamps: the first lost frame
-    rt["plant"] |= {"sync_lateness_max_us": 412.3, "worst_period": 18}
+    rt["plant"] |= {"sync_lateness_max_us": 412.3, "worst_period": 18, "missed_commands": 12}
     assert _realtime_overrun({"realtime": rt}) == (
-        "37 overruns in 1000 periods at Ts = 5.0 us: the command was not at the plant by the next SYNC; "
-        "worst SYNC lateness 412.3 us at period 18"
+        "37 overruns in 1000 periods at Ts = 5.0 us: the command was not at the plant by its deadline (12 missed "
+        "their SYNC); worst SYNC lateness 412.3 us at period 18"
     )
     rt["plant"] |= {"overruns": 0, "sync_overruns": 2}
     assert _realtime_overrun({"realtime": rt}).startswith("2 SYNCs more than one period late in 1000 periods")

@@ -113,16 +113,40 @@ class PerPeriod:
     sync_late: np.ndarray  # bool: the SYNC more than one period late on its segment's grid
 
 
-def _grids(seg: np.ndarray, off: np.ndarray, ts: np.ndarray) -> np.ndarray:
-    """The plant's deadline grids: one per segment, and a new one after a SYNC more than 100 periods late (the
-    plant then starts its grid afresh from that SYNC: plant_pacing.c "far behind: re-grid"), seen as a jump of
-    its offset t_k - k Ts by more than 100 Ts."""
-    if len(seg) == 0:
-        return seg
-    with np.errstate(invalid="ignore"):
-        jump = np.r_[False, np.nan_to_num(np.diff(off), nan=0.0) > 100 * ts[1:]]
-    new = np.r_[True, seg[1:] != seg[:-1]] | np.r_[False, jump[:-1]]  # the grid restarts after the late SYNC
-    return np.cumsum(new) - 1
+_WINDOW = 65_536
+
+
+def _lateness(seg: np.ndarray, off: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """Each SYNC's lateness on the plant's deadline grid, which the plant starts afresh in two cases
+    (plant_pacing.c): at each segment, and after a SYNC more than 101 periods late ("far behind: re-grid": its next
+    deadline is then that SYNC's time + Ts, i.e. the new grid's offset t_k - k Ts is that SYNC's). A segment's first
+    grid is anchored so that its earliest SYNC is on time. `off`: t_k - k Ts; `ts`: Ts of each SYNC's segment."""
+    lat = np.full(len(off), np.nan)
+    ok = np.isfinite(off)
+    bounds = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1], True])
+    for s0, s1 in zip(bounds[:-1], bounds[1:], strict=True):
+        start, anchor = int(s0), None
+        while start < s1:
+            o, good = off[start:s1], ok[start:s1]
+            if not good.any():
+                break
+            if anchor is None:  # the segment's first grid: anchored on its earliest SYNC before a re-grid
+                a = float(np.min(o[good]))
+                for _ in range(3):
+                    far = np.flatnonzero(good & (o - a > 101 * ts[start]))
+                    a2 = float(np.min(o[: far[0] + 1][good[: far[0] + 1]])) if len(far) else float(np.min(o[good]))
+                    if a2 == a:
+                        break
+                    a = a2
+                anchor = a
+            w = min(len(o), _WINDOW)  # in windows: a run with many re-grids stays linear in its periods
+            far = np.flatnonzero(good[:w] & (o[:w] - anchor > 101 * ts[start]))
+            end = start + (int(far[0]) + 1 if len(far) else w)
+            lat[start:end] = off[start:end] - anchor
+            if len(far):
+                anchor = float(off[end - 1])  # the late SYNC's own time is the new grid's origin
+            start = end
+    return lat
 
 
 def per_period(period: np.ndarray, sync_t: np.ndarray, cmd_t: np.ndarray, segs: list[tuple[int, float]]) -> PerPeriod:
@@ -134,11 +158,7 @@ def per_period(period: np.ndarray, sync_t: np.ndarray, cmd_t: np.ndarray, segs: 
     ts = np.array([t for _, t in segs] or [np.nan], dtype=np.float64)
     seg = np.clip(np.searchsorted(starts, period, side="right") - 1, 0, None)
     off = sync_t - period * ts[seg]
-    ok = np.isfinite(off)
-    grid = _grids(seg, off, ts[seg])
-    anchor = np.full(int(grid.max()) + 1 if len(grid) else 1, np.inf)
-    np.minimum.at(anchor, grid[ok], off[ok])
-    lateness = off - anchor[grid]
+    lateness = _lateness(seg, off, ts[seg])
     interval = np.full(len(period), np.nan)
     if len(period) > 1:
         same = (np.diff(period) == 1) & (seg[1:] == seg[:-1])

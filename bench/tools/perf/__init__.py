@@ -22,11 +22,14 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 no stack), and a longer run whose every frame is checked from the SYNC counters
 * soak          10^6 periods over vcan0 with the recorder (one VM boot): every frame checked (SYNC counters,
                 sample indices) and the resident memory of every process sampled once a second: flat or not
+* realtime      10^6 periods of `bench run` in direct real time at Ts = 100 us and 55 us, each beside cyclictest
+                at the same interval and priority (SCHED_FIFO 80, mlockall): SYNC lateness p50/p99/p99.9/max of
+                both, the bench's overruns and turnaround, the ratios and the issue 29 targets (needs rt-tests)
 * report        format_report
 
 `bench perf --json` prints the same as JSON; `--quick` skips the vcan, soak and mcu parts and shrinks the pipeline
-section (10^5 periods, one repetition, no 10^7, no peers). Inside the VM the helper
-`python -m bench.tools.perf --inside-vm --out FILE` runs.
+section (10^5 periods, one repetition, no 10^7, no peers) and the realtime section (2 x 10^4 periods). Inside the
+VM the helper `python -m bench.tools.perf --inside-vm --out FILE` runs.
 """
 
 from __future__ import annotations
@@ -36,9 +39,12 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.tools.perf.common import PERF_DIR, VM_LOCKSTEP_PERIODS, VM_LONG_BUDGET_S, machine, section
+
+if TYPE_CHECKING:
+    from bench.tools.perf.realtime import RtSizes
 
 SECTIONS = (
     "plant_core",
@@ -53,11 +59,12 @@ SECTIONS = (
     "pipeline",
     "vcan",
     "soak",
+    "realtime",
 )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from bench.tools.perf.common import TARGET_LONG_PERIODS
+    from bench.tools.perf.common import REALTIME_PERIODS, REALTIME_QUICK_PERIODS, REALTIME_TS_US, TARGET_LONG_PERIODS
 
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument(
@@ -95,6 +102,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=1_000_000,
         help="periods of the soak run over vcan (default 10^6: every frame checked, memory of every process sampled)",
     )
+    p.add_argument(
+        "--realtime-periods",
+        type=int,
+        default=None,
+        help=f"periods of each real-time run and cyclictest's loops (default {REALTIME_PERIODS:,}; "
+        f"--quick {REALTIME_QUICK_PERIODS:,})",
+    )
+    p.add_argument(
+        "--realtime-ts-us",
+        default=",".join(f"{t:g}" for t in REALTIME_TS_US),
+        metavar="US[,US...]",
+        help="the periods of the realtime section, us (default %(default)s)",
+    )
+    p.add_argument(
+        "--realtime-burners",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run the realtime section under N busy loops (started and killed by the section; default 0: idle)",
+    )
     p.add_argument("--save", type=Path, default=PERF_DIR / "perf.json", help="also write the JSON here")
     p.add_argument("--inside-vm", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -106,6 +133,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
     from bench.tools.perf.live import rerun_live
     from bench.tools.perf.mcu import mcu_in_the_loop
     from bench.tools.perf.pipeline import Sizes, pipeline
+    from bench.tools.perf.realtime import realtime
     from bench.tools.perf.soak import soak
     from bench.tools.perf.sweep import sweep_scaling
     from bench.tools.perf.vcan import vcan
@@ -128,7 +156,26 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
         "pipeline": lambda: pipeline(sizes, note=note),
         "vcan": lambda: vcan(args),
         "soak": lambda: soak(args.soak_periods),
+        "realtime": lambda: realtime(realtime_sizes(args), note=note),
     }
+
+
+def realtime_sizes(args: argparse.Namespace) -> RtSizes:
+    """The realtime section's sizes from the options (ValueError with the option's name when bad)."""
+    from bench.tools.perf.common import REALTIME_PERIODS, REALTIME_QUICK_PERIODS
+    from bench.tools.perf.realtime import RtSizes
+
+    periods = getattr(args, "realtime_periods", None)
+    if periods is None:
+        periods = REALTIME_QUICK_PERIODS if getattr(args, "quick", False) else REALTIME_PERIODS
+    try:
+        ts = tuple(float(t) for t in str(getattr(args, "realtime_ts_us", "100,55")).split(","))
+    except ValueError:
+        raise ValueError(f"--realtime-ts-us {args.realtime_ts_us!r}: need periods in us, e.g. 100,55") from None
+    if periods < 1 or not ts or any(not 1.0 <= t <= 100_000.0 for t in ts):
+        raise ValueError("--realtime-periods needs >= 1 and --realtime-ts-us periods of 1 .. 100000 us")
+    burners = max(0, int(getattr(args, "realtime_burners", 0) or 0))
+    return RtSizes(periods=periods, ts_us=ts, burners=burners)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -146,6 +193,17 @@ def main(args: argparse.Namespace) -> int:
     if unknown:
         print(f"bench perf: unknown section(s) {', '.join(unknown)}; known: {', '.join(SECTIONS)}", file=sys.stderr)
         return 64
+    if "realtime" in only:
+        from bench.tools.perf.realtime import MISSING, have_cyclictest
+
+        if not have_cyclictest():
+            print(MISSING, file=sys.stderr)
+            return 69
+        try:
+            realtime_sizes(args)
+        except ValueError as exc:
+            print(f"bench perf: {exc}", file=sys.stderr)
+            return 64
     t0 = time.monotonic()
     quiet = args.json
 

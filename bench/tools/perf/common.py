@@ -28,6 +28,11 @@ TARGET_LONG_PERIODS = 100_000
 VM_LOCKSTEP_PERIODS = 5_000
 VM_LONG_BUDGET_S = 60.0
 
+# The realtime section's sizes: periods of each real-time run (and cyclictest's loops), and the periods Ts in us.
+REALTIME_PERIODS = 1_000_000
+REALTIME_QUICK_PERIODS = 20_000
+REALTIME_TS_US = (100.0, 55.0)
+
 
 def run(argv: list[str], timeout: float = 300.0, **kw: Any) -> str:
     r = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, **kw)

@@ -346,6 +346,9 @@ def format_report(r: dict[str, Any]) -> str:
     from bench.tools.perf.soak import format_soak
 
     format_soak(r, L)
+    from bench.tools.perf.report_realtime import format_realtime
+
+    format_realtime(r, L)
     L.append("")
     L.append(f"total wall time {r['wall_s']:.0f} s; JSON saved to {r.get('saved')}")
     return "\n".join(L)
