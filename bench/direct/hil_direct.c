@@ -61,6 +61,11 @@ static co_node_t *node_of(uint8_t side) { return side == FI_SIDE_B ? &H.drive_no
 
 static void record(const co_frame_t *f, uint8_t sender)
 {
+    /* nobody to keep it for: no recorder, and the master does not get the loop's frames */
+    if (H.rec == NULL && (H.running || sender == CO_MEMBUS_EXTERNAL)) {
+        ++H.seq;
+        return;
+    }
     hil_frame_t r;
     memset(&r, 0, sizeof r);
     r.t_us = (uint64_t)H.now_us;
@@ -266,6 +271,29 @@ int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
     return rc;
 }
 
+/* One SDO transfer of the master, whole (bench/run/bus/direct_sdo.py): the request goes on the bus as
+ * hil_send sends it (recorded, heard by the nodes), and the server's answer - the first frame on resp_cob
+ * since - is taken out of the master's queue into resp; the nodes' other frames stay queued for the master.
+ * Returns 1 when answered, 0 when no answer came (a killed or frozen node), -1 when the bus queue was full. */
+int hil_sdo(uint16_t req_cob, const uint8_t req[8], uint16_t resp_cob, uint8_t resp[8])
+{
+    hil_rt_lock();
+    const uint32_t from = H.mq_tail;
+    int rc = hil_send(req_cob, req, 8u);
+    if (rc == 0) {
+        for (uint32_t i = from; i != H.mq_tail; ++i) {
+            if (H.mq[i % MASTER_Q].cob_id != resp_cob) continue;
+            memcpy(resp, H.mq[i % MASTER_Q].data, 8u);
+            for (uint32_t j = i; j + 1u != H.mq_tail; ++j) H.mq[j % MASTER_Q] = H.mq[(j + 1u) % MASTER_Q];
+            --H.mq_tail;
+            rc = 1;
+            break;
+        }
+    }
+    hil_rt_unlock();
+    return rc;
+}
+
 /* Next frame of the nodes for the master; returns 1 when one was copied. */
 int hil_recv(hil_frame_t *out)
 {
@@ -278,12 +306,17 @@ int hil_recv(hil_frame_t *out)
 
 /* Nodes that are no longer in the loop: bit 0 the plant, bit 1 the drive (killed by a fault, or out
  * of OPERATIONAL: reset, stopped). */
-uint32_t hil_nodes_down(void)
+static uint32_t nodes_down(void)
 {
     uint32_t down = 0;
-    hil_rt_lock();
     for (uint8_t s = 0; s < 2u; ++s)
         if (H.killed[s] || node_of(s)->nmt != CO_NMT_OPERATIONAL) down |= 1u << s;
+    return down;
+}
+uint32_t hil_nodes_down(void)
+{
+    hil_rt_lock();
+    const uint32_t down = nodes_down();
     hil_rt_unlock();
     return down;
 }
@@ -332,7 +365,7 @@ uint32_t hil_run(uint32_t max_periods)
         const int plant_up = !H.killed[FI_SIDE_A] && !H.frozen[FI_SIDE_A];
         const int64_t wish = plant_up ? plant_app_poll(&H.plant, H.now_us) : -1;
         deliver();
-        if (hil_nodes_down() != 0u) break; /* a node killed, reset or stopped: the caller names it */
+        if (nodes_down() != 0u) break; /* a node killed, reset or stopped: the caller names it */
         if (H.plant.syncs != before) {
             ++n;
             H.now_us += plant_app_period_ns(&H.plant) / 1000;

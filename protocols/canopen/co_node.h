@@ -49,7 +49,8 @@ typedef struct {
     uint32_t (*pre_write)(void *user, co_node_t *node, const co_od_entry_t *e, const uint8_t *data, uint32_t len);
     /* A value was written by SDO (the OD holds the new value). */
     void (*post_write)(void *user, co_node_t *node, const co_od_entry_t *e);
-    /* About to be uploaded: refresh the value. */
+    /* About to be uploaded (SDO) or sent (TPDO): refresh the value. A refresh is per record (e->index): a TPDO
+     * calls it once for consecutive entries of one record. */
     void (*pre_read)(void *user, co_node_t *node, const co_od_entry_t *e);
     /* SYNC: synchronous RPDOs are already actuated; synchronous TPDOs go out after this returns. */
     void (*on_sync)(void *user, co_node_t *node, uint8_t counter);

@@ -250,7 +250,9 @@ static int tpdo_send(co_pdo_t *p, bool operational, int64_t now_us)
     uint8_t d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     uint8_t off = 0;
     for (uint8_t i = 0; i < p->count; ++i) {
-        if (env->pre_read) env->pre_read(env->ctx, p->entry[i]);
+        /* pre_read refreshes a whole record (co_node.h): once for consecutive entries of one record */
+        if (env->pre_read && (i == 0u || p->entry[i]->index != p->entry[i - 1u]->index))
+            env->pre_read(env->ctx, p->entry[i]);
         off = (uint8_t)(off + co_od_read_raw(p->entry[i], 0, &d[off], (uint32_t)(8u - off)));
     }
     p->pending = false;

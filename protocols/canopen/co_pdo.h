@@ -25,7 +25,7 @@ typedef struct {
     co_tx_t *tx;     /* TPDOs are sent through it */
     co_emcy_t *emcy; /* RPDO length errors and deadline misses are reported to it */
     /* Application callbacks (optional), given ctx back. */
-    void (*pre_read)(void *ctx, const co_od_entry_t *e); /* a mapped value is about to be sent: refresh it */
+    void (*pre_read)(void *ctx, const co_od_entry_t *e); /* a mapped record is about to be sent: refresh it */
     void (*on_rpdo)(void *ctx, uint8_t pdo);             /* an RPDO wrote the OD */
     void *ctx;
 } co_pdo_env_t;

@@ -55,6 +55,7 @@ class Hil:
         self.lib.hil_open.argtypes = [ctypes.c_uint8, ctypes.c_uint8]
         self.lib.hil_send.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint8]
         self.lib.hil_recv.argtypes = [ctypes.POINTER(_Frame)]
+        self.lib.hil_sdo.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint16, ctypes.c_char_p]
         self.lib.hil_run.argtypes = [ctypes.c_uint32]
         self.lib.hil_run.restype = ctypes.c_uint32
         self.lib.hil_set_recorder.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
@@ -109,6 +110,12 @@ class Hil:
             if self.lib.hil_send(cob_id, bytes(data), len(data)) != 0:
                 raise can.CanOperationError("in-process bus queue full")
 
+    def sdo(self, req_cob: int, req: bytes, resp_cob: int, resp: ctypes.Array[ctypes.c_char]) -> int:
+        """One SDO transfer (hil_sdo): the 8-byte request on req_cob, the server's answer on resp_cob into
+        `resp`. 1 answered, 0 no answer, -1 the bus queue full."""
+        with self._lock:
+            return int(self.lib.hil_sdo(req_cob, req, resp_cob, resp))
+
     def recv(self) -> _Frame | None:
         f = _Frame()
         with self._lock:
@@ -116,7 +123,7 @@ class Hil:
 
     def start_recorder(self, capacity: int) -> None:
         """Every frame on the in-process bus goes into a buffer of `capacity` frames, emptied by `take`."""
-        self._rec = np.zeros(capacity, dtype=FRAME_DTYPE)
+        self._rec = np.empty(capacity, dtype=FRAME_DTYPE)  # written frame by frame: never read unwritten
         with self._lock:
             self.lib.hil_set_recorder(self._rec.ctypes.data, capacity)
 
@@ -176,32 +183,61 @@ class Hil:
 
 
 class DirectBus(can.BusABC):
-    """python-can bus over the in-process CAN bus of :class:`Hil`."""
+    """python-can bus over the in-process CAN bus of :class:`Hil`.
+
+    The nodes answer a frame while it is sent (hil_send delivers it and everything it causes), so once
+    `deliver_to` names the master's listeners (canopen's Network.listeners, `attach`), every answer is handed
+    to them on the sending thread, before `send` returns: an SDO transfer costs a function call, not a wake-up
+    of the notifier's thread (python-can's Notifier then only waits for the bus to close)."""
 
     def __init__(self, hil: Hil, **kwargs: object) -> None:
         self.hil = hil
         self.closing = False
+        self.deliver_to: list[can.Listener] | None = None
+        self._closed = threading.Event()
         self._sent = threading.Event()  # a frame went in: answers may be waiting (no polling delay)
         super().__init__(channel="direct", **kwargs)  # type: ignore[arg-type]
         self.channel_info = "in-process bus (direct mode)"
 
+    def attach(self, listeners: list[can.Listener]) -> None:
+        """Hand the nodes' answers to these listeners on the sending thread (what was queued before, too)."""
+        self.deliver_to = listeners
+        self._hand_over()
+
+    def _hand_over(self) -> None:
+        assert self.deliver_to is not None
+        while (msg := self._take()) is not None:
+            for listener in self.deliver_to:
+                listener(msg)
+
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.hil.send(msg.arbitration_id, bytes(msg.data))
-        self._sent.set()
+        if self.deliver_to is not None:
+            self._hand_over()
+        else:
+            self._sent.set()
+
+    def _take(self) -> can.Message | None:
+        f = self.hil.recv()
+        if f is None:
+            return None
+        return can.Message(
+            timestamp=f.t_us * 1e-6,
+            arbitration_id=f.cob_id,
+            is_extended_id=False,
+            dlc=f.dlc,
+            data=bytes(f.data[: f.dlc]),
+            channel="direct",
+        )
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
-            f = self.hil.recv()
-            if f is not None:
-                msg = can.Message(
-                    timestamp=f.t_us * 1e-6,
-                    arbitration_id=f.cob_id,
-                    is_extended_id=False,
-                    dlc=f.dlc,
-                    data=bytes(f.data[: f.dlc]),
-                    channel="direct",
-                )
+            if self.deliver_to is not None:  # answers go out on the sending thread: nothing to poll
+                self._closed.wait(timeout)
+                return None, False
+            msg = self._take()
+            if msg is not None:
                 return msg, False
             if self.closing or (deadline is not None and time.monotonic() >= deadline):
                 return None, False
@@ -218,5 +254,11 @@ class DirectBus(can.BusABC):
         msg, _ = self._recv_internal(timeout)
         return msg
 
+    def close_soon(self) -> None:
+        """The notifier's recv returns at once from now on (before Network.disconnect)."""
+        self.closing = True
+        self._closed.set()
+
     def shutdown(self) -> None:
+        self.close_soon()
         super().shutdown()

@@ -198,10 +198,13 @@ class Configurator:
         """Link the plant's measurement TPDOs to the drive's RPDOs and the drive's command
         TPDO to the plant's RPDO (COB-IDs read from the nodes), and map the trace PDOs."""
         plant, drive = self.plant, self.drive
-        plant.tpdo.read()
-        drive.tpdo.read()
-        drive.rpdo.read()
-        plant.rpdo.read()
+        # Only the maps this links or maps are read (each map: COB-ID, transmission type, mapping), not all
+        # sixteen: the same writes follow, with half the transfers.
+        for m in (plant.tpdo[1], plant.tpdo[2], drive.tpdo[1], drive.rpdo[1], drive.rpdo[2], plant.rpdo[1]):
+            m.read()
+        plant.tpdo[HOLD_TPDO].read()
+        for num in self.sc.trace:
+            drive.tpdo[num].read()
         for num in (1, 2):
             m = drive.rpdo[num]
             m.cob_id = plant.tpdo[num].cob_id

@@ -27,6 +27,7 @@ from bench.canbus import ensure_vcan, link_info, prepare_can_link
 from bench.eds import load as load_od
 from bench.run.bus.buses import VCAN
 from bench.run.bus.direct import DirectBus, Hil
+from bench.run.bus.direct_sdo import DirectSdo
 from bench.run.bus.gateway import FaultGateway
 from bench.run.bus.liveness import STARVED_S, Liveness
 from bench.run.bus.nodes import NodeProcess
@@ -122,6 +123,8 @@ class Session:
         else:
             self._open_bus()
         self.net.connect()
+        if isinstance(self.net.bus, DirectBus):
+            self.net.bus.attach(self.net.listeners)  # the nodes' answers on the sending thread
         self.net.add_node(self.plant)
         self.net.add_node(self.drive)
         for n in (self.plant, self.drive):
@@ -134,6 +137,8 @@ class Session:
             # lists the EMCYs from the record and the liveness judge takes 0x8130 itself, so a node that
             # floods EMCYs (one per foreign SYNC) must not slow the master's notifier thread with it
             self.net.unsubscribe(0x80 + n.id, n.emcy.on_emcy)
+            if self.hil is not None:  # expedited transfers in one C call each (bench/run/bus/direct_sdo.py)
+                DirectSdo(n.sdo, self.hil).install()
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
             self.liveness = Liveness(
                 self.net,
@@ -210,7 +215,7 @@ class Session:
                     pass
         finally:
             if isinstance(self.net.bus, DirectBus):
-                self.net.bus.closing = True  # the notifier's recv returns at once
+                self.net.bus.close_soon()  # the notifier's recv returns at once
             try:
                 self.net.disconnect()
             except Exception:  # noqa: BLE001

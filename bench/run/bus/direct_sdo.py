@@ -1,0 +1,105 @@
+"""SDO transfers of the direct bus in one C call each: python canopen's client, with its expedited transfers
+(everything of four bytes or less: all the bench configures) handed whole to libhil's `hil_sdo`.
+
+Why by hand: python canopen carries every transfer through its generic machinery (a CAN message object, the
+network's send lock, the notifier's listeners, a response queue, a stream object), about 40 us a transfer
+here, most of a sweep point's configuration. On the in-process bus the nodes answer while the request is
+sent, so the transfer is one function call. It stays CANopen: the request frame is the one canopen sends
+(CiA 301 expedited initiate download / upload), it goes through the node's SDO server and is recorded on the
+bus log like any other frame, an abort raises canopen's SdoAbortedError with the server's code, a wrong
+answer SdoCommunicationError. Segmented transfers (strings, domains) stay with canopen's own code.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import struct
+from typing import TYPE_CHECKING
+
+from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+
+if TYPE_CHECKING:
+    from canopen.sdo import SdoClient
+
+    from bench.run.bus.direct import Hil
+
+# CiA 301 SDO command specifiers (the values canopen's sdo/constants.py names)
+REQUEST_DOWNLOAD = 0x20
+REQUEST_UPLOAD = 0x40
+RESPONSE_DOWNLOAD = 0x60
+RESPONSE_UPLOAD = 0x40
+RESPONSE_ABORTED = 0x80
+EXPEDITED = 0x02
+SIZE_SPECIFIED = 0x01
+ABORT_TIMED_OUT = 0x05040000
+_HEAD = struct.Struct("<BHB")
+
+
+class DirectSdo:
+    """Expedited SDO transfers of one node's client (canopen SdoClient) through `Hil.sdo`; `install` puts
+    them in place of the client's `upload` / `download`, which canopen's variables, records and PDO maps call."""
+
+    def __init__(self, client: SdoClient, hil: Hil) -> None:
+        self.client = client
+        self.hil = hil
+        self._upload = client.upload
+        self._download = client.download
+        self._req = ctypes.create_string_buffer(8)
+        self._resp = ctypes.create_string_buffer(8)
+
+    def install(self) -> None:
+        self.client.upload = self.upload  # type: ignore[method-assign]
+        self.client.download = self.download  # type: ignore[method-assign]
+
+    def _size(self, index: int, subindex: int) -> int | None:
+        """The object's size in bytes when the OD knows it and it fits an expedited transfer, else None."""
+        var = self.client.od.get_variable(index, subindex)
+        if var is None or not var.fixed_size or len(var) > 32:
+            return None
+        return len(var) // 8
+
+    def _transfer(self, command: int, index: int, subindex: int, data: bytes) -> bytes:
+        req = bytearray(8)
+        _HEAD.pack_into(req, 0, command, index, subindex)
+        req[4 : 4 + len(data)] = data
+        got = self.hil.sdo(self.client.rx_cobid, bytes(req), self.client.tx_cobid, self._resp)
+        if got <= 0:
+            # a node that does not answer on the in-process bus never will (simulated time stands still):
+            # the transfer is aborted as canopen aborts it after its timeout
+            abort = bytearray(8)
+            _HEAD.pack_into(abort, 0, RESPONSE_ABORTED, index, subindex)
+            struct.pack_into("<L", abort, 4, ABORT_TIMED_OUT)
+            self.hil.send(self.client.rx_cobid, bytes(abort))
+            raise SdoCommunicationError("No SDO response received")
+        resp = self._resp.raw
+        if resp[0] == RESPONSE_ABORTED:
+            raise SdoAbortedError(struct.unpack_from("<L", resp, 4)[0])
+        res_index, res_sub = struct.unpack_from("<HB", resp, 1)
+        if (res_index, res_sub) != (index, subindex):
+            raise SdoCommunicationError(
+                f"Node returned a value for 0x{res_index:04X}:{res_sub:02X} instead, "
+                "maybe there is another SDO client communicating on the same SDO channel?"
+            )
+        return resp
+
+    def upload(self, index: int, subindex: int) -> bytes:
+        size = self._size(index, subindex)
+        if size is None:
+            return self._upload(index, subindex)
+        resp = self._transfer(REQUEST_UPLOAD, index, subindex, b"")
+        command = resp[0]
+        if command & 0xE0 != RESPONSE_UPLOAD:
+            raise SdoCommunicationError(f"Unexpected response 0x{command:02X}")
+        if not command & EXPEDITED:  # the server chose a segmented upload: not for four bytes or less
+            raise SdoCommunicationError(f"Segmented answer 0x{command:02X} to an upload of {size} bytes")
+        n = 4 - ((command >> 2) & 0x3) if command & SIZE_SPECIFIED else 4
+        return resp[4 : 4 + min(n, size)]
+
+    def download(self, index: int, subindex: int, data: bytes, force_segment: bool = False) -> None:
+        if force_segment or len(data) > 4 or self._size(index, subindex) is None:
+            self._download(index, subindex, data, force_segment)
+            return
+        command = REQUEST_DOWNLOAD | EXPEDITED | SIZE_SPECIFIED | ((4 - len(data)) << 2)
+        resp = self._transfer(command, index, subindex, bytes(data))
+        if resp[0] != RESPONSE_DOWNLOAD:
+            raise SdoCommunicationError(f"Unexpected response 0x{resp[0]:02X}")

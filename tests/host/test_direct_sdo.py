@@ -1,0 +1,92 @@
+"""The direct bus's SDO transfers in one C call (bench/run/bus/direct_sdo.py) are python canopen's transfers:
+the same sequence of reads, writes and refusals, done once by canopen's own client and once by the fast path
+on two fresh in-process buses, puts the same frames on the bus log byte for byte, returns the same values and
+raises the same abort codes; segmented objects (a string) still go through canopen's code."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import canopen
+import numpy as np
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+
+from bench.paths import EDS_DIR
+from bench.run.bus.direct import DirectBus, Hil
+from bench.run.bus.direct_sdo import DirectSdo
+
+PLANT_ID, DRIVE_ID = 0x10, 0x20
+VALUE_TOO_HIGH = 0x06090031
+READ_ONLY = 0x06010002
+NO_OBJECT = 0x06020000
+
+
+def _session(fast: bool, script: Callable[[canopen.RemoteNode, canopen.RemoteNode], list[Any]]) -> tuple[Any, Any]:
+    hil = Hil(PLANT_ID, DRIVE_ID)
+    net = canopen.Network()
+    bus = DirectBus(hil)
+    net.bus = bus
+    net.connect()
+    bus.attach(net.listeners)
+    plant = canopen.RemoteNode(PLANT_ID, str(EDS_DIR / "plant.eds"))
+    drive = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
+    for n in (plant, drive):
+        net.add_node(n)
+        if fast:
+            DirectSdo(n.sdo, hil).install()
+    hil.start_recorder(65536)
+    try:
+        results = script(plant, drive)
+        frames = hil.take()
+    finally:
+        bus.close_soon()
+        net.disconnect()
+    return results, frames
+
+
+def _outcome(f: Callable[[], Any]) -> Any:
+    try:
+        return ("ok", f())
+    except SdoAbortedError as exc:
+        return ("abort", exc.code)
+
+
+def _script(plant: canopen.RemoteNode, drive: canopen.RemoteNode) -> list[Any]:
+    ctl = drive.sdo["Controller"]
+    out: list[Any] = []
+    out.append(_outcome(lambda: plant.sdo["Motor preset"].raw))  # a string: segmented, canopen's own code
+    out.append(_outcome(lambda: plant.sdo["Sensors"]["rng_seed"].raw))
+    for value in (7, 123456):
+        out.append(_outcome(lambda value=value: setattr(plant.sdo["Sensors"]["rng_seed"], "raw", value)))
+        out.append(_outcome(lambda: plant.sdo["Sensors"]["rng_seed"].raw))
+    out.append(_outcome(lambda: setattr(ctl["Ts_s"], "raw", 50e-6)))  # REAL32
+    out.append(_outcome(lambda: ctl["Ts_s"].raw))
+    out.append(_outcome(lambda: setattr(ctl["Ts_s"], "raw", 1e9)))  # out of the EDS's range: the node refuses
+    out.append(_outcome(lambda: setattr(drive.sdo["Statusword"], "raw", 0)))  # read only
+    out.append(_outcome(lambda: drive.sdo.upload(0x5FFF, 0)))  # no such object
+    out.append(_outcome(lambda: drive.sdo["Producer heartbeat time"].raw))  # UNSIGNED16
+    out.append(_outcome(lambda: drive.sdo["Statusword"].raw))
+    return out
+
+
+@pytest.fixture(scope="module")
+def both() -> tuple[tuple[Any, Any], tuple[Any, Any]]:
+    return _session(False, _script), _session(True, _script)
+
+
+def test_the_fast_path_puts_canopens_frames_on_the_bus(both: Any) -> None:
+    (_, slow), (_, fast) = both
+    assert len(slow) > 20
+    keep = ["cob_id", "dlc", "data", "sender", "t_us"]
+    np.testing.assert_array_equal(fast[keep], slow[keep])
+
+
+def test_the_fast_path_returns_canopens_values_and_aborts(both: Any) -> None:
+    (slow, _), (fast, _) = both
+    assert fast == slow
+    codes = {r[1] for r in fast if r[0] == "abort"}
+    assert {READ_ONLY, NO_OBJECT} <= codes and len(codes) == 3, codes  # and the range refusal
+    assert fast[0] == ("ok", slow[0][1]) and isinstance(fast[0][1], str)  # the string came through canopen
+    assert fast[3] == ("ok", 7) and fast[5] == ("ok", 123456)
