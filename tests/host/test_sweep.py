@@ -203,7 +203,9 @@ def test_an_unreachable_scheduler_is_said(tmp_path: Path) -> None:
 
 def test_a_killed_sweep_resumes_without_rerunning_finished_points(tmp_path: Path) -> None:
     out = tmp_path / "killed"
-    args = [str(STEP), "--grid", "controller.L_hat_ratio=0.5:1.5:0.005", "--set", "scenario.periods=2000"]
+    # points enough that the study is not over when the second part is written (a part a second; ~80 points/s)
+    n = 1001
+    args = [str(STEP), "--grid", "controller.L_hat_ratio=0.5:1.5:0.001", "--set", "scenario.periods=2000"]
     args += ["--workers", "2", "--no-dashboard", "--out", str(out)]
     proc = subprocess.Popen([*BENCH, *args], cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     parts = out / "sweep.parts"
@@ -213,20 +215,20 @@ def test_a_killed_sweep_resumes_without_rerunning_finished_points(tmp_path: Path
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     before = {r["point_id"]: r for p in sorted(parts.glob("part-*.parquet")) for r in pq.read_table(p).to_pylist()}
-    assert 0 < len(before) < 201, "killed mid-study"
+    assert 0 < len(before) < n, "killed mid-study"
     assert not (out / "sweep.parquet").exists()
     res = sweep(*args, "--resume")
     assert res.returncode == 0, res.stderr
-    assert f"resuming: {len(before)} of 201 points already in" in res.stdout
+    assert f"resuming: {len(before)} of {n} points already in" in res.stdout
     after = rows(out)
-    assert [float(r["controller.L_hat_ratio"]) for r in after] == pytest.approx([0.5 + 0.005 * i for i in range(201)])
+    assert [float(r["controller.L_hat_ratio"]) for r in after] == pytest.approx([0.5 + 0.001 * i for i in range(n)])
     for r in after:
         if r["point_id"] in before:  # not run again: the same row, down to its timing
             assert r == before[r["point_id"]]
-    assert sum(r["point_id"] not in before for r in after) == 201 - len(before)
+    assert sum(r["point_id"] not in before for r in after) == n - len(before)
     assert not (out / "sweep.parts").exists()
     meta = json.loads((out / "sweep.json").read_text())
-    assert meta["points_resumed"] == len(before) and meta["points_run"] == 201 - len(before)
+    assert meta["points_resumed"] == len(before) and meta["points_run"] == n - len(before)
 
 
 def test_a_folder_holding_another_study_is_not_mixed(serial: Path) -> None:

@@ -47,6 +47,33 @@ class SdoWrite:
     value: float
 
 
+Tables = tuple[dict[tuple[int, int], ODVariable], dict[tuple[int, int], float]]
+
+
+def _tables(od: canopen.ObjectDictionary) -> Tables:
+    """Every entry of an OD by (index, sub) and the numeric EDS defaults, built once per OD object and kept on it
+    (bench.eds caches the project's ODs: a sweep's worker decodes run after run with them); read only."""
+    got: Tables | None = getattr(od, "_bench_sdo_tables", None)
+    if got is not None:
+        return got
+    variables: dict[tuple[int, int], ODVariable] = {}
+    defaults: dict[tuple[int, int], float] = {}
+    for obj in od.values():
+        subs = (
+            [obj]
+            if isinstance(obj, ODVariable)
+            else list(obj.subindices.values())
+            if isinstance(obj, (ODRecord, ODArray))
+            else []
+        )
+        for v in subs:
+            variables[(v.index, v.subindex)] = v
+            if v.data_type in STRUCT and v.default is not None and not isinstance(v.default, (bytes, str)):
+                defaults[(v.index, v.subindex)] = v.default
+    od._bench_sdo_tables = (variables, defaults)  # type: ignore[attr-defined]
+    return variables, defaults
+
+
 @dataclass
 class NodeState:
     """One node's object dictionary as the bus shows it: EDS defaults, then every confirmed
@@ -63,19 +90,8 @@ class NodeState:
         self.od = (
             load_od(self.name, self.node_id) if self.eds is None else canopen.import_od(str(self.eds), self.node_id)
         )
-        self.vars: dict[tuple[int, int], ODVariable] = {}
-        for obj in self.od.values():
-            subs = (
-                [obj]
-                if isinstance(obj, ODVariable)
-                else list(obj.subindices.values())
-                if isinstance(obj, (ODRecord, ODArray))
-                else []
-            )
-            for v in subs:
-                self.vars[(v.index, v.subindex)] = v
-                if v.data_type in STRUCT and v.default is not None and not isinstance(v.default, (bytes, str)):
-                    self.values[(v.index, v.subindex)] = v.default
+        self.vars, defaults = _tables(self.od)
+        self.values.update(defaults)
 
     def qualname(self, index: int, sub: int) -> str | None:
         v = self.vars.get((index, sub))
@@ -160,10 +176,13 @@ class SdoLog:
 
     def feed(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """SDO frames (see `mask`) in bus order, with the number of SYNCs seen before each."""
-        for f, period in zip(frames, periods, strict=True):
-            if int(f["dlc"]) != 8:
+        # plain Python values, not a numpy scalar per field (a few hundred frames a run, run after run in a sweep)
+        data = np.ascontiguousarray(frames["data"]).tobytes()
+        cobs, dlcs = frames["cob_id"].tolist(), frames["dlc"].tolist()
+        for i, (cob, dlc, period) in enumerate(zip(cobs, dlcs, periods.tolist(), strict=True)):
+            if dlc != 8:
                 continue
-            cob, d = int(f["cob_id"]), bytes(f["data"])
+            d = data[8 * i : 8 * i + 8]
             if cob >= 0x600:
                 self.nodes[cob - 0x600].request(d)
                 continue
