@@ -58,8 +58,12 @@ class Engine:
         import dask
         from dask.distributed import Client, LocalCluster
 
-        # a point is one C loop in one thread: one thread per worker process, no nested parallelism
-        dask.config.set({"distributed.worker.daemon": False})
+        # a point is one C loop in one thread: one thread per worker process, no nested parallelism. No statistical
+        # profiler in the workers: it calls sys._current_frames() every 10 ms, which on CPython 3.11 can run the
+        # garbage collector while holding the interpreter's thread-list lock and drop the GIL there, while the
+        # point's thread holds the GIL and starts a thread (it needs that lock): the worker hangs for good (seen
+        # here in a 10^4-point study: py-spy and gdb showed exactly these two threads). docs/SWEEPS.md: clusters.
+        dask.config.set({"distributed.worker.daemon": False, "distributed.worker.profile.enabled": False})
         if scheduler:
             self.client = _connect(Client, scheduler)
             if not self.client.scheduler_info(n_workers=-1)["workers"]:

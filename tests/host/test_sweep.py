@@ -344,3 +344,16 @@ def test_zhao2022_stability_boundary_by_bisection(tmp_path: Path) -> None:
     for r in rows(out):
         x = float(r["controller.L_hat_ratio"])
         assert (r["status"] == "ok") == (x <= b["lo"]), r
+
+
+def test_the_embedded_clusters_workers_run_no_statistical_profiler() -> None:
+    """Dask's profiler calls sys._current_frames() every 10 ms; on CPython 3.11 that can hang a worker whose point
+    starts a thread (bench/sweep/engine.py): the embedded cluster's workers must not run it."""
+    from bench.sweep.engine import Engine
+
+    engine = Engine(None, 2, False, dashboard=False)
+    try:
+        running = engine.client.run(lambda dask_worker: "profile" in dask_worker.periodic_callbacks)
+    finally:
+        engine.close()
+    assert len(running) == 2 and not any(running.values()), running
