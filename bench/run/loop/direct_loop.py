@@ -33,6 +33,9 @@ class DirectLoop:
         decodes chunk k (`tick`) while the loop runs chunk k+1: the two cores work at once. After each
         chunk `on_chunk` (the frame source) takes the recorded frames; it blocks while two chunks
         wait, so memory stays bounded when decoding is the slower side."""
+        if not self.realtime and n <= self.opts.chunk_periods:
+            self._run_here(n, tick)
+            return
         ready = threading.Event()
         done = threading.Event()
         stop = threading.Event()
@@ -80,6 +83,21 @@ class DirectLoop:
             tick()
         if ran[0] != n:
             self._direct_stopped(ran[0], n)
+
+    def _run_here(self, n: int, tick: Callable[[], None] | None) -> None:
+        """A segment of one chunk (a sweep's point, most scenarios): on this thread, then decoded. Nothing to overlap,
+        so no thread to start and no hand-over of the interpreter's lock between two threads per chunk."""
+        try:
+            ran = self.hil.run(n)
+            if self.on_chunk is not None:
+                self.on_chunk()
+        finally:
+            if self.on_stop is not None:
+                self.on_stop()
+        if tick:
+            tick()
+        if ran != n:
+            self._direct_stopped(ran, n)
 
     def _run_realtime(self, n: int, ready: threading.Event) -> int:
         """The segment in real time: one C call (its threads pace the periods), while this thread takes what the
