@@ -117,7 +117,7 @@ void drive_app_on_measurement(drive_app_t *app, co_node_t *node)
         app->drive_status.last_sample_index = si;
         app->old_run = 0u;
     }
-    const uint8_t sync_ov = (uint8_t)co_od_get_u32(node->od, OD_DRIVE_SYNCHRONOUS_COUNTER_OVERFLOW_VALUE_IDX, 0);
+    const uint8_t sync_ov = node->c_sync_overflow; /* 0x1019, kept current by the node */
     if (app->sync_seen && sync_ov >= 2u && sc != app->last_sync_counter)
         drive_app_count_late(app, DRIVE_LATE_SYNC_MISMATCH, si, sc);
 
