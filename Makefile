@@ -237,10 +237,10 @@ $(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW) $(LIBPLANT)
 
 $(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
-	$(CC) $^ -lm -o $@
+	$(CC) $(CFLAGS_HOST) $^ -lm -o $@
 $(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
-	$(CC) $^ -lm -o $@
+	$(CC) $(CFLAGS_HOST) $^ -lm -o $@
 # The injector's unit test, with the sanitizers (its hold queue and log are fixed arrays).
 $(BUILD)/tests/protocols_test_fault_injector: protocols/faults/tests/test_fault_injector.c $(FAULT_SRC)
 	@mkdir -p $(@D)
@@ -252,7 +252,7 @@ $(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $
 HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(PLANT_APP_SRC) $(SHIM_APP_SRC) $(wildcard bench/direct/*.c) $(FAULT_SRC)
 $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
-	$(CC) -shared $^ -lm -pthread -o $@
+	$(CC) $(CFLAGS_HOST) -shared $^ -lm -pthread -o $@  # the flags: -flto compiles here (-ffile-prefix-map too)
 
 clean:
 	rm -rf $(BUILD)
