@@ -273,7 +273,8 @@ int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
 
 /* One SDO transfer of the master, whole (bench/run/bus/direct_sdo.py): the request goes on the bus as
  * hil_send sends it (recorded, heard by the nodes), and the server's answer - the first frame on resp_cob
- * since - is taken out of the master's queue into resp; the nodes' other frames stay queued for the master.
+ * since, of 8 bytes as CiA 301 has every SDO frame - is taken out of the master's queue into resp; the nodes'
+ * other frames stay queued for the master.
  * Returns 1 when answered, 0 when no answer came (a killed or frozen node), -1 when the bus queue was full. */
 int hil_sdo(uint16_t req_cob, const uint8_t req[8], uint16_t resp_cob, uint8_t resp[8])
 {
@@ -282,7 +283,7 @@ int hil_sdo(uint16_t req_cob, const uint8_t req[8], uint16_t resp_cob, uint8_t r
     int rc = hil_send(req_cob, req, 8u);
     if (rc == 0) {
         for (uint32_t i = from; i != H.mq_tail; ++i) {
-            if (H.mq[i % MASTER_Q].cob_id != resp_cob) continue;
+            if (H.mq[i % MASTER_Q].cob_id != resp_cob || H.mq[i % MASTER_Q].dlc != 8u) continue;
             memcpy(resp, H.mq[i % MASTER_Q].data, 8u);
             for (uint32_t j = i; j + 1u != H.mq_tail; ++j) H.mq[j % MASTER_Q] = H.mq[(j + 1u) % MASTER_Q];
             --H.mq_tail;

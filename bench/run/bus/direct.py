@@ -192,7 +192,6 @@ class DirectBus(can.BusABC):
 
     def __init__(self, hil: Hil, **kwargs: object) -> None:
         self.hil = hil
-        self.closing = False
         self.deliver_to: list[can.Listener] | None = None
         self._closed = threading.Event()
         self._sent = threading.Event()  # a frame went in: answers may be waiting (no polling delay)
@@ -239,7 +238,7 @@ class DirectBus(can.BusABC):
             msg = self._take()
             if msg is not None:
                 return msg, False
-            if self.closing or (deadline is not None and time.monotonic() >= deadline):
+            if self._closed.is_set() or (deadline is not None and time.monotonic() >= deadline):
                 return None, False
             # The nodes answer only to what is sent (in direct mode nothing else happens while the master
             # waits): sleep until the next send, or briefly (the lockstep loop's frames are not for the master).
@@ -249,14 +248,13 @@ class DirectBus(can.BusABC):
     def recv(self, timeout: float | None = None) -> can.Message | None:
         """As BusABC.recv, but returns at once when the bus is closing (BusABC would keep polling
         `_recv_internal` until its timeout ends: a second at every disconnect)."""
-        if self.closing:
+        if self._closed.is_set():
             return None
         msg, _ = self._recv_internal(timeout)
         return msg
 
     def close_soon(self) -> None:
         """The notifier's recv returns at once from now on (before Network.disconnect)."""
-        self.closing = True
         self._closed.set()
 
     def shutdown(self) -> None:

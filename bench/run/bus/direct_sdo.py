@@ -16,23 +16,24 @@ import ctypes
 import struct
 from typing import TYPE_CHECKING
 
+from can import CanOperationError
+from canopen.sdo.constants import (
+    ABORT_TIMED_OUT,
+    EXPEDITED,
+    REQUEST_DOWNLOAD,
+    REQUEST_UPLOAD,
+    RESPONSE_ABORTED,
+    RESPONSE_DOWNLOAD,
+    RESPONSE_UPLOAD,
+    SDO_STRUCT,
+    SIZE_SPECIFIED,
+)
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 if TYPE_CHECKING:
     from canopen.sdo import SdoClient
 
     from bench.run.bus.direct import Hil
-
-# CiA 301 SDO command specifiers (the values canopen's sdo/constants.py names)
-REQUEST_DOWNLOAD = 0x20
-REQUEST_UPLOAD = 0x40
-RESPONSE_DOWNLOAD = 0x60
-RESPONSE_UPLOAD = 0x40
-RESPONSE_ABORTED = 0x80
-EXPEDITED = 0x02
-SIZE_SPECIFIED = 0x01
-ABORT_TIMED_OUT = 0x05040000
-_HEAD = struct.Struct("<BHB")
 
 
 class DirectSdo:
@@ -60,21 +61,20 @@ class DirectSdo:
 
     def _transfer(self, command: int, index: int, subindex: int, data: bytes) -> bytes:
         req = bytearray(8)
-        _HEAD.pack_into(req, 0, command, index, subindex)
+        SDO_STRUCT.pack_into(req, 0, command, index, subindex)
         req[4 : 4 + len(data)] = data
         got = self.hil.sdo(self.client.rx_cobid, bytes(req), self.client.tx_cobid, self._resp)
-        if got <= 0:
+        if got < 0:
+            raise CanOperationError("the in-process bus's queue is full: the request was not sent")
+        if got == 0:
             # a node that does not answer on the in-process bus never will (simulated time stands still):
-            # the transfer is aborted as canopen aborts it after its timeout
-            abort = bytearray(8)
-            _HEAD.pack_into(abort, 0, RESPONSE_ABORTED, index, subindex)
-            struct.pack_into("<L", abort, 4, ABORT_TIMED_OUT)
-            self.hil.send(self.client.rx_cobid, bytes(abort))
+            # the transfer ends as canopen ends it after its timeout, with its abort frame
+            self.client.abort(ABORT_TIMED_OUT)
             raise SdoCommunicationError("No SDO response received")
         resp = self._resp.raw
         if resp[0] == RESPONSE_ABORTED:
             raise SdoAbortedError(struct.unpack_from("<L", resp, 4)[0])
-        res_index, res_sub = struct.unpack_from("<HB", resp, 1)
+        _, res_index, res_sub = SDO_STRUCT.unpack_from(resp)
         if (res_index, res_sub) != (index, subindex):
             raise SdoCommunicationError(
                 f"Node returned a value for 0x{res_index:04X}:{res_sub:02X} instead, "
@@ -96,7 +96,7 @@ class DirectSdo:
         return resp[4 : 4 + min(n, size)]
 
     def download(self, index: int, subindex: int, data: bytes, force_segment: bool = False) -> None:
-        if force_segment or len(data) > 4 or self._size(index, subindex) is None:
+        if force_segment or not 0 < len(data) <= 4 or self._size(index, subindex) is None:
             self._download(index, subindex, data, force_segment)
             return
         command = REQUEST_DOWNLOAD | EXPEDITED | SIZE_SPECIFIED | ((4 - len(data)) << 2)

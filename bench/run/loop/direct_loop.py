@@ -87,8 +87,13 @@ class DirectLoop:
     def _run_here(self, n: int, tick: Callable[[], None] | None) -> None:
         """A segment of one chunk (a sweep's point, most scenarios): on this thread, then decoded. Nothing to overlap,
         so no thread to start and no hand-over of the interpreter's lock between two threads per chunk."""
+        ran = 0
         try:
-            ran = self.hil.run(n)
+            while ran < n:  # hil_run may return early (its own bound on a call), as in the threaded path
+                got = self.hil.run(n - ran)
+                if got == 0:
+                    break
+                ran += got
             if self.on_chunk is not None:
                 self.on_chunk()
         finally:
