@@ -86,8 +86,10 @@ class Pipeline:
         sinks: list[Sink] | None = None,
         frame_sinks: list[FrameSink] | None = None,
         expect: tuple[str, ...] = ("ok",),
+        envelopes: bool = True,
     ) -> None:
         self.dec = Decoder(plant_id, drive_id)
+        self.keep_envelopes = envelopes  # every signal's min/max per bucket: the overview plot's, nothing else
         self.windows = StepWindows()
         self.sinks: list[Sink] = [self.windows, *(sinks or [])]
         self.frame_sinks = list(frame_sinks or [])
@@ -117,7 +119,8 @@ class Pipeline:
             self._begun = True
             for s in self.sinks:
                 s.begin(self.dec.signals, self.dec)
-            self.envelopes = {s.name: Envelope() for s in self.dec.signals if s.name in chunk}
+            if self.keep_envelopes:
+                self.envelopes = {s.name: Envelope() for s in self.dec.signals if s.name in chunk}
             self.watch.begin(self.dec)
         for sig, x, ref in STEP_SIGNALS:
             if x in chunk:
@@ -217,11 +220,14 @@ def run_scenario(
     frame_sinks: list[FrameSink] | None = None,
     keep_trace: bool = False,
     progress: Progress | None = None,
+    envelopes: bool = True,
 ) -> RunResult:
     """Run a scenario on a bus ('direct' or a SocketCAN/python-can channel) and return its result.
 
     `sinks` take the trace chunks (files, viewers); `frame_sinks` the raw frames (a log writer);
-    `keep_trace` also returns the whole trace in memory (O(periods): for short runs and tests).
+    `keep_trace` also returns the whole trace in memory (O(periods): for short runs and tests);
+    `envelopes=False` leaves out the signals' envelopes (RunResult.envelopes, for an overview plot: a sweep's
+    point draws none), the same summary for less work.
     Over SocketCAN the frames come from candump's log in `opts.out` (which must be set)."""
     from bench.run.record.sources import CandumpSource, DirectSource, ListenerSource
 
@@ -230,7 +236,7 @@ def run_scenario(
     collector = TraceCollector() if keep_trace else None
     if collector is not None:
         sinks.append(collector)
-    pipe = Pipeline(opts.plant_id, opts.drive_id, sinks, frame_sinks, sc.expect)
+    pipe = Pipeline(opts.plant_id, opts.drive_id, sinks, frame_sinks, sc.expect, envelopes)
     t0 = time.monotonic()
     sess = Session(sc, opts)
     source: Any = None

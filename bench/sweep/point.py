@@ -71,7 +71,7 @@ def run_point(scenario_text: str, where: str, fixed: list[str], values: dict[str
     try:
         sc = loads(scenario_text, where, [*fixed, *(f"{k}={v}" for k, v in values.items())])
         env = ErrorEnvelope()
-        res = run_scenario(sc, RunOptions(bus="direct"), sinks=[env])
+        res = run_scenario(sc, RunOptions(bus="direct"), sinks=[env], envelopes=False)  # no plot of a point
     except (ScenarioError, ValueError, RuntimeError) as exc:
         row.update(status="refused", reason=str(exc), point_s=time.perf_counter() - t0, worker_pid=os.getpid())
         return row

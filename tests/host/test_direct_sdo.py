@@ -108,3 +108,35 @@ def test_a_server_that_does_not_answer_gets_canopens_abort(both: Any) -> None:
         assert len(to_absent) == 4  # upload request, abort; download request, abort
         for abort in to_absent[1::2]:
             assert bytes(abort["data"][: abort["dlc"]]) == bytes([0x80, 0, 0, 0, 0x00, 0x00, 0x04, 0x05])
+
+
+@pytest.mark.parametrize("ids", [(PLANT_ID, DRIVE_ID), (0x11, 0x2A)])
+def test_the_in_process_nodes_pdo_maps_are_the_eds_defaults(ids: tuple[int, int]) -> None:
+    """Direct mode reads the PDO maps it wires from the EDS (configure.py wire_pdos): every map of both nodes
+    after a reset, read by SDO, is the map the EDS gives, at the default node-IDs and others."""
+    from bench.eds import load as load_od
+
+    hil = Hil(*ids)
+    net = canopen.Network()
+    bus = DirectBus(hil)
+    net.bus = bus
+    bus.attach(net.listeners)
+    nodes = [canopen.RemoteNode(i, load_od(name, i)) for name, i in zip(("plant", "drive"), ids, strict=True)]
+    try:
+        for n in nodes:
+            net.add_node(n)
+            n.nmt.send_command(0x81)
+        seen = 0
+        for n in nodes:
+            for maps in (n.tpdo, n.rpdo):
+                for num in list(maps.map):
+                    m = maps[num]
+                    m.read()
+                    by_sdo = (m.cob_id, m.enabled, m.trans_type, [(v.index, v.subindex, v.length) for v in m.map])
+                    m.read(from_od=True)
+                    by_eds = (m.cob_id, m.enabled, m.trans_type, [(v.index, v.subindex, v.length) for v in m.map])
+                    assert by_sdo == by_eds, (n.id, num)
+                    seen += 1
+        assert seen == 16
+    finally:
+        net.disconnect()

@@ -1,8 +1,9 @@
 """What the master said to the nodes, read back from the frames: every expedited SDO
 transfer on the bus, decoded with the EDS into the nodes' object-dictionary state.
 
-A run's log is self-describing this way: the PDO layout (the master reads and writes
-0x1800/0x1A00, and a CiA 402 master its drive's 0x1400/0x1600), the plant's parameters (read by
+A run's log is self-describing this way, with the EDS: the PDO layout (EDS defaults and what the master
+writes to 0x1800/0x1A00 - over a bus it reads them first, in direct mode it knows them from the EDS - and a
+CiA 402 master its drive's 0x1400/0x1600), the plant's parameters (read by
 SDO at configuration), every setting and reference step with the period it took effect, and the
 statuses read at the end are all SDO transfers on the bus. `bench run` and `bench replay` of its
 log derive the same summary from the same frames.

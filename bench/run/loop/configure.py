@@ -199,12 +199,15 @@ class Configurator:
         TPDO to the plant's RPDO (COB-IDs read from the nodes), and map the trace PDOs."""
         plant, drive = self.plant, self.drive
         # Only the maps this links or maps are read (each map: COB-ID, transmission type, mapping), not all
-        # sixteen: the same writes follow, with half the transfers.
+        # sixteen: the same writes follow, with half the transfers. Over a bus by SDO (a physical drive may
+        # keep a stored configuration); in direct mode from the EDS: the in-process nodes are this project's,
+        # built from the same EDS and reset just before (tests/host/test_direct_sdo.py compares both reads).
+        from_od = self.opts.bus == "direct"
         for m in (plant.tpdo[1], plant.tpdo[2], drive.tpdo[1], drive.rpdo[1], drive.rpdo[2], plant.rpdo[1]):
-            m.read()
-        plant.tpdo[HOLD_TPDO].read()
+            m.read(from_od=from_od)
+        plant.tpdo[HOLD_TPDO].read(from_od=from_od)
         for num in self.sc.trace:
-            drive.tpdo[num].read()
+            drive.tpdo[num].read(from_od=from_od)
         for num in (1, 2):
             m = drive.rpdo[num]
             m.cob_id = plant.tpdo[num].cob_id

@@ -122,9 +122,12 @@ class Session:
             self.direct = DirectLoop(self.hil, self.opts, realtime=self.sc.timing == "realtime")
         else:
             self._open_bus()
-        self.net.connect()
         if isinstance(self.net.bus, DirectBus):
-            self.net.bus.attach(self.net.listeners)  # the nodes' answers on the sending thread
+            # The nodes' answers go to the master's listeners on the sending thread (DirectBus.attach): no
+            # notifier thread to start and stop per run (what canopen's connect() would do), nothing to poll.
+            self.net.bus.attach(self.net.listeners)
+        else:
+            self.net.connect()
         self.net.add_node(self.plant)
         self.net.add_node(self.drive)
         for n in (self.plant, self.drive):
@@ -214,8 +217,6 @@ class Session:
                 except Exception:  # noqa: BLE001 - shutting down whatever happened
                     pass
         finally:
-            if isinstance(self.net.bus, DirectBus):
-                self.net.bus.close_soon()  # the notifier's recv returns at once
             try:
                 self.net.disconnect()
             except Exception:  # noqa: BLE001
