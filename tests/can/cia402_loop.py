@@ -31,22 +31,29 @@ class Loop:
     procs: tuple[NodeProcess, NodeProcess]
 
 
-def _wait_boot(net: canopen.Network, ids: tuple[int, ...], timeout_s: float = 15.0) -> None:
-    seen: set[int] = set()
+class _BootWatch:
+    """The nodes' boot-up messages (0x700 + id, one byte 0), heard from before the processes start: a boot-up
+    sent while the test was not yet listening (this process descheduled on a loaded machine between starting
+    the nodes and subscribing) would be missed for good."""
 
-    def on_boot(cob_id: int, data: bytearray, ts: float) -> None:
+    def __init__(self, net: canopen.Network, ids: tuple[int, ...]) -> None:
+        self.net, self.ids = net, ids
+        self.seen: set[int] = set()
+        for i in ids:
+            net.subscribe(0x700 + i, self._on_boot)
+
+    def _on_boot(self, cob_id: int, data: bytearray, ts: float) -> None:
         if len(data) == 1 and data[0] == 0:
-            seen.add(cob_id - 0x700)
+            self.seen.add(cob_id - 0x700)
 
-    for i in ids:
-        net.subscribe(0x700 + i, on_boot)
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline and not set(ids) <= seen:
-        time.sleep(0.02)
-    for i in ids:
-        net.unsubscribe(0x700 + i, on_boot)
-    missing = set(ids) - seen
-    assert not missing, f"no boot-up from node(s) {sorted(hex(i) for i in missing)}"
+    def wait(self, timeout_s: float = 15.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and not set(self.ids) <= self.seen:
+            time.sleep(0.02)
+        for i in self.ids:
+            self.net.unsubscribe(0x700 + i, self._on_boot)
+        missing = set(self.ids) - self.seen
+        assert not missing, f"no boot-up from node(s) {sorted(hex(i) for i in missing)}"
 
 
 def configure_motor(
@@ -117,9 +124,10 @@ def drive_with_motor(
         NodeProcess("drive_node", ["--iface", drive_iface or iface, "--node-id", str(DRIVE_ID)]),
     )
     try:
+        boot = _BootWatch(net, (PLANT_ID, DRIVE_ID))
         for p in procs:
             p.start()
-        _wait_boot(net, (PLANT_ID, DRIVE_ID))
+        boot.wait()
         configure_motor(plant, drive, cycle_s)
         plant.nmt.send_command(0x01)
         yield Loop(net, plant, drive, procs)
