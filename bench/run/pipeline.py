@@ -250,7 +250,9 @@ def run_scenario(
             source = CandumpSource(opts.bus, opts.out / "candump.log")
         sess.open()
         if sess.hil is not None and sess.direct is not None and opts.record:
-            source = DirectSource(sess.hil, opts.chunk_periods)
+            # a chunk's worth of frames decoded at once (a real-time run's every 0.2 s: its live view)
+            realtime = sc.timing == "realtime"
+            source = DirectSource(sess.hil, opts.chunk_periods, min_frames=0 if realtime else opts.chunk_periods)
             sess.direct.on_chunk = source.collect
             sess.direct.on_stop = source.release
         elif source is None and opts.record:

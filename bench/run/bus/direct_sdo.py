@@ -53,11 +53,18 @@ class DirectSdo:
         self.client.download = self.download  # type: ignore[method-assign]
 
     def _size(self, index: int, subindex: int) -> int | None:
-        """The object's size in bytes when the OD knows it and it fits an expedited transfer, else None."""
-        var = self.client.od.get_variable(index, subindex)
-        if var is None or not var.fixed_size or len(var) > 32:
-            return None
-        return len(var) // 8
+        """The object's size in bytes when the OD knows it and it fits an expedited transfer, else None;
+        kept per OD (bench/eds.py caches one per process, shared by every run's client)."""
+        od = self.client.od
+        sizes: dict[tuple[int, int], int | None] | None = getattr(od, "_expedited_sizes", None)
+        if sizes is None:
+            sizes = {}
+            od._expedited_sizes = sizes  # type: ignore[attr-defined]
+        key = (index, subindex)
+        if key not in sizes:
+            var = od.get_variable(index, subindex)
+            sizes[key] = None if var is None or not var.fixed_size or len(var) > 32 else len(var) // 8
+        return sizes[key]
 
     def _transfer(self, command: int, index: int, subindex: int, data: bytes) -> bytes:
         req = bytearray(8)

@@ -7,9 +7,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import canopen
+from canopen.objectdictionary.datatypes import REAL32
 from canopen.profiles.p402 import State402
 from canopen.sdo.exceptions import SdoAbortedError
 
+from bench.eds import eds_path, float_limits
 from bench.run.loop.reads import PLANT_VALUES
 from bench.scenario import Setting
 
@@ -89,17 +91,18 @@ class Configurator:
         import re
 
         od = var.od
+        node_name = "drive" if var.sdo_node is self.drive.sdo else "plant"
+        # canopen reads integer limits only: a REAL32's come from the EDS text (bench/eds.py), as the scenario's do
+        lo, hi = float_limits(eds_path(node_name), od) if od.data_type == REAL32 else (od.min, od.max)
         parts = []
-        if od.min is not None or od.max is not None:
-            parts.append(
-                f"range {od.min if od.min is not None else '-inf'} .. {od.max if od.max is not None else 'inf'}"
-            )
+        if lo is not None or hi is not None:
+            parts.append(f"range {'-inf' if lo is None else f'{lo:g}'} .. {'inf' if hi is None else f'{hi:g}'}")
         if od.description:
             parts.append(od.description)
         m = re.search(r"1/\((\d+) Ts\)", od.description or "")
         if m:
             try:
-                node = self.drive if var.sdo_node is self.drive.sdo else self.plant
+                node = self.drive if node_name == "drive" else self.plant
                 ts = float(
                     node.sdo["Controller"]["Ts_s"].raw if node is self.drive else node.sdo["Inverter"]["Ts_s"].raw
                 )

@@ -31,7 +31,7 @@ class DirectSource:
     """The in-process bus's recorder. `collect` runs on the loop's thread after each chunk (it waits
     while `max_waiting` chunks are not yet drained: bounded memory); `drain` on the decoding thread."""
 
-    def __init__(self, hil: Hil, chunk_periods: int, max_waiting: int = 2) -> None:
+    def __init__(self, hil: Hil, chunk_periods: int, max_waiting: int = 2, min_frames: int = 0) -> None:
         self.hil = hil
         # Frames per period: SYNC, 2 measurement TPDOs, the command, up to 3 trace TPDOs, and margin.
         hil.start_recorder(chunk_periods * 12 + 65_536)
@@ -39,6 +39,12 @@ class DirectSource:
         self._cond = threading.Condition()
         self._max = max_waiting
         self._released = False
+        # Frames taken but not handed out yet: `drain` returns nothing before `min_frames` are in (or the
+        # end). The decoder's cost per chunk is largely fixed, so a run of short segments (a sweep's point:
+        # two) is decoded once at its end, not once a segment; the loop thread is never kept waiting for it.
+        self._min = min_frames
+        self._held: list[np.ndarray] = []
+        self._held_n = 0
 
     def collect(self) -> None:
         frames = self.hil.take()
@@ -59,9 +65,11 @@ class DirectSource:
             self._cond.notify_all()
         if final:  # what the master's SDO traffic left after the last chunk (between chunks the next
             chunks.append(self.hil.take())  # collect takes it, in bus order, with that chunk's frames)
-        chunks = [c for c in chunks if len(c)]
-        if not chunks:
+        self._held += [c for c in chunks if len(c)]
+        self._held_n += sum(len(c) for c in chunks)
+        if not self._held or (self._held_n < self._min and not final):
             return empty()
+        chunks, self._held, self._held_n = self._held, [], 0
         return chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
 
     def stop(self) -> None:
