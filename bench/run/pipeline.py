@@ -104,13 +104,14 @@ class Pipeline:
     def periods(self) -> int:
         return self.dec.stats.periods
 
-    def feed(self, frames: np.ndarray) -> None:
+    def feed(self, frames: np.ndarray, last: bool = False) -> None:
+        """`last`: only `finish` follows (Decoder.feed)."""
         if len(frames) == 0:
             return
         for fs in self.frame_sinks:
             fs.write(frames)
         self.bits += frame_bits(frames)
-        self._rows(self.dec.feed(frames))
+        self._rows(self.dec.feed(frames, last))
 
     def _rows(self, chunk: dict[str, np.ndarray] | None) -> None:
         if chunk is None or len(chunk["period"]) == 0:
@@ -269,7 +270,7 @@ def run_scenario(
         if source is not None:
             source.stop()
     if source is not None:
-        pipe.feed(source.drain(final=True))
+        pipe.feed(source.drain(final=True), last=True)
         if hasattr(source, "cleanup"):
             source.cleanup()
     injected = (sc.faults, *sess.fault_log()) if sc.faults else None

@@ -140,7 +140,9 @@ class Decoder:
         self.signals = list({s.name: s for s in names}.values())  # a PDO's sync_counter replaces the SYNC's
 
     # ------------------------------------------------------------------ feeding
-    def feed(self, frames: np.ndarray) -> dict[str, np.ndarray] | None:
+    def feed(self, frames: np.ndarray, last: bool = False) -> dict[str, np.ndarray] | None:
+        """The rows these frames complete. `last`: no frame follows but `finish`'s, which makes every row
+        still open at once (one pass over the rows instead of two: a short run's decoding is mostly that)."""
         if len(frames) == 0:
             return None
         self.stats.frames += len(frames)
@@ -165,7 +167,7 @@ class Decoder:
             idx = np.nonzero(sdo)[0]
             self._follow_sdo(buf[idx], period_of[idx] + 1)  # a setting takes effect at the next period
         sync_pos = np.nonzero(sync)[0]
-        if len(sync_pos) < 2:  # nothing complete yet
+        if len(sync_pos) < 2 or last:  # nothing complete yet, or all of it is finish's
             self._carry = buf
             return None
         # Row k is complete once period k+1 is (the drive's trace of step k comes at SYNC k+1):
