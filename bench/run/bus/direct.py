@@ -5,6 +5,7 @@ exactly as over vcan."""
 from __future__ import annotations
 
 import ctypes
+import functools
 import threading
 import time
 
@@ -42,43 +43,50 @@ class FaultEvent(ctypes.Structure):
     ]
 
 
+@functools.cache
+def _lib() -> ctypes.CDLL:
+    """libhil.so with its functions' C types, once per process (a sweep opens a Hil per point)."""
+    path = BUILD / "libhil.so"
+    if not path.exists():
+        raise FileNotFoundError(f"{path} is missing: run `make all`")
+    lib = ctypes.CDLL(str(path))
+    lib.hil_open.argtypes = [ctypes.c_uint8, ctypes.c_uint8]
+    lib.hil_send.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint8]
+    lib.hil_recv.argtypes = [ctypes.POINTER(_Frame)]
+    lib.hil_sdo.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint16, ctypes.c_char_p]
+    lib.hil_run.argtypes = [ctypes.c_uint32]
+    lib.hil_run.restype = ctypes.c_uint32
+    lib.hil_set_recorder.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+    lib.hil_recorded.restype = ctypes.c_uint32
+    lib.hil_record_dropped.restype = ctypes.c_uint64
+    lib.hil_now_us.restype = ctypes.c_int64
+    lib.hil_plant_period.restype = ctypes.c_uint64
+    lib.hil_faults.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
+    lib.hil_fault_log.argtypes = [ctypes.POINTER(FaultEvent), ctypes.c_uint32]
+    lib.hil_fault_log.restype = ctypes.c_uint32
+    lib.hil_fault_overflows.restype = ctypes.c_uint64
+    lib.hil_nodes_down.restype = ctypes.c_uint32
+    lib.hil_node_state.argtypes = [ctypes.c_uint32]
+    lib.hil_node_state.restype = ctypes.c_uint32
+    lib.hil_linger.argtypes = [ctypes.c_int64]
+    lib.hil_take.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+    lib.hil_take.restype = ctypes.c_uint32
+    lib.hil_run_realtime.argtypes = [ctypes.c_uint32]
+    lib.hil_run_realtime.restype = ctypes.c_int32
+    lib.hil_realtime_note.restype = ctypes.c_char_p
+    lib.hil_rt_dropped.restype = ctypes.c_uint64
+    assert lib.hil_frame_size() == FRAME_DTYPE.itemsize
+    assert lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
+    return lib
+
+
 class Hil:
     """The in-process plant + drive (one per process: the C side holds them in statics)."""
 
     _lock = threading.RLock()
 
     def __init__(self, plant_id: int | None = None, drive_id: int | None = None) -> None:
-        path = BUILD / "libhil.so"
-        if not path.exists():
-            raise FileNotFoundError(f"{path} is missing: run `make all`")
-        self.lib = ctypes.CDLL(str(path))
-        self.lib.hil_open.argtypes = [ctypes.c_uint8, ctypes.c_uint8]
-        self.lib.hil_send.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint8]
-        self.lib.hil_recv.argtypes = [ctypes.POINTER(_Frame)]
-        self.lib.hil_sdo.argtypes = [ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint16, ctypes.c_char_p]
-        self.lib.hil_run.argtypes = [ctypes.c_uint32]
-        self.lib.hil_run.restype = ctypes.c_uint32
-        self.lib.hil_set_recorder.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
-        self.lib.hil_recorded.restype = ctypes.c_uint32
-        self.lib.hil_record_dropped.restype = ctypes.c_uint64
-        self.lib.hil_now_us.restype = ctypes.c_int64
-        self.lib.hil_plant_period.restype = ctypes.c_uint64
-        self.lib.hil_faults.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
-        self.lib.hil_fault_log.argtypes = [ctypes.POINTER(FaultEvent), ctypes.c_uint32]
-        self.lib.hil_fault_log.restype = ctypes.c_uint32
-        self.lib.hil_fault_overflows.restype = ctypes.c_uint64
-        self.lib.hil_nodes_down.restype = ctypes.c_uint32
-        self.lib.hil_node_state.argtypes = [ctypes.c_uint32]
-        self.lib.hil_node_state.restype = ctypes.c_uint32
-        self.lib.hil_linger.argtypes = [ctypes.c_int64]
-        self.lib.hil_take.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
-        self.lib.hil_take.restype = ctypes.c_uint32
-        self.lib.hil_run_realtime.argtypes = [ctypes.c_uint32]
-        self.lib.hil_run_realtime.restype = ctypes.c_int32
-        self.lib.hil_realtime_note.restype = ctypes.c_char_p
-        self.lib.hil_rt_dropped.restype = ctypes.c_uint64
-        assert self.lib.hil_frame_size() == FRAME_DTYPE.itemsize
-        assert self.lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
+        self.lib = _lib()
         self._rec: np.ndarray | None = None
         with self._lock:
             self.lib.hil_open(
