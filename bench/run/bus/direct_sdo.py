@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import ctypes
 import struct
+import types
 from typing import TYPE_CHECKING
 
 from can import CanOperationError
@@ -43,8 +44,10 @@ class DirectSdo:
     def __init__(self, client: SdoClient, hil: Hil) -> None:
         self.client = client
         self.hil = hil
-        self._upload = client.upload
-        self._download = client.download
+        # canopen's own transfers (segmented ones), from the class: a client that had a DirectSdo before (a kept
+        # master, bench/run/loop/master.py) must not call the earlier one, bound to an earlier bus
+        self._upload = types.MethodType(type(client).upload, client)
+        self._download = types.MethodType(type(client).download, client)
         self._req = ctypes.create_string_buffer(8)
         self._resp = ctypes.create_string_buffer(8)
 

@@ -20,11 +20,9 @@ from pathlib import Path
 from typing import Any
 
 import can
-import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench.canbus import ensure_vcan, link_info, prepare_can_link
-from bench.eds import load as load_od
 from bench.run.bus.buses import VCAN
 from bench.run.bus.direct import DirectBus, Hil
 from bench.run.bus.direct_sdo import DirectSdo
@@ -32,6 +30,7 @@ from bench.run.bus.gateway import FaultGateway
 from bench.run.bus.liveness import STARVED_S, Liveness
 from bench.run.bus.nodes import NodeProcess
 from bench.run.bus.slcan_bridge import SlcanBridge
+from bench.run.loop import master
 from bench.run.loop.bus_loop import BusLoop
 from bench.run.loop.configure import Configurator, SettingRefused
 from bench.run.loop.direct_loop import DirectLoop
@@ -54,10 +53,11 @@ class Session:
         self.hil: Hil | None = None
         self.procs: list[NodeProcess | SlcanBridge] = []
         self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}  # over a bus: the processes by node
-        self.net = canopen.Network()
-        # The OD objects read once per process (bench/eds.py), shared with the decoder's SDO follower.
-        self.plant = canopen.RemoteNode(opts.plant_id, load_od("plant", opts.plant_id))
-        self.drive = canopen.RemoteNode(opts.drive_id, load_od("drive", opts.drive_id))
+        # the master's Network and RemoteNodes (bench/run/loop/master.py): in direct mode kept between runs
+        direct = opts.bus == "direct"
+        self.master = (master.take if direct else master.new_master)(opts.plant_id, opts.drive_id)
+        self._kept = direct  # given back at close
+        self.net, self.plant, self.drive = self.master.net, self.master.plant, self.master.drive
         self.config = Configurator(sc, opts, self.plant, self.drive)
         self.direct: DirectLoop | None = None  # direct mode: the in-process loop (its on_chunk, on_stop)
         self.kernel_filters: list[dict[str, int]] | None = None
@@ -128,18 +128,8 @@ class Session:
             self.net.bus.attach(self.net.listeners)
         else:
             self.net.connect()
-        self.net.add_node(self.plant)
-        self.net.add_node(self.drive)
-        for n in (self.plant, self.drive):
+        for n in (self.plant, self.drive):  # added and subscribed by master.new_master
             n.sdo.RESPONSE_TIMEOUT = MCU_STALL_S if n is self.drive and self.opts.drive == "mcu" else 5.0
-            # An SDO frame is always 8 bytes (CiA 301); canopen's client takes any frame on the identifier for
-            # the answer and fails on a short one (struct.error): a foreign frame there is dropped instead.
-            self.net.unsubscribe(n.sdo.tx_cobid, n.sdo.on_response)
-            self.net.subscribe(n.sdo.tx_cobid, _sdo_answers_only(n.sdo))
-            # canopen's EMCY consumer keeps every EMCY in an unbounded list, at a cost per frame: the decoder
-            # lists the EMCYs from the record and the liveness judge takes 0x8130 itself, so a node that
-            # floods EMCYs (one per foreign SYNC) must not slow the master's notifier thread with it
-            self.net.unsubscribe(0x80 + n.id, n.emcy.on_emcy)
             if self.hil is not None:  # expedited transfers in one C call each (bench/run/bus/direct_sdo.py)
                 DirectSdo(n.sdo, self.hil).install()
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
@@ -221,6 +211,9 @@ class Session:
                 self.net.disconnect()
             except Exception:  # noqa: BLE001
                 pass
+            if self._kept:  # once: a second close gives nothing back
+                self._kept = False
+                master.give_back(self.master)
             for p in self.procs:
                 p.stop()
             if self.gateway is not None:
@@ -338,14 +331,6 @@ class Session:
             for name in names:
                 out[f"{node_name}.{obj}.{name}"] = _read(node.sdo[obj][name])
         return out
-
-
-def _sdo_answers_only(sdo):  # type: ignore[no-untyped-def]
-    def on_response(can_id: int, data: bytearray, ts: float) -> None:
-        if len(data) == 8:
-            sdo.on_response(can_id, data, ts)
-
-    return on_response
 
 
 def _read(var, attempts: int = 3):  # type: ignore[no-untyped-def]
