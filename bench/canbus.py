@@ -113,8 +113,13 @@ def link_info(name: str) -> dict[str, Any] | None:
         return None
     if proc.returncode != 0:
         return None
+    return link_info_json(proc.stdout)
+
+
+def link_info_json(text: str) -> dict[str, Any] | None:
+    """link_info from the JSON `ip -details -statistics -json link show NAME` printed (here, or in the CAN box)."""
     try:
-        link = json.loads(proc.stdout)[0]
+        link = json.loads(text)[0]
     except (ValueError, IndexError):
         return None
     info = link.get("linkinfo", {})

@@ -7,7 +7,7 @@ import sys
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from bench import cli_runs, cli_tools
+    from bench import cli_box, cli_runs, cli_tools
 
     p = argparse.ArgumentParser(
         prog="bench",
@@ -18,6 +18,7 @@ def build_parser() -> argparse.ArgumentParser:
     for add in (
         cli_tools.add_doctor,
         cli_tools.add_vm,
+        cli_box.add_box,
         cli_tools.add_pingpong,
         cli_tools.add_plan,
         cli_runs.add_run,

@@ -36,6 +36,9 @@ else
     can_rc=$?
 fi
 
+# the CAN box a test may have left up (tests/host/test_box.py stops its own): no QEMU outlives the suite
+.venv/bin/bench box down >/dev/null 2>&1 || true
+
 $PY -m bench.tools.testsummary "$RES"/*.xml
 sum_rc=$?
 if [ $host_rc -ne 0 ] || [ $can_rc -ne 0 ] || [ $sum_rc -ne 0 ]; then

@@ -59,8 +59,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--bus",
         default="vcan0",
-        help="'direct' (in-process, no bus), or a CAN channel: vcan0 (default; the VM supplies it on "
-        "hosts without CAN), can0, ...",
+        help="'direct' (in-process, no bus), or a CAN channel: vcan0 (default; on hosts without kernel CAN the "
+        "CAN box supplies it: one VM booted once, `bench box`), can0, ...",
+    )
+    p.add_argument(
+        "--box",
+        action="store_true",
+        help="run the vcan buses in the CAN box even where this host could carry them (also BENCH_BOX=1); "
+        "without it the box is used only where the host cannot (no SocketCAN, or vcan cannot be made)",
     )
     p.add_argument(
         "--interface",

@@ -39,6 +39,9 @@ class RunOptions:
     # (10 heartbeats: load in a VM must not look like a dead node)
     heartbeat_timeout_ms: int = 1000
     stall_s: float = 10.0  # both nodes alive, the period index still for this long: a frame was lost
+    # vcan buses in the CAN box (bench/run/bus/box) even where the host could carry them (--box, BENCH_BOX=1);
+    # without it the box is used only where the host's kernel cannot (bench/run/bus/buses.py box_reason)
+    box: bool = False
 
 
 # The Cortex-M4F image of `--drive mcu` runs under qemu-system-arm's emulation (TCG) behind a serial SLCAN
@@ -71,4 +74,5 @@ def run_options(args: Any, out: Path) -> RunOptions:
         drive=drive,
         drive_tty=getattr(args, "drive_tty", None),
         heartbeat_timeout_ms=MCU_HEARTBEAT_TIMEOUT_MS if drive == "mcu" else RunOptions.heartbeat_timeout_ms,
+        box=getattr(args, "box", False),
     )

@@ -11,6 +11,7 @@ feeds a log's frames through the same `Pipeline`.
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -230,7 +231,7 @@ def run_scenario(
     `envelopes=False` leaves out the signals' envelopes (RunResult.envelopes, for an overview plot: a sweep's
     point draws none), the same summary for less work.
     Over SocketCAN the frames come from candump's log in `opts.out` (which must be set)."""
-    from bench.run.record.sources import CandumpSource, DirectSource, ListenerSource
+    from bench.run.record.sources import BoxCandumpSource, CandumpSource, DirectSource, ListenerSource
 
     opts = opts or RunOptions()
     sinks = list(sinks or [])
@@ -241,14 +242,20 @@ def run_scenario(
     t0 = time.monotonic()
     sess = Session(sc, opts)
     source: Any = None
+    ran = False
     try:
         if opts.out is not None:
             opts.out.mkdir(parents=True, exist_ok=True)
+        if opts.bus != "direct" and opts.interface == "socketcan":
+            sess.box = _lease_box(sess)
         if opts.bus != "direct" and opts.interface == "socketcan" and opts.record:
             if opts.out is None:
                 raise ValueError("a run over SocketCAN needs opts.out for candump's log")
             sess.prepare_links()
-            source = CandumpSource(opts.bus, opts.out / "candump.log")
+            if sess.box is not None:
+                source = BoxCandumpSource(sess.box, opts.bus)
+            else:
+                source = CandumpSource(opts.bus, opts.out / "candump.log")
         sess.open()
         if sess.hil is not None and sess.direct is not None and opts.record:
             # a chunk's worth of frames decoded at once (a real-time run's every 0.2 s: its live view)
@@ -265,21 +272,50 @@ def run_scenario(
                 pipe.feed(source.drain())
 
         run_wall, stopped = _configure_and_run(sess, progress, tick)
+        ran = True
     finally:
         sess.close()
         if source is not None:
             source.stop()
-    if source is not None:
-        pipe.feed(source.drain(final=True), last=True)
-        if hasattr(source, "cleanup"):
-            source.cleanup()
-    injected = (sc.faults, *sess.fault_log()) if sc.faults else None
+        if not ran:
+            _end_box(sess, opts.out)
+    try:
+        if source is not None:
+            pipe.feed(source.drain(final=True), last=True)
+            if hasattr(source, "cleanup"):
+                source.cleanup()
+        injected = (sc.faults, *sess.fault_log()) if sc.faults else None
+    finally:
+        _end_box(sess, opts.out)
     res = pipe.finish(
         sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped, sess.links, injected
     )
     if collector is not None:
         res.trace = collector.trace
     return res
+
+
+def _lease_box(sess: Session) -> Any:
+    """The run's share of the CAN box when its vcan buses go there (buses.box_reason), else None; the first
+    run of a box says why it is used."""
+    from bench.run.bus.box.lease import acquire
+    from bench.run.bus.buses import box_reason, box_wanted
+
+    if not box_wanted(sess.opts.box):
+        return None
+    names = tuple(dict.fromkeys((sess.opts.bus, sess.drive_side_bus())))
+    why = box_reason(names[0], names[1] if len(names) > 1 else None, True)
+    if why is None:
+        return None
+    return acquire(names, say=lambda text: print(f"{text} [{why}]", file=sys.stderr, flush=True))
+
+
+def _end_box(sess: Session, keep: Path | None) -> None:
+    """The run's share of the box given back (what is left of its processes killed, its namespace removed),
+    what it wrote in the box (the processes' output, candump's log) moved into the run's folder. Once."""
+    lease, sess.box = sess.box, None
+    if lease is not None:
+        lease.close(keep=keep)
 
 
 def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any] | None, dict[str, dict[str, Any]]]:

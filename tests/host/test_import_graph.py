@@ -120,7 +120,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
     ("a run", ("bench.run",)),
     ("studies and masters", ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults")),
     ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
-    ("the command line", ("bench.cli", "bench.cli_tools", "bench.cli_runs")),
+    ("the command line", ("bench.cli", "bench.cli_tools", "bench.cli_runs", "bench.cli_box")),
     ("the pytest plugin", ("bench.pytest_plugin",)),
 ]
 

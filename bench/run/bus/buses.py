@@ -28,6 +28,8 @@ def bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     if args.bus == "direct" or args.interface != "socketcan":
         return None, False
     names = list(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
+    if all(VCAN.fullmatch(n) for n in names) and box_wanted(getattr(args, "box", False)):
+        return None, False  # the CAN box (run_scenario leases it): every line of Python stays here
     if not probe_af_can().af_can:
         problem = _vm_problem(args, "this host's kernel has no SocketCAN")
         return problem, problem is None
@@ -102,3 +104,37 @@ def _mcu_problem(args: argparse.Namespace) -> str | None:
         if shutil.which(tool) is None:
             return f"--drive mcu needs {tool}: apt-get install {pkg} (or make setup)"
     return None
+
+
+def box_reason(bus: str, drive_bus: str | None = None, force: bool = False) -> str | None:
+    """Why a run on these vcan buses goes through the CAN box (bench/run/bus/box), or None when the host's
+    own kernel carries them. Only vcan buses go to the box; the emulated controllers (can0 ..) and --drive
+    mcu boot a VM of their own (bench/run/vm_run.py)."""
+    import os
+
+    from bench.canbus import host_has_vcan, probe_af_can
+
+    names = [n for n in (bus, drive_bus) if n]
+    if not names or not all(VCAN.fullmatch(n) for n in names):
+        return None
+    if force or os.environ.get("BENCH_BOX") == "1":
+        return "asked for (--box or BENCH_BOX=1)"
+    probe = probe_af_can()
+    if not probe.af_can:
+        return f"this host's kernel has no SocketCAN ({probe.detail})"
+    missing = [n for n in names if not host_has_vcan(n)]
+    if missing:
+        return (
+            f"SocketCAN works here but {missing[0]} cannot be made (no vcan module, or no CAP_NET_ADMIN: "
+            "a container without --cap-add NET_ADMIN)"
+        )
+    return None
+
+
+def box_wanted(force: bool) -> bool:
+    """Whether vcan runs go to the CAN box: asked for (--box, BENCH_BOX=1). Not yet the default where the host
+    cannot carry vcan (docs/VM.md: the CAN test phase still runs in a VM of its own until it runs on the host
+    against the box)."""
+    import os
+
+    return force or os.environ.get("BENCH_BOX") == "1"

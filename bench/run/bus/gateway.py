@@ -20,7 +20,9 @@ KINDS = ("pass", "drop", "delay", "duplicate", "corrupt", "reorder", "freeze", "
 
 
 class FaultGateway:
-    def __init__(self, rules: str, side_a: str, side_b: str, out: Path, pids: dict[str, int]) -> None:
+    def __init__(self, rules: str, side_a: str, side_b: str, out: Path, pids: dict[str, int], box: Any = None) -> None:
+        self.box = box  # a CAN box lease: the gateway runs in the box, its files in the lease's stage
+        out = box.stage if box is not None else out
         self.rules_path = out / "fault_rules.txt"
         self.log_path = out / LOG_NAME
         self.out_path = out / "fault_gateway.out"
@@ -32,16 +34,19 @@ class FaultGateway:
         for side, name in (("a", "plant"), ("b", "drive")):
             if name in pids:
                 self.argv += [f"--pid-{side}", str(pids[name])]
-        self.proc: subprocess.Popen[bytes] | None = None
+        self.proc: Any = None  # subprocess.Popen or lease.BoxPopen
         self._fh: Any = None
 
     def start(self, timeout_s: float = 10.0) -> FaultGateway:
         self.log_path.unlink(missing_ok=True)
-        self._fh = open(self.out_path, "wb")  # noqa: SIM115 - closed in stop()
-        self.proc = subprocess.Popen(self.argv, stdout=self._fh, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        if self.box is not None:
+            self.proc = self.box.popen(self.argv, self.out_path)
+        else:
+            self._fh = open(self.out_path, "wb")  # noqa: SIM115 - closed in stop()
+            self.proc = subprocess.Popen(self.argv, stdout=self._fh, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:  # it says so once both sockets are bound
-            if b"rule(s)" in self.out_path.read_bytes():
+            if self.out_path.exists() and b"rule(s)" in self.out_path.read_bytes():
                 return self
             if self.proc.poll() is not None:
                 break

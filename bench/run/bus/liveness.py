@@ -23,13 +23,12 @@ import signal
 import threading
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import canopen
 
 from bench.emcy import emcy_codes
-from bench.run.bus.nodes import NodeProcess
+from bench.run.bus.nodes import NodeProcess, process_state
 
 NMT_STATES = canopen.nmt.NMT_STATES  # a heartbeat's state byte -> its name (CiA 301)
 EMCY_HEARTBEAT = emcy_codes("heartbeat")[0]  # a node's heartbeat consumer lost its producer (common.ini)
@@ -216,9 +215,8 @@ class Liveness:
         pid = proc.proc.pid if proc is not None and proc.proc is not None else None
         if pid is None or self.starved_s <= self.timeout_s:
             return self.timeout_s
-        try:  # /proc/PID/stat: "pid (comm) state ...", comm may hold spaces and parentheses
-            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-        except (OSError, IndexError):
+        state = process_state(proc.proc)
+        if state is None:
             return self.timeout_s
         return self.timeout_s if state in ("T", "t") else self.starved_s
 
@@ -232,6 +230,15 @@ class Liveness:
         now = time.monotonic()
         for name, proc in self.procs.items():
             rc = proc.proc.poll() if proc.proc is not None else None
+            if rc is not None and getattr(proc.proc, "gone", None):  # the CAN box (its VM) ended
+                return LoopStopped(
+                    "node_lost",
+                    f"{self._who(name)}: the CAN box it ran in ended during the run ({proc.proc.gone}); "
+                    "the next run starts a new box",
+                    name,
+                    self.nodes[name],
+                    details={"cause": "box_lost"},
+                )
             if rc is not None:
                 return LoopStopped(
                     "node_lost",

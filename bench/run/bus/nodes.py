@@ -15,14 +15,18 @@ from bench.paths import binary
 class NodeProcess:
     """A C CANopen node process; terminated (SIGTERM, then SIGKILL) on exit, whatever happens."""
 
-    def __init__(self, name: str, args: list[str], log: Path | None = None) -> None:
+    def __init__(self, name: str, args: list[str], log: Path | None = None, box: Any = None) -> None:
         self.name = name
         self.argv = [str(binary(name)), *args]
         self.log = log
-        self.proc: subprocess.Popen[bytes] | None = None
+        self.box = box  # a CAN box lease (bench/run/bus/box/lease.py): the process runs in the box's namespace
+        self.proc: Any = None  # subprocess.Popen, or lease.BoxPopen (the same face)
         self._log_fh = None
 
     def start(self) -> NodeProcess:
+        if self.box is not None:  # its output written by the guest into the lease's stage (shared)
+            self.proc = self.box.popen(self.argv, None if self.log is None else self.box.stage / self.log.name)
+            return self
         out = subprocess.DEVNULL
         if self.log is not None:
             self._log_fh = open(self.log, "wb")  # noqa: SIM115 - closed in stop()
@@ -45,7 +49,7 @@ class NodeProcess:
         self.stop()
 
 
-def end_process(proc: subprocess.Popen[bytes], log_fh: Any, timeout_s: float, wake: bool = False) -> int:
+def end_process(proc: Any, log_fh: Any, timeout_s: float, wake: bool = False) -> int:
     """SIGTERM (and SIGCONT when `wake`: a frozen (SIGSTOP) process gets its SIGTERM at once), SIGKILL after
     `timeout_s`; closes its log file; returns its exit status."""
     if proc.poll() is None:
@@ -60,6 +64,18 @@ def end_process(proc: subprocess.Popen[bytes], log_fh: Any, timeout_s: float, wa
     if log_fh:
         log_fh.close()
     return proc.returncode
+
+
+def process_state(proc: Any) -> str | None:
+    """The kernel's state letter of a running process (R, S, T when stopped ...), here or in the CAN box."""
+    if proc is None or proc.pid is None:
+        return None
+    if hasattr(proc, "state"):  # lease.BoxPopen: asked of the guest
+        return proc.state()  # type: ignore[no-any-return]
+    try:  # /proc/PID/stat: "pid (comm) state ...", comm may hold spaces and parentheses
+        return Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return None
 
 
 def in_vm() -> bool:

@@ -66,6 +66,9 @@ class Session:
         self.gateway: FaultGateway | None = None  # the fault injector between the buses (faults over SocketCAN)
         # each SocketCAN interface of the run: what the kernel reports of it before and after (canbus.link_info)
         self.links: dict[str, dict[str, Any]] = {}
+        # the run's share of the CAN box (bench/run/bus/box/lease.py) when its buses are in the box: the node
+        # processes, the gateway and the recorder run there, the master here over the slot's SLCAN port
+        self.box: Any = None
 
     # ---------------------------------------------------------------- bus
     def drive_side_bus(self) -> str:
@@ -106,6 +109,10 @@ class Session:
         """CAN controllers up at their bit rate (canbus.prepare_can_link), their state before the run noted;
         before anything listens on them (the recorder). Once per session."""
         if self.links or self.opts.bus == "direct" or self.opts.interface != "socketcan":
+            return
+        if self.box is not None:  # in the run's namespace of the box
+            infos = self.box.link_infos(list(dict.fromkeys((self.opts.bus, self.drive_side_bus()))))
+            self.links.update({name: {"before": info} for name, info in infos.items()})
             return
         for name in dict.fromkeys((self.opts.bus, self.drive_side_bus())):
             if VCAN.fullmatch(name) and self.sc.faults:
@@ -157,7 +164,10 @@ class Session:
         self.prepare_links()
         if self.opts.start_plant:
             self.node_procs["plant"] = NodeProcess(
-                "plant_node", ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)], log("plant_node")
+                "plant_node",
+                ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)],
+                log("plant_node"),
+                box=self.box,
             )
         if self.opts.start_drive and self.opts.drive == "mcu":
             if self.opts.drive_tty is None:
@@ -165,7 +175,10 @@ class Session:
             self.node_procs["drive"] = SlcanBridge(self.opts.drive_tty, drive_bus, log=log("slcand"))
         elif self.opts.start_drive:
             self.node_procs["drive"] = NodeProcess(
-                "drive_node", ["--iface", drive_bus, "--node-id", str(self.opts.drive_id)], log("drive_node")
+                "drive_node",
+                ["--iface", drive_bus, "--node-id", str(self.opts.drive_id)],
+                log("drive_node"),
+                box=self.box,
             )
         for proc in self.node_procs.values():
             self.procs.append(proc.start())
@@ -174,7 +187,12 @@ class Session:
             if out is None:
                 raise ValueError("a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)")
             rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
-            self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids).start()
+            self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids, box=self.box).start()
+        if self.box is not None:
+            # the slot's SLCAN port (python-can's slcan interface): the box passes it SDO answers and heartbeats
+            # only (box/life.py MASTER_IDS), and the hold announcement once configured (run())
+            self.net.bus = can.Bus(interface="slcan", channel=self.box.master_channel, sleep_after_open=0)
+            return
         # The master only needs its nodes' SDO answers and heartbeats: filtering in the kernel keeps the
         # PDO stream (thousands of frames per second) out of this process's socket, which a slow Python
         # (the VM) could not drain, and which the recorder records anyway. EMCYs stay out too: a node
@@ -218,8 +236,9 @@ class Session:
                 p.stop()
             if self.gateway is not None:
                 self.gateway.stop()  # after the nodes: it writes its log of actions
+            after = self.box.link_infos(list(self.links)) if self.box is not None and self.links else {}
             for name, rec in self.links.items():
-                rec["after"] = link_info(name)
+                rec["after"] = after[name] if self.box is not None else link_info(name)
 
     def configure(self) -> None:
         self.config.configure()
@@ -281,6 +300,8 @@ class Session:
             self.net.subscribe(self.config.hold_cob, self.bus_loop.on_hold)
             if self.kernel_filters is not None:
                 self.net.bus.set_filters([*self.kernel_filters, {"can_id": self.config.hold_cob, "can_mask": 0x7FF}])
+            elif self.box is not None:
+                self.box.add_master_ids([(self.config.hold_cob, 0x7FF)])
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x01)
         if self.liveness is not None:

@@ -1,0 +1,80 @@
+"""`bench box up|status|down`: the CAN box, one VM booted once that carries the vcan buses of every run on a
+host whose kernel has no CAN (bench/run/bus/box, docs/VM.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+
+def _cmd_box(args: argparse.Namespace) -> int:
+    from bench.run.bus.box import life
+    from bench.run.bus.box.control import BoxError
+
+    if args.action == "up":
+        if args.idle_timeout is not None and args.idle_timeout < 0:
+            print(f"bench box up: --idle-timeout = {args.idle_timeout:g}: seconds >= 0 (0: never)", file=sys.stderr)
+            return 2
+        if life.read_info() is not None and args.idle_timeout is not None:
+            print("bench box up: the box is already up; its idle timeout stays (bench box down first)", file=sys.stderr)
+        t0 = time.monotonic()
+        try:
+            info = life.up(args.idle_timeout)
+        except BoxError as exc:
+            print(f"bench box up: {exc}", file=sys.stderr)
+            return 1
+        took = time.monotonic() - t0
+        print(f"bench box: up (ready after {took:.1f} s; powers off after {info.idle_timeout_s:g} s unused)")
+        return _print_status(life.status(), args.json)
+    if args.action == "down":
+        print("bench box: stopped" if life.down() else "bench box: no box was running")
+        return 0
+    return _print_status(life.status(), args.json)
+
+
+def _print_status(st: dict[str, Any], as_json: bool) -> int:
+    if as_json:
+        print(json.dumps(st, indent=2))
+        return 0 if st["state"] == "up" else 3
+    if st["state"] == "down":
+        last = st.get("last_end")
+        print("CAN box: down" + (f" (last: {last['why']})" if last else ""))
+        return 3
+    idle = st.get("idle_s")
+    print(
+        f"CAN box: {st['state']}, up {st['up_s']:.0f} s (booted in {st['booted_s'] or '?'} s), keeper PID "
+        f"{st['keeper_pid']}, powers off after {st['idle_timeout_s']:g} s unused"
+        + (f" (idle {idle:.0f} s)" if idle is not None else "")
+    )
+    print("slot  run                          tap: python-can can.Bus(interface=..., channel=...)")
+    for s in st["slots"]:
+        who = f"PID {s['pid']} on {', '.join(s['buses'])}" if s.get("in_use") else "free"
+        print(f"{s['slot']:>4}  {who:<28} interface={s['tap']['interface']!r} channel={s['tap']['channel']!r}")
+    print("A slot's tap sees (and may send) every frame of its run's bus (vcan0 of that run); runs get the free slots.")
+    return 0 if st["state"] == "up" else 3
+
+
+def add_box(sub: Any) -> None:
+    b = sub.add_parser(
+        "box",
+        help="the CAN box: one VM that carries vcan buses where the host's kernel has no CAN (up, status, down)",
+        description="The CAN box: on a host whose kernel has no SocketCAN (or cannot make vcan links), runs over "
+        "vcan use one VM booted once (~15-60 s) instead of one per run. The VM holds only what needs the "
+        "kernel (the vcan links, the C node processes, candump, the fault gateway); the bench's Python stays "
+        "on the host and reaches each run's bus over SLCAN, which python-can speaks. `bench run --bus vcan0` "
+        "starts a box itself when none is up; the box powers off after --idle-timeout seconds unused. "
+        "Exit status of status: 0 up, 3 down.",
+    )
+    b.add_argument("action", choices=("up", "status", "down"), help="boot (or find) the box, show it, stop it")
+    b.add_argument(
+        "--idle-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="up: power off after S seconds without a run (default 600, or BENCH_BOX_IDLE_S; 0: never)",
+    )
+    b.add_argument("--json", action="store_true", help="status as JSON (the tap channels of each slot)")
+    b.set_defaults(func=_cmd_box)

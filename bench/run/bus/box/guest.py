@@ -1,0 +1,111 @@
+"""The CAN box's guest side: the shell script virtme-ng runs in the VM once, for the box's whole life.
+
+It loads the kernel's CAN modules, attaches every bridge port (a virtio console, /dev/hvcN, which QEMU joins
+to a TCP socket on the host) to the kernel's SLCAN line discipline with can-utils' slcand, and then serves the
+control channel (the virtio port box.control): one request a line, `SEQ VERB ARG`; the answer `SEQ RC N` and
+the N lines of the output (stdout and stderr).
+
+Only what needs the kernel lives here: links, node processes, candump, the fault gateway, can-gw routes. The
+agent is bash (no Python in the guest: it starts in ~15 s there and runs ~50x slower); a request is one
+command line the host wrote (bench/run/bus/box/lease.py), run in a subshell of the agent (a fork, no exec:
+each exec costs tens of milliseconds under TCG), so the agent itself stays small.
+"""
+
+from __future__ import annotations
+
+import shlex
+from pathlib import Path
+
+# Verbs of the control channel (bench/run/bus/box/control.py sends them):
+#   sh LINE    run the command line (one line) in a subshell, answer its status and output (stdout+stderr)
+#   ping -     answer 0 and the guest's uptime
+#   down -     answer 0, then stop every process and power the guest off
+AGENT = r"""
+ctl=
+for k in $(seq 100); do
+  for d in /sys/class/virtio-ports/*; do
+    [ "$(cat "$d/name" 2>/dev/null)" = box.control ] && ctl=/dev/${d##*/}
+  done
+  [ -n "$ctl" ] && [ -e "$ctl" ] && break; sleep 0.05
+done
+[ -n "$ctl" ] || fail "no control port (box.control)"
+exec 3<>"$ctl"
+mkfifo /run/box/nap && exec 4<>/run/box/nap
+out=/run/box/out
+running=1
+while [ $running = 1 ]; do
+  # a virtio port reads end-of-file while no host is connected: nap (a read of an empty fifo, no fork)
+  if ! IFS=' ' read -r -u 3 seq verb arg; then read -r -t 0.02 -u 4 _; continue; fi
+  seq=${seq//[^0-9]/}
+  [ -n "$seq" ] || continue
+  case "$verb" in
+    sh) ( eval "$arg" ) >"$out" 2>&1 </dev/null; rc=$? ;;
+    ping) read -r up _ </proc/uptime; printf '%s\n' "$up" >"$out"; rc=0 ;;
+    down) : >"$out"; rc=0; running=0 ;;
+    *) printf 'unknown verb %s\n' "$verb" >"$out"; rc=127 ;;
+  esac
+  mapfile -t lines <"$out"
+  printf '%s %s %s\n' "$seq" "$rc" "${#lines[@]}" >&3
+  [ ${#lines[@]} = 0 ] || printf '%s\n' "${lines[@]}" >&3
+done
+"""
+
+
+def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
+    """Each slot's namespace b<s>, made once at boot (under TCG each program started costs tens of
+    milliseconds: a run then starts none to get its buses): vcan0 and vcan1 (the fault gateway's drive side),
+    its two bridge ports, and the can-gw routes - the tap sends and sees every frame of vcan0, the master's port
+    sends every frame and sees `master_ids` only ((identifier, mask); python-can's SLCAN reader takes a byte at
+    a time, the PDO stream stays in the box where candump records it). QEMU drops what is routed to a port no
+    host has connected: a master that connects later sees no old frame."""
+    rules = ["cangw -A -s vcan0 -d $t -e", "cangw -A -s $t -d vcan0 -e", "cangw -A -s $m -d vcan0 -e"]
+    rules += [f"cangw -A -s vcan0 -d $m -e -f {c:03X}:{k:03X}" for c, k in master_ids]
+    batch = "\\n".join(
+        ["link set lo up"]
+        + [f"link add {v} type vcan\\nlink set {v} txqueuelen 4000 up" for v in ("vcan0", "vcan1")]
+        + ["link set $m txqueuelen 1000 up", "link set $t txqueuelen 1000 up"]
+    )
+    return [
+        f"for s in $(seq 1 {slots}); do",
+        "  m=bslc$((2 * s - 1)); t=bslc$((2 * s)); ns=b$s",
+        '  ip netns add $ns || fail "slot $s"',
+        '  printf "link set $m netns $ns\\nlink set $t netns $ns\\n" | ip -batch - || fail "slot $s ports"',
+        f'  printf "{batch}\\n" | ip -n $ns -batch - || fail "slot $s links"',
+        f'  ip netns exec $ns bash -c "{" && ".join(rules)}" || fail "slot $s routes"',
+        "done",
+    ]
+
+
+def guest_script(state_dir: Path, ports: int, env_lines: list[str], master_ids: list[tuple[int, int]]) -> str:
+    """The job script: modules, the bridge ports hvc0 .. hvc<ports-1> as SLCAN links bslc1 .. bslc<ports>, two
+    a slot in its namespace (_slot_lines), a ready mark in `state_dir`, the control loop, and power-off when it
+    ends (`down`, or the host closing the box)."""
+    ready = shlex.quote(str(state_dir / "ready"))
+    failed = shlex.quote(str(state_dir / "guest.failed"))
+    lines = [
+        "#!/bin/bash",
+        "set -u",
+        *env_lines,
+        f"rm -f {ready}",
+        "mkdir -p /run/box /run/netns",
+        'fail() { echo "$1" > ' + failed + "; sync; (poweroff -f || echo o > /proc/sysrq-trigger) >/dev/null 2>&1; }",
+        "modprobe -a vcan can_raw can_bcm slcan can-gw || fail 'modprobe vcan can_raw can_bcm slcan can-gw failed'",
+        f"for i in $(seq 1 {ports}); do",
+        '  t=/dev/hvc$((i - 1)); for k in $(seq 100); do [ -e "$t" ] && break; sleep 0.05; done',
+        '  stty -F "$t" raw -echo || fail "no $t (the bridge ports did not appear)"',
+        '  slcand -o -c -s8 "$t" bslc$i || fail "slcand on $t failed"',
+        "done",
+        f"for i in $(seq 1 {ports}); do",
+        "  for k in $(seq 100); do [ -e /sys/class/net/bslc$i ] && break; sleep 0.05; done",
+        '  ip link set bslc$i txqueuelen 1000 && ip link set bslc$i up || fail "bslc$i did not come up"',
+        "done",
+        *_slot_lines(ports // 2, master_ids),
+        f"echo ready > {ready}; sync",
+        AGENT.strip("\n"),
+        # the end: every process of every run, then the guest
+        "for ns in $(ip netns list | cut -d' ' -f1); do ip netns pids \"$ns\" | xargs -r kill -9; done",
+        "pkill -9 slcand; sync",
+        "(poweroff -f || echo o > /proc/sysrq-trigger) >/dev/null 2>&1",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,282 @@
+"""A run's share of the CAN box: a slot (a lock file on the host, held while the run runs), its own buses in a
+network namespace of the guest (the vcan links the run names, `vcan0` and with faults `vcan1`: two runs at
+once never share a bus and keep the same names and node-IDs), the slot's two bridge ports in that namespace
+(the master's, routed by can-gw filtered to what the master listens to; a tap with every frame, for a user's
+python-can script), a staging folder shared with the guest for the processes' output and candump's log, and
+the processes it started there (BoxPopen: a subprocess.Popen's face for a process in the guest)."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import shlex
+import shutil
+import signal
+import time
+import uuid
+from pathlib import Path
+from typing import IO, Any
+
+from bench.run.bus.box import life
+from bench.run.bus.box.control import BoxError, BoxGone, Control
+
+POLL_CACHE_S = 0.25  # a process's state asked of the guest at most this often (liveness looks every 0.1 s)
+
+
+class Lease:
+    def __init__(self, info: life.BoxInfo, slot: int, lock: IO[bytes], links: tuple[str, ...]) -> None:
+        self.info = info
+        self.slot = slot
+        self._lock = lock
+        self.links = links
+        self.bus = links[0]  # the plant's, the master's and the recorder's (the tap's too)
+        self.routed: list[tuple[Any, ...]] = []  # (bus, identifier, mask) routed to the master's port by the run
+        self.ns = f"b{slot}"
+        self.master_link = f"bslc{2 * slot - 1}"
+        self.tap_link = f"bslc{2 * slot}"
+        self.ctl: Control = info.control
+        self.stage = life.BOX_DIR / "runs" / f"{slot}-{uuid.uuid4().hex[:8]}"
+        self.procs: list[BoxPopen] = []
+        self.closed = False
+
+    # ---------------------------------------------------------------- channels
+    @property
+    def master_channel(self) -> str:
+        return life.channel(self.info.master_port(self.slot))
+
+    @property
+    def tap_channel(self) -> str:
+        return life.channel(self.info.tap_port(self.slot))
+
+    def in_ns(self, argv: list[str]) -> str:
+        return f"ip netns exec {self.ns} " + " ".join(shlex.quote(a) for a in argv)
+
+    # ---------------------------------------------------------------- set-up
+    def _prepare(self) -> None:
+        """The slot's namespace as a run needs it. Made at boot with vcan0, vcan1 and the routes (guest.py);
+        a run that ended cleanly leaves nothing, so this asks nothing of the box then. After a run that died
+        (SIGKILL, a crash) its processes are killed first; a vcan the run names that the slot lacks is made."""
+        self.stage.mkdir(parents=True)
+        meta = _slot_meta(self.slot)
+        cmds = []
+        if not meta.get("clean", True):
+            cmds.append(f"ip netns pids {self.ns} | xargs -r kill -9; true")
+        have = set(meta.get("links", ["vcan0", "vcan1"]))
+        new = [v for v in self.links if v not in have]
+        if new:
+            batch = "\\n".join(f"link add {v} type vcan\\nlink set {v} txqueuelen 4000 up" for v in new)
+            cmds.append(f"printf '{batch}\\n' | ip -n {self.ns} -batch -")
+        self.routed = [tuple(x) for x in meta.get("routed", [])]
+        if self.bus != "vcan0" and (self.bus, "tx") not in self.routed:  # the boot's routes are vcan0's
+            m, t, b = self.master_link, self.tap_link, self.bus
+            rules = [f"cangw -A -s {b} -d {t} -e", f"cangw -A -s {t} -d {b} -e", f"cangw -A -s {m} -d {b} -e"]
+            rules += [f"cangw -A -s {b} -d {m} -e -f {c:03X}:{k:03X}" for c, k in life.MASTER_IDS]
+            cmds.append(f"ip netns exec {self.ns} bash -c {shlex.quote(' && '.join(rules))}")
+            self.routed += [(b, "tx"), *((b, c, k) for c, k in life.MASTER_IDS)]
+        if cmds:
+            self.ctl.check(" && ".join(f"{{ {c}; }}" for c in cmds), f"preparing the run's buses (slot {self.slot})")
+        _write_slot_meta(self.slot, {**meta, "clean": False, "links": sorted(have | set(new)), "routed": self.routed})
+
+    def add_master_ids(self, cob_ids: list[tuple[int, int]]) -> None:
+        """Route these (identifier, mask) from the run's bus to the master's port too (kept for the slot's
+        later runs: a route a run no longer needs only passes a few more frames)."""
+        new = [x for x in cob_ids if (self.bus, *x) not in self.routed]
+        if not new:
+            return
+        rules = [f"cangw -A -s {self.bus} -d {self.master_link} -e -f {c:03X}:{m:03X}" for c, m in new]
+        self.ctl.check(
+            f"ip netns exec {self.ns} bash -c {shlex.quote(' && '.join(rules))}", "routing the master's port"
+        )
+        self.routed += [(self.bus, *x) for x in new]
+        _write_slot_meta(self.slot, {**_slot_meta(self.slot), "routed": self.routed})
+
+    def link_infos(self, names: list[str]) -> dict[str, dict[str, Any] | None]:
+        """canbus.link_info of each of the run's links, in one request."""
+        from bench.canbus import link_info_json
+
+        try:
+            rc, out = self.ctl.sh(f"ip -n {self.ns} -details -statistics -json link show")
+        except BoxGone:
+            return dict.fromkeys(names)
+        try:
+            links = {x.get("ifname"): x for x in json.loads(out)} if rc == 0 else {}
+        except ValueError:
+            links = {}
+        return {n: link_info_json(json.dumps([links[n]])) if n in links else None for n in names}
+
+    # ---------------------------------------------------------------- processes
+    def popen(self, argv: list[str], log: Path | None, err: Path | None = None) -> BoxPopen:
+        """Start `argv` in the run's namespace, its output to `log` (under the stage: shared with the guest),
+        its standard error there too or to `err`."""
+        p = BoxPopen(self, argv, log, err)
+        self.procs.append(p)
+        return p
+
+    # ---------------------------------------------------------------- end
+    def close(self, keep: Path | None = None) -> None:
+        """Kill what is left of the run's processes, give the slot back (clean: the next run asks nothing of the
+        box), move the stage's files to `keep`."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            left = [p.pid for p in self.procs if p.returncode is None]
+            if left:
+                self.ctl.sh(f"kill -9 {' '.join(map(str, left))} 2>/dev/null; true", timeout_s=30)
+            _write_slot_meta(self.slot, {**_slot_meta(self.slot), "clean": True})
+        except BoxGone:
+            pass
+        finally:
+            if keep is not None:
+                keep.mkdir(parents=True, exist_ok=True)
+                for f in self.stage.iterdir():
+                    shutil.move(str(f), keep / f.name)
+            shutil.rmtree(self.stage, ignore_errors=True)
+            (life.BOX_DIR / f"slot-{self.slot}.json").unlink(missing_ok=True)
+            life.touch_use()
+            fcntl.flock(self._lock, fcntl.LOCK_UN)
+            self._lock.close()
+
+
+def _slot_meta(slot: int) -> dict[str, Any]:
+    """What the host knows of a slot's namespace in the running box (slot-N.state, removed with the box)."""
+    try:
+        return json.loads((life.BOX_DIR / f"slot-{slot}.state").read_text())  # type: ignore[no-any-return]
+    except (OSError, ValueError):
+        return {}
+
+
+def _write_slot_meta(slot: int, meta: dict[str, Any]) -> None:
+    (life.BOX_DIR / f"slot-{slot}.state").write_text(json.dumps(meta))
+
+
+def acquire(links: tuple[str, ...], say: Any = None, wait_s: float = 3600.0) -> Lease:
+    """A slot of the running box (booted now if none: life.up) for one run on `links` (vcanN names, the first
+    the run's bus; its master's port gets life.MASTER_IDS and what add_master_ids adds); waits for a free slot."""
+    info = life.up(say=say)
+    t0, told = time.monotonic(), False
+    while True:
+        for slot in range(1, info.slots + 1):
+            fh = open(life.BOX_DIR / f"slot-{slot}.lock", "a+b")  # noqa: SIM115 - held by the Lease
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                fh.close()
+                continue
+            life.touch_use()
+            meta = {"pid": os.getpid(), "buses": list(links), "since": time.time(), "ns": f"b{slot}"}
+            (life.BOX_DIR / f"slot-{slot}.json").write_text(json.dumps(meta))
+            lease = Lease(info, slot, fh, links)
+            try:
+                lease._prepare()
+            except BaseException:
+                lease.close()
+                raise
+            return lease
+        if not told:
+            (say or print)(f"bench: the CAN box's {info.slots} slots are in use; waiting for one")
+            told = True
+        if time.monotonic() - t0 > wait_s:
+            raise BoxError(f"no slot of the CAN box came free within {wait_s:.0f} s")
+        time.sleep(0.2)
+
+
+class BoxPopen:
+    """A process in the box, with the part of subprocess.Popen's face the bench uses (pid, poll, wait,
+    send_signal, terminate, kill, returncode). Its exit status is written by a waiting shell in the guest."""
+
+    def __init__(self, lease: Lease, argv: list[str], log: Path | None, err: Path | None = None) -> None:
+        self.lease = lease
+        self.tag = uuid.uuid4().hex[:10]
+        self.returncode: int | None = None
+        self.gone: str | None = None  # why, when the box ended under the process
+        self._asked = 0.0
+        self._state: tuple[float, str | None] = (0.0, None)
+        d = "/run/box"
+        out = shlex.quote(str(log)) if log is not None else "/dev/null"
+        err_to = "&1" if err is None else shlex.quote(str(err))
+        # a subshell of the agent's (a fork, no exec) waits for the process and writes its exit status
+        cmd = (
+            f"( {lease.in_ns(argv)} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
+            f"echo $? >{d}/{self.tag}.exit ) >/dev/null 2>&1 </dev/null & "
+            f"for ((k = 0; k < 500; k++)); do [ -s {d}/{self.tag}.pid ] && break; read -r -t 0.01 -u 4 _; done; "
+            f"read -r p <{d}/{self.tag}.pid && echo $p"
+        )
+        out_text = lease.ctl.check(cmd, f"starting {Path(argv[0]).name}")
+        self.pid = int(out_text.strip().splitlines()[-1])
+        self.args = argv
+
+    def _exit_now(self) -> int | None:
+        rc, out = self.lease.ctl.sh(f"f=/run/box/{self.tag}.exit; [ -e $f ] && read -r x <$f && echo $x; true")
+        text = out.strip()
+        if not text:
+            return None
+        code = int(text)
+        return -(code - 128) if code > 128 else code  # a shell's 128+N: killed by signal N (Popen says -N)
+
+    def poll(self, fresh: bool = False) -> int | None:
+        """The exit status, None while it runs (asked of the guest at most every POLL_CACHE_S unless `fresh`)."""
+        if self.returncode is not None:
+            return self.returncode
+        now = time.monotonic()
+        if not fresh and now - self._asked < POLL_CACHE_S:
+            return None
+        self._asked = now
+        try:
+            self.returncode = self._exit_now()
+        except BoxGone as exc:
+            self.gone = str(exc)
+            self.returncode = -signal.SIGKILL  # the box is gone, and the process with it
+        return self.returncode
+
+    def state(self) -> str | None:
+        """The process's kernel state letter (/proc/PID/stat in the guest): T when stopped (asked at most every
+        POLL_CACHE_S)."""
+        now = time.monotonic()
+        if now - self._state[0] < POLL_CACHE_S:
+            return self._state[1]
+        try:
+            rc, out = self.lease.ctl.sh(f'read -r l </proc/{self.pid}/stat && echo "$l"')
+            state = out.rsplit(")", 1)[1].split()[0] if rc == 0 else None
+        except (IndexError, BoxGone):
+            state = None
+        self._state = (now, state)
+        return state
+
+    def send_signal(self, sig: int) -> None:
+        if self.returncode is None:
+            try:
+                self.lease.ctl.sh(f"kill -{int(sig)} {self.pid} 2>/dev/null; true")
+            except BoxGone as exc:  # the box ended, and the process with it
+                self.gone = str(exc)
+                self.returncode = -signal.SIGKILL
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+    def wait(self, timeout: float | None = None) -> int:
+        """Its exit status, waited for in the guest (one request per 5 s, no polling from here)."""
+        import subprocess
+
+        deadline = None if timeout is None else time.monotonic() + timeout
+        f = f"/run/box/{self.tag}.exit"
+        while True:
+            if self.returncode is not None:
+                return self.returncode
+            left = 5.0 if deadline is None else min(5.0, deadline - time.monotonic())
+            if left <= 0:
+                raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
+            try:
+                n = max(1, int(left * 100))
+                nap = "read -r -t 0.01 -u 4 _"
+                self.lease.ctl.sh(
+                    f"for ((k = 0; k < {n}; k++)); do [ -e {f} ] && break; {nap}; done", timeout_s=left + 30
+                )
+            except BoxGone as exc:
+                self.gone = str(exc)
+                self.returncode = -signal.SIGKILL
+            self.poll(fresh=True)

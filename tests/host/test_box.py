@@ -1,0 +1,168 @@
+"""The CAN box (bench/run/bus/box, docs/VM.md) as a user meets it: `bench box up|status|down` and `bench run
+--bus vcan0 --box`, every line of Python on the host, the buses in one VM booted once. Forced with --box, so
+that a host with kernel CAN tests the same path. The box's runs are the direct runs bit for bit; a python-can
+script on the host sees a run on its slot's tap; two runs at once keep their own buses; a box killed mid-run
+ends the run with a named status and keeps what was recorded; `bench box down` leaves no QEMU."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from bench.paths import REPO
+from bench.run.bus.vm import readiness
+
+BENCH = [sys.executable, "-m", "bench.cli"]
+STEP = REPO / "scenarios" / "you2019_step.toml"
+pytestmark = pytest.mark.skipif(
+    not all(ok for _, ok, _ in readiness()), reason="the CAN box needs the VM (virtme-ng, QEMU): make setup"
+)
+
+
+def bench(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO)
+
+
+def _status() -> dict:
+    return json.loads(bench("box", "status", "--json").stdout)
+
+
+def _qemus() -> list[int]:
+    out = subprocess.run(["pgrep", "-f", "qemu-system-x86_64"], capture_output=True, text=True).stdout
+    return [int(p) for p in out.split()]
+
+
+@pytest.fixture(scope="module")
+def box() -> dict:
+    up = bench("box", "up", timeout=900)
+    assert up.returncode == 0, up.stderr
+    st = _status()
+    assert st["state"] == "up" and len(st["slots"]) == 4
+    return st
+
+
+def _traces_equal(a: Path, b: Path) -> None:
+    x, y = np.load(a / "traces.npy"), np.load(b / "traces.npy")
+    assert x.dtype.names == y.dtype.names and len(x) == len(y) > 0
+    for name in x.dtype.names:
+        assert np.array_equal(x[name], y[name], equal_nan=True), name
+
+
+def test_a_run_in_the_box_is_the_direct_run_bit_for_bit(box: dict, tmp_path: Path) -> None:
+    res = bench("run", str(STEP), "--bus", "vcan0", "--box", "--out", str(tmp_path / "box"), "--no-viewer")
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert bench("run", str(STEP), "--bus", "direct", "--out", str(tmp_path / "direct"), "--no-viewer").returncode == 0
+    _traces_equal(tmp_path / "box", tmp_path / "direct")
+    summary = json.loads((tmp_path / "box" / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["bus"] == "vcan0"
+    assert (tmp_path / "box" / "bus.log").stat().st_size > 0 and (tmp_path / "box" / "plant_node.out").exists()
+    assert not any(s["in_use"] for s in _status()["slots"])  # the slot was given back
+
+
+def _start(out: Path, periods: int) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [*BENCH, "run", str(STEP), "--bus", "vcan0", "--box", "--out", str(out), "--no-viewer"]
+        + ["--set", f"scenario.periods={periods}"],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _slot_of(pid: int, timeout_s: float = 120) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for s in _status()["slots"]:
+            if s.get("in_use") and s.get("pid") == pid:
+                return s
+        time.sleep(0.2)
+    raise AssertionError(f"no slot of the box taken by PID {pid}")
+
+
+def test_a_python_can_script_sees_a_run_on_its_slots_tap(box: dict, tmp_path: Path) -> None:
+    run = _start(tmp_path / "run", 20_000)
+    slot = _slot_of(run.pid)
+    ids: set[int] = set()
+    with can.Bus(interface=slot["tap"]["interface"], channel=slot["tap"]["channel"], sleep_after_open=0) as bus:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not {0x080, 0x190}.issubset(ids):
+            msg = bus.recv(timeout=0.5)
+            if msg is not None:
+                ids.add(msg.arbitration_id)
+    out, err = run.communicate(timeout=600)
+    assert run.returncode == 0, out + err
+    assert {0x080, 0x190}.issubset(ids), sorted(hex(i) for i in ids)  # the SYNCs and the plant's measurement
+
+
+def test_two_runs_at_once_keep_their_own_buses(box: dict, tmp_path: Path) -> None:
+    runs = [_start(tmp_path / f"run{i}", 400) for i in range(2)]
+    for r in runs:
+        out, err = r.communicate(timeout=600)
+        assert r.returncode == 0, out + err
+    assert (
+        bench(
+            "run", str(STEP), "--bus", "direct", "--set", "scenario.periods=400", "--out", str(tmp_path / "d")
+        ).returncode
+        == 0
+    )
+    for i in range(2):
+        _traces_equal(tmp_path / f"run{i}", tmp_path / "d")
+        summary = json.loads((tmp_path / f"run{i}" / "summary.json").read_text())
+        assert summary["status"] == "ok"  # a second SYNC producer or measurement would be "interference"
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known defect (issue 38, open): a box killed mid-run ends the run with exit 1 (the master's SLCAN "
+    "socket breaks under canopen), not node_lost/box_lost, and candump's log, kept in the guest's memory until "
+    "the end, is lost with the box",
+)
+def test_a_box_killed_mid_run_ends_the_run_named_and_keeps_its_frames(box: dict, tmp_path: Path) -> None:
+    run = _start(tmp_path / "run", 200_000)
+    _slot_of(run.pid)
+    time.sleep(3)
+    info = json.loads((REPO / "build" / "box" / "state.json").read_text())
+    qemus = [p for p in _qemus() if os.getpgid(p) == info["keeper_pid"]]
+    assert qemus, "the box's QEMU"
+    for p in qemus:
+        os.kill(p, signal.SIGKILL)
+    out, err = run.communicate(timeout=600)
+    assert run.returncode == 8, out + err  # node_lost
+    assert "CAN box" in out + err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "node_lost" and summary["stopped"]["details"]["cause"] == "box_lost"
+    assert (tmp_path / "run" / "bus.log").exists()
+    deadline = time.monotonic() + 30
+    while _status()["state"] != "down" and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _status()["state"] == "down"
+    # the next run starts a new box
+    again = bench("run", str(STEP), "--bus", "vcan0", "--box", "--out", str(tmp_path / "again"), timeout=900)
+    assert again.returncode == 0, again.stdout + again.stderr
+
+
+def test_box_down_leaves_no_qemu(tmp_path: Path) -> None:
+    assert bench("box", "up", timeout=900).returncode == 0
+    info = json.loads((REPO / "build" / "box" / "state.json").read_text())
+    assert any(os.getpgid(p) == info["keeper_pid"] for p in _qemus())
+    down = bench("box", "down")
+    assert down.returncode == 0 and "stopped" in down.stdout
+    assert _status()["state"] == "down"
+    left = []
+    for p in _qemus():
+        try:
+            left.append(os.getpgid(p) == info["keeper_pid"])
+        except ProcessLookupError:
+            pass
+    assert not any(left)
+    assert bench("box", "status").returncode == 3
