@@ -103,11 +103,22 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         problem = settings.bus_problems[settings.bus] = bus_problem(settings.bus, settings.bus_option)
         if problem is not None:
             raise pytest.UsageError(problem)
+    if not hasattr(config, "workerinput"):  # one CAN box per session, shared by the xdist workers
+        _stop_box_at_end(config)
     if settings.law is not None and not (hasattr(config, "workerinput") and os.environ.get("BENCH_LAW")):
         from bench.pytest_plugin.checks import restore, use_law
 
         before = use_law(settings.law)
         config.add_cleanup(lambda: restore(before))
+
+
+def _stop_box_at_end(config: pytest.Config) -> None:
+    """The session's vcan runs on a host without kernel CAN share one CAN box (docs/VM.md), which the first
+    of them boots; the session stops it at its end when it was not up before (a box the user started stays)."""
+    from bench.run.bus.box import life
+
+    if life.read_info() is None:
+        config.add_cleanup(life.down)
 
 
 @pytest.fixture(scope="session")

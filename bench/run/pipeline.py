@@ -299,12 +299,10 @@ def _lease_box(sess: Session) -> Any:
     """The run's share of the CAN box when its vcan buses go there (buses.box_reason), else None; the first
     run of a box says why it is used."""
     from bench.run.bus.box.lease import acquire
-    from bench.run.bus.buses import box_reason, box_wanted
+    from bench.run.bus.buses import box_wanted
 
-    if not box_wanted(sess.opts.box):
-        return None
     names = tuple(dict.fromkeys((sess.opts.bus, sess.drive_side_bus())))
-    why = box_reason(names[0], names[1] if len(names) > 1 else None, True)
+    why = box_wanted(names[0], names[1] if len(names) > 1 else None, sess.opts.box)
     if why is None:
         return None
     return acquire(names, say=lambda text: print(f"{text} [{why}]", file=sys.stderr, flush=True))

@@ -121,12 +121,6 @@ def test_two_runs_at_once_keep_their_own_buses(box: dict, tmp_path: Path) -> Non
         assert summary["status"] == "ok"  # a second SYNC producer or measurement would be "interference"
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known defect (issue 38, open): a box killed mid-run ends the run with exit 1 (the master's SLCAN "
-    "socket breaks under canopen), not node_lost/box_lost, and candump's log, kept in the guest's memory until "
-    "the end, is lost with the box",
-)
 def test_a_box_killed_mid_run_ends_the_run_named_and_keeps_its_frames(box: dict, tmp_path: Path) -> None:
     run = _start(tmp_path / "run", 200_000)
     _slot_of(run.pid)

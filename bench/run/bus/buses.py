@@ -28,7 +28,7 @@ def bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     if args.bus == "direct" or args.interface != "socketcan":
         return None, False
     names = list(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
-    if all(VCAN.fullmatch(n) for n in names) and box_wanted(getattr(args, "box", False)):
+    if box_wanted(args.bus, args.drive_bus, getattr(args, "box", False)):
         return None, False  # the CAN box (run_scenario leases it): every line of Python stays here
     if not probe_af_can().af_can:
         problem = _vm_problem(args, "this host's kernel has no SocketCAN")
@@ -131,10 +131,11 @@ def box_reason(bus: str, drive_bus: str | None = None, force: bool = False) -> s
     return None
 
 
-def box_wanted(force: bool) -> bool:
-    """Whether vcan runs go to the CAN box: asked for (--box, BENCH_BOX=1). Not yet the default where the host
-    cannot carry vcan (docs/VM.md: the CAN test phase still runs in a VM of its own until it runs on the host
-    against the box)."""
+def box_wanted(bus: str, drive_bus: str | None = None, force: bool = False) -> str | None:
+    """Why this run's vcan buses go to the CAN box, or None: asked for (--box, BENCH_BOX=1), or the host cannot
+    carry them (box_reason). BENCH_BOX=0 keeps the older way, a VM of its own per run (bench/run/vm_run.py)."""
     import os
 
-    return force or os.environ.get("BENCH_BOX") == "1"
+    if os.environ.get("BENCH_BOX") == "0" and not force:
+        return None
+    return box_reason(bus, drive_bus, force)

@@ -27,7 +27,7 @@ from bench.run.bus.buses import VCAN
 from bench.run.bus.direct import DirectBus, Hil
 from bench.run.bus.direct_sdo import DirectSdo
 from bench.run.bus.gateway import FaultGateway
-from bench.run.bus.liveness import STARVED_S, Liveness
+from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
 from bench.run.bus.nodes import NodeProcess
 from bench.run.bus.slcan_bridge import SlcanBridge
 from bench.run.loop import master
@@ -192,6 +192,7 @@ class Session:
             # the slot's SLCAN port (python-can's slcan interface): the box passes it SDO answers and heartbeats
             # only (box/life.py MASTER_IDS), and the hold announcement once configured (run())
             self.net.bus = can.Bus(interface="slcan", channel=self.box.master_channel, sleep_after_open=0)
+            self.net.listeners.append(_BridgeErrors())  # a box that ends breaks the port: judged in run()
             return
         # The master only needs its nodes' SDO answers and heartbeats: filtering in the kernel keeps the
         # PDO stream (thousands of frames per second) out of this process's socket, which a slow Python
@@ -322,11 +323,27 @@ class Session:
                         self.config.apply(s)
             except SdoCommunicationError:  # a node that stopped answering: named if it is lost
                 self._check_alive(self.config.period - 1)
+                self._check_box(self.config.period - 1)
+                raise
+            except can.CanError:  # the master's bridge port broke: the box ended?
+                self._check_box(self.config.period - 1)
                 raise
             start = stop
             if progress:
                 progress(start, sc.periods)
         return time.monotonic() - t0
+
+    def _check_box(self, index: int) -> None:
+        """LoopStopped (node_lost, cause box_lost) when the run's CAN box no longer answers: both nodes, the
+        recorder and the bus ended with it; what was recorded until then is kept."""
+        why = self.box.gone() if self.box is not None else None
+        if why is not None:
+            raise LoopStopped(
+                "node_lost",
+                f"the CAN box ended during the run ({why}); both nodes ran in it. The next run starts a new box",
+                at_period=index if index >= 0 else None,
+                details={"cause": "box_lost"},
+            ) from None
 
     def fault_log(self) -> tuple[list[tuple[Any, ...]], int]:
         """The fault injector's actions (period, t_us, rule, kind, side, cob_id, data) and how many it could
@@ -352,6 +369,20 @@ class Session:
             for name in names:
                 out[f"{node_name}.{obj}.{name}"] = _read(node.sdo[obj][name])
         return out
+
+
+class _BridgeErrors(can.Listener):
+    """Takes the errors of the master's SLCAN bridge port (python-can's notifier thread would print a traceback
+    for each): a port that breaks ends the run through Session._check_box."""
+
+    def __init__(self) -> None:
+        self.errors: list[Exception] = []
+
+    def on_message_received(self, msg: can.Message) -> None:
+        pass
+
+    def on_error(self, exc: Exception) -> None:
+        self.errors.append(exc)
 
 
 def _read(var, attempts: int = 3):  # type: ignore[no-untyped-def]

@@ -201,11 +201,12 @@ class CandumpSource:
 
 
 class BoxCandumpSource:
-    """candump records the run's bus inside the CAN box (bench/run/bus/box) into the guest's own memory (a 9p
-    write per 4 KiB block made candump fall behind a fast lockstep loop: 80 % of a 20,000-period run was still
-    in its socket when the run ended). At the end the bench waits until candump has written everything (the
-    file stops growing), stops it and copies the log to the lease's stage, shared with the host. So a run in
-    the box is decoded at its end: no live view while it runs."""
+    """candump records the run's bus inside the CAN box (bench/run/bus/box) into the guest's own memory, and
+    `tail` copies the log to the lease's stage (shared with the host) every half second in large blocks: candump
+    writing the 9p share itself, a 4 KiB block at a time, fell behind a fast lockstep loop (80 % of a
+    20,000-period run still in its socket at the end). The host follows the copy as it grows (the live view); a
+    box that dies mid-run leaves what was copied. At the end the bench waits until candump has written all it
+    received (its log stops growing) and the copy has caught up."""
 
     def __init__(self, lease: Any, iface: str, path_name: str = "candump.log") -> None:
         self.lease = lease
@@ -213,38 +214,44 @@ class BoxCandumpSource:
         self.guest = Path(f"/run/box/{lease.ns}-candump.log")
         err = lease.stage / "candump.err"
         self.proc = lease.popen(["candump", "-L", "-r", str(8 << 20), iface], self.guest, err=err)
+        self.copier = lease.popen(
+            ["tail", "---disable-inotify", "-s", "0.5", "-c", "+1", "-f", str(self.guest)], self.path, err=err
+        )
         time.sleep(0.2)
         if self.proc.poll(fresh=True) is not None:
             why = err.read_text(errors="replace").strip() if err.exists() else ""
             raise RuntimeError(f"candump on {iface} in the CAN box failed: {why or self.proc.returncode}")
         self.follower = LogFollower(self.path)
-        self._copied = False
 
     def drain(self, final: bool = False) -> np.ndarray:
-        return self.follower.drain(final) if self._copied else empty()
+        return self.follower.drain(final)
 
     def stop(self) -> None:
         from bench.run.bus.box.control import BoxGone
 
         g = self.guest
-        try:  # candump has written all it received once its log stops growing (checked in the guest)
-            self.lease.ctl.sh(
-                f"a=-1; b=$(stat -c %s {g}); while [ $a != $b ]; do read -r -t 0.3 -u 4 _; a=$b; "
-                f"b=$(stat -c %s {g}); done",
+        size = "$(stat -c %s " + str(g) + ")"
+        try:  # candump has written all it received once its log stops growing
+            _, out = self.lease.ctl.sh(
+                f"a=-1; b={size}; while [ $a != $b ]; do read -r -t 0.3 -u 4 _; a=$b; b={size}; done; echo $b",
                 timeout_s=600,
             )
-        except BoxGone:
+            self.proc.send_signal(signal.SIGINT)
+            self.proc.wait(timeout=10)
+            _, out = self.lease.ctl.sh(f"echo {size}")
+            total = int(out.strip() or 0)
+            deadline = time.monotonic() + 120
+            while self.path.stat().st_size < total and time.monotonic() < deadline:  # the copy catches up
+                time.sleep(0.1)
+        except (BoxGone, subprocess.TimeoutExpired, ValueError, OSError):
             pass
-        self.proc.send_signal(signal.SIGINT)
-        try:
-            self.proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
+        finally:
             self.proc.kill()
-        try:
-            self.lease.ctl.sh(f"cp {g} {self.path}; rm -f {g}", timeout_s=600)
-        except BoxGone:
-            pass
-        self._copied = True
+            self.copier.kill()
+            try:
+                self.lease.ctl.sh(f"rm -f {g}")
+            except BoxGone:
+                pass
 
     def cleanup(self) -> None:
         err = self.path.with_name("candump.err")

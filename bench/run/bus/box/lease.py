@@ -105,6 +105,14 @@ class Lease:
             links = {}
         return {n: link_info_json(json.dumps([links[n]])) if n in links else None for n in names}
 
+    def gone(self) -> str | None:
+        """Why the box no longer answers (its QEMU ended), or None while it does."""
+        try:
+            self.ctl.ping(timeout_s=5.0)
+        except BoxGone as exc:
+            return str(exc)
+        return None
+
     # ---------------------------------------------------------------- processes
     def popen(self, argv: list[str], log: Path | None, err: Path | None = None) -> BoxPopen:
         """Start `argv` in the run's namespace, its output to `log` (under the stage: shared with the guest),
