@@ -39,6 +39,9 @@ def _print_status(st: dict[str, Any], as_json: bool) -> int:
     if as_json:
         print(json.dumps(st, indent=2))
         return 0 if st["state"] == "up" else 3
+    if st["state"] == "stopping":
+        print(f"CAN box: stopping ({st['why']}; keeper PID {st['keeper_pid']})")
+        return 3
     if st["state"] == "down":
         last = st.get("last_end")
         print("CAN box: down" + (f" (last: {last['why']})" if last else ""))

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import can
 import canopen
+from can_site import Site
 
 from bench.paths import EDS_DIR
 from bench.run.bus.nodes import NodeProcess
@@ -84,15 +85,17 @@ class Target:
 
 
 @contextmanager
-def node_target(binary: str, args: list[str], kind: str, node_id: int, iface: str) -> Iterator[Target]:
+def node_target(binary: str, args: list[str], kind: str, node_id: int, site: Site) -> Iterator[Target]:
+    """`binary` started on the site's bus (the host's vcan0, or the session's slot of the CAN box:
+    tests/can/can_site.py) with python canopen as its master on the host."""
     net = canopen.Network()
-    net.connect(interface="socketcan", channel=iface, receive_own_messages=False)
+    net.connect(**site.bus_kwargs())
     capture = Capture()
     net.notifier.add_listener(capture)
     node = canopen.RemoteNode(node_id, str(EDS_DIR / f"{kind}.eds"))
     node.sdo.RESPONSE_TIMEOUT = 3.0
     net.add_node(node)
-    proc = NodeProcess(binary, [*args, "--iface", iface, "--node-id", str(node_id)])
+    proc = site.node(binary, [*args, "--iface", site.iface, "--node-id", str(node_id)])
     proc.start()
     try:
         boot = capture.wait_for(0x700 + node_id, 1, timeout=10.0)

@@ -15,6 +15,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import canopen
+from can_site import Site
 
 from bench.paths import EDS_DIR
 from bench.run.bus.nodes import NodeProcess
@@ -107,21 +108,23 @@ def configure_motor(
 
 @contextmanager
 def drive_with_motor(
-    iface: str, cycle_s: float, drive: canopen.RemoteNode | None = None, drive_iface: str | None = None
+    site: Site, cycle_s: float, drive: canopen.RemoteNode | None = None, drive_iface: str | None = None
 ) -> Iterator[Loop]:
     """Both nodes started on `iface` (the drive on `drive_iface` if given: another controller on the same
     bus), configured, the plant OPERATIONAL; the drive left in PRE-OPERATIONAL and SWITCH ON DISABLED for
-    the master under test (`drive`: a BaseNode402 to use as the drive's node)."""
+    the master under test (`drive`: a BaseNode402 to use as the drive's node). `site`: the host's bus or the
+    session's slot of the CAN box (tests/can/can_site.py)."""
+    iface = site.iface
     net = canopen.Network()
-    net.connect(interface="socketcan", channel=iface, receive_own_messages=False)
+    net.connect(**site.bus_kwargs())
     plant = canopen.RemoteNode(PLANT_ID, str(EDS_DIR / "plant.eds"))
     drive = drive or canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
     for n in (plant, drive):
         n.sdo.RESPONSE_TIMEOUT = 3.0
         net.add_node(n)
     procs = (
-        NodeProcess("plant_node", ["--iface", iface, "--node-id", str(PLANT_ID)]),
-        NodeProcess("drive_node", ["--iface", drive_iface or iface, "--node-id", str(DRIVE_ID)]),
+        site.node("plant_node", ["--iface", iface, "--node-id", str(PLANT_ID)]),
+        site.node("drive_node", ["--iface", drive_iface or iface, "--node-id", str(DRIVE_ID)]),
     )
     try:
         boot = _BootWatch(net, (PLANT_ID, DRIVE_ID))

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bench_proc import NODES, pids, start_long_run
+from can_site import Site
 from cia402_loop import DRIVE_ID, drive_with_motor
 from cia402_transitions import new_drive_402, walk
 
@@ -172,7 +173,7 @@ def test_base_node_402_walks_the_drive_over_can_controllers(can_pair: tuple[str,
     master_bus, drive_bus = can_pair
     for name in can_pair:
         prepare_can_link(name, None)
-    with drive_with_motor(master_bus, CIA402_CYCLE_S, new_drive_402(DRIVE_ID), drive_iface=drive_bus) as loop:
+    with drive_with_motor(Site(master_bus), CIA402_CYCLE_S, new_drive_402(DRIVE_ID), drive_iface=drive_bus) as loop:
         report = walk(loop, master_bus, CIA402_CYCLE_S)
     print(report.text())
     assert report.transitions_failed == [] and report.transitions_done >= 16, report.text()

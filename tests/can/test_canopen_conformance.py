@@ -9,6 +9,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from can_site import Site
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 from canopen.sdo.exceptions import SdoAbortedError
 from canopen_helpers import Target, node_target
@@ -23,9 +24,9 @@ TARGETS = [
 
 
 @pytest.fixture(scope="module", params=TARGETS, ids=[f"{t[0]}-{t[2]}" for t in TARGETS])
-def target(request: pytest.FixtureRequest, vcan0: str) -> Iterator[Target]:
+def target(request: pytest.FixtureRequest, site: Site) -> Iterator[Target]:
     binary, args, kind, node_id = request.param
-    with node_target(binary, args, kind, node_id, vcan0) as t:
+    with node_target(binary, args, kind, node_id, site) as t:
         yield t
 
 

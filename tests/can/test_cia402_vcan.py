@@ -6,16 +6,17 @@ The same walk runs over two emulated CAN controllers in tests/can/test_can_contr
 from __future__ import annotations
 
 import pytest
+from can_site import Site
 from cia402_loop import DRIVE_ID, drive_with_motor
 from cia402_transitions import new_drive_402, walk
 
 CYCLE_S = 0.05  # the VM stalls processes up to ~150 ms: a slow cycle, the loop's model is exact at any Ts
 
 
-def test_base_node_402_drives_the_drive_node(vcan0: str) -> None:
+def test_base_node_402_drives_the_drive_node(site: Site) -> None:
     drive = new_drive_402(DRIVE_ID)
-    with drive_with_motor(vcan0, CYCLE_S, drive) as loop:
-        report = walk(loop, vcan0, CYCLE_S)
+    with drive_with_motor(site, CYCLE_S, drive) as loop:
+        report = walk(loop, site.iface, CYCLE_S)
     print(report.text())
     assert report.transitions_failed == [], report.text()
     assert report.transitions_done >= 16

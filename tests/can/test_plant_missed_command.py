@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import time
 
+from can_site import Site
 from canopen_helpers import node_target
 
 
-def test_missing_commands_are_counted(vcan0: str) -> None:
-    with node_target("plant_node", [], "plant", 0x10, vcan0) as t:
+def test_missing_commands_are_counted(site: Site) -> None:
+    with node_target("plant_node", [], "plant", 0x10, site) as t:
         rc = t.node.sdo["Run control"]
         rc["command_timeout_us"].raw = 20000
         t.node.nmt.send_command(0x01)

@@ -102,9 +102,10 @@ def _check_realtime_block(s: dict[str, Any]) -> None:
 
 
 def test_lateness_histogram_domain(vcan0: str) -> None:
+    from can_site import Site
     from canopen_helpers import node_target
 
-    with node_target("plant_node", [], "plant", 0x10, vcan0) as t:
+    with node_target("plant_node", [], "plant", 0x10, Site(vcan0)) as t:
         data = t.node.sdo["Timing histograms"].raw  # DOMAIN: segmented upload
         assert len(data) == 2 * 288 * 4  # SYNC lateness, then turnaround: 288 x UNSIGNED32 each (plant.eds 0x2006)
         bins = struct.unpack("<576I", data)

@@ -90,7 +90,7 @@ def _slot_of(pid: int, timeout_s: float = 120) -> dict:
 
 
 def test_a_python_can_script_sees_a_run_on_its_slots_tap(box: dict, tmp_path: Path) -> None:
-    run = _start(tmp_path / "run", 20_000)
+    run = _start(tmp_path / "run", 4_000)
     slot = _slot_of(run.pid)
     ids: set[int] = set()
     with can.Bus(interface=slot["tap"]["interface"], channel=slot["tap"]["channel"], sleep_after_open=0) as bus:
@@ -121,6 +121,24 @@ def test_two_runs_at_once_keep_their_own_buses(box: dict, tmp_path: Path) -> Non
         assert summary["status"] == "ok"  # a second SYNC producer or measurement would be "interference"
 
 
+def test_ctrl_c_of_a_run_leaves_the_box_healthy_for_the_next(box: dict, tmp_path: Path) -> None:
+    from bench.run.bus.box import life
+
+    run = _start(tmp_path / "run", 200_000)
+    slot = _slot_of(run.pid)["slot"]
+    time.sleep(2)
+    run.send_signal(signal.SIGINT)
+    out, err = run.communicate(timeout=120)
+    assert run.returncode == 130, out + err
+    info = life.read_info()
+    assert info is not None  # the box is still up
+    rc, pids = info.control.sh(f"ip netns pids b{slot}")
+    assert rc == 0 and pids.strip() == "", pids  # nothing of the run is left in its namespace
+    assert not _status()["slots"][slot - 1]["in_use"]
+    again = bench("run", str(STEP), "--bus", "vcan0", "--box", "--out", str(tmp_path / "again"), "--no-viewer")
+    assert again.returncode == 0, again.stdout + again.stderr
+
+
 def test_a_box_killed_mid_run_ends_the_run_named_and_keeps_its_frames(box: dict, tmp_path: Path) -> None:
     run = _start(tmp_path / "run", 200_000)
     _slot_of(run.pid)
@@ -134,7 +152,7 @@ def test_a_box_killed_mid_run_ends_the_run_named_and_keeps_its_frames(box: dict,
     assert run.returncode == 8, out + err  # node_lost
     assert "CAN box" in out + err
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert summary["status"] == "node_lost" and summary["stopped"]["details"]["cause"] == "box_lost"
+    assert summary["status"] == "node_lost" and summary["stopped"]["cause"] == "box_lost"
     assert (tmp_path / "run" / "bus.log").exists()
     deadline = time.monotonic() + 30
     while _status()["state"] != "down" and time.monotonic() < deadline:
@@ -160,3 +178,26 @@ def test_box_down_leaves_no_qemu(tmp_path: Path) -> None:
             pass
     assert not any(left)
     assert bench("box", "status").returncode == 3
+
+
+def test_an_idle_box_powers_off_by_itself(tmp_path: Path) -> None:
+    bench("box", "down")
+    up = bench("box", "up", "--idle-timeout", "4", timeout=900)
+    assert up.returncode == 0 and "powers off after 4 s unused" in up.stdout, up.stdout + up.stderr
+    info = json.loads((REPO / "build" / "box" / "state.json").read_text())
+    deadline = time.monotonic() + 60
+    seen = set()
+    while (state := _status()["state"]) != "down" and time.monotonic() < deadline:
+        seen.add(state)
+        time.sleep(0.2)
+    assert state == "down", seen
+    assert "idle for 4 s" in (_status().get("last_end") or {}).get("why", "")
+    time.sleep(1)
+    assert not [p for p in _qemus() if _pgid(p) == info["keeper_pid"]]
+
+
+def _pgid(pid: int) -> int | None:
+    try:
+        return os.getpgid(pid)
+    except ProcessLookupError:
+        return None

@@ -20,7 +20,7 @@ from bench.paths import REPO, STATE
 from bench.root import INSTALLED
 from bench.run.bus.box.control import BoxGone
 from bench.run.bus.box.guest import guest_script
-from bench.run.bus.box.life import BOX_DIR, MASTER_IDS, BoxInfo, is_ready, slot_held
+from bench.run.bus.box.life import BOX_DIR, MASTER_IDS, STOPPING, BoxInfo, is_ready, slot_held, touch_use
 from bench.run.bus.vm import VmOptions, _check_path, _vng_argv, find_kernel, readiness, vng_path
 
 
@@ -75,15 +75,19 @@ def main(argv: list[str]) -> int:
             why = f"the VM ended by itself (status {proc.returncode}; see {BOX_DIR / 'console.log'})"
             break
         if info.booted_s is None and is_ready():
+            touch_use()  # the idle time counts from the box's readiness (or its last run)
             info.booted_s = round(time.monotonic() - t0, 1)
             (BOX_DIR / "state.json").write_text(json.dumps(info.__dict__))
         if _idle_for(info) > info.idle_timeout_s > 0:
             why = f"idle for {info.idle_timeout_s:g} s"
             break
+    # no run starts on a box going down; `bench box status` says "stopping" until QEMU has ended
+    (BOX_DIR / STOPPING).write_text(json.dumps({"keeper_pid": os.getpid(), "why": why}))
     (BOX_DIR / "ready").unlink(missing_ok=True)
-    (BOX_DIR / "state.json").unlink(missing_ok=True)  # no run starts on a box going down
+    (BOX_DIR / "state.json").unlink(missing_ok=True)
     _power_off(info, proc)
     _ended(why)
+    (BOX_DIR / STOPPING).unlink(missing_ok=True)
     return 0
 
 

@@ -22,6 +22,7 @@ from bench.paths import STATE
 from bench.run.bus.box.control import BoxError, BoxGone, Control, pid_alive
 
 BOX_DIR = STATE / "box"
+STOPPING = "stopping.json"  # written by the keeper while it powers the box off
 DEFAULT_IDLE_S = 600.0  # a box nobody used for this long powers off (bench box up --idle-timeout, BENCH_BOX_IDLE_S)
 DEFAULT_SLOTS = 4  # runs the box carries at once (each: its own buses in a network namespace, 2 bridge ports;
 # the guest's hvc driver has 8 consoles: at most 4)
@@ -95,6 +96,7 @@ def up(idle_timeout_s: float | None = None, slots: int = DEFAULT_SLOTS, say: Any
         fcntl.flock(lock, fcntl.LOCK_EX)
         info = read_info()
         if info is None:
+            wait_stopped()  # a box powering off (idle, down) ends before the next boots
             idle = idle_timeout_default() if idle_timeout_s is None else idle_timeout_s
             say(
                 "bench: starting the CAN box (a VM with the kernel's vcan; this host's kernel has no SocketCAN): "
@@ -178,7 +180,9 @@ def down(timeout_s: float = 60.0) -> bool:
     """Stop the box (its runs' processes, the guest, QEMU, the keeper). False when none was running."""
     info = read_info()
     if info is None:
-        return False
+        going = stopping() is not None
+        wait_stopped(timeout_s)  # one powering off by itself (idle): its end awaited, so no QEMU is left
+        return going
     try:
         os.kill(info.keeper_pid, signal.SIGTERM)  # the keeper powers the guest off, then ends QEMU
     except ProcessLookupError:
@@ -194,9 +198,32 @@ def down(timeout_s: float = 60.0) -> bool:
     return True
 
 
+def stopping() -> dict[str, Any] | None:
+    """The keeper of a box that is powering off ({"keeper_pid", "why"}), or None."""
+    try:
+        rec: dict[str, Any] = json.loads((BOX_DIR / STOPPING).read_text())
+    except (OSError, ValueError):
+        return None
+    return rec if pid_alive(int(rec.get("keeper_pid", 0))) else None
+
+
+def wait_stopped(timeout_s: float = 60.0) -> None:
+    """Until a box that is powering off has ended (its keeper gone: QEMU with it), at most `timeout_s`."""
+    deadline = time.monotonic() + timeout_s
+    while (rec := stopping()) is not None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    if rec is not None:
+        try:
+            os.killpg(int(rec["keeper_pid"]), signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
 def status() -> dict[str, Any]:
     """What `bench box status` prints: state, uptime, idle timeout, runs and their bridge channels."""
     info = read_info()
+    if info is None and (going := stopping()) is not None:
+        return {"state": "stopping", "keeper_pid": going["keeper_pid"], "why": going["why"]}
     if info is None:
         last = BOX_DIR / "exit.json"
         return {"state": "down", "last_end": json.loads(last.read_text()) if last.exists() else None}

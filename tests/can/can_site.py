@@ -1,0 +1,69 @@
+"""Where a CAN test's own processes and bus live: the host's vcan0 when its kernel has CAN, else one slot of the
+CAN box (bench/run/bus/box, docs/VM.md) held for the whole session, so that every line of the test's Python runs
+on the host as a user's python-can script would. A test starts its C processes with `site.node(...)` or
+`site.popen(...)` (in the slot's network namespace in the box) and opens the bus with `site.bus()` or
+`site.bus_kwargs()` (python-can's socketcan on the host, its slcan interface on the slot's tap in the box: the
+tap sees and may send every frame of the slot's vcan0)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+
+from bench.paths import binary
+from bench.run.bus.nodes import NodeProcess
+
+
+@dataclass
+class Site:
+    iface: str  # the bus's name where the processes run (vcan0, can0 ...)
+    lease: Any = None  # a bench.run.bus.box.lease.Lease, or None: the host's own kernel
+
+    @property
+    def in_box(self) -> bool:
+        return self.lease is not None
+
+    def bus_kwargs(self) -> dict[str, Any]:
+        """python-can's (and canopen.Network.connect's) arguments for this site's bus."""
+        if self.lease is None:
+            return {"interface": "socketcan", "channel": self.iface, "receive_own_messages": False}
+        return {"interface": "slcan", "channel": self.lease.tap_channel, "sleep_after_open": 0}
+
+    def bus(self) -> can.BusABC:
+        return can.Bus(**self.bus_kwargs())
+
+    def node(self, name: str, args: list[str], log: Path | None = None) -> NodeProcess:
+        """A C node process (build/bin/NAME) on this site's bus, not started."""
+        return NodeProcess(name, [*args], log=log, box=self.lease)
+
+    def popen(self, argv: list[str], out: Path) -> Any:
+        """Start `argv` (argv[0] a build/bin name or a program on the PATH) with its output (stdout and stderr)
+        to the file `out`; a subprocess.Popen, or the box's BoxPopen (the same face)."""
+        exe = argv[0] if "/" in argv[0] or shutil.which(argv[0]) else str(binary(argv[0]))
+        if self.lease is None:
+            with out.open("wb") as fh:
+                return subprocess.Popen([exe, *argv[1:]], stdout=fh, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        return self.lease.popen([exe, *argv[1:]], self.lease.stage / out.name)  # the stage: shared with the guest
+
+    def read(self, out: Path) -> str:
+        """The output a process of popen() has written so far."""
+        path = out if self.lease is None else self.lease.stage / out.name
+        try:
+            return path.read_text(errors="replace")
+        except FileNotFoundError:
+            return ""
+
+    def wait_for_output(self, out: Path, text: str, timeout_s: float) -> bool:
+        """Whether `text` appeared in the output within `timeout_s` (a bound, not a timing)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if text in self.read(out):
+                return True
+            time.sleep(0.05)
+        return text in self.read(out)
