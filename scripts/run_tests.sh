@@ -2,8 +2,8 @@
 # The whole test suite, in two pytest phases, then one combined verdict:
 #   1. host phase: everything that needs no CAN bus (C unit tests, models, CLI, fuzz ...)
 #   2. CAN phase: tests/can/ over a real vcan0 - on the host when its kernel has
-#      SocketCAN; otherwise the front-door tests on the host against one CAN box and the
-#      others inside the virtme-ng VM (each booted once for the phase).
+#      SocketCAN; otherwise on the host against one CAN box, but for the kernel_can tests,
+#      which run inside the virtme-ng VM (each booted once for the phase).
 # A CAN test that is skipped or deselected fails the run, as does a phase that
 # collected no test.
 set -uo pipefail
@@ -31,21 +31,21 @@ if $PY -c 'from bench.canbus import host_has_vcan; import sys; sys.exit(0 if hos
     .venv/bin/bench vm --timeout 1200 --can-controllers 2 -- $PY -m pytest tests/can/test_can_controllers.py \
         --junitxml="$RES/can_controllers.xml" "${CAN_PYTEST_OPTS[@]}" "$@" || can_rc=1
 else
-    # The tests that run the bench through its front doors (run_scenario, `bench run`, the claims, the fault
-    # checks) run here, with every line of Python on the host, against one CAN box (docs/VM.md); the tests that
-    # open SocketCAN themselves (python-can, node processes, candump, cangen, CAN controllers) inside one VM.
-    BOX_TESTS=(tests/can/test_run_parity.py tests/can/test_you2019_claims_vcan.py tests/can/test_seed001_003_vcan.py
-               tests/can/test_example_law_vcan.py tests/can/test_faults_vcan.py tests/can/test_cli_run_vcan.py)
-    echo "(host kernel has no SocketCAN: ${#BOX_TESTS[@]} files here against one CAN box, the rest inside the VM)"
+    # Every CAN test but the kernel_can ones runs here, with every line of Python on the host, against one CAN
+    # box (docs/VM.md): the bench's own runs take slots of it, the tests' own processes and python-can bus one
+    # more (tests/can/can_site.py). The kernel_can tests (they act on the run's processes from their own, or need
+    # the VM's CAN controllers or real time) run inside one VM.
+    echo "(host kernel has no SocketCAN: tests/can on the host against one CAN box, the kernel_can tests in the VM)"
     can_rc=0
     if .venv/bin/bench box up; then
-        $PY -m pytest "${BOX_TESTS[@]}" --junitxml="$RES/can_box.xml" "${CAN_PYTEST_OPTS[@]}" "$@" || can_rc=1
+        $PY -m pytest tests/can -m "not kernel_can" --junitxml="$RES/can_box.xml" "${CAN_PYTEST_OPTS[@]}" "$@" \
+            || can_rc=1
     else
         can_rc=1
     fi
     .venv/bin/bench box down
-    .venv/bin/bench vm --timeout 3600 --can-controllers 2 -- $PY -m pytest tests/can \
-        $(printf -- '--ignore=%s ' "${BOX_TESTS[@]}") --junitxml="$RES/can.xml" "${CAN_PYTEST_OPTS[@]}" "$@" || can_rc=1
+    .venv/bin/bench vm --timeout 3600 --can-controllers 2 -- $PY -m pytest tests/can -m kernel_can \
+        --junitxml="$RES/can.xml" "${CAN_PYTEST_OPTS[@]}" "$@" || can_rc=1
 fi
 
 # the CAN box a test may have left up (tests/host/test_box.py stops its own): no QEMU outlives the suite

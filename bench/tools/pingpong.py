@@ -46,8 +46,13 @@ def run_pingpong(iface: str = "vcan0", count: int = 1000) -> PingPongResult:
             f"ping-pong failed: ping rc {ping.returncode}: {ping.stdout}{ping.stderr}; "
             f"echo rc {echo.returncode}: {echo_out}"
         )
-    m = re.search(r"(\d+) frames sent, (\d+) answers verified, (\d+) bad", ping.stdout)
-    r = re.search(r"median (\d+) p99 (\d+) .*; (\d+) round trips/s", ping.stdout)
+    return parse_ping(ping.stdout, echo_out)
+
+
+def parse_ping(ping_out: str, echo_out: str) -> PingPongResult:
+    """The result of a ping-pong from the two processes' outputs (ValueError when the ping's is not one)."""
+    m = re.search(r"(\d+) frames sent, (\d+) answers verified, (\d+) bad", ping_out)
+    r = re.search(r"median (\d+) p99 (\d+) .*; (\d+) round trips/s", ping_out)
     if not m or not r:
-        raise RuntimeError(f"unexpected ping output: {ping.stdout!r}")
-    return PingPongResult(int(m[1]), int(m[2]), int(m[3]), float(r[1]), float(r[2]), float(r[3]), echo_out, ping.stdout)
+        raise ValueError(f"unexpected ping output: {ping_out!r}")
+    return PingPongResult(int(m[1]), int(m[2]), int(m[3]), float(r[1]), float(r[2]), float(r[3]), echo_out, ping_out)

@@ -67,3 +67,10 @@ class Site:
                 return True
             time.sleep(0.05)
         return text in self.read(out)
+
+    def now(self) -> float:
+        """The wall clock (time.time()) of the machine whose kernel stamps the site's frames (candump -L): the
+        host's, or the box's guest (asked over the control channel: a few ms late)."""
+        if self.lease is None:
+            return time.time()
+        return float(self.lease.ctl.check("date +%s.%N", "reading the box's clock").strip())

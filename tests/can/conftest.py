@@ -15,6 +15,16 @@ from bench.canbus import interface_state, probe_af_can
 from bench.run.bus.buses import box_wanted
 
 
+@pytest.fixture(autouse=True)
+def _kernel_can_here(request: pytest.FixtureRequest) -> None:
+    """A kernel_can test needs the kernel's CAN in this process: it fails (never skips) on a host without."""
+    if request.node.get_closest_marker("kernel_can") is not None and not probe_af_can().af_can:
+        pytest.fail(
+            "a kernel_can test on a host without SocketCAN: it runs inside the VM "
+            "(scripts/run_tests.sh, or `bench vm -- pytest -m kernel_can tests/can`)"
+        )
+
+
 @pytest.fixture(scope="session")
 def vcan0() -> str:
     """The name of an up vcan interface, or vcan0 in the CAN box on a host without kernel CAN (for the tests

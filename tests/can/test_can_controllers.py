@@ -33,6 +33,10 @@ from bench.run import RunOptions, run_scenario
 from bench.run.verdict.summary import EXIT_CODES
 from bench.scenario import load
 
+# the emulated CAN controllers (can0, can1) are the VM's
+# (kernel_can: the kernel's CAN in this process, inside the VM on a host without CAN)
+pytestmark = pytest.mark.kernel_can
+
 PARITY = REPO / "tests" / "scenarios" / "parity.toml"
 CIA402_CYCLE_S = 0.05  # as tests/can/test_cia402_vcan.py
 

@@ -22,6 +22,10 @@ from cia402_standin import DRIVE_ID, StandIn
 
 from bench.paths import EDS_DIR, REPO
 
+# the stand-in drive and the bench's run share one bus
+# (kernel_can: the kernel's CAN in this process, inside the VM on a host without CAN)
+pytestmark = pytest.mark.kernel_can
+
 CYCLE_MS = 50  # the VM stalls processes up to ~150 ms
 # Bounds on waits, not timings: in the CI's VM a bench's start-up (imports) takes ~25 s and its way out
 # (disable, decode, plot) up to a minute; a CI run once took longer than 60 s after Ctrl-C.
