@@ -178,7 +178,7 @@ def add_demo(sub: Any) -> None:
         "demo",
         help="the headline demo (the README's main job)",
         description="You 2019 motor with L_hat = 0.5 L, a current-step train, online tuning switched "
-        "on halfway, over vcan0 (VM if needed), recorded and shown in Rerun; ends with a "
+        "on halfway, over vcan0 (the CAN box if the host has no kernel CAN), recorded and shown in Rerun; ends with a "
         "before/after table and the paths of the results.",
     )
     dm.add_argument("--bus", default="vcan0", help="vcan0 (default) or direct")

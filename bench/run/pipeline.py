@@ -305,6 +305,14 @@ def _lease_box(sess: Session) -> Any:
     why = box_wanted(names[0], names[1] if len(names) > 1 else None, sess.opts.box)
     if why is None:
         return None
+    if sess.sc.timing == "realtime":
+        print(
+            "bench: warning: a real-time run in the CAN box - its nodes run under QEMU's software emulation, which "
+            "cannot hold periods below a few ms; the plant's own timing record in the box judges it "
+            "(realtime_overrun when it overran), not this host's clock (docs/VM.md, docs/REALTIME.md)",
+            file=sys.stderr,
+            flush=True,
+        )
     return acquire(names, say=lambda text: print(f"{text} [{why}]", file=sys.stderr, flush=True))
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.metadata
+import os
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -44,7 +45,7 @@ WHICH_ONLY = ("candump (can-utils)",)
 
 
 def collect() -> tuple[list[Check], str]:
-    """All checks, and the way CAN work will run here ('host', 'vm' or 'none')."""
+    """All checks, and the way CAN work will run here ('host', 'box', 'vm' or 'none')."""
     checks: list[Check] = []
     af = canbus.probe_af_can()
     checks.append(
@@ -115,11 +116,32 @@ def collect() -> tuple[list[Check], str]:
     checks.append(Check("Cortex-M4F image (--drive mcu)", image, detail, "" if image else fix, optional=True))
     if canbus.host_has_vcan():
         mode = "host"
+    elif vm_ok and os.environ.get("BENCH_BOX") != "0":
+        mode = "box"
     elif vm_ok:
         mode = "vm"
     else:
         mode = "none"
     return checks, mode
+
+
+def _box_state() -> str:
+    """The CAN box's state in one line (bench box status says more)."""
+    from bench.run.bus.box import life
+
+    st = life.status()
+    if st["state"] == "down":
+        last = st.get("last_end")
+        return "down (the next vcan run boots it, ~15-60 s; or `bench box up`)" + (
+            f"; last: {last['why']}" if last else ""
+        )
+    if st["state"] == "stopping":
+        return f"stopping ({st['why']})"
+    used = sum(1 for x in st.get("slots", []) if x.get("in_use"))
+    return (
+        f"{st['state']}, up {st['up_s']:.0f} s, {used} of {len(st.get('slots', []))} slots in use, powers off after "
+        f"{st['idle_timeout_s']:g} s unused (`bench box status` lists the slots' python-can channels)"
+    )
 
 
 def report() -> int:
@@ -134,6 +156,12 @@ def report() -> int:
     print()
     if mode == "host":
         print("CAN work runs on the host's own SocketCAN (vcan0).")
+    elif mode == "box":
+        print(
+            "The host kernel has no usable SocketCAN: vcan runs go to the CAN box, one VM booted once whose buses "
+            "the bench's Python on this host reaches over SLCAN (docs/VM.md)."
+        )
+        print(f"CAN box: {_box_state()}")
     elif mode == "vm":
         print(
             "The host kernel has no usable SocketCAN: CAN work runs in the virtme-ng VM fallback "

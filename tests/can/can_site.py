@@ -7,6 +7,9 @@ tap sees and may send every frame of the slot's vcan0)."""
 
 from __future__ import annotations
 
+import json
+import os
+import shlex
 import shutil
 import subprocess
 import time
@@ -74,3 +77,69 @@ class Site:
         if self.lease is None:
             return time.time()
         return float(self.lease.ctl.check("date +%s.%N", "reading the box's clock").strip())
+
+    # ------------------------------------------------------------------ the processes of the bench's own runs
+    def pids(self, pattern: str) -> list[int]:
+        """Processes whose command line holds `pattern` (pgrep -f) where the runs' nodes run: this machine, or
+        the box's guest (every slot's: one process namespace, a network namespace per slot)."""
+        if self.lease is None:
+            res = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
+            return [int(p) for p in res.stdout.split()]
+        _, out = self.lease.ctl.sh(f"pgrep -f {shlex.quote(pattern)}; true")
+        return [int(p) for p in out.split() if p.isdigit()]
+
+    def kill(self, pid: int, sig: int) -> None:
+        """Signal a process of pids()."""
+        if self.lease is None:
+            os.kill(pid, sig)
+        else:
+            self.lease.ctl.check(f"kill -{int(sig)} {int(pid)}", f"signalling process {pid} in the box")
+
+    def run_slot(self, pid: int, timeout_s: float = 240.0) -> int | None:
+        """The box slot a run of process `pid` holds (not this site's own), waited for up to `timeout_s`; None on
+        the host (a run there uses the host's vcan0, the site's own bus)."""
+        if self.lease is None:
+            return None
+        from bench.run.bus.box import life
+
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            for slot in range(1, self.lease.info.slots + 1):
+                meta = life.BOX_DIR / f"slot-{slot}.json"
+                if slot == self.lease.slot or not meta.exists() or not life.slot_held(slot):
+                    continue
+                try:
+                    if json.loads(meta.read_text()).get("pid") == pid:
+                        return slot
+                except (OSError, ValueError):
+                    pass
+            time.sleep(0.05)
+        raise AssertionError(f"no slot of the CAN box taken by the run of PID {pid} within {timeout_s:.0f} s")
+
+    def start_in_run(self, slot: int | None, argv: list[str]) -> Any:
+        """Start `argv` (a program on the PATH, e.g. cangen vcan0 ...) on a run's bus: the host's, or in the run's
+        slot of the box (run_slot); its output discarded."""
+        if slot is None:
+            return subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        return _InSlot(self.lease, slot, argv)
+
+
+class _InSlot:
+    """A process started in another slot's namespace of the box over the control channel (kill() ends it)."""
+
+    def __init__(self, lease: Any, slot: int, argv: list[str]) -> None:
+        self.ctl = lease.ctl
+        cmd = f"ip netns exec b{slot} " + " ".join(shlex.quote(a) for a in argv)
+        self.pid = int(self.ctl.check(f"{cmd} >/dev/null 2>&1 </dev/null & echo $!", f"starting {argv[0]}").split()[-1])
+
+    def kill(self) -> None:
+        self.ctl.sh(f"kill -9 {self.pid} 2>/dev/null; true")
+
+    def wait(self, timeout: float | None = None) -> int:
+        deadline = time.monotonic() + (timeout or 30.0)
+        while time.monotonic() < deadline:
+            rc, _ = self.ctl.sh(f"kill -0 {self.pid} 2>/dev/null")
+            if rc != 0:
+                return -9
+            time.sleep(0.05)
+        raise TimeoutError(f"process {self.pid} in the box did not end")

@@ -121,15 +121,16 @@ def test_two_runs_at_once_keep_their_own_buses(box: dict, tmp_path: Path) -> Non
         assert summary["status"] == "ok"  # a second SYNC producer or measurement would be "interference"
 
 
-def test_ctrl_c_of_a_run_leaves_the_box_healthy_for_the_next(box: dict, tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig,rc", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["ctrl-c", "sigterm"])
+def test_a_stopped_run_leaves_the_box_healthy_for_the_next(box: dict, tmp_path: Path, sig: int, rc: int) -> None:
     from bench.run.bus.box import life
 
     run = _start(tmp_path / "run", 200_000)
     slot = _slot_of(run.pid)["slot"]
     time.sleep(2)
-    run.send_signal(signal.SIGINT)
+    run.send_signal(sig)
     out, err = run.communicate(timeout=120)
-    assert run.returncode == 130, out + err
+    assert run.returncode == rc, out + err
     info = life.read_info()
     assert info is not None  # the box is still up
     rc, pids = info.control.sh(f"ip netns pids b{slot}")
@@ -201,3 +202,30 @@ def _pgid(pid: int) -> int | None:
         return os.getpgid(pid)
     except ProcessLookupError:
         return None
+
+
+def test_a_pytest_session_stops_the_box_it_started(tmp_path: Path) -> None:
+    """A user's project: two vcan tests through the plugin's hil_run in one session (the box booted by the first
+    run), which the session stops at its end; a box that was up before the session stays up."""
+    bench("box", "down")
+    (tmp_path / "test_motor.py").write_text(
+        "def test_one(hil_run):\n"
+        f"    hil_run({str(STEP)!r}).expect_status('ok')\n\n"
+        "def test_two(hil_run):\n"
+        f"    hil_run({str(STEP)!r}).expect_status('ok')\n"
+    )
+    argv = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--hil-bus", "vcan0", str(tmp_path)]
+    argv += ["--hil-out", str(tmp_path / "runs")]
+    env = {**os.environ, "BENCH_BOX": "1"}  # the box also where the host's kernel could carry vcan0
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=900, cwd=tmp_path, env=env)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "2 passed" in res.stdout
+    assert len(list((tmp_path / "runs").rglob("summary.json"))) == 2
+    assert _status()["state"] == "down"
+    assert not _qemus()
+    # a box up before the session stays up after it
+    assert bench("box", "up", timeout=900).returncode == 0
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=900, cwd=tmp_path, env=env)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert _status()["state"] == "up"
+    assert bench("box", "down").returncode == 0

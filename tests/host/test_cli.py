@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -26,7 +27,8 @@ def test_doctor_reports_can_and_fallback() -> None:
     assert "kernel CAN (AF_CAN)" in res.stdout
     if not probe_af_can().af_can:
         assert "errno 97" in res.stdout
-        assert "VM fallback" in res.stdout and "ready" in res.stdout
+        assert "VM fallback" in res.stdout
+        assert re.search(r"CAN box: (down|up|booting|stopping)", res.stdout), res.stdout  # the box's state
     for dist in ("python-can", "canopen", "rerun-sdk"):
         assert dist in res.stdout
 

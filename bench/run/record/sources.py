@@ -200,6 +200,9 @@ class CandumpSource:
             shutil.rmtree(self._tmpdir, ignore_errors=True)
 
 
+STOP_GROWING_S = 5.0  # a box run's end: how long candump's log may keep growing after the loop (foreign frames)
+
+
 class BoxCandumpSource:
     """candump records the run's bus inside the CAN box (bench/run/bus/box) into the guest's own memory, and
     `tail` copies the log to the lease's stage (shared with the host) every half second in large blocks: candump
@@ -231,10 +234,13 @@ class BoxCandumpSource:
 
         g = self.guest
         size = "$(stat -c %s " + str(g) + ")"
-        try:  # candump has written all it received once its log stops growing
+        try:  # candump has written all it received once its log stops growing; with foreign traffic still on
+            # the bus (a flood, a user's own node) it never stops: at most STOP_GROWING_S, then what is there is kept
+            n = int(STOP_GROWING_S / 0.3)
             _, out = self.lease.ctl.sh(
-                f"a=-1; b={size}; while [ $a != $b ]; do read -r -t 0.3 -u 4 _; a=$b; b={size}; done; echo $b",
-                timeout_s=600,
+                f"a=-1; b={size}; k=0; while [ $a != $b ] && [ $k -lt {n} ]; do read -r -t 0.3 -u 4 _; a=$b; "
+                f"b={size}; k=$((k + 1)); done; echo $b",
+                timeout_s=STOP_GROWING_S + 60,
             )
             self.proc.send_signal(signal.SIGINT)
             self.proc.wait(timeout=10)

@@ -20,6 +20,10 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 the same 1 s scenario); a table of the targets
 * vcan          ONE VM boot (or the host's vcan0): the real lockstep loop beside lockstep_floor (same frames,
                 no stack), and a longer run whose every frame is checked from the SYNC counters
+* box           the CAN box (issue 38), whole commands as a user runs them where the host has no kernel CAN:
+                the box's boot, `bench run` of the 200-period step over vcan0, `bench demo` and one vcan test
+                through the pytest plugin, with the box up against a VM per run (BENCH_BOX=0) and direct mode,
+                interleaved (~12 minutes; --repetitions N box runs of each, default 3)
 * soak          10^6 periods over vcan0 with the recorder (one VM boot): every frame checked (SYNC counters,
                 sample indices) and the resident memory of every process sampled once a second: flat or not
 * realtime      10^6 periods of `bench run` in direct real time at Ts = 100 us and 55 us, each beside cyclictest
@@ -27,7 +31,7 @@ Sections (each labelled in the output; timings are reported, never asserted), by
                 both, the bench's overruns and turnaround, the ratios and the issue 29 targets (needs rt-tests)
 * report        format_report
 
-`bench perf --json` prints the same as JSON; `--quick` skips the vcan, soak and mcu parts and shrinks the pipeline
+`bench perf --json` prints the same as JSON; `--quick` skips the vcan, box, soak and mcu parts and shrinks the pipeline
 section (10^5 periods, one repetition, no 10^7, no peers) and the realtime section (2 x 10^4 periods). Inside the
 VM the helper `python -m bench.tools.perf --inside-vm --out FILE` runs.
 """
@@ -58,6 +62,7 @@ SECTIONS = (
     "rerun_live",
     "pipeline",
     "vcan",
+    "box",
     "soak",
     "realtime",
 )
@@ -128,6 +133,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
+    from bench.tools.perf.box import box
     from bench.tools.perf.canopen_cost import canopen_cost
     from bench.tools.perf.cores import closed_loop, cortex_m4, firmware, plant_core, yao2020_identification_cost
     from bench.tools.perf.live import rerun_live
@@ -155,6 +161,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
         "rerun_live": rerun_live,
         "pipeline": lambda: pipeline(sizes, note=note),
         "vcan": lambda: vcan(args),
+        "box": lambda: box(args),
         "soak": lambda: soak(args.soak_periods),
         "realtime": lambda: realtime(realtime_sizes(args), note=note),
     }
@@ -219,10 +226,12 @@ def main(args: argparse.Namespace) -> int:
     for name in SECTIONS:
         if name not in only:
             continue
-        if name in ("vcan", "mcu", "soak") and args.quick:
+        if name in ("vcan", "box", "mcu", "soak") and args.quick:
             res[name] = None
             continue
-        note("vcan (one VM boot, ~2 min)" if name == "vcan" else name)
+        note(
+            {"vcan": "vcan (one VM boot, ~2 min)", "box": "box (~12 min: a VM per run is measured too)"}.get(name, name)
+        )
         res[name] = section(fns[name])
     res["wall_s"] = time.monotonic() - t0
     if args.save:

@@ -343,6 +343,9 @@ def format_report(r: dict[str, Any]) -> str:
     _cores(r, L)
     _pipeline(r, L)
     format_vcan(r, L)
+    from bench.tools.perf.box import format_box
+
+    format_box(r, L)
     from bench.tools.perf.soak import format_soak
 
     format_soak(r, L)
