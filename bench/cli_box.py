@@ -1,4 +1,4 @@
-"""`bench box up|status|down`: the CAN box, one VM booted once that carries the vcan buses of every run on a
+"""`bench box up|status|down|tap on|off`: the CAN box, one VM booted once that carries the vcan buses of every run on a
 host whose kernel has no CAN (bench/run/bus/box, docs/VM.md)."""
 
 from __future__ import annotations
@@ -29,6 +29,20 @@ def _cmd_box(args: argparse.Namespace) -> int:
         took = time.monotonic() - t0
         print(f"bench box: up (ready after {took:.1f} s; powers off after {info.idle_timeout_s:g} s unused)")
         return _print_status(life.status(), args.json)
+    if args.action == "tap":
+        if args.state is None:
+            print("bench box tap: say on or off (bench box tap on)", file=sys.stderr)
+            return 2
+        try:
+            life.set_taps(args.state == "on")
+        except BoxError as exc:
+            print(f"bench box tap: {exc}", file=sys.stderr)
+            return 1
+        print(f"bench box: taps {args.state}" + (" (each slot's tap sees its vcan0)" if args.state == "on" else ""))
+        return 0
+    if args.state is not None:
+        print(f"bench box {args.action}: takes no {args.state!r} (only bench box tap on|off does)", file=sys.stderr)
+        return 2
     if args.action == "down":
         print("bench box: stopped" if life.down() else "bench box: no box was running")
         return 0
@@ -52,11 +66,16 @@ def _print_status(st: dict[str, Any], as_json: bool) -> int:
         f"{st['keeper_pid']}, powers off after {st['idle_timeout_s']:g} s unused"
         + (f" (idle {idle:.0f} s)" if idle is not None else "")
     )
+    taps = "on" if st.get("taps") else "off (bench box tap on: a slot's tap then sees its vcan0)"
+    print(f"taps: {taps}")
     print("slot  run                          tap: python-can can.Bus(interface=..., channel=...)")
     for s in st["slots"]:
         who = f"PID {s['pid']} on {', '.join(s['buses'])}" if s.get("in_use") else "free"
         print(f"{s['slot']:>4}  {who:<28} interface={s['tap']['interface']!r} channel={s['tap']['channel']!r}")
-    print("A slot's tap sees (and may send) every frame of its run's bus (vcan0 of that run); runs get the free slots.")
+    print(
+        "A slot's tap may send to its run's bus (vcan0 of that run) and, with the taps on, sees its every frame; runs "
+        "get the free slots."
+    )
     return 0 if st["state"] == "up" else 3
 
 
@@ -71,7 +90,13 @@ def add_box(sub: Any) -> None:
         "starts a box itself when none is up; the box powers off after --idle-timeout seconds unused. "
         "Exit status of status: 0 up, 3 down.",
     )
-    b.add_argument("action", choices=("up", "status", "down"), help="boot (or find) the box, show it, stop it")
+    b.add_argument(
+        "action",
+        choices=("up", "status", "down", "tap"),
+        help="boot (or find) the box, show it, stop it; tap on|off: whether each slot's tap sees its run's vcan0 "
+        "(off when the box boots: a tap costs the loop in the box ~3x its pace)",
+    )
+    b.add_argument("state", nargs="?", choices=("on", "off"), help="with tap: on or off")
     b.add_argument(
         "--idle-timeout",
         type=float,

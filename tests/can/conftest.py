@@ -55,6 +55,7 @@ def site(vcan0: str) -> Iterator[Site]:
 
     held = lease.acquire((vcan0,))
     try:
+        held.open_tap()  # the tests' python-can bus
         yield Site(vcan0, held)
     finally:
         held.close()

@@ -89,19 +89,38 @@ def _slot_of(pid: int, timeout_s: float = 120) -> dict:
     raise AssertionError(f"no slot of the box taken by PID {pid}")
 
 
-def test_a_python_can_script_sees_a_run_on_its_slots_tap(box: dict, tmp_path: Path) -> None:
-    run = _start(tmp_path / "run", 4_000)
-    slot = _slot_of(run.pid)
+def _tap_ids(slot: dict, run: subprocess.Popen[str], want: set[int], wait_s: float) -> set[int]:
+    """The identifiers a python-can script on the slot's tap hears while `run` runs (until `want` or wait_s)."""
     ids: set[int] = set()
     with can.Bus(interface=slot["tap"]["interface"], channel=slot["tap"]["channel"], sleep_after_open=0) as bus:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and not {0x080, 0x190}.issubset(ids):
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline and not want.issubset(ids) and run.poll() is None:
             msg = bus.recv(timeout=0.5)
             if msg is not None:
                 ids.add(msg.arbitration_id)
+    return ids
+
+
+def test_a_python_can_script_sees_a_run_on_its_slots_tap(box: dict, tmp_path: Path) -> None:
+    """With the taps on (bench box tap on), a python-can script on a slot's tap hears the run in that slot: its
+    SYNCs and the plant's measurement; with the taps off (the default: the loop's pace) it hears none of them."""
+    want = {0x080, 0x190}  # the SYNCs and the plant's measurement
+    on = bench("box", "tap", "on")
+    assert on.returncode == 0 and _status()["taps"] is True, on.stdout + on.stderr
+    try:
+        run = _start(tmp_path / "run", 4_000)
+        ids = _tap_ids(_slot_of(run.pid), run, want, 120)
+        out, err = run.communicate(timeout=600)
+        assert run.returncode == 0, out + err
+        assert want.issubset(ids), sorted(hex(i) for i in ids)
+    finally:
+        assert bench("box", "tap", "off").returncode == 0
+    assert _status()["taps"] is False
+    run = _start(tmp_path / "quiet", 2_000)
+    ids = _tap_ids(_slot_of(run.pid), run, want, 20)
     out, err = run.communicate(timeout=600)
     assert run.returncode == 0, out + err
-    assert {0x080, 0x190}.issubset(ids), sorted(hex(i) for i in ids)  # the SYNCs and the plant's measurement
+    assert not ids & want, sorted(hex(i) for i in ids)
 
 
 def test_two_runs_at_once_keep_their_own_buses(box: dict, tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ from bench.paths import REPO, STATE
 from bench.root import INSTALLED
 from bench.run.bus.box.control import BoxGone
 from bench.run.bus.box.guest import guest_script
-from bench.run.bus.box.life import BOX_DIR, MASTER_IDS, STOPPING, BoxInfo, is_ready, slot_held, touch_use
+from bench.run.bus.box.life import BOX_DIR, MASTER_IDS, STOPPING, TAPS, BoxInfo, is_ready, slot_held, touch_use
 from bench.run.bus.vm import VmOptions, _check_path, _vng_argv, find_kernel, readiness, vng_path
 
 
@@ -87,6 +87,7 @@ def main(argv: list[str]) -> int:
     (BOX_DIR / "state.json").unlink(missing_ok=True)
     _power_off(info, proc)
     _ended(why)
+    (BOX_DIR / TAPS).unlink(missing_ok=True)
     (BOX_DIR / STOPPING).unlink(missing_ok=True)
     return 0
 

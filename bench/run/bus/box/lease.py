@@ -39,6 +39,7 @@ class Lease:
         self.stage = life.BOX_DIR / "runs" / f"{slot}-{uuid.uuid4().hex[:8]}"
         self.procs: list[BoxPopen] = []
         self.closed = False
+        self._tap_opened = False
 
     # ---------------------------------------------------------------- channels
     @property
@@ -91,6 +92,12 @@ class Lease:
         self.routed += [(self.bus, *x) for x in new]
         _write_slot_meta(self.slot, {**_slot_meta(self.slot), "routed": self.routed})
 
+    def open_tap(self) -> None:
+        """This slot's tap sees its vcan0 while the lease is held (the taps may be off: life.set_taps)."""
+        if not life.taps_on() and not self._tap_opened:
+            self.ctl.check(life.tap_rule(self.slot, True), f"opening the tap of slot {self.slot}")
+            self._tap_opened = True
+
     def link_infos(self, names: list[str]) -> dict[str, dict[str, Any] | None]:
         """canbus.link_info of each of the run's links, in one request."""
         from bench.canbus import link_info_json
@@ -132,6 +139,8 @@ class Lease:
             left = [p.pid for p in self.procs if p.returncode is None]
             if left:
                 self.ctl.sh(f"kill -9 {' '.join(map(str, left))} 2>/dev/null; true", timeout_s=30)
+            if self._tap_opened and not life.taps_on():
+                self.ctl.sh(life.tap_rule(self.slot, False), timeout_s=30)
             _write_slot_meta(self.slot, {**_slot_meta(self.slot), "clean": True})
         except BoxGone:
             pass
