@@ -39,7 +39,19 @@ class Site:
         return {"interface": "slcan", "channel": self.lease.tap_channel, "sleep_after_open": 0}
 
     def bus(self) -> can.BusABC:
-        return can.Bus(**self.bus_kwargs())
+        bus = can.Bus(**self.bus_kwargs())
+        if self.lease is not None:
+            self.drain(bus.recv)
+        return bus
+
+    @staticmethod
+    def drain(recv: Any, quiet_s: float = 0.3, max_s: float = 5.0) -> int:
+        """Frames the bridge delivers on connecting that were routed to the tap before (a loaded guest's
+        console keeps them): read and dropped until the tap is quiet for `quiet_s` (at most `max_s`)."""
+        n, deadline = 0, time.monotonic() + max_s
+        while time.monotonic() < deadline and recv(timeout=quiet_s) is not None:
+            n += 1
+        return n
 
     def node(self, name: str, args: list[str], log: Path | None = None) -> NodeProcess:
         """A C node process (build/bin/NAME) on this site's bus, not started."""

@@ -84,6 +84,15 @@ class Target:
         return struct.unpack_from("<I", answer, 4)[0]
 
 
+def _grew(capture: Capture, last: list[int], timeout: float) -> bool | None:
+    """True when the capture got frames within `timeout` (Site.drain's recv for a listener's bus)."""
+    time.sleep(timeout)
+    with capture.lock:
+        n = len(capture.frames)
+    grew, last[0] = n > last[0], n
+    return True if grew else None
+
+
 @contextmanager
 def node_target(binary: str, args: list[str], kind: str, node_id: int, site: Site) -> Iterator[Target]:
     """`binary` started on the site's bus (the host's vcan0, or the session's slot of the CAN box:
@@ -96,6 +105,10 @@ def node_target(binary: str, args: list[str], kind: str, node_id: int, site: Sit
     node.sdo.RESPONSE_TIMEOUT = 3.0
     net.add_node(node)
     proc = site.node(binary, [*args, "--iface", site.iface, "--node-id", str(node_id)])
+    if site.in_box:  # what the tap's console kept from before this connection (Site.drain)
+        last = [0]
+        Site.drain(lambda timeout: _grew(capture, last, timeout))
+        capture.clear()
     proc.start()
     try:
         boot = capture.wait_for(0x700 + node_id, 1, timeout=10.0)

@@ -345,7 +345,9 @@ def test_pdo_remap_via_canopen_api_and_sync_tpdos(target: Target) -> None:
     for k in range(20):
         t.net.sync.transmit((k % 240) + 1)
         time.sleep(0.003)
-    time.sleep(0.2)
+    # the ten answers awaited (a bound: through the CAN box on a loaded host they come late), then no more come
+    t.capture.wait_for(0x380 + t.node_id, 10, 10.0)
+    time.sleep(0.3)
     assert len(t.capture.with_id(0x380 + t.node_id)) == 10
     t.node.nmt.send_command(0x80)
 
