@@ -95,8 +95,9 @@ class Site:
         """Processes whose command line holds `pattern` (pgrep -f) where the runs' nodes run: this machine, or
         the box's guest (every slot's: one process namespace, a network namespace per slot)."""
         if self.lease is None:
-            res = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
-            return [int(p) for p in res.stdout.split()]
+            from bench_proc import pids
+
+            return pids(pattern)
         _, out = self.lease.ctl.sh(f"pgrep -f {shlex.quote(pattern)}; true")
         return [int(p) for p in out.split() if p.isdigit()]
 
