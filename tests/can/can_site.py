@@ -13,7 +13,7 @@ import shlex
 import shutil
 import subprocess
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,9 @@ from bench.run.bus.nodes import NodeProcess
 class Site:
     iface: str  # the bus's name where the processes run (vcan0, can0 ...)
     lease: Any = None  # a bench.run.bus.box.lease.Lease, or None: the host's own kernel
+    # popen()'s output files in the box: a name of their own in the slot's stage, held for the whole session
+    # (a second test's echo.out must not find the first's "echo: ready")
+    _staged: dict[Path, Path] = field(default_factory=dict)
 
     @property
     def in_box(self) -> bool:
@@ -64,11 +67,13 @@ class Site:
         if self.lease is None:
             with out.open("wb") as fh:
                 return subprocess.Popen([exe, *argv[1:]], stdout=fh, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-        return self.lease.popen([exe, *argv[1:]], self.lease.stage / out.name)  # the stage: shared with the guest
+        staged = self.lease.stage / f"{len(self._staged)}-{out.name}"  # the stage: shared with the guest
+        self._staged[out] = staged
+        return self.lease.popen([exe, *argv[1:]], staged)
 
     def read(self, out: Path) -> str:
         """The output a process of popen() has written so far."""
-        path = out if self.lease is None else self.lease.stage / out.name
+        path = out if self.lease is None else self._staged.get(out, out)
         try:
             return path.read_text(errors="replace")
         except FileNotFoundError:

@@ -186,8 +186,11 @@ def test_foreign_frames_never_pass_for_a_clean_run(site: Site, tmp_path: Path, f
             res.status,
             bs,
         )
-    if res.status in ("ok", "interference"):
-        assert res.summary["periods"] == 3000  # no foreign SYNC made a period
+    # No foreign SYNC made a period. A run the liveness stopped ends early: a random frame on a node's heartbeat
+    # identifier says the node left operational (CiA 301 7.2.8.3.2.4; a CI run in the box stopped at 1,351 of
+    # 3,000 periods), and the verdict still names the interference first.
+    if res.status in ("ok", "interference") and not res.summary.get("stopped"):
+        assert res.summary["periods"] == 3000, res.summary
     _no_process_left(site)
 
 

@@ -200,7 +200,7 @@ class CandumpSource:
             shutil.rmtree(self._tmpdir, ignore_errors=True)
 
 
-STOP_GROWING_S = 5.0  # a box run's end: how long candump's log may keep growing after the loop (foreign frames)
+CATCH_UP_S = 120.0  # a box run's end: a bound on candump's catching up with the bus (a flood in a TCG guest)
 
 
 class BoxCandumpSource:
@@ -234,13 +234,17 @@ class BoxCandumpSource:
 
         g = self.guest
         size = "$(stat -c %s " + str(g) + ")"
-        try:  # candump has written all it received once its log stops growing; with foreign traffic still on
-            # the bus (a flood, a user's own node) it never stops: at most STOP_GROWING_S, then what is there is kept
-            n = int(STOP_GROWING_S / 0.3)
-            _, out = self.lease.ctl.sh(
-                f"a=-1; b={size}; k=0; while [ $a != $b ] && [ $k -lt {n} ]; do read -r -t 0.3 -u 4 _; a=$b; "
-                f"b={size}; k=$((k + 1)); done; echo $b",
-                timeout_s=STOP_GROWING_S + 60,
+        try:  # candump has written all the run sent once its log holds a frame stamped after the run's end (the
+            # guest's clock, now: foreign traffic goes on, a flood), or once the log stops growing (a quiet bus);
+            # SIGINT before that drops what still waits in its socket (a loaded guest's candump may be seconds
+            # behind a flood: the end of the loop was lost)
+            n = int(CATCH_UP_S / 0.3)
+            self.lease.ctl.sh(
+                f"e=${{EPOCHREALTIME/./}}; a=-1; b={size}; k=0; while [ $a != $b ] && [ $k -lt {n} ]; do "
+                f"read -r -t 0.3 -u 4 _; a=$b; b={size}; k=$((k + 1)); "
+                rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "
+                f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break; done",
+                timeout_s=CATCH_UP_S + 60,
             )
             self.proc.send_signal(signal.SIGINT)
             self.proc.wait(timeout=10)
