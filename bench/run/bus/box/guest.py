@@ -22,9 +22,9 @@ from pathlib import Path
 #   down -     answer 0, then stop every process and power the guest off
 AGENT = r"""
 ctl=
-for k in $(seq 100); do
+for ((k = 0; k < 100; k++)); do
   for d in /sys/class/virtio-ports/*; do
-    [ "$(cat "$d/name" 2>/dev/null)" = box.control ] && ctl=/dev/${d##*/}
+    n=; read -r n <"$d/name" 2>/dev/null; [ "$n" = box.control ] && ctl=/dev/${d##*/}
   done
   [ -n "$ctl" ] && [ -e "$ctl" ] && break; sleep 0.05
 done
@@ -67,14 +67,18 @@ def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
         + [f"link add {v} type vcan\\nlink set {v} txqueuelen 4000 up" for v in ("vcan0", "vcan1")]
         + ["link set $m txqueuelen 1000 up", "link set $t txqueuelen 1000 up"]
     )
+    moves = "\\n".join(
+        f"netns add b{s}\\nlink set bslc{2 * s - 1} netns b{s}\\nlink set bslc{2 * s} netns b{s}"
+        for s in range(1, slots + 1)
+    )
     return [
-        f"for s in $(seq 1 {slots}); do",
-        "  m=bslc$((2 * s - 1)); t=bslc$((2 * s)); ns=b$s",
-        '  ip netns add $ns || fail "slot $s"',
-        '  printf "link set $m netns $ns\\nlink set $t netns $ns\\n" | ip -batch - || fail "slot $s ports"',
+        f'printf "{moves}\\n" | ip -batch - || fail "the slots\' namespaces"',
+        f"for ((s = 1; s <= {slots}; s++)); do",  # the slots at once: their execs overlap on the guest's CPUs
+        "  ( m=bslc$((2 * s - 1)); t=bslc$((2 * s)); ns=b$s",
         f'  printf "{batch}\\n" | ip -n $ns -batch - || fail "slot $s links"',
-        f'  ip netns exec $ns bash -c "{" && ".join(rules)}" || fail "slot $s routes"',
+        f'  ip netns exec $ns bash -c "{" && ".join(rules)}" || fail "slot $s routes" ) &',
         "done",
+        "wait",
     ]
 
 
@@ -90,16 +94,19 @@ def guest_script(state_dir: Path, ports: int, env_lines: list[str], master_ids: 
         *env_lines,
         f"rm -f {ready}",
         "mkdir -p /run/box /run/netns",
+        "mkfifo /run/box/boot.nap && exec 5<>/run/box/boot.nap",  # a nap without a fork (read -t of a fifo)
         'fail() { echo "$1" > ' + failed + "; sync; (poweroff -f || echo o > /proc/sysrq-trigger) >/dev/null 2>&1; }",
         "modprobe -a vcan can_raw can_bcm slcan can-gw || fail 'modprobe vcan can_raw can_bcm slcan can-gw failed'",
-        f"for i in $(seq 1 {ports}); do",
-        '  t=/dev/hvc$((i - 1)); for k in $(seq 100); do [ -e "$t" ] && break; sleep 0.05; done',
+        f"for ((i = 1; i <= {ports}; i++)); do",  # the ports at once (each a few execs under TCG)
+        '  ( t=/dev/hvc$((i - 1)); for ((k = 0; k < 100; k++)); do [ -e "$t" ] && break; read -r -t 0.05 -u 5 _; done',
         '  stty -F "$t" raw -echo || fail "no $t (the bridge ports did not appear)"',
-        '  slcand -o -c -s8 "$t" bslc$i || fail "slcand on $t failed"',
+        '  slcand -o -c -s8 "$t" bslc$i || fail "slcand on $t failed" ) &',
         "done",
-        f"for i in $(seq 1 {ports}); do",
-        "  for k in $(seq 100); do [ -e /sys/class/net/bslc$i ] && break; sleep 0.05; done",
-        '  ip link set bslc$i txqueuelen 1000 && ip link set bslc$i up || fail "bslc$i did not come up"',
+        "wait",
+        # each link up in its slot's namespace (a link moved there is down: _slot_lines)
+        f"for ((i = 1; i <= {ports}; i++)); do",
+        "  for ((k = 0; k < 100; k++)); do [ -e /sys/class/net/bslc$i ] && break; read -r -t 0.05 -u 5 _; done",
+        '  [ -e /sys/class/net/bslc$i ] || fail "bslc$i did not appear"',
         "done",
         *_slot_lines(ports // 2, master_ids),
         f"echo ready > {ready}; sync",
