@@ -55,6 +55,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -376,13 +377,21 @@ def default_trace(sc: Scenario) -> dict[int, tuple[str, ...]]:
 def bundled(path: Path) -> Path:
     """`path`, or the bench's own scenario of that relative name (scenarios/you2019_step.toml; in a clone also
     examples/...) when this folder has none: the README's commands work from any folder, also with an installed
-    package."""
+    package. Says so on stderr (a user's own scenario of that name in another folder must not pass unnoticed)."""
     if path.exists() or path.is_absolute():
         return path
     from bench.paths import REPO
 
     own = REPO / path
-    return own if own.is_file() else path
+    if not own.is_file():
+        return path
+    if own not in _SAID:  # once a process: argparse's type and load() both resolve it
+        _SAID.add(own)
+        print(f"bench: {path} is not in {Path.cwd()}: using the bench's own {own}", file=sys.stderr, flush=True)
+    return own
+
+
+_SAID: set[Path] = set()
 
 
 def scenario_path(text: str) -> Path:

@@ -6,6 +6,7 @@ import importlib.metadata
 import os
 import shutil
 import subprocess
+import sys
 from dataclasses import dataclass
 
 from bench import canbus, mcu
@@ -82,7 +83,7 @@ def collect() -> tuple[list[Check], str]:
                 dist,
                 ver is not None,
                 ver or "not installed",
-                "" if ver else f"make setup  (installs the pinned {dist} into .venv)",
+                "" if ver else _install_hint(dist),
             )
         )
     for label, cmd, optional, pkg in (
@@ -168,8 +169,19 @@ def report() -> int:
             "(ready; `bench vm -- CMD` runs CMD next to a real vcan0)."
         )
     else:
-        print("No SocketCAN and no VM fallback: run `make setup` to install the fallback.")
+        print(
+            "No SocketCAN and no VM fallback: install what the 'VM fallback' lines above name"
+            + ("." if INSTALLED else " (`make setup` does it in a clone).")
+        )
     problems = [c for c in checks if not c.ok and not c.optional]
     if problems:
         print(f"{len(problems)} problem(s) above; each line says the command that fixes it.")
     return 0 if mode != "none" and not problems else 1
+
+
+def _install_hint(dist: str) -> str:
+    """How to install a missing Python distribution: pip into the running interpreter for an installed
+    package (a pip user has no Makefile), `make setup` in a clone (its pinned set in .venv)."""
+    if INSTALLED:
+        return f'{sys.executable} -m pip install "{dist}"'
+    return f"make setup  (installs the pinned {dist} into .venv)"

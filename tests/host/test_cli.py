@@ -6,6 +6,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 from bench.canbus import probe_af_can
 
 BENCH = [sys.executable, "-m", "bench.cli"]
@@ -117,3 +119,13 @@ def test_the_readme_lists_every_exit_code() -> None:
     listed = {int(n) for n in re.findall(r"(?:^|[\s,;:(])(\d{1,3}) (?=[a-z])", para)}
     codes = {*EXIT_CODES.values(), EXIT_EXPECTATION_NOT_MET, EXIT_FAILURE, EXIT_BAD_INPUT, EXIT_INTERRUPTED}
     assert listed == codes
+
+
+def test_doctor_tells_a_pip_user_pip_and_a_clone_make_setup(monkeypatch: pytest.MonkeyPatch) -> None:
+    from bench.tools import doctor
+
+    monkeypatch.setattr(doctor, "INSTALLED", True)  # a pip-installed package: no Makefile to run
+    hint = doctor._install_hint("rerun-sdk")
+    assert f'{sys.executable} -m pip install "rerun-sdk"' == hint and "make" not in hint
+    monkeypatch.setattr(doctor, "INSTALLED", False)
+    assert doctor._install_hint("rerun-sdk").startswith("make setup")

@@ -213,3 +213,21 @@ def test_out_inside_the_vm_but_not_shared_is_refused(tmp_path: Path, cmd: str) -
     assert res.returncode == 2, (res.stdout, res.stderr)
     assert f"{private} is inside the VM's own file system" in res.stderr and str(shared) in res.stderr, res.stderr
     assert not (tmp_path / "vm-own").exists()
+
+
+def test_a_scenario_found_only_among_the_bench_own_is_named(tmp_path: Path) -> None:
+    """A relative scenario path this folder lacks runs the bench's bundled scenario of that name, and says so; a
+    user's own file of that name is used without a word."""
+    rel = "scenarios/you2019_step.toml"
+    argv = [*BENCH, "run", rel, "--bus", "direct", "--no-viewer", "--set", "scenario.periods=40"]
+    res = subprocess.run([*argv, "--out", str(tmp_path / "a")], capture_output=True, text=True, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert f"{rel} is not in {tmp_path}: using the bench's own {REPO / rel}" in res.stderr
+    assert res.stderr.count("using the bench's own") == 1
+    own = tmp_path / rel
+    own.parent.mkdir()
+    own.write_text(STEP.read_text().replace('name = "you2019-step"', 'name = "mine"'))
+    res = subprocess.run([*argv, "--out", str(tmp_path / "b")], capture_output=True, text=True, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert "using the bench's own" not in res.stderr
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["scenario"] == "mine"

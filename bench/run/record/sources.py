@@ -232,36 +232,35 @@ class BoxCandumpSource:
     def stop(self) -> None:
         from bench.run.bus.box.control import BoxGone
 
-        g = self.guest
+        g, p = self.guest, self.proc
         size = "$(stat -c %s " + str(g) + ")"
-        try:  # candump has written all the run sent once its log holds a frame stamped after the run's end (the
-            # guest's clock, now: foreign traffic goes on, a flood), or once the log stops growing (a quiet bus);
-            # SIGINT before that drops what still waits in its socket (a loaded guest's candump may be seconds
-            # behind a flood: the end of the loop was lost)
-            n = int(CATCH_UP_S / 0.3)
-            self.lease.ctl.sh(
-                f"e=${{EPOCHREALTIME/./}}; a=-1; b={size}; k=0; while [ $a != $b ] && [ $k -lt {n} ]; do "
-                f"read -r -t 0.3 -u 4 _; a=$b; b={size}; k=$((k + 1)); "
-                rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "
-                f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break; done",
-                timeout_s=CATCH_UP_S + 60,
-            )
-            self.proc.send_signal(signal.SIGINT)
-            self.proc.wait(timeout=10)
-            _, out = self.lease.ctl.sh(f"echo {size}")
-            total = int(out.strip() or 0)
+        # one request (each costs the guest tens of ms under TCG): candump has written all the run sent once its log
+        # holds a frame stamped after the run's end (the guest's clock, now: foreign traffic goes on, a flood), or
+        # once the log stops growing (a quiet bus) - SIGINT before that drops what still waits in its socket (a
+        # loaded guest's candump may be seconds behind a flood: the end of the loop was lost); then SIGINT, its
+        # exit, the log's final size, and the log unlinked (the copier reads on from its open descriptor)
+        n = int(CATCH_UP_S / 0.3)
+        nap = "read -r -t 0.3 -u 4 _"
+        script = (
+            f"e=${{EPOCHREALTIME/./}}; a=-1; b={size}; k=0; while [ $a != $b ] && [ $k -lt {n} ]; do "
+            f"{nap}; a=$b; b={size}; k=$((k + 1)); "
+            rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "
+            f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break; done; "
+            f"kill -2 {p.pid} 2>/dev/null; for ((k = 0; k < 1000; k++)); do [ -e {p.exit_file} ] && break; "
+            f"read -r -t 0.01 -u 4 _; done; echo {size}; rm -f {g}"
+        )
+        try:
+            _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 60)
+            p.poll(fresh=True)
+            total = int(out.split()[-1])
             deadline = time.monotonic() + 120
             while self.path.stat().st_size < total and time.monotonic() < deadline:  # the copy catches up
                 time.sleep(0.1)
-        except (BoxGone, subprocess.TimeoutExpired, ValueError, OSError):
+        except (BoxGone, ValueError, IndexError, OSError):
             pass
         finally:
-            self.proc.kill()
+            p.kill()
             self.copier.kill()
-            try:
-                self.lease.ctl.sh(f"rm -f {g}")
-            except BoxGone:
-                pass
 
     def cleanup(self) -> None:
         err = self.path.with_name("candump.err")

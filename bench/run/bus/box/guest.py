@@ -51,6 +51,9 @@ done
 """
 
 
+HOLDER = "/run/box/holder-"  # + the namespace: the PID of its holder process (_slot_lines)
+
+
 def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
     """Each slot's namespace b<s>, made once at boot (under TCG each program started costs tens of
     milliseconds: a run then starts none to get its buses): vcan0 and vcan1 (the fault gateway's drive side),
@@ -59,7 +62,9 @@ def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
     console's write, whether a host listens or not: the lockstep loop ran 2.5-3.4x slower with it), the master's
     port sends every frame and sees `master_ids` only ((identifier, mask); python-can's SLCAN reader takes a byte
     at a time, the PDO stream stays in the box where candump records it). QEMU drops what is routed to a port no
-    host has connected: a master that connects later sees no old frame."""
+    host has connected: a master that connects later sees no old frame. A holder process sleeps in each
+    namespace for the box's life: /proc/HOLDER/root/sys/class/net is the namespace's own sysfs, read by the
+    agent's builtins (Lease.link_infos: ~30 ms, where an `ip` exec costs 270-520 ms under TCG)."""
     rules = ["cangw -A -s $t -d vcan0 -e", "cangw -A -s $m -d vcan0 -e"]
     rules += [f"cangw -A -s vcan0 -d $m -e -f {c:03X}:{k:03X}" for c, k in master_ids]
     batch = "\\n".join(
@@ -76,7 +81,8 @@ def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
         f"for ((s = 1; s <= {slots}; s++)); do",  # the slots at once: their execs overlap on the guest's CPUs
         "  ( m=bslc$((2 * s - 1)); t=bslc$((2 * s)); ns=b$s",
         f'  printf "{batch}\\n" | ip -n $ns -batch - || fail "slot $s links"',
-        f'  ip netns exec $ns bash -c "{" && ".join(rules)}" || fail "slot $s routes" ) &',
+        f'  ip netns exec $ns bash -c "{" && ".join(rules)}" || fail "slot $s routes"',
+        f"  ip netns exec $ns sleep infinity </dev/null >/dev/null 2>&1 & echo $! >{HOLDER}$ns ) &",
         "done",
         "wait",
     ]
