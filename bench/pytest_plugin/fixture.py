@@ -108,7 +108,11 @@ class HilRunner:
         import shlex
 
         law = [] if self._settings.law is None else [f"--law={self._settings.law}"]
-        line = shlex.join(["bench", *cmd[3:], *law])
+        args = list(cmd[3:])
+        if "--out" in args:  # the test's own run folder exists (a run refuses it): a new one beside it
+            at = args.index("--out") + 1
+            args[at] = args[at] + "-again"
+        line = shlex.join(["bench", *args, *law])
         return f"reproduce:   {line}" + (f"\nlaw:         {self._settings.law}" if law else "")
 
     def _check_bus(self, bus: str) -> None:

@@ -178,6 +178,9 @@ def report_text(run: HilRun) -> str:
         f"run folder:  {run.folder}",
         f"scenario:    {run.scenario or run.summary.get('scenario')} on bus {run.bus}",
         f"status:      {run.status} (exit status {run.exit_code}{expected})",
+        f"summary:     {run.folder / 'summary.json'}",
+        f"traces:      {run.folder / 'traces.npy'} (numpy.load)",
+        f"plots:       {', '.join(p.name for p in sorted(run.folder.glob('*.svg'))) or 'none written'}",
         f"bus log:     {run.bus_log}",
         f"recording:   {rec}",
     ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -150,7 +151,24 @@ def test_a_broken_bound_names_the_measured_figure_the_bound_and_the_run(
         assert f"run folder:  {run}" in out and f"bus log:     {run / 'bus.log'}" in out, out
         assert f"{run / 'run.rrd'}" in out, out
     assert f"rerun {second / 'run.rrd'}" in out, out
+    assert f"summary:     {second / 'summary.json'}" in out and f"traces:      {second / 'traces.npy'}" in out, out
+    assert "plots:       overview.svg, step_00_iq_p20.svg" in out, out
     assert PLUGIN_FRAMES not in out and "Traceback" not in out, out
+    # the reproduce line runs as pasted (its own new folder beside the test's) and gives the same figure
+    line = next(x for x in out.splitlines() if x.startswith("reproduce:") and str(second) in x)
+    argv = shlex.split(line.removeprefix("reproduce:"))
+    assert argv[0] == "bench"
+    again = subprocess.run(
+        [sys.executable, "-m", "bench.cli", *argv[1:], "--no-viewer"],
+        cwd=root,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert again.returncode == 0, again.stdout + again.stderr
+    redone = json.loads(Path(f"{second}-again", "summary.json").read_text())
+    assert redone["steps"][0]["overshoot_pct"] == measured
 
 
 def test_the_key_figures_are_junit_properties(session: tuple[pytest.RunResult, Path]) -> None:
