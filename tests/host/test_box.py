@@ -66,6 +66,10 @@ def test_a_run_in_the_box_is_the_direct_run_bit_for_bit(box: dict, tmp_path: Pat
     assert summary["status"] == "ok" and summary["bus"] == "vcan0"
     assert (tmp_path / "box" / "bus.log").stat().st_size > 0 and (tmp_path / "box" / "plant_node.out").exists()
     assert not any(s["in_use"] for s in _status()["slots"])  # the slot was given back
+    # the run's bus as the kernel in its slot counted it, before and after (read through the slot's holder)
+    link = summary["can_links"]["vcan0"]
+    assert link["before"]["up"] and link["after"]["up"] and link["after"]["kind"] == "vcan", link
+    assert link["after"]["tx_frames"] - link["before"]["tx_frames"] >= summary["bus_stats"]["frames"] > 0, link
 
 
 def _start(out: Path, periods: int) -> subprocess.Popen[str]:
