@@ -231,6 +231,7 @@ class BoxCandumpSource:
 
     def stop(self) -> None:
         from bench.run.bus.box.control import BoxGone
+        from bench.run.bus.box.lease import await_file
 
         g, p = self.guest, self.proc
         size = "$(stat -c %s " + str(g) + ")"
@@ -246,8 +247,7 @@ class BoxCandumpSource:
             f"{nap}; a=$b; b={size}; k=$((k + 1)); "
             rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "
             f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break; done; "
-            f"kill -2 {p.pid} 2>/dev/null; for ((k = 0; k < 1000; k++)); do [ -e {p.exit_file} ] && break; "
-            f"read -r -t 0.01 -u 4 _; done; echo {size}; rm -f {g}"
+            f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 1000)}; echo {size}; rm -f {g}"
         )
         try:
             _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 60)

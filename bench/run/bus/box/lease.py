@@ -25,6 +25,14 @@ from bench.run.bus.box.guest import HOLDER
 # a link's counters in sysfs (statistics/NAME) and their keys in canbus.link_info
 LINK_STATS = ("rx_packets", "tx_packets", "rx_errors", "tx_errors", "rx_dropped", "tx_dropped")
 LINK_KEYS = ("rx_frames", "tx_frames", "rx_errors", "tx_errors", "rx_dropped", "tx_dropped")
+
+
+def await_file(test: str, ticks: int) -> str:
+    """A guest command line that waits until `[ TEST ]` holds, at most `ticks` naps of 10 ms (a read of the
+    agent's empty fifo: no fork, no exec)."""
+    return f"for ((k = 0; k < {ticks}; k++)); do [ {test} ] && break; read -r -t 0.01 -u 4 _; done"
+
+
 POLL_CACHE_S = 0.25  # a process's state asked of the guest at most this often (liveness looks every 0.1 s)
 
 
@@ -249,7 +257,7 @@ class BoxPopen:
         cmd = (
             f"( {lease.in_ns(argv)} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
             f"echo $? >{d}/{self.tag}.exit ) >/dev/null 2>&1 </dev/null & "
-            f"for ((k = 0; k < 500; k++)); do [ -s {d}/{self.tag}.pid ] && break; read -r -t 0.01 -u 4 _; done; "
+            f"{await_file(f'-s {d}/{self.tag}.pid', 500)}; "
             f"read -r p <{d}/{self.tag}.pid && echo $p"
         )
         out_text = lease.ctl.check(cmd, f"starting {Path(argv[0]).name}")
@@ -321,8 +329,8 @@ class BoxPopen:
         cont = f"kill -18 {self.pid} 2>/dev/null; " if wake else ""
         try:
             self.lease.ctl.sh(
-                f"kill -15 {self.pid} 2>/dev/null; {cont}for ((k = 0; k < {n}; k++)); do [ -e {f} ] && break; "
-                f"read -r -t 0.01 -u 4 _; done; [ -e {f} ] || kill -9 {self.pid} 2>/dev/null; true",
+                f"kill -15 {self.pid} 2>/dev/null; {cont}{await_file(f'-e {f}', n)}; "
+                f"[ -e {f} ] || kill -9 {self.pid} 2>/dev/null; true",
                 timeout_s=timeout_s + 30,
             )
         except BoxGone as exc:
@@ -345,10 +353,7 @@ class BoxPopen:
                 raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
             try:
                 n = max(1, int(left * 100))
-                nap = "read -r -t 0.01 -u 4 _"
-                self.lease.ctl.sh(
-                    f"for ((k = 0; k < {n}; k++)); do [ -e {f} ] && break; {nap}; done", timeout_s=left + 30
-                )
+                self.lease.ctl.sh(await_file(f"-e {f}", n), timeout_s=left + 30)
             except BoxGone as exc:
                 self.gone = str(exc)
                 self.returncode = -signal.SIGKILL
