@@ -6,11 +6,25 @@
 #
 # `make all` only builds the C code (C11, -Wall -Wextra -Werror), into build/ (BUILD=DIR: elsewhere).
 # `make LAW=DIR` (and `make LAW=DIR mcu`) builds the drive with a user's current law, a folder of one or
-# two C files and law.eds, into build/laws/<law name>/ (docs/ARCHITECTURE.md, "A law from your own folder").
+# two C files and law.eds, into build/laws/<law name>-<8 hex of DIR's path>/, the folder `bench run --law DIR`
+# uses: make hands the build to bench/law.py (atomic: a failing build leaves the last good one; it calls this
+# Makefile again with BUILD= its work folder). docs/ARCHITECTURE.md, "A law from your own folder".
 
 CC      ?= gcc
 LAW     ?=
 PYTHON  ?= $(if $(wildcard .venv/bin/python),.venv/bin/python,python3)
+
+ifneq ($(strip $(LAW)),)
+ifneq ($(origin BUILD),command line)
+LAW_HANDED := 1
+endif
+endif
+ifdef LAW_HANDED
+.PHONY: law mcu
+law:
+	@$(PYTHON) -m bench.law '$(LAW)' $(MAKECMDGOALS)
+mcu: $(if $(filter law,$(MAKECMDGOALS)),,law)
+else
 # -flto: the in-process loop (libhil.so) crosses many small functions of the CANopen slave, the bus and the apps
 # per period; link-time inlining makes it ~25% faster (docs/BENCHMARKS.md). -fno-semantic-interposition: calls
 # inside the library need not go through the PLT. -std=c11 keeps -ffp-contract=off: the arithmetic is the same.
@@ -294,3 +308,4 @@ $(BUILD)/bin/drive_node $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_CHECKED)
 endif
 
 -include $(shell find $(BUILD)/obj $(BUILD)/deps $(BUILD)/mcu/obj -name '*.d' 2>/dev/null)
+endif  # LAW_HANDED

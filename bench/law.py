@@ -68,8 +68,13 @@ def law_name(law: Path) -> str:
     return m.group(1)
 
 
-def build(law: Path, repo: Path = REPO, state: Path = STATE) -> Path:
-    """`make LAW=law` with progress on stderr; the build folder, or LawBuildError."""
+def build(law: Path, repo: Path = REPO, state: Path = STATE, goals: tuple[str, ...] = ()) -> Path:
+    """`make LAW=law [goals]` with progress on stderr; the build folder, or LawBuildError.
+
+    Atomic: make works in the law's own work folder (laws/.<name>-<hash>.work, its objects kept for the next
+    build), and only a build that succeeded is published, swapped in as laws/<name>-<hash>/ by two renames. A
+    failing build leaves the previous good one as it was; a first build that fails leaves nothing. One lock,
+    laws/.lock, serialises the builds (two CI jobs, pytest-xdist workers): each make uses every core anyway."""
     law = Path(os.path.abspath(law))  # not resolve(): a link from a path without white space stays one
     if re.search(r"\s", str(law)):
         raise LawBuildError(
@@ -78,24 +83,72 @@ def build(law: Path, repo: Path = REPO, state: Path = STATE) -> Path:
         )
     name = law_name(law)
     out = build_folder(law, name, state)
-    cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD={out}", f"PYTHON={sys.executable}"]
-    cmd.append(f"-j{os.cpu_count() or 1}")
-    print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
-    _prune(out, name)
+    work = _work(out)
+    cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD={work}", f"PYTHON={sys.executable}"]
+    cmd += [f"-j{os.cpu_count() or 1}", *goals]
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out.with_name(out.name + ".lock"), "w") as lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)  # another command building this folder now: after it, make finds it done
-            lines = _make(cmd)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with open(out.parent / ".lock", "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # another command building now: after it, make finds its part done
+            _prune(out, name)
+            print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
+            lines = _make(cmd)  # make finds what is current (a second build of the same folder compiles nothing)
+            if lines is not None:
+                if not out.is_dir():
+                    shutil.rmtree(work, ignore_errors=True)  # no good build to keep objects for
+                raise LawBuildError(_failure(lines, law))
+            if not _current(work, out):
+                _publish(work, out)
     except OSError as exc:
         where = exc.filename or out
         raise LawBuildError(
             f"cannot build in {where}: {exc.strerror} (make and a C compiler are needed; the build goes to the "
             "bench's working folder: BENCH_CACHE_DIR chooses another for an installed package)"
         ) from None
-    if lines is not None:
-        raise LawBuildError(_failure(lines, law))
     return out
+
+
+def _work(out: Path) -> Path:
+    return out.with_name(f".{out.name}.work")
+
+
+# what a run takes from a build (bench/paths.py): the objects, archives and dependency files stay in the work folder
+NOT_PUBLISHED = ("obj", "deps", "*.o", "*.d", "*.a", "*.err")
+
+
+def _published(work: Path) -> list[Path]:
+    skip = shutil.ignore_patterns(*NOT_PUBLISHED)
+    found: list[Path] = []
+    for d, dirs, files in os.walk(work):
+        drop = skip(d, [*dirs, *files])
+        dirs[:] = [x for x in dirs if x not in drop]
+        found += [Path(d, f) for f in files if f not in drop]
+    return found
+
+
+def _current(work: Path, out: Path) -> bool:
+    """The published build holds the work folder's every output, as built (size and time)."""
+    for f in _published(work):
+        there = out / f.relative_to(work)
+        try:
+            a, b = f.stat(), there.stat()
+        except OSError:
+            return False
+        if (a.st_size, a.st_mtime_ns) != (b.st_size, b.st_mtime_ns):
+            return False
+    return True
+
+
+def _publish(work: Path, out: Path) -> None:
+    """The work folder's outputs copied to a new folder, then swapped in for the published one."""
+    new, old = out.with_name(f".{out.name}.new"), out.with_name(f".{out.name}.old")
+    shutil.rmtree(new, ignore_errors=True)
+    shutil.rmtree(old, ignore_errors=True)
+    shutil.copytree(work, new, ignore=shutil.ignore_patterns(*NOT_PUBLISHED), symlinks=True)
+    if out.is_dir():
+        os.rename(out, old)
+    os.rename(new, out)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def _make(cmd: list[str]) -> list[str] | None:
@@ -112,23 +165,36 @@ def _make(cmd: list[str]) -> list[str] | None:
 
 
 def _prune(out: Path, name: str) -> None:
-    """The builds of this law's name whose folder is gone (a test's temporary copy, a deleted checkout): removed,
-    so that one folder per law folder does not pile up."""
-    for other in out.parent.glob(f"{name}-*"):
+    """The builds of this law's name whose folder is gone (a test's temporary copy, a deleted checkout): removed
+    with their work folders, so that one folder per law folder does not pile up; and what older versions of the
+    bench left: per-build lock files, and `make LAW=`'s own laws/<name>/ when its folder is gone."""
+    laws = out.parent
+    for lock in laws.glob("?*.lock"):  # not .lock, the one lock of every build (held now)
+        if lock.name != ".lock":
+            lock.unlink(missing_ok=True)
+    for other in [laws / name, *laws.glob(f"{name}-*"), *laws.glob(f".{name}-*.work")]:  # laws/<name>: make's, before
         source = other / "law.from"
         try:
-            gone = other != out and other.is_dir() and not Path(source.read_text().strip()).is_dir()
+            gone = other not in (out, _work(out)) and other.is_dir() and not Path(source.read_text().strip()).is_dir()
         except OSError:
             continue
         if gone:
             shutil.rmtree(other, ignore_errors=True)
-            other.with_name(other.name + ".lock").unlink(missing_ok=True)
 
 
 def build_folder(law: Path, name: str, state: Path = STATE) -> Path:
     """laws/<law name>-<8 hex of the folder's path>: a folder of its own per law folder, so that two folders of the
     same law name (a copy under change, two CI jobs on one machine) never build over each other's binaries."""
     return state / "laws" / f"{name}-{hashlib.sha256(str(law).encode()).hexdigest()[:8]}"
+
+
+def digest(law: Path) -> str:
+    """The law folder's content (its law.eds, C files and header, by name): 16 hex of their SHA-256."""
+    h = hashlib.sha256()
+    for f in sorted(law.iterdir()):
+        if f.is_file() and (f.name == "law.eds" or f.suffix in (".c", ".h")):
+            h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
 
 
 DIAGNOSTIC = re.compile(r": (fatal )?error: |undefined reference to ")
@@ -164,3 +230,27 @@ def use(law: Path) -> int:
     os.environ["BENCH_BUILD_DIR"] = str(out)
     os.environ["BENCH_LAW"] = law_name(law)  # its name: a run that never selects it is refused (scenario.py)
     return 0
+
+
+def main(argv: list[str]) -> int:
+    """`python -m bench.law DIR [GOAL...]`: what `make LAW=DIR [mcu]` runs (the Makefile hands a law build to
+    this), so that make and `bench ... --law DIR` build into the one folder."""
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: python -m bench.law DIR [law|mcu ...]\n\n" + HELP, file=sys.stderr)
+        return 0 if argv else 2
+    goals = tuple(argv[1:])
+    wrong = [g for g in goals if g not in ("law", "mcu")]
+    if wrong:
+        print(f"bench: make LAW=DIR {wrong[0]}: a law builds the goals law (default) and mcu only", file=sys.stderr)
+        return 2
+    try:
+        out = build(Path(argv[0]), goals=goals)
+    except LawBuildError as exc:
+        print(f"bench: LAW={argv[0]}: {exc}", file=sys.stderr)
+        return 2
+    print(f"bench: law {law_name(Path(argv[0]))} built in {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -19,7 +19,6 @@ bench at its top, only in the hooks and fixtures that need it.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Generator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -64,6 +63,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         ),
         ("out", "DIR", "where the run folders go, one sub-folder per test (default: hil-runs under the rootdir)"),
     )
+    group.addoption(
+        "--hil-require",
+        dest="hil_require",
+        action="store_true",
+        default=None,
+        help="a test marked @pytest.mark.hil(bus=..., drive=...) whose bus or drive this host lacks fails instead "
+        "of being skipped with the missing piece named (for the CI job that must run them)",
+    )
+    parser.addini("hil_require", "as --hil-require", type="bool", default=False)
     # --hil-law=DIR rather than --hil-law DIR: pytest looks for its rootdir before it loads plugins, and takes a
     # folder after an option it does not know yet for a test path (pytest-dev/pytest#8846)
     eq = "; write --hil-{name}=DIR (pytest would take a separate DIR for a test path when it looks for its rootdir)"
@@ -89,7 +97,16 @@ def pytest_configure(config: pytest.Config) -> None:
     cli, ini = config.getoption("hil_bus"), str(config.getini("hil_bus") or "")
     out = _path(config, "out") or config.rootpath / "hil-runs"
     option = "--hil-bus" if cli or not ini else f"{config.inipath or 'the ini file'}: hil_bus"
-    config.stash[SETTINGS] = Settings(bus=cli or ini or "direct", law=_path(config, "law"), out=out, bus_option=option)
+    require = bool(config.getoption("hil_require") or config.getini("hil_require"))
+    config.stash[SETTINGS] = Settings(
+        bus=cli or ini or "direct", law=_path(config, "law"), out=out, bus_option=option, require=require
+    )
+    config.addinivalue_line(
+        "markers",
+        "hil(bus=None, law=None, drive=None): a HIL test's needs: its runs' bus (vcan0, can0, ...) and law folder "
+        "(hil_run's defaults), drive='mcu' for the Cortex-M4F image; skipped naming what this host lacks (no "
+        "kernel CAN nor the CAN box's pieces, no can-utils, no QEMU for the image) unless --hil-require",
+    )
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -105,11 +122,40 @@ def pytest_sessionstart(session: pytest.Session) -> None:
             raise pytest.UsageError(problem)
     if not hasattr(config, "workerinput"):  # one CAN box per session, shared by the xdist workers
         _stop_box_at_end(config)
-    if settings.law is not None and not (hasattr(config, "workerinput") and os.environ.get("BENCH_LAW")):
+    if settings.law is not None:  # an xdist worker too: the controller's build, found current (no compile)
         from bench.pytest_plugin.checks import restore, use_law
 
-        before = use_law(settings.law)
+        before = use_law(settings, settings.law)
         config.add_cleanup(lambda: restore(before))
+
+
+MARKER_KEYS = ("bus", "law", "drive")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """A test marked hil(bus=..., drive=...) whose bus or drive this host cannot give: skipped, the missing piece
+    named (failed under --hil-require). A law that does not build is the test's failure, not a skip."""
+    marker = item.get_closest_marker("hil")
+    if marker is None:
+        return
+    settings = item.config.stash[SETTINGS]
+    wrong = [k for k in marker.kwargs if k not in MARKER_KEYS] or (["positional arguments"] if marker.args else [])
+    if wrong:
+        pytest.fail(f"@pytest.mark.hil: {wrong[0]!r} is not one of its arguments ({', '.join(MARKER_KEYS)})", False)
+    bus, drive = marker.kwargs.get("bus") or settings.bus, marker.kwargs.get("drive") or "node"
+    if drive not in ("node", "mcu"):
+        pytest.fail(f"@pytest.mark.hil: drive={drive!r}: expected 'node' or 'mcu'", False)
+    key = f"{bus} {drive}"
+    if key not in settings.bus_problems:
+        from bench.pytest_plugin.checks import bus_problem
+
+        settings.bus_problems[key] = bus_problem(bus, "hil(bus=...)", drive)
+    problem = settings.bus_problems[key]
+    if problem is not None:
+        if settings.require:
+            pytest.fail(f"--hil-require: {problem}", pytrace=False)
+        pytest.skip(problem)
 
 
 def _stop_box_at_end(config: pytest.Config) -> None:
@@ -145,4 +191,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if texts and report.failed:
         title = "HIL run" if len(texts) == 1 else f"HIL runs ({len(texts)})"
         report.sections.append((title, "\n\n".join(texts)))
+        # and as the test's stdout, which pytest's JUnit report writes (from the teardown's report) as its
+        # system-out under junit_logging = system-out or all: CI servers that show no properties (GitLab) show it
+        item.add_report_section("call", "stdout", f"{title}\n" + "\n\n".join(texts))
     return report

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from bench.pytest_plugin.checks import bus_problem
+from bench.pytest_plugin.checks import LawRefusal, bus_problem, law_build
 from bench.pytest_plugin.result import HilRun, junit_properties, report_text
 from bench.pytest_plugin.runner import (
     Failure,
@@ -20,31 +20,37 @@ from bench.pytest_plugin.runner import (
     command,
     execute,
     finish,
+    names_controller,
     override_list,
+    provenance,
     refuse,
     sanitize,
     scenario_file,
     table_overrides,
 )
-from bench.pytest_plugin.state import RUN_TEXTS, Settings
+from bench.pytest_plugin.state import RUN_TEXTS, LawBuild, Settings
 
 
 class HilRunner:
-    """hil_run(scenario, overrides=None, *, bus=None, name=None, faults=None, events=None, timeout=None,
+    """hil_run(scenario, overrides=None, *, bus=None, law=None, name=None, faults=None, events=None, timeout=None,
     extra_args=()) -> HilRun
 
     scenario: a TOML file's path (relative: to the current folder, else to the test file's folder) or a dict
     of the same layout (written as TOML next to its run folder). overrides: {"controller.L_hat_ratio": 0.5}
-    and/or ["controller.L_hat_ratio=0.5", ...] (`bench run --set`). bus: this call's bus instead of --hil-bus.
+    and/or ["controller.L_hat_ratio=0.5", ...] (`bench run --set`). bus: this call's bus instead of the test's
+    hil marker's or --hil-bus. law: a current-law folder for this call instead of the marker's or --hil-law
+    (relative as a scenario path): built once per session (bench/law.py; a folder that changes during the
+    session is refused), and selected (controller.controller = its name) unless the scenario or the overrides
+    name a controller at the start, in which case the scenario must select it somewhere (`bench run --law`).
     name: the run folder's name (default: the scenario file's stem, or the dict's scenario.name). faults,
     events: [[faults]] / [[events]] tables (dicts) run after the scenario's own (docs/FAULTS.md). timeout:
     seconds before the run is stopped (SIGTERM) and the test fails. extra_args: more `bench run` options
     (["--drive", "mcu"], ["--log-format", "asc"], ...).
 
     The run goes to <--hil-out>/<test node id>/<name>[-N]/ (-N: the name's N-th run in the test). A scenario
-    that does not exist or does not check against the EDS, a bus that is not there, a run that writes no
-    summary.json: the test fails naming the problem. A run that ends with a status other than ok is a result,
-    not a failure: assert on it (run.expect_status("ok"))."""
+    that does not exist or does not check against the EDS, a bus that is not there, a law that does not build, a
+    run that writes no summary.json: the test fails naming the problem. A run that ends with a status other than
+    ok is a result, not a failure: assert on it (run.expect_status("ok"))."""
 
     def __init__(self, request: pytest.FixtureRequest, settings: Settings) -> None:
         self._settings = settings
@@ -54,11 +60,13 @@ class HilRunner:
         # last, the bench's own (scenarios/you2019_step.toml, examples/...), as bench run finds them
         self._search = [Path.cwd(), request.path.parent, request.config.rootpath, REPO]
         self._runs = RunFolders(settings.out / sanitize(request.node.nodeid))
+        marker = request.node.get_closest_marker("hil")
+        self._marked: dict[str, Any] = dict(marker.kwargs) if marker is not None else {}
         self.history: list[HilRun] = []
 
     @property
     def bus(self) -> str:
-        return self._settings.bus
+        return str(self._marked.get("bus") or self._settings.bus)
 
     @property
     def folder(self) -> Path:
@@ -71,6 +79,7 @@ class HilRunner:
         overrides: Overrides = None,
         *,
         bus: str | None = None,
+        law: str | os.PathLike[str] | None = None,
         name: str | None = None,
         faults: Sequence[Mapping[str, Any]] | None = None,
         events: Sequence[Mapping[str, Any]] | None = None,
@@ -78,42 +87,67 @@ class HilRunner:
         extra_args: Sequence[str] = (),
     ) -> HilRun:
         __tracebackhide__ = True
-        bus = bus or self._settings.bus
+        bus = bus or self.bus
         self._check_bus(bus)
+        built, chosen = self._law(law)
         sets = override_list(overrides)
         path, run_name = scenario_file(scenario, self._search, self._runs, name)
+        if chosen and built is not None and not names_controller(path, sets):
+            sets.insert(0, f"controller.controller={built.name}")  # the law= of this call, selected at the start
         sets += table_overrides(path, {"faults": faults, "events": events})
         shown = "the scenario dict" if isinstance(scenario, Mapping) else None  # else the file names itself
-        check_scenario(path, sets, shown)
+        env = {} if not chosen or built is None else {"BENCH_BUILD_DIR": str(built.out), "BENCH_LAW": built.name}
+        check_scenario(path, sets, shown, built.out if chosen and built is not None else None)
         folder = self._runs.folder / run_name
         cmd = command(path, folder, bus, sets, list(extra_args))
-        run = finish(cmd, folder, path, bus, execute(cmd, timeout), timeout)
+        run = finish(cmd, folder, path, bus, execute(cmd, timeout, env), timeout)
         texts = self._node.stash.setdefault(RUN_TEXTS, [])
         n = len(texts) + 1
         prefix = "hil_" if n == 1 else f"hil_run{n}_"
+        given = provenance(path, bus, built)
         if isinstance(run, Failure):
             texts.append(run.section)
-            props = [("status", "no summary"), ("exit_code", run.exit_code), ("run_folder", run.folder)]
+            props = [("status", "no summary"), ("exit_code", run.exit_code), ("run_folder", run.folder), *given]
             self._node.user_properties.extend((prefix + k, str(v)) for k, v in props)
             refuse(run.message)
-        texts.append(report_text(run) + "\n" + self._reproduce(cmd))
+        texts.append(report_text(run) + "\n" + self._reproduce(cmd, built))
         self._node.user_properties.extend(junit_properties(run, prefix))
-        if self._settings.law is not None:
-            self._node.user_properties.append((prefix + "law", str(self._settings.law)))
+        self._node.user_properties.extend((prefix + k, str(v)) for k, v in given)
         self.history.append(run)
         return run
 
-    def _reproduce(self, cmd: list[str]) -> str:
+    def _law(self, law: str | os.PathLike[str] | None) -> tuple[LawBuild | None, bool]:
+        """(the law build of this call, whether the call or the marker chose it rather than --hil-law)."""
+        __tracebackhide__ = True
+        given = law if law is not None else self._marked.get("law")
+        if given is None:
+            if self._settings.law is None:
+                return None, False
+            return self._build(self._settings.law, "--hil-law"), False
+        p = Path(given).expanduser()
+        tried = [p] if p.is_absolute() else [d / p for d in self._search]
+        folder = next((t for t in tried if t.is_dir()), tried[0])
+        return self._build(Path(os.path.abspath(folder)), "hil_run: law="), True
+
+    def _build(self, folder: Path, option: str) -> LawBuild:
+        __tracebackhide__ = True
+        try:
+            return law_build(self._settings, folder, option)
+        except LawRefusal as exc:
+            refuse(str(exc))
+
+    def _reproduce(self, cmd: list[str], built: LawBuild | None) -> str:
         """The run as a command line: `bench run` with the test's overrides, faults and events (and its law)."""
         import shlex
 
-        law = [] if self._settings.law is None else [f"--law={self._settings.law}"]
+        law = [] if built is None else [f"--law={built.folder}"]
         args = list(cmd[3:])
         if "--out" in args:  # the test's own run folder exists (a run refuses it): a new one beside it
             at = args.index("--out") + 1
             args[at] = args[at] + "-again"
         line = shlex.join(["bench", *args, *law])
-        return f"reproduce:   {line}" + (f"\nlaw:         {self._settings.law}" if law else "")
+        shown = f"\nlaw:         {built.folder} ({built.name}, content {built.digest})" if built else ""
+        return f"reproduce:   {line}{shown}"
 
     def _check_bus(self, bus: str) -> None:
         """A bus other than the session's (checked at its start) is checked at its first use."""

@@ -19,6 +19,7 @@ from typing import Any, NoReturn
 import pytest
 
 from bench.pytest_plugin.result import HilRun, RunFolderError, load_run
+from bench.pytest_plugin.state import LawBuild
 from bench.pytest_plugin.toml_text import dumps, value
 
 TAIL_LINES = 20
@@ -131,16 +132,16 @@ def scenario_file(scenario: Any, search: Sequence[Path], runs: RunFolders, name:
     return found.resolve(), runs.next(sanitize(name or found.stem)).name
 
 
-def check_scenario(path: Path, overrides: list[str], shown: str | None) -> None:
+def check_scenario(path: Path, overrides: list[str], shown: str | None, build: Path | None = None) -> None:
     """The scenario as `bench run` will read it (bench.scenario: every key, type and range against the EDS),
     in this process so a bad one fails the test before any run. Skipped when this process already read another
     build's EDS than the runs will (bench.paths imported before --hil-law set BENCH_BUILD_DIR): `bench run`
     then refuses a bad scenario itself (exit 2, its message in the failure)."""
     import bench.paths
 
-    env = os.environ.get("BENCH_BUILD_DIR")
+    env = str(build) if build is not None else os.environ.get("BENCH_BUILD_DIR")
     if bench.paths.BUILD != Path(env or bench.paths.REPO / "build").resolve():
-        return
+        return  # a law's build (hil_run's law=): `bench run` checks the scenario against that build's EDS
     from bench.scenario import ScenarioError, load, unselected_law
 
     try:
@@ -168,10 +169,18 @@ def _stop(proc: subprocess.Popen[str]) -> tuple[str, str]:
         return proc.communicate()
 
 
-def execute(cmd: list[str], timeout: float | None) -> tuple[int, str, str, bool]:
-    """(exit status, stdout, stderr, whether it ran out of `timeout` seconds); the run ends with the test."""
+def execute(cmd: list[str], timeout: float | None, env: Mapping[str, str] | None = None) -> tuple[int, str, str, bool]:
+    """(exit status, stdout, stderr, whether it ran out of `timeout` seconds); the run ends with the test.
+    env: variables set for this run on top of this process's (a law's BENCH_BUILD_DIR)."""
+    full = None if not env else {**os.environ, **env}
     proc = subprocess.Popen(
-        cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace"
+        cmd,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        errors="replace",
+        env=full,
     )
     try:
         out, err = proc.communicate(timeout=timeout)
@@ -245,3 +254,31 @@ def finish(
     lines = [*head, f"  command:    {shlex.join(cmd)}", "  last output:"]
     lines += [f"    {ln}" for ln in shown.splitlines() or ["(none)"]]
     return Failure("hil_run: " + "\n".join(lines), "\n".join(head), code, where)
+
+
+def names_controller(path: Path, overrides: Sequence[str]) -> bool:
+    """The scenario file or the overrides set controller.controller at the start."""
+    import tomllib
+
+    if any(o.partition("=")[0].strip() == "controller.controller" for o in overrides):
+        return True
+    try:
+        raw = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError):
+        return False  # `bench run` says what is wrong with the file
+    table = raw.get("controller")
+    return isinstance(table, Mapping) and "controller" in table
+
+
+def provenance(path: Path, bus: str, law: LawBuild | None) -> list[tuple[str, str]]:
+    """What a run was made of, as JUnit properties: the bus, the bench's version, the scenario file's SHA-256 (16
+    hex) and the law's name and content digest (bench.law.digest) when a user's law was built."""
+    import hashlib
+
+    from bench import __version__
+
+    props = [("bus", bus), ("bench_version", __version__)]
+    props.append(("scenario_sha256", hashlib.sha256(path.read_bytes()).hexdigest()[:16]))
+    if law is not None:
+        props += [("law", law.name), ("law_digest", law.digest), ("law_folder", str(law.folder))]
+    return props

@@ -1,5 +1,5 @@
-"""What the plugin keeps for a session and for a test (pytest's stash): the options as resolved, the text the
-failing test's report shows of each run."""
+"""What the plugin keeps for a session and for a test (pytest's stash): the options as resolved, the laws built,
+the text the failing test's report shows of each run."""
 
 from __future__ import annotations
 
@@ -7,6 +7,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+
+
+@dataclass(frozen=True)
+class LawBuild:
+    """A law folder as the session built it: its build folder, its name, the content it was built from."""
+
+    folder: Path  # the user's law folder (absolute)
+    out: Path  # its build (bench/law.py build_folder): BENCH_BUILD_DIR of its runs
+    name: str  # law.eds's CurrentLaws=
+    digest: str  # bench.law.digest of the folder when built
 
 
 @dataclass
@@ -17,7 +27,9 @@ class Settings:
     law: Path | None
     out: Path
     bus_option: str = "--hil-bus"  # where the bus was chosen, as messages name it
+    require: bool = False  # --hil-require: a test whose hil marker asks for what is missing fails, not skips
     bus_problems: dict[str, str | None] = field(default_factory=dict)  # checked buses: their problem or None
+    laws: dict[Path, LawBuild] = field(default_factory=dict)  # the session's law builds, by folder
 
 
 SETTINGS = pytest.StashKey[Settings]()

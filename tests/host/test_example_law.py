@@ -23,6 +23,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from bench.law import build_folder
 from bench.paths import REPO
 
 LAW = REPO / "examples" / "laws" / "complex_vector_pi"
@@ -74,7 +75,7 @@ def design_K(plant: dict[str, Any], omega_e: float) -> complex:
 
 def test_the_build_leaves_the_users_folder_alone(law_copy: Path) -> None:
     assert sorted(p.name for p in law_copy.iterdir()) == sorted(p.name for p in LAW.iterdir())
-    assert (REPO / "build" / "laws" / "complex_vector_pi").is_dir()  # make LAW=DIR's own folder
+    assert build_folder(law_copy, "complex_vector_pi").is_dir()  # make LAW=DIR's, which --law uses
 
 
 def test_a_step_at_speed_is_the_designs_first_order_loop(law_copy: Path, tmp_path: Path) -> None:

@@ -4,6 +4,9 @@ working folder that cannot be written refused in one line, not a traceback."""
 
 from __future__ import annotations
 
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -38,3 +41,56 @@ def test_a_working_folder_that_cannot_be_written_is_refused_in_one_line(tmp_path
     blocked.write_text("not a folder")
     with pytest.raises(LawBuildError, match=r"^cannot build in .*BENCH_CACHE_DIR"):
         build(LAW, state=blocked)
+
+
+def _zero_law(tmp_path: Path, name: str) -> Path:
+    """tests/laws/zero_law as a law of another name, outside the repository."""
+    law = tmp_path / "user" / name
+    shutil.copytree(REPO / "tests" / "laws" / "zero_law", law)
+    for f in law.iterdir():
+        text = f.read_text().replace("CurrentLaws=zero_law", f"CurrentLaws={name}")
+        f.write_text(text.replace("current_law_zero_law", f"current_law_{name}"))
+    return law
+
+
+def _state(root: Path) -> dict[str, tuple[int, int]]:
+    """Every file under a folder: (size, mtime in ns), by its path there."""
+    return {str(f.relative_to(root)): (f.stat().st_size, f.stat().st_mtime_ns) for f in root.rglob("*") if f.is_file()}
+
+
+def test_make_law_and_bench_law_build_once_into_one_folder(tmp_path: Path) -> None:
+    """The guide's two commands (`make LAW=DIR`, then `bench run --law DIR`): the second compiles nothing."""
+    law = _zero_law(tmp_path, "once_law")
+    made = subprocess.run(["make", "-C", str(REPO), f"LAW={law}"], capture_output=True, text=True, timeout=900)
+    out = build_folder(law, "once_law")
+    assert made.returncode == 0 and f"built in {out}" in made.stdout, made.stdout[-2000:] + made.stderr[-2000:]
+    assert "  cc " in made.stderr and (out / "bin" / "drive_node").is_file()
+    ran = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "run", str(REPO / "tests" / "laws" / "zero_law.toml"), "--law", str(law)]
+        + ["--set", "controller.controller=once_law", "--bus", "direct", "--no-viewer", "--out", str(tmp_path / "r")],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert ran.returncode == 0, ran.stderr[-3000:]
+    assert "  cc " not in ran.stderr and str(out) in ran.stderr, ran.stderr[-2000:]
+
+
+def test_a_failing_build_leaves_the_good_one_and_a_first_one_leaves_nothing(tmp_path: Path) -> None:
+    state = tmp_path / "state"
+    law = _zero_law(tmp_path, "kept_law")
+    out = build(law, state=state)
+    good = _state(out)
+    assert "bin/drive_node" in good and "libhil.so" in good
+    src = law / "zero_law.c"
+    src.write_text(src.read_text().replace("->steps++;", "->steps++ not_c;"))
+    with pytest.raises(LawBuildError, match="does not compile"):
+        build(law, state=state)
+    assert _state(out) == good  # the last good build as it was: every file, its size and time
+    other = _zero_law(tmp_path / "2", "first_law")
+    broken = next(other.glob("*.c"))
+    broken.write_text(broken.read_text().replace("->steps++;", "->steps++ not_c;"))
+    with pytest.raises(LawBuildError, match="does not compile"):
+        build(other, state=state)
+    left = sorted(p.name for p in (state / "laws").iterdir())
+    assert left == [".kept_law-" + out.name.split("-")[1] + ".work", ".lock", out.name], left  # no stub, no lock

@@ -254,6 +254,80 @@ def test_the_runs_use_the_law_of_hil_law(hil_pytester: pytest.Pytester, tmp_path
     assert "controller.gain = -1" in out and "Traceback" not in out, out
 
 
+TWO_LAWS = """
+import pytest
+
+LAW_A = {law_a!r}
+CVPI = {cvpi!r}
+STEP = {step!r}
+ZERO = {{"scenario": {{"name": "zero", "periods": 40}}, "motor": {{"preset": "you2019", "mech_mode": "locked"}},
+        "controller": {{"gain": 0.25}}, "events": [{{"at_period": 10, "references": {{"iq_ref_A": 1.0}}}}]}}
+
+
+def test_a_law_by_call(hil_run):
+    run = hil_run(ZERO, law=LAW_A)  # the dict names no controller: law= selects it
+    assert abs(run["iq_A"]).max() < 1e-6  # the zero law: 0 V, whatever the reference
+
+
+@pytest.mark.hil(law=CVPI)
+def test_another_law_by_marker(hil_run):
+    run = hil_run(CVPI + "/../../scenarios/complex_vector_pi_step.toml", {{"scenario.periods": 420}})
+    assert abs(run["iq_A"][-1] - 1.0) < 0.05  # a law that tracks the reference
+    run.expect_settles_within(1)  # it settles in 9 periods: fails, and the report names the law
+
+
+def test_a_built_in_law_under_hil_law(hil_run):
+    hil_run(STEP, {{"scenario.periods": 60}}).expect_status("ok").expect_settles_within(2)
+
+
+@pytest.mark.hil(bus="nosuchbus0")
+def test_a_bus_this_host_lacks(hil_run):
+    raise SystemExit("ran")
+
+
+def test_a_law_folder_changed_during_the_session(hil_run):
+    src = LAW_A + "/zero_law.c"
+    open(src, "a").write("/* changed */\\n")
+    hil_run(ZERO, law=LAW_A)
+"""
+
+
+def test_two_laws_in_one_session_a_marker_skip_and_the_junit_provenance(
+    hil_pytester: pytest.Pytester, tmp_path: Path
+) -> None:
+    """Issue 39: per-call and per-marker laws next to --hil-law, each built once; a hil marker's missing bus a
+    skip (a failure under --hil-require); a law folder changed mid-session refused; JUnit's properties carry the
+    bus, version, scenario and law digest, and its system-out the failing test's HIL run section."""
+    law_a = _law(tmp_path, "plugin_law_a")
+    cvpi = tmp_path / "examples" / "laws" / "complex_vector_pi"
+    shutil.copytree(REPO / "examples" / "laws", cvpi.parent)
+    shutil.copytree(REPO / "examples" / "scenarios", tmp_path / "examples" / "scenarios")
+    text = TWO_LAWS.format(law_a=str(law_a), cvpi=str(cvpi), step=str(STEP))
+    hil_pytester.makepyfile(test_laws=text)
+    result = _run(hil_pytester, f"--hil-law={law_a}", "--junitxml=junit.xml", "-o", "junit_logging=system-out", "-rs")
+    out = _output(result)
+    assert result.parseoutcomes() == {"passed": 2, "failed": 2, "skipped": 1}, out
+    skipped = next(ln for ln in out.splitlines() if ln.startswith("SKIPPED [1]"))
+    assert "hil(bus=...) nosuchbus0: " in skipped, out  # the reason: the bus, and why this host has none
+    assert f"hil_run: law= {law_a}: the folder changed during this pytest session" in out, out
+    assert out.count("bench: building law plugin_law_a") == 1, out  # --hil-law and law= share one build
+    cases = {c.get("name"): c for c in ET.parse(hil_pytester.path / "junit.xml").getroot().iter("testcase")}
+    props = {n: dict((p.get("name"), p.get("value")) for p in c.iter("property")) for n, c in cases.items()}
+    from bench import __version__
+    from bench.law import digest
+
+    a = props["test_a_law_by_call"]
+    assert a["hil_law"] == "plugin_law_a" and a["hil_bus"] == "direct" and a["hil_bench_version"] == __version__, a
+    assert len(a["hil_law_digest"]) == 16 and a["hil_law_folder"] == str(law_a), a
+    assert props["test_another_law_by_marker"]["hil_law_digest"] == digest(cvpi), props
+    assert props["test_a_built_in_law_under_hil_law"]["hil_law"] == "plugin_law_a", props  # the session's build
+    system_out = cases["test_another_law_by_marker"].findtext("system-out") or ""
+    assert "reproduce:" in system_out and f"--law={cvpi}" in system_out and "summary.json" in system_out, system_out
+    required = _run(hil_pytester, "-k", "lacks", "--hil-require")
+    assert required.parseoutcomes() == {"errors": 1, "deselected": 4}, _output(required)  # failed at its setup
+    assert "--hil-require: hil(bus=...) nosuchbus0: " in _output(required), _output(required)
+
+
 # ------------------------------------------------------------------ the pieces, without a run
 
 

@@ -150,7 +150,9 @@ def test_make_law_builds_every_drive_target_from_a_folder_outside_the_repo(tmp_p
     law = _law_copy(tmp_path, "copied_law")
     _rename(law, "copied_law")
     before = _listing(law)
-    build = REPO / "build" / "laws" / "copied_law"
+    from bench.law import build_folder
+
+    build = build_folder(law, "copied_law")  # the folder `bench run --law` uses too (test_law_folders.py)
     proc = subprocess.run(["make", "-C", str(REPO), f"LAW={law}", "-j2"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     targets = ["bin/drive_node", "bin/plant_node", "bin/fault_gateway", "libhil.so", "eds/drive.eds"]
