@@ -103,12 +103,35 @@ def _main(argv: list[str]) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 64
+    refusal = _needs_extra(args)
+    if refusal:
+        print(refusal, file=sys.stderr)
+        return 2
     rc = int(args.func(args))
     if rc == 130:  # the command's own "interrupted": 143 when it was a SIGTERM
         from bench import stop
 
         rc = stop.exit_status()
     return rc
+
+
+# the commands that cannot do without an extra (bench/extras.py); a run without [view] only has no run.rrd
+NEEDS_EXTRA = {"sweep": ("sweep",), "reproduce": ("view", "sweep"), "perf": ("view", "sweep")}
+
+
+def _needs_extra(args: argparse.Namespace) -> str | None:
+    from bench.extras import lacking, missing_extra
+
+    needs = list(NEEDS_EXTRA.get(args.command, ()))
+    if args.command in ("run", "replay") and getattr(args, "serve", False):
+        needs.append("view")
+    if args.command == "run" and getattr(args, "drive_profile", None) == "cia402":
+        needs.append("view")  # its figure: matplotlib
+    for extra in needs:
+        module = lacking(extra)
+        if module is not None:
+            return missing_extra(extra, f"bench {args.command}", f"no module {module!r}")
+    return None
 
 
 def _cia402(argv: list[str]) -> bool:

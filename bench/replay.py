@@ -81,14 +81,29 @@ def _inputs(args: argparse.Namespace) -> tuple[tuple[str, ...], Path]:
     return expect, out
 
 
+class _NoRecording:
+    """The Rerun sink's place in a replay without the [view] extra: takes everything, writes nothing."""
+
+    def begin(self, *a: Any, **k: Any) -> None: ...
+    def write(self, *a: Any, **k: Any) -> None: ...
+    def end(self, *a: Any, **k: Any) -> None: ...
+    def close(self) -> None: ...
+    def serve_until(self, *a: Any) -> None: ...
+
+
 def _rerun_sink(args: argparse.Namespace, out: Path) -> RerunSink:
     """The Rerun recording out/run.rrd, with a live viewer: served (--serve), spawned (a display and no
     --no-viewer) or none."""
     import os
 
-    from bench.view.rerun_sink import RerunSink
+    from bench.extras import lacking, missing_extra
 
     live = "serve" if args.serve else ("spawn" if not args.no_viewer and os.environ.get("DISPLAY") else "none")
+    if lacking("view") is not None:  # the plain install: the traces and the summary, no recording
+        print(f"bench replay: no run.rrd: {missing_extra('view', 'a Rerun recording')}", file=sys.stderr)
+        return _NoRecording()  # type: ignore[return-value]
+    from bench.view.rerun_sink import RerunSink
+
     return RerunSink(
         args.log.name,
         out / "run.rrd",
@@ -126,7 +141,7 @@ def _write_summary(out: Path, res: RunResult, name: str) -> None:
     ov = overview_plot(out, res.envelopes, name, s["Ts_s"])
     s["files"] = {
         "traces": TRACES_FILE,
-        "recording": "run.rrd",
+        "recording": "run.rrd" if (out / "run.rrd").exists() else None,
         "plots": [p.name for p in plots] + ([ov.name] if ov else []),
     }
     (out / "summary.json").write_text(json.dumps(s, indent=2, default=str))

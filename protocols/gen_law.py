@@ -88,10 +88,16 @@ def _check_types(frag: Path, raw: configparser.ConfigParser, top: str, supported
     for sec in raw.sections():
         if sec == top:
             continue
+        if not raw.has_option(sec, "DataType"):
+            raise LawError(f"{frag} [{sec}]: no DataType key (e.g. DataType=0x0008 for REAL32)")
+        given = raw.get(sec, "DataType").strip()
         try:
-            dt = int(raw.get(sec, "DataType"), 0)
-        except (configparser.Error, ValueError):
-            raise LawError(f"{frag} [{sec}]: no DataType (or not a number)") from None
+            dt = int(given, 0)
+        except ValueError:
+            names = ", ".join(f"0x{t:04X} {_type_name(t)}" for t in sorted(supported))
+            raise LawError(
+                f"{frag} [{sec}]: DataType={given}: not a number as CiA 306 writes it, a hex code with 0x: {names}"
+            ) from None
         if dt not in supported:
             names = ", ".join(sorted(_type_name(t) for t in supported))
             raise LawError(f"{frag} [{sec}]: DataType 0x{dt:04X} not supported (a law's record holds {names})")

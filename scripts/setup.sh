@@ -46,12 +46,12 @@ fi
 
 # ---------------------------------------------------------------- Python venv
 PY=${PYTHON:-python3}
-stamp=.venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)
+stamp=.venv/.installed-$(cat pyproject.toml requirements.lock | sha256sum | cut -c1-16)
 if [ ! -f "$stamp" ]; then
-    log "creating .venv with the pinned dependencies of pyproject.toml"
+    log "creating .venv with the exact versions of requirements.lock (pyproject.toml's ranges, every extra)"
     [ -x .venv/bin/python ] || "$PY" -m venv .venv
     .venv/bin/pip install -q --disable-pip-version-check --upgrade pip==24.3.1
-    .venv/bin/pip install -q --disable-pip-version-check -e ".[dev]"
+    .venv/bin/pip install -q --disable-pip-version-check -c requirements.lock -e ".[all,dev]"
     rm -f .venv/.installed-*
     # Pre-compile so a guest VM (read-only view of the venv) never writes .pyc.
     .venv/bin/python -m compileall -q .venv/lib >/dev/null 2>&1 || true

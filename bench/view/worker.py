@@ -282,6 +282,22 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
     return 0
 
 
+def _without_rerun(spec: dict[str, Any], msgs: Any, reply: Any, why: str) -> int:
+    """rerun-sdk is an extra (pyproject.toml [view]): without it a run has no run.rrd and no live viewer, said once;
+    serving a viewer is refused."""
+    from bench.extras import missing_extra
+
+    if spec["live"] == "serve":
+        reply(error=missing_extra("view", "--serve (the web viewer)", why))
+        return 2
+    print(f"bench: no run.rrd: {missing_extra('view', 'a Rerun recording', why)}", file=sys.stderr, flush=True)
+    reply(ready=True, url=None)
+    for _ in msgs:
+        pass
+    reply(files=[])
+    return 0
+
+
 def _serve_until(url: str, seconds: float | None, reply_fd: int) -> None:
     """Serve until `seconds` (None: no limit), Ctrl-C or SIGTERM, or the bench's end: the bench holds the
     read end of the reply pipe, so its write end here reports an error (POLLERR) once the bench is gone,
@@ -364,8 +380,12 @@ def _main(role: str, reply_fd: int) -> int:
 
     reply.fd = reply_fd  # type: ignore[attr-defined]
     # Import what the role needs at once, while the bench starts up.
+    without = None  # the extra whose package is not installed: the role does without it
     if role == "rerun":
-        from bench.view import rerun_sink  # noqa: F401
+        try:
+            from bench.view import rerun_sink  # noqa: F401
+        except ImportError as exc:
+            without = str(exc)
     else:
         from bench.view import plots  # noqa: F401
     stdin = sys.stdin.buffer
@@ -381,6 +401,8 @@ def _main(role: str, reply_fd: int) -> int:
     first = next(msgs, None)
     if first is None or first[0] != "spec":  # the bench did not need us
         return 0
+    if without is not None:
+        return _without_rerun(first[1], msgs, reply, without)
     try:
         return (_rerun_role if role == "rerun" else _plots_role)(first[1], msgs, reply)
     except KeyboardInterrupt:

@@ -106,6 +106,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
             "bench.metrics",
             "bench.laws",
             "bench.law",
+            "bench.extras",
             "bench.signals",
             "bench.emcy",
         ),

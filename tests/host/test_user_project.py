@@ -1,8 +1,10 @@
-"""Issue 28: the bench as a user's CI has it. A fresh virtual environment outside the clone, `pip install` of
-the repository (the C nodes built at install time), then the example project examples/ci_project run by
-pytest with the plugin the package enables: in direct mode, with a broken expectation, over vcan (the VM
-fallback on this host), and `bench run|sweep|replay` from a folder that is not the clone. The wheel's
-contents are listed against the build they must carry."""
+"""Issue 28 and 39: the bench as a user's CI has it. A fresh virtual environment outside the clone, `pip install`
+of the repository (the C nodes built at install time; the plain install, no extras) next to the user's own pins
+(pytest 8.3, numpy 1.26, pytest-xdist), then the example project examples/ci_project run by pytest with the
+plugin the package enables: in direct mode with two workers (two laws in one session, a vcan test skipped on a
+host without can-utils), with a broken expectation, over vcan (the CAN box on this host), and `bench
+run|sweep|replay` from a folder that is not the clone. The wheel's contents are listed against the build they
+must carry."""
 
 from __future__ import annotations
 
@@ -22,16 +24,20 @@ from bench.paths import REPO
 
 EXAMPLE = REPO / "examples" / "ci_project"
 PIP_TIMEOUT_S = 1800
+USER_PINS = ["pytest==8.3.5", "numpy==1.26.4", "pytest-xdist==3.8.0"]  # a firmware team's own, next to the bench
 CACHE = Path(tempfile.mkdtemp(prefix="bench-user-cache-"))
 
 
-def _run(argv: list[str], cwd: Path, timeout: float = 1800) -> subprocess.CompletedProcess[str]:
+def _run(
+    argv: list[str], cwd: Path, timeout: float = 1800, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     """A command as a user's shell runs it: none of this suite's variables; the installed bench's working folder
     (law builds, VM jobs, EDS cache) in the test's temporary folder, not this machine's ~/.cache."""
+    extra = env
     env = {k: v for k, v in os.environ.items() if not k.startswith(("BENCH_", "PYTEST_", "VIRTUAL_ENV"))}
     env.pop("PYTHONPATH", None)
     env["BENCH_CACHE_DIR"] = str(CACHE)
-    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(argv, cwd=cwd, env={**env, **(extra or {})}, capture_output=True, text=True, timeout=timeout)
 
 
 @pytest.fixture(scope="module")
@@ -40,20 +46,42 @@ def user(tmp_path_factory: pytest.TempPathFactory) -> Path:
     home = tmp_path_factory.mktemp("user")
     env_dir = home / "venv"
     venv.EnvBuilder(with_pip=True).create(env_dir)
-    res = _run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "-q", str(REPO)], home, PIP_TIMEOUT_S)
+    pins = [*USER_PINS, str(REPO)]
+    res = _run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "-q", *pins], home, PIP_TIMEOUT_S)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    code = (
+        "import numpy, pytest, importlib.util as u; print(numpy.__version__, pytest.__version__, u.find_spec('rerun'))"
+    )
+    got = _run([str(env_dir / "bin" / "python"), "-c", code], home)
+    assert got.stdout.split()[:3] == ["1.26.4", "8.3.5", "None"], got.stdout + got.stderr  # the user's, no extra
     return home
 
 
 def _project(user: Path, name: str) -> Path:
-    dst = user / name
+    """The example project, with the example law folder beside it where its test_laws.py finds it (../laws)."""
+    dst = user / name / "ci_project"
     shutil.copytree(EXAMPLE, dst, ignore=shutil.ignore_patterns("__pycache__", "hil-runs", ".pytest_cache"))
+    shutil.copytree(REPO / "examples" / "laws", user / name / "laws", ignore=shutil.ignore_patterns("__pycache__"))
     return dst
 
 
-def _pytest(user: Path, project: Path, *args: str) -> subprocess.CompletedProcess[str]:
+def _without_candump(user: Path) -> dict[str, str]:
+    """PATH of a host without can-utils (a CI image that lacks it): this one's, candump left out."""
+    shim = user / "bin-without-can-utils"
+    if not shim.is_dir():
+        shim.mkdir()
+        for d in os.environ["PATH"].split(os.pathsep):
+            for exe in Path(d).glob("*") if Path(d).is_dir() else []:
+                if exe.name != "candump" and not (shim / exe.name).exists():
+                    (shim / exe.name).symlink_to(exe)
+    return {"PATH": str(shim)}
+
+
+def _pytest(
+    user: Path, project: Path, *args: str, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     py = str(user / "venv" / "bin" / "python")
-    return _run([py, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-rA", *args], project)
+    return _run([py, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-rA", *args], project, env=env)
 
 
 def test_the_installed_package_is_not_the_clone(user: Path) -> None:
@@ -76,13 +104,21 @@ def test_without_a_c_compiler_pip_says_which_package_to_install(tmp_path: Path) 
 
 
 def test_the_example_project_passes_in_direct_mode(user: Path) -> None:
+    """Two workers (pytest-xdist), two laws in the session, the vcan test skipped where can-utils is missing."""
     project = _project(user, "direct")
-    res = _pytest(user, project, "--junitxml", "junit.xml")
-    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
-    assert re.search(r"\b3 passed\b", res.stdout), res.stdout[-2000:]
+    res = _pytest(user, project, "-n", "2", "--junitxml", "junit.xml", env=_without_candump(user))
+    out = res.stdout
+    assert res.returncode == 0, out[-4000:] + res.stderr[-2000:]
+    assert re.search(r"\b5 passed, 1 skipped\b", out), out[-2000:]
+    assert re.search(r"SKIPPED \[1\] .*hil\(bus=\.\.\.\) vcan0: candump \(can-utils\) is not installed", out), out
     junit = (project / "junit.xml").read_text()
     assert 'name="hil_status" value="ok"' in junit and 'name="hil_status" value="frames_lost"' in junit
-    assert len(list((project / "hil-runs").rglob("summary.json"))) == 3
+    assert 'name="hil_bus" value="direct"' in junit and 'name="hil_bench_version" value="' in junit
+    assert 'name="hil_law" value="complex_vector_pi"' in junit and re.search(
+        r'"hil_law_digest" value="[0-9a-f]{16}"', junit
+    )
+    assert len(list((project / "hil-runs").rglob("summary.json"))) == 5
+    assert not list((project / "hil-runs").rglob("run.rrd"))  # the plain install: no Rerun recording
 
 
 def test_a_broken_expectation_fails_with_the_measured_figure_and_the_run_folder(user: Path) -> None:
@@ -91,13 +127,18 @@ def test_a_broken_expectation_fails_with_the_measured_figure_and_the_run_folder(
     text = test.read_text()
     assert "run.expect_settles_within(5)" in text
     test.write_text(text.replace("run.expect_settles_within(5)", "run.expect_settles_within(2)", 1))
-    res = _pytest(user, project)
+    res = _pytest(user, project, "--junitxml", "junit.xml", env=_without_candump(user))
     out = res.stdout
-    assert res.returncode == 1 and re.search(r"\b1 failed, 2 passed\b", out), out[-4000:]
+    assert res.returncode == 1 and re.search(r"\b1 failed, 4 passed, 1 skipped\b", out), out[-4000:]
     assert re.search(r"settles in 4 periods", out) and "within 2 periods" in out, out[-4000:]
     folders = [Path(m) for m in re.findall(r"Run: (\S+)", out)]
     assert folders and all((f / "summary.json").is_file() for f in folders), out[-4000:]
-    assert "bus.log" in out and "run.rrd" in out
+    assert "bus.log" in out and "traces.npy" in out
+    import xml.etree.ElementTree as ET
+
+    cases = {c.get("name"): c for c in ET.parse(project / "junit.xml").getroot().iter("testcase")}
+    shown = cases["test_step_meets_the_spec"].findtext("system-out") or ""  # pytest.ini: junit_logging
+    assert "HIL run" in shown and "reproduce:" in shown and str(folders[0]) in shown, shown
 
 
 def test_bench_run_sweep_and_replay_outside_the_clone(user: Path) -> None:
@@ -107,13 +148,17 @@ def test_bench_run_sweep_and_replay_outside_the_clone(user: Path) -> None:
     scenario = str(EXAMPLE / "scenarios" / "iq_step.toml")
     run = _run([bench, "run", scenario, "--bus", "direct", "--no-viewer", "--out", "run1"], work)
     assert run.returncode == 0 and (work / "run1" / "traces.npy").is_file(), run.stdout[-2000:] + run.stderr
-    # the bench's own scenario by the README's relative name, from a folder that has none (bench.scenario.bundled)
+    # the bench's own scenario by the README's relative name, from a folder that has none (bench.scenario.bundled):
+    # without the [sweep] extra, bench sweep says which extra to install and writes nothing
     own = "scenarios/you2019_step.toml"
     sweep = [bench, "sweep", own, "--grid", "controller.L_hat_ratio=0.8,1.2", "--out", "sweep1"]
     res = _run(sweep, work)
-    assert res.returncode == 0 and (work / "sweep1" / "sweep.parquet").is_file(), res.stdout[-2000:] + res.stderr
+    assert res.returncode == 2 and not (work / "sweep1").exists(), res.stdout[-2000:] + res.stderr
+    assert "bench sweep needs the package's [sweep] extra" in res.stderr, res.stderr
+    assert "pip install 'pmsm-hil-bench[sweep]'" in res.stderr, res.stderr
     replay = _run([bench, "replay", "run1/bus.log", "--no-viewer", "--out", "replay1"], work)
     assert replay.returncode == 0, replay.stdout[-2000:] + replay.stderr
+    assert "no run.rrd: a Rerun recording needs the package's [view] extra" in replay.stderr, replay.stderr
     import numpy as np
 
     ran, replayed = np.load(work / "run1" / "traces.npy"), np.load(work / "replay1" / "traces.npy")
@@ -122,13 +167,13 @@ def test_bench_run_sweep_and_replay_outside_the_clone(user: Path) -> None:
 
 
 def test_the_example_project_passes_over_vcan(user: Path) -> None:
-    """Over vcan0: the host's own when its kernel has CAN, else each run's bus half in the VM."""
+    """Over vcan0: the host's own when its kernel has CAN, else the session's CAN box."""
     project = _project(user, "vcan")
-    res = _pytest(user, project, "--hil-bus", "vcan0")
+    res = _pytest(user, project, "--hil-bus", "vcan0", "--hil-require")
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
-    assert re.search(r"\b3 passed\b", res.stdout), res.stdout[-2000:]
+    assert re.search(r"\b6 passed\b", res.stdout), res.stdout[-2000:]
     summaries = list((project / "hil-runs").rglob("summary.json"))
-    assert len(summaries) == 3 and all('"bus": "vcan0"' in s.read_text() for s in summaries)
+    assert len(summaries) == 6 and all('"bus": "vcan0"' in s.read_text() for s in summaries)
 
 
 def _expected_build() -> set[str]:
