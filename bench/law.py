@@ -91,14 +91,15 @@ def build(law: Path, repo: Path = REPO, state: Path = STATE, goals: tuple[str, .
         with open(out.parent / ".lock", "a") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # another command building now: after it, make finds its part done
             _prune(out, name)
-            print(f"bench: building law {name} from {law} into {out} (make LAW=...)", file=sys.stderr, flush=True)
-            lines = _make(cmd)  # make finds what is current (a second build of the same folder compiles nothing)
+            lines = _make(cmd, f"bench: building law {name} from {law} into {out} (make LAW=...)")
             if lines is not None:
                 if not out.is_dir():
                     shutil.rmtree(work, ignore_errors=True)  # no good build to keep objects for
                 raise LawBuildError(_failure(lines, law))
             if not _current(work, out):
                 _publish(work, out)
+            elif not _compiled:
+                print(f"bench: law {name} from {law}: its build {out} is current", file=sys.stderr, flush=True)
     except OSError as exc:
         where = exc.filename or out
         raise LawBuildError(
@@ -151,16 +152,25 @@ def _publish(work: Path, out: Path) -> None:
     shutil.rmtree(old, ignore_errors=True)
 
 
-def _make(cmd: list[str]) -> list[str] | None:
-    """Run make with the compiled files shown on stderr; None when it succeeded, else its output's lines."""
+_compiled: list[str] = []  # the files the last _make compiled
+
+
+def _make(cmd: list[str], header: str) -> list[str] | None:
+    """Run make with the compiled files shown on stderr (after `header`, once, when make compiles anything: a
+    build that is current says so in one line instead); None when it succeeded, else its output's lines."""
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
+    _compiled.clear()
     assert proc.stdout is not None
     for line in proc.stdout:
         lines.append(line.rstrip("\n"))
         m = COMPILE.search(line)
         if m:
-            print(f"  cc {m.group(1)}", file=sys.stderr, flush=True)
+            if not _compiled:
+                print(header, file=sys.stderr, flush=True)
+            _compiled.append(m.group(1))
+            image = " (Cortex-M4F image)" if line.lstrip().startswith("arm-none-eabi-") else ""
+            print(f"  cc {m.group(1)}{image}", file=sys.stderr, flush=True)
     return None if proc.wait() == 0 else lines
 
 
@@ -216,7 +226,20 @@ def _failure(lines: list[str], law: Path) -> str:
     if not errors:
         return "make failed:\n" + "\n".join(lines[-ERROR_LINES:])
     start = errors[0] - 1 if errors[0] > 0 and "In function" in lines[errors[0] - 1] else errors[0]
-    shown = [ln for ln in lines[start:] if not ln.startswith("make") and not COMPILE.search(ln)][:ERROR_LINES]
+    shown: list[str] = []
+    seen: set[str] = set()
+    for ln in lines[start:]:
+        if ln.startswith("make") or COMPILE.search(ln):
+            continue
+        where = ln.split(": ", 1)[0] if DIAGNOSTIC.search(ln) else None
+        if where is not None and where in seen:  # the same error from the image's compiler (make -j): shown once
+            if shown and "In function" in shown[-1]:
+                shown.pop()
+            break
+        if where is not None:
+            seen.add(where)
+        shown.append(ln)
+    shown = shown[:ERROR_LINES]
     return f"the law in {law} does not compile:\n" + "\n".join(shown)
 
 

@@ -31,7 +31,7 @@ if have_host_can; then
     log "host kernel has SocketCAN: no VM fallback needed"
 else
     log "host kernel has no SocketCAN (socket(AF_CAN) fails): installing the virtme-ng VM fallback"
-    PKGS+=(qemu-system-x86 linux-image-amd64 busybox-static)
+    PKGS+=(qemu-system-x86 linux-image-amd64 busybox-static file iproute2 procps)
 fi
 missing=()
 for p in "${PKGS[@]}"; do

@@ -97,6 +97,13 @@ def readiness() -> list[tuple[str, bool, str]]:
     )
     busybox = shutil.which("busybox")
     items.append(("busybox (initramfs)", busybox is not None, busybox or "apt-get install busybox-static"))
+    # the guest runs on this host's root file system: what the VM's scripts and virtme-ng run there (a slim
+    # container image lacks them): `file` on busybox (is it static?), ip for the CAN box's namespaces, pkill
+    for exe, what, pkg in (("file", "virtme-ng checks busybox", "file"), ("ip", "the box's namespaces", "iproute2")):
+        found = shutil.which(exe)
+        items.append((f"{exe} ({what})", found is not None, found or f"apt-get install {pkg}"))
+    found = shutil.which("pkill")
+    items.append(("pkill (the box's power-off)", found is not None, found or "apt-get install procps"))
     return items
 
 
