@@ -20,6 +20,11 @@ LAW_HANDED := 1
 endif
 endif
 ifdef LAW_HANDED
+LAW_OTHER := $(filter-out law mcu,$(MAKECMDGOALS))
+ifneq ($(LAW_OTHER),)
+$(error LAW=$(LAW) $(firstword $(LAW_OTHER)): with LAW, make builds a law's goals, law (the default) and mcu; the \
+repository's own goals run without LAW (is it exported in your shell?); a law's builds are build/laws/<name>-*/)
+endif
 .PHONY: law mcu
 law:
 	@$(PYTHON) -m bench.law '$(LAW)' $(MAKECMDGOALS)

@@ -91,6 +91,10 @@ def _with_law(argv: list[str]) -> tuple[list[str], int]:
 
 
 def _main(argv: list[str]) -> int:
+    early = _lacking_before_law(argv)
+    if early:
+        print(early, file=sys.stderr)
+        return 2
     argv, rc = _with_law(argv)
     if rc:
         return rc
@@ -119,11 +123,18 @@ def _main(argv: list[str]) -> int:
 NEEDS_EXTRA = {"sweep": ("sweep",), "reproduce": ("view", "sweep"), "perf": ("view", "sweep")}
 
 
+def _lacking_before_law(argv: list[str]) -> str | None:
+    """A command that cannot run without an extra, refused before its --law is built (minutes for nothing)."""
+    if not argv or argv[0] not in NEEDS_EXTRA or {"-h", "--help"} & set(argv):
+        return None
+    return _needs_extra(argparse.Namespace(command=argv[0]))
+
+
 def _needs_extra(args: argparse.Namespace) -> str | None:
     from bench.extras import lacking, missing_extra
 
     needs = list(NEEDS_EXTRA.get(args.command, ()))
-    if args.command in ("run", "replay") and getattr(args, "serve", False):
+    if args.command in ("run", "replay", "demo") and getattr(args, "serve", False):
         needs.append("view")
     if args.command == "run" and getattr(args, "drive_profile", None) == "cia402":
         needs.append("view")  # its figure: matplotlib

@@ -56,7 +56,8 @@ def main(args: argparse.Namespace) -> int:
             f"  identified gains: K1 {ident['K1_bar_V_A']:.3f} V/A, K2 {ident['K2_bar_V_A']:.3f} V/A, "
             f"L_hat {ident['L_hat_H'] * 1e3:.4f} mH (plant Lq {summary['plant']['Lq_H'] * 1e3:.4f} mH)"
         )
-    print(f"  recording: {out_dir / 'run.rrd'} (rerun {out_dir / 'run.rrd'})")
+    if (out_dir / "run.rrd").exists():  # without the [view] extra there is none
+        print(f"  recording: {out_dir / 'run.rrd'} (rerun {out_dir / 'run.rrd'})")
     print(f"  CAN log:   {out_dir / summary['files']['log']}")
     print(
         f"  traces:    {out_dir / summary['files']['traces']}; summary: {out_dir / 'summary.json'}; "

@@ -14,7 +14,7 @@ import importlib.util
 import sys
 
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "view": ("rerun",),
+    "view": ("rerun", "matplotlib"),
     "sweep": ("dask", "distributed", "pyarrow", "matplotlib"),
 }
 

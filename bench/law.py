@@ -85,7 +85,9 @@ def build(law: Path, repo: Path = REPO, state: Path = STATE, goals: tuple[str, .
     out = build_folder(law, name, state)
     work = _work(out)
     cmd = ["make", "-C", str(repo), f"LAW={law}", f"BUILD={work}", f"PYTHON={sys.executable}"]
-    cmd += [f"-j{os.cpu_count() or 1}", *goals]
+    # always every drive target (the published build is whole); an explicit goal (mcu) is asked for too, so that
+    # make says what it lacks (no arm-none-eabi-gcc) instead of leaving the image out
+    cmd += [f"-j{os.cpu_count() or 1}", *dict.fromkeys(("law", *goals))]
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with open(out.parent / ".lock", "a") as lock:
@@ -208,6 +210,7 @@ def digest(law: Path) -> str:
 
 
 DIAGNOSTIC = re.compile(r": (fatal )?error: |undefined reference to ")
+LOCATED = re.compile(r"^\S+:\d+:\d+: (fatal )?error: .*$")
 MAKE_ERROR = re.compile(r"^Makefile:\d+: \*\*\* (.*?)\.?  Stop\.$")
 
 
@@ -231,7 +234,8 @@ def _failure(lines: list[str], law: Path) -> str:
     for ln in lines[start:]:
         if ln.startswith("make") or COMPILE.search(ln):
             continue
-        where = ln.split(": ", 1)[0] if DIAGNOSTIC.search(ln) else None
+        located = LOCATED.match(ln)
+        where = located.group(0) if located else None  # a compiler's file:line:col: error (not the linker's)
         if where is not None and where in seen:  # the same error from the image's compiler (make -j): shown once
             if shown and "In function" in shown[-1]:
                 shown.pop()

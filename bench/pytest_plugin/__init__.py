@@ -68,8 +68,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         dest="hil_require",
         action="store_true",
         default=None,
-        help="a test marked @pytest.mark.hil(bus=..., drive=...) whose bus or drive this host lacks fails instead "
-        "of being skipped with the missing piece named (for the CI job that must run them)",
+        help="a test marked @pytest.mark.hil(bus=..., drive=...) whose bus or drive this host lacks errors at its "
+        "setup, naming the missing piece, instead of being skipped (for the CI job that must run them)",
     )
     parser.addini("hil_require", "as --hil-require", type="bool", default=False)
     # --hil-law=DIR rather than --hil-law DIR: pytest looks for its rootdir before it loads plugins, and takes a
@@ -150,7 +150,8 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
     if key not in settings.bus_problems:
         from bench.pytest_plugin.checks import bus_problem
 
-        settings.bus_problems[key] = bus_problem(bus, "hil(bus=...)", drive)
+        named = "hil(bus=...)" if marker.kwargs.get("bus") else settings.bus_option  # where the bus came from
+        settings.bus_problems[key] = bus_problem(bus, named, drive)
     problem = settings.bus_problems[key]
     if problem is not None:
         if settings.require:

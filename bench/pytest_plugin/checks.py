@@ -73,7 +73,9 @@ def law_build(settings: Settings, law: Path, option: str) -> LawBuild:
     from bench.law import LawBuildError, build, digest, law_name
 
     try:
-        now = digest(law) if law.is_dir() else None
+        if not law.is_dir():
+            raise LawBuildError(f"{law}: no such folder")
+        now = digest(law)  # before the build: an edit while it runs is a change the next call refuses
         known = settings.laws.get(law)
         if known is not None and known.digest != now:
             raise LawBuildError(
@@ -82,10 +84,12 @@ def law_build(settings: Settings, law: Path, option: str) -> LawBuild:
             )
         if known is None:
             out = build(law)
-            known = settings.laws[law] = LawBuild(law, out, law_name(law), digest(law))
+            known = settings.laws[law] = LawBuild(law, out, law_name(law), now)
         return known
     except LawBuildError as exc:
         raise LawRefusal(f"{option} {law}: {exc}") from None
+    except OSError as exc:
+        raise LawRefusal(f"{option} {law}: cannot read the folder: {exc.strerror} ({exc.filename})") from None
 
 
 class LawRefusal(Exception):

@@ -110,7 +110,7 @@ class HilRunner:
             props = [("status", "no summary"), ("exit_code", run.exit_code), ("run_folder", run.folder), *given]
             self._node.user_properties.extend((prefix + k, str(v)) for k, v in props)
             refuse(run.message)
-        texts.append(report_text(run) + "\n" + self._reproduce(cmd, built))
+        texts.append(report_text(run) + "\n" + self._reproduce(cmd, built, chosen))
         self._node.user_properties.extend(junit_properties(run, prefix))
         self._node.user_properties.extend((prefix + k, str(v)) for k, v in given)
         self.history.append(run)
@@ -136,16 +136,20 @@ class HilRunner:
         except LawRefusal as exc:
             refuse(str(exc))
 
-    def _reproduce(self, cmd: list[str], built: LawBuild | None) -> str:
-        """The run as a command line: `bench run` with the test's overrides, faults and events (and its law)."""
+    def _reproduce(self, cmd: list[str], built: LawBuild | None, chosen: bool) -> str:
+        """The run as a command line: `bench run` with the test's overrides, faults and events, and its law: --law
+        for a law of the call or the marker (selected in the overrides), the build itself for --hil-law's (whose
+        runs need not select it: `bench run --law` would refuse them)."""
         import shlex
 
-        law = [] if built is None else [f"--law={built.folder}"]
+        law = [f"--law={built.folder}"] if built is not None and chosen else []
         args = list(cmd[3:])
         if "--out" in args:  # the test's own run folder exists (a run refuses it): a new one beside it
             at = args.index("--out") + 1
             args[at] = args[at] + "-again"
         line = shlex.join(["bench", *args, *law])
+        if built is not None and not chosen:
+            line = f"BENCH_BUILD_DIR={shlex.quote(str(built.out))} {line}"
         shown = f"\nlaw:         {built.folder} ({built.name}, content {built.digest})" if built else ""
         return f"reproduce:   {line}{shown}"
 

@@ -359,9 +359,9 @@ def main(role: str, reply_fd: int) -> int:
     try:
         return _main(role, reply_fd)
     except KeyboardInterrupt:
-        from bench.view import serve
-
-        serve.stop()
+        serve = sys.modules.get("bench.view.serve")  # only what was started (a plain install has no rerun)
+        if serve is not None:
+            serve.stop()
         os._exit(130)
 
 
@@ -385,6 +385,10 @@ def _main(role: str, reply_fd: int) -> int:
         try:
             from bench.view import rerun_sink  # noqa: F401
         except ImportError as exc:
+            import importlib.util
+
+            if importlib.util.find_spec("rerun") is not None:
+                raise  # rerun is there and broken: its own error, not "install the extra"
             without = str(exc)
     else:
         from bench.view import plots  # noqa: F401

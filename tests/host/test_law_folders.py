@@ -94,3 +94,10 @@ def test_a_failing_build_leaves_the_good_one_and_a_first_one_leaves_nothing(tmp_
         build(other, state=state)
     left = sorted(p.name for p in (state / "laws").iterdir())
     assert left == [".kept_law-" + out.name.split("-")[1] + ".work", ".lock", out.name], left  # no stub, no lock
+
+
+def test_make_with_law_refuses_the_repositorys_own_goals() -> None:
+    """LAW= (exported in a shell, say) with `make clean`/`make test`: refused naming the goal, nothing run."""
+    res = subprocess.run(["make", "-C", str(REPO), f"LAW={LAW}", "clean"], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and f"LAW={LAW} clean: with LAW, make builds a law's goals" in res.stderr, res.stderr
+    assert (REPO / "build" / "bin").is_dir()  # `make clean` did not run
