@@ -93,14 +93,14 @@ def build(law: Path, repo: Path = REPO, state: Path = STATE, goals: tuple[str, .
         with open(out.parent / ".lock", "a") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # another command building now: after it, make finds its part done
             _prune(out, name)
-            lines = _make(cmd, f"bench: building law {name} from {law} into {out} (make LAW=...)")
+            lines, compiled = _make(cmd, f"bench: building law {name} from {law} into {out} (make LAW=...)")
             if lines is not None:
                 if not out.is_dir():
                     shutil.rmtree(work, ignore_errors=True)  # no good build to keep objects for
                 raise LawBuildError(_failure(lines, law))
             if not _current(work, out):
                 _publish(work, out)
-            elif not _compiled:
+            elif not compiled:
                 print(f"bench: law {name} from {law}: its build {out} is current", file=sys.stderr, flush=True)
     except OSError as exc:
         where = exc.filename or out
@@ -154,26 +154,24 @@ def _publish(work: Path, out: Path) -> None:
     shutil.rmtree(old, ignore_errors=True)
 
 
-_compiled: list[str] = []  # the files the last _make compiled
-
-
-def _make(cmd: list[str], header: str) -> list[str] | None:
+def _make(cmd: list[str], header: str) -> tuple[list[str] | None, int]:
     """Run make with the compiled files shown on stderr (after `header`, once, when make compiles anything: a
-    build that is current says so in one line instead); None when it succeeded, else its output's lines."""
+    build that is current says so in one line instead); (None when it succeeded, else its output's lines; the
+    number of files compiled)."""
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
-    _compiled.clear()
+    compiled = 0
     assert proc.stdout is not None
     for line in proc.stdout:
         lines.append(line.rstrip("\n"))
         m = COMPILE.search(line)
         if m:
-            if not _compiled:
+            if not compiled:
                 print(header, file=sys.stderr, flush=True)
-            _compiled.append(m.group(1))
+            compiled += 1
             image = " (Cortex-M4F image)" if line.lstrip().startswith("arm-none-eabi-") else ""
             print(f"  cc {m.group(1)}{image}", file=sys.stderr, flush=True)
-    return None if proc.wait() == 0 else lines
+    return (None if proc.wait() == 0 else lines), compiled
 
 
 def _prune(out: Path, name: str) -> None:

@@ -4,12 +4,12 @@ working folder that cannot be written refused in one line, not a traceback."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from law_util import zero_law_as
 
 from bench.law import LawBuildError, _prune, build, build_folder
 from bench.paths import REPO
@@ -45,12 +45,7 @@ def test_a_working_folder_that_cannot_be_written_is_refused_in_one_line(tmp_path
 
 def _zero_law(tmp_path: Path, name: str) -> Path:
     """tests/laws/zero_law as a law of another name, outside the repository."""
-    law = tmp_path / "user" / name
-    shutil.copytree(REPO / "tests" / "laws" / "zero_law", law)
-    for f in law.iterdir():
-        text = f.read_text().replace("CurrentLaws=zero_law", f"CurrentLaws={name}")
-        f.write_text(text.replace("current_law_zero_law", f"current_law_{name}"))
-    return law
+    return zero_law_as(tmp_path / "user" / name, name)
 
 
 def _state(root: Path) -> dict[str, tuple[int, int]]:

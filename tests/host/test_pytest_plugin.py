@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from law_util import zero_law_as
 
 from bench.pytest_plugin.result import HilRun, load_run
 from bench.pytest_plugin.runner import override_list, sanitize, table_overrides, tail
@@ -28,7 +29,6 @@ pytest_plugins = ["pytester"]
 
 REPO = Path(__file__).resolve().parents[2]
 STEP = REPO / "scenarios" / "you2019_step.toml"
-ZERO_LAW = REPO / "tests" / "laws" / "zero_law"
 ZERO_LAW_SCENARIO = REPO / "tests" / "laws" / "zero_law.toml"
 PLUGIN_FRAMES = "bench/pytest_plugin"  # a frame of the plugin in a report: a traceback inside it
 
@@ -212,12 +212,7 @@ def test_a_bus_that_is_not_there_is_an_error_before_any_test(hil_pytester: pytes
 
 def _law(tmp_path: Path, name: str) -> Path:
     """tests/laws/zero_law as a law of another name (its own build folder: tests may run side by side)."""
-    law = tmp_path / name
-    shutil.copytree(ZERO_LAW, law)
-    for f in law.iterdir():
-        text = f.read_text().replace("CurrentLaws=zero_law", f"CurrentLaws={name}")
-        f.write_text(text.replace("current_law_zero_law", f"current_law_{name}"))
-    return law
+    return zero_law_as(tmp_path / name, name)
 
 
 def test_a_law_that_does_not_build_is_an_error_naming_the_file(hil_pytester: pytest.Pytester, tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from law_util import rename
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURE = REPO / "tests" / "laws" / "zero_law"
@@ -147,11 +148,7 @@ def _listing(folder: Path) -> dict[str, tuple[int, int]]:
     return {str(p.relative_to(folder)): (p.stat().st_mtime_ns, p.stat().st_size) for p in folder.rglob("*")}
 
 
-def _rename(law: Path, name: str) -> None:
-    """The fixture as a law of another name (its own build folder: tests may run side by side)."""
-    for f in law.iterdir():
-        text = f.read_text().replace("CurrentLaws=zero_law", f"CurrentLaws={name}")
-        f.write_text(text.replace("current_law_zero_law", f"current_law_{name}"))
+_rename = rename  # the fixture as a law of another name (tests/host/law_util.py)
 
 
 def test_make_law_builds_every_drive_target_from_a_folder_outside_the_repo(tmp_path: Path) -> None:
