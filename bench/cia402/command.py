@@ -115,8 +115,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.interface == "socketcan" and not probe_af_can().af_can:
         print(
-            "bench run: this machine has no SocketCAN (AF_CAN); run the CiA 402 master where the bus is, "
-            f"e.g. bench vm -- .venv/bin/bench run {' '.join(sys.argv[2:])}",
+            "bench run: this machine has no SocketCAN (AF_CAN): the CiA 402 master reaches a drive on a "
+            "bus through a python-can interface (--interface slcan --bus socket://127.0.0.1:PORT, a CAN box slot's "
+            "tap as `bench box status` prints it; pcan, kvaser ... for an adapter), or runs where the bus is "
+            f"(bench vm -- .venv/bin/bench run {' '.join(sys.argv[2:])})",
             file=sys.stderr,
         )
         return 2

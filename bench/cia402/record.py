@@ -135,10 +135,22 @@ def states_passed(trace: Trace) -> list[str]:
     return out
 
 
+def _bridged(tgt: np.ndarray) -> np.ndarray:
+    """The targets with each gap (cycles whose RPDO the log lacks: a periodic sender late by a cycle, a frame a
+    tap dropped) between two cycles of the same target filled with it: a gap does not end a run of one
+    target, whose window would then depend on where the gap fell."""
+    out = tgt.copy()
+    known = np.flatnonzero(~np.isnan(tgt))
+    for a, b in zip(known[:-1], known[1:], strict=True):
+        if b > a + 1 and tgt[a] == tgt[b]:
+            out[a + 1 : b] = tgt[a]
+    return out
+
+
 def tracking(trace: Trace) -> list[dict[str, Any]]:
-    """Per run of one target (as sent): mean torque actual over the second half of the run, with the
-    cycles in OPERATION ENABLED only."""
-    tgt = trace.columns["target_torque_permille"]
+    """Per run of one target (as sent; a gap in the log between two cycles of the same target does not end
+    it): mean torque actual over the second half of the run, with the cycles in OPERATION ENABLED only."""
+    tgt = _bridged(trace.columns["target_torque_permille"])
     act = trace.columns["torque_actual_permille"]
     enabled = np.array([s == "OPERATION ENABLED" for s in trace.state], dtype=bool)
     out: list[dict[str, Any]] = []

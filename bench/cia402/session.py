@@ -43,6 +43,7 @@ class Session:
             out,
         )
         self.partial = out.with_name(out.name + ".partial")
+        self.record_error: str | None = None  # the recorder's, when it could not write the whole log
 
     def run(self) -> int:
         if self.partial.exists():
@@ -61,6 +62,8 @@ class Session:
         code, reason = 1, "not started"
         try:
             master = Master(self.args.bus, self.args.interface, self.args.drive_id, self.eds, self.cycle_s)
+            if isinstance(recorder, _SharedBusRecorder):
+                recorder.attach(master.network)
             master.start_heartbeat()
             layout = master.prepare(say)
             self.segs = targets(self.sc, master.info.rated_current_mA, master.info.max_torque_pm)
@@ -85,6 +88,7 @@ class Session:
                 disabled, sw = master.shutdown(say)
                 master.close()
             recorder.stop()
+            self.record_error = getattr(recorder, "error", None)
         if not disabled and code in (0, 130, 143):
             reason += f"; the drive was NOT seen SWITCH ON DISABLED at the end (statusword {sw})"
             code = 1
@@ -96,7 +100,7 @@ class Session:
             from bench.run.record.sources import CandumpSource
 
             return CandumpSource(self.args.bus, log, follow=False)
-        return _PythonCanRecorder(self.args, log)
+        return _SharedBusRecorder(log)
 
     def _play(self, master: Master) -> None:
         t0 = time.monotonic()
@@ -128,6 +132,7 @@ class Session:
             "lockstep": False,
             "scenario": self.sc.name,
             "bus": self.args.bus,
+            "record_error": self.record_error,
             "drive_id": self.args.drive_id,
             "cycle_ms": self.cycle_s * 1e3,
             "bus_load": self.load,
@@ -167,17 +172,62 @@ class Session:
         return code
 
 
-class _PythonCanRecorder:
-    """Other python-can interfaces: a second bus handle logging every frame in candump format."""
+class _SharedBusRecorder:
+    """Other python-can interfaces: every frame the master's own bus handle receives and sends, in candump's
+    format. Through the master's handle, not a second one: an SLCAN adapter (a serial port, the CAN box's tap,
+    a TCP socket) or a USB adapter's channel takes one client only, and a frame the master sends is not
+    received back on most of them. (An interface whose periodic tasks run in its hardware, as IXXAT's do,
+    sends SYNC and heartbeat past bus.send: those are then missing from the log.)"""
 
-    def __init__(self, args: argparse.Namespace, path: Path) -> None:
+    def __init__(self, path: Path) -> None:
         import can
 
-        self.bus = can.Bus(interface=args.interface, channel=args.bus)
-        self.notifier = can.Notifier(self.bus, [can.Logger(str(path))])
+        self.logger = can.Logger(str(path))
+        self.network: Any = None
+        self._send: Any = None
+        self._log: Any = None
+        self.error: str | None = None  # the first failure to write the log
+
+    def attach(self, network: Any) -> None:
+        """Log what `network` (a connected canopen.Network) receives and what its bus sends from now on (SDO,
+        NMT, the periodic SYNC and heartbeat tasks: python-can's threads call the bus's send), one line at a
+        time (the notifier's thread and the senders' threads write to one file)."""
+        import threading
+
+        import can
+
+        bus, logger, lock = network.bus, self.logger, threading.Lock()
+        send = bus.send
+
+        def log(msg: can.Message) -> None:
+            with lock:
+                try:
+                    logger.on_message_received(msg)
+                except (OSError, ValueError) as exc:  # a closed or full log: the summary says so, the bus goes on
+                    self.error = self.error or f"{type(exc).__name__}: {exc}"
+
+        def send_and_log(msg: can.Message, timeout: float | None = None) -> None:
+            t = time.time()
+            send(msg, timeout)
+            sent = can.Message(
+                timestamp=t,
+                arbitration_id=msg.arbitration_id,
+                is_extended_id=msg.is_extended_id,
+                is_remote_frame=msg.is_remote_frame,
+                dlc=msg.dlc,
+                data=msg.data,
+                channel=msg.channel,
+                is_rx=False,
+            )
+            log(sent)
+
+        bus.send = send_and_log
+        self.network, self._send, self._log = network, send, log
+        network.notifier.add_listener(log)
 
     def stop(self) -> None:
-        self.notifier.stop()
-        for listener in self.notifier.listeners:
-            listener.stop()
-        self.bus.shutdown()
+        if self.network is not None:
+            self.network.notifier.remove_listener(self._log)
+            if self.network.bus is not None:
+                self.network.bus.send = self._send
+        self.logger.stop()

@@ -161,11 +161,30 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 def _stop_box_at_end(config: pytest.Config) -> None:
     """The session's vcan runs on a host without kernel CAN share one CAN box (docs/VM.md), which the first
-    of them boots; the session stops it at its end when it was not up before (a box the user started stays)."""
+    of them boots; the session stops it at its end when the session booted it. Its runs (and xdist workers)
+    inherit a token of the session in BENCH_BOX_OWNER, which the box they boot records: a box that was up
+    before, or that a user or another session started meanwhile, stays up."""
+    import os
+    import uuid
+
     from bench.run.bus.box import life
 
-    if life.read_info() is None:
-        config.add_cleanup(life.down)
+    if life.read_info() is not None:
+        return
+    before = os.environ.get(life.OWNER_ENV)
+    token = os.environ[life.OWNER_ENV] = f"pytest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+
+    def down_if_ours() -> None:
+        if before is None:
+            os.environ.pop(life.OWNER_ENV, None)
+        else:
+            os.environ[life.OWNER_ENV] = before
+        info = life.read_info()
+        # a slot another process holds (another session's run) keeps it up: its idle timeout powers it off
+        if info is not None and info.booted_by == token and not life.slots_held_by_others(info):
+            life.down()
+
+    config.add_cleanup(down_if_ours)
 
 
 @pytest.fixture(scope="session")

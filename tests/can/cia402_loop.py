@@ -32,7 +32,7 @@ class Loop:
     procs: tuple[NodeProcess, NodeProcess]
 
 
-class _BootWatch:
+class BootWatch:
     """The nodes' boot-up messages (0x700 + id, one byte 0), heard from before the processes start: a boot-up
     sent while the test was not yet listening (this process descheduled on a loaded machine between starting
     the nodes and subscribing) would be missed for good."""
@@ -127,7 +127,7 @@ def drive_with_motor(
         site.node("drive_node", ["--iface", drive_iface or iface, "--node-id", str(DRIVE_ID)]),
     )
     try:
-        boot = _BootWatch(net, (PLANT_ID, DRIVE_ID))
+        boot = BootWatch(net, (PLANT_ID, DRIVE_ID))
         for p in procs:
             p.start()
         boot.wait()

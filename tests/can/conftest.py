@@ -6,8 +6,8 @@ from collections.abc import Iterator
 import pytest
 from can_site import Site
 
-# These tests run inside the VM and keep their runs in pytest's temporary folders there (the guest's own
-# /tmp): on purpose, they read them back in the VM. A user's --out outside the folders the VM shares is
+# The kernel_can tests run inside the VM and keep their runs in pytest's temporary folders there (the guest's
+# own /tmp): on purpose, they read them back in the VM. A user's --out outside the folders the VM shares is
 # refused (bench.paths.lost_in_vm); the tests' bench processes are told no folder list, so they write.
 os.environ.pop("BENCH_VM_SHARED", None)
 

@@ -1,8 +1,7 @@
 """`bench run --drive-profile cia402` over vcan0 against a CiA 402 drive it did not build (the stand-in of
-tests/can/cia402_standin.py: the drive node with the plant behind it on a bus of its own).
-
-Run in the VM: flock /tmp/vm.lock .venv/bin/bench vm --timeout 600 -- .venv/bin/pytest -q -p no:cacheprovider
-tests/can/test_cia402_master_vcan.py
+tests/can/cia402_standin.py: the drive node with the plant behind it on a bus of its own). On a host without
+kernel CAN the stand-in is in the CAN box and the master on the host, on the slot's tap through python-can's
+slcan interface (`--interface slcan --bus socket://...`, as `bench box status` prints it).
 """
 
 from __future__ import annotations
@@ -18,28 +17,25 @@ from pathlib import Path
 import canopen
 import pytest
 from bench_proc import pids, sigint_default
+from can_site import Site
 from cia402_standin import DRIVE_ID, StandIn
 
 from bench.paths import EDS_DIR, REPO
 
-# the stand-in drive and the bench's run share one bus
-# (kernel_can: the kernel's CAN in this process, inside the VM on a host without CAN)
-pytestmark = pytest.mark.kernel_can
-
-CYCLE_MS = 50  # the VM stalls processes up to ~150 ms
+CYCLE_MS = 50  # the box's guest (QEMU's software emulation) stalls processes up to ~150 ms
 # Bounds on waits, not timings: in the CI's VM a bench's start-up (imports) takes ~25 s and its way out
 # (disable, decode, plot) up to a minute; a CI run once took longer than 60 s after Ctrl-C.
 STEP = REPO / "scenarios" / "you2019_step.toml"
 
 
 @pytest.fixture
-def standin(vcan0: str) -> Iterator[StandIn]:
-    with StandIn(CYCLE_MS / 1000, vcan0) as s:
+def standin(site: Site) -> Iterator[StandIn]:
+    with StandIn(CYCLE_MS / 1000, site) as s:
         yield s
 
 
-def bench(out: Path, *extra: str) -> list[str]:
-    opts = f"--bus vcan0 --drive-profile cia402 --cycle-ms {CYCLE_MS}".split()
+def bench(standin: StandIn, out: Path, *extra: str) -> list[str]:
+    opts = [*standin.master_args(), *f"--drive-profile cia402 --cycle-ms {CYCLE_MS}".split()]
     return [sys.executable, "-m", "bench.cli", "run", str(STEP), *opts, "--out", str(out), *extra]
 
 
@@ -56,10 +52,10 @@ def wait_playing(proc: subprocess.Popen[bytes]) -> bytes:
     return seen
 
 
-def read_drive(*indices: int) -> list[int]:
+def read_drive(site: Site, *indices: int) -> list[int]:
     """The drive's objects read by SDO from a master of the test's own."""
     net = canopen.Network()
-    net.connect(interface="socketcan", channel="vcan0")
+    net.connect(**site.bus_kwargs())
     try:
         node = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
         node.sdo.RESPONSE_TIMEOUT = 5.0
@@ -69,14 +65,14 @@ def read_drive(*indices: int) -> list[int]:
         net.disconnect()
 
 
-def sdo_statusword() -> int:
-    return read_drive(0x6041)[0]
+def sdo_statusword(site: Site) -> int:
+    return read_drive(site, 0x6041)[0]
 
 
 def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
     res = subprocess.run(
-        bench(out, "--set", "scenario.periods=80"), cwd=REPO, capture_output=True, text=True, timeout=600
+        bench(standin, out, "--set", "scenario.periods=80"), cwd=REPO, capture_output=True, text=True, timeout=600
     )
     assert res.returncode == 0, res.stdout + res.stderr
     assert "no lockstep" in res.stdout
@@ -87,14 +83,14 @@ def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> 
     assert step and step[0]["mean_actual_permille"] is not None, summary["tracking"]
     assert abs(step[0]["relative_error"]) <= 0.25, step
     assert (out / "trace.csv").exists() and (out / "overview.png").exists() and (out / "bus.log").exists()
-    assert sdo_statusword() & 0x4F == 0x40
+    assert sdo_statusword(standin.site) & 0x4F == 0x40
     assert standin.alive()
 
 
 def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        bench(out, "--set", "scenario.periods=100000"),
+        bench(standin, out, "--set", "scenario.periods=100000"),
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -120,13 +116,13 @@ def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
     trace = decode_log(out / "bus.log", default_layout(DRIVE_ID, CYCLE_MS / 1000))
     last = [s for s in trace.state if s]
     assert last and last[-1] == "SWITCH ON DISABLED", last[-5:]
-    assert sdo_statusword() & 0x4F == 0x40
+    assert sdo_statusword(standin.site) & 0x4F == 0x40
 
 
 def test_sigkill_of_the_bench_faults_the_drive(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        bench(out, "--set", "scenario.periods=100000"),
+        bench(standin, out, "--set", "scenario.periods=100000"),
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -140,9 +136,9 @@ def test_sigkill_of_the_bench_faults_the_drive(standin: StandIn, tmp_path: Path)
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-        for pid in pids(f"candump -L -r {8 << 20} vcan0"):  # the killed bench's recorder
+        for pid in pids(f"candump -L -r {8 << 20} vcan0"):  # the killed bench's recorder (on a kernel bus)
             subprocess.run(["kill", str(pid)], check=False)
     assert watches, "the project's drive has a free 0x1016 entry: it must watch the bench's heartbeat"
     time.sleep(2.0)  # 500 ms consumer time, SYNC and heartbeat stopped with the bench's socket
-    sw, code = read_drive(0x6041, 0x603F)
+    sw, code = read_drive(standin.site, 0x6041, 0x603F)
     assert sw & 0x4F == 0x08 and code == 0xFF04, (hex(sw), hex(code))

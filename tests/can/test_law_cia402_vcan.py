@@ -2,9 +2,8 @@
 `bench run --drive-profile cia402 --law DIR` over vcan0 against the stand-in drive (tests/can/cia402_standin.py)
 built with the example law examples/laws/complex_vector_pi (make LAW=DIR) and running it. The master does
 not know the law: it drives the CiA 402 state machine and the CST target torque; the torque is the law's.
-
-Run in the VM: .venv/bin/bench vm --timeout 900 -- .venv/bin/pytest -q -p no:cacheprovider
-tests/can/test_law_cia402_vcan.py
+On a host without kernel CAN the stand-in runs in the CAN box and the master on the host, on the slot's tap
+(tests/can/test_cia402_master_vcan.py).
 """
 
 from __future__ import annotations
@@ -17,17 +16,14 @@ from pathlib import Path
 
 import canopen
 import pytest
+from can_site import Site
 from cia402_standin import DRIVE_ID, StandIn
 
 from bench.eds import value_names
 from bench.law import build, law_name
 from bench.paths import REPO
 
-# the stand-in drive and the bench's run share one bus
-# (kernel_can: the kernel's CAN in this process, inside the VM on a host without CAN)
-pytestmark = pytest.mark.kernel_can
-
-CYCLE_MS = 50  # as tests/can/test_cia402_master_vcan.py: the VM stalls processes up to ~150 ms
+CYCLE_MS = 50  # as tests/can/test_cia402_master_vcan.py: the box's guest stalls processes up to ~150 ms
 LAW = REPO / "examples" / "laws" / "complex_vector_pi"
 STEP = REPO / "scenarios" / "you2019_step.toml"
 
@@ -41,21 +37,21 @@ def _select_law(eds: Path):  # type: ignore[no-untyped-def]
 
 
 @pytest.fixture
-def law_build(vcan0: str) -> Path:
+def law_build(site: Site) -> Path:
     return build(LAW, REPO)
 
 
 @pytest.fixture
-def standin(law_build: Path, vcan0: str, monkeypatch: pytest.MonkeyPatch) -> Iterator[StandIn]:
+def standin(law_build: Path, site: Site, monkeypatch: pytest.MonkeyPatch) -> Iterator[StandIn]:
     monkeypatch.setenv("BENCH_BIN_DIR", str(law_build / "bin"))  # the stand-in's node binaries: the law's
     eds = law_build / "eds" / "drive.eds"
-    with StandIn(CYCLE_MS / 1000, vcan0, eds_dir=law_build / "eds", law=_select_law(eds)) as s:
+    with StandIn(CYCLE_MS / 1000, site, eds_dir=law_build / "eds", law=_select_law(eds)) as s:
         yield s
 
 
 def test_cst_step_through_a_users_law(standin: StandIn, law_build: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "bench.cli", "run", str(STEP), "--bus", "vcan0", "--drive-profile", "cia402"]
+    cmd = [sys.executable, "-m", "bench.cli", "run", str(STEP), *standin.master_args(), "--drive-profile", "cia402"]
     cmd += ["--cycle-ms", str(CYCLE_MS), "--law", str(LAW), "--out", str(out), "--set", "scenario.periods=80"]
     res = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stdout + res.stderr
@@ -66,7 +62,7 @@ def test_cst_step_through_a_users_law(standin: StandIn, law_build: Path, tmp_pat
     assert abs(step[0]["relative_error"]) <= 0.25, step
     # the drive ran the user's law all along: selected, and its status (its gains) written by the law
     net = canopen.Network()
-    net.connect(interface="socketcan", channel="vcan0")
+    net.connect(**standin.site.bus_kwargs())
     try:
         eds = law_build / "eds" / "drive.eds"
         node = canopen.RemoteNode(DRIVE_ID, str(eds))

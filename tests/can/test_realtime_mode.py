@@ -11,13 +11,9 @@ import struct
 from typing import Any
 
 import numpy as np
-import pytest
+from can_site import Site
 
 from bench.claims import run_raw
-
-# real-time mode is refused in the CAN box
-# (kernel_can: the kernel's CAN in this process, inside the VM on a host without CAN)
-pytestmark = pytest.mark.kernel_can
 
 TS_S = 10e-3
 PERIODS = 150
@@ -106,11 +102,10 @@ def _check_realtime_block(s: dict[str, Any]) -> None:
     assert 0 < bus["commands_timed"] <= PERIODS and len(bus["segments"]) == 2  # the event at period 50: a hold
 
 
-def test_lateness_histogram_domain(vcan0: str) -> None:
-    from can_site import Site
+def test_lateness_histogram_domain(site: Site) -> None:
     from canopen_helpers import node_target
 
-    with node_target("plant_node", [], "plant", 0x10, Site(vcan0)) as t:
+    with node_target("plant_node", [], "plant", 0x10, site) as t:
         data = t.node.sdo["Timing histograms"].raw  # DOMAIN: segmented upload
         assert len(data) == 2 * 288 * 4  # SYNC lateness, then turnaround: 288 x UNSIGNED32 each (plant.eds 0x2006)
         bins = struct.unpack("<576I", data)

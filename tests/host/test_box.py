@@ -37,7 +37,8 @@ def _status() -> dict:
 
 
 def _qemus() -> list[int]:
-    out = subprocess.run(["pgrep", "-f", "qemu-system-x86_64"], capture_output=True, text=True).stdout
+    """The CAN box's QEMUs (its control port is named box.control; a `bench vm` of another test is not one)."""
+    out = subprocess.run(["pgrep", "-f", "qemu-system-x86_64.*box.control"], capture_output=True, text=True).stdout
     return [int(p) for p in out.split()]
 
 
@@ -250,3 +251,24 @@ def test_a_pytest_session_stops_the_box_it_started(tmp_path: Path) -> None:
     assert "idle for 30 s" in (_status().get("last_end") or {}).get("why", "")
     time.sleep(1)
     assert not [p for p in _qemus() if _pgid(p) == info["keeper_pid"]]
+
+
+def test_a_session_leaves_up_a_box_it_did_not_boot(tmp_path: Path) -> None:
+    """A session stops only the box its own runs booted: one that someone else booted while it ran (another
+    pytest session, a user's shell: another BENCH_BOX_OWNER, here none) stays up. (The end of a direct-mode
+    session once powered off the box another pytest process had just booted.)"""
+    bench("box", "down")
+    (tmp_path / "test_other.py").write_text(
+        "import os\nimport subprocess\nimport sys\n\n\n"
+        "def test_someone_else_boots_the_box():\n"
+        "    env = {k: v for k, v in os.environ.items() if k != 'BENCH_BOX_OWNER'}\n"
+        "    up = subprocess.run([sys.executable, '-m', 'bench.cli', 'box', 'up'], env=env, timeout=900)\n"
+        "    assert up.returncode == 0\n"
+    )
+    argv = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(tmp_path)]
+    try:
+        res = subprocess.run(argv, capture_output=True, text=True, timeout=900, cwd=tmp_path)
+        assert res.returncode == 0 and "1 passed" in res.stdout, res.stdout + res.stderr
+        assert _status()["state"] == "up"
+    finally:
+        bench("box", "down")

@@ -16,7 +16,7 @@ import pytest
 
 from bench.cia402.layout import default_layout
 from bench.cia402.plan import Frames, PlanError, bus_load, choose_cycle, ignored_keys, per_mille, targets
-from bench.cia402.record import decode_log, state_name, states_passed, tracking, write_csv
+from bench.cia402.record import Trace, decode_log, state_name, states_passed, tracking, write_csv
 from bench.paths import REPO
 from bench.scenario import load
 
@@ -147,6 +147,20 @@ def test_decode_synthetic_log(tmp_path: Path) -> None:
     rows = list(csv.DictReader(open(tmp_path / "trace.csv")))
     assert len(rows) == 40 and rows[30]["state"] == "OPERATION ENABLED" and rows[20]["statusword"] == ""
     json.dumps(layout.to_json())  # summary.json keeps the layout
+
+
+def test_a_cycle_without_its_target_does_not_split_a_run_of_one_target() -> None:
+    """A cycle whose RPDO the log lacks (a software periodic sender late by a cycle) inside a run of 250 per
+    mille: one run, its window the second half of the whole run; a gap between two different targets stays."""
+    n = 40
+    tgt = np.full(n, 250.0)
+    tgt[:10] = 0.0
+    tgt[0] = tgt[25] = tgt[9] = np.nan
+    act = np.where(np.arange(n) < 12, 0.0, np.linspace(100.0, 250.0, n))
+    trace = Trace({"target_torque_permille": tgt, "torque_actual_permille": act}, ["OPERATION ENABLED"] * n, 0)
+    seg = tracking(trace)
+    assert [(s["start_cycle"], s["cycles"], s["target_permille"]) for s in seg] == [(1, 8, 0.0), (10, 30, 250.0)]
+    assert seg[1]["mean_actual_permille"] == pytest.approx(float(np.mean(act[25:40])))
 
 
 def _sdo(t: float, index: int, sub: int, value: int, upload: bool = False) -> tuple[can.Message, can.Message]:

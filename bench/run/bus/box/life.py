@@ -8,6 +8,7 @@ last lease's), exit.json (how the last box ended)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -24,6 +25,7 @@ from bench.run.bus.box.control import BoxError, BoxGone, Control, pid_alive
 BOX_DIR = STATE / "box"
 STOPPING = "stopping.json"  # written by the keeper while it powers the box off
 TAPS = "taps.on"  # present while the taps see their slots' vcan0 (set_taps)
+OWNER_ENV = "BENCH_BOX_OWNER"  # recorded in the state of a box this process boots (BoxInfo.booted_by)
 DEFAULT_IDLE_S = 600.0  # a box nobody used for this long powers off (bench box up --idle-timeout, BENCH_BOX_IDLE_S)
 DEFAULT_SLOTS = 4  # runs the box carries at once (each: its own buses in a network namespace, 2 bridge ports;
 # the guest's hvc driver has 8 consoles: at most 4)
@@ -42,6 +44,9 @@ class BoxInfo:
     started: float
     idle_timeout_s: float
     booted_s: float | None
+    # who booted it: BENCH_BOX_OWNER of the booting process (a pytest session's token: the session stops only a
+    # box it booted, never one another session or a user started while it ran), or None
+    booted_by: str | None = None
 
     @property
     def control(self) -> Control:
@@ -66,11 +71,26 @@ def read_info() -> BoxInfo | None:
         raw = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    info = BoxInfo(**raw)
+    known = {f.name for f in dataclasses.fields(BoxInfo)}  # a later bench's state may hold more
+    info = BoxInfo(**{k: v for k, v in raw.items() if k in known})
     if not pid_alive(info.keeper_pid):
         path.unlink(missing_ok=True)
         return None
     return info
+
+
+def slots_held_by_others(info: BoxInfo) -> bool:
+    """Whether a slot of the box is held by a process other than this one (its run's slot-N.json names it)."""
+    for slot in range(1, info.slots + 1):
+        if not slot_held(slot):
+            continue
+        try:
+            pid = json.loads((BOX_DIR / f"slot-{slot}.json").read_text()).get("pid")
+        except (OSError, ValueError):
+            return True
+        if pid != os.getpid():
+            return True
+    return False
 
 
 def is_ready() -> bool:
@@ -131,6 +151,7 @@ def _start_keeper(idle_s: float, slots: int) -> tuple[BoxInfo, subprocess.Popen[
         started=time.time(),
         idle_timeout_s=idle_s,
         booted_s=None,
+        booted_by=os.environ.get(OWNER_ENV) or None,
     )
     log = open(BOX_DIR / "keeper.log", "wb")  # noqa: SIM115 - the keeper's own; closed here once started
     proc = subprocess.Popen(
