@@ -2,18 +2,26 @@
  * the in-process bus, the plant paced by plant_pacing_loop exactly as plant_node paces itself (absolute
  * CLOCK_MONOTONIC deadlines, SCHED_FIFO, mlockall, its CPU); a frame reaches the other node's thread through
  * its inbox, stamped with the time it was sent (its arrival on a bus), and the recorder keeps that time.
+ * Placement (docs/REALTIME.md, "Where the lateness came from"): the plant, the drive (one priority below, woken
+ * by its frames) and a SCHED_IDLE thread that keeps the CPU out of its halt share the plant's CPU; every other
+ * thread of the process leaves that CPU for the run.
  *
  * One lock (recursive, priority inheritance) guards the bus, the injector, the recorder and the nodes; each
- * thread holds it only to process its frames and timers, never while it sleeps or polls.  Time stamps: the
+ * thread holds it only to process its frames and timers, never while it sleeps.  Time stamps: the
  * bench's time line (us) never goes back and continues across calls: at each call, now = CLOCK_MONOTONIC -
  * base, with base chosen so that it starts where the previous segment ended. */
 #define _GNU_SOURCE
+#include <dirent.h>
 #include <errno.h>
+#include <math.h>
 #include <pthread.h>
+#include <stdlib.h>
 #include <sched.h>
 #include <semaphore.h>
 #include <string.h>
+#include <sys/syscall.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "fault_injector.h"
 #include "hil_internal.h"
@@ -23,7 +31,6 @@
 #define INBOX 65536u                               /* frames waiting for a node's thread (a CAN controller's FIFO) */
 #define STALL_NS 1000000000LL                      /* wall time without a SYNC (or the hold): the run gives up */
 #define DRIVE_WAKE_NS 2000000LL                    /* the drive's thread looks at its timers at least this often */
-#define DRIVE_LOCK_SPIN_NS 20000LL                 /* ... polls the lock this long before it waits for it */
 #define DRIVE_PRIORITY (PLANT_PACING_PRIORITY - 1) /* the plant's SYNC comes first */
 
 typedef struct {
@@ -33,7 +40,7 @@ typedef struct {
 
 typedef struct {
     rt_item_t q[INBOX];
-    uint32_t head, tail; /* tail: written under the lock, read by the drive's poll without it (atomics) */
+    uint32_t head, tail; /* written under the lock */
     uint64_t dropped;
     pthread_cond_t cv;
 } rt_inbox_t;
@@ -46,10 +53,9 @@ static struct {
     rt_inbox_t in[2];
     int64_t base_ns;
     uint32_t syncs_at_start, max_periods;
-    int64_t progress_ns;      /* the last SYNC (or the start) */
-    int64_t next_deadline_ns; /* the plant's next deadline (atomic): the drive polls from half a period before */
-    int stop_req;             /* hil_stop (atomic) */
-    int drive_done;           /* atomic */
+    int64_t progress_ns; /* the last SYNC (or the start) */
+    int stop_req;        /* hil_stop (atomic) */
+    int drive_done;      /* atomic */
     sem_t plant_ready, drive_ready;
     int plant_cpu, drive_cpu;
     char note[512];
@@ -165,7 +171,6 @@ static int64_t plant_tick(void *user, int64_t deadline_ns)
     const int64_t now_us = advance_now();
     if (hil_side_live(FI_SIDE_A) && plant_app_realtime_tick(app, now_us, now_ns - deadline_ns) >= 0)
         R.progress_ns = now_ns;
-    __atomic_store_n(&R.next_deadline_ns, deadline_ns + plant_app_period_ns(app), __ATOMIC_RELEASE);
     hil_timers(FI_SIDE_A);
     hil_fi_tick();
     hil_rt_unlock();
@@ -187,6 +192,7 @@ static int plant_stop(void *user)
 static void *plant_main(void *arg)
 {
     plant_app_t *app = (plant_app_t *)arg;
+    (void)pthread_setname_np(pthread_self(), "hil-plant"); /* named in top, perf sched and ftrace */
     strncpy(R.note, plant_pacing_priority(PLANT_PACING_PRIORITY, R.plant_cpu), sizeof R.note - 1u);
     sem_post(&R.plant_ready);
     while (sem_wait(&R.drive_ready) != 0 && errno == EINTR) { /* the drive listens before the first SYNC */
@@ -202,34 +208,16 @@ static void *plant_main(void *arg)
 
 /* ---- the drive's thread: it answers what arrives, as drive_node does on its socket ---- */
 
-/* Wait for the drive's frames without the scheduler where it matters (a wake-up costs tens of us on a virtual
- * machine: most of a period): sleep until half a period before the plant's next deadline (not at all while the
- * plant catches up: its deadlines are past), then poll the inbox, then the lock. A controller on a core of its
- * own that is idle half of the period (a thread that polled all the time would be stopped by the kernel's
- * real-time throttling, sched_rt_runtime_us: 50 ms of every second). Returns with the lock held. */
-static void drive_wait(void)
-{
-    const int64_t wake_ns =
-        __atomic_load_n(&R.next_deadline_ns, __ATOMIC_ACQUIRE) - plant_app_period_ns(hil_plant_app()) / 2;
-    if (plant_pacing_now_ns() < wake_ns) {
-        struct timespec ts = {.tv_sec = (time_t)(wake_ns / 1000000000LL), .tv_nsec = (long)(wake_ns % 1000000000LL)};
-        (void)clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
-    }
-    const int64_t end = plant_pacing_now_ns() + DRIVE_WAKE_NS;
-    rt_inbox_t *b = &R.in[FI_SIDE_B];
-    int got = 0;
-    while (!got && plant_pacing_now_ns() < end && !__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE))
-        got = __atomic_load_n(&b->tail, __ATOMIC_ACQUIRE) != b->head;
-    const int64_t lock_end = plant_pacing_now_ns() + DRIVE_LOCK_SPIN_NS;
-    while (got && plant_pacing_now_ns() < lock_end)
-        if (pthread_mutex_trylock(&g_lock) == 0) return;
-    hil_rt_lock(); /* a holder of lower priority is lifted by priority inheritance */
-}
+/* The drive's thread sleeps until a frame comes (the plant's SYNC and measurements wake it, as a CAN controller's
+ * receive interrupt wakes a drive's firmware) or its next timer is due; it shares the plant's CPU one priority
+ * below the plant, so it runs while the plant sleeps, and no other CPU spins for it (docs/REALTIME.md). */
+static void drive_wait(void) { wait_frames(FI_SIDE_B, plant_pacing_now_ns() + DRIVE_WAKE_NS); }
 
 static void *drive_main(void *arg)
 {
     (void)arg;
-    (void)plant_pacing_pin(R.drive_cpu); /* first: never on the plant's CPU at FIFO priority */
+    (void)pthread_setname_np(pthread_self(), "hil-drive");
+    (void)plant_pacing_pin(R.drive_cpu); /* the plant's CPU, below the plant */
     struct sched_param sp = {.sched_priority = DRIVE_PRIORITY};
     (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); /* the plant's line says what is permitted */
     sem_post(&R.drive_ready);
@@ -237,10 +225,7 @@ static void *drive_main(void *arg)
     }
     hil_rt_lock();
     while (!__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE)) {
-        if (R.in[FI_SIDE_B].head == R.in[FI_SIDE_B].tail) {
-            hil_rt_unlock();
-            drive_wait();
-        }
+        if (R.in[FI_SIDE_B].head == R.in[FI_SIDE_B].tail) drive_wait();
         advance_now();
         take_frames(FI_SIDE_B);
         hil_timers(FI_SIDE_B);
@@ -265,6 +250,83 @@ static void drain_both(plant_app_t *app)
     }
 }
 
+/* ---- the plant's CPU, reserved for the run ----
+ * Every other thread of the process (the caller's Python threads: decoding, writing, the live view; numpy's and
+ * the viewer's threads) leaves the plant's CPU for the run and comes back after: on a kernel without PREEMPT_RT
+ * a thread inside a system call or a page fault is not preempted, however high the waking thread's priority,
+ * and it delayed the plant's wake-ups by up to hundreds of us (docs/REALTIME.md, "Where the lateness comes
+ * from"). Threads started during the run inherit the reduced set from the thread that starts them. */
+#define RESERVE_MAX 512
+static struct {
+    pid_t tid[RESERVE_MAX];
+    cpu_set_t was[RESERVE_MAX];
+    int n, moved;
+} V;
+
+static int reserve_cpu(int cpu)
+{
+    V.n = V.moved = 0;
+    if (cpu < 0) return 0;
+    DIR *d = opendir("/proc/self/task");
+    if (!d) return 0;
+    for (struct dirent *e; (e = readdir(d)) != NULL && V.n < RESERVE_MAX;) {
+        pid_t tid = (pid_t)atoi(e->d_name);
+        if (tid <= 0) continue;
+        cpu_set_t set;
+        if (sched_getaffinity(tid, sizeof set, &set) != 0 || !CPU_ISSET(cpu, &set) || CPU_COUNT(&set) < 2) continue;
+        V.tid[V.n] = tid;
+        V.was[V.n] = set;
+        CPU_CLR(cpu, &set);
+        if (sched_setaffinity(tid, sizeof set, &set) == 0) ++V.moved;
+        ++V.n;
+    }
+    closedir(d);
+    return V.moved;
+}
+
+/* Back where they were; a thread started during the run gets the caller's former set. */
+static void release_cpu(int cpu)
+{
+    if (cpu < 0 || V.n == 0) return;
+    const pid_t self = (pid_t)syscall(SYS_gettid);
+    cpu_set_t mine;
+    int have_mine = 0;
+    for (int i = 0; i < V.n; ++i) {
+        (void)sched_setaffinity(V.tid[i], sizeof V.was[i], &V.was[i]);
+        if (V.tid[i] == self) mine = V.was[i], have_mine = 1;
+    }
+    if (!have_mine) return;
+    DIR *d = opendir("/proc/self/task");
+    if (!d) return;
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        pid_t tid = (pid_t)atoi(e->d_name);
+        cpu_set_t set;
+        if (tid <= 0 || sched_getaffinity(tid, sizeof set, &set) != 0 || CPU_ISSET(cpu, &set)) continue;
+        int known = 0;
+        for (int i = 0; i < V.n && !known; ++i) known = V.tid[i] == tid;
+        if (!known) (void)sched_setaffinity(tid, sizeof mine, &mine);
+    }
+    closedir(d);
+    V.n = 0;
+}
+
+/* ---- the plant's CPU, never halted during the run ----
+ * On a virtual machine a halted virtual CPU is woken by the hypervisor, late: cyclictest's p99 on an idle CPU
+ * of the project's machine is several times its p99 beside a busy loop of the lowest priority on the same CPU
+ * (docs/REALTIME.md). So the plant's CPU runs this thread at SCHED_IDLE whenever the plant sleeps: the
+ * plant's timer interrupt preempts it at once (user space, nothing held), and the CPU never enters HLT. */
+static volatile int g_keep_awake;
+
+static void *awake_main(void *arg)
+{
+    (void)pthread_setname_np(pthread_self(), "hil-awake");
+    (void)plant_pacing_pin(*(const int *)arg);
+    struct sched_param sp = {.sched_priority = 0};
+    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
+    while (__atomic_load_n(&g_keep_awake, __ATOMIC_ACQUIRE)) __builtin_ia32_pause();
+    return NULL;
+}
+
 /* Run in real time until the plant holds (run_periods exhausted, the last command in), a node is lost, the
  * loop stalls (STALL_NS without a SYNC), hil_stop(), or max_periods SYNCs were produced. Returns the SYNCs
  * produced (-1: a thread could not be started). */
@@ -276,15 +338,21 @@ int32_t hil_run_realtime(uint32_t max_periods)
     R.syncs_at_start = app->syncs;
     R.max_periods = max_periods;
     R.progress_ns = plant_pacing_now_ns();
-    R.next_deadline_ns = 0;
     R.drive_done = 0;
     for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0;
-    R.plant_cpu = plant_pacing_default_cpu(); /* the plant's CPU is not the drive's */
-    R.drive_cpu = plant_pacing_other_cpu();
+    R.plant_cpu = plant_pacing_default_cpu(); /* the plant, the drive and the awake thread share it */
+    R.drive_cpu = R.plant_cpu;
     hil_rt_active = 1;
     hil_set_running(1);
     hil_rt_unlock();
 
+    reserve_cpu(R.plant_cpu);
+    pthread_t awake;
+    int ok_awake = 0;
+    if (R.plant_cpu >= 0) {
+        __atomic_store_n(&g_keep_awake, 1, __ATOMIC_RELEASE);
+        ok_awake = pthread_create(&awake, NULL, awake_main, &R.plant_cpu) == 0;
+    }
     pthread_t plant, drive;
     int ok_drive = pthread_create(&drive, NULL, drive_main, NULL) == 0;
     int ok_plant = ok_drive && pthread_create(&plant, NULL, plant_main, app) == 0;
@@ -297,6 +365,9 @@ int32_t hil_run_realtime(uint32_t max_periods)
     if (ok_drive) pthread_join(drive, NULL);
     while (sem_trywait(&R.plant_ready) == 0 || sem_trywait(&R.drive_ready) == 0) { /* leave both at zero */
     }
+    __atomic_store_n(&g_keep_awake, 0, __ATOMIC_RELEASE);
+    if (ok_awake) pthread_join(awake, NULL);
+    release_cpu(R.plant_cpu);
     hil_rt_lock();
     drain_both(app);
     hil_rt_active = 0;
@@ -304,6 +375,69 @@ int32_t hil_run_realtime(uint32_t max_periods)
     __atomic_store_n(&R.stop_req, 0, __ATOMIC_RELEASE); /* a stop asked for is this run's */
     hil_rt_unlock();
     return ok_plant ? (int32_t)(app->syncs - R.syncs_at_start) : -1;
+}
+
+/* ---- the host's floor: a plain timer loop, as cyclictest's ----
+ * n absolute CLOCK_MONOTONIC deadlines period_ns apart, on a thread at the plant's priority and CPU, nothing else
+ * done: its wake-up lateness is what the host gives any real-time loop (the bench warns when it makes the period
+ * impossible). Fills out_us with p50, p99, p99.9 (upper edges of 1 us bins) and the max; returns the wake-ups
+ * timed (-1: no thread). */
+#define FLOOR_BINS 4096u
+static struct {
+    uint32_t period_ns, n, bins[FLOOR_BINS], over;
+    int64_t max_ns;
+    int cpu;
+} F;
+
+static void *floor_main(void *arg)
+{
+    (void)arg;
+    (void)pthread_setname_np(pthread_self(), "hil-floor");
+    (void)plant_pacing_pin(F.cpu);
+    struct sched_param sp = {.sched_priority = PLANT_PACING_PRIORITY};
+    (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    int64_t deadline = plant_pacing_now_ns() + F.period_ns;
+    for (uint32_t i = 0; i < F.n; ++i, deadline += F.period_ns) {
+        struct timespec ts = {.tv_sec = (time_t)(deadline / 1000000000LL), .tv_nsec = (long)(deadline % 1000000000LL)};
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+        }
+        const int64_t late = plant_pacing_now_ns() - deadline;
+        const uint64_t bin = late > 0 ? (uint64_t)late / 1000u : 0u;
+        if (bin < FLOOR_BINS)
+            ++F.bins[bin];
+        else
+            ++F.over;
+        if (late > F.max_ns) F.max_ns = late;
+    }
+    return NULL;
+}
+
+static float floor_quantile(double q)
+{
+    const double want = q * F.n;
+    uint64_t c = 0;
+    for (uint32_t b = 0; b < FLOOR_BINS; ++b)
+        if ((double)(c += F.bins[b]) >= want) return (float)(b + 1u);
+    return (float)((double)F.max_ns * 1e-3);
+}
+
+/* The plant's period (ns) as its object dictionary has it now (applied at the next SYNC): what a run will pace. */
+uint64_t hil_rt_period_ns(void) { return (uint64_t)llround((double)OD_PLANT.mfr.x2001_Inverter.Ts_s * 1e9); }
+
+int32_t hil_probe_floor(uint32_t period_ns, uint32_t n, float out_us[4])
+{
+    memset(&F, 0, sizeof F);
+    F.period_ns = period_ns ? period_ns : 1u;
+    F.n = n;
+    F.cpu = plant_pacing_default_cpu();
+    pthread_t th;
+    if (pthread_create(&th, NULL, floor_main, NULL) != 0) return -1;
+    pthread_join(th, NULL);
+    out_us[0] = floor_quantile(0.5);
+    out_us[1] = floor_quantile(0.99);
+    out_us[2] = floor_quantile(0.999);
+    out_us[3] = (float)((double)F.max_ns * 1e-3);
+    return (int32_t)n;
 }
 
 /* Ask a real-time run to return at its next deadline (Ctrl-C); also before it started. */

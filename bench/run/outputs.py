@@ -342,12 +342,17 @@ def _realtime_line(rt: dict[str, Any]) -> str:
         f"real time at Ts = {_us(rt.get('period_us'))} us: plant SYNC lateness {plant('sync_lateness')}, "
         f"turnaround {plant('turnaround')}, overruns {p.get('overruns')}, SYNC overruns {p.get('sync_overruns')}"
     )
+    floor = rt.get("floor")
+    if floor:
+        line += f" (the host's floor p99 {floor['p99_us']:g} us)"
     if not bus:
         return line + "; bus: no time stamps"
     lat, tr, iv = bus["sync_lateness_us"], bus["turnaround_us"], bus["sync_interval_us"]
+    causes = _causes(rt)
     return (
         f"{line}; bus SYNC lateness p99 {_us(lat['p99'])} max {_us(lat['max'])} us, turnaround p99 {_us(tr['p99'])} "
         f"max {_us(tr['max'])} us, SYNC interval {_us(iv['min'])} .. {_us(iv['max'])} us"
+        + (f"; overruns by cause: {causes}" if causes else "")
     )
 
 
@@ -364,7 +369,19 @@ def _realtime_overrun(s: dict[str, Any]) -> str:
     if late:
         parts.append(f"{late} SYNCs more than one period late" + ("" if n else f" {where}"))
     parts.append(f"worst SYNC lateness {_us(p.get('sync_lateness_max_us'))} us at period {p.get('worst_period')}")
+    causes = _causes(rt)
+    if causes:
+        parts.append(f"by cause: {causes}")
+    floor = rt.get("floor")
+    if floor:
+        parts.append(f"the host's floor p99 {floor['p99_us']:g} p99.9 {floor['p99_9_us']:g} us")
     return "; ".join(parts)
+
+
+def _causes(rt: dict[str, Any]) -> str:
+    """'plant_late 3, drive_missing 12' (summary.json realtime.bus.overrun_causes, the non-zero ones)."""
+    got = ((rt.get("bus") or {}).get("overrun_causes")) or {}
+    return ", ".join(f"{k} {v}" for k, v in got.items() if v)
 
 
 def _frames_lost(s: dict[str, Any]) -> str:

@@ -141,6 +141,7 @@ class Pipeline:
         stopped: dict[str, Any] | None = None,
         links: dict[str, dict[str, Any]] | None = None,
         faults: tuple[list[Any], list[tuple[Any, ...]], int] | None = None,
+        floor: dict[str, float] | None = None,
     ) -> RunResult:
         """`stopped`: the run ended before its last period (LoopStopped.to_dict(): a node lost, a stall);
         `links`: each SocketCAN interface's kernel report before and after the run (Session.links);
@@ -178,6 +179,8 @@ class Pipeline:
             timing=timing,
             links=links or {},
         )
+        if floor is not None and summary.get("realtime"):  # the host's floor probed before the run (direct)
+            summary["realtime"]["floor"] = floor
         if faults is not None:
             summary["faults"] = fault_report(faults[0], faults[1], faults[2], dec.emcy, watch.status)
         for s in self.sinks:
@@ -288,7 +291,13 @@ def run_scenario(
     finally:
         _end_box(sess, opts.out)
     res = pipe.finish(
-        sc.name, opts.bus, {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall}, stopped, sess.links, injected
+        sc.name,
+        opts.bus,
+        {"wall_s": time.monotonic() - t0, "run_wall_s": run_wall},
+        stopped,
+        sess.links,
+        injected,
+        floor=sess.direct.floor if sess.direct is not None else None,
     )
     if collector is not None:
         res.trace = collector.trace

@@ -97,3 +97,35 @@ def test_without_permission_for_sched_fifo_or_mlockall_one_line_says_so_and_the_
     s = json.loads((out / "summary.json").read_text())  # the run went on
     assert s["realtime"]["plant"]["periods"] == 200
     assert res.returncode in (0, EXIT_CODES["realtime_overrun"]), res.stdout + res.stderr
+
+
+def test_each_overrun_is_named_by_its_cause_beside_the_hosts_floor(tmp_path: Path) -> None:
+    # a period no thread can hold: the plant's own SYNCs are late (the cause `plant_late`), and the host's floor,
+    # probed before the run, already says that the period cannot be held
+    res, s = _run(tmp_path / "short", "scenario.timing=realtime", "drive.Ts_s=2e-6", "scenario.periods=2000")
+    rt = s["realtime"]
+    causes = rt["bus"]["overrun_causes"]
+    assert set(causes) == {"plant_late", "drive_late", "drive_missing", "bus_late"}
+    assert causes["plant_late"] > 0, causes
+    floor = rt["floor"]
+    assert floor["period_us"] == 2.0 and floor["periods"] >= 1000
+    assert floor["max_us"] >= floor["p99_us"] >= floor["p50_us"] >= 0
+    assert (
+        "bench run: the host's floor at Ts = 2 us" in res.stdout
+        and "WARNING: this host cannot hold Ts = 2 us" in res.stdout
+    )
+    assert f"plant_late {causes['plant_late']}" in res.stdout
+    # a drive frozen for 300 periods of 100 us: its commands are missing (the cause `drive_missing`), not the plant's
+    scenario = tmp_path / "frozen.toml"
+    scenario.write_text(
+        STEP.read_text() + '\n[[faults]]\nkind = "freeze"\nnode = "drive"\nat_period = 100\nperiods = 300\n'
+    )
+    args = [*BENCH, "run", str(scenario), "--bus", "direct", "--out", str(tmp_path / "frozen"), "--no-viewer"]
+    for kv in ("scenario.timing=realtime", "drive.Ts_s=100e-6", "scenario.periods=600"):
+        args += ["--set", kv]
+    res = subprocess.run(args, capture_output=True, text=True, timeout=600, cwd=REPO)
+    s = json.loads((tmp_path / "frozen" / "summary.json").read_text())
+    causes = s["realtime"]["bus"]["overrun_causes"]
+    assert causes["drive_missing"] >= 150, (causes, res.stdout)  # most of the frozen periods
+    assert causes["drive_missing"] > causes["plant_late"], causes
+    assert f"drive_missing {causes['drive_missing']}" in res.stdout

@@ -307,3 +307,16 @@ def test_a_sync_more_than_100_periods_late_starts_a_new_grid() -> None:
     t2[5:] += np.maximum(0.0, 5_000.0 - (np.arange(7) * ts))
     pp2 = realtime.per_period(np.arange(12), t2, t2 + 5.0, [(0, ts)])
     assert pp2.lateness[5] == 5_000.0 and pp2.lateness[6] == 4_900.0
+
+
+def test_an_overrun_is_charged_to_the_larger_share_of_its_period() -> None:
+    from bench.run.verdict.realtime import causes, per_period
+
+    # Ts 100 us, periods 0..5: in time; SYNC 70 us late, its command 40 us after it (plant_late); SYNC on time, no
+    # command (drive_missing); SYNC 10 us late, its command 95 us after it (drive_late); SYNC 60 us late, no
+    # command (plant_late: more than half the period gone before the drive heard it); in time
+    sync = np.array([0.0, 170.0, 200.0, 310.0, 460.0, 500.0])
+    cmd = np.array([5.0, 210.0, np.nan, 405.0, np.nan, 505.0])
+    pp = per_period(np.arange(6), sync, cmd, [(0, 100.0)])
+    got = causes(pp)
+    assert got == {"plant_late": 2, "drive_late": 1, "drive_missing": 1, "bus_late": 0}, (got, pp.lateness)

@@ -75,6 +75,9 @@ def _lib() -> ctypes.CDLL:
     lib.hil_run_realtime.restype = ctypes.c_int32
     lib.hil_realtime_note.restype = ctypes.c_char_p
     lib.hil_rt_dropped.restype = ctypes.c_uint64
+    lib.hil_rt_period_ns.restype = ctypes.c_uint64
+    lib.hil_probe_floor.argtypes = [ctypes.c_uint32, ctypes.c_uint32, ctypes.POINTER(ctypes.c_float)]
+    lib.hil_probe_floor.restype = ctypes.c_int32
     assert lib.hil_frame_size() == FRAME_DTYPE.itemsize
     assert lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
     return lib
@@ -170,6 +173,22 @@ class Hil:
         """Frames a node's receive FIFO could not take in real time (the node was not scheduled for that long):
         lost to it, as on a CAN controller; the loop shows them as overruns or lost frames."""
         return int(self.lib.hil_rt_dropped())
+
+    def probe_floor(self, seconds: float = 0.3) -> dict[str, float] | None:
+        """The host's floor at the plant's period: a plain absolute-deadline timer loop at the plant's priority and
+        CPU (cyclictest's measurement) for about `seconds` (1,000 to 5,000 wake-ups); its wake-up lateness, us.
+        None when no thread could be started."""
+        period_ns = int(self.lib.hil_rt_period_ns())
+        n = max(1000, min(5000, round(seconds * 1e9 / max(period_ns, 1))))
+        out = (ctypes.c_float * 4)()
+        if self.lib.hil_probe_floor(period_ns, n, out) < 0:
+            return None
+        vals = [round(float(v), 3) for v in out]
+        return {
+            "periods": n,
+            "period_us": period_ns / 1e3,
+            **dict(zip(("p50_us", "p99_us", "p99_9_us", "max_us"), vals, strict=True)),
+        }
 
     def realtime_note(self) -> str:
         """What the plant's thread got of SCHED_FIFO / mlockall, in one line (after a real-time run)."""

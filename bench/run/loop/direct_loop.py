@@ -14,6 +14,29 @@ if TYPE_CHECKING:
     from bench.run.options import RunOptions
 
 
+def floor_line(floor: dict[str, float]) -> str:
+    """The host's floor in one line, and a warning when it makes the period impossible: a plain timer loop late by
+    a period in 1 % of its wake-ups (p99 >= Ts) would overrun that often before the bench did any work."""
+    ts = floor["period_us"]
+    line = (
+        f"bench run: the host's floor at Ts = {ts:g} us (a plain timer loop at the plant's priority, "
+        f"{floor['periods']} wake-ups): lateness p50 {floor['p50_us']:g} p99 {floor['p99_us']:g} "
+        f"p99.9 {floor['p99_9_us']:g} max {floor['max_us']:g} us"
+    )
+    if floor["p99_us"] >= ts:
+        line += (
+            f"\nbench run: WARNING: this host cannot hold Ts = {ts:g} us: its own p99 wake-up lateness "
+            f"({floor['p99_us']:g} us) is a whole period, so 1 % of the periods or more overrun whatever the "
+            "bench does (a longer Ts, or a tuned host: docs/REALTIME.md)"
+        )
+    elif floor["p99_9_us"] >= ts:
+        line += (
+            f"\nbench run: WARNING: at Ts = {ts:g} us this host's own p99.9 wake-up lateness "
+            f"({floor['p99_9_us']:g} us) is a whole period: expect about 0.1 % of the periods to overrun"
+        )
+    return line
+
+
 class DirectLoop:
     """Runs libhil's loop (Session owns one in direct mode). `on_chunk` (the frame source takes the recorded
     frames) is called on the loop's thread after each chunk; `on_stop` when a segment ends or is interrupted,
@@ -25,6 +48,7 @@ class DirectLoop:
         self.realtime = realtime
         self._told = False
         self._overflows = 0
+        self.floor: dict[str, float] | None = None  # the host's floor, probed before the first real-time segment
         self.on_chunk: Callable[[], None] | None = None
         self.on_stop: Callable[[], None] | None = None
 
@@ -109,6 +133,10 @@ class DirectLoop:
         recorder holds every 0.2 s (`on_chunk`), so that the decoding goes on meanwhile and memory stays bounded."""
         got: list[int] = [0]
         errors: list[BaseException] = []
+        if self.floor is None:
+            self.floor = self.hil.probe_floor()
+            if self.floor is not None:
+                print(floor_line(self.floor), flush=True)
 
         def loop() -> None:
             try:

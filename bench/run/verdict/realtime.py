@@ -111,6 +111,7 @@ class PerPeriod:
     turnaround: np.ndarray  # us; NaN: no SYNC or no command in the period
     missing: np.ndarray  # bool: a SYNC and no command before the next one
     sync_late: np.ndarray  # bool: the SYNC more than one period late on its segment's grid
+    ts: np.ndarray | None = None  # us: the period of each period's segment
 
 
 _WINDOW = 65_536
@@ -165,7 +166,39 @@ def per_period(period: np.ndarray, sync_t: np.ndarray, cmd_t: np.ndarray, segs: 
         interval[1:][same] = np.diff(sync_t)[same]
     with np.errstate(invalid="ignore"):
         sync_late = np.nan_to_num(lateness, nan=-np.inf) > ts[seg]
-    return PerPeriod(period, lateness, interval, cmd_t - sync_t, np.isfinite(sync_t) & ~np.isfinite(cmd_t), sync_late)
+    missing = np.isfinite(sync_t) & ~np.isfinite(cmd_t)
+    return PerPeriod(period, lateness, interval, cmd_t - sync_t, missing, sync_late, ts[seg])
+
+
+# Where an overrun's period went, by the larger share of it (the plant's SYNC lateness against the time from the
+# SYNC to the command): the names of summary.json realtime.bus.overrun_causes and of the console's line.
+CAUSES = {
+    "plant_late": "the plant's SYNC went out late (the plant woke or worked late)",
+    "drive_late": "the drive's command came after the deadline (the drive or its way to the bus)",
+    "drive_missing": "no command before the next SYNC (a drive frozen, lost or slower than a period)",
+    "bus_late": "counted by the plant, yet in time on the bus's stamps: the way from the bus to the plant (a bridge, "
+    "an adapter; in direct mode, where there is none, the bus view's grid, anchored on the earliest SYNC, a few us "
+    "off the plant's deadlines)",
+}
+
+
+def causes(pp: PerPeriod) -> dict[str, int]:
+    """Each period that missed its deadline (its command not in by the next SYNC's ideal time, on the bus) by its
+    cause: `plant_late` when the SYNC's lateness took the larger share of the period (a missing command: at least
+    half of it), else `drive_late` (a command after the deadline) or `drive_missing` (none before the next SYNC).
+    `bus_late` is the plant's own count beyond these (block): the bus cannot see it."""
+    if pp.ts is None or not len(pp.period):
+        return dict.fromkeys(CAUSES, 0)
+    lat = np.nan_to_num(pp.lateness, nan=0.0)
+    with np.errstate(invalid="ignore"):
+        late_cmd = np.isfinite(pp.turnaround) & (lat + pp.turnaround > pp.ts)
+        plant = (late_cmd & (lat >= pp.turnaround)) | (pp.missing & (2 * lat >= pp.ts))
+    return {
+        "plant_late": int(plant.sum()),
+        "drive_late": int((late_cmd & ~plant).sum()),
+        "drive_missing": int((pp.missing & ~plant).sum()),
+        "bus_late": 0,
+    }
 
 
 def stats(x: np.ndarray) -> dict[str, float | None]:
@@ -226,6 +259,7 @@ def bus_view(pp: PerPeriod, segs: list[tuple[int, float]]) -> dict[str, Any]:
         "overruns": int(pp.missing.sum()),  # periods whose command was not on the bus before the next SYNC
         "sync_overruns": int(pp.sync_late.sum()),  # SYNCs more than one period late on the grid
         "worst_period": worst,
+        "overrun_causes": causes(pp),
         "first_overrun_period": int(pp.period[over[0]]) if len(over) else None,
     }
 
@@ -249,7 +283,11 @@ def block(dec: Decoder, bus: dict[str, Any] | None) -> dict[str, Any] | None:
     """summary.json's "realtime" (None in lockstep); `bus`: `bus_view` of the run's chunks (None: no time stamps)."""
     if not is_realtime(dec):
         return None
-    return {"period_us": period_us(dec.ts_s), "plant": plant_view(dec), "bus": bus}
+    plant = plant_view(dec)
+    if bus and "overrun_causes" in bus:  # what the plant counted beyond what the bus shows: late on the way to it
+        seen = sum(bus["overrun_causes"].values())
+        bus["overrun_causes"]["bus_late"] = max(0, int(plant.get("overruns") or 0) - seen)
+    return {"period_us": period_us(dec.ts_s), "plant": plant, "bus": bus}
 
 
 def overran(rt: dict[str, Any] | None) -> bool:
