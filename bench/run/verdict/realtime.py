@@ -19,8 +19,10 @@ run_periods: the plant starts a new deadline grid after each):
 each as min, mean, p50, p99, p99_9, max (percentiles by nearest rank: the smallest value with at least that share
 of the values at or below it); with them "periods" (SYNCs timed), "segments" (each one's first period and Ts),
 "commands_timed", "overruns" (periods whose command was not on the bus before the next SYNC), "sync_overruns"
-(SYNCs more than a period late on their grid), "worst_period" (the latest SYNC's) and "first_overrun_period" (the
-first of either kind: where a realtime_overrun status is placed among the others). Time stamps are the
+(SYNCs more than a period late on their grid), "worst_period" (the latest SYNC's), "overrun_causes" (each period
+that missed its deadline by its cause: CAUSES, `causes`) and "first_overrun_period" (the first of either kind:
+where a realtime_overrun status is placed among the others). A direct run adds "floor": the host's own wake-up
+lateness at Ts, probed before the run (bench/run/loop/direct_loop.py). Time stamps are the
 recorder's (candump: the kernel's; direct real time: the in-process bus's monotonic clock) and bus.log keeps them
 to the microsecond, so `bench replay` of the log gives the same figures as the run.
 
