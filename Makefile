@@ -161,7 +161,7 @@ SAN_NODE_SRC := $(CO_SRC) $(SCAN_SRC)
 sanitize: $(SAN_DIR)/plant_node $(SAN_DIR)/drive_node $(SAN_DIR)/fault_gateway
 $(SAN_DIR)/plant_node: $(SAN_NODE_SRC) $(PLANT_SRC) $(wildcard plant_rt/node/*.c) $(wildcard plant_rt/*/*.h protocols/*/*.h)
 	@mkdir -p $(@D)
-	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -o $@
+	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -pthread -o $@
 $(SAN_DIR)/drive_node: $(SAN_NODE_SRC) $(FW_SRC) $(wildcard firmware_shim/shim/*.c) $(wildcard firmware_shim/*/*.h protocols/*/*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -o $@
@@ -256,7 +256,7 @@ $(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW) $(LIBPLANT)
 
 $(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $^ -lm -o $@
+	$(CC) $(CFLAGS_HOST) $^ -lm -pthread -o $@
 $(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $^ -lm -o $@

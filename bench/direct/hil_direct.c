@@ -128,8 +128,14 @@ static void node_fault(void *user, uint8_t side, uint8_t kind, int on)
         return;
     }
     H.frozen[side] = (uint8_t)on;
-    if (!on) { /* thawed: what it was sent meanwhile, in order, before anything new */
-        for (uint32_t i = 0; i < H.fz_n && !H.killed[side]; ++i) co_node_process(node_of(side), &H.fz[i], H.now_us);
+    if (!on) { /* thawed: what it was sent meanwhile, in order, before anything new (in real time the drive's
+                * own thread takes them: the drive works on no other thread) */
+        for (uint32_t i = 0; i < H.fz_n && !H.killed[side]; ++i) {
+            if (hil_rt_active && side == FI_SIDE_B)
+                hil_rt_push(side, &H.fz[i], H.now_us);
+            else
+                co_node_process(node_of(side), &H.fz[i], H.now_us);
+        }
         H.fz_n = 0;
         H.next_tick_us[side] = H.now_us;
     }

@@ -6,8 +6,11 @@
  * by its frames) and a SCHED_IDLE thread that keeps the CPU out of its halt share the plant's CPU; every other
  * thread of the process leaves that CPU for the run.
  *
- * One lock (recursive, priority inheritance) guards the bus, the injector, the recorder and the nodes; each
- * thread holds it only to process its frames and timers, never while it sleeps.  Time stamps: the
+ * One lock (recursive, priority inheritance) guards the bus, the injector, the recorder and the plant; each
+ * thread holds it only to process its frames and timers, never while it sleeps. The drive's work on a frame
+ * (its law's step) runs outside it: what the drive sends goes to an outbox of its own and onto the bus when
+ * its work is done, so a law slower than the period makes the drive late, never the plant's SYNC (the plant
+ * waits for its clock and its frames, nothing else).  Time stamps: the
  * bench's time line (us) never goes back and continues across calls: at each call, now = CLOCK_MONOTONIC -
  * base, with base chosen so that it starts where the previous segment ended. */
 #define _GNU_SOURCE
@@ -49,8 +52,14 @@ static pthread_mutex_t g_lock;
 static pthread_once_t g_once = PTHREAD_ONCE_INIT;
 volatile int hil_rt_active;
 
+#define OUTBOX 256u /* frames the drive sends while it works on one frame (a CAN controller's transmit FIFO) */
+
 static struct {
     rt_inbox_t in[2];
+    co_frame_t out[OUTBOX]; /* the drive's frames during its work, written by its thread alone */
+    uint32_t out_n;
+    uint64_t out_dropped;
+    co_tx_t drive_tx; /* the drive node's own transmit path, restored after the run */
     int64_t base_ns;
     uint32_t syncs_at_start, max_periods;
     int64_t progress_ns; /* the last SYNC (or the start) */
@@ -88,6 +97,7 @@ void hil_rt_reset(void)
     hil_rt_lock();
     __atomic_store_n(&R.stop_req, 0, __ATOMIC_RELEASE);
     for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0, R.in[s].dropped = 0;
+    R.out_dropped = 0;
     hil_rt_unlock();
 }
 
@@ -131,6 +141,48 @@ static int take_frames(uint8_t side)
         hil_deliver();
     }
     return node->syncs != syncs;
+}
+
+/* ---- the drive's outbox: its transmit path for the run ---- */
+
+static int drive_outbox_tx(void *user, const co_frame_t *f)
+{
+    (void)user;
+    if (R.out_n >= OUTBOX) {
+        ++R.out_dropped;
+        return -1; /* the node counts it as a transmit error */
+    }
+    R.out[R.out_n++] = *f;
+    return 0;
+}
+
+/* What the drive sent, onto the bus now, in order (lock held). */
+static void drive_flush(void)
+{
+    advance_now();
+    for (uint32_t i = 0; i < R.out_n; ++i) (void)R.drive_tx.fn(R.drive_tx.user, &R.out[i]);
+    R.out_n = 0;
+    hil_deliver();
+}
+
+/* The drive's frames in order, each processed with the lock released: the plant's thread never waits for the
+ * drive's law (lock held on entry and on return). */
+static void drive_take_frames(void)
+{
+    rt_inbox_t *b = &R.in[FI_SIDE_B];
+    co_node_t *node = hil_node_of(FI_SIDE_B);
+    while (b->head != b->tail) {
+        rt_item_t it = b->q[b->head++ % INBOX];
+        if (hil_side_killed(FI_SIDE_B)) continue;
+        if (!hil_side_live(FI_SIDE_B)) {
+            hil_frozen_frame(&it.f);
+            continue;
+        }
+        hil_rt_unlock();
+        co_node_process(node, &it.f, it.t_us);
+        hil_rt_lock();
+        drive_flush(); /* what it answers goes out now, after its work */
+    }
 }
 
 static void wait_frames(uint8_t side, int64_t until_ns)
@@ -227,8 +279,9 @@ static void *drive_main(void *arg)
     while (!__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE)) {
         if (R.in[FI_SIDE_B].head == R.in[FI_SIDE_B].tail) drive_wait();
         advance_now();
-        take_frames(FI_SIDE_B);
-        hil_timers(FI_SIDE_B);
+        drive_take_frames();
+        hil_timers(FI_SIDE_B); /* heartbeats, EMCYs: into the outbox, then onto the bus */
+        drive_flush();
         hil_fi_tick();
     }
     hil_rt_unlock();
@@ -310,23 +363,6 @@ static void release_cpu(int cpu)
     V.n = 0;
 }
 
-/* ---- the plant's CPU, never halted during the run ----
- * On a virtual machine a halted virtual CPU is woken by the hypervisor, late: cyclictest's p99 on an idle CPU
- * of the project's machine is several times its p99 beside a busy loop of the lowest priority on the same CPU
- * (docs/REALTIME.md). So the plant's CPU runs this thread at SCHED_IDLE whenever the plant sleeps: the
- * plant's timer interrupt preempts it at once (user space, nothing held), and the CPU never enters HLT. */
-static volatile int g_keep_awake;
-
-static void *awake_main(void *arg)
-{
-    (void)pthread_setname_np(pthread_self(), "hil-awake");
-    (void)plant_pacing_pin(*(const int *)arg);
-    struct sched_param sp = {.sched_priority = 0};
-    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
-    while (__atomic_load_n(&g_keep_awake, __ATOMIC_ACQUIRE)) __builtin_ia32_pause();
-    return NULL;
-}
-
 /* Run in real time until the plant holds (run_periods exhausted, the last command in), a node is lost, the
  * loop stalls (STALL_NS without a SYNC), hil_stop(), or max_periods SYNCs were produced. Returns the SYNCs
  * produced (-1: a thread could not be started). */
@@ -340,6 +376,11 @@ int32_t hil_run_realtime(uint32_t max_periods)
     R.progress_ns = plant_pacing_now_ns();
     R.drive_done = 0;
     for (int s = 0; s < 2; ++s) R.in[s].head = R.in[s].tail = 0;
+    co_node_t *drive_node = hil_node_of(FI_SIDE_B);
+    R.drive_tx = drive_node->tx;
+    R.out_n = 0;
+    drive_node->tx.fn = drive_outbox_tx; /* the drive's frames wait for the end of its work (drive_flush) */
+    drive_node->tx.user = NULL;
     R.plant_cpu = plant_pacing_default_cpu(); /* the plant, the drive and the awake thread share it */
     R.drive_cpu = R.plant_cpu;
     hil_rt_active = 1;
@@ -347,12 +388,7 @@ int32_t hil_run_realtime(uint32_t max_periods)
     hil_rt_unlock();
 
     reserve_cpu(R.plant_cpu);
-    pthread_t awake;
-    int ok_awake = 0;
-    if (R.plant_cpu >= 0) {
-        __atomic_store_n(&g_keep_awake, 1, __ATOMIC_RELEASE);
-        ok_awake = pthread_create(&awake, NULL, awake_main, &R.plant_cpu) == 0;
-    }
+    (void)plant_pacing_awake_start(R.plant_cpu); /* the CPU never halts while the plant sleeps */
     pthread_t plant, drive;
     int ok_drive = pthread_create(&drive, NULL, drive_main, NULL) == 0;
     int ok_plant = ok_drive && pthread_create(&plant, NULL, plant_main, app) == 0;
@@ -365,10 +401,11 @@ int32_t hil_run_realtime(uint32_t max_periods)
     if (ok_drive) pthread_join(drive, NULL);
     while (sem_trywait(&R.plant_ready) == 0 || sem_trywait(&R.drive_ready) == 0) { /* leave both at zero */
     }
-    __atomic_store_n(&g_keep_awake, 0, __ATOMIC_RELEASE);
-    if (ok_awake) pthread_join(awake, NULL);
+    plant_pacing_awake_stop();
     release_cpu(R.plant_cpu);
     hil_rt_lock();
+    drive_node->tx.fn = R.drive_tx.fn; /* its own transmit path back (its counters kept) */
+    drive_node->tx.user = R.drive_tx.user;
     drain_both(app);
     hil_rt_active = 0;
     hil_set_running(0);
@@ -445,4 +482,4 @@ void hil_stop(void) { __atomic_store_n(&R.stop_req, 1, __ATOMIC_RELEASE); }
 /* What the plant's thread got of SCHED_FIFO / mlockall / its CPU (one line), after hil_run_realtime. */
 const char *hil_realtime_note(void) { return R.note; }
 /* Frames a node's receive FIFO could not take (real time; since hil_open). */
-uint64_t hil_rt_dropped(void) { return R.in[0].dropped + R.in[1].dropped; }
+uint64_t hil_rt_dropped(void) { return R.in[0].dropped + R.in[1].dropped + R.out_dropped; }

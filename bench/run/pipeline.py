@@ -206,6 +206,7 @@ def _configure_and_run(
     stopped early why: LoopStopped.to_dict(), a verdict, not a failure: the frames so far are kept)."""
     sess.reset_nodes()
     sess.configure()
+    sess.hold_plant_cpu()
     t_run = time.monotonic()
     try:
         run_wall = sess.run(progress, tick)
@@ -297,7 +298,7 @@ def run_scenario(
         stopped,
         sess.links,
         injected,
-        floor=sess.direct.floor if sess.direct is not None else None,
+        floor=sess.direct.floor if sess.direct is not None else sess.floor,
     )
     if collector is not None:
         res.trace = collector.trace

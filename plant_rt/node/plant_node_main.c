@@ -27,12 +27,13 @@
 
 static plant_app_t g_app;
 static co_runtime_t g_rt;
-static int g_cpu = -2; /* --cpu: -2 the default (plant_pacing_default_cpu), -1 anywhere */
+static int g_cpu = -2;   /* --cpu: -2 the default (plant_pacing_default_cpu), -1 anywhere */
+static int g_keep_awake; /* --keep-awake: the pacing CPU never halts during real time */
 
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: plant_node [--iface NAME] [--node-id N] [--realtime] [--cpu N] [--help]\n"
+            "usage: plant_node [--iface NAME] [--node-id N] [--realtime] [--cpu N] [--keep-awake] [--help]\n"
             "\n"
             "PMSM plant emulator as a CANopen slave (OD: protocols/eds/plant.eds).\n"
             "It is the SYNC producer: SYNC k -> TPDO1 {i_a_A, i_b_A}, TPDO2 {theta_m_rad,\n"
@@ -44,6 +45,9 @@ static void usage(FILE *f)
             "  --realtime     start in real-time mode (same as SDO 0x2003:01 = 1)\n"
             "  --cpu N        real time: keep the pacing on CPU N (-1: anywhere; default the\n"
             "                 first CPU the process may use, when it may use two or more)\n"
+            "  --keep-awake   real time: a SCHED_IDLE busy loop on that CPU keeps it out of its\n"
+            "                 halt while the plant sleeps (a halted virtual CPU wakes late;\n"
+            "                 docs/REALTIME.md); costs the CPU whole during real time\n"
             "  --help         this text\n"
             "\n"
             "Nothing runs until the master sends NMT start and writes 0x2003:02\n"
@@ -108,9 +112,12 @@ static int rt_stop(void *user)
 static void realtime_loop(co_runtime_t *rt)
 {
     static int announced;
-    if (!announced) {
-        printf("plant_node: real-time mode: %s\n",
-               plant_pacing_priority(PLANT_PACING_PRIORITY, g_cpu == -2 ? plant_pacing_default_cpu() : g_cpu));
+    const int cpu = g_cpu == -2 ? plant_pacing_default_cpu() : g_cpu;
+    const char *line = announced ? NULL : plant_pacing_priority(PLANT_PACING_PRIORITY, cpu);
+    const int awake = g_keep_awake && plant_pacing_awake_start(cpu);
+    if (line != NULL) {
+        printf("plant_node: real-time mode: %s%s\n", line,
+               awake ? ", its CPU kept out of halt" : (g_keep_awake ? ", --keep-awake needs a CPU (--cpu N)" : ""));
         fflush(stdout);
         announced = 1;
     }
@@ -118,6 +125,7 @@ static void realtime_loop(co_runtime_t *rt)
     const plant_pacing_io_t io = {.user = rt, .serve_until = rt_serve_until, .tick = rt_tick, .stop = rt_stop};
     plant_pacing_loop(&g_app, &io);
     rt->rx_stamps = 0;
+    plant_pacing_awake_stop();
 }
 
 int main(int argc, char **argv)
@@ -136,6 +144,8 @@ int main(int argc, char **argv)
     for (; i < argc; ++i) {
         if (strcmp(argv[i], "--realtime") == 0) {
             realtime = 1;
+        } else if (strcmp(argv[i], "--keep-awake") == 0) {
+            g_keep_awake = 1;
         } else if (strcmp(argv[i], "--cpu") == 0 && i + 1 < argc) {
             char *end = NULL;
             long cpu = strtol(argv[++i], &end, 10);
@@ -151,7 +161,7 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "plant_node: unknown option '%s' (allowed: --iface NAME, --node-id 1..127, --realtime, --cpu N, "
-                    "--help)\n",
+                    "--keep-awake, --help)\n",
                     argv[i]);
             return EXIT_USAGE;
         }

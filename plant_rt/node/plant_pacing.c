@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <pthread.h>
 #include <sched.h>
 #include <stdio.h>
 #include <string.h>
@@ -13,6 +14,14 @@
 #define GUARD_US 30      /* stop serving frames this long before a deadline */
 #define SERVE_MIN_US 200 /* serve frames between deadlines only if this much time is left */
 #define IDLE_WAIT_US 10000
+
+#if defined(__x86_64__) || defined(__i386__)
+#define CPU_RELAX() __builtin_ia32_pause()
+#elif defined(__aarch64__) || defined(__arm__)
+#define CPU_RELAX() __asm__ volatile("yield")
+#else
+#define CPU_RELAX() ((void)0)
+#endif
 
 int64_t plant_pacing_now_ns(void)
 {
@@ -107,6 +116,41 @@ const char *plant_pacing_priority(int priority, int cpu)
                  fifo_text, !fifo && !locked ? ", " : "", lock_text, idle, where);
     }
     return line;
+}
+
+static struct {
+    pthread_t th;
+    int cpu, running;
+    volatile int keep;
+} A;
+
+static void *awake_main(void *arg)
+{
+    (void)arg;
+    (void)pthread_setname_np(pthread_self(), "hil-awake"); /* named in top -H, perf sched and ftrace */
+    (void)plant_pacing_pin(A.cpu);
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
+    while (__atomic_load_n(&A.keep, __ATOMIC_ACQUIRE)) CPU_RELAX();
+    return NULL;
+}
+
+int plant_pacing_awake_start(int cpu)
+{
+    if (cpu < 0 || A.running) return A.running;
+    A.cpu = cpu;
+    __atomic_store_n(&A.keep, 1, __ATOMIC_RELEASE);
+    A.running = pthread_create(&A.th, NULL, awake_main, NULL) == 0;
+    return A.running;
+}
+
+void plant_pacing_awake_stop(void)
+{
+    if (!A.running) return;
+    __atomic_store_n(&A.keep, 0, __ATOMIC_RELEASE);
+    pthread_join(A.th, NULL);
+    A.running = 0;
 }
 
 void plant_pacing_loop(plant_app_t *app, const plant_pacing_io_t *io)

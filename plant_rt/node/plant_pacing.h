@@ -37,6 +37,12 @@ int plant_pacing_other_cpu(void);
 const char *plant_pacing_priority(int priority, int cpu);
 /* Keep the calling thread on one CPU (-1: anywhere); 0 or an errno. */
 int plant_pacing_pin(int cpu);
+/* Keep `cpu` out of its halt while the plant sleeps (-1: nothing done): a thread at SCHED_IDLE busy-loops there
+ * until plant_pacing_awake_stop(). On a virtual machine a halted virtual CPU is woken by the hypervisor, late
+ * (docs/REALTIME.md); the plant's timer interrupt preempts the loop at once (user space, nothing held). It
+ * costs that CPU whole for the run. Returns 1 when the thread runs. */
+int plant_pacing_awake_start(int cpu);
+void plant_pacing_awake_stop(void);
 /* The absolute-deadline loop: returns when real-time mode ends or io->stop() says so. */
 void plant_pacing_loop(plant_app_t *app, const plant_pacing_io_t *io);
 

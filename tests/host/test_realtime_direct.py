@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from law_util import zero_law_as
 
 from bench.paths import REPO
 from bench.run.verdict.summary import EXIT_CODES
@@ -129,3 +130,27 @@ def test_each_overrun_is_named_by_its_cause_beside_the_hosts_floor(tmp_path: Pat
     assert causes["drive_missing"] >= 150, (causes, res.stdout)  # most of the frozen periods
     assert causes["drive_missing"] > causes["plant_late"], causes
     assert f"drive_missing {causes['drive_missing']}" in res.stdout
+
+
+def test_a_law_slower_than_the_period_is_named_the_drives_overrun_not_the_plants(tmp_path: Path) -> None:
+    # the tests' zero law with a step of 2 * 10^6 volatile additions (milliseconds on any machine) at Ts = 100 us:
+    # the drive misses its commands; the plant, which waits for its clock and its frames only, keeps its SYNCs
+    law = zero_law_as(tmp_path / "slow_law", "slow_law")
+    src = law / "zero_law.c"
+    step = "((zero_law_state_t *)state)->steps++;"
+    spin = "\n    for (volatile uint32_t i = 0; i < 2000000u; ++i) {\n    }"
+    src.write_text(src.read_text().replace(step, step + spin))
+    scenario = tmp_path / "slow.toml"
+    scenario.write_text((REPO / "tests" / "laws" / "zero_law.toml").read_text().replace('"zero_law"', '"slow_law"'))
+    out = tmp_path / "run"
+    args = [*BENCH, "run", str(scenario), "--law", str(law), "--bus", "direct", "--out", str(out), "--no-viewer"]
+    for kv in ("scenario.timing=realtime", "drive.Ts_s=100e-6", "scenario.periods=300"):
+        args += ["--set", kv]
+    res = subprocess.run(args, capture_output=True, text=True, timeout=900, cwd=REPO)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "realtime_overrun" and res.returncode != 0, res.stdout + res.stderr
+    causes = s["realtime"]["bus"]["overrun_causes"]
+    drive = causes["drive_missing"] + causes["drive_late"]
+    assert drive >= 150, (causes, res.stdout)  # most of the 300 periods
+    assert drive > 5 * causes["plant_late"], causes
+    assert f"drive_missing {causes['drive_missing']}" in res.stdout, res.stdout

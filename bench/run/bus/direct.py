@@ -43,6 +43,22 @@ class FaultEvent(ctypes.Structure):
     ]
 
 
+def probe_host_floor(period_ns: int, seconds: float = 0.3) -> dict[str, float] | None:
+    """The host's floor at a period: a plain absolute-deadline timer loop at the plant's priority on the plant's CPU
+    (the first this process may use: cyclictest's measurement) for about `seconds` (1,000 to 5,000 wake-ups); its
+    wake-up lateness, us. None when no thread could be started. Any bus: the plant's pacing is the same code."""
+    n = max(1000, min(5000, round(seconds * 1e9 / max(period_ns, 1))))
+    out = (ctypes.c_float * 4)()
+    if _lib().hil_probe_floor(period_ns, n, out) < 0:
+        return None
+    vals = [round(float(v), 3) for v in out]
+    return {
+        "periods": n,
+        "period_us": period_ns / 1e3,
+        **dict(zip(("p50_us", "p99_us", "p99_9_us", "max_us"), vals, strict=True)),
+    }
+
+
 @functools.cache
 def _lib() -> ctypes.CDLL:
     """libhil.so with its functions' C types, once per process (a sweep opens a Hil per point)."""
@@ -178,17 +194,7 @@ class Hil:
         """The host's floor at the plant's period: a plain absolute-deadline timer loop at the plant's priority and
         CPU (cyclictest's measurement) for about `seconds` (1,000 to 5,000 wake-ups); its wake-up lateness, us.
         None when no thread could be started."""
-        period_ns = int(self.lib.hil_rt_period_ns())
-        n = max(1000, min(5000, round(seconds * 1e9 / max(period_ns, 1))))
-        out = (ctypes.c_float * 4)()
-        if self.lib.hil_probe_floor(period_ns, n, out) < 0:
-            return None
-        vals = [round(float(v), 3) for v in out]
-        return {
-            "periods": n,
-            "period_us": period_ns / 1e3,
-            **dict(zip(("p50_us", "p99_us", "p99_9_us", "max_us"), vals, strict=True)),
-        }
+        return probe_host_floor(int(self.lib.hil_rt_period_ns()), seconds)
 
     def realtime_note(self) -> str:
         """What the plant's thread got of SCHED_FIFO / mlockall, in one line (after a real-time run)."""

@@ -7,6 +7,7 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from bench.run.bus.cpus import PlantCpu, plant_cpu
 from bench.run.bus.liveness import NMT_STATES, LoopStopped
 
 if TYPE_CHECKING:
@@ -48,6 +49,7 @@ class DirectLoop:
         self.realtime = realtime
         self._told = False
         self._overflows = 0
+        self._isolated = ""  # what left the plant's CPU for the run (PlantCpu.summary)
         self.floor: dict[str, float] | None = None  # the host's floor, probed before the first real-time segment
         self.on_chunk: Callable[[], None] | None = None
         self.on_stop: Callable[[], None] | None = None
@@ -144,6 +146,12 @@ class DirectLoop:
             except BaseException as exc:  # noqa: BLE001 - re-raised below
                 errors.append(exc)
 
+        # the plant's CPU kept for the run: the C side moves this process's threads; what else may be moved here
+        # (the bench's child processes, the kernel's unbound threads) leaves it too (bench/run/bus/cpus.py)
+        cpu = plant_cpu()
+        keep = PlantCpu(cpu) if cpu is not None else None
+        if keep is not None:
+            keep.isolate()
         th = threading.Thread(target=loop, daemon=True, name="bench-direct-realtime")
         th.start()
         try:
@@ -156,10 +164,14 @@ class DirectLoop:
             if th.is_alive():  # taking the frames failed: the C threads must not outlive the loop
                 self.hil.stop()
                 th.join()
+            if keep is not None:
+                self._isolated = keep.summary()
+                keep.release()
         if errors:
             raise errors[0]
         if not self._told:
-            print(f"bench run: real time: {self.hil.realtime_note()}", flush=True)
+            isolated = f"; {self._isolated}" if self._isolated else ""
+            print(f"bench run: real time: {self.hil.realtime_note()}{isolated}", flush=True)
             self._told = True
         lost = self.hil.receive_overflows()
         if lost > self._overflows:

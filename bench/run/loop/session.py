@@ -24,7 +24,8 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench.canbus import ensure_vcan, link_info, prepare_can_link
 from bench.run.bus.buses import VCAN
-from bench.run.bus.direct import DirectBus, Hil
+from bench.run.bus.cpus import PlantCpu, plant_cpu
+from bench.run.bus.direct import DirectBus, Hil, probe_host_floor
 from bench.run.bus.direct_sdo import DirectSdo
 from bench.run.bus.gateway import FaultGateway
 from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
@@ -69,6 +70,8 @@ class Session:
         # the run's share of the CAN box (bench/run/bus/box/lease.py) when its buses are in the box: the node
         # processes, the gateway and the recorder run there, the master here over the slot's SLCAN port
         self.box: Any = None
+        self.plant_cpu: PlantCpu | None = None  # real time over this host's SocketCAN (hold_plant_cpu)
+        self.floor: dict[str, float] | None = None  # the host's floor, probed by hold_plant_cpu
 
     # ---------------------------------------------------------------- bus
     def drive_side_bus(self) -> str:
@@ -163,9 +166,12 @@ class Session:
         self._check_node_faults()
         self.prepare_links()
         if self.opts.start_plant:
+            # real time on this host's SocketCAN: the plant's CPU kept out of its halt (issue 40; hold_plant_cpu
+            # moves what else runs here off it); not in the CAN box, whose emulated CPUs a busy loop would take whole
+            awake = ["--keep-awake"] if self._plant_here_in_real_time() else []
             self.node_procs["plant"] = NodeProcess(
                 "plant_node",
-                ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id)],
+                ["--iface", self.opts.bus, "--node-id", str(self.opts.plant_id), *awake],
                 log("plant_node"),
                 box=self.box,
             )
@@ -215,7 +221,36 @@ class Session:
                 kwargs["data_bitrate"] = self.opts.data_bitrate
         self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
 
+    def _plant_here_in_real_time(self) -> bool:
+        return self.sc.timing == "realtime" and self.box is None and self.hil is None and self.opts.start_plant
+
+    def hold_plant_cpu(self) -> None:
+        """Real time with plant_node on this host, once configured: the host's floor probed at the plant's period on
+        the plant's CPU (printed, a warning when it makes Ts impossible; summary.json realtime.floor), then the
+        bench's threads and the processes it started here but the plant (candump, drive_node, the gateway) leave
+        that CPU for the run (bench/run/bus/cpus.py; back at close())."""
+        plant = self.node_procs.get("plant")
+        cpu = plant_cpu()
+        if not self._plant_here_in_real_time() or not isinstance(plant, NodeProcess) or cpu is None:
+            return
+        from bench.run.loop.direct_loop import floor_line
+
+        ts_s = float(self.plant.sdo["Inverter"]["Ts_s"].raw)
+        try:
+            self.floor = probe_host_floor(round(ts_s * 1e9))
+        except OSError:  # no libhil.so (a build without it): the run goes on without its floor
+            self.floor = None
+        if self.floor is not None:
+            print(floor_line(self.floor), flush=True)
+        self.plant_cpu = PlantCpu(cpu)
+        self.plant_cpu.reserve()
+        self.plant_cpu.isolate(spare=frozenset({int(plant.proc.pid)}))  # candump, drive_node, the gateway, ...
+        print(f"bench run: the plant's CPU kept for the run: {self.plant_cpu.summary()}", flush=True)
+
     def close(self) -> None:
+        if self.plant_cpu is not None:
+            self.plant_cpu.release()
+            self.plant_cpu = None
         if self.liveness is not None:
             self.liveness.disarm()
             self.liveness.close()

@@ -127,6 +127,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="run the realtime section under N busy loops (started and killed by the section; default 0: idle)",
     )
+    p.add_argument(
+        "--realtime-runs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="rounds of the realtime section per Ts, each cyclictest then the bench, every one reported (default 1)",
+    )
+    p.add_argument(
+        "--realtime-against",
+        type=Path,
+        default=None,
+        metavar="CHECKOUT",
+        help="a second built checkout of the bench (e.g. `git worktree add /tmp/before REV && make -C /tmp/before "
+        "all`), run beside this one in each round of the realtime section, their order alternating",
+    )
+    p.add_argument(
+        "--realtime-serve",
+        action="store_true",
+        help="run the realtime section's bench with its live view (--serve --serve-for 0)",
+    )
     p.add_argument("--save", type=Path, default=PERF_DIR / "perf.json", help="also write the JSON here")
     p.add_argument("--inside-vm", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -182,7 +202,23 @@ def realtime_sizes(args: argparse.Namespace) -> RtSizes:
     if periods < 1 or not ts or any(not 1.0 <= t <= 100_000.0 for t in ts):
         raise ValueError("--realtime-periods needs >= 1 and --realtime-ts-us periods of 1 .. 100000 us")
     burners = max(0, int(getattr(args, "realtime_burners", 0) or 0))
-    return RtSizes(periods=periods, ts_us=ts, burners=burners)
+    runs = getattr(args, "realtime_runs", None)
+    runs = 1 if runs is None else int(runs)
+    if runs < 1:
+        raise ValueError(f"--realtime-runs {runs}: need at least 1")
+    against = getattr(args, "realtime_against", None)
+    if against is not None:
+        against = Path(against).resolve()
+        missing = [f for f in ("bench/cli.py", "build/libhil.so") if not (against / f).is_file()]
+        if missing:
+            raise ValueError(
+                f"--realtime-against {against}: not a built checkout of the bench (no {', '.join(missing)}; "
+                f"run `make -C {against} all`)"
+            )
+    serve = bool(getattr(args, "realtime_serve", False))
+    return RtSizes(
+        periods=periods, ts_us=ts, burners=burners, runs=runs, serve=serve, against=str(against) if against else None
+    )
 
 
 def main(args: argparse.Namespace) -> int:
