@@ -74,6 +74,14 @@ def test_histogram_quantiles_and_overflow() -> None:
         parse_histogram("000001 000002\n")
 
 
+def test_the_periods_cyclictests_late_wake_ups_passed() -> None:
+    from bench.tools.perf.cyclictest import missed_periods
+
+    # at 100 us: 99 us passed none, 100-199 us one deadline each, 250 us two; an overflow at most the max (50 ms)
+    assert missed_periods({99: 5, 100: 2, 199: 1, 250: 1}, 0, 250, 100) == 2 + 1 + 2
+    assert missed_periods({10: 100}, 1, 50_406, 100) == 504
+
+
 def test_cyclictest_argv_is_one_fifo80_thread_with_mlockall(tmp_path: Path) -> None:
     argv = cyclictest_argv(55, 1000, tmp_path / "h")
     joined = " ".join(argv)

@@ -119,3 +119,20 @@ def test_isolate_moves_the_benchs_child_processes_but_the_spared_and_release_put
         for p in (worker, plant):
             p.kill()
             p.wait()
+
+
+def test_the_unbound_workqueues_leave_the_plants_cpu_and_their_mask_comes_back(tmp_path: Path) -> None:
+    mask = tmp_path / "cpumask"  # stands for /sys/devices/virtual/workqueue/cpumask (hex, as the kernel writes it)
+    mask.write_text("00000003\n")
+    keep = PlantCpu(0)
+    keep.wq_mask = mask
+    keep._workqueues_off()
+    assert mask.read_text() == "2" and "the unbound workqueues too" in keep.summary()
+    keep.release()
+    assert mask.read_text() == "00000003"
+    mask.write_text("1\n")  # only the plant's CPU: nowhere else to go, left alone
+    keep._workqueues_off()
+    assert mask.read_text() == "1\n" and keep.wq_was is None
+    keep.wq_mask = tmp_path / "missing"  # an old kernel: nothing to do
+    keep._workqueues_off()
+    assert keep.wq_was is None

@@ -8,8 +8,10 @@ reserve_cpu): on a kernel without PREEMPT_RT a task inside a system call or a pa
 the plant's priority. The same for what is not the bench's but may be moved: the bench's child processes (the
 viewer worker and its Rerun threads) and the kernel's unbound threads (DAMON's kdamond, ...), which an ftrace of the
 plant's CPU caught holding it for 50-250 us (docs/REALTIME.md): the kernel places them on a CPU that runs only a
-SCHED_IDLE thread as on an idle one. Per-CPU kernel threads and the workqueues' kworkers refuse (a tuned host:
-isolcpus, the workqueue cpumask); moving a kernel thread needs CAP_SYS_NICE, and without it they stay, counted.
+SCHED_IDLE thread as on an idle one. The unbound workqueues' kworkers refuse a thread's affinity: their CPUs are
+the workqueues' cpumask (/sys/devices/virtual/workqueue/cpumask), set without the plant's CPU for the run and put
+back after, where it may be written (root). Per-CPU kernel threads stay (a tuned host: isolcpus); moving a kernel
+thread needs CAP_SYS_NICE, and without it they stay, counted.
 The standard library's os.sched_setaffinity moves one task (a thread); a process's threads are moved one by one,
 from /proc/PID/task, as `tuna --isolate` does."""
 
@@ -34,6 +36,16 @@ def _tids(pid: int) -> list[int]:
 
 
 PF_KTHREAD = 0x00200000  # /proc/PID/stat's flags: a kernel thread
+WQ_CPUMASK = Path("/sys/devices/virtual/workqueue/cpumask")  # the unbound workqueues' CPUs (hex)
+
+
+def _mask(cpus: set[int]) -> str:
+    return format(sum(1 << c for c in cpus), "x")
+
+
+def _cpus(mask: str) -> set[int]:
+    bits = int(mask.replace(",", "").strip() or "0", 16)
+    return {c for c in range(bits.bit_length()) if bits >> c & 1}
 
 
 def _stat(pid: int) -> tuple[int, int] | None:
@@ -61,6 +73,8 @@ class PlantCpu:
         self.cpu = cpu
         self.moved: dict[int, set[int]] = {}
         self.refused = 0  # kernel threads on the plant's CPU that could not be moved
+        self.wq_was: str | None = None  # the workqueues' cpumask before the run, when it was changed
+        self.wq_mask = WQ_CPUMASK
 
     def isolate(self, spare: frozenset[int] = frozenset()) -> None:
         """The bench's child processes (all their threads) but those in `spare` (plant_node) and the kernel's movable
@@ -85,9 +99,21 @@ class PlantCpu:
                         self.moved.setdefault(pid, was)
                 except OSError:  # a per-CPU thread, a kworker, or no CAP_SYS_NICE
                     self.refused += 1
+        self._workqueues_off()
+
+    def _workqueues_off(self) -> None:
+        try:
+            was = self.wq_mask.read_text().strip()
+            cpus = _cpus(was)
+            if self.cpu in cpus and len(cpus) >= 2:
+                self.wq_mask.write_text(_mask(cpus - {self.cpu}))
+                self.wq_was = was
+        except (OSError, ValueError):  # no such file (an old kernel), or not root
+            self.wq_was = None
 
     def summary(self) -> str:
-        return f"{len(self.moved)} tasks moved off CPU {self.cpu}" + (
+        wq = ", the unbound workqueues too" if self.wq_was is not None else ""
+        return f"{len(self.moved)} tasks moved off CPU {self.cpu}{wq}" + (
             f", {self.refused} kernel threads that may run there could not be" if self.refused else ""
         )
 
@@ -124,3 +150,9 @@ class PlantCpu:
                 except OSError:
                     continue
         self.moved.clear()
+        if self.wq_was is not None:
+            try:
+                self.wq_mask.write_text(self.wq_was)
+            except OSError:
+                pass
+            self.wq_was = None

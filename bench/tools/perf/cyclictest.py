@@ -117,7 +117,18 @@ def run_cyclictest(interval_us: float, loops: int) -> dict[str, Any]:
         "overflows": h["overflows"],
         # wake-ups a whole period or more late: what the plant counts as sync_overruns
         "over_period": sum(n for us, n in h["bins"].items() if us >= iv) + h["overflows"],
+        # the periods those wake-ups passed: cyclictest skips the deadlines a stall passed (a 50 ms stall at 1 ms is
+        # one late wake-up), the plant counts each period without its command; an overflow spans at most the max
+        "over_period_periods": missed_periods(h["bins"], h["overflows"], h["max"], iv),
         "histogram_us": {str(us): n for us, n in sorted(h["bins"].items())},  # bin b: [b, b+1) us
         "wall_s": m.wall_s,
         "notes": [ln.strip() for ln in (m.stdout + m.stderr).splitlines() if ln.strip()][:4],
     }
+
+
+def missed_periods(bins: dict[int, int], overflows: int, largest: int | None, interval_us: int) -> int:
+    """The deadlines cyclictest's late wake-ups passed: a wake-up late by L us passed floor(L / interval) of them
+    (cyclictest then sleeps to the next deadline still ahead); the overflows (beyond the histogram) at most the
+    largest latency's each."""
+    n = sum(c * (us // interval_us) for us, c in bins.items() if us >= interval_us)
+    return n + overflows * ((largest or 0) // interval_us)

@@ -210,6 +210,9 @@ def compare(
         "overrun_limit": TARGET_OVERRUN_FACTOR * late if judged else None,
         "overrun_target_met": (overruns <= TARGET_OVERRUN_FACTOR * late) if judged else None,
         "overrun_target_note": _overrun_note(ts_us, periods, loaded),
+        # like for like: the plant's overruns against the periods cyclictest's late wake-ups passed (it counts a
+        # stall once, the plant each period of it); reported beside the target, not in its place
+        "overrun_periods_ratio": _ratio(overruns, ct.get("over_period_periods")),
     }
 
 

@@ -130,6 +130,8 @@ def _targets(s: dict[str, Any]) -> list[str]:
                 ovr += f" ({over} vs {limit:g} = {TARGET_OVERRUN_FACTOR:g} x {c.get('over_period')})"
             elif cmp_.get("overrun_target_note"):
                 ovr += f" ({cmp_['overrun_target_note']})"
+            if cmp_.get("overrun_periods_ratio") is not None:
+                ovr += f"; {_x(cmp_['overrun_periods_ratio'])} the periods cyclictest's late wake-ups passed"
             out.append(
                 f"  Ts {key} us, {name}: p99 {_x(cmp_.get('p99_ratio'))} {_verdict(cmp_.get('p99_target_met'))}; "
                 f"p99.9 {_x(cmp_.get('p99_9_ratio'))} {_verdict(cmp_.get('p99_9_target_met'))}; overruns {ovr}"
