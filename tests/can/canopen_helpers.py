@@ -71,8 +71,10 @@ class Target:
     capture: Capture
     proc: NodeProcess
 
-    def raw_sdo(self, payload: bytes, timeout: float = 2.0) -> bytes | None:
-        """Send one raw SDO request frame, return the server's answer (or None)."""
+    def raw_sdo(self, payload: bytes, timeout: float = 5.0) -> bytes | None:
+        """Send one raw SDO request frame, return the server's answer (or None). The bound is for an answer that
+        comes: through the CAN box under two busy loops one took more than 2 s (a check for no answer passes its
+        own short timeout)."""
         before = len(self.capture.with_id(0x580 + self.node_id))
         self.net.send_message(0x600 + self.node_id, payload)
         got = self.capture.wait_for(0x580 + self.node_id, before + 1, timeout)

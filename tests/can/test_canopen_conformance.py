@@ -362,28 +362,30 @@ def test_pdo_remap_aborts(target: Target) -> None:
         return t.abort_code(t.raw_sdo(payload))
 
     cob = t.node.sdo[0x1801][1].raw
-    # PDO valid: changing the mapping is refused (step a of CiA 301 not done)
-    t.node.sdo[0x1801][1].raw = cob & ~0x80000000
-    assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + b"\0\0\0\0") == 0x06010000
-    # invalidate, count 0
-    t.node.sdo[0x1801][1].raw = cob | 0x80000000
-    t.node.sdo[0x1A01][0].raw = 0
-    not_mappable = next(v for v in leaf_variables(od) if not v.pdo_mappable and v.data_type == datatypes.UNSIGNED32)
-    entry = (not_mappable.index << 16) | (not_mappable.subindex << 8) | 32
-    assert code(b"\x23" + struct.pack("<HB", mapping.index, 1) + _u32(entry)) == 0x06040041
-    assert code(b"\x23" + struct.pack("<HB", mapping.index, 1) + _u32((0x3FFF << 16) | 32)) == 0x06020000
-    f = _mappable_tx_vars(od, 3)
-    for i in range(3):
-        t.node.sdo[0x1A01][i + 1].raw = (f[i].index << 16) | (f[i].subindex << 8) | 32
-    assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + bytes([3, 0, 0, 0])) == 0x06040042  # 96 bits
-    assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + bytes([9, 0, 0, 0])) == 0x06040042
-    t.node.sdo[0x1A01][0].raw = 2  # 64 bits: accepted
-    assert t.node.sdo[0x1A01][0].raw == 2
-    # COB-ID change while valid is refused
-    t.node.sdo[0x1801][1].raw = cob & 0x7FF
-    assert code(b"\x23" + struct.pack("<HB", comm.index, 1) + _u32(0x3F0)) == 0x06090030
-    t.node.nmt.send_command(0x82)  # reset communication restores the EDS mapping
-    time.sleep(0.1)
+    try:
+        # PDO valid: changing the mapping is refused (step a of CiA 301 not done)
+        t.node.sdo[0x1801][1].raw = cob & ~0x80000000
+        assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + b"\0\0\0\0") == 0x06010000
+        # invalidate, count 0
+        t.node.sdo[0x1801][1].raw = cob | 0x80000000
+        t.node.sdo[0x1A01][0].raw = 0
+        not_mappable = next(v for v in leaf_variables(od) if not v.pdo_mappable and v.data_type == datatypes.UNSIGNED32)
+        entry = (not_mappable.index << 16) | (not_mappable.subindex << 8) | 32
+        assert code(b"\x23" + struct.pack("<HB", mapping.index, 1) + _u32(entry)) == 0x06040041
+        assert code(b"\x23" + struct.pack("<HB", mapping.index, 1) + _u32((0x3FFF << 16) | 32)) == 0x06020000
+        f = _mappable_tx_vars(od, 3)
+        for i in range(3):
+            t.node.sdo[0x1A01][i + 1].raw = (f[i].index << 16) | (f[i].subindex << 8) | 32
+        assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + bytes([3, 0, 0, 0])) == 0x06040042  # 96 bits
+        assert code(b"\x2f" + struct.pack("<HB", mapping.index, 0) + bytes([9, 0, 0, 0])) == 0x06040042
+        t.node.sdo[0x1A01][0].raw = 2  # 64 bits: accepted
+        assert t.node.sdo[0x1A01][0].raw == 2
+        # COB-ID change while valid is refused
+        t.node.sdo[0x1801][1].raw = cob & 0x7FF
+        assert code(b"\x23" + struct.pack("<HB", comm.index, 1) + _u32(0x3F0)) == 0x06090030
+    finally:  # reset communication restores the EDS mapping (also after a failure: the next test needs it)
+        t.node.nmt.send_command(0x82)
+        time.sleep(0.1)
 
 
 def test_sync_start_value(target: Target) -> None:
