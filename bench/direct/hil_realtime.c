@@ -121,28 +121,6 @@ void hil_rt_push(uint8_t side, const co_frame_t *f, int64_t t_us)
     pthread_cond_signal(&b->cv);
 }
 
-/* Process the frames waiting for `side` in order, each at its arrival time, and send what the node answers at
- * the time it answers (lock held). A node killed meanwhile hears nothing more; a frozen one keeps them for its
- * thaw. Returns whether the node had a SYNC among them. */
-static int take_frames(uint8_t side)
-{
-    rt_inbox_t *b = &R.in[side];
-    co_node_t *node = hil_node_of(side);
-    const uint32_t syncs = node->syncs;
-    while (b->head != b->tail) {
-        rt_item_t it = b->q[b->head++ % INBOX];
-        if (hil_side_killed(side)) continue;
-        if (!hil_side_live(side)) {
-            hil_frozen_frame(&it.f);
-            continue;
-        }
-        co_node_process(node, &it.f, it.t_us);
-        advance_now(); /* what it sends goes out now, after its work */
-        hil_deliver();
-    }
-    return node->syncs != syncs;
-}
-
 /* ---- the drive's outbox: its transmit path for the run ---- */
 
 static int drive_outbox_tx(void *user, const co_frame_t *f)
@@ -165,24 +143,34 @@ static void drive_flush(void)
     hil_deliver();
 }
 
-/* The drive's frames in order, each processed with the lock released: the plant's thread never waits for the
- * drive's law (lock held on entry and on return). */
-static void drive_take_frames(void)
+/* Process the frames waiting for `side` in order, each at its arrival time, and send what the node answers at
+ * the time it answers (lock held on entry and on return). A node killed meanwhile hears nothing more; a frozen
+ * one keeps them for its thaw. `unlocked` (the drive's thread in the run): each frame is processed with the lock
+ * released, so that the plant's thread never waits for the drive's law; what it sent waits in its outbox
+ * (drive_flush). Returns whether the node had a SYNC among them. */
+static int take_frames(uint8_t side, int unlocked)
 {
-    rt_inbox_t *b = &R.in[FI_SIDE_B];
-    co_node_t *node = hil_node_of(FI_SIDE_B);
+    rt_inbox_t *b = &R.in[side];
+    co_node_t *node = hil_node_of(side);
+    const uint32_t syncs = node->syncs;
     while (b->head != b->tail) {
         rt_item_t it = b->q[b->head++ % INBOX];
-        if (hil_side_killed(FI_SIDE_B)) continue;
-        if (!hil_side_live(FI_SIDE_B)) {
+        if (hil_side_killed(side)) continue;
+        if (!hil_side_live(side)) {
             hil_frozen_frame(&it.f);
             continue;
         }
-        hil_rt_unlock();
+        if (unlocked) hil_rt_unlock();
         co_node_process(node, &it.f, it.t_us);
-        hil_rt_lock();
-        drive_flush(); /* what it answers goes out now, after its work */
+        if (unlocked) {
+            hil_rt_lock();
+            drive_flush(); /* what it answers goes out now, after its work */
+        } else {
+            advance_now(); /* what it sends goes out now, after its work */
+            hil_deliver();
+        }
     }
+    return node->syncs != syncs;
 }
 
 static void wait_frames(uint8_t side, int64_t until_ns)
@@ -204,7 +192,7 @@ static void plant_serve_until(void *user, int64_t until_ns)
         if (plant_pacing_now_ns() >= until_ns) break;
         wait_frames(FI_SIDE_A, until_ns);
         advance_now();
-        take_frames(FI_SIDE_A);
+        take_frames(FI_SIDE_A, 0);
         hil_timers(FI_SIDE_A);
         hil_fi_tick();
         if (hil_side_live(FI_SIDE_A)) (void)plant_app_poll(app, hil_now_us()); /* arrivals; the hold */
@@ -218,7 +206,7 @@ static int64_t plant_tick(void *user, int64_t deadline_ns)
 {
     plant_app_t *app = (plant_app_t *)user;
     hil_rt_lock();
-    take_frames(FI_SIDE_A); /* what arrived by now, in the same hold of the lock as the SYNC */
+    take_frames(FI_SIDE_A, 0); /* what arrived by now, in the same hold of the lock as the SYNC */
     const int64_t now_ns = plant_pacing_now_ns();
     const int64_t now_us = advance_now();
     if (hil_side_live(FI_SIDE_A) && plant_app_realtime_tick(app, now_us, now_ns - deadline_ns) >= 0)
@@ -279,7 +267,7 @@ static void *drive_main(void *arg)
     while (!__atomic_load_n(&R.drive_done, __ATOMIC_ACQUIRE)) {
         if (R.in[FI_SIDE_B].head == R.in[FI_SIDE_B].tail) drive_wait();
         advance_now();
-        drive_take_frames();
+        take_frames(FI_SIDE_B, 1);
         hil_timers(FI_SIDE_B); /* heartbeats, EMCYs: into the outbox, then onto the bus */
         drive_flush();
         hil_fi_tick();
@@ -295,8 +283,8 @@ static void drain_both(plant_app_t *app)
     for (int round = 0; round < 64; ++round) {
         advance_now();
         int any = R.in[FI_SIDE_A].head != R.in[FI_SIDE_A].tail || R.in[FI_SIDE_B].head != R.in[FI_SIDE_B].tail;
-        take_frames(FI_SIDE_B);
-        take_frames(FI_SIDE_A);
+        take_frames(FI_SIDE_B, 0);
+        take_frames(FI_SIDE_A, 0);
         if (hil_side_live(FI_SIDE_A)) (void)plant_app_poll(app, hil_now_us());
         hil_deliver();
         if (!any) break;
