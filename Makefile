@@ -282,7 +282,7 @@ law: $(LAW_OK) $(LAW_CHECKED) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(
      $(if $(HAVE_MCU_CC),mcu)
 	@echo "make: law $(LAW_NAME) built in $(BUILD)"
 $(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/eds/common.ini \
-    protocols/gen_od.py protocols/gen_law.py protocols/eds_reader.py
+    protocols/gen_od.py $(wildcard protocols/odgen/*.py) protocols/gen_law.py protocols/eds_reader.py
 	$(PYTHON) protocols/gen_od.py --law '$(LAW_DIR)' --out '$(BUILD)'
 	@touch $@
 $(addprefix $(GEN_DIR)/,od_drive.h od_drive.c od_drive_fields.h od_plant.h od_plant.c od_plant_fields.h \

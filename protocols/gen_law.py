@@ -151,7 +151,7 @@ def _ident(name: str) -> str:
 
 WRITABLE = ("rw", "rww", "rwr", "wo")
 GENERATOR_TYPES = ("comm", "mfr", "ram")  # gen_od.py's own struct names beside the records'
-RATIO_SUFFIX = "_ratio"  # the scenario's [controller] ratio keys (bench/scenario/__init__.py RATIOS)
+RATIO_SUFFIX = "_ratio"  # the scenario's [controller] ratio keys (bench/scenario/settings.py RATIOS)
 MANUFACTURER = range(0x2000, 0x6000)
 
 

@@ -3,6 +3,10 @@
 Tests under tests/can/ need a real SocketCAN vcan0. They run on the host when its
 kernel has CAN, otherwise `scripts/run_tests.sh` runs them inside the virtme-ng
 VM. A CAN test never skips for lack of a bus: it fails.
+
+The tests run the bench as its users do: its command line through tests/bench_cli.py (bench_cli, spawn_bench:
+`python -m bench.cli ...` in a child process), a scenario whose result they read through the plugin's hil_run
+fixture (bench/pytest_plugin, enabled by the package's pytest11 entry point).
 """
 
 from __future__ import annotations

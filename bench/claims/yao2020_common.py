@@ -12,20 +12,41 @@ from __future__ import annotations
 
 import cmath
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from bench.claims import with_sections
+from bench.scenario import motor_preset
 
 PAPER = "Yao 2020"
 OBJ = "Yao 2020 DPCC"
 COL = "Yao_2020_DPCC_"
-T = 100e-6
-MOTORS = {  # preset: (electrical frequency Hz, pole pairs, R, L, Vdc, iq operating point)
-    "yao2020_low": (133.3, 4, 2.2, 5.5e-3, 300.0, 4.0),
-    "yao2020_high": (1330.0, 1, 0.045, 24e-6, 48.0, 10.0),
-}
+
+
+@dataclass(frozen=True)
+class Motor:
+    """A motor of the paper as the claims use it: the preset's parameters (bench.scenario.motor_preset, from
+    plant_rt/core/presets.c: Yao 2020 Tables I/II, psi ASSUMED) and the operating point of the experiments."""
+
+    f_e: float  # Hz: the rated electrical frequency (Tables I/II), at which the rotor is driven
+    pp: int  # pole pairs
+    R: float  # ohm
+    L: float  # H: Ls (surface mounted, Ld = Lq)
+    vdc: float  # V
+    iq0: float  # A: the q current the experiments run at
+    psi: float  # Wb
+
+
+def _motor(preset: str, f_e: float, iq0: float) -> Motor:
+    m = motor_preset(preset)
+    return Motor(f_e, m.pole_pairs, m.R_ohm, m.Lq_H, m.Vdc_V, iq0, m.psi_Wb)
+
+
+# preset: the motor at its operating point (rated electrical frequency of Table I / Table II, iq of the experiments)
+MOTORS = {"yao2020_low": _motor("yao2020_low", 133.3, 4.0), "yao2020_high": _motor("yao2020_high", 1330.0, 10.0)}
+T = motor_preset("yao2020_low").Ts_s  # Table III: T = 100 us (both motors)
 # TPDO3/4 of the drive mapped to the identification (instead of the You 2019 signals)
 IDENT_PDOS = {
     3: (f"{OBJ}.R_hat_ohm", f"{OBJ}.L_hat_H"),
@@ -37,15 +58,15 @@ RLS_PDOS = {3: (f"{OBJ}.R_hat_ohm", f"{OBJ}.L_hat_H"), 4: (f"{OBJ}.rls_R_hat_ohm
 
 def base(name: str, preset: str, periods: int, **sections: dict[str, Any]) -> dict[str, Any]:
     """Ideal sensors and inverter, rotor at the rated electrical frequency, Vmax = Vdc/sqrt(3)."""
-    f_e, pp, _, _, vdc, iq0 = MOTORS[preset]
+    m = MOTORS[preset]
     raw: dict[str, Any] = {
         "scenario": {"name": name, "periods": periods},
-        "motor": {"preset": preset, "mech_mode": "imposed_speed", "omega_imposed_rad_s": 2 * math.pi * f_e / pp},
+        "motor": {"preset": preset, "mech_mode": "imposed_speed", "omega_imposed_rad_s": 2 * math.pi * m.f_e / m.pp},
         "drive": {"preset": "ideal"},
         # speed estimate every period: at 1.33 kHz with one pole pair the rotor turns 1.06 times in the
         # default 8-period speed-loop interval (the encoder difference would alias)
-        "controller": {"controller": "dpcc_yao2020", "Vmax_V": vdc / math.sqrt(3.0), "speed_loop_divider": 1},
-        "references": {"iq_ref_A": iq0},
+        "controller": {"controller": "dpcc_yao2020", "Vmax_V": m.vdc / math.sqrt(3.0), "speed_loop_divider": 1},
+        "references": {"iq_ref_A": m.iq0},
         "events": [],
     }
     return with_sections(raw, sections)

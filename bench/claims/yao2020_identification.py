@@ -29,8 +29,8 @@ from bench.claims.yao2020_common import (
 def claim_high_frequency(bus: str) -> ClaimResult:
     """Fig. 11: 1.33 kHz motor, -5 A injection: L_hat converges; what R_hat does."""
     preset = "yao2020_high"
-    f_e, _, R, L, _, iq0 = MOTORS[preset]
-    w = 2 * math.pi * f_e
+    m = MOTORS[preset]
+    R, L, w = m.R, m.L, 2 * math.pi * m.f_e
     gx_L, gx_R = 50.0, 100.0
     start = 600
     raw = base(
@@ -86,7 +86,7 @@ def claim_high_frequency(bus: str) -> ClaimResult:
 def claim_gain_speed(bus: str) -> ClaimResult:
     """Fig. 14: larger k_L, k_R converge faster (L_hat = 3 mH, R_hat = 1 ohm at start)."""
     preset = "yao2020_low"
-    f_e, _, R, L, _, _ = MOTORS[preset]
+    m = MOTORS[preset]
     rows = []
     for gx in (5.0, 10.0, 20.0):
         raw = base(
@@ -94,8 +94,8 @@ def claim_gain_speed(bus: str) -> ClaimResult:
             preset,
             5200,
             controller={
-                "R_hat_ratio": 1.0 / 2.2,
-                "L_hat_ratio": 3e-3 / 5.5e-3,
+                "R_hat_ratio": 1.0 / m.R,  # R_hat = 1 ohm
+                "L_hat_ratio": 3e-3 / m.L,  # L_hat = 3 mH
                 "kL_low_H_Vs": 0.005 * gx,
                 "kR_low_ohm_Vs": 4.0 * gx,
             },
@@ -142,8 +142,8 @@ def claim_gain_speed(bus: str) -> ClaimResult:
 def claim_rls_flux(bus: str) -> list[ClaimResult]:
     """Fig. 16: RLS with psi_hat = 0.8 psi / 1.2 psi is biased; the proposed identification is not."""
     preset = "yao2020_low"
-    f_e, _, R, L, _, iq0 = MOTORS[preset]
-    w = 2 * math.pi * f_e
+    m = MOTORS[preset]
+    R, L, w = m.R, m.L, 2 * math.pi * m.f_e
     kx = {"kL_low_H_Vs": 0.005 * GAIN_X, "kR_low_ohm_Vs": 4.0 * GAIN_X}
     out = []
     for ratio in (0.8, 1.2):
@@ -165,7 +165,7 @@ def claim_rls_flux(bus: str) -> list[ClaimResult]:
         i_op = complex(float(np.mean(tr["id_A"][sl])), float(np.mean(tr["iq_A"][sl])))
         v_ref = complex(float(np.mean(tr["vd_V"][sl])), float(np.mean(tr["vq_V"][sl])))
         v_op = v_ref * cmath.exp(-1j * w * T)
-        fp_R, fp_L = rls_fixed_point(w, ratio * 0.12, i_op, v_op, R, L)
+        fp_R, fp_L = rls_fixed_point(w, ratio * m.psi, i_op, v_op, R, L)
         physical = fp_R > 0 and fp_L > 0
         rls_ok = (
             (abs(rls_R / fp_R - 1) < 0.03 and abs(rls_L / fp_L - 1) < 0.03) if physical else (abs(rls_R / R - 1) > 0.5)

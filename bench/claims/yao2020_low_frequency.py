@@ -28,8 +28,8 @@ from bench.claims.yao2020_common import (
 def claim_observer(bus: str) -> ClaimResult:
     """Fig. 10(a): L_hat = 1.5 L, R_hat = 1.5 R at 133.3 Hz; steady-state error with the observer off / on."""
     preset = "yao2020_low"
-    f_e, pp, R, L, _, iq0 = MOTORS[preset]
-    w = 2 * math.pi * f_e
+    m = MOTORS[preset]
+    R, L, iq0, psi, w = m.R, m.L, m.iq0, m.psi, 2 * math.pi * m.f_e
     ss = {}
     for obs in (0, 1):
         raw = base(
@@ -40,7 +40,6 @@ def claim_observer(bus: str) -> ClaimResult:
         )
         tr = run_raw(raw, bus).tr
         ss[obs] = complex(float(np.mean(tr["id_A"][-100:])), float(np.mean(tr["iq_A"][-100:])))
-    psi = 0.12
     pred_off = steady_state_no_observer(R, L, 1.5 * R, 1.5 * L, psi, psi, w, complex(0, iq0))
     err_off, err_on = abs(ss[0] - 1j * iq0), abs(ss[1] - 1j * iq0)
     return ClaimResult(
@@ -68,7 +67,7 @@ S1, S1B, START, S2, S2B, S3 = 300, 500, 800, 4800, 5000, 5200
 def _fig10_run(bus: str) -> Run:
     """L_hat = 1.5 L, R_hat = 1.5 R at 133.3 Hz: a step before the identification, the identification, steps after."""
     preset = "yao2020_low"
-    iq0 = MOTORS[preset][5]
+    iq0 = MOTORS[preset].iq0
     kx = {"kL_low_H_Vs": 0.005 * GAIN_X, "kR_low_ohm_Vs": 4.0 * GAIN_X}
     events = [
         {"at_period": S1, "references": {"iq_ref_A": iq0 + 0.5}},
@@ -92,8 +91,8 @@ def claim_low_frequency(bus: str) -> list[ClaimResult]:
 
 def _identified(run: Run, Lh: float, Rh: float) -> ClaimResult:
     """yao2020-1b, Fig. 10(b)-(f): L_hat and R_hat at the end of the sequence, within the dead zones' bounds."""
-    f_e, _, R, L, _, _ = MOTORS["yao2020_low"]
-    w = 2 * math.pi * f_e
+    m = MOTORS["yao2020_low"]
+    R, L, w = m.R, m.L, 2 * math.pi * m.f_e
     tr = run.tr
     done_at = np.nonzero(tr[COL + "ident_state"] == 6)[0]
     eL, eR = Lh / L - 1, Rh / R - 1
@@ -136,7 +135,7 @@ def _identified(run: Run, Lh: float, Rh: float) -> ClaimResult:
 def _deadbeat_after(run: Run, Lh: float, Rh: float) -> ClaimResult:
     """yao2020-1c, Fig. 10(a)-(b): the first sample of each step against y/y_hat - 1 (Yao 2020 Eq. 20), before and
     after the identification."""
-    _, _, R, L, _, _ = MOTORS["yao2020_low"]
+    R, L = MOTORS["yao2020_low"].R, MOTORS["yao2020_low"].L
     tr = run.tr
     before = step_error(tr, "iq", S1, 0.5)
     after_q = step_error(tr, "iq", S2, 0.5)

@@ -12,6 +12,7 @@ import numpy as np
 from bench.claims import ClaimResult, run_raw
 from bench.claims.you2019_common import PAPER, STEP_AT, base, closed_loop_response, model_gains
 from bench.metrics import step_metrics
+from bench.scenario import motor_preset
 
 
 def claim_matched_step(bus: str) -> list[ClaimResult]:
@@ -177,7 +178,7 @@ def claim_frequency_response(
     amplitude_A: float = 0.5,
 ) -> ClaimResult:
     """Fig. 10 / 26: flat 0 dB magnitude, phase of a two-period delay, phase margin zero near fs/4."""
-    ts = 55e-6
+    ts = motor_preset("you2019").Ts_s  # Table A1: Ts = 55 us
     events = []
     k = 0
     spans = []

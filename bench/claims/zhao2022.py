@@ -23,12 +23,16 @@ import numpy as np
 
 from bench.claims import ClaimResult, run_raw, traced, with_sections
 from bench.metrics import error_growth
+from bench.scenario import motor_preset
 
 PAPER = "Zhao 2022"
-R, L, TS, PP = 48.9, 14e-3, 100e-6, 5
-PSI = 1.4213 / 7.5
-W_RATED = PP * 367.72 * math.pi / 180  # electrical rad/s
-VMAX = 28.0 / math.sqrt(3.0)
+# The motor and the drive: the preset's (plant_rt/core/presets.c: Zhao 2022 Tables 1/2, Ld = Lq, psi from Kt)
+MOTOR = motor_preset("zhao2022")
+R, L, TS, PP = MOTOR.R_ohm, MOTOR.Lq_H, MOTOR.Ts_s, MOTOR.pole_pairs
+PSI = MOTOR.psi_Wb
+RATED_DEG_S = 367.72  # Table 2: rated speed, deg/s (the preset's imposed speed, the claims' operating point)
+W_RATED = PP * RATED_DEG_S * math.pi / 180  # electrical rad/s
+VMAX = MOTOR.Vdc_V / math.sqrt(3.0)
 
 
 def base(name: str, periods: int, law: str, locked: bool = True, **sections: dict[str, Any]) -> dict[str, Any]:
@@ -319,7 +323,7 @@ def claim_speed_tracking(bus: str, f_Hz: float = 95.5, amplitude_deg_s: float = 
         ref[k] = amp * math.sin(2 * math.pi * f_Hz * (k - start) * TS)
         events.append({"at_period": k, "references": {"speed_ref_rad_s": float(ref[k])}})
     step_events = [
-        {"at_period": 100, "references": {"speed_ref_rad_s": 367.72 * DEG}},
+        {"at_period": 100, "references": {"speed_ref_rad_s": RATED_DEG_S * DEG}},
         {"at_period": 300, "motor": {"T_load_Nm": 0.0296}},
     ]
     rows = {}
@@ -329,7 +333,7 @@ def claim_speed_tracking(bus: str, f_Hz: float = 95.5, amplitude_deg_s: float = 
             lag, gain = _speed_lag(sine.tr, ref, f_Hz, start + int(per_cycle))
             step = run_raw(_speed_raw(f"zhao2022-speed-step-{law}", law, step_events, 500), bus)
             w = step.tr["drive_speed_rad_s"]
-            target = 367.72 * DEG
+            target = RATED_DEG_S * DEG
             before_load = float(np.nanmean(w[280:300]))
             dip = float(target - np.nanmin(w[300:400]))
             after = float(np.nanmean(w[460:499]))

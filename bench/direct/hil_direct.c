@@ -5,8 +5,16 @@
  * same frames in the same order: a lockstep run over vcan and a direct run of the
  * same scenario decode to identical traces. Simulated time advances by Ts per SYNC.
  *
+ * This file owns the bus and what is on it: the nodes, the fault injector between them (frozen and killed
+ * nodes), the master's frames onto the bus (hil_send, hil_sdo), the nodes' timers, simulated time and the
+ * lockstep loop (hil_run, hil_linger). Below it: what the master sees of the bus, the recorder and the master's
+ * receive queue (hil_master.c: hil_recv, hil_take), and the lock (hil_lock.c).
+ *
  * The Python side talks to the nodes as a CANopen master through hil_send/hil_recv
  * (bench/run/bus/direct.py wraps them as a python-can bus, so `canopen` works unchanged).
+ *
+ * Real time (hil_realtime.c) runs the same nodes on threads of its own: for the run it installs a delivery sink
+ * (hil_set_sink) that takes the nodes' frames for their threads; this file knows nothing else of it.
  */
 #include <stdint.h>
 #include <string.h>
@@ -20,10 +28,10 @@
 #include "od_plant.h"
 #include "plant_app.h"
 
-#include "hil_frame.h" /* hil_frame_t, 24 bytes; numpy dtype FRAME_DTYPE */
 #include "hil_internal.h"
+#include "hil_lock.h"
+#include "hil_master.h"
 
-#define MASTER_Q 1024u
 #define FROZEN_Q 4096u    /* frames waiting for a frozen node (a socket buffer's worth) */
 #define STALL_US 10000000 /* simulated time without a SYNC after which hil_run gives up */
 #define TICK_MAX_US 10000 /* node timers are looked at least this often (simulated) */
@@ -39,13 +47,6 @@ static struct {
     drive_app_t drive;
     int plant_port, drive_port;
     int64_t now_us;
-    uint32_t seq;
-    hil_frame_t *rec;
-    uint32_t rec_cap, rec_n;
-    uint64_t rec_dropped;
-    hil_frame_t mq[MASTER_Q];
-    uint32_t mq_head, mq_tail;
-    uint64_t mq_dropped;
     int running;
     fi_t fi;
     uint8_t cur_side;        /* side of the frame being passed through the injector */
@@ -55,53 +56,40 @@ static struct {
     uint32_t fz_n;
     uint64_t fz_dropped;
     int64_t next_tick_us[2]; /* when the nodes' timers next need a look */
+    const hil_sink_t *sink;  /* NULL: lockstep (the frames processed at once) */
 } H;
+
+static uint32_t g_opens; /* hil_open's count (atomic) */
+
+uint32_t hil_opens(void) { return __atomic_load_n(&g_opens, __ATOMIC_ACQUIRE); }
+
+void hil_set_sink(const hil_sink_t *sink)
+{
+    hil_lock();
+    H.sink = sink;
+    hil_unlock();
+}
 
 static co_node_t *node_of(uint8_t side) { return side == FI_SIDE_B ? &H.drive_node : &H.plant_node; }
 
-static void record(const co_frame_t *f, uint8_t sender)
+/* A frame for the frozen node: it waits for the thaw (a socket buffer's worth). */
+static void freeze(const co_frame_t *f)
 {
-    /* nobody to keep it for: no recorder, and the master does not get the loop's frames */
-    if (H.rec == NULL && (H.running || sender == CO_MEMBUS_EXTERNAL)) {
-        ++H.seq;
-        return;
-    }
-    hil_frame_t r;
-    memset(&r, 0, sizeof r);
-    r.t_us = (uint64_t)H.now_us;
-    r.seq = H.seq++;
-    r.cob_id = (uint16_t)(f->cob_id & 0x7FFu);
-    r.dlc = f->dlc;
-    r.sender = sender;
-    memcpy(r.data, f->data, f->dlc);
-    if (H.rec) {
-        if (H.rec_n < H.rec_cap)
-            H.rec[H.rec_n++] = r;
-        else
-            ++H.rec_dropped;
-    }
-    /* The master sees every frame of the nodes, like a CAN controller would, except the
-     * PDO stream of a run (it reads the recorder instead). */
-    if (sender != CO_MEMBUS_EXTERNAL && !H.running) {
-        if (H.mq_tail - H.mq_head < MASTER_Q)
-            H.mq[H.mq_tail++ % MASTER_Q] = r;
-        else
-            ++H.mq_dropped;
-    }
+    if (H.fz_n < FROZEN_Q)
+        H.fz[H.fz_n++] = *f;
+    else
+        ++H.fz_dropped;
 }
 
 static void hear(uint8_t side, const co_frame_t *f)
 {
     if (H.killed[side]) return;
     if (H.frozen[side]) {
-        if (H.fz_n < FROZEN_Q)
-            H.fz[H.fz_n++] = *f;
-        else
-            ++H.fz_dropped;
+        freeze(f);
         return;
     }
-    if (hil_rt_active) {
-        hil_rt_push(side, f, H.now_us); /* real time: the node's own thread takes it */
+    if (H.sink) {
+        H.sink->push(H.sink->user, side, f, H.now_us); /* real time: the node's own thread takes it */
         return;
     }
     co_node_process(node_of(side), f, H.now_us);
@@ -113,7 +101,7 @@ static void emit(void *user, const co_frame_t *f, uint8_t to, uint8_t from)
     (void)user;
     if (to == FI_SIDE_A) {
         /* from the drive (also when released late), or made by the injector (an NMT reset) */
-        record(f, from == FI_SIDE_B ? (uint8_t)H.drive_port : CO_MEMBUS_EXTERNAL);
+        hil_master_record(f, from == FI_SIDE_B ? (uint8_t)H.drive_port : CO_MEMBUS_EXTERNAL, H.now_us, H.running);
         hear(FI_SIDE_A, f);
     } else {
         hear(FI_SIDE_B, f);
@@ -128,11 +116,12 @@ static void node_fault(void *user, uint8_t side, uint8_t kind, int on)
         return;
     }
     H.frozen[side] = (uint8_t)on;
-    if (!on) { /* thawed: what it was sent meanwhile, in order, before anything new (in real time the drive's
-                * own thread takes them: the drive works on no other thread) */
+    if (!on) { /* thawed: what it was sent meanwhile, in order, before anything new (in real time a node that
+                * works on its own thread alone, the drive, takes them there) */
+        const hil_sink_t *to = H.sink && (H.sink->own_thread >> side & 1u) ? H.sink : NULL;
         for (uint32_t i = 0; i < H.fz_n && !H.killed[side]; ++i) {
-            if (hil_rt_active && side == FI_SIDE_B)
-                hil_rt_push(side, &H.fz[i], H.now_us);
+            if (to)
+                to->push(to->user, side, &H.fz[i], H.now_us);
             else
                 co_node_process(node_of(side), &H.fz[i], H.now_us);
         }
@@ -153,7 +142,7 @@ static void deliver(void)
         ++b->frames;
         uint8_t side = sender == CO_MEMBUS_EXTERNAL ? FI_SIDE_A : (uint8_t)SIDE_OF(sender);
         if (side == FI_SIDE_A) {
-            record(&f, sender);
+            hil_master_record(&f, sender, H.now_us, H.running);
             if (sender == CO_MEMBUS_EXTERNAL) hear(FI_SIDE_A, &f); /* the master's frame reaches the plant */
         }
         fi_frame(&H.fi, &f, side, H.now_us);
@@ -189,19 +178,14 @@ void hil_set_now_us(int64_t t_us) { H.now_us = t_us; }
 int hil_side_live(uint8_t side) { return !H.killed[side] && !H.frozen[side]; }
 int hil_side_killed(uint8_t side) { return H.killed[side]; }
 /* A frame that reached a node's inbox before the node froze: it waits with the frames sent to it since. */
-void hil_frozen_frame(const co_frame_t *f)
-{
-    if (H.fz_n < FROZEN_Q)
-        H.fz[H.fz_n++] = *f;
-    else
-        ++H.fz_dropped;
-}
+void hil_frozen_frame(const co_frame_t *f) { freeze(f); }
 void hil_set_running(int on) { H.running = on; }
 
 int hil_open(uint8_t plant_id, uint8_t drive_id)
 {
-    hil_rt_reset();
-    memset(&H, 0, sizeof H);
+    __atomic_add_fetch(&g_opens, 1u, __ATOMIC_RELEASE); /* a previous opening's stop request and counters are stale */
+    memset(&H, 0, sizeof H);                            /* no sink: lockstep */
+    hil_master_reset();
     H.now_us = 0;
     co_membus_init(&H.bus, NULL, NULL);
     fi_init(&H.fi, emit, node_fault, NULL);
@@ -227,40 +211,15 @@ int hil_faults(const char *text, char *err, uint32_t err_len) { return fi_parse_
 /* The injector's log: copies up to max events, returns how many there are in all. */
 uint32_t hil_fault_log(fi_event_t *out, uint32_t max)
 {
-    hil_rt_lock();
+    hil_lock();
     uint32_t n = H.fi.n_log < max ? H.fi.n_log : max;
     if (out != NULL && n != 0u) memcpy(out, H.fi.log, n * sizeof *out);
     uint32_t all = H.fi.n_log;
-    hil_rt_unlock();
+    hil_unlock();
     return all;
 }
 uint32_t hil_fault_event_size(void) { return (uint32_t)sizeof(fi_event_t); }
 uint64_t hil_fault_overflows(void) { return H.fi.log_overflow + H.fi.held_overflow + H.fz_dropped; }
-
-/* Recorder: every frame on the bus goes into the caller's buffer (no allocation here). */
-void hil_set_recorder(hil_frame_t *buf, uint32_t capacity)
-{
-    H.rec = buf;
-    H.rec_cap = capacity;
-    H.rec_n = 0;
-    H.rec_dropped = 0;
-}
-
-/* The frames recorded so far (their count, returned) and a fresh buffer for the next ones, in one step under
- * the bus lock (real time: the nodes' threads record while the caller takes). */
-uint32_t hil_take(hil_frame_t *buf, uint32_t capacity)
-{
-    hil_rt_lock();
-    uint32_t n = H.rec_n;
-    H.rec = buf;
-    H.rec_cap = capacity;
-    H.rec_n = 0;
-    hil_rt_unlock();
-    return n;
-}
-
-uint32_t hil_recorded(void) { return H.rec_n; }
-uint64_t hil_record_dropped(void) { return H.rec_dropped; }
 
 /* A frame from the master: queue it and deliver it (and everything it causes). */
 int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
@@ -270,10 +229,10 @@ int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
     f.cob_id = cob_id & 0x7FFu;
     f.dlc = dlc > 8 ? 8 : dlc;
     memcpy(f.data, data, f.dlc);
-    hil_rt_lock();
+    hil_lock();
     int rc = co_membus_inject(&H.bus, &f) != 0 ? -1 : 0;
     if (rc == 0) deliver();
-    hil_rt_unlock();
+    hil_unlock();
     return rc;
 }
 
@@ -284,31 +243,12 @@ int hil_send(uint16_t cob_id, const uint8_t *data, uint8_t dlc)
  * Returns 1 when answered, 0 when no answer came (a killed or frozen node), -1 when the bus queue was full. */
 int hil_sdo(uint16_t req_cob, const uint8_t req[8], uint16_t resp_cob, uint8_t resp[8])
 {
-    hil_rt_lock();
-    const uint32_t from = H.mq_tail;
+    hil_lock();
+    const uint32_t from = hil_master_mark();
     int rc = hil_send(req_cob, req, 8u);
-    if (rc == 0) {
-        for (uint32_t i = from; i != H.mq_tail; ++i) {
-            if (H.mq[i % MASTER_Q].cob_id != resp_cob || H.mq[i % MASTER_Q].dlc != 8u) continue;
-            memcpy(resp, H.mq[i % MASTER_Q].data, 8u);
-            for (uint32_t j = i; j + 1u != H.mq_tail; ++j) H.mq[j % MASTER_Q] = H.mq[(j + 1u) % MASTER_Q];
-            --H.mq_tail;
-            rc = 1;
-            break;
-        }
-    }
-    hil_rt_unlock();
+    if (rc == 0) rc = hil_master_answer(from, resp_cob, resp);
+    hil_unlock();
     return rc;
-}
-
-/* Next frame of the nodes for the master; returns 1 when one was copied. */
-int hil_recv(hil_frame_t *out)
-{
-    hil_rt_lock();
-    int got = H.mq_head != H.mq_tail;
-    if (got) *out = H.mq[H.mq_head++ % MASTER_Q];
-    hil_rt_unlock();
-    return got;
 }
 
 /* Nodes that are no longer in the loop: bit 0 the plant, bit 1 the drive (killed by a fault, or out
@@ -322,18 +262,18 @@ static uint32_t nodes_down(void)
 }
 uint32_t hil_nodes_down(void)
 {
-    hil_rt_lock();
+    hil_lock();
     const uint32_t down = nodes_down();
-    hil_rt_unlock();
+    hil_unlock();
     return down;
 }
 
 /* The node's state: 0xFF killed, else its NMT state (co_nmt_state_t). */
 uint32_t hil_node_state(uint32_t side)
 {
-    hil_rt_lock();
+    hil_lock();
     uint32_t st = H.killed[side & 1u] ? 0xFFu : (uint32_t)node_of((uint8_t)(side & 1u))->nmt;
-    hil_rt_unlock();
+    hil_unlock();
     return st;
 }
 
@@ -341,7 +281,7 @@ uint32_t hil_node_state(uint32_t side)
  * so that the survivor's reaction (its heartbeat consumer) is recorded as on a bus. */
 void hil_linger(int64_t us)
 {
-    hil_rt_lock();
+    hil_lock();
     const int64_t end = H.now_us + us;
     H.running = 1;
     while (H.now_us < end) {
@@ -353,7 +293,7 @@ void hil_linger(int64_t us)
         tick();
     }
     H.running = 0;
-    hil_rt_unlock();
+    hil_unlock();
 }
 
 /* Run the lockstep loop until the plant holds (run_periods exhausted) or max_periods
@@ -363,7 +303,7 @@ void hil_linger(int64_t us)
  * STALL_US of simulated time without a SYNC the loop gives up (the caller names the stall). */
 uint32_t hil_run(uint32_t max_periods)
 {
-    hil_rt_lock();
+    hil_lock();
     uint32_t n = 0;
     int64_t idle_since = H.now_us;
     H.running = 1;
@@ -393,11 +333,12 @@ uint32_t hil_run(uint32_t max_periods)
         tick();
     }
     H.running = 0;
-    hil_rt_unlock();
+    hil_unlock();
     return n;
 }
 
 /* Simulated time (us) and the plant's period index, for the Python side. */
 int64_t hil_now_us(void) { return H.now_us; }
 uint64_t hil_plant_period(void) { return H.plant.k; }
+uint64_t hil_bus_frames(void) { return H.bus.frames; }
 uint32_t hil_frame_size(void) { return (uint32_t)sizeof(hil_frame_t); }

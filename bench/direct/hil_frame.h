@@ -1,5 +1,5 @@
 /* hil_frame.h - the bench's frame record, shared by the direct-mode recorder
- * (hil_direct.c) and the candump log formatter/parser (hil_log.c).
+ * (hil_master.c) and the candump log formatter/parser (hil_log.c).
  * numpy dtype: FRAME_DTYPE in bench/run/bus/frames.py (must stay 24 bytes, same layout). */
 #ifndef HIL_FRAME_H
 #define HIL_FRAME_H

@@ -1,46 +1,83 @@
-/* drive_app.c - the drive firmware as a CANopen node (see drive_app.h): init, bind, the hooks
- * table and the NMT/SYNC/RPDO/reset hooks, the current step.  The other concerns are in the
- * drive_app_*.c files (drive_app_internal.h lists them).
+/* drive_app.c - the drive firmware as a CANopen node (see drive_app.h): the root of its components.  It holds
+ * the core and the components (supervision, CiA 402, the law slot, the recorders), binds them at init, and runs
+ * one period top to bottom (drive_app_period); the components return verdicts and act through the root.
  * Portable: no OS headers, no allocation, float32. */
 #include "drive_app.h"
 
 #include <string.h>
 
 #include "dq_math.h"
-#include "drive_app_internal.h"
+#include "drive_od.h"
+#include "drive_output.h"
 
-/* ------------------------------------------------------------------ current step */
+/* ------------------------------------------------------------------ what crosses components */
 
-/* The core runs for the angle, the dq currents, the speed estimate and its
- * bookkeeping; its controller output is discarded and its memory cleared (no
- * wind-up, clean restart when the loop is closed again).  Returns the trace
- * recorder, detached meanwhile: the caller samples it with its own voltages. */
-trace_recorder_t *drive_app_core_step_without_output(drive_app_t *app)
+/* 0 V now: the control's memory forgotten, the command and 0x2102 zero, sent at once (send_now) or by the step
+ * the call is made from (one command a period on the bus). */
+static void zero_command(drive_app_t *app, int send_now)
 {
-    drive_t *d = &app->drv;
-    trace_recorder_t *rec = d->trace;
-    d->trace = NULL;
-    drive_current_step(d, &app->meas, &app->cmd);
-    d->trace = rec;
-    drive_reset_controller_memory(d);
-    return rec;
+    od_drive_mfr_t *m = mfr_of(app->node);
+    drive_output_clear_memory(&app->drv);
+    drive_output_zero(&app->drv);
+    app->cmd.v_alpha_V = 0.0f;
+    app->cmd.v_beta_V = 0.0f;
+    m->x2102_voltage_command.v_alpha_V = 0.0f;
+    m->x2102_voltage_command.v_beta_V = 0.0f;
+    if (send_now) co_tpdo_request(app->node, 0);
 }
+
+/* The power stage's state changed: the statusword follows; a power stage switched off commands 0 V at once. */
+static void power_changed(drive_app_t *app, int was_powered)
+{
+    drive_cia402_latch_statusword(&app->cia);
+    if (was_powered && !drive_cia402_powered(&app->cia)) zero_command(app, 1);
+    drive_cia402_send_statusword(&app->cia);
+}
+
+/* The safe state (drive_app.h): latched by supervision, 0 V now (sent at once, or by the step it is entered
+ * in: one command a period on the bus), its EMCY, then CiA 402's FAULT with the EMCY code as the error code. */
+static void enter_safe_state(drive_app_t *app, uint8_t reason, int send_now)
+{
+    if (!drive_sup_latch(&app->sup, reason)) return;
+    zero_command(app, send_now);
+    drive_sup_safe_emcy(&app->sup);
+    if (drive_cia402_fault(&app->cia, drive_sup_safe_code(reason))) power_changed(app, 0);
+}
+
+static void leave_safe_state(drive_app_t *app)
+{
+    if (drive_sup_release(&app->sup) == (uint8_t)OD_DRIVE_REASON_NONE) return;
+    if (drive_cia402_fault_reset(&app->cia)) power_changed(app, 0);
+}
+
+/* Supervision: 0x2209:05 clear = 1 was written. */
+static void on_clear(void *root) { leave_safe_state((drive_app_t *)root); }
+
+/* CiA 402: a controlword changed the state; a fault reset leaves the safe state first. */
+static void on_cia402_change(void *root, int was_powered, int from_fault)
+{
+    drive_app_t *app = (drive_app_t *)root;
+    if (from_fault) leave_safe_state(app);
+    power_changed(app, was_powered);
+}
+
+/* ------------------------------------------------------------------ the step */
 
 static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
 {
     drive_t *d = &app->drv;
     drive_state_t *s = &d->st;
-    trace_recorder_t *rec = drive_app_core_step_without_output(app);
+    trace_recorder_t *rec = drive_output_step_without_output(d, &app->meas, &app->cmd);
 
     float vd = m->x2202_References.v_d_open_V;
     float vq = m->x2202_References.v_q_open_V;
     if (!is_finite_f(vd)) {
         vd = 0.0f;
-        ++app->safe_state.non_finite_rejected;
+        drive_sup_note_rejected(&app->sup, 1u);
     }
     if (!is_finite_f(vq)) {
         vq = 0.0f;
-        ++app->safe_state.non_finite_rejected;
+        drive_sup_note_rejected(&app->sup, 1u);
     }
     s->out.v_limited = dq_limit_voltage(&vd, &vq, d->cfg.Vmax_V, d->cfg.vlimit_radial);
     const float cs = cosf(s->theta_e_rad);
@@ -61,8 +98,6 @@ static void open_loop_step(drive_app_t *app, const od_drive_mfr_t *m)
     app->cmd.v_beta_V = s->out.v_beta_V;
 }
 
-/* ------------------------------------------------------------------ current step (continued) */
-
 /* The measurement of 0x2100 -> app->meas: a non-finite field (PDOs bypass the EDS limits) is
  * replaced by its last finite value. */
 static void take_measurement(drive_app_t *app, const od_drive_mfr_t *m)
@@ -82,13 +117,7 @@ static void take_measurement(drive_app_t *app, const od_drive_mfr_t *m)
     else
         bad |= (uint8_t)DRIVE_NON_FINITE_THETA;
     app->meas = app->meas_good;
-    app->non_finite_mask = bad;
-    if (bad == 0u) {
-        app->have_good = 1u;
-        app->good_sample_index = x->sample_index;
-    } else {
-        app->safe_state.non_finite_rejected += (uint32_t)((bad & 1u) + ((bad >> 1) & 1u) + ((bad >> 2) & 1u));
-    }
+    drive_sup_note_values(&app->sup, bad, x->sample_index);
 #undef x
 }
 
@@ -118,15 +147,29 @@ static uint8_t take_references(drive_app_t *app, const od_drive_mfr_t *m)
         d->sp.position_ref_rad = r->position_ref_rad;
     else
         ++refs_bad;
-    app->safe_state.non_finite_rejected += refs_bad;
+    drive_sup_note_rejected(&app->sup, refs_bad);
 #undef r
     return mode;
 }
 
-void drive_app_step(drive_app_t *app)
+/* A step in the safe state: the core runs (observers, speed estimate), the command is zero. */
+static void safe_step(drive_app_t *app)
+{
+    drive_t *d = &app->drv;
+    trace_recorder_t *rec = drive_output_step_without_output(d, &app->meas, &app->cmd);
+    drive_output_clear_memory(d);
+    drive_output_zero(d);
+    if (rec != NULL) trace_sample(rec, d->st.signals);
+    app->cmd.v_alpha_V = 0.0f;
+    app->cmd.v_beta_V = 0.0f;
+}
+
+/* The current step on the measurement and references of the OD: CiA 402 power -> law step, 0 V or open loop ->
+ * guard (law output, overrun) -> fault transition -> TPDO1 (and the live trace's TPDO2 when due).  Supervision
+ * counts it when it finishes the period. */
+static void step(drive_app_t *app)
 {
     co_node_t *node = app->node;
-    if (node == NULL) return;
     od_drive_mfr_t *m = mfr_of(node);
     drive_t *d = &app->drv;
 
@@ -134,161 +177,126 @@ void drive_app_step(drive_app_t *app)
     const uint8_t mode = take_references(app, m);
     app->open_loop =
         (uint8_t)(m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP || mode == OD_DRIVE_MODE_OPEN_LOOP);
-    if (m->x2200_Controller.controller != app->cost_controller) {
-        drive_app_reset_step_cost(app);
-        app->cost_controller = m->x2200_Controller.controller;
-    }
     /* CiA 402: a quick stop that has ended leaves before this command; then the mode's references */
-    drive_app_cia402_check_stopped(app, node);
-    const int powered = drive_app_cia402_references(app, m);
-    const uint32_t c0 = app->cycles_fn != NULL ? app->cycles_fn(app->cycles_user) : 0u;
-    if (app->safe_state.reason != (uint8_t)OD_DRIVE_REASON_NONE || !powered ||
-        (app->open_loop && app->cia402.state == (uint8_t)CIA402_QUICK_STOP_ACTIVE)) {
-        drive_app_safe_step(app); /* 0 V */
+    const drive_cia402_power_t power = drive_cia402_power(&app->cia, d, m);
+    if (power.stopped) power_changed(app, 0);
+    const uint32_t begin = drive_recorder_begin(&app->rec, m->x2200_Controller.controller);
+    if (drive_sup_safe(&app->sup) || !power.powered || (app->open_loop && drive_cia402_quick_stopping(&app->cia))) {
+        safe_step(app); /* 0 V */
     } else if (app->open_loop) {
         open_loop_step(app, m);
     } else {
         drive_current_step(d, &app->meas, &app->cmd); /* a law's bad command is 0 V (drive_core.h) */
         if (d->st.law_fault != (uint8_t)DRIVE_LAW_FAULT_NONE)
-            drive_app_enter_safe_state_in_step(app, node, (uint8_t)OD_DRIVE_REASON_LAW_OUTPUT);
+            enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_LAW_OUTPUT, 0);
     }
-    if (app->cycles_fn != NULL) {
-        const uint32_t cycles = app->cycles_fn(app->cycles_user) - c0;
-        drive_app_count_step_cost(app, cycles);
-        if (app->overrun_check != 0u && (float)cycles > d->cfg.Ts_s * (float)app->cycle_clock_Hz)
-            drive_app_enter_safe_state_in_step(app, node, (uint8_t)OD_DRIVE_REASON_OVERRUN);
-    }
-    ++app->drive_status.current_steps;
+    const drive_recorder_step_t rec = drive_recorder_end(&app->rec, begin);
+    if (rec.counted && app->overrun_check != 0u && (float)rec.cycles > d->cfg.Ts_s * (float)app->rec.cycle_clock_Hz)
+        enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_OVERRUN, 0);
 
     m->x2102_voltage_command.v_alpha_V = app->cmd.v_alpha_V;
     m->x2102_voltage_command.v_beta_V = app->cmd.v_beta_V;
-    co_tpdo_request(node, 0); /* event-driven: goes out now */
+    co_tpdo_request(node, 0);                   /* event-driven: goes out now */
+    if (rec.live_due) co_tpdo_request(node, 1); /* values refreshed when read */
+}
 
-    if (node->tpdo[1].valid) {
-        uint16_t dec = m->x2302_live_trace.decimation;
-        if (dec == 0u) dec = 1u;
-        if (++app->live_count >= dec) {
-            app->live_count = 0u;
-            co_tpdo_request(node, 1); /* values refreshed by pre_read */
-        }
-    }
+/* One period, on the measurement's RPDO2: supervision admits it (or not: a second copy of the sample just
+ * answered), the step, then the measurement's EMCYs after its command. */
+static void drive_app_period(drive_app_t *app)
+{
+    const uint16_t si = mfr_of(app->node)->x2100_Measurement.sample_index;
+    const drive_sup_verdict_t v = drive_sup_admit(&app->sup);
+    if (v == DRIVE_SUP_STEP) step(app);
+    drive_sup_finish(&app->sup, v, si);
 }
 
 void drive_app_current_step(drive_app_t *app)
 {
     if (app->node == NULL) return;
-    drive_app_step(app);
-    drive_app_report_non_finite(app, mfr_of(app->node)->x2100_Measurement.sample_index);
+    step(app);
+    drive_sup_finish(&app->sup, DRIVE_SUP_STEP, mfr_of(app->node)->x2100_Measurement.sample_index);
 }
 
 /* ------------------------------------------------------------------ hooks */
 
+static void hk_bind(void *user, co_node_t *node)
+{
+    drive_app_t *app = (drive_app_t *)user;
+    app->node = node;
+    drive_sup_bind(&app->sup, node, &app->drv, on_clear, app);
+    drive_cia402_bind(&app->cia, node, &app->drv, on_cia402_change, app);
+    drive_law_slot_bind(&app->law, node, &app->drv);
+    drive_recorder_bind(&app->rec, node);
+}
+
 static void hk_on_sync(void *user, co_node_t *node, uint8_t counter)
 {
     drive_app_t *app = (drive_app_t *)user;
-    if (app->rpdo1_fresh) {
-        /* the currents of the previous sample never got their RPDO2 */
-        app->rpdo1_fresh = 0u;
-        drive_app_count_late(app, DRIVE_LATE_RPDO1_WITHOUT_RPDO2, app->drive_status.last_sample_index, counter);
-    }
-    app->sync_seen = 1u;
-    app->last_sync_counter = counter;
-    /* measurement timeout: SYNCs since the last measurement */
-    if (node->nmt == CO_NMT_OPERATIONAL && app->meas_seen) {
-        if (app->syncs_without_meas < 0xFFFFu) ++app->syncs_without_meas;
-        const uint16_t n = mfr_of(node)->x2209_safe_state.meas_timeout_periods;
-        if (n != 0u && app->syncs_without_meas >= n)
-            drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_MEAS_TIMEOUT);
-    }
+    if (drive_sup_on_sync(&app->sup, counter, node->nmt == CO_NMT_OPERATIONAL))
+        enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_MEAS_TIMEOUT, 1);
 }
 
 static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
 {
     drive_app_t *app = (drive_app_t *)user;
     app->node = node;
-    if (pdo == 0u) {
-        if (app->rpdo1_fresh) {
-            od_drive_mfr_t *m = mfr_of(node);
-            drive_app_count_late(app, DRIVE_LATE_RPDO1_WITHOUT_RPDO2, m->x2100_Measurement.sample_index,
-                                 m->x2100_Measurement.sync_counter);
-        }
-        app->rpdo1_fresh = 1u;
-    } else if (pdo == 1u) {
-        drive_app_on_measurement(app, node);
-    } else if (drive_app_pdo_maps(&node->rpdo[pdo], OD_DRIVE_CONTROLWORD_IDX)) {
-        drive_app_cia402_on_controlword(app, node); /* RPDO4 by default; the target torque is read by the next step */
-    }
+    if (pdo == 0u)
+        drive_sup_on_rpdo1(&app->sup);
+    else if (pdo == 1u)
+        drive_app_period(app);
+    else if (co_pdo_maps(&node->rpdo[pdo], OD_DRIVE_CONTROLWORD_IDX))
+        drive_cia402_controlword(&app->cia); /* RPDO4 by default; the target torque is read by the next step */
     /* pdo 2 (references): read by the next step */
 }
 
 static void hk_on_nmt(void *user, co_node_t *node, co_nmt_state_t state)
 {
     drive_app_t *app = (drive_app_t *)user;
-    drive_app_reset_sequencing(app);
+    drive_sup_reset_sequencing(&app->sup);
     /* CiA 402: leaving OPERATIONAL disables the power stage (the "disable voltage" reaction of 0x6007) */
     if (state != CO_NMT_OPERATIONAL) {
-        const int was_powered = cia402_device_power_enabled(&app->cia402);
-        if (cia402_device_disable_voltage(&app->cia402)) drive_app_cia402_changed(app, node, was_powered);
+        const int was_powered = drive_cia402_powered(&app->cia);
+        if (drive_cia402_disable_voltage(&app->cia)) power_changed(app, was_powered);
     }
     /* started while the plant's heartbeat is still lost: not a state to run in */
-    if (state == CO_NMT_OPERATIONAL && drive_app_heartbeat_lost(node))
-        drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST);
-    if (state == CO_NMT_OPERATIONAL) drive_app_send_statusword(node);
+    if (state == CO_NMT_OPERATIONAL && drive_heartbeat_lost(node))
+        enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST, 1);
+    if (state == CO_NMT_OPERATIONAL) drive_cia402_send_statusword(&app->cia);
 }
 
 static void hk_on_hb_timeout(void *user, co_node_t *node, uint8_t node_id)
 {
     drive_app_t *app = (drive_app_t *)user;
     (void)node_id; /* the stack's EMCY 0x8130 names it */
-    if (node->nmt == CO_NMT_OPERATIONAL) drive_app_enter_safe_state(app, node, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST);
+    if (node->nmt == CO_NMT_OPERATIONAL) enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_HEARTBEAT_LOST, 1);
 }
 
 static void hk_on_reset(void *user, co_node_t *node, int communication_only)
 {
     drive_app_t *app = (drive_app_t *)user;
-    od_drive_mfr_t *m = mfr_of(node);
     app->node = node;
     if (!communication_only) {
         /* reset application: OD defaults -> fresh firmware core */
         drive_config_t cfg;
         drive_default_config(&cfg);
-        drive_app_law_od_to_config(m, &cfg, cfg.controller);
+        drive_law_slot_od_to_config(mfr_of(node), &cfg, cfg.controller);
         drive_init(&app->drv, &cfg);
-        if (drive_app_law_sync(app)) drive_apply_config(&app->drv);
-        trace_init(&app->trace);
-        drive_attach_trace(&app->drv, &app->trace);
-        app->drive_status.current_steps = app->drive_status.lost_measurements = app->drive_status.late_measurements =
-            app->emcy_raised = 0u;
-        app->meas_error_active = 0u;
-        app->safe_state.entries = 0u;
-        app->safe_state.entered_at_sample = 0u;
-        app->have_good = 0u;
-        app->good_sample_index = 0u;
-        app->safe_state.non_finite_rejected = 0u;
+        if (drive_law_slot_sync(&app->law)) drive_apply_config(&app->drv);
+        drive_recorder_reset(&app->rec);
         memset(&app->meas_good, 0, sizeof app->meas_good);
         app->open_loop = 0u;
-        app->trace_linear = 0u;
-        app->live_count = 0u;
-        drive_app_reset_step_cost(app);
         memset(&app->meas, 0, sizeof app->meas);
         memset(&app->cmd, 0, sizeof app->cmd);
     }
-    drive_app_reset_sequencing(app);
-    /* both resets leave the safe state (the stack has forgotten the active EMCYs), and the
-     * CiA 402 state machine starts again in SWITCH ON DISABLED */
-    app->safe_state.reason = (uint8_t)OD_DRIVE_REASON_NONE;
-    drive_app_cia402_reset(app, node);
-    app->non_finite_mask = 0u;
-    app->non_finite_active = 0u;
-    m->x2301_trace_buffer.data = (uint8_t *)app->trace.buffer;
-    m->x2301_trace_buffer.size = 0u;
-    m->x2301_trace_buffer.capacity = 0u;
+    /* both resets leave the safe state (the stack has forgotten the active EMCYs), and the CiA 402 state
+     * machine starts again in SWITCH ON DISABLED */
+    drive_sup_reset(&app->sup, !communication_only);
+    drive_cia402_reset(&app->cia);
+    drive_recorder_publish_buffer(&app->rec);
 }
 
 static const co_hooks_t g_hooks = {
-    .pre_write = drive_app_od_pre_write,
-    .post_write = drive_app_od_post_write,
-    .pre_read = drive_app_od_pre_read,
+    .bind = hk_bind,
     .on_sync = hk_on_sync,
     .on_rpdo = hk_on_rpdo,
     .on_nmt = hk_on_nmt,
@@ -306,18 +314,14 @@ void drive_app_init(drive_app_t *app)
     drive_config_t cfg;
     drive_default_config(&cfg);
     drive_init(&app->drv, &cfg);
-    trace_init(&app->trace);
-    drive_attach_trace(&app->drv, &app->trace);
+    drive_recorder_init(&app->rec, &app->drv);
 }
 
 void drive_app_bind(drive_app_t *app, co_node_t *node) { app->node = node; }
 
 void drive_app_set_cycle_counter(drive_app_t *app, drive_app_cycles_fn fn, void *user, uint32_t clock_Hz)
 {
-    app->cycles_fn = fn;
-    app->cycles_user = user;
-    app->cycle_clock_Hz = clock_Hz;
-    drive_app_reset_step_cost(app);
+    drive_recorder_set_cycle_counter(&app->rec, fn, user, clock_Hz);
 }
 
 void drive_app_set_overrun_check(drive_app_t *app, uint8_t on) { app->overrun_check = on; }
@@ -325,7 +329,7 @@ void drive_app_set_overrun_check(drive_app_t *app, uint8_t on) { app->overrun_ch
 void drive_app_load_config(drive_app_t *app)
 {
     if (app->node == NULL) return;
-    drive_app_law_od_to_config(mfr_of(app->node), &app->drv.cfg, app->drv.cfg.controller);
-    (void)drive_app_law_sync(app);
+    drive_law_slot_od_to_config(mfr_of(app->node), &app->drv.cfg, app->drv.cfg.controller);
+    (void)drive_law_slot_sync(&app->law);
     drive_apply_config(&app->drv);
 }

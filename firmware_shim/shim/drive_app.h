@@ -6,8 +6,8 @@
  *
  *   drive_app_t app;
  *   drive_app_init(&app);                                   // before co_node_init
- *   co_node_init(&node, &od_drive, id, tx, tx_user, drive_app_hooks(), &app, now);
- *   drive_app_bind(&app, &node);                            // after
+ *   co_node_init(&node, &od_drive, id, tx, tx_user, drive_app_hooks(), &app, now);  // binds the objects
+ *   drive_app_bind(&app, &node);                            // after (optional: the bind hook did it)
  *   drive_app_set_cycle_counter(&app, fn, user, clock_Hz);  // optional, any time
  *
  * Data flow (docs/ARCHITECTURE.md):
@@ -16,12 +16,21 @@
  *   current step -> 0x2102 -> TPDO1 {v_alpha_V, v_beta_V} sent at once
  *   bench RPDO3 {iq_ref_A, id_ref_A} or SDO -> 0x2202 (read at every step)
  *
+ * The app is a root of components (docs/ARCHITECTURE.md), each owning its state and binding its own objects
+ * (co_od_ext_t, co_node_bind) at init, none running the step:
+ *   drive_supervision.h  measurement sequence, non-finite values, safe-state latch, EMCYs (0x2204, 0x2209)
+ *   drive_cia402.h       CiA 402 state machine and objects (0x603F-0x6078)
+ *   drive_law_slot.h     the parameter records and every current law's record (0x2200-0x2203, the laws')
+ *   drive_recorder.h     trace recorder, live trace, step cost (0x2300-0x2302, 0x2208)
+ * One period reads top to bottom in drive_app.c (drive_app_period): admit the measurement -> CiA 402 power ->
+ * law step, 0 V or open loop -> guard (law output, overrun) -> fault transition -> TPDO -> deferred EMCYs.
+ *
  * Configuration: the OD (0x2200-0x2203) is the source of truth.  An accepted
- * SDO write is copied into drive_t.cfg in the post_write hook; the mismatch
+ * SDO write is copied into drive_t.cfg when it is written (the law slot); the mismatch
  * knobs (R_hat, Ld_hat, Lq_hat, psi_hat), the controller and the tuning
  * switch are watched by the core and take effect at the next step, any other
  * field through drive_apply_config() (also at the next step).  Invalid
- * combinations are refused in pre_write with SDO abort 0x06040043.
+ * combinations are refused by the check of the write with SDO abort 0x06040043.
  *
  * Controllers (0x2200:01): 0 is the app's open loop; every other value is a
  *   current law of the registry (firmware_shim/core/current_law.h, generated
@@ -30,10 +39,10 @@
  *   (single_inductance) while |Ld_hat_H - Lq_hat_H| > 5 % of Lq_hat_H.
  *
  * A law's EDS record (CurrentLaws key of its section): its parameters reach
- *   the law like the drive's (post_write, next step); the law checks them
- *   (pre_write, abort 0x06040043); its commands (entries that read back 0) act
+ *   the law like the drive's (when written, next step); the law checks them
+ *   (abort 0x06040043); its commands (entries that read back 0) act
  *   at once (current_law_t.command); its status entries are written by the
- *   law on every read (pre_read).
+ *   law on every read.
  *
  * Measurement supervision (counted in 0x2204, never silently skipped):
  *   lost (0x2204:02)  gap in sample_index (modulo 65536): every missing sample
@@ -145,140 +154,47 @@
 
 #include <stdint.h>
 
-#include "cia402_device.h"
 #include "co_node.h"
+#include "drive_cia402.h"
 #include "drive_core.h"
+#include "drive_law_slot.h"
+#include "drive_recorder.h"
 /* The drive's manufacturer-specific EMCY codes (CiA 301 0xFF00-0xFFFF), DRIVE_EMCY_*: generated from the
- * [EmergencyCodes] of drive.eds by protocols/gen_od.py. */
+ * [EmergencyCodes] of drive.eds by protocols/gen_od.py; the late reasons and non-finite fields of their MSEFs,
+ * DRIVE_LATE_* and DRIVE_NON_FINITE_*: drive_supervision.h. */
+#include "drive_supervision.h"
 #include "od_drive_fields.h"
-#include "trace_recorder.h"
-
-/* Reasons in byte 2 of the MSEF of DRIVE_EMCY_MEAS_LATE. */
-enum {
-    DRIVE_LATE_RPDO1_WITHOUT_RPDO2 = 1,
-    DRIVE_LATE_RPDO2_WITHOUT_RPDO1 = 2,
-    DRIVE_LATE_DUPLICATE_OR_OLD = 3,
-    DRIVE_LATE_SYNC_MISMATCH = 4
-};
-
-/* Fields in byte 2 of the MSEF of DRIVE_EMCY_NON_FINITE. */
-enum { DRIVE_NON_FINITE_I_A = 0x01, DRIVE_NON_FINITE_I_B = 0x02, DRIVE_NON_FINITE_THETA = 0x04 };
 
 /* The reasons of 0x2209:02 (and byte 2 of the MSEF of 0xFF03/0xFF04) are
  * OD_DRIVE_REASON_NONE, _MEAS_TIMEOUT, _HEARTBEAT_LOST (od_drive_fields.h). */
 
-#define DRIVE_APP_PENDING_EMCY 4u
-
-/* A free-running cycle counter of the target (wraps modulo 2^32): DWT CYCCNT,
- * SysTick, clock_gettime in ns.  Read before and after every current step; the
- * difference is published in 0x2208 Step cost. */
-typedef uint32_t (*drive_app_cycles_fn)(void *user);
-
-/* The read-only entries of the status records, named as in drive.eds: the app keeps its counts in
- * them, and a read of the record copies them to the OD with the list od_drive_fields.h generates
- * (OD_DRIVE_<RECORD>_STATUS), so an entry's name is written once, in the EDS.  Values the app does
- * not count (the core's currents, the mean, the trace's size) are taken just before the copy. */
-typedef struct { /* 0x2204 Drive status */
-    uint32_t current_steps;
-    uint32_t lost_measurements;
-    uint32_t late_measurements;
-    float id_A; /* id_A .. iq_ref_active_A: the core's, at the read */
-    float iq_A;
-    float speed_rad_s;
-    float iq_ref_active_A;
-    uint16_t last_sample_index; /* also the sequencing's last sample */
-} drive_app_drive_status_t;
-
-typedef struct {               /* 0x2208 Step cost */
-    uint32_t step_cycles_last; /* REAL32 in the OD */
-    uint32_t step_cycles_max;  /* REAL32 in the OD */
-    float step_cycles_mean;    /* at the read: sum / steps_measured */
-    uint32_t cycle_clock_Hz;   /* at the read: 0 without a counter */
-    uint32_t steps_measured;
-} drive_app_step_cost_t;
-
-typedef struct {    /* 0x2209 Safe state */
-    uint8_t reason; /* OD_DRIVE_REASON_*: NONE = not in the safe state */
-    uint32_t entries;
-    uint16_t entered_at_sample;
-    uint32_t non_finite_rejected;
-} drive_app_safe_state_t;
-
-typedef struct { /* 0x2300 Trace, at the read */
-    uint32_t captured_bytes;
-    uint32_t trigger_row;
-} drive_app_trace_status_t;
-
 typedef struct {
-    drive_t drv;            /* firmware core */
-    trace_recorder_t trace; /* oscilloscope buffer, exposed as 0x2301 */
-    co_node_t *node;        /* set by drive_app_bind */
+    drive_t drv;     /* firmware core */
+    co_node_t *node; /* set when co_node_init binds the app (hooks.bind) */
+
+    /* the components, each with its state and its objects */
+    drive_supervision_t sup;
+    drive_cia402_t cia;
+    drive_law_slot_t law;
+    drive_recorder_t rec;
 
     /* last inputs / output of the current step */
     drive_meas_t meas;
     drive_cmd_t cmd;
-
-    /* counters (0x2204; last_sample_index: valid with have_last) */
-    drive_app_drive_status_t drive_status;
-    uint32_t emcy_raised; /* EMCY 0xFF01/0xFF02 raised */
-
-    /* measurement sequencing */
-    uint8_t rpdo1_fresh; /* RPDO1 seen, waiting for its RPDO2 */
-    uint8_t have_last;   /* drive_status.last_sample_index valid */
-    uint8_t old_run;     /* consecutive duplicate/old sample_index */
-    uint8_t sync_seen;   /* a SYNC was received since OPERATIONAL */
-    uint8_t last_sync_counter;
-    uint8_t meas_error_active; /* an 0xFF01/0xFF02 error is active */
-
-    /* EMCYs of the measurement being handled, sent after its command */
-    uint8_t defer_emcy;
-    uint8_t n_pending;
-    uint16_t pending_code[DRIVE_APP_PENDING_EMCY];
-    uint8_t pending_msef[DRIVE_APP_PENDING_EMCY][5];
-
-    /* safe state (0x2209; with non_finite_rejected below) */
-    drive_app_safe_state_t safe_state;
-    uint16_t syncs_without_meas; /* SYNCs since the last measurement (saturates) */
-    uint8_t meas_seen;           /* a measurement arrived since the NMT state changed */
-    uint8_t have_good;           /* good_sample_index valid */
-    uint16_t good_sample_index;  /* sample_index of the last step on finite measurement values */
-
-    /* non-finite values received by PDO */
-    drive_meas_t meas_good;    /* last finite value of each measurement field */
-    uint8_t non_finite_mask;   /* DRIVE_NON_FINITE_* replaced in the last step */
-    uint8_t non_finite_active; /* EMCY 0xFF05 active */
+    drive_meas_t meas_good; /* last finite value of each measurement field */
 
     /* open loop active in the last step (0x2200:01 = 0 or 0x2202:01 = 3) */
     uint8_t open_loop;
-
-    /* CiA 402 power drive system (0x6040/0x6041): only OPERATION ENABLED and QUICK STOP ACTIVE let
-     * the control act on the motor */
-    cia402_device_t cia402;
-
-    /* trace buffer linearised in place for the DOMAIN upload */
-    uint8_t trace_linear;
-    drive_app_trace_status_t trace_status;
-
-    /* live trace (TPDO2) decimation counter */
-    uint16_t live_count;
-
-    /* step cost (0x2208): NULL counter -> all 0 */
-    drive_app_cycles_fn cycles_fn;
-    void *cycles_user;
-    uint32_t cycle_clock_Hz;
     uint8_t overrun_check; /* 1: a step longer than Ts_s by the counter enters the safe state (overrun) */
-    drive_app_step_cost_t step_cost;
-    uint64_t step_cycles_sum;
-    uint8_t cost_controller; /* 0x2200:01 of the steps measured (a new one resets the statistics) */
 } drive_app_t;
 
-/* Hooks for co_node_init (user = drive_app_t *). */
+/* Hooks for co_node_init (user = drive_app_t *); their bind hook binds the components' objects. */
 const co_hooks_t *drive_app_hooks(void);
 
 /* Before co_node_init: core defaults, trace recorder. */
 void drive_app_init(drive_app_t *app);
 
-/* After co_node_init: remembers the node. */
+/* After co_node_init: remembers the node (co_node_init's bind hook already did, and bound the objects). */
 void drive_app_bind(drive_app_t *app, co_node_t *node);
 
 /* The target's cycle counter and its frequency for 0x2208 Step cost (fn NULL:
@@ -292,12 +208,12 @@ void drive_app_set_cycle_counter(drive_app_t *app, drive_app_cycles_fn fn, void 
  * process's clock counts the time it was preempted too. */
 void drive_app_set_overrun_check(drive_app_t *app, uint8_t on);
 
-/* Run one current step on the measurement held in 0x2100 (what the RPDO2 hook
- * does; public for drivers that receive the measurement otherwise). */
+/* Run one current step on the measurement held in 0x2100 (what RPDO2 does, without the measurement's
+ * supervision; public for drivers that receive the measurement otherwise). */
 void drive_app_current_step(drive_app_t *app);
 
 /* Load the whole drive configuration from the OD into app->drv.cfg and mark
- * it for drive_apply_config (normally done by the hooks). */
+ * it for drive_apply_config (normally done when the records are written). */
 void drive_app_load_config(drive_app_t *app);
 
 #endif /* DRIVE_APP_H */

@@ -100,7 +100,7 @@ int main(int argc, char **argv)
     int rc = co_runtime_run(&g_rt);
     co_runtime_close(&g_rt);
     fprintf(stderr, "%s: stopped: %u current steps, %u lost, %u late measurements, %u frames in\n", prog,
-            (unsigned)g_app.drive_status.current_steps, (unsigned)g_app.drive_status.lost_measurements,
-            (unsigned)g_app.drive_status.late_measurements, (unsigned)g_rt.frames_in);
+            (unsigned)g_app.sup.drive_status.current_steps, (unsigned)g_app.sup.drive_status.lost_measurements,
+            (unsigned)g_app.sup.drive_status.late_measurements, (unsigned)g_rt.frames_in);
     return rc;
 }

@@ -48,7 +48,7 @@ static inline void enable_drive(void)
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0006u) == 0);
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0007u) == 0);
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x000Fu) == 0);
-    CHECK_TRUE(g_app.cia402.state == CIA402_OPERATION_ENABLED);
+    CHECK_TRUE(g_app.cia.dev.state == CIA402_OPERATION_ENABLED);
     testbus_clear(&g_tb);
 }
 

@@ -230,7 +230,7 @@ static void test_faults(void)
     rpdo4(0x0080u, 0);
     CHECK_TRUE(tpdo3_statusword() >= 0 && ((uint16_t)tpdo3_statusword() & 0x4Fu) == 0x40u);
     CHECK_TRUE(state_is(0x4Fu, 0x40u)); /* the first 0x80 after 0: a rising edge */
-    CHECK_TRUE(sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == 0u && g_app.safe_state.reason == 0u);
+    CHECK_TRUE(sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == 0u && g_app.sup.safe_state.reason == 0u);
     enable_drive();
     CHECK_TRUE(!zero_cmd(k++));
     /* a second fault with bit 7 still high in the last controlword: 0x80 again is not an edge */
@@ -262,7 +262,7 @@ static void test_faults(void)
     g_tb.now_us += 60000; /* 60 ms later: the consumer time (50 ms) is over */
     co_node_tick(&g_tb.node, g_tb.now_us);
     testbus_deliver(&g_tb);
-    CHECK_TRUE(g_app.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST);
+    CHECK_TRUE(g_app.sup.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST);
     CHECK_TRUE(state_is(0x4Fu, 0x08u) && sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == DRIVE_EMCY_SAFE_HEARTBEAT);
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0000u) == 0);
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0080u) == 0);
@@ -270,7 +270,7 @@ static void test_faults(void)
     testbus_clear(&g_tb);
     inject(0x710, 1, &hb);
     deliver();
-    CHECK_TRUE(g_app.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST); /* the cause is gone, the fault stays */
+    CHECK_TRUE(g_app.sup.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST); /* the cause is gone, the fault stays */
     CHECK_TRUE(sdo_write_u16(OD_DRIVE_CONTROLWORD_IDX, 0, 0x0080u) == 0);
     CHECK_TRUE(tpdo3_statusword() == -1);
     CHECK_TRUE(state_is(0x4Fu, 0x08u)); /* bit 7 held: no edge, no reset (the refused one consumed it) */
@@ -293,7 +293,7 @@ static void test_nmt(void)
     testbus_clear(&g_tb);
     inject(0x000, 2, preop);
     deliver();
-    CHECK_TRUE(g_app.cia402.state == CIA402_SWITCH_ON_DISABLED);
+    CHECK_TRUE(g_app.cia.dev.state == CIA402_SWITCH_ON_DISABLED);
     inject(0x000, 2, start);
     deliver();
     CHECK_TRUE(state_is(0x4Fu, 0x40u) && zero_cmd(k++)); /* stays disabled after NMT start */
@@ -301,7 +301,7 @@ static void test_nmt(void)
     enable_drive();
     inject(0x000, 2, reset_node);
     deliver();
-    CHECK_TRUE(g_app.cia402.state == CIA402_SWITCH_ON_DISABLED);
+    CHECK_TRUE(g_app.cia.dev.state == CIA402_SWITCH_ON_DISABLED);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_MODES_OF_OPERATION_DISPLAY_IDX, 0) == 0xFFu); /* -1 */
     printf("(e) NMT pre-operational while enabled -> SWITCH ON DISABLED (0 V after restart); reset node -> "
            "SWITCH ON DISABLED, mode -1\n");

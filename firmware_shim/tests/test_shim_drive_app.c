@@ -71,8 +71,8 @@ static void test_bit_identical(void)
     }
     CHECK_TRUE(frames == N);
     CHECK_TRUE(identical == N);
-    CHECK_TRUE(g_app.drive_status.current_steps == (uint32_t)N);
-    CHECK_TRUE(g_app.drive_status.lost_measurements == 0u && g_app.drive_status.late_measurements == 0u);
+    CHECK_TRUE(g_app.sup.drive_status.current_steps == (uint32_t)N);
+    CHECK_TRUE(g_app.sup.drive_status.lost_measurements == 0u && g_app.sup.drive_status.late_measurements == 0u);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_DRIVE_STATUS_IDX, OD_DRIVE_DRIVE_STATUS_CURRENT_STEPS_SUB) == (uint32_t)N);
     float iq = sdo_read_f32(OD_DRIVE_DRIVE_STATUS_IDX, OD_DRIVE_DRIVE_STATUS_IQ_A_SUB);
     CHECK_TRUE(testbus_same_f32(iq, ref.st.i_q_A));
@@ -104,7 +104,7 @@ static void test_lost_late(void)
     setup(STEP_US);
     drive_meas_t m = {0.1f, -0.05f, 0.3f};
     for (uint16_t k = 0; k < 10; ++k) CHECK_TRUE(sample(&m, k) != NULL);
-    CHECK_TRUE(g_app.drive_status.lost_measurements == 0u && g_app.drive_status.late_measurements == 0u);
+    CHECK_TRUE(g_app.sup.drive_status.lost_measurements == 0u && g_app.sup.drive_status.late_measurements == 0u);
 
     /* sample 10 (SYNC + both PDOs) never arrives: only its SYNC */
     next_sync();
@@ -120,7 +120,7 @@ static void test_lost_late(void)
     CHECK_TRUE(count_emcy(DRIVE_EMCY_MEAS_LOST, msef) == 1);
     CHECK_TRUE(find(COB_EMCY, 0) > f); /* the command goes out first */
     CHECK_TRUE(msef[0] == 11 && msef[1] == 0 && msef[2] == 1 && msef[3] == 0);
-    CHECK_TRUE(g_app.drive_status.lost_measurements == 1u);
+    CHECK_TRUE(g_app.sup.drive_status.lost_measurements == 1u);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_DRIVE_STATUS_IDX, OD_DRIVE_DRIVE_STATUS_LOST_MEASUREMENTS_SUB) == 1u);
     uint8_t reg[4];
     CHECK_TRUE(sdo_read(0x1001, 0, reg) == 0 && (reg[0] & 0x91u) == 0x91u); /* generic+communication+manufacturer */
@@ -128,7 +128,7 @@ static void test_lost_late(void)
     /* a gap of 5 (12..16 missing) in one go */
     CHECK_TRUE(sample(&m, 17) != NULL);
     CHECK_TRUE(count_emcy(DRIVE_EMCY_MEAS_LOST, msef) == 1 && msef[2] == 5);
-    CHECK_TRUE(g_app.drive_status.lost_measurements == 6u);
+    CHECK_TRUE(g_app.sup.drive_status.lost_measurements == 6u);
     /* next good one clears the error: EMCY 0x0000 */
     CHECK_TRUE(sample(&m, 18) != NULL);
     CHECK_TRUE(count_emcy(0x0000, NULL) == 1);
@@ -140,27 +140,27 @@ static void test_lost_late(void)
     CHECK_TRUE(f != NULL);
     CHECK_TRUE(count_emcy(DRIVE_EMCY_MEAS_LATE, msef) == 1 && msef[2] == DRIVE_LATE_RPDO1_WITHOUT_RPDO2);
     CHECK_TRUE(count_emcy(DRIVE_EMCY_MEAS_LOST, NULL) == 1); /* and 19 is missing from the sequence */
-    CHECK_TRUE(g_app.drive_status.late_measurements == 1u && g_app.drive_status.lost_measurements == 7u);
+    CHECK_TRUE(g_app.sup.drive_status.late_measurements == 1u && g_app.sup.drive_status.lost_measurements == 7u);
     /* RPDO2 without a fresh RPDO1: still a step (command), counted late */
     f = sample_ex(&m, 21, 0, 1);
     CHECK_TRUE(f != NULL);
     CHECK_TRUE(count_emcy(DRIVE_EMCY_MEAS_LATE, msef) == 1 && msef[2] == DRIVE_LATE_RPDO2_WITHOUT_RPDO1);
-    CHECK_TRUE(g_app.drive_status.late_measurements == 2u);
+    CHECK_TRUE(g_app.sup.drive_status.late_measurements == 2u);
     /* duplicate sample_index: counted late, no second step (its command is out) */
     CHECK_TRUE(sample(&m, 21) == NULL);
     CHECK_TRUE(count_emcy(DRIVE_EMCY_MEAS_LATE, msef) == 1 && msef[2] == DRIVE_LATE_DUPLICATE_OR_OLD);
-    CHECK_TRUE(g_app.drive_status.late_measurements == 3u && g_app.drive_status.lost_measurements == 7u);
+    CHECK_TRUE(g_app.sup.drive_status.late_measurements == 3u && g_app.sup.drive_status.lost_measurements == 7u);
     CHECK_TRUE(sample(&m, 22) != NULL);
     CHECK_TRUE(count_emcy(0x0000, NULL) == 1);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_DRIVE_STATUS_IDX, OD_DRIVE_DRIVE_STATUS_LATE_MEASUREMENTS_SUB) == 3u);
     /* sample_index wraps 65535 -> 0 without loss */
     CHECK_TRUE(sample(&m, 23) != NULL);
-    g_app.drive_status.last_sample_index = 65535u; /* jump the sequence there */
+    g_app.sup.drive_status.last_sample_index = 65535u; /* jump the sequence there */
     CHECK_TRUE(sample(&m, 0) != NULL);
-    CHECK_TRUE(g_app.drive_status.lost_measurements == 7u && g_app.drive_status.late_measurements == 3u);
+    CHECK_TRUE(g_app.sup.drive_status.lost_measurements == 7u && g_app.sup.drive_status.late_measurements == 3u);
     printf(
         "(b) lost = %u (gaps 1 + 5 + 1), late = %u (RPDO1 alone, RPDO2 alone, duplicate), EMCY 0xFF01/0xFF02 + reset\n",
-        (unsigned)g_app.drive_status.lost_measurements, (unsigned)g_app.drive_status.late_measurements);
+        (unsigned)g_app.sup.drive_status.lost_measurements, (unsigned)g_app.sup.drive_status.late_measurements);
 }
 
 /* ------------------------------------------------------------------ (c) */
@@ -279,7 +279,7 @@ static void test_trace(void)
         CHECK_TRUE(sample(&m, (uint16_t)k) != NULL);
         for (int c = 0; c < TR_CH; ++c) g_sig[k][c] = drive_signal(&g_app.drv, (trace_signal_t)sigs[c]);
         ++steps;
-        if (g_app.trace.status == TRACE_DONE) break;
+        if (g_app.rec.trace.status == TRACE_DONE) break;
     }
     CHECK_TRUE(steps == trig_step + (int)(depth - pre)); /* rows after the trigger incl. itself */
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_TRACE_IDX, OD_DRIVE_TRACE_STATE_SUB) == 3u);

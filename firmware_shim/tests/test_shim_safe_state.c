@@ -97,7 +97,7 @@ static uint32_t write_clear(uint8_t v)
  * again as a master does. */
 static void reenable(void)
 {
-    CHECK_TRUE(g_app.cia402.state == CIA402_SWITCH_ON_DISABLED);
+    CHECK_TRUE(g_app.cia.dev.state == CIA402_SWITCH_ON_DISABLED);
     CHECK_TRUE((sdo_read_u32(OD_DRIVE_STATUSWORD_IDX, 0) & 0x4Fu) == 0x40u);
     CHECK_TRUE(sdo_read_u32(OD_DRIVE_ERROR_CODE_IDX, 0) == 0u);
     enable_drive();
@@ -166,9 +166,9 @@ static void test_meas_timeout_and_clear(void)
 
     /* SYNCs without their measurement: nothing at the 1st and 2nd (not one earlier) */
     CHECK_TRUE(sync_only() == 0u);
-    CHECK_TRUE(g_app.safe_state.reason == 0u && g_app.syncs_without_meas == 1u);
+    CHECK_TRUE(g_app.sup.safe_state.reason == 0u && g_app.sup.syncs_without_meas == 1u);
     CHECK_TRUE(sync_only() == 0u);
-    CHECK_TRUE(g_app.safe_state.reason == 0u && g_app.syncs_without_meas == 2u);
+    CHECK_TRUE(g_app.sup.safe_state.reason == 0u && g_app.sup.syncs_without_meas == 2u);
     /* the 3rd: zero-voltage command at once, then EMCY 0xFF03 */
     CHECK_TRUE(sync_only() == 2u);
     const co_frame_t *cmd = find(COB_CMD, 0);
@@ -189,14 +189,14 @@ static void test_meas_timeout_and_clear(void)
     CHECK_TRUE(sdo_read_u32(0x1003, 1) == DRIVE_EMCY_SAFE_MEAS_TIMEOUT);
     /* latched: more SYNCs send nothing more */
     CHECK_TRUE(sync_only() == 0u);
-    CHECK_TRUE(g_app.safe_state.entries == 1u);
+    CHECK_TRUE(g_app.sup.safe_state.entries == 1u);
     /* the reference saw the same: no steps for the lost samples */
     ref_clear(&ref); /* (the entry clears the memories too) */
     k = (uint16_t)(k + 4u);
 
     /* (a) in the safe state: every measurement runs a step, the command is zero */
-    const uint32_t steps0 = g_app.drive_status.current_steps;
-    const uint32_t rows0 = g_app.trace.rows_written;
+    const uint32_t steps0 = g_app.sup.drive_status.current_steps;
+    const uint32_t rows0 = g_app.rec.trace.rows_written;
     int zero_cmds = 0, same_core = 0;
     for (int i = 0; i < 12; ++i, ++k) {
         const drive_meas_t m = meas_of(k - k0);
@@ -212,14 +212,14 @@ static void test_meas_timeout_and_clear(void)
         CHECK_TRUE(zero_f(drive_signal(&g_app.drv, TRACE_SIG_V_ALPHA)) &&
                    zero_f(drive_signal(&g_app.drv, TRACE_SIG_V_BETA)) &&
                    zero_f(drive_signal(&g_app.drv, TRACE_SIG_VQ)) && zero_f(drive_signal(&g_app.drv, TRACE_SIG_VD)));
-        const trace_recorder_t *tr = &g_app.trace;
+        const trace_recorder_t *tr = &g_app.rec.trace;
         const uint32_t row = (tr->head + tr->depth - 1u) % tr->depth; /* the row this step wrote */
         CHECK_TRUE(zero_f(tr->buffer[row * 2u]) && testbus_same_f32(tr->buffer[row * 2u + 1u], ref.st.i_q_A));
         CHECK_TRUE(find(COB_EMCY, 0) == NULL || i == 0); /* only the lost samples' 0xFF01 at the first */
     }
     CHECK_TRUE(zero_cmds == 12 && same_core == 12);
-    CHECK_TRUE(g_app.drive_status.current_steps - steps0 == 12u && g_app.trace.rows_written - rows0 == 12u);
-    CHECK_TRUE(g_app.safe_state.entries == 1u && g_app.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
+    CHECK_TRUE(g_app.sup.drive_status.current_steps - steps0 == 12u && g_app.rec.trace.rows_written - rows0 == 12u);
+    CHECK_TRUE(g_app.sup.safe_state.entries == 1u && g_app.sup.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
 
     /* NMT pre-operational -> operational does not leave it */
     const uint8_t preop[2] = {0x80, 0x00}, start[2] = {0x01, 0x00};
@@ -228,13 +228,13 @@ static void test_meas_timeout_and_clear(void)
     deliver();
     inject(0x000, 2, start);
     deliver();
-    CHECK_TRUE(g_tb.node.nmt == CO_NMT_OPERATIONAL && g_app.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
+    CHECK_TRUE(g_tb.node.nmt == CO_NMT_OPERATIONAL && g_app.sup.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
 
     /* (b) clear: 0 is no action (a read value written back), values above 1 abort, 1 leaves (EMCY 0x0000:
      * nothing else active) */
     CHECK_TRUE(write_clear(0) == 0);
     CHECK_TRUE(write_clear(2) == CO_ABORT_INVALID_VALUE);
-    CHECK_TRUE(g_app.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
+    CHECK_TRUE(g_app.sup.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
     CHECK_TRUE(write_clear(1) == 0);
     CHECK_TRUE(count_emcy(0x0000, NULL, &reg) == 1 && reg == 0u);
     CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_REASON_SUB) == 0u);
@@ -267,7 +267,7 @@ static void test_meas_timeout_and_clear(void)
     testbus_clear(&g_tb);
     inject(0x000, 2, reset_comm);
     deliver();
-    CHECK_TRUE(g_tb.node.nmt == CO_NMT_PRE_OPERATIONAL && g_app.safe_state.reason == 0u);
+    CHECK_TRUE(g_tb.node.nmt == CO_NMT_PRE_OPERATIONAL && g_app.sup.safe_state.reason == 0u);
     CHECK_TRUE(read_safe(OD_DRIVE_SAFE_STATE_REASON_SUB) == 0u && read_safe(OD_DRIVE_SAFE_STATE_ENTRIES_SUB) == 2u);
     testbus_clear(&g_tb);
     inject(0x000, 2, reset_node);
@@ -300,7 +300,7 @@ static void test_speed_mode_no_windup(void)
     }
     CHECK_TRUE(g_app.drv.outer.integ_A > 0.0f && g_app.drv.outer.iq_ref_A > 0.0f);
     for (int i = 0; i < 3; ++i) sync_only();
-    CHECK_TRUE(g_app.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
+    CHECK_TRUE(g_app.sup.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
     ref_clear(&ref);
     k = (uint16_t)(k + 3u);
     int clean = 0;
@@ -338,7 +338,7 @@ static void test_timeout_disabled(void)
     }
     uint32_t sent = 0;
     for (int i = 0; i < 50; ++i) sent += sync_only();
-    CHECK_TRUE(sent == 0u && g_app.safe_state.reason == 0u && g_app.safe_state.entries == 0u);
+    CHECK_TRUE(sent == 0u && g_app.sup.safe_state.reason == 0u && g_app.sup.safe_state.entries == 0u);
     const drive_meas_t m = meas_of(53);
     const co_frame_t *f = sample(&m, 53);
     CHECK_TRUE(f != NULL && !cmd_is(f, 0.0f, 0.0f));
@@ -363,11 +363,11 @@ static void test_holding_disarms(void)
     g_meas_status = 0u;
     uint32_t sent = 0;
     for (int i = 0; i < 10; ++i) sent += sync_only();
-    CHECK_TRUE(sent == 0u && g_app.safe_state.reason == 0u);
+    CHECK_TRUE(sent == 0u && g_app.sup.safe_state.reason == 0u);
     const drive_meas_t m = meas_of(3);
     CHECK_TRUE(sample(&m, 3) != NULL); /* the next segment: armed again */
     CHECK_TRUE(sync_only() == 0u && sync_only() == 0u);
-    CHECK_TRUE(sync_only() == 2u && g_app.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
+    CHECK_TRUE(sync_only() == 2u && g_app.sup.safe_state.reason == OD_DRIVE_REASON_MEAS_TIMEOUT);
     printf("(c2) after a sample that says the plant holds: 10 SYNCs, no safe state; armed again by the next sample\n");
 }
 
@@ -431,7 +431,7 @@ static void test_heartbeat_lost(void)
         ref_safe_step(&ref, &m);
     }
     for (int i = 0; i < 5; ++i) CHECK_TRUE(sync_only() == 0u);
-    CHECK_TRUE(g_app.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST && g_app.safe_state.entries == 1u);
+    CHECK_TRUE(g_app.sup.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST && g_app.sup.safe_state.entries == 1u);
 
     /* clear refused while the heartbeat is lost */
     CHECK_TRUE(write_clear(1) == CO_ABORT_DATA_STATE);
@@ -460,11 +460,11 @@ static void test_heartbeat_lost(void)
     inject(0x000, 2, preop);
     deliver();
     tick(150000);
-    CHECK_TRUE(count_emcy(CO_EMCY_HEARTBEAT, NULL, NULL) == 1 && g_app.safe_state.reason == 0u);
+    CHECK_TRUE(count_emcy(CO_EMCY_HEARTBEAT, NULL, NULL) == 1 && g_app.sup.safe_state.reason == 0u);
     testbus_clear(&g_tb);
     inject(0x000, 2, start);
     deliver();
-    CHECK_TRUE(g_app.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST && g_app.safe_state.entries == 2u);
+    CHECK_TRUE(g_app.sup.safe_state.reason == OD_DRIVE_REASON_HEARTBEAT_LOST && g_app.sup.safe_state.entries == 2u);
     CHECK_TRUE(cmd_is(find(COB_CMD, 0), 0.0f, 0.0f) && count_emcy(DRIVE_EMCY_SAFE_HEARTBEAT, NULL, NULL) == 1);
     CHECK_TRUE(write_clear(1) == CO_ABORT_DATA_STATE);
     printf("(d) heartbeat lost: EMCY 0x8130, 0 V, EMCY 0xFF04 {05 00 2 0 0}; clear refused (0x08000022) until "

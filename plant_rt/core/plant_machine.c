@@ -1,6 +1,12 @@
 /*
  * plant_machine.c - the machine block of the plant emulator (see
- * plant_machine.h; model and integration scheme: pmsm_plant.h).
+ * plant_machine.h; model and integration scheme: pmsm_plant.h): the model
+ * functions (q-axis saturation, torque), the angle (its wrap and the cached
+ * cos/sin of theta_e) and the preparation for a configuration: the speed
+ * from the mechanics mode, the RK4 stiffness bound and the exact path's
+ * discretization (expm(A Ts), Van Loan's energy integrals).  The step
+ * itself, exact or RK4, is plant_machine_step.c's; it uses the angle from
+ * here.
  *
  * Only <math.h>/<string.h>: no OS, no heap, no stdio.
  */
@@ -10,9 +16,6 @@
 #include <string.h>
 
 #include "plant_expm.h"
-
-#define PLANT_RESYNC_PERIODS 1024u /* recompute cos/sin(theta_e) from theta_m */
-#define PLANT_RK4_MAX_SUBSTEPS 100000u
 
 /* ===================================================================== */
 /* model functions                                                        */
@@ -46,7 +49,9 @@ double plant_machine_torque_Nm(const plant_state_t *s, const plant_config_t *c)
 /* angle                                                                  */
 /* ===================================================================== */
 
-static void resync_angle(plant_state_t *s, const plant_config_t *c)
+/* cos/sin(theta_e) recomputed from theta_m.  The angle's two helpers are shared with plant_machine_step.c
+ * (plant_machine.h). */
+void plant_machine_resync_angle(plant_state_t *s, const plant_config_t *c)
 {
     const double th_e = fmod((double)c->pole_pairs * s->theta_m_rad, PLANT_TWO_PI);
     s->cos_e = cos(th_e);
@@ -54,7 +59,8 @@ static void resync_angle(plant_state_t *s, const plant_config_t *c)
     s->resync = 0u;
 }
 
-static double wrap_2pi(double x, int64_t *revs)
+/* x wrapped to [0, 2pi), the whole turns added to *revs (if not NULL). */
+double plant_machine_wrap_2pi(double x, int64_t *revs)
 {
     if (x >= PLANT_TWO_PI || x < 0.0) {
         const double n = floor(x / PLANT_TWO_PI);
@@ -74,11 +80,11 @@ static double wrap_2pi(double x, int64_t *revs)
 
 void plant_machine_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s)
 {
-    s->theta_m_rad = wrap_2pi(theta_m_rad, NULL);
+    s->theta_m_rad = plant_machine_wrap_2pi(theta_m_rad, NULL);
     if (c->mech_mode == PLANT_MECH_FREE) {
         s->omega_m_rad_s = omega_m_rad_s;
     }
-    resync_angle(s, c);
+    plant_machine_resync_angle(s, c);
 }
 
 /* ===================================================================== */
@@ -191,8 +197,8 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c)
     s->dtheta_m = s->omega_m_rad_s * c->Ts_s;
     s->rot_c = cos(w_e * c->Ts_s);
     s->rot_s = sin(w_e * c->Ts_s);
-    s->theta_m_rad = wrap_2pi(s->theta_m_rad, &s->revolutions);
-    resync_angle(s, c);
+    s->theta_m_rad = plant_machine_wrap_2pi(s->theta_m_rad, &s->revolutions);
+    plant_machine_resync_angle(s, c);
 
     double Lmin = (c->Ld_H < c->Lq_H) ? c->Ld_H : c->Lq_H;
     if (c->sat_enable && c->sat_Lq_inf_H < Lmin) {
@@ -209,200 +215,4 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c)
         return prepare_exact(s, c, w_e);
     }
     return PLANT_OK;
-}
-
-/* ===================================================================== */
-/* RK4 path                                                              */
-/* ===================================================================== */
-
-enum { Y_ID, Y_IQ, Y_C, Y_S, Y_TH, Y_W, Y_EIN, Y_ECU, Y_EME, Y_EFR, Y_ELD, Y_N };
-
-typedef struct {
-    const plant_config_t *c;
-    double va, vb;   /* applied, stator frame */
-    double vd0, vq0; /* rotor-hold values */
-    double p;
-    bool rotor_hold;
-    bool free_mech;
-    double invJ;
-} rk_ctx_t;
-
-static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
-{
-    const plant_config_t *c = k->c;
-    const double id = y[Y_ID], iq = y[Y_IQ], ce = y[Y_C], se = y[Y_S];
-    const double wm = y[Y_W];
-    const double we = k->p * wm;
-    double vd, vq;
-    if (k->rotor_hold) {
-        vd = k->vd0;
-        vq = k->vq0;
-    } else {
-        vd = k->va * ce + k->vb * se;
-        vq = -k->va * se + k->vb * ce;
-    }
-    double psiq, Linc;
-    if (c->sat_enable) {
-        const double Is = c->sat_I_A, Li = c->sat_Lq_inf_H, x = iq / Is;
-        psiq = Li * iq + (c->Lq_H - Li) * Is * atan(x);
-        Linc = Li + (c->Lq_H - Li) / (1.0 + x * x);
-    } else {
-        psiq = c->Lq_H * iq;
-        Linc = c->Lq_H;
-    }
-    const double psid = c->Ld_H * id + c->psi_Wb;
-    dy[Y_ID] = (vd - c->R_ohm * id + we * psiq) / c->Ld_H;
-    dy[Y_IQ] = (vq - c->R_ohm * iq - we * psid) / Linc;
-    dy[Y_C] = -we * se;
-    dy[Y_S] = we * ce;
-    dy[Y_TH] = wm;
-    const double Te = 1.5 * k->p * (psid * iq - psiq * id);
-    if (k->free_mech) {
-        dy[Y_W] = (Te - c->B_Nm_per_rad_s * wm - c->T_load_Nm) * k->invJ;
-        dy[Y_EFR] = c->B_Nm_per_rad_s * wm * wm;
-        dy[Y_ELD] = c->T_load_Nm * wm;
-    } else {
-        dy[Y_W] = 0.0;
-        dy[Y_EFR] = 0.0;
-        dy[Y_ELD] = 0.0;
-    }
-    dy[Y_EIN] = 1.5 * (vd * id + vq * iq);
-    dy[Y_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
-    dy[Y_EME] = Te * wm;
-}
-
-static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
-{
-    rk_ctx_t k;
-    k.c = c;
-    k.va = va;
-    k.vb = vb;
-    k.vd0 = vd0;
-    k.vq0 = vq0;
-    k.p = (double)c->pole_pairs;
-    k.rotor_hold = (c->hold_frame == PLANT_HOLD_ROTOR);
-    k.free_mech = (c->mech_mode == PLANT_MECH_FREE);
-    k.invJ = k.free_mech ? 1.0 / c->J_kgm2 : 0.0;
-
-    const double lam = s->lam_base + k.p * fabs(s->omega_m_rad_s);
-    double nreal = ceil(c->Ts_s * lam / c->rk4_h_rel);
-    uint32_t n;
-    if (!(nreal < (double)PLANT_RK4_MAX_SUBSTEPS)) {
-        n = PLANT_RK4_MAX_SUBSTEPS;
-    } else {
-        n = (uint32_t)nreal;
-    }
-    if (n < c->rk4_min_substeps) {
-        n = c->rk4_min_substeps;
-    }
-    if (n < 1u) {
-        n = 1u;
-    }
-    s->last_substeps = n;
-    const double h = c->Ts_s / (double)n;
-
-    double y[Y_N], k1[Y_N], k2[Y_N], k3[Y_N], k4[Y_N], yt[Y_N];
-    memset(y, 0, sizeof(y));
-    y[Y_ID] = s->id_A;
-    y[Y_IQ] = s->iq_A;
-    y[Y_C] = s->cos_e;
-    y[Y_S] = s->sin_e;
-    y[Y_W] = s->omega_m_rad_s;
-    for (uint32_t it = 0; it < n; ++it) {
-        rk_deriv(&k, y, k1);
-        for (int i = 0; i < Y_N; ++i) {
-            yt[i] = y[i] + 0.5 * h * k1[i];
-        }
-        rk_deriv(&k, yt, k2);
-        for (int i = 0; i < Y_N; ++i) {
-            yt[i] = y[i] + 0.5 * h * k2[i];
-        }
-        rk_deriv(&k, yt, k3);
-        for (int i = 0; i < Y_N; ++i) {
-            yt[i] = y[i] + h * k3[i];
-        }
-        rk_deriv(&k, yt, k4);
-        for (int i = 0; i < Y_N; ++i) {
-            y[i] += (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-        }
-    }
-    s->id_A = y[Y_ID];
-    s->iq_A = y[Y_IQ];
-    s->omega_m_rad_s = y[Y_W];
-    s->energy.in_J += y[Y_EIN];
-    s->energy.copper_J += y[Y_ECU];
-    s->energy.mech_J += y[Y_EME];
-    s->energy.friction_J += y[Y_EFR];
-    s->energy.load_J += y[Y_ELD];
-    if (y[Y_TH] != 0.0) {
-        s->theta_m_rad = wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
-        /* cos/sin were integrated too (to RK4 accuracy); re-derive them from
-         * theta_m so the angle and the encoder stay exactly consistent. */
-        resync_angle(s, c);
-    }
-}
-
-/* ===================================================================== */
-/* step                                                                   */
-/* ===================================================================== */
-
-/* The exact path: one period of x = [id iq vd vq 1] with expm(A Ts), the
- * energy integrals as quadratic forms of the start state, and the angle
- * advanced by the rotation of one period (resynchronised from theta_m every
- * PLANT_RESYNC_PERIODS periods). */
-static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, double vq0)
-{
-    const double ce = s->cos_e, se = s->sin_e;
-    const double x0 = s->id_A, x1 = s->iq_A, x2 = vd0, x3 = vq0;
-    const double(*P)[5] = s->phi;
-    s->id_A = P[0][0] * x0 + P[0][1] * x1 + P[0][2] * x2 + P[0][3] * x3 + P[0][4];
-    s->iq_A = P[1][0] * x0 + P[1][1] * x1 + P[1][2] * x2 + P[1][3] * x3 + P[1][4];
-    /* energy integrals: exact quadratic forms in the start state (m: the upper triangle, row by row) */
-    /* clang-format off */
-    const double m[15] = {x0 * x0, x0 * x1, x0 * x2, x0 * x3, x0,
-                          x1 * x1, x1 * x2, x1 * x3, x1,
-                          x2 * x2, x2 * x3, x2,
-                          x3 * x3, x3,
-                          1.0};
-    /* clang-format on */
-    double ein = 0.0, ecu = 0.0, eme = 0.0;
-    for (int i = 0; i < 15; ++i) {
-        ein += s->q_in[i] * m[i];
-        ecu += s->q_cu[i] * m[i];
-        eme += s->q_mech[i] * m[i];
-    }
-    s->energy.in_J += ein;
-    s->energy.copper_J += ecu;
-    s->energy.mech_J += eme;
-    if (s->dtheta_m != 0.0) {
-        double th = s->theta_m_rad + s->dtheta_m;
-        if (th >= PLANT_TWO_PI) {
-            th -= PLANT_TWO_PI;
-            s->revolutions++;
-        } else if (th < 0.0) {
-            th += PLANT_TWO_PI;
-            s->revolutions--;
-        }
-        s->theta_m_rad = wrap_2pi(th, &s->revolutions);
-        if (++s->resync >= PLANT_RESYNC_PERIODS) {
-            resync_angle(s, c);
-        } else {
-            s->cos_e = ce * s->rot_c - se * s->rot_s;
-            s->sin_e = se * s->rot_c + ce * s->rot_s;
-        }
-    }
-}
-
-void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V)
-{
-    const double va = v_alpha_V, vb = v_beta_V;
-    const double ce = s->cos_e, se = s->sin_e;
-    const double vd0 = va * ce + vb * se;
-    const double vq0 = -va * se + vb * ce;
-
-    if (s->exact) {
-        step_exact(s, c, vd0, vq0);
-    } else {
-        step_rk4(s, c, va, vb, vd0, vq0);
-    }
 }

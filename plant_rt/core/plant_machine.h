@@ -46,4 +46,9 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c);
  * (v_alpha_V, v_beta_V) held in the frame of c->hold_frame. */
 void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V);
 
+/* Shared by plant_machine.c and plant_machine_step.c: an angle into [0, 2 pi) (whole turns counted in *revs when
+ * not NULL), and the electrical angle and its sine/cosine recomputed from the mechanical one. */
+double plant_machine_wrap_2pi(double x, int64_t *revs);
+void plant_machine_resync_angle(plant_state_t *s, const plant_config_t *c);
+
 #endif

@@ -4,7 +4,7 @@
  * the generated plant OD (od_plant, from protocols/eds/plant.eds):
  *
  *   0x2000-0x2002  model parameters (every plant_config_t field), SDO-writable;
- *                  a write is validated at once (pre_write: a combination the
+ *                  a write is validated at once (its check: a combination the
  *                  core rejects -> abort 0x06040043, the model is unchanged)
  *                  and takes effect at the next SYNC (period boundary).
  *   0x2003         run control: mode (0 lockstep, 1 real time), run_periods,
@@ -39,7 +39,19 @@
  * (co_pdo_t.rx_buffered / last_rx_us): call it after every received frame
  * (co_runtime does) or at least after every batch (co_membus_deliver).
  *
+ * Which command answers which sample (on time, late, missed) and the real-time
+ * timing (0x2006, 0x2007) are a component of their own, plant_timing.h
+ * (plant_app_t.timing); the app counts what it answers in 0x2003.
+ *
+ * The app reaches the OD through its node (plant_mfr); plant_app_init and
+ * plant_app_config_* work before the node exists, on od_plant's RAM.
  * No allocation; one instance per OD (the generated OD RAM is a global).
+ *
+ * The app's two halves, layered one way: plant_app_od.h/.c (below) owns the
+ * state plant_app_t and the objects 0x2000-0x2004, 0x2007 (their checks, OD <->
+ * config, presets, init); plant_app.c (this header's) owns the periods: the SYNC
+ * hooks, plant_app_poll and plant_app_realtime_tick.  This header is the API of
+ * both: it includes plant_app_od.h.
  */
 #ifndef PLANT_APP_H
 #define PLANT_APP_H
@@ -52,90 +64,13 @@
  * 0x2100:05 Measurement.status, PLANT_STATUS_TRIP, _HOLDING, _MISSED, _HELD (its BitNames in plant.eds;
  * what each means: its Description there). */
 #include "od_plant_fields.h"
-#include "plant_rtstats.h"
+#include "od_plant.h"
+/* plant_app_t, plant_app_init/_bind/_running/_realtime_mode/_load_preset/_config_*: the app's state and objects */
+#include "plant_app_od.h"
+#include "plant_timing.h"
 #include "pmsm_plant.h"
 
-/* Command accounting: the n-th command frame answers sample n, so after a
- * missed period the next arrival is taken as that late command (0x2003:06)
- * and does not release the next SYNC. Resynchronisation: after this many
- * consecutive periods that ended without an on-time command although a
- * (presumed late) one arrived in them, the owed count is reset (the drive is
- * assumed to have dropped a command). Real-time mode uses 1. */
-#define PLANT_APP_RESYNC_PERIODS 3u
-#define PLANT_APP_SCHED_RING 16u
-
-/* The read-only entries of 0x2100 Measurement and 0x2005 Plant state, named as in plant.eds: the
- * SYNC fills them and the list od_plant_fields.h generates (OD_PLANT_<RECORD>_STATUS) copies them
- * to the OD, so an entry's name is written once, in the EDS.  (0x2003 Run control's status stays
- * in the OD: the plant counts and tests it there.) */
-typedef struct { /* 0x2100 Measurement (TPDO1, TPDO2) */
-    float i_a_A;
-    float i_b_A;
-    float theta_m_rad;
-    uint8_t sync_counter;
-    uint8_t status; /* PLANT_STATUS_* */
-    uint16_t sample_index;
-} plant_app_measurement_t;
-
-typedef struct { /* 0x2005 Plant state: the model's truth, REAL32 in the OD */
-    double id_A;
-    double iq_A;
-    double omega_m_rad_s;
-    double theta_m_rad;
-    double torque_Nm;
-    double energy_in_J;
-} plant_app_plant_state_t;
-
-typedef struct {
-    co_node_t *node;
-
-    /* model */
-    plant_config_t cfg; /* applied configuration */
-    plant_state_t state;
-    plant_meas_t meas;                   /* sample of the last SYNC */
-    plant_app_measurement_t measurement; /* 0x2100 of the last SYNC */
-    plant_app_plant_state_t plant_state; /* 0x2005 of the last SYNC */
-    plant_config_t scratch_cfg;          /* SDO validation (not in the per-period path) */
-    plant_state_t scratch_state;
-    bool cfg_dirty; /* OD 0x2000-0x2002 changed: apply at the next SYNC */
-    bool reseed;    /* rng_seed written: re-seed at the next SYNC */
-    uint32_t config_applies;
-    uint32_t config_errors; /* pending change rejected by plant_prepare at the SYNC (should stay 0) */
-
-    /* periods */
-    bool started;                         /* SYNC 0 happened */
-    uint64_t k;                           /* index of the last sample */
-    double v_held_alpha_V, v_held_beta_V; /* command held over [k, k+1] */
-    int64_t last_sync_us;
-    int64_t wait_start_us; /* lockstep: command timeout counts from here */
-    bool paused;           /* not running at the last poll (holding / not operational) */
-    uint32_t syncs;
-
-    /* command tracking (lockstep and real time) */
-    bool cmd_ready;         /* the command for the current period arrived */
-    bool cmd_seen;          /* the buffered RPDO has been accounted for */
-    int64_t cmd_seen_rx_us; /* its reception time */
-    int64_t cmd_arrival_us; /* when the command of the current period arrived (real time: overrun if late) */
-    bool late_in_period;    /* a command classified late arrived in this period */
-    uint32_t owed;          /* commands of missed periods that may still arrive */
-    uint32_t late_timeout_streak;
-    bool miss_flag;            /* status bit2 of the next sample */
-    uint32_t commands;         /* command frames seen */
-    uint32_t commands_at_sync; /* ... at the last SYNC (PLANT_STATUS_HELD) */
-    bool drive_lost;           /* the trip latched because the drive's heartbeat was lost (EMCY 0xFF10) */
-    uint16_t trip_emcy;        /* the EMCY code the active trip raised (cleared with it) */
-
-    /* real time */
-    plant_rtstats_t lateness;                         /* SYNC: its time minus its deadline */
-    plant_rtstats_t turnaround;                       /* command arrival minus its period's SYNC */
-    uint8_t hist_bytes[2u * PLANT_RTSTATS_BINS * 4u]; /* the DOMAIN 0x2006: lateness, then turnaround */
-} plant_app_t;
-
-/* Zero the app and load the OD defaults into the model (callable before co_node_init). */
-void plant_app_init(plant_app_t *app);
-/* Remember the node (also learnt from the first hook call). */
-void plant_app_bind(plant_app_t *app, co_node_t *node);
-/* Hooks for co_node_init (user pointer = plant_app_t *). */
+/* Hooks for co_node_init (user pointer = plant_app_t *); their bind hook binds the app's objects. */
 const co_hooks_t *plant_app_hooks(void);
 
 /* Lockstep driver: detects command arrival, produces the next SYNC when it is
@@ -151,20 +86,7 @@ int64_t plant_app_poll(plant_app_t *app, int64_t now_us);
  * counter or -1 (not running / not in real-time mode). */
 int plant_app_realtime_tick(plant_app_t *app, int64_t now_us, int64_t lateness_ns);
 
-/* NMT OPERATIONAL and run_periods > 0. */
-bool plant_app_running(const plant_app_t *app);
-/* 0x2003:01 == 1. */
-bool plant_app_realtime_mode(const plant_app_t *app);
 /* Applied Ts in nanoseconds (changes only at a SYNC). */
 int64_t plant_app_period_ns(const plant_app_t *app);
-
-/* Load the named preset into the OD entries 0x2000-0x2002 (as the 0x2004 write does);
- * effective at the next SYNC. Returns 0 or PLANT_ERR_PRESET. */
-int plant_app_load_preset(plant_app_t *app, const char *name);
-
-/* OD 0x2000-0x2002 -> config (exact float -> double). */
-void plant_app_config_from_od(plant_config_t *c);
-/* config -> OD 0x2000-0x2002 (rounded to REAL32). */
-void plant_app_config_to_od(const plant_config_t *c);
 
 #endif /* PLANT_APP_H */

@@ -89,9 +89,9 @@ static void test_holds_and_timeout(void)
         }
     }
     printf("dropped command: %u timeouts until resync (limit %u), missed %u, late %u\n",
-           (unsigned)(RC.missed_commands - miss0), (unsigned)PLANT_APP_RESYNC_PERIODS, (unsigned)RC.missed_commands,
+           (unsigned)(RC.missed_commands - miss0), (unsigned)PLANT_TIMING_RESYNC_PERIODS, (unsigned)RC.missed_commands,
            (unsigned)RC.late_commands);
-    CHECK(RC.missed_commands - miss0 == 1u + PLANT_APP_RESYNC_PERIODS, "resync took %u timeouts",
+    CHECK(RC.missed_commands - miss0 == 1u + PLANT_TIMING_RESYNC_PERIODS, "resync took %u timeouts",
           (unsigned)(RC.missed_commands - miss0));
 
     /* a drive 3 periods behind (stall), then catching up: no permanent shift */
@@ -204,7 +204,7 @@ static void test_realtime_tick(void)
           (unsigned)u[16], (unsigned)u[17]);
     const co_domain_t *d = &OD_PLANT.mfr.x2006_timing_histograms;
     const uint32_t T = PLANT_RTSTATS_BINS * 4u; /* the turnaround's histogram follows the lateness' */
-    CHECK(d->data == tb->app.hist_bytes && d->size == 2u * T && d->data[0] == 1 && d->data[4 * 3] == 6 &&
+    CHECK(d->data == tb->app.timing.hist_bytes && d->size == 2u * T && d->data[0] == 1 && d->data[4 * 3] == 6 &&
               d->data[T + 4 * 15] == 1 && d->data[T + 4 * 22] == 2 && d->data[T + 4 * 47] == 1,
           "DOMAIN 0x2006");
     /* a period beyond the linear bins: 16 per octave */
@@ -214,7 +214,7 @@ static void test_realtime_tick(void)
           "log-linear bins");
     /* reset clears the figures and the histograms */
     CHECK(tb_w_u8(tb, 0x2007, OD_PLANT_REALTIME_TIMING_RESET_SUB, 1) == 0, "reset write");
-    CHECK(tb->app.lateness.n == 0 && tb->app.turnaround.n == 0 && d->data[4 * 3] == 0 &&
+    CHECK(tb->app.timing.lateness.n == 0 && tb->app.timing.turnaround.n == 0 && d->data[4 * 3] == 0 &&
               OD_PLANT.mfr.x2007_realtime_timing.overruns == 0,
           "reset");
 }

@@ -63,6 +63,8 @@ static value_t get(const void *p, uint8_t kind, uint8_t size)
     return v;
 }
 
+double co_field_map_value(const void *p, uint8_t kind, uint8_t size) { return get(p, kind, size).d; }
+
 static void put(void *p, uint8_t kind, uint8_t size, value_t v)
 {
     if (kind == CO_FM_FLOAT) {
@@ -92,12 +94,23 @@ static void put(void *p, uint8_t kind, uint8_t size, value_t v)
     }
 }
 
+/* One value from src to dst: a plain copy when both sides have the same kind and size (what the double would
+ * give back exactly), else through value_t. */
+static void move(void *dst, uint8_t dst_kind, uint8_t dst_size, const void *src, uint8_t src_kind, uint8_t src_size)
+{
+    if (dst_kind == src_kind && dst_size == src_size) {
+        memcpy(dst, src, dst_size);
+        return;
+    }
+    put(dst, dst_kind, dst_size, get(src, src_kind, src_size));
+}
+
 void co_field_map_to_core(const co_field_map_t *rows, size_t n, const void *od, void *core)
 {
     for (size_t i = 0; i < n; ++i) {
         const co_field_map_t *r = &rows[i];
-        put((uint8_t *)core + r->core_offset, r->core_kind, r->core_size,
-            get((const uint8_t *)od + r->od_offset, r->od_kind, r->od_size));
+        move((uint8_t *)core + r->core_offset, r->core_kind, r->core_size, (const uint8_t *)od + r->od_offset,
+             r->od_kind, r->od_size);
     }
 }
 
@@ -105,7 +118,7 @@ void co_field_map_to_od(const co_field_map_t *rows, size_t n, void *od, const vo
 {
     for (size_t i = 0; i < n; ++i) {
         const co_field_map_t *r = &rows[i];
-        put((uint8_t *)od + r->od_offset, r->od_kind, r->od_size,
-            get((const uint8_t *)core + r->core_offset, r->core_kind, r->core_size));
+        move((uint8_t *)od + r->od_offset, r->od_kind, r->od_size, (const uint8_t *)core + r->core_offset, r->core_kind,
+             r->core_size);
     }
 }

@@ -49,6 +49,15 @@ typedef struct {
      (uint8_t)CO_FM_KIND(((core_t *)0)->member.field), (uint8_t)sizeof(((core_t *)0)->member.field)}
 /* clang-format on */
 
+/* A row as one assignment, for a record copied every period (a loop over rows costs tens of instructions a field
+ * there): od.record.field = core->field by C's own conversion, which is what a row does between real types, and
+ * between integer types (bool, enums) of any size; for those only. The names are still the EDS's: expand the
+ * generated list with it. */
+#define CO_FIELD_SET_OD(od, core, record, field) ((od).record.field = (core)->field)
+
+/* One value of a kind and size (CO_FM_KIND, sizeof) as a double: exact for the types above. */
+double co_field_map_value(const void *p, uint8_t kind, uint8_t size);
+
 /* Every row's OD value (in the OD struct at `od`) -> the core struct at `core`. */
 void co_field_map_to_core(const co_field_map_t *rows, size_t n, const void *od, void *core);
 /* Every row's core value -> the OD. */

@@ -54,6 +54,12 @@ static void set_state(co_node_t *node, co_nmt_state_t s)
     if (node->hooks.on_nmt) node->hooks.on_nmt(node->user, node, s);
 }
 
+/* The RPDOs' COB-IDs as a frame is dispatched by them (after every configuration of a PDO). */
+static void cache_rpdo_cobs(co_node_t *node)
+{
+    for (uint8_t i = 0; i < CO_NUM_PDO; ++i) node->rpdo_cob[i] = node->rpdo[i].valid ? node->rpdo[i].cob_id : 0xFFFFu;
+}
+
 static void reset(co_node_t *node, int communication_only)
 {
     co_od_reset(node->od, node->node_id, communication_only);
@@ -66,6 +72,7 @@ static void reset(co_node_t *node, int communication_only)
         co_pdo_configure(&node->rpdo[i]);
         co_pdo_configure(&node->tpdo[i]);
     }
+    cache_rpdo_cobs(node);
     configure_hb_consumers(node);
     enter_nmt_state(node, CO_NMT_INITIALIZING);
     /* Boot-up message: COB-ID 0x700 + node-ID, one byte 0x00. */
@@ -78,10 +85,52 @@ static void reset(co_node_t *node, int communication_only)
 
 /* ------------------------------------------------------------------ hooks as the services see them */
 
+/* ------------------------------------------------------------------ bindings */
+
+co_od_ext_t *co_node_ext(const co_node_t *node, uint16_t index)
+{
+    int32_t lo = 0, hi = (int32_t)node->n_bindings - 1;
+    while (lo <= hi) {
+        const int32_t mid = lo + (hi - lo) / 2;
+        const uint16_t k = node->bindings[mid].index;
+        if (k == index) return node->bindings[mid].ext;
+        if (k < index)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return NULL;
+}
+
+int co_node_bind(co_node_t *node, uint16_t index, co_od_ext_t *ext)
+{
+    int exists = 0;
+    (void)co_od_find(node->od, index, 0, &exists);
+    if (!exists) return -1;
+    uint8_t i = 0;
+    while (i < node->n_bindings && node->bindings[i].index < index) ++i;
+    if (i < node->n_bindings && node->bindings[i].index == index) {
+        node->bindings[i].ext = ext;
+    } else {
+        if (node->n_bindings >= CO_NODE_BINDINGS) return -1;
+        for (uint8_t j = node->n_bindings; j > i; --j) node->bindings[j] = node->bindings[j - 1u];
+        node->bindings[i].index = index;
+        node->bindings[i].ext = ext;
+        ++node->n_bindings;
+    }
+    for (uint8_t n = 0; n < CO_NUM_PDO; ++n) {
+        co_pdo_bind(&node->rpdo[n]);
+        co_pdo_bind(&node->tpdo[n]);
+    }
+    return 0;
+}
+
+static co_od_ext_t *service_ext_of(void *ctx, uint16_t index) { return co_node_ext((const co_node_t *)ctx, index); }
+
 static void service_pre_read(void *ctx, const co_od_entry_t *e)
 {
-    co_node_t *node = (co_node_t *)ctx;
-    if (node->hooks.pre_read) node->hooks.pre_read(node->user, node, e);
+    co_od_ext_t *x = co_node_ext((const co_node_t *)ctx, e->index);
+    if (x != NULL && x->read != NULL) x->read(x->object, e);
 }
 
 static void service_on_rpdo(void *ctx, uint8_t pdo)
@@ -106,7 +155,7 @@ void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn 
     node->pdo_env.od = od;
     node->pdo_env.tx = &node->tx;
     node->pdo_env.emcy = &node->emcy;
-    node->pdo_env.pre_read = service_pre_read;
+    node->pdo_env.ext_of = service_ext_of;
     node->pdo_env.on_rpdo = service_on_rpdo;
     node->pdo_env.ctx = node;
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
@@ -115,6 +164,7 @@ void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn 
     }
     co_sdo_server_init(&node->sdo, od, &node->tx, node_id, sdo_write, service_pre_read, node);
     enter_nmt_state(node, CO_NMT_INITIALIZING);
+    if (node->hooks.bind) node->hooks.bind(user, node);
     reset(node, 0);
 }
 
@@ -152,13 +202,14 @@ static void sync_event(co_node_t *node, uint8_t counter)
     if (node->nmt != CO_NMT_OPERATIONAL && node->nmt != CO_NMT_PRE_OPERATIONAL) return;
     node->sync_counter = counter;
     ++node->syncs;
-    if (operational(node)) { /* actuate synchronous RPDOs */
-        for (uint8_t n = 0; n < CO_NUM_PDO; ++n) co_rpdo_actuate(&node->rpdo[n]);
+    if (operational(node)) { /* actuate synchronous RPDOs (a PDO that is not valid does nothing: not called) */
+        for (uint8_t n = 0; n < CO_NUM_PDO; ++n)
+            if (node->rpdo[n].valid) co_rpdo_actuate(&node->rpdo[n]);
     }
     if (node->hooks.on_sync) node->hooks.on_sync(node->user, node, counter);
     if (operational(node)) {
         for (uint8_t n = 0; n < CO_NUM_PDO; ++n)
-            co_tpdo_on_sync(&node->tpdo[n], counter, operational(node), node->now_us);
+            if (node->tpdo[n].valid) co_tpdo_on_sync(&node->tpdo[n], counter, true, node->now_us);
     }
 }
 
@@ -222,8 +273,9 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
         abort = co_pdo_check_write(pdo, e, data, node->c_sync_cob);
         if (abort) return abort;
     }
-    if (node->hooks.pre_write) {
-        abort = node->hooks.pre_write(node->user, node, e, data, len);
+    co_od_ext_t *x = co_node_ext(node, e->index);
+    if (x != NULL && x->check != NULL) {
+        abort = x->check(x->object, e, data, len);
         if (abort) return abort;
     }
     co_emcy_before_store(&node->emcy, e);
@@ -232,8 +284,11 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
     if (e->index == IDX_HB_CONSUMER) configure_hb_consumers(node);
     if (e->index == IDX_HB_PRODUCER) node->hb_next_us = node->now_us + (int64_t)node->c_hb_ms * 1000;
     if (e->index == IDX_CYCLE_PERIOD) node->sync_next_us = node->now_us;
-    if (pdo) co_pdo_configure(pdo);
-    if (node->hooks.post_write) node->hooks.post_write(node->user, node, e);
+    if (pdo) {
+        co_pdo_configure(pdo);
+        cache_rpdo_cobs(node);
+    }
+    if (x != NULL && x->written != NULL) x->written(x->object, e);
     return 0;
 }
 
@@ -263,6 +318,17 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
     uint16_t id = (uint16_t)(frame->cob_id & 0x7FFu);
     if (frame->dlc > 8u) return;
 
+    /* An RPDO first (the frames of every period): its COB-ID is never one of the ids below (co_cob_restricted;
+     * the SYNC's keeps its precedence should 0x1005 be set to an RPDO's later), so the order changes nothing. */
+    if (operational(node) && id != (node->c_sync_cob & 0x7FFu)) {
+        int matched = 0;
+        for (uint8_t n = 0; n < CO_NUM_PDO; ++n) {
+            if (node->rpdo_cob[n] != id) continue;
+            co_rpdo_receive(&node->rpdo[n], frame, node->now_us);
+            matched = 1;
+        }
+        if (matched) return;
+    }
     if (id == 0x000u) { /* NMT */
         if (frame->dlc == 2u && (frame->data[1] == 0u || frame->data[1] == node->node_id))
             co_nmt_command(node, frame->data[0]);
@@ -289,13 +355,7 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
         sync_event(node, expect ? frame->data[0] : 0u);
         return;
     }
-    if (id == 0x600u + node->node_id) {
-        co_sdo_server_process(&node->sdo, frame, node->now_us);
-        return;
-    }
-    if (operational(node)) {
-        for (uint8_t n = 0; n < CO_NUM_PDO; ++n) co_rpdo_receive(&node->rpdo[n], frame, node->now_us);
-    }
+    if (id == 0x600u + node->node_id) co_sdo_server_process(&node->sdo, frame, node->now_us);
 }
 
 static void hb_check_consumers(co_node_t *node, int64_t now_us)

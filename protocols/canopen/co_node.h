@@ -43,15 +43,11 @@ enum {
 
 typedef struct co_node co_node_t;
 
-/* Application hooks (all optional). */
+/* Application hooks (all optional): the node's events. Access to an object goes to the object's owner through its
+ * binding (co_od_ext_t, co_node_bind), not through a hook. */
 typedef struct {
-    /* Veto or accept an SDO write after the generic checks; return an abort code or 0. */
-    uint32_t (*pre_write)(void *user, co_node_t *node, const co_od_entry_t *e, const uint8_t *data, uint32_t len);
-    /* A value was written by SDO (the OD holds the new value). */
-    void (*post_write)(void *user, co_node_t *node, const co_od_entry_t *e);
-    /* About to be uploaded (SDO) or sent (TPDO): refresh the value. A refresh is per record (e->index): a TPDO
-     * calls it once for consecutive entries of one record. */
-    void (*pre_read)(void *user, co_node_t *node, const co_od_entry_t *e);
+    /* Once, in co_node_init before the first reset: the application binds its objects (co_node_bind). */
+    void (*bind)(void *user, co_node_t *node);
     /* SYNC: synchronous RPDOs are already actuated; synchronous TPDOs go out after this returns. */
     void (*on_sync)(void *user, co_node_t *node, uint8_t counter);
     /* An RPDO wrote the OD (event-driven types at reception, synchronous ones at the SYNC). */
@@ -63,6 +59,13 @@ typedef struct {
     /* A monitored node's heartbeat was not seen in time. */
     void (*on_hb_timeout)(void *user, co_node_t *node, uint8_t node_id);
 } co_hooks_t;
+
+/* The objects bound to their owners, sorted by index. */
+#define CO_NODE_BINDINGS 48u
+typedef struct {
+    uint16_t index;
+    co_od_ext_t *ext;
+} co_binding_t;
 
 typedef struct {
     uint8_t node_id;
@@ -100,11 +103,16 @@ struct co_node {
     int64_t sync_next_us;
     uint32_t syncs; /* SYNC events processed */
 
+    /* Objects bound to their owners (co_node_bind). */
+    co_binding_t bindings[CO_NODE_BINDINGS];
+    uint8_t n_bindings;
+
     /* Services, wired to this node by co_node_init. */
     co_emcy_t emcy;
     co_pdo_env_t pdo_env; /* what the PDOs share: OD, tx, EMCY, the hooks' adapters */
     co_pdo_t rpdo[CO_NUM_PDO];
     co_pdo_t tpdo[CO_NUM_PDO];
+    uint16_t rpdo_cob[CO_NUM_PDO]; /* each RPDO's COB-ID while valid, else 0xFFFF (no 11-bit frame has it) */
     co_sdo_server_t sdo;
 
     /* Statistics (frames received; sent: tx.frames, tx.errors; SDO aborts: sdo.aborts) */
@@ -116,6 +124,13 @@ struct co_node {
  * copied afterwards (its services point into it). */
 void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn tx, void *tx_user,
                   const co_hooks_t *hooks, void *user, int64_t now_us);
+
+/* Bind object `index` to its owner's handlers (co_od_ext_t, kept by the owner; binding an index again replaces
+ * the binding). Returns 0, or -1 when the OD has no such object or the table (CO_NODE_BINDINGS) is full. The PDOs
+ * that map the object learn it at once. */
+int co_node_bind(co_node_t *node, uint16_t index, co_od_ext_t *ext);
+/* The binding of object `index`, or NULL. */
+co_od_ext_t *co_node_ext(const co_node_t *node, uint16_t index);
 
 /* Handle one received frame. */
 void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us);

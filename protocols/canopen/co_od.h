@@ -88,6 +88,22 @@ typedef struct {
     size_t total_size;
 } co_od_t;
 
+/* An object bound to its owner (CANopenNode's OD_extension_t): the owner keeps this struct in its own state and
+ * binds it to one object (index) once at init (co_node_bind). The node's SDO and PDO paths then call the object's
+ * own handlers, each optional:
+ *   read     about to be uploaded by SDO or sent in a TPDO: refresh the object's values (a TPDO calls it once
+ *            for consecutive mapped entries of the object);
+ *   check    an SDO write, after the node's generic checks (length, range, access, the communication rules):
+ *            an abort code, or 0 to accept;
+ *   written  an SDO write was stored (the OD holds the new value): put it into effect.
+ * PDO writes (RPDOs) bypass check and written: the owner reads its PDO-mapped values when it uses them. */
+typedef struct co_od_ext {
+    void *object; /* the owner's state, handed back to each handler */
+    void (*read)(void *object, const co_od_entry_t *e);
+    uint32_t (*check)(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len);
+    void (*written)(void *object, const co_od_entry_t *e);
+} co_od_ext_t;
+
 /* Entry lookup (binary search). Returns NULL if absent; *index_exists tells
  * whether any sub-index of `index` exists (for 0x06020000 vs 0x06090011). */
 const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t subindex, int *index_exists);

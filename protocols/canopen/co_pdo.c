@@ -36,6 +36,28 @@ static void wire(co_pdo_t *p, uint8_t n, const co_pdo_env_t *env, bool is_tpdo)
 void co_rpdo_init(co_pdo_t *p, uint8_t n, const co_pdo_env_t *env) { wire(p, n, env, false); }
 void co_tpdo_init(co_pdo_t *p, uint8_t n, const co_pdo_env_t *env) { wire(p, n, env, true); }
 
+void co_pdo_bind(co_pdo_t *p)
+{
+    const co_pdo_env_t *env = p->link.env;
+    p->n_refresh = 0;
+    if (!p->link.is_tpdo || env->ext_of == NULL) return;
+    for (uint8_t i = 0; i < p->count; ++i) {
+        if (i != 0u && p->entry[i]->index == p->entry[i - 1u]->index) continue;
+        co_od_ext_t *x = env->ext_of(env->ctx, p->entry[i]->index);
+        if (x == NULL || x->read == NULL) continue;
+        p->refresh[p->n_refresh] = x;
+        p->refresh_entry[p->n_refresh] = p->entry[i];
+        ++p->n_refresh;
+    }
+}
+
+bool co_pdo_maps(const co_pdo_t *p, uint16_t index)
+{
+    for (uint8_t i = 0; i < p->count; ++i)
+        if (p->entry[i]->index == index) return true;
+    return false;
+}
+
 bool co_pdo_owns(const co_pdo_t *p, uint16_t index)
 {
     return index == p->link.comm_index || index == p->link.map_index;
@@ -89,6 +111,16 @@ void co_pdo_configure(co_pdo_t *p)
     }
     p->count = (uint8_t)count;
     p->bytes = (uint8_t)bytes;
+    const uint16_t one = 1u;
+    p->native = *(const uint8_t *)&one == 1u;
+    bool contiguous = p->native && p->count > 0u;
+    for (uint8_t i = 0; i < p->count; ++i) {
+        p->field[i].data = (uint8_t *)p->entry[i]->data;
+        p->field[i].size = (uint8_t)co_dt_size(p->entry[i]->datatype);
+        if (i > 0u && p->field[i].data != p->field[i - 1u].data + p->field[i - 1u].size) contiguous = false;
+    }
+    p->block = contiguous ? p->field[0].data : NULL;
+    co_pdo_bind(p);
     p->valid = !(cob & COB_INVALID) && !(cob & COB_EXTENDED) && count > 0u;
     p->sync_start = (uint8_t)co_od_get_u32(od, comm, 6);
     p->event_ms = (uint16_t)co_od_get_u32(od, comm, 5);
@@ -175,13 +207,40 @@ void co_pdo_stop(co_pdo_t *p)
 
 /* ------------------------------------------------------------------ RPDO */
 
+/* One field's bytes, its size a constant in each branch (the compiler moves them without a call). */
+static inline void copy_field(uint8_t *dst, const uint8_t *src, uint8_t size)
+{
+    switch (size) {
+    case 4: memcpy(dst, src, 4); break;
+    case 2: memcpy(dst, src, 2); break;
+    default: dst[0] = src[0]; break;
+    }
+}
+
+/* The whole frame's bytes in one copy, its size a constant in the usual cases. */
+static inline void copy_block(uint8_t *dst, const uint8_t *src, uint8_t bytes)
+{
+    switch (bytes) {
+    case 8: memcpy(dst, src, 8); break;
+    case 4: memcpy(dst, src, 4); break;
+    default: memcpy(dst, src, bytes); break;
+    }
+}
+
 static void store_mapped(co_pdo_t *p, const uint8_t *data)
 {
+    if (p->block != NULL) {
+        copy_block(p->block, data, p->bytes);
+        return;
+    }
     uint8_t off = 0;
     for (uint8_t i = 0; i < p->count; ++i) {
-        uint32_t sz = co_dt_size(p->entry[i]->datatype);
-        co_od_store(p->entry[i], &data[off], sz);
-        off = (uint8_t)(off + sz);
+        const co_pdo_field_t *f = &p->field[i];
+        if (p->native)
+            copy_field(f->data, &data[off], f->size);
+        else
+            co_od_store(p->entry[i], &data[off], f->size);
+        off = (uint8_t)(off + f->size);
     }
 }
 
@@ -247,13 +306,17 @@ static int tpdo_send(co_pdo_t *p, bool operational, int64_t now_us)
 {
     const co_pdo_env_t *env = p->link.env;
     if (!p->valid || !operational) return -1;
+    for (uint8_t r = 0; r < p->n_refresh; ++r) p->refresh[r]->read(p->refresh[r]->object, p->refresh_entry[r]);
     uint8_t d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     uint8_t off = 0;
-    for (uint8_t i = 0; i < p->count; ++i) {
-        /* pre_read refreshes a whole record (co_node.h): once for consecutive entries of one record */
-        if (env->pre_read && (i == 0u || p->entry[i]->index != p->entry[i - 1u]->index))
-            env->pre_read(env->ctx, p->entry[i]);
-        off = (uint8_t)(off + co_od_read_raw(p->entry[i], 0, &d[off], (uint32_t)(8u - off)));
+    if (p->block != NULL) copy_block(d, p->block, p->bytes);
+    for (uint8_t i = 0; p->block == NULL && i < p->count; ++i) {
+        const co_pdo_field_t *f = &p->field[i];
+        if (p->native)
+            copy_field(&d[off], f->data, f->size);
+        else
+            (void)co_od_read_raw(p->entry[i], 0, &d[off], f->size);
+        off = (uint8_t)(off + f->size);
     }
     p->pending = false;
     p->last_tx_us = now_us;

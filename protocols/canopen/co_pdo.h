@@ -24,9 +24,9 @@ typedef struct {
     const co_od_t *od;
     co_tx_t *tx;     /* TPDOs are sent through it */
     co_emcy_t *emcy; /* RPDO length errors and deadline misses are reported to it */
-    /* Application callbacks (optional), given ctx back. */
-    void (*pre_read)(void *ctx, const co_od_entry_t *e); /* a mapped record is about to be sent: refresh it */
-    void (*on_rpdo)(void *ctx, uint8_t pdo);             /* an RPDO wrote the OD */
+    /* The owner's callbacks (optional), given ctx back. */
+    co_od_ext_t *(*ext_of)(void *ctx, uint16_t index); /* the object's binding (co_od.h), or NULL */
+    void (*on_rpdo)(void *ctx, uint8_t pdo);           /* an RPDO wrote the OD */
     void *ctx;
 } co_pdo_env_t;
 
@@ -39,9 +39,26 @@ typedef struct {
     bool is_tpdo;
 } co_pdo_link_t;
 
+/* A mapped entry as the frame sees it, resolved once (when the PDO is configured): where its value lives in the
+ * OD's RAM and how many bytes it takes in the frame. The frame is packed and unpacked from these, with no OD
+ * look-up per field. */
+typedef struct {
+    uint8_t *data;
+    uint8_t size;
+} co_pdo_field_t;
+
 typedef struct {
     co_pdo_link_t link;
     const co_od_entry_t *entry[CO_PDO_MAX_MAPPED];
+    co_pdo_field_t field[CO_PDO_MAX_MAPPED];
+    /* TPDO: the bound objects to refresh before sending (co_od_ext_t.read), once per run of consecutive
+     * entries of one object; resolved with the mapping and again when an object is bound (co_pdo_bind). */
+    co_od_ext_t *refresh[CO_PDO_MAX_MAPPED];
+    const co_od_entry_t *refresh_entry[CO_PDO_MAX_MAPPED];
+    uint8_t n_refresh;
+    bool native;    /* little-endian host: a field is a plain copy */
+    uint8_t *block; /* native, and the mapped entries lie one after the other in RAM in the frame's order (a
+                     * record's fields usually do): the frame is one copy of `bytes` from or to here */
     uint8_t count;
     uint8_t bytes;
     bool valid; /* COB-ID valid and mapping resolved */
@@ -71,6 +88,12 @@ void co_tpdo_init(co_pdo_t *p, uint8_t n, const co_pdo_env_t *env);
 
 /* (Re)read the communication and mapping parameters from the OD; clears the run-time state. */
 void co_pdo_configure(co_pdo_t *p);
+
+/* The mapped objects' bindings changed (co_node_bind): resolve the TPDO's refresh list again. */
+void co_pdo_bind(co_pdo_t *p);
+
+/* Does this PDO map an entry of object `index`? */
+bool co_pdo_maps(const co_pdo_t *p, uint16_t index);
 
 /* Is `index` this PDO's communication or mapping parameter? */
 bool co_pdo_owns(const co_pdo_t *p, uint16_t index);

@@ -183,7 +183,7 @@ void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us)
         from == FI_SIDE_A && (frame->cob_id & 0x7FFu) == fi->sync_cob && !(frame->cob_id & CO_FRAME_RTR);
     if (is_sync) {
         ++fi->period;
-        memset(fi->nth, 0, sizeof fi->nth);
+        memset(fi->nth, 0, fi->n_rules * sizeof fi->nth[0]); /* the rules in use (the others stay 0) */
         node_faults(fi, now_us);
     }
     const int i = fi->n_rules ? match(fi, frame, from) : -1;

@@ -3,10 +3,10 @@
 
 from __future__ import annotations
 
-import signal
 import subprocess
-import sys
 from pathlib import Path
+
+from bench_cli import spawn_bench
 
 from bench.paths import REPO
 
@@ -16,22 +16,8 @@ NODES = ("build/bin/plant_node", "build/bin/drive_node", "candump -L")
 
 def start_long_run(out: Path, *bus_args: str) -> subprocess.Popen[str]:
     """`bench run` of You 2019's step scenario for 5 * 10^6 periods (longer than any test waits) on the
-    buses given (e.g. "--bus", "vcan0"), results in `out`."""
-    return subprocess.Popen(
-        [sys.executable, "-m", "bench.cli", "run", str(STEP), *bus_args, "--out", str(out), "--no-viewer"]
-        + ["--set", "scenario.periods=5000000"],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=sigint_default,
-    )
-
-
-def sigint_default() -> None:
-    """In the child: Ctrl-C as a terminal's default. A CI runner may start the suite with SIGINT ignored
-    (a shell's background job), which a child inherits: a test of Ctrl-C would then test nothing."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    buses given (e.g. "--bus", "vcan0"), results in `out`; its Ctrl-C the terminal's default (tests/bench_cli.py)."""
+    return spawn_bench("run", STEP, *bus_args, "--out", out, "--no-viewer", "--set", "scenario.periods=5000000")
 
 
 def pids(pattern: str) -> list[int]:

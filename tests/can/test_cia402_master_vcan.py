@@ -9,14 +9,14 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import canopen
 import pytest
-from bench_proc import pids, sigint_default
+from bench_cli import bench_cli, spawn_bench
+from bench_proc import pids
 from can_site import Site
 from cia402_standin import DRIVE_ID, StandIn
 
@@ -34,9 +34,10 @@ def standin(site: Site) -> Iterator[StandIn]:
         yield s
 
 
-def bench(standin: StandIn, out: Path, *extra: str) -> list[str]:
+def run_args(standin: StandIn, out: Path, *extra: str) -> list[str]:
+    """`bench run`'s arguments against the stand-in drive."""
     opts = [*standin.master_args(), *f"--drive-profile cia402 --cycle-ms {CYCLE_MS}".split()]
-    return [sys.executable, "-m", "bench.cli", "run", str(STEP), *opts, "--out", str(out), *extra]
+    return ["run", str(STEP), *opts, "--out", str(out), *extra]
 
 
 def wait_playing(proc: subprocess.Popen[bytes]) -> bytes:
@@ -71,10 +72,7 @@ def sdo_statusword(site: Site) -> int:
 
 def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run(
-        bench(standin, out, "--set", "scenario.periods=80"), cwd=REPO, capture_output=True, text=True, timeout=600
-    )
-    assert res.returncode == 0, res.stdout + res.stderr
+    res = bench_cli(*run_args(standin, out, "--set", "scenario.periods=80"), expect=0)
     assert "no lockstep" in res.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert summary["lockstep"] is False and summary["final_state"] == "SWITCH ON DISABLED"
@@ -89,13 +87,7 @@ def test_cst_step_tracks_and_ends_disabled(standin: StandIn, tmp_path: Path) -> 
 
 def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = subprocess.Popen(
-        bench(standin, out, "--set", "scenario.periods=100000"),
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        preexec_fn=sigint_default,
-    )
+    proc = spawn_bench(*run_args(standin, out, "--set", "scenario.periods=100000"), text=False)
     try:
         wait_playing(proc)
         time.sleep(1.0)
@@ -121,13 +113,7 @@ def test_sigint_disables_the_drive(standin: StandIn, tmp_path: Path) -> None:
 
 def test_sigkill_of_the_bench_faults_the_drive(standin: StandIn, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = subprocess.Popen(
-        bench(standin, out, "--set", "scenario.periods=100000"),
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        preexec_fn=sigint_default,
-    )
+    proc = spawn_bench(*run_args(standin, out, "--set", "scenario.periods=100000"), text=False)
     try:
         watches = b"does NOT watch" not in wait_playing(proc)
         proc.kill()

@@ -4,11 +4,10 @@ equal a direct run's (summary and traces), and `bench replay` of that log gives 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
+from bench_cli import bench_cli
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
@@ -16,12 +15,7 @@ from bench.run.outputs import _json_default
 from bench.scenario import load
 
 SCENARIO = REPO / "tests" / "scenarios" / "parity.toml"
-
-
-def bench(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "bench.cli", *args], capture_output=True, text=True, cwd=REPO, timeout=900
-    )
+TIMEOUT_S = 900  # Python in the VM is slow
 
 
 def test_run_over_vcan_equals_direct_and_replays(vcan0: str, tmp_path: Path) -> None:
@@ -31,8 +25,7 @@ def test_run_over_vcan_equals_direct_and_replays(vcan0: str, tmp_path: Path) -> 
     td = direct.trace
     assert td is not None
     out = tmp_path / vcan0
-    res = bench("run", str(SCENARIO), "--bus", vcan0, "--out", str(out), "--no-viewer")
-    assert res.returncode == 0, res.stdout + res.stderr
+    bench_cli("run", SCENARIO, "--bus", vcan0, "--out", out, "--no-viewer", timeout=TIMEOUT_S, expect=0)
     sv, tv = json.loads((out / "summary.json").read_text()), np.load(out / "traces.npy")
     for key in ("status", "periods", "steps", "identified", "plant", "controller", "counters"):
         assert sv[key] == sd[key], key
@@ -44,8 +37,7 @@ def test_run_over_vcan_equals_direct_and_replays(vcan0: str, tmp_path: Path) -> 
     log = tmp_path / vcan0 / "bus.log"
     first = log.read_text().split("\n", 1)[0]
     assert first.startswith("(") and f" {vcan0} " in first  # candump -L: absolute kernel time stamps
-    res = bench("replay", str(log), "--no-viewer")
-    assert res.returncode == 0, res.stderr
+    bench_cli("replay", log, "--no-viewer", timeout=TIMEOUT_S, expect=0)
     sr = json.loads((log.parent / "replay" / "summary.json").read_text())
     for key in ("status", "steps", "identified", "counters"):
         assert sr[key] == sv[key], key

@@ -8,12 +8,12 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from bench_cli import bench_cli
 
 from bench.paths import REPO
 
@@ -31,9 +31,7 @@ def law_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def run(law: Path, out: Path, *args: str) -> tuple[dict[str, Any], Any]:
-    cmd = [sys.executable, "-m", "bench.cli", "run", str(STEP), "--law", str(law), "--no-viewer", "--out", str(out)]
-    res = subprocess.run([*cmd, *args], cwd=REPO, capture_output=True, text=True, timeout=1800)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    bench_cli("run", STEP, "--law", law, "--no-viewer", "--out", out, *args, timeout=1800, expect=0)
     return json.loads((out / "summary.json").read_text()), np.load(out / "traces.npy")
 
 

@@ -9,13 +9,12 @@ On a host without kernel CAN the stand-in runs in the CAN box and the master on 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import canopen
 import pytest
+from bench_cli import bench_cli
 from can_site import Site
 from cia402_standin import DRIVE_ID, StandIn
 
@@ -51,10 +50,9 @@ def standin(law_build: Path, site: Site, monkeypatch: pytest.MonkeyPatch) -> Ite
 
 def test_cst_step_through_a_users_law(standin: StandIn, law_build: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "bench.cli", "run", str(STEP), *standin.master_args(), "--drive-profile", "cia402"]
-    cmd += ["--cycle-ms", str(CYCLE_MS), "--law", str(LAW), "--out", str(out), "--set", "scenario.periods=80"]
-    res = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=900)
-    assert res.returncode == 0, res.stdout + res.stderr
+    args = ["run", str(STEP), *standin.master_args(), "--drive-profile", "cia402"]
+    args += ["--cycle-ms", str(CYCLE_MS), "--law", str(LAW), "--out", str(out), "--set", "scenario.periods=80"]
+    bench_cli(*args, timeout=900, expect=0)
     summary = json.loads((out / "summary.json").read_text())
     assert "OPERATION ENABLED" in summary["states_passed"], summary["states_passed"]
     step = [t for t in summary["tracking"] if t["target_permille"] == 250]

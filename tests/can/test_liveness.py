@@ -13,7 +13,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -23,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bench_cli import bench_cli
 from bench_proc import pids, start_long_run
 from can_site import Site
 
@@ -228,25 +228,7 @@ def test_a_flood_after_the_loop_changes_nothing(site: Site, tmp_path: Path) -> N
 
 def test_a_bus_that_does_not_exist_is_named_before_anything_starts(site: Site, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bench.cli",
-            "run",
-            str(STEP),
-            "--bus",
-            "nonexistent0",
-            "--out",
-            str(out),
-            "--no-viewer",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=120,
-    )
-    assert res.returncode == 2, res.stderr
+    res = bench_cli("run", STEP, "--bus", "nonexistent0", "--out", out, "--no-viewer", timeout=120, expect=2)
     # the buses there are: this machine's (named with their state), or on a host without CAN those the box makes
     there = f"{site.iface} (up)" if not site.in_box else "virtual buses (vcan0, vcan1, ...)"
     assert "nonexistent0" in res.stderr and there in res.stderr, res.stderr

@@ -4,14 +4,12 @@ sockets of a set of processes, and a bench command started in a session of its o
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
-from bench.paths import REPO
+from bench_cli import Arg, spawn_bench
 
 
 def _stat(pid: int) -> list[str] | None:
@@ -98,21 +96,11 @@ def listening(pids: list[int] | None = None, port: int | None = None) -> list[tu
 
 
 class Bench:
-    """`python -m bench.cli ARGS` in a session of its own; its output (stdout and stderr) read by a thread."""
+    """`bench ARGS` (tests/bench_cli.py: Ctrl-C its default) in a session of its own; its output (stdout and
+    stderr) read by a thread."""
 
-    def __init__(self, *args: str, env: dict[str, str] | None = None) -> None:
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "bench.cli", *args],
-            cwd=REPO,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            start_new_session=True,
-            env=env,
-            # Ctrl-C as a terminal's default: a CI runner may start the suite with SIGINT ignored (a shell's
-            # background job), which a child inherits and keeps (bench.stop respects it)
-            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-        )
+    def __init__(self, *args: Arg, env: dict[str, str] | None = None) -> None:
+        self.proc = spawn_bench(*args, env=env, start_new_session=True)
         self.out: list[str] = []
         self.err: list[str] = []
         self._threads = [

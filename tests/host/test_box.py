@@ -17,23 +17,19 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
+from bench_cli import bench_cli, spawn_bench
 
 from bench.paths import REPO
 from bench.run.bus.vm import readiness
 
-BENCH = [sys.executable, "-m", "bench.cli"]
 STEP = REPO / "scenarios" / "you2019_step.toml"
 pytestmark = pytest.mark.skipif(
     not all(ok for _, ok, _ in readiness()), reason="the CAN box needs the VM (virtme-ng, QEMU): make setup"
 )
 
 
-def bench(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO)
-
-
 def _status() -> dict:
-    return json.loads(bench("box", "status", "--json").stdout)
+    return json.loads(bench_cli("box", "status", "--json").stdout)
 
 
 def _qemus() -> list[int]:
@@ -44,8 +40,7 @@ def _qemus() -> list[int]:
 
 @pytest.fixture(scope="module")
 def box() -> dict:
-    up = bench("box", "up", timeout=900)
-    assert up.returncode == 0, up.stderr
+    bench_cli("box", "up", timeout=900, expect=0)
     st = _status()
     assert st["state"] == "up" and len(st["slots"]) == 4
     return st
@@ -59,9 +54,8 @@ def _traces_equal(a: Path, b: Path) -> None:
 
 
 def test_a_run_in_the_box_is_the_direct_run_bit_for_bit(box: dict, tmp_path: Path) -> None:
-    res = bench("run", str(STEP), "--bus", "vcan0", "--box", "--out", str(tmp_path / "box"), "--no-viewer")
-    assert res.returncode == 0, res.stdout + res.stderr
-    assert bench("run", str(STEP), "--bus", "direct", "--out", str(tmp_path / "direct"), "--no-viewer").returncode == 0
+    bench_cli("run", STEP, "--bus", "vcan0", "--box", "--out", tmp_path / "box", "--no-viewer", expect=0)
+    bench_cli("run", STEP, "--bus", "direct", "--out", tmp_path / "direct", "--no-viewer", expect=0)
     _traces_equal(tmp_path / "box", tmp_path / "direct")
     summary = json.loads((tmp_path / "box" / "summary.json").read_text())
     assert summary["status"] == "ok" and summary["bus"] == "vcan0"
@@ -74,13 +68,8 @@ def test_a_run_in_the_box_is_the_direct_run_bit_for_bit(box: dict, tmp_path: Pat
 
 
 def _start(out: Path, periods: int) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [*BENCH, "run", str(STEP), "--bus", "vcan0", "--box", "--out", str(out), "--no-viewer"]
-        + ["--set", f"scenario.periods={periods}"],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+    return spawn_bench(
+        "run", STEP, "--bus", "vcan0", "--box", "--out", out, "--no-viewer", "--set", f"scenario.periods={periods}"
     )
 
 
@@ -110,8 +99,8 @@ def test_a_python_can_script_sees_a_run_on_its_slots_tap(box: dict, tmp_path: Pa
     """With the taps on (bench box tap on), a python-can script on a slot's tap hears the run in that slot: its
     SYNCs and the plant's measurement; with the taps off (the default: the loop's pace) it hears none of them."""
     want = {0x080, 0x190}  # the SYNCs and the plant's measurement
-    on = bench("box", "tap", "on")
-    assert on.returncode == 0 and _status()["taps"] is True, on.stdout + on.stderr
+    on = bench_cli("box", "tap", "on", expect=0)
+    assert _status()["taps"] is True, on.stdout + on.stderr
     try:
         run = _start(tmp_path / "run", 4_000)
         ids = _tap_ids(_slot_of(run.pid), run, want, 120)
@@ -119,7 +108,7 @@ def test_a_python_can_script_sees_a_run_on_its_slots_tap(box: dict, tmp_path: Pa
         assert run.returncode == 0, out + err
         assert want.issubset(ids), sorted(hex(i) for i in ids)
     finally:
-        assert bench("box", "tap", "off").returncode == 0
+        bench_cli("box", "tap", "off", expect=0)
     assert _status()["taps"] is False
     run = _start(tmp_path / "quiet", 2_000)
     ids = _tap_ids(_slot_of(run.pid), run, want, 20)
@@ -133,12 +122,7 @@ def test_two_runs_at_once_keep_their_own_buses(box: dict, tmp_path: Path) -> Non
     for r in runs:
         out, err = r.communicate(timeout=600)
         assert r.returncode == 0, out + err
-    assert (
-        bench(
-            "run", str(STEP), "--bus", "direct", "--set", "scenario.periods=400", "--out", str(tmp_path / "d")
-        ).returncode
-        == 0
-    )
+    bench_cli("run", STEP, "--bus", "direct", "--set", "scenario.periods=400", "--out", tmp_path / "d", expect=0)
     for i in range(2):
         _traces_equal(tmp_path / f"run{i}", tmp_path / "d")
         summary = json.loads((tmp_path / f"run{i}" / "summary.json").read_text())
@@ -162,8 +146,7 @@ def test_a_stopped_run_leaves_the_box_healthy_for_the_next(box: dict, tmp_path: 
     assert rc == 0 and left.split() == holder.split(), pids  # nothing of the run is left in its namespace, but
     # the slot's own holder process (bench/run/bus/box/guest.py)
     assert not _status()["slots"][slot - 1]["in_use"]
-    again = bench("run", str(STEP), "--bus", "vcan0", "--box", "--out", str(tmp_path / "again"), "--no-viewer")
-    assert again.returncode == 0, again.stdout + again.stderr
+    bench_cli("run", STEP, "--bus", "vcan0", "--box", "--out", tmp_path / "again", "--no-viewer", expect=0)
 
 
 def test_a_box_killed_mid_run_ends_the_run_named_and_keeps_its_frames(box: dict, tmp_path: Path) -> None:
@@ -186,16 +169,15 @@ def test_a_box_killed_mid_run_ends_the_run_named_and_keeps_its_frames(box: dict,
         time.sleep(0.2)
     assert _status()["state"] == "down"
     # the next run starts a new box
-    again = bench("run", str(STEP), "--bus", "vcan0", "--box", "--out", str(tmp_path / "again"), timeout=900)
-    assert again.returncode == 0, again.stdout + again.stderr
+    bench_cli("run", STEP, "--bus", "vcan0", "--box", "--out", tmp_path / "again", timeout=900, expect=0)
 
 
 def test_box_down_leaves_no_qemu(tmp_path: Path) -> None:
-    assert bench("box", "up", timeout=900).returncode == 0
+    bench_cli("box", "up", timeout=900, expect=0)
     info = json.loads((REPO / "build" / "box" / "state.json").read_text())
     assert any(os.getpgid(p) == info["keeper_pid"] for p in _qemus())
-    down = bench("box", "down")
-    assert down.returncode == 0 and "stopped" in down.stdout
+    down = bench_cli("box", "down", expect=0)
+    assert "stopped" in down.stdout
     assert _status()["state"] == "down"
     left = []
     for p in _qemus():
@@ -204,7 +186,7 @@ def test_box_down_leaves_no_qemu(tmp_path: Path) -> None:
         except ProcessLookupError:
             pass
     assert not any(left)
-    assert bench("box", "status").returncode == 3
+    bench_cli("box", "status", expect=3)
 
 
 def _pgid(pid: int) -> int | None:
@@ -218,7 +200,7 @@ def test_a_pytest_session_stops_the_box_it_started(tmp_path: Path) -> None:
     """A user's project: two vcan tests through the plugin's hil_run in one session (the box booted by the first
     run), which the session stops at its end; a box that was up before the session stays up, until its idle
     timeout powers it off."""
-    bench("box", "down")
+    bench_cli("box", "down")
     (tmp_path / "test_motor.py").write_text(
         "def test_one(hil_run):\n"
         f"    hil_run({str(STEP)!r}).expect_status('ok')\n\n"
@@ -236,8 +218,8 @@ def test_a_pytest_session_stops_the_box_it_started(tmp_path: Path) -> None:
     assert not _qemus()
     # a box up before the session stays up after it, and powers off by itself once idle for its timeout (one
     # boot for both: each costs ~35-50 s)
-    up = bench("box", "up", "--idle-timeout", "30", timeout=900)
-    assert up.returncode == 0 and "powers off after 30 s unused" in up.stdout, up.stdout + up.stderr
+    up = bench_cli("box", "up", "--idle-timeout", "30", timeout=900, expect=0)
+    assert "powers off after 30 s unused" in up.stdout, up.stdout + up.stderr
     info = json.loads((REPO / "build" / "box" / "state.json").read_text())
     res = subprocess.run(argv, capture_output=True, text=True, timeout=900, cwd=tmp_path, env=env)
     assert res.returncode == 0, res.stdout + res.stderr
@@ -257,7 +239,7 @@ def test_a_session_leaves_up_a_box_it_did_not_boot(tmp_path: Path) -> None:
     """A session stops only the box its own runs booted: one that someone else booted while it ran (another
     pytest session, a user's shell: another BENCH_BOX_OWNER, here none) stays up. (The end of a direct-mode
     session once powered off the box another pytest process had just booted.)"""
-    bench("box", "down")
+    bench_cli("box", "down")
     (tmp_path / "test_other.py").write_text(
         "import os\nimport subprocess\nimport sys\n\n\n"
         "def test_someone_else_boots_the_box():\n"
@@ -271,4 +253,4 @@ def test_a_session_leaves_up_a_box_it_did_not_boot(tmp_path: Path) -> None:
         assert res.returncode == 0 and "1 passed" in res.stdout, res.stdout + res.stderr
         assert _status()["state"] == "up"
     finally:
-        bench("box", "down")
+        bench_cli("box", "down")

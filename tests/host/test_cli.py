@@ -3,29 +3,22 @@
 from __future__ import annotations
 
 import re
-import subprocess
 import sys
 
 import pytest
+from bench_cli import bench_cli
 
 from bench.canbus import probe_af_can
 
-BENCH = [sys.executable, "-m", "bench.cli"]
-
-
-def run(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=timeout)
-
 
 def test_help_lists_commands() -> None:
-    out = run("--help").stdout
+    out = bench_cli("--help").stdout
     for cmd in ("doctor", "vm", "demo"):
         assert cmd in out
 
 
 def test_doctor_reports_can_and_fallback() -> None:
-    res = run("doctor")
-    assert res.returncode == 0, res.stdout
+    res = bench_cli("doctor", expect=0)
     assert "kernel CAN (AF_CAN)" in res.stdout
     if not probe_af_can().af_can:
         assert "errno 97" in res.stdout
@@ -36,41 +29,37 @@ def test_doctor_reports_can_and_fallback() -> None:
 
 
 def test_vm_without_command_is_a_usage_error() -> None:
-    res = run("vm")
-    assert res.returncode == 64
+    res = bench_cli("vm", expect=64)
     assert "give the command" in res.stderr
 
 
 def test_vm_returns_the_command_status() -> None:
     """`bench vm -- true` exits 0, `bench vm -- sh -c 'exit 3'` exits 3, with a real vcan0 inside."""
-    ok = run(
+    bench_cli(
         "vm",
         "--",
         "sh",
         "-c",
         "ip -d link show vcan0 | grep -q 'vcan' && cat /sys/class/net/vcan0/operstate",
         timeout=600,
+        expect=0,
     )
-    assert ok.returncode == 0, ok.stdout + ok.stderr
-    bad = run("vm", "--", "sh", "-c", "exit 3", timeout=600)
-    assert bad.returncode == 3, bad.stdout + bad.stderr
+    bench_cli("vm", "--", "sh", "-c", "exit 3", timeout=600, expect=3)
 
 
 def test_vm_does_not_wait_for_background_processes() -> None:
     """A command that leaves a process running in the guest still returns (the VM powers off)."""
-    res = run("vm", "--", "sh", "-c", "sleep 100000 & exit 4", timeout=600)
-    assert res.returncode == 4, res.stdout + res.stderr
+    bench_cli("vm", "--", "sh", "-c", "sleep 100000 & exit 4", timeout=600, expect=4)
 
 
 def test_vm_timeout_is_enforced_without_output() -> None:
-    res = run("vm", "--timeout", "40", "--", "sleep", "100000", timeout=600)
-    assert res.returncode == 124, res.stdout + res.stderr
+    res = bench_cli("vm", "--timeout", "40", "--", "sleep", "100000", timeout=600, expect=124)
     assert "timed out" in res.stderr
 
 
 def test_help_lists_no_hidden_command() -> None:
     """The internal `capture` is not listed (a help=SUPPRESS leaked as "capture ==SUPPRESS==")."""
-    out = run("--help").stdout
+    out = bench_cli("--help").stdout
     assert "SUPPRESS" not in out and "capture" not in out, out
 
 
@@ -81,7 +70,7 @@ def test_run_help_lists_every_exit_code_of_the_verdict_table() -> None:
     from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
 
     for cmd in ("run", "replay"):
-        text = " ".join(run(cmd, "--help").stdout.split())  # argparse wraps lines anywhere
+        text = " ".join(bench_cli(cmd, "--help").stdout.split())  # argparse wraps lines anywhere
         for status, code in EXIT_CODES.items():
             assert re.search(rf"\b{code} {status}\b", text), (cmd, status, code)
         assert f"{EXIT_EXPECTATION_NOT_MET} expected status not reached" in text

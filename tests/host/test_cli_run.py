@@ -3,29 +3,24 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_cli import bench_cli, spawn_bench
 
 from bench.paths import REPO
+from bench.pytest_plugin.fixture import HilRunner
 
-BENCH = [sys.executable, "-m", "bench.cli"]
 STEP = REPO / "scenarios" / "you2019_step.toml"
-
-
-def bench(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO)
 
 
 def test_run_direct_writes_every_result(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer")
-    assert res.returncode == 0, res.stderr
+    res = bench_cli("run", STEP, "--bus", "direct", "--out", out, "--no-viewer", expect=0)
     for name in ("summary.json", "traces.npy", "bus.log", "run.rrd", "overview.svg"):
         assert (out / name).stat().st_size > 0, name
     assert list(out.glob("step_*.svg"))
@@ -43,13 +38,10 @@ def test_run_direct_writes_every_result(tmp_path: Path) -> None:
     assert len(list(can.LogReader(str(out / "bus.log")))) == summary["bus_stats"]["frames"]
 
 
-def test_set_overrides_change_the_run(tmp_path: Path) -> None:
-    out = tmp_path / "run"
-    res = bench(
-        "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer", "--set", "controller.L_hat_ratio=1.2"
-    )
-    assert res.returncode == 0, res.stderr
-    step = json.loads((out / "summary.json").read_text())["steps"][0]
+def test_set_overrides_change_the_run(hil_run: HilRunner) -> None:
+    run = hil_run(STEP, {"controller.L_hat_ratio": 1.2}, bus="direct")
+    assert run.exit_code == 0, run.stderr
+    step = run.summary["steps"][0]
     assert step["overshoot_pct"] > 10.0  # L_hat = 1.2 L overshoots (You 2019 Fig. 14)
 
 
@@ -71,27 +63,22 @@ def test_bad_scenario_is_refused_before_anything_starts(tmp_path: Path, content:
     path = tmp_path / "bad.toml"
     path.write_text(content)
     out = tmp_path / "out"
-    res = bench("run", str(path), "--bus", "direct", "--out", str(out))
-    assert res.returncode == 2
+    res = bench_cli("run", path, "--bus", "direct", "--out", out, expect=2)
     assert str(path) in res.stderr and needle in res.stderr, res.stderr
     assert not out.exists() and not list(tmp_path.glob("out.*"))
 
 
 def test_bad_override_names_the_key(tmp_path: Path) -> None:
-    res = bench(
-        "run", str(STEP), "--bus", "direct", "--out", str(tmp_path / "o"), "--set", "controller.L_hat_ratio=500"
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--out", tmp_path / "o", "--set", "controller.L_hat_ratio=500", expect=2
     )
-    assert res.returncode == 2 and "controller.L_hat_ratio" in res.stderr and "0.01 .. 100" in res.stderr
+    assert "controller.L_hat_ratio" in res.stderr and "0.01 .. 100" in res.stderr
 
 
 def test_replay_of_an_asc_log_gives_the_same_traces(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    assert (
-        bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer", "--log-format", "asc").returncode
-        == 0
-    )
-    res = bench("replay", str(out / "bus.asc"), "--no-viewer")
-    assert res.returncode == 0, res.stderr
+    bench_cli("run", STEP, "--bus", "direct", "--out", out, "--no-viewer", "--log-format", "asc", expect=0)
+    bench_cli("replay", out / "bus.asc", "--no-viewer", expect=0)
     a, b = np.load(out / "traces.npy"), np.load(out / "replay" / "traces.npy")
     for key in ("i_a_A", "i_b_A", "v_alpha_V", "v_beta_V", "iq_ref_A", "K1_hat_V_A"):
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
@@ -100,8 +87,8 @@ def test_replay_of_an_asc_log_gives_the_same_traces(tmp_path: Path) -> None:
 def test_replay_refuses_a_file_that_is_not_a_log(tmp_path: Path) -> None:
     bogus = tmp_path / "x.log"
     bogus.write_text("hello\n")
-    res = bench("replay", str(bogus), "--no-viewer")
-    assert res.returncode == 2 and "x.log" in res.stderr
+    res = bench_cli("replay", bogus, "--no-viewer", expect=2)
+    assert "x.log" in res.stderr
     assert not (tmp_path / "replay").exists()  # bad input: nothing written
 
 
@@ -111,14 +98,8 @@ def test_sigint_mid_run_stops_cleanly(tmp_path: Path) -> None:
     and to a process whose Ctrl-C is the terminal's default (a CI runner may start the suite with SIGINT
     ignored, as a shell's background job does: the child would inherit that)."""
     out = tmp_path / "long"
-    proc = subprocess.Popen(
-        [*BENCH, "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer"]
-        + ["--set", "scenario.periods=20000000"],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    proc = spawn_bench(
+        "run", STEP, "--bus", "direct", "--out", out, "--no-viewer", "--set", "scenario.periods=20000000"
     )
     try:
         log = tmp_path / "long.partial" / "bus.log"
@@ -144,29 +125,27 @@ def test_trace_table_selects_the_traced_signals(tmp_path: Path) -> None:
         STEP.read_text() + '\n[trace]\npdo3 = ["Drive status.iq_ref_active_A", "Drive status.speed_rad_s"]\n'
     )
     out = tmp_path / "run"
-    res = bench("run", str(path), "--bus", "direct", "--out", str(out), "--no-viewer")
-    assert res.returncode == 0, res.stderr
+    bench_cli("run", path, "--bus", "direct", "--out", out, "--no-viewer", expect=0)
     tr = np.load(out / "traces.npy")
     assert tr["drive_iq_ref_active_A"][-2] == 1.0 and "det_A2" not in tr.dtype.names  # last: sent at the next SYNC
     bad = tmp_path / "bad.toml"
     bad.write_text(
         STEP.read_text() + '\n[trace]\npdo3 = ["Controller.Ts_s", "Drive status.iq_A", "Drive status.id_A"]\n'
     )
-    res = bench("run", str(bad), "--bus", "direct", "--out", str(tmp_path / "b"))
-    assert res.returncode == 2 and "trace.pdo3" in res.stderr
+    res = bench_cli("run", bad, "--bus", "direct", "--out", tmp_path / "b", expect=2)
+    assert "trace.pdo3" in res.stderr
 
 
-def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None:
+def test_replay_of_a_runs_own_log_gives_the_runs_summary(hil_run: HilRunner, tmp_path: Path) -> None:
     """The log carries the layout, the settings and the statuses: replay = run, with no file beside it."""
     demo = REPO / "scenarios" / "demo_you2019_tuning.toml"  # tuning switched on mid-run, identification
-    out = tmp_path / "run"
-    assert bench("run", str(demo), "--bus", "direct", "--out", str(out), "--no-viewer").returncode == 0
+    run = hil_run(demo, bus="direct")
+    assert run.exit_code == 0, run.stderr
     alone = tmp_path / "alone"
     alone.mkdir()
-    (alone / "bus.log").write_bytes((out / "bus.log").read_bytes())  # nothing else beside it
-    res = bench("replay", str(alone / "bus.log"), "--no-viewer")
-    assert res.returncode == 0, res.stderr
-    a = json.loads((out / "summary.json").read_text())
+    (alone / "bus.log").write_bytes(run.bus_log.read_bytes())  # nothing else beside it
+    bench_cli("replay", alone / "bus.log", "--no-viewer", expect=0)
+    a = run.summary
     b = json.loads((alone / "replay" / "summary.json").read_text())
     for key in (
         "status",
@@ -183,7 +162,7 @@ def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None
         assert a[key] == b[key], key
     assert any(s["tuning_on"] for s in a["steps"]) and not all(s["tuning_on"] for s in a["steps"])
     assert a["identified"]["K1_bar_V_A"] is not None
-    ta, tb = np.load(out / "traces.npy"), np.load(alone / "replay" / "traces.npy")
+    ta, tb = run.traces, np.load(alone / "replay" / "traces.npy")
     assert ta.dtype == tb.dtype
     for name in ta.dtype.names:
         np.testing.assert_array_equal(ta[name], tb[name], err_msg=name)
@@ -193,8 +172,6 @@ def test_replay_of_a_runs_own_log_gives_the_runs_summary(tmp_path: Path) -> None
 def test_out_inside_the_vm_but_not_shared_is_refused(tmp_path: Path, cmd: str) -> None:
     """Inside `bench vm` a folder the VM does not share with the host (its /tmp) is lost when it stops:
     refused before anything runs (exit 2, the folder and the shared ones named), nothing written."""
-    import os
-
     shared, private = tmp_path / "shared", tmp_path / "vm-own" / "out"
     shared.mkdir()
     (shared / "bus.log").write_text("(1.000000) vcan0 080#\n")
@@ -206,11 +183,8 @@ def test_out_inside_the_vm_but_not_shared_is_refused(tmp_path: Path, cmd: str) -
         "replay": ["replay", str(shared / "bus.log")],
         "sweep": ["sweep", str(STEP), "--grid", "controller.L_hat_ratio=0.5,1.0"],
     }[cmd]
-    env = {**os.environ, "BENCH_IN_VM": "1", "BENCH_VM_SHARED": f"{REPO}{os.pathsep}{shared}"}
-    res = subprocess.run(
-        [*BENCH, *argv, "--out", str(private)], capture_output=True, text=True, cwd=REPO, env=env, timeout=300
-    )
-    assert res.returncode == 2, (res.stdout, res.stderr)
+    env = {"BENCH_IN_VM": "1", "BENCH_VM_SHARED": f"{REPO}{os.pathsep}{shared}"}
+    res = bench_cli(*argv, "--out", private, env=env, expect=2)
     assert f"{private} is inside the VM's own file system" in res.stderr and str(shared) in res.stderr, res.stderr
     assert not (tmp_path / "vm-own").exists()
 
@@ -219,15 +193,13 @@ def test_a_scenario_found_only_among_the_bench_own_is_named(tmp_path: Path) -> N
     """A relative scenario path this folder lacks runs the bench's bundled scenario of that name, and says so; a
     user's own file of that name is used without a word."""
     rel = "scenarios/you2019_step.toml"
-    argv = [*BENCH, "run", rel, "--bus", "direct", "--no-viewer", "--set", "scenario.periods=40"]
-    res = subprocess.run([*argv, "--out", str(tmp_path / "a")], capture_output=True, text=True, cwd=tmp_path)
-    assert res.returncode == 0, res.stderr
+    argv = ["run", rel, "--bus", "direct", "--no-viewer", "--set", "scenario.periods=40"]
+    res = bench_cli(*argv, "--out", tmp_path / "a", cwd=tmp_path, expect=0)
     assert f"{rel} is not in {tmp_path}: using the bench's own {REPO / rel}" in res.stderr
     assert res.stderr.count("using the bench's own") == 1
     own = tmp_path / rel
     own.parent.mkdir()
     own.write_text(STEP.read_text().replace('name = "you2019-step"', 'name = "mine"'))
-    res = subprocess.run([*argv, "--out", str(tmp_path / "b")], capture_output=True, text=True, cwd=tmp_path)
-    assert res.returncode == 0, res.stderr
+    res = bench_cli(*argv, "--out", tmp_path / "b", cwd=tmp_path, expect=0)
     assert "using the bench's own" not in res.stderr
     assert json.loads((tmp_path / "b" / "summary.json").read_text())["scenario"] == "mine"

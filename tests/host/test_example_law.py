@@ -15,13 +15,13 @@ import json
 import math
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from bench_cli import bench_cli
 
 from bench.law import build_folder
 from bench.paths import REPO
@@ -30,14 +30,10 @@ LAW = REPO / "examples" / "laws" / "complex_vector_pi"
 STEP = REPO / "examples" / "scenarios" / "complex_vector_pi_step.toml"
 MISMATCH = REPO / "examples" / "scenarios" / "complex_vector_pi_mismatch.toml"
 DROP = REPO / "examples" / "scenarios" / "complex_vector_pi_drop_command.toml"
-BENCH = [sys.executable, "-m", "bench.cli"]
 F_BW_HZ = 1000.0  # the scenarios' bandwidth_Hz
 OVERSHOOT_MARGIN_PCT = 2.0  # saliency and stator-frame hold, beyond the design's round-rotor ZOH loop
 SETTLE_MARGIN_PERIODS = 5
-
-
-def bench(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], cwd=REPO, capture_output=True, text=True, timeout=timeout)
+TIMEOUT_S = 900  # a law's build, the MCU image in QEMU
 
 
 @pytest.fixture(scope="module")
@@ -52,8 +48,8 @@ def law_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def run(scenario: Path, law: Path, out: Path, *extra: str) -> tuple[dict[str, Any], Any]:
-    res = bench("run", str(scenario), "--bus", "direct", "--law", str(law), "--no-viewer", "--out", str(out), *extra)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    args = ["run", str(scenario), "--bus", "direct", "--law", str(law), "--no-viewer", "--out", str(out), *extra]
+    bench_cli(*args, timeout=TIMEOUT_S, expect=0)
     return json.loads((out / "summary.json").read_text()), np.load(out / "traces.npy")
 
 
@@ -101,11 +97,10 @@ def test_a_step_at_speed_is_the_designs_first_order_loop(law_copy: Path, tmp_pat
 
 def test_a_mismatch_sweep_on_dask(law_copy: Path, tmp_path: Path) -> None:
     out = tmp_path / "grid"
-    res = bench(
-        "sweep", str(MISMATCH), "--law", str(law_copy), "--grid", "controller.L_hat_ratio=0.75,1.0,1.25",
-        "--workers", "2", "--no-dashboard", "--out", str(out),
+    bench_cli(
+        "sweep", MISMATCH, "--law", law_copy, "--grid", "controller.L_hat_ratio=0.75,1.0,1.25",
+        "--workers", "2", "--no-dashboard", "--out", out, timeout=TIMEOUT_S, expect=0,
     )  # fmt: skip
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     rows = {float(r["controller.L_hat_ratio"]): r for r in pq.read_table(out / "sweep.parquet").to_pylist()}
     assert sorted(rows) == [0.75, 1.0, 1.25] and all(r["status"] == "ok" for r in rows.values())
     # a larger L_hat is a larger loop gain K: more overshoot
@@ -126,11 +121,11 @@ def test_the_mismatch_boundary_is_the_designs(law_copy: Path, tmp_path: Path) ->
         lo, hi = ((lo + hi) / 2, hi) if mismatch_radius((lo + hi) / 2) < 1 else (lo, (lo + hi) / 2)
     exact = lo
     out = tmp_path / "bisect"
-    res = bench(
-        "sweep", str(MISMATCH), "--law", str(law_copy), "--bisect", "controller.L_hat_ratio=1.5:2.5",
-        "--until", "status!=ok", "--tol", "0.005", "--workers", "2", "--no-dashboard", "--out", str(out),
+    bench_cli(
+        "sweep", MISMATCH, "--law", law_copy, "--bisect", "controller.L_hat_ratio=1.5:2.5",
+        "--until", "status!=ok", "--tol", "0.005", "--workers", "2", "--no-dashboard", "--out", out,
+        timeout=TIMEOUT_S, expect=0,
     )  # fmt: skip
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     (b,) = json.loads((out / "sweep.json").read_text())["boundaries"]
     assert b["boundary"] is not None, b
     print(f"boundary {b['boundary']:.4f}, design {exact:.4f}")
@@ -150,10 +145,10 @@ def test_bench_faults_through_the_law(law_copy: Path, tmp_path: Path) -> None:
     """Every fault check with the user's law in the loop: the drive's and plant's reactions are the same
     as under the papers' laws, and the loop's recovery is judged by the law's own step (not a deadbeat's 2)."""
     out = tmp_path / "faults"
-    res = bench(
-        "faults", "--law", str(law_copy), "--set", "controller.controller=complex_vector_pi", "--out", str(out)
+    bench_cli(
+        "faults", "--law", law_copy, "--set", "controller.controller=complex_vector_pi", "--out", out,
+        timeout=TIMEOUT_S, expect=0,
     )  # fmt: skip
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     report = json.loads((out / "faults.json").read_text())
     assert report["set"] == ["controller.controller=complex_vector_pi"]
     checks = {c["check_id"]: c for c in report["checks"]}

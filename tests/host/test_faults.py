@@ -4,12 +4,11 @@ report in summary.json and the events panel in Rerun, `bench faults` as a user r
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_cli import bench_cli
 from rerun.chunk import RrdReader
 
 from bench.faults.checks import CHECKS, run_checks
@@ -48,11 +47,7 @@ def test_a_check_a_law_cannot_be_judged_by_fails_with_a_note() -> None:
 
 
 def test_bench_faults_refuses_a_bad_setting_before_any_run(tmp_path: Path) -> None:
-    res = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "faults", "--set", "controller.Vmax_V=-5", "--out", str(tmp_path / "f")],
-        cwd=REPO, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert res.returncode == 2, res.stdout + res.stderr
+    res = bench_cli("faults", "--set", "controller.Vmax_V=-5", "--out", tmp_path / "f", expect=2)
     assert "controller.Vmax_V = -5 is out of range: allowed 0 .. 2000" in res.stderr
     assert "[1/" not in res.stdout and not (tmp_path / "f").exists()
 
@@ -131,14 +126,7 @@ def test_the_same_faults_give_the_same_run() -> None:
 
 def test_bench_run_reports_the_faults_and_shows_them_in_rerun(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "run", str(SCEN), "--bus", "direct", "--out", str(out), "--no-viewer"],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=300,
-    )
-    assert res.returncode == 0, res.stderr  # frames_lost, which the scenario expects
+    res = bench_cli("run", SCEN, "--bus", "direct", "--out", out, "--no-viewer", expect=0)  # frames_lost: expected
     assert "fault 0: drop drive.TPDO1 at period 21: 1 action(s)" in res.stdout, res.stdout
     s = json.loads((out / "summary.json").read_text())
     f = s["faults"]["injected"][0]
@@ -156,25 +144,12 @@ def test_bench_run_reports_the_faults_and_shows_them_in_rerun(tmp_path: Path) ->
 
 
 def test_bench_faults_cli(tmp_path: Path) -> None:
-    res = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "faults", "--only", "drop-command,kill-drive", "--out", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=300,
-    )
-    assert res.returncode == 0, res.stdout + res.stderr
+    res = bench_cli("faults", "--only", "drop-command,kill-drive", "--out", tmp_path, expect=0)
     assert "2 of 2 fault checks pass on bus direct" in res.stdout
     data = json.loads((tmp_path / "faults.json").read_text())
     assert [c["check_id"] for c in data["checks"]] == ["drop-command", "kill-drive"]
-    bad = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "faults", "--only", "drop-everything"],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=60,
-    )
-    assert bad.returncode == 2 and "unknown check 'drop-everything'" in bad.stderr
+    bad = bench_cli("faults", "--only", "drop-everything", timeout=60, expect=2)
+    assert "unknown check 'drop-everything'" in bad.stderr
 
 
 def test_the_fault_scenario_file_loads() -> None:

@@ -5,10 +5,10 @@ working folder that cannot be written refused in one line, not a traceback."""
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bench_cli import bench_cli
 from law_util import zero_law_as
 
 from bench.law import LawBuildError, _prune, build, build_folder
@@ -60,14 +60,10 @@ def test_make_law_and_bench_law_build_once_into_one_folder(tmp_path: Path) -> No
     out = build_folder(law, "once_law")
     assert made.returncode == 0 and f"built in {out}" in made.stdout, made.stdout[-2000:] + made.stderr[-2000:]
     assert "  cc " in made.stderr and (out / "bin" / "drive_node").is_file()
-    ran = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "run", str(REPO / "tests" / "laws" / "zero_law.toml"), "--law", str(law)]
-        + ["--set", "controller.controller=once_law", "--bus", "direct", "--no-viewer", "--out", str(tmp_path / "r")],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    assert ran.returncode == 0, ran.stderr[-3000:]
+    ran = bench_cli(
+        "run", REPO / "tests" / "laws" / "zero_law.toml", "--law", law, "--set", "controller.controller=once_law",
+        "--bus", "direct", "--no-viewer", "--out", tmp_path / "r", timeout=900, expect=0,
+    )  # fmt: skip
     assert "  cc " not in ran.stderr and f"its build {out} is current" in ran.stderr, ran.stderr[-2000:]
 
 

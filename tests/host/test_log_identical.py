@@ -4,26 +4,23 @@ end-of-run reads) is in a fixed order."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
+import pytest
 
 from bench.paths import REPO
+from bench.pytest_plugin.fixture import HilRunner
 
 SCENARIO = REPO / "scenarios" / "zhao2022_stability.toml"
 
 
-def _run(out: Path, seed: str) -> bytes:
-    env = {**os.environ, "PYTHONHASHSEED": seed}
-    cmd = [sys.executable, "-m", "bench.cli", "run", str(SCENARIO), "--bus", "direct", "--out", str(out), "--no-viewer"]
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    return (out / "bus.log").read_bytes()
+def _run(hil_run: HilRunner, monkeypatch: pytest.MonkeyPatch, seed: str) -> bytes:
+    monkeypatch.setenv("PYTHONHASHSEED", seed)  # the run's environment: this process's
+    run = hil_run(SCENARIO, bus="direct", name=f"seed-{seed}")
+    assert run.exit_code == 0, run.stderr[-2000:]
+    return run.bus_log.read_bytes()
 
 
-def test_two_identical_runs_write_the_same_log(tmp_path: Path) -> None:
-    first = _run(tmp_path / "a", "1")
-    second = _run(tmp_path / "b", "4242")
+def test_two_identical_runs_write_the_same_log(hil_run: HilRunner, monkeypatch: pytest.MonkeyPatch) -> None:
+    first = _run(hil_run, monkeypatch, "1")
+    second = _run(hil_run, monkeypatch, "4242")
     assert first.count(b"\n") > 100  # a log with the run in it
     assert first == second

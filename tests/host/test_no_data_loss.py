@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from bench_cli import bench_cli
 
 from bench.paths import REPO
 from bench.run import outputs as outputs_mod
 
-BENCH = [sys.executable, "-m", "bench.cli"]
 STEP = REPO / "scenarios" / "you2019_step.toml"
 
 
@@ -38,8 +36,7 @@ def _untouched(d: Path) -> None:
 )
 def test_a_non_empty_out_is_refused_and_untouched(tmp_path: Path, cmd: list[str]) -> None:
     d = _user_folder(tmp_path)
-    res = subprocess.run([*BENCH, *cmd, "--out", str(d)], capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert res.returncode == 2, res.stderr
+    res = bench_cli(*cmd, "--out", d, timeout=120, expect=2)
     assert str(d) in res.stderr and "empty" in res.stderr
     _untouched(d)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]  # nothing written beside it either
@@ -90,25 +87,10 @@ def test_two_ctrl_c_while_writing_keep_the_complete_run(
 
 def test_a_refused_value_names_the_limit_and_leaves_nothing(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run(
-        [
-            *BENCH,
-            "run",
-            str(STEP),
-            "--bus",
-            "direct",
-            "--no-viewer",
-            "--out",
-            str(out),
-            "--set",
-            "controller.pi_bandwidth_Hz=50000",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=REPO,
-    )
-    assert res.returncode == 2, res.stderr
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--no-viewer", "--out", out, "--set", "controller.pi_bandwidth_Hz=50000",
+        timeout=120, expect=2,
+    )  # fmt: skip
     assert "pi_bandwidth_Hz = 50000" in res.stderr and "1/(6 Ts) = 3030.3" in res.stderr, res.stderr
     assert list(tmp_path.iterdir()) == []
 
@@ -117,14 +99,7 @@ def test_a_bus_the_host_cannot_have_is_refused_before_anything_starts(tmp_path: 
     from bench.canbus import probe_af_can
 
     out = tmp_path / "run"
-    res = subprocess.run(
-        [*BENCH, "run", str(STEP), "--bus", "nonexistent0", "--no-viewer", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=REPO,
-    )
-    assert res.returncode == 2, res.stderr
+    res = bench_cli("run", STEP, "--bus", "nonexistent0", "--no-viewer", "--out", out, timeout=120, expect=2)
     assert "nonexistent0" in res.stderr
     if not probe_af_can().af_can:  # this host: the VM supplies virtual buses only, and says so
         assert "vcan0, vcan1" in res.stderr

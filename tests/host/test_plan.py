@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import pytest
+from bench_cli import bench_cli
 
 from bench.canbus import classic_frame_bits, fd_frame_bits
 from bench.tools.plan import make_plan
@@ -40,14 +39,12 @@ def test_slow_period_fits() -> None:
 
 
 def test_cli_json_and_errors() -> None:
-    run = [sys.executable, "-m", "bench.cli", "plan"]
-    res = subprocess.run([*run, "--bitrate", "1000000", "--ts", "55e-6", "--json"], capture_output=True, text=True)
-    assert res.returncode == 0
+    res = bench_cli("plan", "--bitrate", "1000000", "--ts", "55e-6", "--json", expect=0)
     d = json.loads(res.stdout)
     assert d["fits"] is False and d["bits_per_period"] == 470 and d["fastest_period_s"] > 55e-6
-    bad = subprocess.run([*run, "--ts", "-1"], capture_output=True, text=True)
-    assert bad.returncode == 2 and "--ts" in bad.stderr
-    text = subprocess.run([*run, "--bitrate", "1000000", "--ts", "55e-6"], capture_output=True, text=True).stdout
+    bad = bench_cli("plan", "--ts", "-1", expect=2)
+    assert "--ts" in bad.stderr
+    text = bench_cli("plan", "--bitrate", "1000000", "--ts", "55e-6").stdout
     assert "fits in real time: NO" in text and "lockstep" in text
 
 
@@ -68,7 +65,6 @@ def test_cli_json_and_errors() -> None:
 )
 def test_cli_bad_input_exits_2_naming_the_field_and_range(args: list[str], field: str) -> None:
     """Bad input exits 2 (as every command's), with the field, its value and the allowed range; no traceback."""
-    bad = subprocess.run([sys.executable, "-m", "bench.cli", "plan", *args], capture_output=True, text=True)
-    assert bad.returncode == 2, bad.stderr
+    bad = bench_cli("plan", *args, expect=2)
     assert bad.stderr.startswith(f"bench plan: {field} = ") and "must be" in bad.stderr, bad.stderr
     assert "Traceback" not in bad.stderr

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_cli import bench_cli
 
 from bench.paths import REPO
 from bench.run import outputs
@@ -78,25 +79,8 @@ def test_trace_chunks_move_the_bar() -> None:
 
 def test_a_direct_run_without_a_terminal_ends_with_a_progress_line(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bench.cli",
-            "run",
-            str(REPO / "scenarios" / "you2019_step.toml"),
-            "--bus",
-            "direct",
-            "--out",
-            str(out),
-            "--no-viewer",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=REPO,
-    )
-    assert res.returncode == 0, res.stderr
+    args = ["run", str(REPO / "scenarios" / "you2019_step.toml"), "--bus", "direct", "--out", str(out), "--no-viewer"]
+    res = bench_cli(*args, expect=0)
     assert re.search(r"run: 200/200 periods done in [\d.]+ s", res.stderr), res.stderr
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from bench_cli import bench_cli
 from law_util import zero_law_as
 
 from bench.pytest_plugin.result import HilRun, load_run
@@ -158,15 +159,7 @@ def test_a_broken_bound_names_the_measured_figure_the_bound_and_the_run(
     line = next(x for x in out.splitlines() if x.startswith("reproduce:") and str(second) in x)
     argv = shlex.split(line.removeprefix("reproduce:"))
     assert argv[0] == "bench"
-    again = subprocess.run(
-        [sys.executable, "-m", "bench.cli", *argv[1:], "--no-viewer"],
-        cwd=root,
-        env=_env(),
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert again.returncode == 0, again.stdout + again.stderr
+    bench_cli(*argv[1:], "--no-viewer", cwd=root, env=_env(), timeout=600, expect=0)
     redone = json.loads(Path(f"{second}-again", "summary.json").read_text())
     assert redone["steps"][0]["overshoot_pct"] == measured
 

@@ -8,26 +8,25 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from bench_cli import bench_cli
 from law_util import zero_law_as
 
 from bench.paths import REPO
+from bench.pytest_plugin.fixture import HilRunner
 from bench.run.verdict.summary import EXIT_CODES
 
-BENCH = [sys.executable, "-m", "bench.cli"]
 STEP = REPO / "scenarios" / "you2019_step.toml"
 PLANT_STATUS_MISSED = 4  # Measurement.status bit 2 (plant.eds BitNames)
 
 
 def _run(out: Path, *sets: str) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
-    args = [*BENCH, "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer"]
-    for s in sets:
-        args += ["--set", s]
-    res = subprocess.run(args, capture_output=True, text=True, timeout=600, cwd=REPO)
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--out", out, "--no-viewer", *(a for s in sets for a in ("--set", s))
+    )
     summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
     return res, summary
 
@@ -55,22 +54,22 @@ def test_a_period_no_machine_holds_is_reported_as_overruns(tmp_path: Path) -> No
     assert res2.returncode == 0, res2.stdout + res2.stderr
 
 
-def test_real_time_equals_lockstep_up_to_the_first_flagged_period(tmp_path: Path) -> None:
-    res_l, s_l = _run(tmp_path / "lockstep", "drive.Ts_s=100e-6")
-    res_r, s_r = _run(tmp_path / "realtime", "drive.Ts_s=100e-6", "scenario.timing=realtime")
-    assert res_l.returncode == 0, res_l.stdout + res_l.stderr
-    assert "realtime" not in s_l  # lockstep summaries are unchanged
-    a = np.load(tmp_path / "lockstep" / "traces.npy")
-    b = np.load(tmp_path / "realtime" / "traces.npy")
+def test_real_time_equals_lockstep_up_to_the_first_flagged_period(hil_run: HilRunner) -> None:
+    lockstep = hil_run(STEP, ["drive.Ts_s=100e-6"], bus="direct", name="lockstep")
+    realtime = hil_run(STEP, ["drive.Ts_s=100e-6", "scenario.timing=realtime"], bus="direct", name="realtime")
+    s_r = realtime.summary
+    assert lockstep.exit_code == 0, lockstep.stdout + lockstep.stderr
+    assert "realtime" not in lockstep.summary  # lockstep summaries are unchanged
+    a, b = lockstep.traces, realtime.traces
     assert len(a) == len(b) == 200
     flagged = np.flatnonzero(np.nan_to_num(b["status"]).astype(np.int64) & PLANT_STATUS_MISSED)
     plant = s_r["realtime"]["plant"]
     print(f"real time at 100 us: status {s_r['status']}, overruns {plant['overruns']}, flagged periods {flagged}")
     if plant["overruns"] == 0 and plant["sync_overruns"] == 0:
-        assert s_r["status"] == "ok" and res_r.returncode == 0, res_r.stdout
+        assert s_r["status"] == "ok" and realtime.exit_code == 0, realtime.stdout
         assert len(flagged) == 0
     else:
-        assert s_r["status"] == "realtime_overrun" and res_r.returncode != 0
+        assert s_r["status"] == "realtime_overrun" and realtime.exit_code != 0
         # a missed command is an overrun flagged in the next sample; a command that came after its deadline but
         # before the (late) SYNC is an overrun too, applied as in lockstep: no flag, the same traces
         assert len(flagged) <= plant["overruns"]
@@ -88,9 +87,9 @@ def test_without_permission_for_sched_fifo_or_mlockall_one_line_says_so_and_the_
     drop = ["prlimit", "--rtprio=0", "--memlock=65536", "--", "setpriv"]
     drop += ["--bounding-set=-sys_nice,-ipc_lock", "--inh-caps=-sys_nice,-ipc_lock", "--"]
     out = tmp_path / "run"
-    args = [*BENCH, "run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer"]
+    args = ["run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer"]
     args += ["--set", "scenario.timing=realtime", "--set", "drive.Ts_s=100e-6"]
-    res = subprocess.run([*drop, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
+    res = bench_cli(*args, under=drop)
     lines = [ln for ln in res.stdout.splitlines() if ln.startswith("bench run: real time: ")]
     assert len(lines) == 1, res.stdout + res.stderr
     assert "SCHED_FIFO not permitted" in lines[0] and "mlockall not permitted" in lines[0]
@@ -121,10 +120,10 @@ def test_each_overrun_is_named_by_its_cause_beside_the_hosts_floor(tmp_path: Pat
     scenario.write_text(
         STEP.read_text() + '\n[[faults]]\nkind = "freeze"\nnode = "drive"\nat_period = 100\nperiods = 300\n'
     )
-    args = [*BENCH, "run", str(scenario), "--bus", "direct", "--out", str(tmp_path / "frozen"), "--no-viewer"]
+    args = ["run", str(scenario), "--bus", "direct", "--out", str(tmp_path / "frozen"), "--no-viewer"]
     for kv in ("scenario.timing=realtime", "drive.Ts_s=100e-6", "scenario.periods=600"):
         args += ["--set", kv]
-    res = subprocess.run(args, capture_output=True, text=True, timeout=600, cwd=REPO)
+    res = bench_cli(*args)
     s = json.loads((tmp_path / "frozen" / "summary.json").read_text())
     causes = s["realtime"]["bus"]["overrun_causes"]
     assert causes["drive_missing"] >= 150, (causes, res.stdout)  # most of the frozen periods
@@ -143,10 +142,10 @@ def test_a_law_slower_than_the_period_is_named_the_drives_overrun_not_the_plants
     scenario = tmp_path / "slow.toml"
     scenario.write_text((REPO / "tests" / "laws" / "zero_law.toml").read_text().replace('"zero_law"', '"slow_law"'))
     out = tmp_path / "run"
-    args = [*BENCH, "run", str(scenario), "--law", str(law), "--bus", "direct", "--out", str(out), "--no-viewer"]
+    args = ["run", str(scenario), "--law", str(law), "--bus", "direct", "--out", str(out), "--no-viewer"]
     for kv in ("scenario.timing=realtime", "drive.Ts_s=100e-6", "scenario.periods=300"):
         args += ["--set", kv]
-    res = subprocess.run(args, capture_output=True, text=True, timeout=900, cwd=REPO)
+    res = bench_cli(*args, timeout=900)
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "realtime_overrun" and res.returncode != 0, res.stdout + res.stderr
     causes = s["realtime"]["bus"]["overrun_causes"]

@@ -6,26 +6,20 @@ from __future__ import annotations
 import json
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bench_cli import bench_cli
 
 from bench.paths import REPO
 
-BENCH = [sys.executable, "-m", "bench.cli"]
 STEP = REPO / "scenarios" / "you2019_step.toml"
-
-
-def bench(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=300, cwd=REPO)
 
 
 @pytest.fixture(scope="module")
 def log_text(tmp_path_factory: pytest.TempPathFactory) -> bytes:
     out = tmp_path_factory.mktemp("run") / "run"
-    res = bench("run", str(STEP), "--bus", "direct", "--out", str(out), "--no-viewer")
-    assert res.returncode == 0, res.stderr
+    bench_cli("run", STEP, "--bus", "direct", "--out", out, "--no-viewer", expect=0)
     return (out / "bus.log").read_bytes()
 
 
@@ -33,7 +27,7 @@ def replay(tmp_path: Path, body: bytes, name: str = "bus.log") -> tuple[subproce
     d = tmp_path / "logs"
     d.mkdir(exist_ok=True)
     (d / name).write_bytes(body)
-    return bench("replay", str(d / name), "--no-viewer"), d / "replay"
+    return bench_cli("replay", d / name, "--no-viewer"), d / "replay"
 
 
 def test_a_log_cut_mid_line_is_said_truncated(tmp_path: Path, log_text: bytes) -> None:
@@ -73,8 +67,7 @@ def test_an_extended_id_only_log_says_what_it_holds(tmp_path: Path) -> None:
 
 
 def test_a_directory_is_said_a_directory(tmp_path: Path) -> None:
-    res = bench("replay", str(tmp_path), "--no-viewer")
-    assert res.returncode == 2
+    res = bench_cli("replay", tmp_path, "--no-viewer", expect=2)
     assert "is a directory" in res.stderr and "no such file" not in res.stderr, res.stderr
 
 

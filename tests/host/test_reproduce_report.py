@@ -12,12 +12,12 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bench_cli import bench_cli
 
-from bench.paths import BUILD, REPO
+from bench.paths import BUILD
 
 OUT = BUILD / "reproduce-ci"
 OUT_VCAN = BUILD / "reproduce-ci-vcan"
@@ -37,13 +37,7 @@ CHROMIUM_FLAGS = [
 
 def _reproduce(paper: str, bus: str, out: Path) -> Path:
     shutil.rmtree(out, ignore_errors=True)
-    res = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "reproduce", "--paper", paper, "--bus", bus, "--out", str(out)],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=3600,
-    )
+    res = bench_cli("reproduce", "--paper", paper, "--bus", bus, "--out", out, timeout=3600)
     print(res.stdout[-6000:])
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     (out / "reproduce.log").write_text(res.stdout)

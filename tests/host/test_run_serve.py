@@ -6,10 +6,11 @@ from __future__ import annotations
 import re
 import socket
 import subprocess
-import sys
 import time
 import urllib.request
 from pathlib import Path
+
+from bench_cli import spawn_bench
 
 from bench.paths import REPO
 
@@ -22,30 +23,11 @@ def free_port() -> int:
 
 def test_serve_prints_the_browser_address_and_keeps_serving(tmp_path: Path) -> None:
     web, grpc = free_port(), free_port()
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "bench.cli",
-            "run",
-            str(REPO / "scenarios" / "you2019_step.toml"),
-            "--bus",
-            "direct",
-            "--out",
-            str(tmp_path / "r"),
-            "--serve",
-            "--serve-for",
-            "6",
-            "--web-port",
-            str(web),
-            "--grpc-port",
-            str(grpc),
-        ],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
+    proc = spawn_bench(
+        "run", REPO / "scenarios" / "you2019_step.toml", "--bus", "direct", "--out", tmp_path / "r",
+        "--serve", "--serve-for", "6", "--web-port", str(web), "--grpc-port", str(grpc),
         stderr=subprocess.STDOUT,
-        text=True,
-    )
+    )  # fmt: skip
     assert proc.stdout is not None
     lines: list[str] = []
     url = None

@@ -5,13 +5,12 @@ that arrived is never counted as a lost frame."""
 from __future__ import annotations
 
 import struct
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from bench_cli import bench_cli
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
@@ -108,27 +107,9 @@ def test_missing_frames_are_lost(frames: np.ndarray) -> None:
 
 
 def test_cli_exit_code_is_the_status(tmp_path: Path) -> None:
-    res = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bench.cli",
-            "run",
-            str(STEP),
-            "--bus",
-            "direct",
-            "--no-viewer",
-            "--out",
-            str(tmp_path / "r"),
-            "--set",
-            "drive.I_trip_A=0.5",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=300,
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--no-viewer", "--out", tmp_path / "r", "--set", "drive.I_trip_A=0.5", expect=3
     )
-    assert res.returncode == 3, res.stderr
     assert "TRIPPED" in res.stdout and (tmp_path / "r" / "summary.json").exists()
 
 

@@ -5,15 +5,13 @@ on the same recording."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from rrd_util import read_recording
 
-from bench.paths import REPO
+from bench.pytest_plugin.fixture import HilRunner
 from bench.signals import unit_of
 
 SCENARIO = """
@@ -63,7 +61,7 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_every_signal_of_the_controller_is_in_the_recording(tmp_path: Path, case: str) -> None:
+def test_every_signal_of_the_controller_is_in_the_recording(hil_run: HilRunner, tmp_path: Path, case: str) -> None:
     preset, controller, extra, pdo3, pdo4 = CASES[case]
     path = tmp_path / f"{case}.toml"
     path.write_text(
@@ -71,16 +69,10 @@ def test_every_signal_of_the_controller_is_in_the_recording(tmp_path: Path, case
             name=case, preset=preset, controller=controller, extra=extra, pdo3=json.dumps(pdo3), pdo4=json.dumps(pdo4)
         )
     )
-    out = tmp_path / "run"
-    res = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "run", str(path), "--bus", "direct", "--no-viewer", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=300,
-    )
-    assert res.returncode == 0, res.stdout + res.stderr
-    tr = np.load(out / "traces.npy")
+    run = hil_run(path, bus="direct", timeout=300)
+    assert run.exit_code == 0, run.stdout + run.stderr
+    out = run.folder
+    tr = run.traces
     rec = read_recording(out / "run.rrd")
     by_name = {p.rsplit("/", 1)[-1]: (p, v) for p, v in rec.items()}
     signals = [n for n in tr.dtype.names if n not in ("period", "t_s")]
@@ -98,8 +90,7 @@ def test_every_signal_of_the_controller_is_in_the_recording(tmp_path: Path, case
     for name in signals:
         groups.setdefault(by_name[name][0].strip("/").split("/")[0], set()).add(unit_of(name))
     assert all(len(units) == 1 for units in groups.values()), groups
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["identified"]["controller"] == controller
+    assert run.summary["identified"]["controller"] == controller
     assert (out / "overview.svg").stat().st_size > 0 and list(out.glob("step_*.svg"))
 
 

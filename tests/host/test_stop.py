@@ -13,14 +13,13 @@ import os
 import re
 import signal
 import socket
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from bench_cli import bench_cli
 from stop_util import Bench, descendants, listening, session, wait_gone
 
 from bench.paths import REPO
@@ -166,14 +165,7 @@ def test_a_closed_stdout_ends_a_command_quietly() -> None:
     r, w = os.pipe()
     os.close(r)  # the reader is gone (`bench plan --json | head -1` once head has its line)
     try:
-        res = subprocess.run(
-            [sys.executable, "-m", "bench.cli", "plan", "--json"],
-            cwd=REPO,
-            stdout=w,
-            stderr=subprocess.PIPE,
-            text=True,
-            timeout=120,
-        )
+        res = bench_cli("plan", "--json", stdout=w, timeout=120)
     finally:
         os.close(w)
     assert res.returncode == 141, res.stderr

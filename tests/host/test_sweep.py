@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from bench_cli import bench_cli, spawn_bench
 
 from bench.paths import REPO
 from bench.sweep.space import build, expand_range
 
-BENCH = [sys.executable, "-m", "bench.cli", "sweep"]
 STEP = REPO / "scenarios" / "you2019_step.toml"
 ZHAO = REPO / "scenarios" / "zhao2022_stability.toml"
 TIMING = ("point_s", "loop_s", "worker_pid")  # where and how fast a point ran: not the study's result
@@ -41,10 +41,6 @@ STUDY = [
 ]
 
 
-def sweep(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO)
-
-
 def rows(out: Path) -> list[dict[str, Any]]:
     return pq.read_table(out / "sweep.parquet").to_pylist()
 
@@ -56,8 +52,7 @@ def results(out: Path) -> list[dict[str, Any]]:
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("serial") / "study"
-    res = sweep(*STUDY, "--serial", "--out", str(out))
-    assert res.returncode == 0, res.stderr
+    bench_cli("sweep", *STUDY, "--serial", "--out", str(out), expect=0)
     return out
 
 
@@ -102,8 +97,7 @@ def test_samples_are_reproducible_from_their_seed() -> None:
 )
 def test_bad_input_is_refused_before_anything_runs(tmp_path: Path, args: list[str], says: str) -> None:
     out = tmp_path / "never"
-    res = sweep(str(STEP), *args, *(["--out", str(out)] if "--resume" not in args else []))
-    assert res.returncode == 2, res.stdout + res.stderr
+    res = bench_cli("sweep", str(STEP), *args, *(["--out", str(out)] if "--resume" not in args else []), expect=2)
     assert says in res.stderr, res.stderr
     assert not out.exists()
 
@@ -113,8 +107,7 @@ def test_bad_input_is_refused_before_anything_runs(tmp_path: Path, args: list[st
 
 def test_a_local_cluster_of_two_workers_gives_the_serial_table(serial: Path, tmp_path: Path) -> None:
     out = tmp_path / "cluster"
-    res = sweep(*STUDY, "--workers", "2", "--out", str(out))
-    assert res.returncode == 0, res.stderr
+    res = bench_cli("sweep", *STUDY, "--workers", "2", "--out", str(out), expect=0)
     assert "local Dask cluster of 2 worker processes" in res.stdout
     got, ref = results(out), results(serial)
     assert len(ref) == 6 and got == ref
@@ -162,14 +155,13 @@ def test_a_separately_started_dask_cluster(serial: Path, tmp_path: Path) -> None
             env=env,
         )
         out = tmp_path / "remote"
-        res = sweep(*STUDY, "--scheduler", address, "--out", str(out))
-        assert res.returncode == 0, res.stderr
+        res = bench_cli("sweep", *STUDY, "--scheduler", address, "--out", str(out), expect=0)
         assert f"the Dask cluster at {address} (1 workers)" in res.stdout
         assert results(out) == results(serial)
         assert {r["worker_pid"] for r in rows(out)} <= _descendants(worker.pid)  # the points ran in that worker
         # the scheduler file works as the address too
-        res = sweep(*STUDY, "--scheduler", str(sched_file), "--out", str(tmp_path / "by-file"))
-        assert res.returncode == 0 and results(tmp_path / "by-file") == results(serial), res.stderr
+        res = bench_cli("sweep", *STUDY, "--scheduler", str(sched_file), "--out", str(tmp_path / "by-file"), expect=0)
+        assert results(tmp_path / "by-file") == results(serial), res.stderr
     finally:
         for p in (worker, sched):
             if p is not None:
@@ -194,8 +186,8 @@ def _descendants(pid: int) -> set[int]:
 
 
 def test_an_unreachable_scheduler_is_said(tmp_path: Path) -> None:
-    res = sweep(*STUDY, "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "x"))
-    assert res.returncode == 2 and "--scheduler tcp://127.0.0.1:9" in res.stderr, res.stderr
+    res = bench_cli("sweep", *STUDY, "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "x"), expect=2)
+    assert "--scheduler tcp://127.0.0.1:9" in res.stderr, res.stderr
 
 
 # ---------------------------------------------------------------------------------------- kill and resume
@@ -207,7 +199,7 @@ def test_a_killed_sweep_resumes_without_rerunning_finished_points(tmp_path: Path
     n = 1001
     args = [str(STEP), "--grid", "controller.L_hat_ratio=0.5:1.5:0.001", "--set", "scenario.periods=2000"]
     args += ["--workers", "2", "--no-dashboard", "--out", str(out)]
-    proc = subprocess.Popen([*BENCH, *args], cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = spawn_bench("sweep", *args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     parts = out / "sweep.parts"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(list(parts.glob("part-*.parquet"))) < 2:
@@ -217,8 +209,7 @@ def test_a_killed_sweep_resumes_without_rerunning_finished_points(tmp_path: Path
     before = {r["point_id"]: r for p in sorted(parts.glob("part-*.parquet")) for r in pq.read_table(p).to_pylist()}
     assert 0 < len(before) < n, "killed mid-study"
     assert not (out / "sweep.parquet").exists()
-    res = sweep(*args, "--resume")
-    assert res.returncode == 0, res.stderr
+    res = bench_cli("sweep", *args, "--resume", expect=0)
     assert f"resuming: {len(before)} of {n} points already in" in res.stdout
     after = rows(out)
     assert [float(r["controller.L_hat_ratio"]) for r in after] == pytest.approx([0.5 + 0.001 * i for i in range(n)])
@@ -232,10 +223,10 @@ def test_a_killed_sweep_resumes_without_rerunning_finished_points(tmp_path: Path
 
 
 def test_a_folder_holding_another_study_is_not_mixed(serial: Path) -> None:
-    res = sweep(*STUDY, "--serial", "--out", str(serial))
-    assert res.returncode == 2 and "already holds a study" in res.stderr
-    res = sweep(*STUDY, "--seed", "4", "--serial", "--out", str(serial), "--resume")
-    assert res.returncode == 2 and "another study (seed differ)" in res.stderr, res.stderr
+    res = bench_cli("sweep", *STUDY, "--serial", "--out", str(serial), expect=2)
+    assert "already holds a study" in res.stderr
+    res = bench_cli("sweep", *STUDY, "--seed", "4", "--serial", "--out", str(serial), "--resume", expect=2)
+    assert "another study (seed differ)" in res.stderr, res.stderr
 
 
 # ---------------------------------------------------------------------------------------- outputs
@@ -256,18 +247,8 @@ def test_monte_carlo_percentiles_are_the_tables(serial: Path) -> None:
 
 def test_grid_heatmap_and_csv(tmp_path: Path) -> None:
     out = tmp_path / "grid"
-    res = sweep(
-        str(STEP),
-        "--grid",
-        "controller.L_hat_ratio=0.5,1.0",
-        "--grid",
-        "controller.R_hat_ratio=1.0,1.5",
-        "--serial",
-        "--csv",
-        "--out",
-        str(out),
-    )
-    assert res.returncode == 0, res.stderr
+    grid = ["--grid", "controller.L_hat_ratio=0.5,1.0", "--grid", "controller.R_hat_ratio=1.0,1.5"]
+    bench_cli("sweep", STEP, *grid, "--serial", "--csv", "--out", out, expect=0)
     csv = (out / "sweep.csv").read_text().splitlines()
     assert len(csv) == 5 and csv[0].startswith('"point_id","controller.L_hat_ratio","controller.R_hat_ratio"')
     table = {(r["controller.L_hat_ratio"], r["controller.R_hat_ratio"]): r for r in rows(out)}
@@ -308,8 +289,7 @@ def test_error_growth_per_period_in_a_study(tmp_path: Path) -> None:
     """On the Zhao 2022 motor: settled (at the float32 floor), decaying slowly (L/L0 = 0.704, root radius 0.995),
     and past the boundary (L/L0 = 0.70), where the voltage limit holds the loop in a bounded cycle."""
     out = tmp_path / "growth"
-    res = sweep(str(ZHAO), "--grid", "controller.L_hat_ratio=1.25,1.42,1.4286", "--serial", "--out", str(out))
-    assert res.returncode == 0, res.stderr
+    bench_cli("sweep", ZHAO, "--grid", "controller.L_hat_ratio=1.25,1.42,1.4286", "--serial", "--out", out, expect=0)
     g = {r["controller.L_hat_ratio"]: r["error_growth_per_period"] for r in rows(out)}
     assert g["1.25"] == 0.0 and 0.99 < g["1.42"] < 1.0 and g["1.4286"] >= 1.0, g
 
@@ -321,21 +301,8 @@ def test_zhao2022_stability_boundary_by_bisection(tmp_path: Path) -> None:
     from bench.claims.zhao2022 import L, R, poly_boundary, q_incremental
 
     out = tmp_path / "zhao"
-    res = sweep(
-        str(ZHAO),
-        "--bisect",
-        "controller.L_hat_ratio=1.25:1.6667",
-        "--until",
-        "status!=ok",
-        "--tol",
-        "0.002",
-        "--workers",
-        "2",
-        "--no-dashboard",
-        "--out",
-        str(out),
-    )
-    assert res.returncode == 0, res.stderr
+    bisect = ["--bisect", "controller.L_hat_ratio=1.25:1.6667", "--until", "status!=ok", "--tol", "0.002"]
+    bench_cli("sweep", ZHAO, *bisect, "--workers", "2", "--no-dashboard", "--out", out, expect=0)
     (b,) = json.loads((out / "sweep.json").read_text())["boundaries"]
     assert b["hi"] - b["lo"] <= 0.002 and b["condition_at_lo"] is False and b["condition_at_hi"] is True
     exact = 1.0 / poly_boundary(lambda lam: q_incremental(R, L, R, L / lam))  # L_hat_ratio = L0/L

@@ -14,12 +14,13 @@ import sys
 from pathlib import Path
 
 import pytest
+from bench_cli import bench_cli
 from law_util import rename
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURE = REPO / "tests" / "laws" / "zero_law"
 SCENARIO = REPO / "tests" / "laws" / "zero_law.toml"
-BENCH = [sys.executable, "-m", "bench.cli"]
+BUILD_TIMEOUT_S = 1800  # `bench run --law` builds the law first
 
 
 def _gen_od():  # type: ignore[no-untyped-def]
@@ -171,17 +172,14 @@ def test_make_law_builds_every_drive_target_from_a_folder_outside_the_repo(tmp_p
     assert _listing(law) == before  # nothing written in the user's folder
 
 
-def _bench(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BENCH, *args], capture_output=True, text=True, cwd=REPO, timeout=1800)
-
-
 def test_bench_names_the_users_file_when_the_law_does_not_compile(tmp_path: Path) -> None:
     law = _law_copy(tmp_path, "broken_law")
     _rename(law, "broken_law")
     src = law / "zero_law.c"
     src.write_text(src.read_text().replace("->steps++;", "->steps++ not_c;"))
-    proc = _bench("run", str(SCENARIO), "--law", str(law), "--bus", "direct", "--out", str(tmp_path / "run"))
-    assert proc.returncode == 2, proc.stderr
+    proc = bench_cli(
+        "run", SCENARIO, "--law", law, "--bus", "direct", "--out", tmp_path / "run", timeout=BUILD_TIMEOUT_S, expect=2
+    )
     assert f"{src}:" in proc.stderr and "error:" in proc.stderr, proc.stderr
     assert not (tmp_path / "run").exists()
 
@@ -191,8 +189,9 @@ def test_bench_says_which_symbol_the_folder_must_define(tmp_path: Path) -> None:
     _rename(law, "nameless_law")
     src = law / "zero_law.c"
     src.write_text(src.read_text().replace("const current_law_t current_law_nameless_law", "const current_law_t other"))
-    proc = _bench("run", str(SCENARIO), "--law", str(law), "--bus", "direct", "--out", str(tmp_path / "run"))
-    assert proc.returncode == 2, proc.stderr
+    proc = bench_cli(
+        "run", SCENARIO, "--law", law, "--bus", "direct", "--out", tmp_path / "run", timeout=BUILD_TIMEOUT_S, expect=2
+    )
     assert "current_law_nameless_law" in proc.stderr.splitlines()[-1], proc.stderr
 
 
@@ -204,8 +203,9 @@ def test_a_descriptor_without_step_is_refused_when_built(tmp_path: Path) -> None
     src.write_text(
         src.read_text().replace(".step = zero_step,", ".step = 0,").replace("static void zero_step", "void zero_step")
     )
-    proc = _bench("run", str(SCENARIO), "--law", str(law), "--bus", "direct", "--out", str(tmp_path / "run"))
-    assert proc.returncode == 2, proc.stderr
+    proc = bench_cli(
+        "run", SCENARIO, "--law", law, "--bus", "direct", "--out", tmp_path / "run", timeout=BUILD_TIMEOUT_S, expect=2
+    )
     assert "current_law_stepless_law.step is NULL" in proc.stderr.splitlines()[-1], proc.stderr
     assert not (tmp_path / "run").exists()
 
@@ -224,11 +224,10 @@ def test_a_law_whose_command_is_not_finite_ends_the_run_law_fault(tmp_path: Path
     )
     src.write_text(text.replace("    (void)in;\n", ""))
     out = tmp_path / "run"
-    proc = _bench(
-        "run", str(SCENARIO), "--law", str(law), "--set", "controller.controller=nan_law", "--bus", "direct",
-        "--no-viewer", "--out", str(out),
+    proc = bench_cli(
+        "run", SCENARIO, "--law", law, "--set", "controller.controller=nan_law", "--bus", "direct",
+        "--no-viewer", "--out", out, timeout=BUILD_TIMEOUT_S, expect=10,
     )  # fmt: skip
-    assert proc.returncode == 10, proc.stdout[-2000:] + proc.stderr[-2000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "law_fault" and summary["bus_stats"]["interference"]["frames"] == 0, summary["status"]
     faults = [e for e in summary["emcy"] if e["node"] == "drive" and e["code"] == "0xFF06"]
@@ -240,8 +239,8 @@ def test_a_law_whose_command_is_not_finite_ends_the_run_law_fault(tmp_path: Path
 
 def test_a_run_that_never_selects_the_law_is_refused(tmp_path: Path) -> None:
     scenario = REPO / "scenarios" / "you2019_step.toml"
-    proc = _bench("run", str(scenario), "--law", str(FIXTURE), "--bus", "direct", "--out", str(tmp_path / "run"))
-    assert proc.returncode == 2, proc.stderr
+    args = ["run", str(scenario), "--law", str(FIXTURE), "--bus", "direct", "--out", str(tmp_path / "run")]
+    proc = bench_cli(*args, timeout=BUILD_TIMEOUT_S, expect=2)
     assert "does not select the law zero_law" in proc.stderr and "controller.controller=zero_law" in proc.stderr
     assert not (tmp_path / "run").exists()
 
@@ -252,8 +251,8 @@ def test_bench_run_selects_the_users_law(tmp_path: Path) -> None:
     import numpy as np
 
     out = tmp_path / "run"
-    proc = _bench("run", str(SCENARIO), "--law", str(FIXTURE), "--bus", "direct", "--out", str(out), "--no-viewer")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    args = ["run", str(SCENARIO), "--law", str(FIXTURE), "--bus", "direct", "--out", str(out), "--no-viewer"]
+    bench_cli(*args, timeout=BUILD_TIMEOUT_S, expect=0)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["identified"]["controller"] == "zero_law", summary["identified"]
     assert summary["status"] == "ok"

@@ -77,6 +77,7 @@ def _lib() -> ctypes.CDLL:
     lib.hil_record_dropped.restype = ctypes.c_uint64
     lib.hil_now_us.restype = ctypes.c_int64
     lib.hil_plant_period.restype = ctypes.c_uint64
+    lib.hil_bus_frames.restype = ctypes.c_uint64
     lib.hil_faults.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
     lib.hil_fault_log.argtypes = [ctypes.POINTER(FaultEvent), ctypes.c_uint32]
     lib.hil_fault_log.restype = ctypes.c_uint32
@@ -168,6 +169,11 @@ class Hil:
             n = self.lib.hil_take(fresh.ctypes.data, len(fresh))
             out, self._rec = self._rec[:n], fresh
         return out
+
+    def frames(self) -> int:
+        """Frames the in-process bus has carried since it opened (every node's and the master's)."""
+        with self._lock:
+            return int(self.lib.hil_bus_frames())
 
     def run(self, max_periods: int) -> int:
         with self._lock:

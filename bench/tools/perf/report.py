@@ -78,11 +78,16 @@ def _closed_loop(r: dict[str, Any], L: _Lines) -> None:
             f"{b['Mperiods_per_s']:6.2f} M periods/s  {_fmt_target(b['meets_target'])}"
             f"  (iq at end {b['iq_end_A']:.4f} A for 1 A)"
         )
-        L.append(
-            f"  direct mode (libhil.so + CANopen)    {d['ns_per_period']:8.1f} ns/period  "
-            f"{d['Mperiods_per_s']:6.2f} M periods/s  {_fmt_target(d['meets_target'])}"
-            f"  ({d['periods']} periods, missed commands {d['plant_missed_commands']})"
-        )
+        rows = [("direct mode, the bare cores' plant", cl.get("direct_mode_bare_plant"))]
+        for label, x in [*rows, ("direct mode, EDS defaults", d)]:
+            if x is None:
+                continue
+            L.append(
+                f"  {label:<37}{x['ns_per_period']:8.1f} ns/period  "
+                f"{x['Mperiods_per_s']:6.2f} M periods/s  {_fmt_target(x['meets_target'])}"
+                f"  ({x['periods']} periods, {x.get('frames_per_period', 0):.1f} frames each, "
+                f"missed commands {x['plant_missed_commands']})"
+            )
         mem = cl["memory"]
         L.head("resident memory, direct mode (/proc/self/statm)")
         L.append(

@@ -1,13 +1,15 @@
-/* drive_app_law.c - the drive app's side of the current laws (drive_app.h): the parameter records
+/* drive_law_slot.c - the law slot, a component of the drive app (drive_law_slot.h): the parameter records
  * 0x2200-0x2203 -> drive_config_t and their checks, and every law's EDS record (its CurrentLaws key:
  * 0x2201, 0x2206, 0x2207, a user law's 0x24xx), bound generically through the registry
  * (firmware_shim/core/current_law.h): its parameters reach the selected law, it checks them, its
- * commands act at once, its status entries are the law's own.  The OD hooks (drive_app_od.c) call it.
+ * commands act at once, its status entries are the law's own.  Each record is bound to this file's
+ * handlers at init (drive_law_slot_bind): the parameter records to ext_config, the laws' to ext_law.
  * Portable: no OS headers, no allocation, float32. */
 #include <string.h>
 
 #include "co_field_map.h"
-#include "drive_app_internal.h"
+#include "drive_law_slot.h"
+#include "drive_od.h"
 
 /* The drive's parameter records -> drive_config_t, one row per EDS entry (the
  * lists od_drive_fields.h generates; the config's fields carry the EDS names). */
@@ -28,7 +30,7 @@ static const co_field_map_t config_rows[] = {
 
 /* OD -> drive_config_t.  core_ctrl: controller to keep when the OD selects the
  * open loop (the core has no open-loop controller). */
-void drive_app_law_od_to_config(const od_drive_mfr_t *m, drive_config_t *c, uint8_t core_ctrl)
+void drive_law_slot_od_to_config(const od_drive_mfr_t *m, drive_config_t *c, uint8_t core_ctrl)
 {
     co_field_map_to_core(config_rows, sizeof config_rows / sizeof config_rows[0], m, c);
     if (c->controller == (uint8_t)OD_DRIVE_CONTROLLER_OPEN_LOOP) c->controller = core_ctrl;
@@ -57,13 +59,6 @@ static const void *record_in(uint16_t index, void *user)
     return od_record(x->node, x->m, index);
 }
 
-int drive_app_law_is_record(uint16_t index)
-{
-    for (uint8_t i = 0u; i < current_law_count; ++i)
-        if (current_law_table[i].record_index == index && index != 0u) return 1;
-    return 0;
-}
-
 /* The law that takes commands on the record at `index`, NULL for none. */
 static const current_law_entry_t *commanded_law(uint16_t index)
 {
@@ -73,10 +68,10 @@ static const current_law_entry_t *commanded_law(uint16_t index)
     return NULL;
 }
 
-int drive_app_law_sync(drive_app_t *app)
+int drive_law_slot_sync(drive_law_slot_t *slot)
 {
-    co_node_t *node = app->node;
-    drive_t *d = &app->drv;
+    co_node_t *node = slot->node;
+    drive_t *d = slot->drv;
     const current_law_entry_t *e = current_law_find(d->cfg.controller);
     if (node == NULL || e == NULL || e->record_index == 0u) return 0;
     const uint8_t *rec = (const uint8_t *)od_record(node, mfr_of(node), e->record_index);
@@ -106,13 +101,13 @@ static uint32_t abort_of(current_law_verdict_t v)
 
 /* Would the core accept the parameter records of m (a candidate OD)?  (Its rules: drive_config_check,
  * and every law's on its record.) */
-static uint32_t check_config(const drive_app_t *app, const od_drive_mfr_t *m, int controller_written)
+static uint32_t check_config(const drive_law_slot_t *slot, const od_drive_mfr_t *m, int controller_written)
 {
-    drive_config_t c = app->drv.cfg;
+    drive_config_t c = slot->drv->cfg;
     co_field_map_to_core(config_rows, sizeof config_rows / sizeof config_rows[0], m, &c); /* 0 = open loop */
     if (controller_written && drive_config_check_selection(&c) != DRIVE_CONFIG_OK)
         return CO_ABORT_INVALID_VALUE; /* a surface-mounted law with a salient model */
-    record_ctx_t ctx = {app->node, m};
+    record_ctx_t ctx = {slot->node, m};
     switch (drive_config_check(&c, m->x2202_References.mode, record_in, &ctx)) {
     case DRIVE_CONFIG_OK: return 0;
     case DRIVE_CONFIG_NO_SUCH_CONTROLLER: return CO_ABORT_INVALID_VALUE;
@@ -120,69 +115,94 @@ static uint32_t check_config(const drive_app_t *app, const od_drive_mfr_t *m, in
     }
 }
 
-int drive_app_law_pre_write(drive_app_t *app, const od_drive_mfr_t *m, const od_drive_mfr_t *cand,
-                            const co_od_entry_t *e, const uint8_t *data, uint32_t *abort)
+/* The one config-change path: copy, and recompute at the next step if it changed. */
+static void take_config(drive_law_slot_t *slot, const od_drive_mfr_t *m)
 {
-    const uint16_t idx = e->index;
-    (void)data;
-    if (drive_app_law_is_record(idx)) { /* a law's command, or its parameters */
-        const current_law_entry_t *law = commanded_law(idx);
-        if (law != NULL) {
-            const int open_loop = m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP;
-            const current_law_verdict_t v =
-                drive_law_command(&app->drv, law, od_record(app->node, cand, idx), e->subindex, open_loop, 0);
-            if (v != CURRENT_LAW_NOT_COMMAND) {
-                *abort = abort_of(v);
-                return 1;
-            }
-        }
-        *abort = check_config(app, cand, 0);
-        return 1;
-    }
-    if (idx >= OD_DRIVE_CONTROLLER_IDX && idx <= OD_DRIVE_OUTER_LOOPS_IDX) {
-        *abort = check_config(app, cand,
-                              idx == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB);
-        return 1;
-    }
-    *abort = 0u;
-    return 0;
+    drive_config_t c = slot->drv->cfg;
+    drive_law_slot_od_to_config(m, &c, c.controller);
+    int changed = memcmp(&c, &slot->drv->cfg, sizeof c) != 0;
+    if (changed) slot->drv->cfg = c;
+    changed |= drive_law_slot_sync(slot); /* the selected law's record (also when the selection changed) */
+    if (changed) drive_apply_config(slot->drv);
 }
 
-int drive_app_law_post_write(drive_app_t *app, od_drive_mfr_t *m, const co_od_entry_t *e)
+/* ------------------------------------------------------------------ 0x2200, 0x2202, 0x2203 */
+
+/* Every write is judged on the whole configuration it would make (the references' mode is part of it). */
+static uint32_t config_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
 {
-    const uint16_t idx = e->index;
-    const current_law_entry_t *law = commanded_law(idx);
+    const drive_law_slot_t *slot = (const drive_law_slot_t *)object;
+    od_drive_mfr_t cand;
+    if (!drive_od_candidate(slot->node, e, data, len, &cand)) return 0;
+    return check_config(slot, &cand,
+                        e->index == OD_DRIVE_CONTROLLER_IDX && e->subindex == OD_DRIVE_CONTROLLER_CONTROLLER_SUB);
+}
+
+/* In effect at the next step; of the references only the profile is configuration (the set-points are read by
+ * every step). */
+static void config_written(void *object, const co_od_entry_t *e)
+{
+    drive_law_slot_t *slot = (drive_law_slot_t *)object;
+    if (e->index == OD_DRIVE_REFERENCES_IDX && e->subindex != OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB &&
+        e->subindex != OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB)
+        return;
+    take_config(slot, mfr_of(slot->node));
+}
+
+/* ------------------------------------------------------------------ a law's record */
+
+/* A law's command (acts at once, checked by the law now) or its parameters (checked on the configuration). */
+static uint32_t law_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
+{
+    drive_law_slot_t *slot = (drive_law_slot_t *)object;
+    od_drive_mfr_t cand;
+    if (!drive_od_candidate(slot->node, e, data, len, &cand)) return 0;
+    const current_law_entry_t *law = commanded_law(e->index);
+    if (law != NULL) {
+        const int open_loop = mfr_of(slot->node)->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP;
+        const current_law_verdict_t v =
+            drive_law_command(slot->drv, law, od_record(slot->node, &cand, e->index), e->subindex, open_loop, 0);
+        if (v != CURRENT_LAW_NOT_COMMAND) return abort_of(v);
+    }
+    return check_config(slot, &cand, 0);
+}
+
+static void law_written(void *object, const co_od_entry_t *e)
+{
+    drive_law_slot_t *slot = (drive_law_slot_t *)object;
+    od_drive_mfr_t *m = mfr_of(slot->node);
+    const current_law_entry_t *law = commanded_law(e->index);
     if (law != NULL) {
         const int open_loop = m->x2200_Controller.controller == OD_DRIVE_CONTROLLER_OPEN_LOOP;
-        if (drive_law_command(&app->drv, law, od_record(app->node, m, idx), e->subindex, open_loop, 1) !=
+        if (drive_law_command(slot->drv, law, od_record(slot->node, m, e->index), e->subindex, open_loop, 1) !=
             CURRENT_LAW_NOT_COMMAND)
-            return 1;
+            return;
     }
-    const int is_config =
-        idx == OD_DRIVE_CONTROLLER_IDX || idx == OD_DRIVE_OUTER_LOOPS_IDX || drive_app_law_is_record(idx) ||
-        (idx == OD_DRIVE_REFERENCES_IDX && (e->subindex == OD_DRIVE_REFERENCES_PROFILE_SPEED_RAD_S_SUB ||
-                                            e->subindex == OD_DRIVE_REFERENCES_PROFILE_ACCEL_RAD_S2_SUB));
-    if (is_config) { /* the one config-change path: copy, and recompute at the next step if it changed */
-        drive_config_t c = app->drv.cfg;
-        drive_app_law_od_to_config(m, &c, c.controller);
-        int changed = memcmp(&c, &app->drv.cfg, sizeof c) != 0;
-        if (changed) app->drv.cfg = c;
-        changed |= drive_app_law_sync(app); /* the selected law's record (also when the selection changed) */
-        if (changed) drive_apply_config(&app->drv);
-        return 1;
-    }
-    return 0;
+    take_config(slot, m);
 }
 
-/* ------------------------------------------------------------------ refresh (pre_read) */
-
-int drive_app_law_refresh(drive_app_t *app, od_drive_mfr_t *m, uint16_t index)
+/* Read: the selected law's status entries, as it computes them now; another law's record: its status as that law
+ * last wrote it. */
+static void law_read(void *object, const co_od_entry_t *e)
 {
-    if (!drive_app_law_is_record(index)) return 0;
-    drive_t *d = &app->drv;
+    drive_law_slot_t *slot = (drive_law_slot_t *)object;
+    drive_t *d = slot->drv;
     const current_law_entry_t *selected = current_law_find(d->cfg.controller);
-    if (selected != NULL && selected->record_index == index) drive_update_config(d); /* selected, not yet run */
-    if (d->law != NULL && d->law->record_index == index)
-        drive_law_status(d, od_record(app->node, m, index)); /* the selected law's status entries */
-    return 1; /* another law's record: its status as that law last wrote it */
+    if (selected != NULL && selected->record_index == e->index) drive_update_config(d); /* selected, not yet run */
+    if (d->law != NULL && d->law->record_index == e->index)
+        drive_law_status(d, od_record(slot->node, mfr_of(slot->node), e->index));
+}
+
+void drive_law_slot_bind(drive_law_slot_t *slot, co_node_t *node, drive_t *drv)
+{
+    slot->node = node;
+    slot->drv = drv;
+    slot->ext_config = (co_od_ext_t){slot, NULL, config_check, config_written};
+    slot->ext_law = (co_od_ext_t){slot, law_read, law_check, law_written};
+    (void)co_node_bind(node, OD_DRIVE_CONTROLLER_IDX, &slot->ext_config);
+    (void)co_node_bind(node, OD_DRIVE_REFERENCES_IDX, &slot->ext_config);
+    (void)co_node_bind(node, OD_DRIVE_OUTER_LOOPS_IDX, &slot->ext_config);
+    for (uint8_t i = 0u; i < current_law_count; ++i)
+        if (current_law_table[i].record_index != 0u)
+            (void)co_node_bind(node, current_law_table[i].record_index, &slot->ext_law);
 }

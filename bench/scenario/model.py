@@ -1,0 +1,65 @@
+"""What a scenario is once parsed (Scenario, its Settings and Events) and the refusal of a bad one (ScenarioError),
+with the fixed vocabularies of its [scenario] table: its keys, the timings, the run statuses it may expect."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from bench.eds import Param
+from bench.scenario.faults import Fault
+
+TIMINGS = ("lockstep", "realtime")
+SCENARIO_KEYS = ("name", "description", "periods", "seed", "timing", "expect")
+# Run statuses (bench/run/verdict/summary.py EXIT_CODES gives each its exit code).
+STATUSES = (
+    "ok",
+    "tripped",
+    "diverged",
+    "non_finite",
+    "frames_lost",
+    "node_lost",
+    "interference",
+    "law_fault",
+    "realtime_overrun",
+)
+
+
+class ScenarioError(ValueError):
+    """A bad scenario: the message names the file, the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One OD write, or a ratio resolved against the plant's value at configuration time."""
+
+    key: str  # "section.name" as in the file
+    param: Param | None  # None for ratio keys
+    value: float | int
+    ratio_of: tuple[tuple[str, str], ...] = ()  # ((drive param, plant param), ...)
+
+
+@dataclass
+class Event:
+    at_period: int
+    settings: list[Setting]
+
+
+@dataclass
+class Scenario:
+    name: str
+    periods: int
+    source: str
+    description: str = ""
+    seed: int = 1
+    timing: str = "lockstep"
+    preset: str | None = "you2019"
+    settings: list[Setting] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
+    trace: dict[int, tuple[str, ...]] = field(default_factory=dict)  # TPDO number -> entries (parse)
+    expect: tuple[str, ...] = ("ok",)
+    faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/scenario/faults.py)
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    def event_periods(self) -> list[int]:
+        return sorted({e.at_period for e in self.events})
