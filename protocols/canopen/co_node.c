@@ -85,46 +85,6 @@ static void reset(co_node_t *node, int communication_only)
 
 /* ------------------------------------------------------------------ hooks as the services see them */
 
-/* ------------------------------------------------------------------ bindings */
-
-co_od_ext_t *co_node_ext(const co_node_t *node, uint16_t index)
-{
-    int32_t lo = 0, hi = (int32_t)node->n_bindings - 1;
-    while (lo <= hi) {
-        const int32_t mid = lo + (hi - lo) / 2;
-        const uint16_t k = node->bindings[mid].index;
-        if (k == index) return node->bindings[mid].ext;
-        if (k < index)
-            lo = mid + 1;
-        else
-            hi = mid - 1;
-    }
-    return NULL;
-}
-
-int co_node_bind(co_node_t *node, uint16_t index, co_od_ext_t *ext)
-{
-    int exists = 0;
-    (void)co_od_find(node->od, index, 0, &exists);
-    if (!exists) return -1;
-    uint8_t i = 0;
-    while (i < node->n_bindings && node->bindings[i].index < index) ++i;
-    if (i < node->n_bindings && node->bindings[i].index == index) {
-        node->bindings[i].ext = ext;
-    } else {
-        if (node->n_bindings >= CO_NODE_BINDINGS) return -1;
-        for (uint8_t j = node->n_bindings; j > i; --j) node->bindings[j] = node->bindings[j - 1u];
-        node->bindings[i].index = index;
-        node->bindings[i].ext = ext;
-        ++node->n_bindings;
-    }
-    for (uint8_t n = 0; n < CO_NUM_PDO; ++n) {
-        co_pdo_bind(&node->rpdo[n]);
-        co_pdo_bind(&node->tpdo[n]);
-    }
-    return 0;
-}
-
 static co_od_ext_t *service_ext_of(void *ctx, uint16_t index) { return co_node_ext((const co_node_t *)ctx, index); }
 
 static void service_pre_read(void *ctx, const co_od_entry_t *e)
