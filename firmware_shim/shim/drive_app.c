@@ -180,7 +180,8 @@ static void step(drive_app_t *app)
     /* CiA 402: a quick stop that has ended leaves before this command; then the mode's references */
     const drive_cia402_power_t power = drive_cia402_power(&app->cia, d, m);
     if (power.stopped) power_changed(app, 0);
-    const uint32_t begin = drive_recorder_begin(&app->rec, m->x2200_Controller.controller);
+    drive_recorder_begin(&app->rec, m->x2200_Controller.controller);
+    const uint32_t c0 = drive_recorder_now(&app->rec);
     if (drive_sup_safe(&app->sup) || !power.powered || (app->open_loop && drive_cia402_quick_stopping(&app->cia))) {
         safe_step(app); /* 0 V */
     } else if (app->open_loop) {
@@ -190,7 +191,8 @@ static void step(drive_app_t *app)
         if (d->st.law_fault != (uint8_t)DRIVE_LAW_FAULT_NONE)
             enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_LAW_OUTPUT, 0);
     }
-    const drive_recorder_step_t rec = drive_recorder_end(&app->rec, begin);
+    const uint32_t c1 = drive_recorder_now(&app->rec);
+    const drive_recorder_step_t rec = drive_recorder_end(&app->rec, c1 - c0);
     if (rec.counted && app->overrun_check != 0u && (float)rec.cycles > d->cfg.Ts_s * (float)app->rec.cycle_clock_Hz)
         enter_safe_state(app, (uint8_t)OD_DRIVE_REASON_OVERRUN, 0);
 

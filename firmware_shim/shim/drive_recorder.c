@@ -259,13 +259,11 @@ void drive_recorder_set_cycle_counter(drive_recorder_t *rec, drive_app_cycles_fn
     drive_recorder_reset_cost(rec);
 }
 
-uint32_t drive_recorder_begin(drive_recorder_t *rec, uint8_t controller)
+void drive_recorder_begin(drive_recorder_t *rec, uint8_t controller)
 {
-    if (controller != rec->cost_controller) {
-        drive_recorder_reset_cost(rec);
-        rec->cost_controller = controller;
-    }
-    return rec->cycles_fn != NULL ? rec->cycles_fn(rec->cycles_user) : 0u;
+    if (controller == rec->cost_controller) return;
+    drive_recorder_reset_cost(rec);
+    rec->cost_controller = controller;
 }
 
 void drive_recorder_reset_cost(drive_recorder_t *rec)
@@ -274,11 +272,10 @@ void drive_recorder_reset_cost(drive_recorder_t *rec)
     rec->step_cycles_sum = 0u;
 }
 
-drive_recorder_step_t drive_recorder_end(drive_recorder_t *rec, uint32_t begin)
+drive_recorder_step_t drive_recorder_end(drive_recorder_t *rec, uint32_t cycles)
 {
     drive_recorder_step_t out = {0u, 0u, 0u};
     if (rec->cycles_fn != NULL) {
-        const uint32_t cycles = rec->cycles_fn(rec->cycles_user) - begin;
         rec->step_cost.step_cycles_last = cycles;
         if (cycles > rec->step_cost.step_cycles_max) rec->step_cost.step_cycles_max = cycles;
         rec->step_cycles_sum += cycles;

@@ -59,15 +59,22 @@ void drive_recorder_publish_buffer(drive_recorder_t *r);
 void drive_recorder_set_cycle_counter(drive_recorder_t *r, drive_app_cycles_fn fn, void *user, uint32_t clock_Hz);
 void drive_recorder_reset_cost(drive_recorder_t *r);
 
-/* A step begins with this controller (another one restarts the statistics): the counter's reading. */
-uint32_t drive_recorder_begin(drive_recorder_t *r, uint8_t controller);
+/* A step begins with this controller: another one restarts the statistics. */
+void drive_recorder_begin(drive_recorder_t *r, uint8_t controller);
+/* The target's counter now (0 without one): read by the root right around the law's step, so that nothing but the
+ * step is in the window (inline: no call in it either). */
+static inline uint32_t drive_recorder_now(const drive_recorder_t *r)
+{
+    return r->cycles_fn != NULL ? r->cycles_fn(r->cycles_user) : 0u;
+}
 /* What the recorders make of a step that has ended. */
 typedef struct {
     uint8_t counted;  /* a counter is there: cycles is the step's */
     uint8_t live_due; /* the live trace's TPDO2 goes out after the command */
     uint32_t cycles;
 } drive_recorder_step_t;
-/* The step has ended: its cost counted (from the reading of begin), the live trace's decimation. */
-drive_recorder_step_t drive_recorder_end(drive_recorder_t *r, uint32_t begin);
+/* The step has ended, `cycles` long by the counter (drive_recorder_now after minus before): its cost counted, the
+ * live trace's decimation. */
+drive_recorder_step_t drive_recorder_end(drive_recorder_t *r, uint32_t cycles);
 
 #endif /* DRIVE_RECORDER_H */
