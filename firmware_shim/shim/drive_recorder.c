@@ -61,12 +61,6 @@ static uint32_t trace_config_from_od(const od_drive_mfr_t *m, trace_config_t *tc
     return 0;
 }
 
-static int host_is_little(void)
-{
-    const uint16_t one = 1u;
-    return *(const uint8_t *)&one == 1u;
-}
-
 static void reverse_f(float *a, uint32_t lo, uint32_t hi) /* [lo, hi) */
 {
     while (hi > lo + 1u) {
@@ -92,7 +86,7 @@ static void trace_linearise(drive_recorder_t *rec)
         reverse_f(r->buffer, 0u, n);
     }
     r->start_row = 0u;
-    if (!host_is_little()) {
+    if (!co_host_is_little()) {
         for (uint32_t i = 0; i < n; ++i) {
             uint8_t b[4];
             memcpy(b, &r->buffer[i], 4);

@@ -73,7 +73,7 @@ static const uint8_t *value_ptr(const co_od_entry_t *e)
 }
 
 /* Values are stored in host order; CANopen is little-endian. */
-static int host_is_little(void)
+int co_host_is_little(void)
 {
     const uint16_t one = 1u;
     return *(const uint8_t *)&one == 1u;
@@ -88,7 +88,7 @@ uint32_t co_od_read_raw(const co_od_entry_t *e, uint32_t offset, uint8_t *buf, u
     const uint8_t *src = value_ptr(e);
     if (!src) return 0;
     uint32_t fixed = co_dt_size(e->datatype);
-    if (fixed > 1u && !host_is_little()) {
+    if (fixed > 1u && !co_host_is_little()) {
         for (uint32_t i = 0; i < n; ++i) buf[i] = src[fixed - 1u - (offset + i)];
     } else {
         memcpy(buf, src + offset, n);
@@ -160,7 +160,7 @@ void co_od_store(const co_od_entry_t *e, const uint8_t *buf, uint32_t len)
     uint32_t fixed = co_dt_size(e->datatype);
     if (fixed) {
         uint8_t *dst = (uint8_t *)e->data;
-        if (fixed > 1u && !host_is_little()) {
+        if (fixed > 1u && !co_host_is_little()) {
             for (uint32_t i = 0; i < fixed; ++i) dst[i] = buf[fixed - 1u - i];
         } else {
             memcpy(dst, buf, fixed);

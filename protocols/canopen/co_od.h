@@ -132,6 +132,9 @@ void co_od_reset(const co_od_t *od, uint8_t node_id, int communication_only);
  * SYNC, EMCY or PDO identifier. */
 int co_cob_restricted(uint32_t cob_id);
 
+/* 1 on a little-endian host (CANopen's byte order: values are copied as they are), 0 on a big-endian one. */
+int co_host_is_little(void);
+
 /* Size in bytes of a fixed-size data type (0 for strings and domains). */
 uint32_t co_dt_size(uint8_t datatype);
 

@@ -111,8 +111,7 @@ void co_pdo_configure(co_pdo_t *p)
     }
     p->count = (uint8_t)count;
     p->bytes = (uint8_t)bytes;
-    const uint16_t one = 1u;
-    p->native = *(const uint8_t *)&one == 1u;
+    p->native = co_host_is_little() != 0;
     bool contiguous = p->native && p->count > 0u;
     for (uint8_t i = 0; i < p->count; ++i) {
         p->field[i].data = (uint8_t *)p->entry[i]->data;
@@ -207,37 +206,30 @@ void co_pdo_stop(co_pdo_t *p)
 
 /* ------------------------------------------------------------------ RPDO */
 
-/* One field's bytes, its size a constant in each branch (the compiler moves them without a call). */
-static inline void copy_field(uint8_t *dst, const uint8_t *src, uint8_t size)
+/* n bytes (a field, or a whole frame of contiguous fields), the size a constant in the usual cases: the compiler
+ * moves them without a call. */
+static inline void copy_bytes(uint8_t *dst, const uint8_t *src, uint8_t n)
 {
-    switch (size) {
-    case 4: memcpy(dst, src, 4); break;
-    case 2: memcpy(dst, src, 2); break;
-    default: dst[0] = src[0]; break;
-    }
-}
-
-/* The whole frame's bytes in one copy, its size a constant in the usual cases. */
-static inline void copy_block(uint8_t *dst, const uint8_t *src, uint8_t bytes)
-{
-    switch (bytes) {
+    switch (n) {
     case 8: memcpy(dst, src, 8); break;
     case 4: memcpy(dst, src, 4); break;
-    default: memcpy(dst, src, bytes); break;
+    case 2: memcpy(dst, src, 2); break;
+    case 1: dst[0] = src[0]; break;
+    default: memcpy(dst, src, n); break;
     }
 }
 
 static void store_mapped(co_pdo_t *p, const uint8_t *data)
 {
     if (p->block != NULL) {
-        copy_block(p->block, data, p->bytes);
+        copy_bytes(p->block, data, p->bytes);
         return;
     }
     uint8_t off = 0;
     for (uint8_t i = 0; i < p->count; ++i) {
         const co_pdo_field_t *f = &p->field[i];
         if (p->native)
-            copy_field(f->data, &data[off], f->size);
+            copy_bytes(f->data, &data[off], f->size);
         else
             co_od_store(p->entry[i], &data[off], f->size);
         off = (uint8_t)(off + f->size);
@@ -309,14 +301,17 @@ static int tpdo_send(co_pdo_t *p, bool operational, int64_t now_us)
     for (uint8_t r = 0; r < p->n_refresh; ++r) p->refresh[r]->read(p->refresh[r]->object, p->refresh_entry[r]);
     uint8_t d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     uint8_t off = 0;
-    if (p->block != NULL) copy_block(d, p->block, p->bytes);
-    for (uint8_t i = 0; p->block == NULL && i < p->count; ++i) {
-        const co_pdo_field_t *f = &p->field[i];
-        if (p->native)
-            copy_field(&d[off], f->data, f->size);
-        else
-            (void)co_od_read_raw(p->entry[i], 0, &d[off], f->size);
-        off = (uint8_t)(off + f->size);
+    if (p->block != NULL) {
+        copy_bytes(d, p->block, p->bytes);
+    } else {
+        for (uint8_t i = 0; i < p->count; ++i) {
+            const co_pdo_field_t *f = &p->field[i];
+            if (p->native)
+                copy_bytes(&d[off], f->data, f->size);
+            else
+                (void)co_od_read_raw(p->entry[i], 0, &d[off], f->size);
+            off = (uint8_t)(off + f->size);
+        }
     }
     p->pending = false;
     p->last_tx_us = now_us;
