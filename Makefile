@@ -5,8 +5,8 @@
 #   make format apply the code style (ruff format, clang-format; checked by tests/host/test_style.py)
 #
 # `make all` only builds the C code (C11, -Wall -Wextra -Werror), into build/ (BUILD=DIR: elsewhere).
-# `make LAW=DIR` (and `make LAW=DIR mcu`) builds the drive with a user's current law, a folder of one or
-# two C files and law.eds, into build/laws/<law name>-<8 hex of DIR's path>/, the folder `bench run --law DIR`
+# `make LAW=DIR` (and `make LAW=DIR mcu`) builds the drive with a user's current law, a folder of C files
+# (and headers) and law.eds, into build/laws/<law name>-<8 hex of DIR's path>/, the folder `bench run --law DIR`
 # uses: make hands the build to bench/law.py (atomic: a failing build leaves the last good one; it calls this
 # Makefile again with BUILD= its work folder). docs/ARCHITECTURE.md, "A law from your own folder".
 
@@ -44,11 +44,16 @@ CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
 CFLAGS_HOST := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -D_GNU_SOURCE -fPIC
 INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
        -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Iprotocols/faults -Itests/c
+# The papers' current laws: law folders as a user's (firmware_shim/laws/<paper>/: C files, headers, law.eds), built
+# into every drive; gen_od.py merges their law.eds records (protocols/gen_law.py).
+LAW_DIRS := $(patsubst %/law.eds,%,$(wildcard firmware_shim/laws/*/law.eds))
+INC += $(addprefix -I,$(LAW_DIRS))
 
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/od_*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
 PLANT_SRC := $(wildcard plant_rt/core/*.c)
-FW_SRC    := $(wildcard firmware_shim/core/*.c) protocols/generated/current_law_table.c
+FW_SRC    := $(wildcard firmware_shim/core/*.c) $(foreach d,$(LAW_DIRS),$(wildcard $(d)/*.c)) \
+             protocols/generated/current_law_table.c
 # The node apps: every source of their folders but the process's main (a node app is portable glue).
 SHIM_APP_SRC  := $(filter-out firmware_shim/shim/drive_node_main.c,$(wildcard firmware_shim/shim/*.c))
 PLANT_APP_SRC := $(filter-out plant_rt/node/plant_node_main.c,$(wildcard plant_rt/node/*.c))
@@ -64,17 +69,15 @@ ifneq ($(words $(LAW)),1)
 $(error LAW=$(LAW): a path with white space, which make cannot take: link the folder from a path without (ln -s '<folder>' /tmp/my_law; make LAW=/tmp/my_law))
 endif
 LAW_DIR  := $(patsubst %/,%,$(strip $(LAW)))
-LAW_NAME := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_]*\).*/\1/p' \
-              '$(LAW_DIR)/law.eds' 2>/dev/null | head -n 1)
+LAW_NAMES := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_, ]*\).*/\1/p' \
+              '$(LAW_DIR)/law.eds' 2>/dev/null | head -n 1 | tr ',' ' ')
+LAW_NAME := $(firstword $(LAW_NAMES))
 ifeq ($(LAW_NAME),)
 $(error LAW=$(LAW): no $(LAW_DIR)/law.eds with a CurrentLaws=<law name> key)
 endif
 LAW_SRC  := $(wildcard $(LAW_DIR)/*.c)
 ifeq ($(LAW_SRC),)
 $(error LAW=$(LAW): no C file in $(LAW_DIR) (it must define const current_law_t current_law_$(LAW_NAME)))
-endif
-ifneq ($(word 3,$(LAW_SRC))$(word 2,$(wildcard $(LAW_DIR)/*.h)),)
-$(error LAW=$(LAW): at most two C files and one header in a law folder)
 endif
 BUILD    ?= build/laws/$(LAW_NAME)
 GEN_DIR  := $(BUILD)/generated
@@ -162,7 +165,8 @@ sanitize: $(SAN_DIR)/plant_node $(SAN_DIR)/drive_node $(SAN_DIR)/fault_gateway
 $(SAN_DIR)/plant_node: $(SAN_NODE_SRC) $(PLANT_SRC) $(wildcard plant_rt/node/*.c) $(wildcard plant_rt/*/*.h protocols/*/*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -pthread -o $@
-$(SAN_DIR)/drive_node: $(SAN_NODE_SRC) $(FW_SRC) $(wildcard firmware_shim/shim/*.c) $(wildcard firmware_shim/*/*.h protocols/*/*.h)
+$(SAN_DIR)/drive_node: $(SAN_NODE_SRC) $(FW_SRC) $(wildcard firmware_shim/shim/*.c) \
+    $(wildcard firmware_shim/*/*.h firmware_shim/laws/*/*.h protocols/*/*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -o $@
 $(SAN_DIR)/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) protocols/socketcan/co_socketcan.c $(wildcard protocols/*/*.h)
@@ -282,6 +286,7 @@ law: $(LAW_OK) $(LAW_CHECKED) $(BUILD)/bin/drive_node $(BUILD)/bin/plant_node $(
      $(if $(HAVE_MCU_CC),mcu)
 	@echo "make: law $(LAW_NAME) built in $(BUILD)"
 $(GEN_STAMP): $(LAW_DIR)/law.eds $(LAW_FROM) $(wildcard protocols/eds/*.eds) protocols/eds/common.ini \
+    $(wildcard firmware_shim/laws/*/law.eds) \
     protocols/gen_od.py $(wildcard protocols/odgen/*.py) protocols/gen_law.py protocols/eds_reader.py
 	$(PYTHON) protocols/gen_od.py --law '$(LAW_DIR)' --out '$(BUILD)'
 	@touch $@
@@ -296,18 +301,18 @@ $(BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
 $(MCU_BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
 	@mkdir -p $(@D)
 	$(MCU_CC) $(MCU_CFLAGS) $(MCU_INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
-# The folder must define the descriptor its name promises (current_law_table.c refers to it).
+# The folder must define the descriptor each of its names promises (current_law_table.c refers to it).
 $(LAW_OK): $(call obj,$(LAW_SRC))
-	@nm $^ | grep -Eq ' [RDBGS] current_law_$(LAW_NAME)$$' || { echo "make: LAW=$(LAW): no C file of the folder \
-	defines the symbol current_law_$(LAW_NAME) (const current_law_t current_law_$(LAW_NAME) = {...};)" >&2; exit 1; }
+	@for n in $(LAW_NAMES); do nm $^ | grep -Eq " [RDBGS] current_law_$$n\$$" || { echo "make: LAW=$(LAW): no C file \
+	of the folder defines the symbol current_law_$$n (const current_law_t current_law_$$n = {...};)" >&2; exit 1; }; done
 	@touch $@
 $(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
 # ... and fills the members the drive calls unconditionally, with a state that fits (firmware_shim/law/law_check.c).
 $(LAW_CHECKED): firmware_shim/law/law_check.c $(LIBFW)
 	@mkdir -p $(BUILD)/bin
-	@$(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$(LAW_NAME) $< $(LIBFW) -lm -o $(BUILD)/bin/law_check
-	@$(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
-	 sed 's|^law_check: |make: LAW=$(LAW): |' $(BUILD)/law_check.err >&2; exit 1; }
+	@for n in $(LAW_NAMES); do $(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n $< $(LIBFW) -lm -o $(BUILD)/bin/law_check && \
+	 $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
+	 sed 's|^law_check: |make: LAW=$(LAW): |' $(BUILD)/law_check.err >&2; exit 1; }; done
 	@touch $@
 $(BUILD)/bin/drive_node $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_CHECKED)
 endif

@@ -5,10 +5,10 @@ status has a manufacturer record whose EDS section names it in `CurrentLaws=`; t
 section (ignored by `canopen` and protocols/gen_od.py) say what the bench does with it:
 
     Source=You 2019             the paper or book of the law (`Source.<law>=` for one law of a
-                                record that several share); none: the summary's "paper" is null
+                                record that several share); none or empty: the summary's "paper" is null
     Results=K1_bar_V_A,...      entries read by SDO at the end of a run and shown, in this order, as
-                                the summary's "identified" values (`Results.<law>=`); none: every
-                                read-only (status) entry of the record in sub-index order
+                                the summary's "identified" values (`Results.<law>=`, empty: none);
+                                none: every read-only (status) entry of the record in sub-index order
     Trace=det_A2,K1_hat_V_A,... up to four entries the drive's TPDO3 (first two) and TPDO4 (next two)
                                 carry when the scenario has no [trace] (`Trace.<law>=`); an entry
                                 of another object as "Object.entry"; none: the record's first four
@@ -20,8 +20,9 @@ and on an entry's own section:
                                 of the same record is non-zero at the end of the run
     NotApplicableNote=...       (on the entry a ValidIf names) the summary's "note" when it is zero
 
-A law without a record (open loop, PI) identifies nothing and traces the drive's own view
-(DRIVE_VIEW). A user's law merged into drive.eds at build time works the same with no Python edit.
+A law without a record (open loop) identifies nothing and traces the drive's own view (DRIVE_VIEW), as
+the PI does by its keys (`Results.pi=`, `Trace.pi=Drive status.id_A,...` in You 2019's law.eds). The
+papers' law folders and a user's are merged into drive.eds at build time: no Python edit for either.
 """
 
 from __future__ import annotations
@@ -160,7 +161,8 @@ def _law_info(law: str, path: Path | None) -> LawInfo:
             valid_if[var.name] = cond
         if raw.has_option(vsec, "NotApplicableNote"):
             notes[var.name] = raw.get(vsec, "NotApplicableNote").strip()
-    return LawInfo(law, _key(raw, sec, "Source", law), rec.name, results, _pdos(rec, trace), valid_if, notes)
+    valid_if = {k: v for k, v in valid_if.items() if k in results}  # what this law shows
+    return LawInfo(law, _key(raw, sec, "Source", law) or None, rec.name, results, _pdos(rec, trace), valid_if, notes)
 
 
 def law_info(law: str, path: Path | None = None) -> LawInfo:
@@ -181,6 +183,6 @@ def result_reads(path: Path | None = None) -> tuple[tuple[str, str, tuple[str, .
         rec = _od(path)[info.record]
         conds = [c for c in dict.fromkeys(info.valid_if.values()) if c not in info.results and not rec[c].writable]
         read = ("drive", info.record, (*info.results, *conds))
-        if read not in out:
+        if read[2] and read not in out:
             out.append(read)
     return tuple(out)

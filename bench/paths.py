@@ -3,8 +3,9 @@ build, the EDS files.
 
 BENCH_BUILD_DIR chooses another build: a user's law (`bench run ... --law DIR`, bench/law.py, builds
 laws/<law name>-<hash>/ of the working folder STATE), whose node binaries, libhil.so, MCU image and merged
-EDS files (its eds/) the bench then uses. Read once, at import: the CLI sets it before any module reads an EDS
-(`bench vm` forwards it into the VM, as every BENCH_* variable).
+EDS files (its eds/) the bench then uses; the repository's own build's are protocols/generated/eds/ (the
+papers' law folders merged into protocols/eds/drive.eds by protocols/gen_od.py). Read once, at import: the CLI
+sets it before any module reads an EDS (`bench vm` forwards it into the VM, as every BENCH_* variable).
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from bench.root import INSTALLED, REPO, STATE
 
 BUILD = Path(os.environ.get("BENCH_BUILD_DIR") or REPO / "build").resolve()
 BIN = BUILD / "bin"
-EDS_DIR = BUILD / "eds" if os.environ.get("BENCH_BUILD_DIR") else REPO / "protocols" / "eds"
+# The EDS files as built: drive.eds with the law folders merged (protocols/gen_law.py), plant.eds, common.ini.
+EDS_DIR = BUILD / "eds" if os.environ.get("BENCH_BUILD_DIR") else REPO / "protocols" / "generated" / "eds"
 VECTORS_DIR = REPO / "protocols" / "vectors"
 MISSING_BUILD = (
     "reinstall pmsm-hil-bench (its C build is made at install time: pip install --force-reinstall <repository>)"

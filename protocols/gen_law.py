@@ -1,13 +1,18 @@
-"""A user's current law merged into the drive's EDS (protocols/gen_od.py --law DIR --out OUTDIR).
+"""Law folders merged into the drive's EDS: the papers' laws always (gen_od.py), a user's on top
+(protocols/gen_od.py --law DIR --out OUTDIR).
 
-A law is a folder: one or two C files (and at most one header) and ONE EDS fragment, law.eds, holding
-exactly one record (ObjectType=0x9) in 0x2400 .. 0x24FF, the index range reserved for user laws, in
-CiA 306 syntax ([2400], [2400sub0], [2400sub1], ... with DataType/AccessType/DefaultValue/LowLimit/
-HighLimit), whose section names the law in its key CurrentLaws=<name> (a lower-case C identifier). The
-merge is text-level: the record's sections are appended to drive.eds, listed in [ManufacturerObjects]
-(SupportedObjects counted up), and the name appended to Controller.controller's ValueNames (HighLimit
-raised). Every refusal is one line naming the fragment, the section and what is wrong (LawError).
-Plain python with `canopen`, nothing of the bench (as gen_od.py).
+A law is a folder: its C files and headers and ONE EDS fragment, law.eds, holding exactly one record
+(ObjectType=0x9) in CiA 306 syntax ([2400], [2400sub0], [2400sub1], ... with DataType/AccessType/
+DefaultValue/LowLimit/HighLimit), whose section names the law in its key CurrentLaws=<name> (a lower-case
+C identifier; several laws that share the record: CurrentLaws=<a>,<b>). A paper's law and a user's differ
+only in where their folder lives, and so in the index range of their record: the papers' folders
+(firmware_shim/laws/*/, BENCH_LAWS 0x2500 .. 0x25FF) are merged into every build, in the order of their
+records' indices; a user's folder (USER_LAWS 0x2400 .. 0x24FF) after them. The merge is text-level: the
+record's sections are appended to drive.eds, listed in [ManufacturerObjects] (SupportedObjects counted
+up), and the names appended to Controller.controller's ValueNames (HighLimit raised); its DefaultLaw key
+names the law the drive starts with (DefaultValue, once every folder is merged). Every refusal is one
+line naming the fragment, the section and what is wrong (LawError). Plain python with `canopen`, nothing
+of the bench (as gen_od.py).
 """
 
 from __future__ import annotations
@@ -23,6 +28,9 @@ import canopen
 import eds_reader  # protocols/: gen_od.py, which imports this module, puts its folder on sys.path
 
 USER_LAW_FIRST, USER_LAW_LAST = 0x2400, 0x24FF  # the index range of user laws' records
+USER_LAWS = range(USER_LAW_FIRST, USER_LAW_LAST + 1)
+BENCH_LAWS = range(0x2500, 0x2600)  # the papers' law folders, shipped with the bench
+LAWS_DIR = Path(__file__).resolve().parents[1] / "firmware_shim" / "laws"  # the papers' law folders
 LAW_ENTRY = "2200sub1"  # Controller.controller: its ValueNames name the laws
 FRAGMENT = "law.eds"
 LAW_NAME = re.compile(r"[a-z_][a-z0-9_]*\Z")
@@ -63,25 +71,32 @@ def _record(frag: Path, raw: configparser.ConfigParser) -> tuple[str, int]:
     return top, index
 
 
-def _check_index(frag: Path, top: str, index: int, base: configparser.ConfigParser) -> None:
+def _check_index(frag: Path, top: str, index: int, text: str, base: configparser.ConfigParser, indices: range) -> None:
     if any(int(m.group(1), 16) == index for m in map(SECTION.match, base.sections()) if m):
-        raise LawError(f"{frag} [{top}]: index 0x{index:04X} already used in drive.eds")
-    if not USER_LAW_FIRST <= index <= USER_LAW_LAST:
+        owner = re.search(rf"^; law folder (\S+): .*\n\[{index:04X}\]", text, re.MULTILINE | re.IGNORECASE)
+        by = f" (by the law folder {owner.group(1)})" if owner else ""
+        raise LawError(f"{frag} [{top}]: index 0x{index:04X} already used in drive.eds{by}")
+    if index not in indices:
+        whose = "user laws" if indices == USER_LAWS else "the papers' laws (firmware_shim/laws/)"
         raise LawError(
-            f"{frag} [{top}]: index 0x{index:04X} outside 0x{USER_LAW_FIRST:04X}..0x{USER_LAW_LAST:04X} "
-            "(the range reserved for user laws)"
+            f"{frag} [{top}]: index 0x{index:04X} outside 0x{indices[0]:04X}..0x{indices[-1]:04X} "
+            f"(the range reserved for {whose})"
         )
 
 
-def _law_name(frag: Path, raw: configparser.ConfigParser, top: str, existing: list[str]) -> str:
+def _law_names(frag: Path, raw: configparser.ConfigParser, top: str, existing: list[str]) -> list[str]:
     if not raw.has_option(top, "CurrentLaws"):
         raise LawError(f"{frag} [{top}]: no CurrentLaws=<law name> key (the value of Controller.controller)")
-    name = raw.get(top, "CurrentLaws").strip()
-    if not LAW_NAME.match(name):
-        raise LawError(f"{frag} [{top}]: CurrentLaws={name}: not a lower-case C identifier (one law per folder)")
-    if name in existing:
-        raise LawError(f"{frag} [{top}]: CurrentLaws={name}: already a value of Controller.controller")
-    return name
+    names = [n.strip() for n in raw.get(top, "CurrentLaws").split(",")]
+    for name in names:
+        if not LAW_NAME.match(name):
+            raise LawError(
+                f"{frag} [{top}]: CurrentLaws={name}: not a lower-case C identifier (laws sharing the record: "
+                "CurrentLaws=<a>,<b>)"
+            )
+        if name in existing or names.count(name) > 1:
+            raise LawError(f"{frag} [{top}]: CurrentLaws={name}: already a value of Controller.controller")
+    return names
 
 
 def _check_types(frag: Path, raw: configparser.ConfigParser, top: str, supported: Collection[int]) -> None:
@@ -224,31 +239,60 @@ def _set_key(text: str, section: str, key: str, value: str) -> str:
     return text[: m.start(1)] + new + text[m.end(1) :]
 
 
-def merge(drive_eds: Path, law_dir: Path, supported: Collection[int]) -> tuple[str, int, str]:
-    """(law name, record index, merged drive.eds text), or LawError naming what is wrong."""
+def merge_text(
+    text: str, law_dir: Path, supported: Collection[int], indices: range = USER_LAWS
+) -> tuple[list[str], int, str]:
+    """(law names, record index, the drive's EDS text with the folder merged), or LawError naming what is wrong."""
     frag = law_dir / FRAGMENT
     if not frag.is_file():
         raise LawError(f"{frag}: missing (a law folder holds its C files and one EDS fragment, {FRAGMENT})")
     ftext = frag.read_text()
     raw = _parse(ftext, str(frag))
     top, index = _record(frag, raw)
-    text = drive_eds.read_text()
-    base = _parse(text, str(drive_eds))
-    _check_index(frag, top, index, base)
+    base = _parse(text, "drive.eds")
+    _check_index(frag, top, index, text, base, indices)
     names = [n.strip() for n in base.get(LAW_ENTRY, "ValueNames").split(",")]
-    name = _law_name(frag, raw, top, names)
+    new = _law_names(frag, raw, top, names)
     _check_types(frag, raw, top, supported)
     _check_values(frag, raw, top)
     _check_names(frag, raw, top, base)
     count = int(base.get("ManufacturerObjects", "SupportedObjects"), 0)
     text = _set_key(text, "ManufacturerObjects", "SupportedObjects", str(count + 1))
     text = _set_key(text, "ManufacturerObjects", str(count + 1), f"0x{index:04X}")
-    text = _set_key(text, LAW_ENTRY, "ValueNames", ",".join([*names, name]))
+    text = _set_key(text, LAW_ENTRY, "ValueNames", ",".join([*names, *new]))
     if base.has_option(LAW_ENTRY, "HighLimit"):
-        text = _set_key(text, LAW_ENTRY, "HighLimit", str(len(names)))
-    text = text.rstrip("\n") + f"\n\n; user law {name}: {frag}\n" + ftext.strip("\n") + "\n"
+        text = _set_key(text, LAW_ENTRY, "HighLimit", str(len(names) + len(new) - 1))
+    text = text.rstrip("\n") + f"\n\n; law folder {law_dir.name}: {', '.join(new)}\n" + ftext.strip("\n") + "\n"
     _canopen_check(frag, top, text)
-    return name, index, text
+    return new, index, text
+
+
+def bench_law_dirs(laws_dir: Path = LAWS_DIR) -> list[Path]:
+    """The papers' law folders (every folder of firmware_shim/laws/ with a law.eds), in their records' index order."""
+    found: list[tuple[int, Path]] = []
+    for d in sorted(p for p in laws_dir.iterdir() if (p / FRAGMENT).is_file()):
+        frag = d / FRAGMENT
+        found.append((_record(frag, _parse(frag.read_text(), str(frag)))[1], d))
+    return [d for _, d in sorted(found)]
+
+
+def merge_all(drive_eds: Path, user_law: Path | None, supported: Collection[int], laws_dir: Path = LAWS_DIR) -> str:
+    """drive.eds with the papers' law folders (those of laws_dir) and then the user's (None: none) merged, its
+    default law set."""
+    text = drive_eds.read_text()
+    for d in bench_law_dirs(laws_dir):
+        text = merge_text(text, d, supported, BENCH_LAWS)[2]
+    if user_law is not None:
+        text = merge_text(text, user_law, supported, USER_LAWS)[2]
+    return _default_law(text)
+
+
+def _default_law(text: str) -> str:
+    """Controller.controller's DefaultValue: the value its DefaultLaw key names (none merged: as drive.eds says)."""
+    base = _parse(text, "drive.eds")
+    wanted = base.get(LAW_ENTRY, "DefaultLaw", fallback="").strip()
+    names = [n.strip() for n in base.get(LAW_ENTRY, "ValueNames").split(",")]
+    return _set_key(text, LAW_ENTRY, "DefaultValue", str(names.index(wanted))) if wanted in names else text
 
 
 def _canopen_check(frag: Path, top: str, text: str) -> None:

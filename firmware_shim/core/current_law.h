@@ -63,6 +63,8 @@ typedef struct {
     float v_d_ff_V, v_q_ff_V;     /* feed-forward part (0 for a law without one) */
     float v_alpha_V, v_beta_V;    /* stator-frame command held over [k+1, k+2] */
     uint8_t v_limited;            /* 1 when the law limited the vector to Vmax_V */
+    float v_after_limit_V;        /* the most it added to each phase after the limit (a dead-time compensation's
+                                     amplitude), 0 for none: the drive accepts |v| <= Vmax_V + 2 v_after_limit_V */
 } current_law_out_t;
 
 typedef enum {

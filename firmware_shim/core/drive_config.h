@@ -33,19 +33,11 @@ typedef struct {
     float Lq_hat_H;
     float psi_hat_Wb;
     float pole_pairs;
-    float Vmax_V;                 /* radius of the voltage limit */
-    float pi_bandwidth_Hz;        /* PI baseline */
-    uint8_t limited_memory;       /* what a law's memory holds: 0 raw output, 1 applied */
-    uint8_t deadtime_comp_enable; /* dead-time compensation, on the estimated currents */
-    float deadtime_comp_V;
-    float deadtime_comp_I_sat_A;
-    float estimator_bandwidth_Hz;
+    float Vmax_V;                /* radius of the voltage limit */
     float J_hat_kgm2;            /* outer loops */
     uint8_t vlimit_radial;       /* 0: d priority, 1: radial */
-    uint8_t decoupling_enable;   /* dq decoupling feed-forward */
     float angle_advance_periods; /* inverse-Park angle advance in Ts */
-    uint8_t estimator_enable;
-    outer_loops_config_t outer; /* 0x2203 Outer loops, and the profile of 0x2202 */
+    outer_loops_config_t outer;  /* 0x2203 Outer loops, and the profile of 0x2202 */
 } drive_config_t;
 
 typedef struct {

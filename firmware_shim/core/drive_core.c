@@ -187,14 +187,14 @@ void drive_reset_controller_memory(drive_t *drv)
 }
 
 /* A law's command is a voltage the inverter can make: finite, and inside the
- * circle of radius Vmax_V (0: no limit) plus what a dead-time compensation
- * adds after the limit (at most its amplitude on each phase). */
+ * circle of radius Vmax_V (0: no limit) plus what the law says it adds after
+ * its limit (a dead-time compensation: at most its amplitude on each phase). */
 static uint8_t drive_law_fault(const drive_config_t *c, const current_law_out_t *o)
 {
     const float va = o->v_alpha_V, vb = o->v_beta_V;
     if (!((va - va) == 0.0f) || !((vb - vb) == 0.0f)) return (uint8_t)DRIVE_LAW_FAULT_NON_FINITE;
     if (c->Vmax_V > 0.0f) {
-        const float bound = c->Vmax_V * 1.001f + (c->deadtime_comp_enable != 0u ? 2.0f * c->deadtime_comp_V : 0.0f);
+        const float bound = c->Vmax_V * 1.001f + 2.0f * o->v_after_limit_V;
         if (va * va + vb * vb > bound * bound) return (uint8_t)DRIVE_LAW_FAULT_OUT_OF_LIMIT;
     }
     return (uint8_t)DRIVE_LAW_FAULT_NONE;

@@ -8,8 +8,8 @@
  *   (2) the controller's own core called directly with the drive's dq
  *       currents and speed (Yao 2020: its stator-frame output, no angle
  *       advance; Zhao 2022: its dq output, rotated by the drive's advance).
- * Also: the Yao 2020 identification started by SDO (0x2206:15 = 1) follows
- * yao2020_identification_start() on the direct core; the RLS baseline (0x2206:25)
+ * Also: the Yao 2020 identification started by SDO (0x2501:15 = 1) follows
+ * yao2020_identification_start() on the direct core; the RLS baseline (0x2501:25)
  * equals yao2020_rls_update() on the same data; refusals (salient model,
  * identification without the DPCC); switching back to 2 keeps You 2019.
  *
@@ -110,7 +110,7 @@ static void run_controller(uint8_t od_ctrl)
 
     static drive_t ref;
     configure_ref(&ref, core_ctrl);
-    if (drive_law_record(&ref) != NULL) /* the surface-mounted laws: Yao 2020's record (0x2206) only */
+    if (drive_law_record(&ref) != NULL) /* the surface-mounted laws: Yao 2020's record (0x2501) only */
         ((od_drive_yao_2020_dpcc_t *)drive_law_record(&ref))->rls_enable = od_ctrl == 3u ? 1u : 0u;
     drive_apply_config(&ref);
 
@@ -194,7 +194,7 @@ static void run_controller(uint8_t od_ctrl)
         CHECK_TRUE(testbus_same_f32(sdo_read_f32(Y_IDX, OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB), rls.L_hat_H));
         CHECK_TRUE(sdo_write_u8(Y_IDX, OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_SUB, 2u) == 0); /* abort */
         CHECK_TRUE(YAO2020_OF(g_app.drv)->st.id_state == (uint8_t)YAO2020_IDENTIFICATION_ABORTED);
-        CHECK_TRUE(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command == 0u);
+        CHECK_TRUE(OD_DRIVE.mfr.x2501_yao_2020_dpcc.ident_command == 0u);
     }
     if (od_ctrl == 4u) {
         CHECK_TRUE(testbus_same_f32(sdo_read_f32(OD_DRIVE_ZHAO_2022_IDX, OD_DRIVE_ZHAO_2022_K1_V_A_SUB), ist.K1_V_A));

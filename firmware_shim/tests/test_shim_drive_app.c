@@ -211,10 +211,10 @@ static void test_sdo_gains(void)
     CHECK_TRUE(sdo_write_f32(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, 20.0f) == CO_ABORT_VALUE_HIGH);
     CHECK_TRUE(sdo_write_f32(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LQ_HAT_H_SUB, NAN) == CO_ABORT_INVALID_VALUE);
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_CONTROLLER_SUB, 5) == CO_ABORT_INVALID_VALUE);
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_DEADTIME_COMP_ENABLE_SUB, 1) == 0);
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_ESTIMATOR_ENABLE_SUB, 0) ==
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_ENABLE_SUB, 1) == 0);
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_ESTIMATOR_ENABLE_SUB, 0) ==
                CO_ABORT_PARAM_INCOMPAT);
-    CHECK_TRUE(sdo_write_f32(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_PI_BANDWIDTH_HZ_SUB, 5000.0f) ==
+    CHECK_TRUE(sdo_write_f32(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_PI_BANDWIDTH_HZ_SUB, 5000.0f) ==
                CO_ABORT_PARAM_INCOMPAT);
     CHECK_TRUE(sdo_write_f32(OD_DRIVE_OUTER_LOOPS_IDX, OD_DRIVE_OUTER_LOOPS_POSITION_BANDWIDTH_HZ_SUB, 200.0f) ==
                CO_ABORT_PARAM_INCOMPAT);
@@ -227,11 +227,11 @@ static void test_sdo_gains(void)
     CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_AVERAGE_M_SUB, 17) ==
                CO_ABORT_VALUE_HIGH);
 
-    /* a non-watched field (memory reading) reaches the core through drive_apply_config */
-    CHECK_TRUE(sdo_write_u8(OD_DRIVE_CONTROLLER_IDX, OD_DRIVE_CONTROLLER_LIMITED_MEMORY_SUB, 1) == 0);
-    CHECK_TRUE(g_app.drv.cfg.limited_memory == 1u && g_app.drv.st.dirty == 1u);
-    CHECK_TRUE(g_app.drv.cfg.deadtime_comp_enable == 1u &&
-               ((od_drive_online_tuning_t *)drive_law_record(&g_app.drv))->enable == 1u);
+    /* a setting of the law's record (memory reading) reaches the law through drive_apply_config */
+    CHECK_TRUE(sdo_write_u8(OD_DRIVE_ONLINE_TUNING_IDX, OD_DRIVE_ONLINE_TUNING_LIMITED_MEMORY_SUB, 1) == 0);
+    const od_drive_online_tuning_t *held = (const od_drive_online_tuning_t *)drive_law_record(&g_app.drv);
+    CHECK_TRUE(held->limited_memory == 1u && g_app.drv.st.dirty == 1u);
+    CHECK_TRUE(held->deadtime_comp_enable == 1u && held->enable == 1u);
     CHECK_TRUE(sample(&m, 6) != NULL);
     CHECK_TRUE(g_app.drv.st.dirty == 0u);
     printf("(c) SDO 23 00 22 06 Lq_hat = %.3g H: K1 %.3f -> %.3f V/A at the next step (bit-identical to the core); "

@@ -18,12 +18,14 @@ typedef struct {
     int nlim;
 } run_t;
 
-static void run_step(const drive_config_t *cfg, double iq_ref, run_t *r)
+static void run_step(const drive_config_t *cfg, double iq_ref, uint8_t limited_memory, run_t *r)
 {
     static drive_t drv;
     drive_plant_t pl;
     drive_plant_init(&pl, "you2019");
     drive_init(&drv, cfg);
+    ((od_drive_online_tuning_t *)drive_law_record(&drv))->limited_memory = limited_memory; /* its law.eds record */
+    drive_apply_config(&drv);
     r->nlim = 0;
     for (int k = 0; k < NSTEP; ++k) {
         drive_meas_t m;
@@ -93,7 +95,7 @@ int main(void)
 
     /* ---- 1. matched 0 -> 1 A ---- */
     drive_default_config(&cfg);
-    run_step(&cfg, 1.0, &r);
+    run_step(&cfg, 1.0, 0u, &r);
     double maxerr_after = 0, maxi = 0;
     for (int k = K0 + 2; k < NSTEP; ++k) {
         if (fabs(r.iq[k] - 1.0) > maxerr_after) maxerr_after = fabs(r.iq[k] - 1.0);
@@ -113,8 +115,7 @@ int main(void)
     /* ---- 2. 0 -> 4 A with Vmax = 139 V, both memory readings ---- */
     for (int mode = 0; mode < 2; ++mode) {
         drive_default_config(&cfg);
-        cfg.limited_memory = (uint8_t)mode;
-        run_step(&cfg, 4.0, &r);
+        run_step(&cfg, 4.0, (uint8_t)mode, &r);
         int reach = -1;
         double imax = 0;
         for (int k = K0; k < NSTEP; ++k) {
@@ -146,7 +147,7 @@ int main(void)
         drive_default_config(&cfg);
         cfg.Lq_hat_H = (float)(lf[c] * 4.54e-3);
         cfg.Ld_hat_H = (float)(lf[c] * 4.46e-3);
-        run_step(&cfg, 1.0, &r);
+        run_step(&cfg, 1.0, 0u, &r);
         double complex p[3];
         analytic(R, Lq, R, lf[c] * Lq, p, y, NSTEP, 1.0);
         double maxdev = 0, imax = 0;
@@ -188,7 +189,7 @@ int main(void)
     for (int c = 0; c < 2; ++c) {
         drive_default_config(&cfg);
         cfg.R_hat_ohm = (float)(rf[c] * R);
-        run_step(&cfg, 1.0, &r);
+        run_step(&cfg, 1.0, 0u, &r);
         double complex p[3];
         analytic(R, Lq, rf[c] * R, Lq, p, y, NSTEP, 1.0);
         double maxdev = 0;

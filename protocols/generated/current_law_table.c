@@ -2,8 +2,8 @@
  * The current laws the drive can select (Controller.controller), each with its EDS record. */
 #include "current_law.h"
 
-static const od_drive_online_tuning_t x2201_defaults = {
-    .highest_sub_index_supported = 14u,
+static const od_drive_online_tuning_t x2500_defaults = {
+    .highest_sub_index_supported = 22u,
     .enable = 0u,
     .det_threshold_A2 = 0.20000000298023224f,
     .average_m = 8u,
@@ -18,9 +18,17 @@ static const od_drive_online_tuning_t x2201_defaults = {
     .K1_active_V_A = 0.0f,
     .K2_active_V_A = 0.0f,
     .gain_updates = 0u,
+    .pi_bandwidth_Hz = 1000.0f,
+    .limited_memory = 0u,
+    .deadtime_comp_enable = 0u,
+    .deadtime_comp_V = 0.0f,
+    .deadtime_comp_I_sat_A = 1.0f,
+    .estimator_bandwidth_Hz = 900.0f,
+    .decoupling_enable = 1u,
+    .estimator_enable = 1u,
 };
-_Static_assert(sizeof(od_drive_online_tuning_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2201 Online tuning exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
-static const od_drive_yao_2020_dpcc_t x2206_defaults = {
+_Static_assert(sizeof(od_drive_online_tuning_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2500 Online tuning exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
+static const od_drive_yao_2020_dpcc_t x2501_defaults = {
     .highest_sub_index_supported = 42u,
     .observer_enable = 1u,
     .Q_d = 0.4000000059604645f,
@@ -65,15 +73,15 @@ static const od_drive_yao_2020_dpcc_t x2206_defaults = {
     .p_hat_d_A = 0.0f,
     .p_hat_q_A = 0.0f,
 };
-_Static_assert(sizeof(od_drive_yao_2020_dpcc_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2206 Yao 2020 DPCC exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
-static const od_drive_zhao_2022_t x2207_defaults = {
+_Static_assert(sizeof(od_drive_yao_2020_dpcc_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2501 Yao 2020 DPCC exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
+static const od_drive_zhao_2022_t x2502_defaults = {
     .highest_sub_index_supported = 4u,
     .K1_V_A = 0.0f,
     .K2_V_A = 0.0f,
     .G_V_A = 0.0f,
     .limited = 0u,
 };
-_Static_assert(sizeof(od_drive_zhao_2022_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2207 Zhao 2022 exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
+_Static_assert(sizeof(od_drive_zhao_2022_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2502 Zhao 2022 exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
 
 extern const current_law_t current_law_pi;
 extern const current_law_t current_law_deadbeat_you2019;
@@ -82,10 +90,10 @@ extern const current_law_t current_law_incremental_zhao2022;
 extern const current_law_t current_law_predictive_zhao2022;
 
 const current_law_entry_t current_law_table[] = {
-    {1u, &current_law_pi, 0u, 0u, 0},
-    {2u, &current_law_deadbeat_you2019, 0x2201u, (uint32_t)sizeof(od_drive_online_tuning_t), &x2201_defaults},
-    {3u, &current_law_dpcc_yao2020, 0x2206u, (uint32_t)sizeof(od_drive_yao_2020_dpcc_t), &x2206_defaults},
-    {4u, &current_law_incremental_zhao2022, 0x2207u, (uint32_t)sizeof(od_drive_zhao_2022_t), &x2207_defaults},
-    {5u, &current_law_predictive_zhao2022, 0x2207u, (uint32_t)sizeof(od_drive_zhao_2022_t), &x2207_defaults},
+    {1u, &current_law_pi, 0x2500u, (uint32_t)sizeof(od_drive_online_tuning_t), &x2500_defaults},
+    {2u, &current_law_deadbeat_you2019, 0x2500u, (uint32_t)sizeof(od_drive_online_tuning_t), &x2500_defaults},
+    {3u, &current_law_dpcc_yao2020, 0x2501u, (uint32_t)sizeof(od_drive_yao_2020_dpcc_t), &x2501_defaults},
+    {4u, &current_law_incremental_zhao2022, 0x2502u, (uint32_t)sizeof(od_drive_zhao_2022_t), &x2502_defaults},
+    {5u, &current_law_predictive_zhao2022, 0x2502u, (uint32_t)sizeof(od_drive_zhao_2022_t), &x2502_defaults},
 };
 const uint8_t current_law_count = (uint8_t)(sizeof current_law_table / sizeof current_law_table[0]);

@@ -155,7 +155,7 @@ static const od_drive_ram_t defaults = {
     .mfr.x2102_voltage_command.highest_sub_index_supported = 0x2u,
     .mfr.x2102_voltage_command.v_alpha_V = 0.0f,
     .mfr.x2102_voltage_command.v_beta_V = 0.0f,
-    .mfr.x2200_Controller.highest_sub_index_supported = 0x14u,
+    .mfr.x2200_Controller.highest_sub_index_supported = 0xCu,
     .mfr.x2200_Controller.controller = 0x2u,
     .mfr.x2200_Controller.Ts_s = 5.500000042957254e-05f,
     .mfr.x2200_Controller.speed_loop_divider = 0x8u,
@@ -165,32 +165,9 @@ static const od_drive_ram_t defaults = {
     .mfr.x2200_Controller.psi_hat_Wb = 0.041999999433755875f,
     .mfr.x2200_Controller.pole_pairs = 0x5u,
     .mfr.x2200_Controller.Vmax_V = 139.0f,
-    .mfr.x2200_Controller.pi_bandwidth_Hz = 1000.0f,
-    .mfr.x2200_Controller.limited_memory = 0x0u,
-    .mfr.x2200_Controller.deadtime_comp_enable = 0x0u,
-    .mfr.x2200_Controller.deadtime_comp_V = 0.0f,
-    .mfr.x2200_Controller.deadtime_comp_I_sat_A = 1.0f,
-    .mfr.x2200_Controller.estimator_bandwidth_Hz = 900.0f,
     .mfr.x2200_Controller.J_hat_kgm2 = 2.9999999242136255e-05f,
     .mfr.x2200_Controller.vlimit_radial = 0x0u,
-    .mfr.x2200_Controller.decoupling_enable = 0x1u,
     .mfr.x2200_Controller.angle_advance_periods = 1.5f,
-    .mfr.x2200_Controller.estimator_enable = 0x1u,
-    .mfr.x2201_online_tuning.highest_sub_index_supported = 0xEu,
-    .mfr.x2201_online_tuning.enable = 0x0u,
-    .mfr.x2201_online_tuning.det_threshold_A2 = 0.20000000298023224f,
-    .mfr.x2201_online_tuning.average_m = 0x8u,
-    .mfr.x2201_online_tuning.separate_d_axis = 0x0u,
-    .mfr.x2201_online_tuning.det_A2 = 0.0f,
-    .mfr.x2201_online_tuning.K1_hat_V_A = 0.0f,
-    .mfr.x2201_online_tuning.K2_hat_V_A = 0.0f,
-    .mfr.x2201_online_tuning.K1_bar_V_A = 0.0f,
-    .mfr.x2201_online_tuning.K2_bar_V_A = 0.0f,
-    .mfr.x2201_online_tuning.L_hat_H = 0.0f,
-    .mfr.x2201_online_tuning.identifications = 0x0u,
-    .mfr.x2201_online_tuning.K1_active_V_A = 0.0f,
-    .mfr.x2201_online_tuning.K2_active_V_A = 0.0f,
-    .mfr.x2201_online_tuning.gain_updates = 0x0u,
     .mfr.x2202_References.highest_sub_index_supported = 0x9u,
     .mfr.x2202_References.mode = 0x0u,
     .mfr.x2202_References.iq_ref_A = 0.0f,
@@ -216,54 +193,6 @@ static const od_drive_ram_t defaults = {
     .mfr.x2204_drive_status.iq_ref_active_A = 0.0f,
     .mfr.x2204_drive_status.last_sample_index = 0x0u,
     .mfr.x2205_drive_label = "pmsm-hil drive",
-    .mfr.x2206_yao_2020_dpcc.highest_sub_index_supported = 0x2Au,
-    .mfr.x2206_yao_2020_dpcc.observer_enable = 0x1u,
-    .mfr.x2206_yao_2020_dpcc.Q_d = 0.4000000059604645f,
-    .mfr.x2206_yao_2020_dpcc.Q_q = 0.4000000059604645f,
-    .mfr.x2206_yao_2020_dpcc.inj_id_A = -2.0f,
-    .mfr.x2206_yao_2020_dpcc.gain_select = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.kL_low_H_Vs = 0.004999999888241291f,
-    .mfr.x2206_yao_2020_dpcc.kR_low_ohm_Vs = 4.0f,
-    .mfr.x2206_yao_2020_dpcc.kL_high_H_Vs = 1.9999999494757503e-05f,
-    .mfr.x2206_yao_2020_dpcc.kR_high_ohm_Vs = 0.03999999910593033f,
-    .mfr.x2206_yao_2020_dpcc.th_L_V = 0.10000000149011612f,
-    .mfr.x2206_yao_2020_dpcc.th_R_V = 0.029999999329447746f,
-    .mfr.x2206_yao_2020_dpcc.n_settle = 0xC8u,
-    .mfr.x2206_yao_2020_dpcc.n_avg = 0x32u,
-    .mfr.x2206_yao_2020_dpcc.n_hold = 0xC8u,
-    .mfr.x2206_yao_2020_dpcc.n_timeout = 0x493E0u,
-    .mfr.x2206_yao_2020_dpcc.n_rounds = 0x1u,
-    .mfr.x2206_yao_2020_dpcc.rereference = 0x1u,
-    .mfr.x2206_yao_2020_dpcc.steady_tol_w_rad_s = 5.0f,
-    .mfr.x2206_yao_2020_dpcc.steady_tol_iq_A = 0.05000000074505806f,
-    .mfr.x2206_yao_2020_dpcc.min_speed_rad_s = 50.0f,
-    .mfr.x2206_yao_2020_dpcc.ident_command = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.ident_state = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.abort_reason = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.progress = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.R_hat_ohm = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.L_hat_H = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.R_id_ohm = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.L_id_H = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.L_converged = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.R_converged = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.t_L_conv_s = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.t_R_conv_s = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.dM_d_V = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.dM_q_V = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.motor_class = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.gains_high = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.rls_enable = 0x0u,
-    .mfr.x2206_yao_2020_dpcc.rls_lambda = 0.9950000047683716f,
-    .mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.rls_L_hat_H = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.p_hat_d_A = 0.0f,
-    .mfr.x2206_yao_2020_dpcc.p_hat_q_A = 0.0f,
-    .mfr.x2207_zhao_2022.highest_sub_index_supported = 0x4u,
-    .mfr.x2207_zhao_2022.K1_V_A = 0.0f,
-    .mfr.x2207_zhao_2022.K2_V_A = 0.0f,
-    .mfr.x2207_zhao_2022.G_V_A = 0.0f,
-    .mfr.x2207_zhao_2022.limited = 0x0u,
     .mfr.x2208_step_cost.highest_sub_index_supported = 0x5u,
     .mfr.x2208_step_cost.step_cycles_last = 0.0f,
     .mfr.x2208_step_cost.step_cycles_max = 0.0f,
@@ -301,6 +230,77 @@ static const od_drive_ram_t defaults = {
     .mfr.x2302_live_trace.live_signal_1 = 0x2u,
     .mfr.x2302_live_trace.live_signal_2 = 0x1u,
     .mfr.x2302_live_trace.decimation = 0x8u,
+    .mfr.x2500_online_tuning.highest_sub_index_supported = 0x16u,
+    .mfr.x2500_online_tuning.enable = 0x0u,
+    .mfr.x2500_online_tuning.det_threshold_A2 = 0.20000000298023224f,
+    .mfr.x2500_online_tuning.average_m = 0x8u,
+    .mfr.x2500_online_tuning.separate_d_axis = 0x0u,
+    .mfr.x2500_online_tuning.det_A2 = 0.0f,
+    .mfr.x2500_online_tuning.K1_hat_V_A = 0.0f,
+    .mfr.x2500_online_tuning.K2_hat_V_A = 0.0f,
+    .mfr.x2500_online_tuning.K1_bar_V_A = 0.0f,
+    .mfr.x2500_online_tuning.K2_bar_V_A = 0.0f,
+    .mfr.x2500_online_tuning.L_hat_H = 0.0f,
+    .mfr.x2500_online_tuning.identifications = 0x0u,
+    .mfr.x2500_online_tuning.K1_active_V_A = 0.0f,
+    .mfr.x2500_online_tuning.K2_active_V_A = 0.0f,
+    .mfr.x2500_online_tuning.gain_updates = 0x0u,
+    .mfr.x2500_online_tuning.pi_bandwidth_Hz = 1000.0f,
+    .mfr.x2500_online_tuning.limited_memory = 0x0u,
+    .mfr.x2500_online_tuning.deadtime_comp_enable = 0x0u,
+    .mfr.x2500_online_tuning.deadtime_comp_V = 0.0f,
+    .mfr.x2500_online_tuning.deadtime_comp_I_sat_A = 1.0f,
+    .mfr.x2500_online_tuning.estimator_bandwidth_Hz = 900.0f,
+    .mfr.x2500_online_tuning.decoupling_enable = 0x1u,
+    .mfr.x2500_online_tuning.estimator_enable = 0x1u,
+    .mfr.x2501_yao_2020_dpcc.highest_sub_index_supported = 0x2Au,
+    .mfr.x2501_yao_2020_dpcc.observer_enable = 0x1u,
+    .mfr.x2501_yao_2020_dpcc.Q_d = 0.4000000059604645f,
+    .mfr.x2501_yao_2020_dpcc.Q_q = 0.4000000059604645f,
+    .mfr.x2501_yao_2020_dpcc.inj_id_A = -2.0f,
+    .mfr.x2501_yao_2020_dpcc.gain_select = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.kL_low_H_Vs = 0.004999999888241291f,
+    .mfr.x2501_yao_2020_dpcc.kR_low_ohm_Vs = 4.0f,
+    .mfr.x2501_yao_2020_dpcc.kL_high_H_Vs = 1.9999999494757503e-05f,
+    .mfr.x2501_yao_2020_dpcc.kR_high_ohm_Vs = 0.03999999910593033f,
+    .mfr.x2501_yao_2020_dpcc.th_L_V = 0.10000000149011612f,
+    .mfr.x2501_yao_2020_dpcc.th_R_V = 0.029999999329447746f,
+    .mfr.x2501_yao_2020_dpcc.n_settle = 0xC8u,
+    .mfr.x2501_yao_2020_dpcc.n_avg = 0x32u,
+    .mfr.x2501_yao_2020_dpcc.n_hold = 0xC8u,
+    .mfr.x2501_yao_2020_dpcc.n_timeout = 0x493E0u,
+    .mfr.x2501_yao_2020_dpcc.n_rounds = 0x1u,
+    .mfr.x2501_yao_2020_dpcc.rereference = 0x1u,
+    .mfr.x2501_yao_2020_dpcc.steady_tol_w_rad_s = 5.0f,
+    .mfr.x2501_yao_2020_dpcc.steady_tol_iq_A = 0.05000000074505806f,
+    .mfr.x2501_yao_2020_dpcc.min_speed_rad_s = 50.0f,
+    .mfr.x2501_yao_2020_dpcc.ident_command = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.ident_state = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.abort_reason = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.progress = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.R_hat_ohm = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.L_hat_H = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.R_id_ohm = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.L_id_H = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.L_converged = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.R_converged = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.t_L_conv_s = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.t_R_conv_s = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.dM_d_V = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.dM_q_V = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.motor_class = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.gains_high = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.rls_enable = 0x0u,
+    .mfr.x2501_yao_2020_dpcc.rls_lambda = 0.9950000047683716f,
+    .mfr.x2501_yao_2020_dpcc.rls_R_hat_ohm = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.rls_L_hat_H = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.p_hat_d_A = 0.0f,
+    .mfr.x2501_yao_2020_dpcc.p_hat_q_A = 0.0f,
+    .mfr.x2502_zhao_2022.highest_sub_index_supported = 0x4u,
+    .mfr.x2502_zhao_2022.K1_V_A = 0.0f,
+    .mfr.x2502_zhao_2022.K2_V_A = 0.0f,
+    .mfr.x2502_zhao_2022.G_V_A = 0.0f,
+    .mfr.x2502_zhao_2022.limited = 0x0u,
     .mfr.x603F_error_code = 0x0u,
     .mfr.x6040_Controlword = 0x0u,
     .mfr.x6041_Statusword = 0x40u,
@@ -480,32 +480,9 @@ static const co_od_entry_t entries[] = {
     {0x2200u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.psi_hat_Wb), &OD_DRIVE.mfr.x2200_Controller.psi_hat_Wb, {.f = 0.0f}, {.f = 10.0f}}, /* psi_hat_Wb */
     {0x2200u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.pole_pairs), &OD_DRIVE.mfr.x2200_Controller.pole_pairs, {.i = 1}, {.i = 64}}, /* pole_pairs */
     {0x2200u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.Vmax_V), &OD_DRIVE.mfr.x2200_Controller.Vmax_V, {.f = 0.0f}, {.f = 2000.0f}}, /* Vmax_V */
-    {0x2200u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.pi_bandwidth_Hz), &OD_DRIVE.mfr.x2200_Controller.pi_bandwidth_Hz, {.f = 1.0f}, {.f = 100000.0f}}, /* pi_bandwidth_Hz */
-    {0x2200u, 0x0Bu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.limited_memory), &OD_DRIVE.mfr.x2200_Controller.limited_memory, {.i = 0}, {.i = 1}}, /* limited_memory */
-    {0x2200u, 0x0Cu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.deadtime_comp_enable), &OD_DRIVE.mfr.x2200_Controller.deadtime_comp_enable, {.i = 0}, {.i = 1}}, /* deadtime_comp_enable */
-    {0x2200u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.deadtime_comp_V), &OD_DRIVE.mfr.x2200_Controller.deadtime_comp_V, {.f = 0.0f}, {.f = 100.0f}}, /* deadtime_comp_V */
-    {0x2200u, 0x0Eu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.deadtime_comp_I_sat_A), &OD_DRIVE.mfr.x2200_Controller.deadtime_comp_I_sat_A, {.f = 0.0010000000474974513f}, {.f = 100.0f}}, /* deadtime_comp_I_sat_A */
-    {0x2200u, 0x0Fu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.estimator_bandwidth_Hz), &OD_DRIVE.mfr.x2200_Controller.estimator_bandwidth_Hz, {.f = 1.0f}, {.f = 20000.0f}}, /* estimator_bandwidth_Hz */
-    {0x2200u, 0x10u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.J_hat_kgm2), &OD_DRIVE.mfr.x2200_Controller.J_hat_kgm2, {.f = 1.0000000116860974e-07f}, {.f = 100.0f}}, /* J_hat_kgm2 */
-    {0x2200u, 0x11u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.vlimit_radial), &OD_DRIVE.mfr.x2200_Controller.vlimit_radial, {.i = 0}, {.i = 1}}, /* vlimit_radial */
-    {0x2200u, 0x12u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.decoupling_enable), &OD_DRIVE.mfr.x2200_Controller.decoupling_enable, {.i = 0}, {.i = 1}}, /* decoupling_enable */
-    {0x2200u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.angle_advance_periods), &OD_DRIVE.mfr.x2200_Controller.angle_advance_periods, {.f = -4.0f}, {.f = 4.0f}}, /* angle_advance_periods */
-    {0x2200u, 0x14u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.estimator_enable), &OD_DRIVE.mfr.x2200_Controller.estimator_enable, {.i = 0}, {.i = 1}}, /* estimator_enable */
-    {0x2201u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2201_online_tuning.highest_sub_index_supported), &OD_DRIVE.mfr.x2201_online_tuning.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2201u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.enable), &OD_DRIVE.mfr.x2201_online_tuning.enable, {.i = 0}, {.i = 1}}, /* enable */
-    {0x2201u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.det_threshold_A2), &OD_DRIVE.mfr.x2201_online_tuning.det_threshold_A2, {.f = 0.0f}, {.f = 1000000.0f}}, /* det_threshold_A2 */
-    {0x2201u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.average_m), &OD_DRIVE.mfr.x2201_online_tuning.average_m, {.i = 1}, {.i = 16}}, /* average_m */
-    {0x2201u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2201_online_tuning.separate_d_axis), &OD_DRIVE.mfr.x2201_online_tuning.separate_d_axis, {.i = 0}, {.i = 1}}, /* separate_d_axis */
-    {0x2201u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.det_A2), &OD_DRIVE.mfr.x2201_online_tuning.det_A2, {.i = 0}, {.i = 0}}, /* det_A2 */
-    {0x2201u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_hat_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_hat_V_A, {.i = 0}, {.i = 0}}, /* K1_hat_V_A */
-    {0x2201u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_hat_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K2_hat_V_A, {.i = 0}, {.i = 0}}, /* K2_hat_V_A */
-    {0x2201u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_bar_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_bar_V_A, {.i = 0}, {.i = 0}}, /* K1_bar_V_A */
-    {0x2201u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_bar_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K2_bar_V_A, {.i = 0}, {.i = 0}}, /* K2_bar_V_A */
-    {0x2201u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.L_hat_H), &OD_DRIVE.mfr.x2201_online_tuning.L_hat_H, {.i = 0}, {.i = 0}}, /* L_hat_H */
-    {0x2201u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.identifications), &OD_DRIVE.mfr.x2201_online_tuning.identifications, {.i = 0}, {.i = 0}}, /* identifications */
-    {0x2201u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K1_active_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K1_active_V_A, {.i = 0}, {.i = 0}}, /* K1_active_V_A */
-    {0x2201u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.K2_active_V_A), &OD_DRIVE.mfr.x2201_online_tuning.K2_active_V_A, {.i = 0}, {.i = 0}}, /* K2_active_V_A */
-    {0x2201u, 0x0Eu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2201_online_tuning.gain_updates), &OD_DRIVE.mfr.x2201_online_tuning.gain_updates, {.i = 0}, {.i = 0}}, /* gain_updates */
+    {0x2200u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.J_hat_kgm2), &OD_DRIVE.mfr.x2200_Controller.J_hat_kgm2, {.f = 1.0000000116860974e-07f}, {.f = 100.0f}}, /* J_hat_kgm2 */
+    {0x2200u, 0x0Bu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.vlimit_radial), &OD_DRIVE.mfr.x2200_Controller.vlimit_radial, {.i = 0}, {.i = 1}}, /* vlimit_radial */
+    {0x2200u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.angle_advance_periods), &OD_DRIVE.mfr.x2200_Controller.angle_advance_periods, {.f = -4.0f}, {.f = 4.0f}}, /* angle_advance_periods */
     {0x2202u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2202_References.highest_sub_index_supported), &OD_DRIVE.mfr.x2202_References.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2202u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2202_References.mode), &OD_DRIVE.mfr.x2202_References.mode, {.i = 0}, {.i = 3}}, /* mode */
     {0x2202u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2202_References.iq_ref_A), &OD_DRIVE.mfr.x2202_References.iq_ref_A, {.f = -1000.0f}, {.f = 1000.0f}}, /* iq_ref_A */
@@ -531,54 +508,6 @@ static const co_od_entry_t entries[] = {
     {0x2204u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.iq_ref_active_A), &OD_DRIVE.mfr.x2204_drive_status.iq_ref_active_A, {.i = 0}, {.i = 0}}, /* iq_ref_active_A */
     {0x2204u, 0x08u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2204_drive_status.last_sample_index), &OD_DRIVE.mfr.x2204_drive_status.last_sample_index, {.i = 0}, {.i = 0}}, /* last_sample_index */
     {0x2205u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_DRIVE.mfr.x2205_drive_label, {.i = 0}, {.i = 0}}, /* Drive label */
-    {0x2206u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.highest_sub_index_supported), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2206u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.observer_enable), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.observer_enable, {.i = 0}, {.i = 1}}, /* observer_enable */
-    {0x2206u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.Q_d), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.Q_d, {.f = 0.0f}, {.f = 0.9900000095367432f}}, /* Q_d */
-    {0x2206u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.Q_q), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.Q_q, {.f = 0.0f}, {.f = 0.9900000095367432f}}, /* Q_q */
-    {0x2206u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.inj_id_A), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.inj_id_A, {.f = -100.0f}, {.f = -0.009999999776482582f}}, /* inj_id_A */
-    {0x2206u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.gain_select), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.gain_select, {.i = 0}, {.i = 2}}, /* gain_select */
-    {0x2206u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.kL_low_H_Vs), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.kL_low_H_Vs, {.f = 0.0f}, {.f = 10.0f}}, /* kL_low_H_Vs */
-    {0x2206u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.kR_low_ohm_Vs), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.kR_low_ohm_Vs, {.f = 0.0f}, {.f = 10000.0f}}, /* kR_low_ohm_Vs */
-    {0x2206u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.kL_high_H_Vs), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.kL_high_H_Vs, {.f = 0.0f}, {.f = 1.0f}}, /* kL_high_H_Vs */
-    {0x2206u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.kR_high_ohm_Vs), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.kR_high_ohm_Vs, {.f = 0.0f}, {.f = 1000.0f}}, /* kR_high_ohm_Vs */
-    {0x2206u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.th_L_V), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.th_L_V, {.f = 0.0f}, {.f = 100.0f}}, /* th_L_V */
-    {0x2206u, 0x0Bu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.th_R_V), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.th_R_V, {.f = 0.0f}, {.f = 100.0f}}, /* th_R_V */
-    {0x2206u, 0x0Cu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_settle), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_settle, {.i = 1}, {.i = 1000000}}, /* n_settle */
-    {0x2206u, 0x0Du, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_avg), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_avg, {.i = 1}, {.i = 100000}}, /* n_avg */
-    {0x2206u, 0x0Eu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_hold), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_hold, {.i = 1}, {.i = 1000000}}, /* n_hold */
-    {0x2206u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_timeout), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_timeout, {.i = 1}, {.i = 100000000}}, /* n_timeout */
-    {0x2206u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_rounds), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.n_rounds, {.i = 1}, {.i = 10}}, /* n_rounds */
-    {0x2206u, 0x11u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rereference), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rereference, {.i = 0}, {.i = 1}}, /* rereference */
-    {0x2206u, 0x12u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.steady_tol_w_rad_s), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.steady_tol_w_rad_s, {.f = 0.0f}, {.f = 10000.0f}}, /* steady_tol_w_rad_s */
-    {0x2206u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.steady_tol_iq_A), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.steady_tol_iq_A, {.f = 0.0f}, {.f = 1000.0f}}, /* steady_tol_iq_A */
-    {0x2206u, 0x14u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.min_speed_rad_s), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.min_speed_rad_s, {.f = 0.0f}, {.f = 100000.0f}}, /* min_speed_rad_s */
-    {0x2206u, 0x15u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_command, {.i = 0}, {.i = 2}}, /* ident_command */
-    {0x2206u, 0x16u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_state), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.ident_state, {.i = 0}, {.i = 0}}, /* ident_state */
-    {0x2206u, 0x17u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.abort_reason), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.abort_reason, {.i = 0}, {.i = 0}}, /* abort_reason */
-    {0x2206u, 0x18u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.progress), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.progress, {.i = 0}, {.i = 0}}, /* progress */
-    {0x2206u, 0x19u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.R_hat_ohm), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.R_hat_ohm, {.i = 0}, {.i = 0}}, /* R_hat_ohm */
-    {0x2206u, 0x1Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.L_hat_H), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.L_hat_H, {.i = 0}, {.i = 0}}, /* L_hat_H */
-    {0x2206u, 0x1Bu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.R_id_ohm), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.R_id_ohm, {.i = 0}, {.i = 0}}, /* R_id_ohm */
-    {0x2206u, 0x1Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.L_id_H), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.L_id_H, {.i = 0}, {.i = 0}}, /* L_id_H */
-    {0x2206u, 0x1Du, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.L_converged), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.L_converged, {.i = 0}, {.i = 0}}, /* L_converged */
-    {0x2206u, 0x1Eu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.R_converged), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.R_converged, {.i = 0}, {.i = 0}}, /* R_converged */
-    {0x2206u, 0x1Fu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.t_L_conv_s), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.t_L_conv_s, {.i = 0}, {.i = 0}}, /* t_L_conv_s */
-    {0x2206u, 0x20u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.t_R_conv_s), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.t_R_conv_s, {.i = 0}, {.i = 0}}, /* t_R_conv_s */
-    {0x2206u, 0x21u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.dM_d_V), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.dM_d_V, {.i = 0}, {.i = 0}}, /* dM_d_V */
-    {0x2206u, 0x22u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.dM_q_V), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.dM_q_V, {.i = 0}, {.i = 0}}, /* dM_q_V */
-    {0x2206u, 0x23u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.motor_class), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.motor_class, {.i = 0}, {.i = 0}}, /* motor_class */
-    {0x2206u, 0x24u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.gains_high), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.gains_high, {.i = 0}, {.i = 0}}, /* gains_high */
-    {0x2206u, 0x25u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_enable), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_enable, {.i = 0}, {.i = 1}}, /* rls_enable */
-    {0x2206u, 0x26u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_lambda), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_lambda, {.f = 0.8999999761581421f}, {.f = 1.0f}}, /* rls_lambda */
-    {0x2206u, 0x27u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_R_hat_ohm, {.i = 0}, {.i = 0}}, /* rls_R_hat_ohm */
-    {0x2206u, 0x28u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_L_hat_H), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.rls_L_hat_H, {.i = 0}, {.i = 0}}, /* rls_L_hat_H */
-    {0x2206u, 0x29u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_d_A), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_d_A, {.i = 0}, {.i = 0}}, /* p_hat_d_A */
-    {0x2206u, 0x2Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_q_A), &OD_DRIVE.mfr.x2206_yao_2020_dpcc.p_hat_q_A, {.i = 0}, {.i = 0}}, /* p_hat_q_A */
-    {0x2207u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.highest_sub_index_supported), &OD_DRIVE.mfr.x2207_zhao_2022.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
-    {0x2207u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A, {.i = 0}, {.i = 0}}, /* K1_V_A */
-    {0x2207u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.K2_V_A, {.i = 0}, {.i = 0}}, /* K2_V_A */
-    {0x2207u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.G_V_A), &OD_DRIVE.mfr.x2207_zhao_2022.G_V_A, {.i = 0}, {.i = 0}}, /* G_V_A */
-    {0x2207u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2207_zhao_2022.limited), &OD_DRIVE.mfr.x2207_zhao_2022.limited, {.i = 0}, {.i = 0}}, /* limited */
     {0x2208u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.highest_sub_index_supported), &OD_DRIVE.mfr.x2208_step_cost.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2208u, 0x01u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.step_cycles_last), &OD_DRIVE.mfr.x2208_step_cost.step_cycles_last, {.i = 0}, {.i = 0}}, /* step_cycles_last */
     {0x2208u, 0x02u, CO_DT_REAL32, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2208_step_cost.step_cycles_max), &OD_DRIVE.mfr.x2208_step_cost.step_cycles_max, {.i = 0}, {.i = 0}}, /* step_cycles_max */
@@ -617,6 +546,77 @@ static const co_od_entry_t entries[] = {
     {0x2302u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.live_signal_1), &OD_DRIVE.mfr.x2302_live_trace.live_signal_1, {.i = 0}, {.i = 63}}, /* live_signal_1 */
     {0x2302u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.live_signal_2), &OD_DRIVE.mfr.x2302_live_trace.live_signal_2, {.i = 0}, {.i = 63}}, /* live_signal_2 */
     {0x2302u, 0x05u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2302_live_trace.decimation), &OD_DRIVE.mfr.x2302_live_trace.decimation, {.i = 1}, {.i = 65535}}, /* decimation */
+    {0x2500u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2500_online_tuning.highest_sub_index_supported), &OD_DRIVE.mfr.x2500_online_tuning.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2500u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.enable), &OD_DRIVE.mfr.x2500_online_tuning.enable, {.i = 0}, {.i = 1}}, /* enable */
+    {0x2500u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.det_threshold_A2), &OD_DRIVE.mfr.x2500_online_tuning.det_threshold_A2, {.f = 0.0f}, {.f = 1000000.0f}}, /* det_threshold_A2 */
+    {0x2500u, 0x03u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.average_m), &OD_DRIVE.mfr.x2500_online_tuning.average_m, {.i = 1}, {.i = 16}}, /* average_m */
+    {0x2500u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.separate_d_axis), &OD_DRIVE.mfr.x2500_online_tuning.separate_d_axis, {.i = 0}, {.i = 1}}, /* separate_d_axis */
+    {0x2500u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.det_A2), &OD_DRIVE.mfr.x2500_online_tuning.det_A2, {.i = 0}, {.i = 0}}, /* det_A2 */
+    {0x2500u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.K1_hat_V_A), &OD_DRIVE.mfr.x2500_online_tuning.K1_hat_V_A, {.i = 0}, {.i = 0}}, /* K1_hat_V_A */
+    {0x2500u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.K2_hat_V_A), &OD_DRIVE.mfr.x2500_online_tuning.K2_hat_V_A, {.i = 0}, {.i = 0}}, /* K2_hat_V_A */
+    {0x2500u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.K1_bar_V_A), &OD_DRIVE.mfr.x2500_online_tuning.K1_bar_V_A, {.i = 0}, {.i = 0}}, /* K1_bar_V_A */
+    {0x2500u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.K2_bar_V_A), &OD_DRIVE.mfr.x2500_online_tuning.K2_bar_V_A, {.i = 0}, {.i = 0}}, /* K2_bar_V_A */
+    {0x2500u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.L_hat_H), &OD_DRIVE.mfr.x2500_online_tuning.L_hat_H, {.i = 0}, {.i = 0}}, /* L_hat_H */
+    {0x2500u, 0x0Bu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.identifications), &OD_DRIVE.mfr.x2500_online_tuning.identifications, {.i = 0}, {.i = 0}}, /* identifications */
+    {0x2500u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.K1_active_V_A), &OD_DRIVE.mfr.x2500_online_tuning.K1_active_V_A, {.i = 0}, {.i = 0}}, /* K1_active_V_A */
+    {0x2500u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.K2_active_V_A), &OD_DRIVE.mfr.x2500_online_tuning.K2_active_V_A, {.i = 0}, {.i = 0}}, /* K2_active_V_A */
+    {0x2500u, 0x0Eu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.gain_updates), &OD_DRIVE.mfr.x2500_online_tuning.gain_updates, {.i = 0}, {.i = 0}}, /* gain_updates */
+    {0x2500u, 0x0Fu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.pi_bandwidth_Hz), &OD_DRIVE.mfr.x2500_online_tuning.pi_bandwidth_Hz, {.f = 1.0f}, {.f = 100000.0f}}, /* pi_bandwidth_Hz */
+    {0x2500u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.limited_memory), &OD_DRIVE.mfr.x2500_online_tuning.limited_memory, {.i = 0}, {.i = 1}}, /* limited_memory */
+    {0x2500u, 0x11u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.deadtime_comp_enable), &OD_DRIVE.mfr.x2500_online_tuning.deadtime_comp_enable, {.i = 0}, {.i = 1}}, /* deadtime_comp_enable */
+    {0x2500u, 0x12u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.deadtime_comp_V), &OD_DRIVE.mfr.x2500_online_tuning.deadtime_comp_V, {.f = 0.0f}, {.f = 100.0f}}, /* deadtime_comp_V */
+    {0x2500u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.deadtime_comp_I_sat_A), &OD_DRIVE.mfr.x2500_online_tuning.deadtime_comp_I_sat_A, {.f = 0.0010000000474974513f}, {.f = 100.0f}}, /* deadtime_comp_I_sat_A */
+    {0x2500u, 0x14u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.estimator_bandwidth_Hz), &OD_DRIVE.mfr.x2500_online_tuning.estimator_bandwidth_Hz, {.f = 1.0f}, {.f = 20000.0f}}, /* estimator_bandwidth_Hz */
+    {0x2500u, 0x15u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.decoupling_enable), &OD_DRIVE.mfr.x2500_online_tuning.decoupling_enable, {.i = 0}, {.i = 1}}, /* decoupling_enable */
+    {0x2500u, 0x16u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.estimator_enable), &OD_DRIVE.mfr.x2500_online_tuning.estimator_enable, {.i = 0}, {.i = 1}}, /* estimator_enable */
+    {0x2501u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.highest_sub_index_supported), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2501u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.observer_enable), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.observer_enable, {.i = 0}, {.i = 1}}, /* observer_enable */
+    {0x2501u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.Q_d), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.Q_d, {.f = 0.0f}, {.f = 0.9900000095367432f}}, /* Q_d */
+    {0x2501u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.Q_q), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.Q_q, {.f = 0.0f}, {.f = 0.9900000095367432f}}, /* Q_q */
+    {0x2501u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.inj_id_A), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.inj_id_A, {.f = -100.0f}, {.f = -0.009999999776482582f}}, /* inj_id_A */
+    {0x2501u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.gain_select), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.gain_select, {.i = 0}, {.i = 2}}, /* gain_select */
+    {0x2501u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.kL_low_H_Vs), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.kL_low_H_Vs, {.f = 0.0f}, {.f = 10.0f}}, /* kL_low_H_Vs */
+    {0x2501u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.kR_low_ohm_Vs), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.kR_low_ohm_Vs, {.f = 0.0f}, {.f = 10000.0f}}, /* kR_low_ohm_Vs */
+    {0x2501u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.kL_high_H_Vs), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.kL_high_H_Vs, {.f = 0.0f}, {.f = 1.0f}}, /* kL_high_H_Vs */
+    {0x2501u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.kR_high_ohm_Vs), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.kR_high_ohm_Vs, {.f = 0.0f}, {.f = 1000.0f}}, /* kR_high_ohm_Vs */
+    {0x2501u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.th_L_V), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.th_L_V, {.f = 0.0f}, {.f = 100.0f}}, /* th_L_V */
+    {0x2501u, 0x0Bu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.th_R_V), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.th_R_V, {.f = 0.0f}, {.f = 100.0f}}, /* th_R_V */
+    {0x2501u, 0x0Cu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_settle), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_settle, {.i = 1}, {.i = 1000000}}, /* n_settle */
+    {0x2501u, 0x0Du, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_avg), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_avg, {.i = 1}, {.i = 100000}}, /* n_avg */
+    {0x2501u, 0x0Eu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_hold), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_hold, {.i = 1}, {.i = 1000000}}, /* n_hold */
+    {0x2501u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_timeout), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_timeout, {.i = 1}, {.i = 100000000}}, /* n_timeout */
+    {0x2501u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_rounds), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.n_rounds, {.i = 1}, {.i = 10}}, /* n_rounds */
+    {0x2501u, 0x11u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.rereference), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.rereference, {.i = 0}, {.i = 1}}, /* rereference */
+    {0x2501u, 0x12u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.steady_tol_w_rad_s), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.steady_tol_w_rad_s, {.f = 0.0f}, {.f = 10000.0f}}, /* steady_tol_w_rad_s */
+    {0x2501u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.steady_tol_iq_A), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.steady_tol_iq_A, {.f = 0.0f}, {.f = 1000.0f}}, /* steady_tol_iq_A */
+    {0x2501u, 0x14u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.min_speed_rad_s), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.min_speed_rad_s, {.f = 0.0f}, {.f = 100000.0f}}, /* min_speed_rad_s */
+    {0x2501u, 0x15u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.ident_command), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.ident_command, {.i = 0}, {.i = 2}}, /* ident_command */
+    {0x2501u, 0x16u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.ident_state), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.ident_state, {.i = 0}, {.i = 0}}, /* ident_state */
+    {0x2501u, 0x17u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.abort_reason), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.abort_reason, {.i = 0}, {.i = 0}}, /* abort_reason */
+    {0x2501u, 0x18u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.progress), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.progress, {.i = 0}, {.i = 0}}, /* progress */
+    {0x2501u, 0x19u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.R_hat_ohm), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.R_hat_ohm, {.i = 0}, {.i = 0}}, /* R_hat_ohm */
+    {0x2501u, 0x1Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.L_hat_H), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.L_hat_H, {.i = 0}, {.i = 0}}, /* L_hat_H */
+    {0x2501u, 0x1Bu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.R_id_ohm), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.R_id_ohm, {.i = 0}, {.i = 0}}, /* R_id_ohm */
+    {0x2501u, 0x1Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.L_id_H), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.L_id_H, {.i = 0}, {.i = 0}}, /* L_id_H */
+    {0x2501u, 0x1Du, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.L_converged), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.L_converged, {.i = 0}, {.i = 0}}, /* L_converged */
+    {0x2501u, 0x1Eu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.R_converged), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.R_converged, {.i = 0}, {.i = 0}}, /* R_converged */
+    {0x2501u, 0x1Fu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.t_L_conv_s), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.t_L_conv_s, {.i = 0}, {.i = 0}}, /* t_L_conv_s */
+    {0x2501u, 0x20u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.t_R_conv_s), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.t_R_conv_s, {.i = 0}, {.i = 0}}, /* t_R_conv_s */
+    {0x2501u, 0x21u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.dM_d_V), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.dM_d_V, {.i = 0}, {.i = 0}}, /* dM_d_V */
+    {0x2501u, 0x22u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.dM_q_V), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.dM_q_V, {.i = 0}, {.i = 0}}, /* dM_q_V */
+    {0x2501u, 0x23u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.motor_class), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.motor_class, {.i = 0}, {.i = 0}}, /* motor_class */
+    {0x2501u, 0x24u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.gains_high), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.gains_high, {.i = 0}, {.i = 0}}, /* gains_high */
+    {0x2501u, 0x25u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_enable), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_enable, {.i = 0}, {.i = 1}}, /* rls_enable */
+    {0x2501u, 0x26u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_lambda), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_lambda, {.f = 0.8999999761581421f}, {.f = 1.0f}}, /* rls_lambda */
+    {0x2501u, 0x27u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_R_hat_ohm), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_R_hat_ohm, {.i = 0}, {.i = 0}}, /* rls_R_hat_ohm */
+    {0x2501u, 0x28u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_L_hat_H), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.rls_L_hat_H, {.i = 0}, {.i = 0}}, /* rls_L_hat_H */
+    {0x2501u, 0x29u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.p_hat_d_A), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.p_hat_d_A, {.i = 0}, {.i = 0}}, /* p_hat_d_A */
+    {0x2501u, 0x2Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.p_hat_q_A), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.p_hat_q_A, {.i = 0}, {.i = 0}}, /* p_hat_q_A */
+    {0x2502u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2502_zhao_2022.highest_sub_index_supported), &OD_DRIVE.mfr.x2502_zhao_2022.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2502u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2502_zhao_2022.K1_V_A), &OD_DRIVE.mfr.x2502_zhao_2022.K1_V_A, {.i = 0}, {.i = 0}}, /* K1_V_A */
+    {0x2502u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2502_zhao_2022.K2_V_A), &OD_DRIVE.mfr.x2502_zhao_2022.K2_V_A, {.i = 0}, {.i = 0}}, /* K2_V_A */
+    {0x2502u, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2502_zhao_2022.G_V_A), &OD_DRIVE.mfr.x2502_zhao_2022.G_V_A, {.i = 0}, {.i = 0}}, /* G_V_A */
+    {0x2502u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2502_zhao_2022.limited), &OD_DRIVE.mfr.x2502_zhao_2022.limited, {.i = 0}, {.i = 0}}, /* limited */
     {0x603Fu, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x603F_error_code), &OD_DRIVE.mfr.x603F_error_code, {.i = 0}, {.i = 0}}, /* Error code */
     {0x6040u, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6040_Controlword), &OD_DRIVE.mfr.x6040_Controlword, {.i = 0}, {.i = 0}}, /* Controlword */
     {0x6041u, 0x00u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x6041_Statusword), &OD_DRIVE.mfr.x6041_Statusword, {.i = 0}, {.i = 0}}, /* Statusword */

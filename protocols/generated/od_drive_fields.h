@@ -191,33 +191,9 @@
 #define OD_DRIVE_CONTROLLER_PSI_HAT_WB_SUB 0x07u
 #define OD_DRIVE_CONTROLLER_POLE_PAIRS_SUB 0x08u
 #define OD_DRIVE_CONTROLLER_VMAX_V_SUB 0x09u
-#define OD_DRIVE_CONTROLLER_PI_BANDWIDTH_HZ_SUB 0x0Au
-#define OD_DRIVE_CONTROLLER_LIMITED_MEMORY_SUB 0x0Bu
-#define OD_DRIVE_CONTROLLER_DEADTIME_COMP_ENABLE_SUB 0x0Cu
-#define OD_DRIVE_CONTROLLER_DEADTIME_COMP_V_SUB 0x0Du
-#define OD_DRIVE_CONTROLLER_DEADTIME_COMP_I_SAT_A_SUB 0x0Eu
-#define OD_DRIVE_CONTROLLER_ESTIMATOR_BANDWIDTH_HZ_SUB 0x0Fu
-#define OD_DRIVE_CONTROLLER_J_HAT_KGM2_SUB 0x10u
-#define OD_DRIVE_CONTROLLER_VLIMIT_RADIAL_SUB 0x11u
-#define OD_DRIVE_CONTROLLER_DECOUPLING_ENABLE_SUB 0x12u
-#define OD_DRIVE_CONTROLLER_ANGLE_ADVANCE_PERIODS_SUB 0x13u
-#define OD_DRIVE_CONTROLLER_ESTIMATOR_ENABLE_SUB 0x14u
-#define OD_DRIVE_ONLINE_TUNING_IDX 0x2201u
-#define OD_DRIVE_ONLINE_TUNING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
-#define OD_DRIVE_ONLINE_TUNING_ENABLE_SUB 0x01u
-#define OD_DRIVE_ONLINE_TUNING_DET_THRESHOLD_A2_SUB 0x02u
-#define OD_DRIVE_ONLINE_TUNING_AVERAGE_M_SUB 0x03u
-#define OD_DRIVE_ONLINE_TUNING_SEPARATE_D_AXIS_SUB 0x04u
-#define OD_DRIVE_ONLINE_TUNING_DET_A2_SUB 0x05u
-#define OD_DRIVE_ONLINE_TUNING_K1_HAT_V_A_SUB 0x06u
-#define OD_DRIVE_ONLINE_TUNING_K2_HAT_V_A_SUB 0x07u
-#define OD_DRIVE_ONLINE_TUNING_K1_BAR_V_A_SUB 0x08u
-#define OD_DRIVE_ONLINE_TUNING_K2_BAR_V_A_SUB 0x09u
-#define OD_DRIVE_ONLINE_TUNING_L_HAT_H_SUB 0x0Au
-#define OD_DRIVE_ONLINE_TUNING_IDENTIFICATIONS_SUB 0x0Bu
-#define OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_SUB 0x0Cu
-#define OD_DRIVE_ONLINE_TUNING_K2_ACTIVE_V_A_SUB 0x0Du
-#define OD_DRIVE_ONLINE_TUNING_GAIN_UPDATES_SUB 0x0Eu
+#define OD_DRIVE_CONTROLLER_J_HAT_KGM2_SUB 0x0Au
+#define OD_DRIVE_CONTROLLER_VLIMIT_RADIAL_SUB 0x0Bu
+#define OD_DRIVE_CONTROLLER_ANGLE_ADVANCE_PERIODS_SUB 0x0Cu
 #define OD_DRIVE_REFERENCES_IDX 0x2202u
 #define OD_DRIVE_REFERENCES_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_REFERENCES_MODE_SUB 0x01u
@@ -246,7 +222,73 @@
 #define OD_DRIVE_DRIVE_STATUS_IQ_REF_ACTIVE_A_SUB 0x07u
 #define OD_DRIVE_DRIVE_STATUS_LAST_SAMPLE_INDEX_SUB 0x08u
 #define OD_DRIVE_DRIVE_LABEL_IDX 0x2205u
-#define OD_DRIVE_YAO_2020_DPCC_IDX 0x2206u
+#define OD_DRIVE_STEP_COST_IDX 0x2208u
+#define OD_DRIVE_STEP_COST_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_LAST_SUB 0x01u
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_MAX_SUB 0x02u
+#define OD_DRIVE_STEP_COST_STEP_CYCLES_MEAN_SUB 0x03u
+#define OD_DRIVE_STEP_COST_CYCLE_CLOCK_HZ_SUB 0x04u
+#define OD_DRIVE_STEP_COST_STEPS_MEASURED_SUB 0x05u
+#define OD_DRIVE_SAFE_STATE_IDX 0x2209u
+#define OD_DRIVE_SAFE_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_SAFE_STATE_MEAS_TIMEOUT_PERIODS_SUB 0x01u
+#define OD_DRIVE_SAFE_STATE_REASON_SUB 0x02u
+#define OD_DRIVE_SAFE_STATE_ENTRIES_SUB 0x03u
+#define OD_DRIVE_SAFE_STATE_ENTERED_AT_SAMPLE_SUB 0x04u
+#define OD_DRIVE_SAFE_STATE_CLEAR_SUB 0x05u
+#define OD_DRIVE_SAFE_STATE_NON_FINITE_REJECTED_SUB 0x06u
+#define OD_DRIVE_TRACE_IDX 0x2300u
+#define OD_DRIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_TRACE_STATE_SUB 0x01u
+#define OD_DRIVE_TRACE_TRIGGER_SIGNAL_SUB 0x02u
+#define OD_DRIVE_TRACE_TRIGGER_LEVEL_SUB 0x03u
+#define OD_DRIVE_TRACE_TRIGGER_EDGE_SUB 0x04u
+#define OD_DRIVE_TRACE_PRETRIGGER_SAMPLES_SUB 0x05u
+#define OD_DRIVE_TRACE_DECIMATION_SUB 0x06u
+#define OD_DRIVE_TRACE_SIGNAL_COUNT_SUB 0x07u
+#define OD_DRIVE_TRACE_SIGNAL_1_SUB 0x08u
+#define OD_DRIVE_TRACE_SIGNAL_2_SUB 0x09u
+#define OD_DRIVE_TRACE_SIGNAL_3_SUB 0x0Au
+#define OD_DRIVE_TRACE_SIGNAL_4_SUB 0x0Bu
+#define OD_DRIVE_TRACE_SIGNAL_5_SUB 0x0Cu
+#define OD_DRIVE_TRACE_SIGNAL_6_SUB 0x0Du
+#define OD_DRIVE_TRACE_SIGNAL_7_SUB 0x0Eu
+#define OD_DRIVE_TRACE_SIGNAL_8_SUB 0x0Fu
+#define OD_DRIVE_TRACE_CAPTURED_BYTES_SUB 0x10u
+#define OD_DRIVE_TRACE_TRIGGER_ROW_SUB 0x11u
+#define OD_DRIVE_TRACE_BUFFER_IDX 0x2301u
+#define OD_DRIVE_LIVE_TRACE_IDX 0x2302u
+#define OD_DRIVE_LIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_LIVE_TRACE_VALUE_1_SUB 0x01u
+#define OD_DRIVE_LIVE_TRACE_VALUE_2_SUB 0x02u
+#define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB 0x03u
+#define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB 0x04u
+#define OD_DRIVE_LIVE_TRACE_DECIMATION_SUB 0x05u
+#define OD_DRIVE_ONLINE_TUNING_IDX 0x2500u
+#define OD_DRIVE_ONLINE_TUNING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_ONLINE_TUNING_ENABLE_SUB 0x01u
+#define OD_DRIVE_ONLINE_TUNING_DET_THRESHOLD_A2_SUB 0x02u
+#define OD_DRIVE_ONLINE_TUNING_AVERAGE_M_SUB 0x03u
+#define OD_DRIVE_ONLINE_TUNING_SEPARATE_D_AXIS_SUB 0x04u
+#define OD_DRIVE_ONLINE_TUNING_DET_A2_SUB 0x05u
+#define OD_DRIVE_ONLINE_TUNING_K1_HAT_V_A_SUB 0x06u
+#define OD_DRIVE_ONLINE_TUNING_K2_HAT_V_A_SUB 0x07u
+#define OD_DRIVE_ONLINE_TUNING_K1_BAR_V_A_SUB 0x08u
+#define OD_DRIVE_ONLINE_TUNING_K2_BAR_V_A_SUB 0x09u
+#define OD_DRIVE_ONLINE_TUNING_L_HAT_H_SUB 0x0Au
+#define OD_DRIVE_ONLINE_TUNING_IDENTIFICATIONS_SUB 0x0Bu
+#define OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_SUB 0x0Cu
+#define OD_DRIVE_ONLINE_TUNING_K2_ACTIVE_V_A_SUB 0x0Du
+#define OD_DRIVE_ONLINE_TUNING_GAIN_UPDATES_SUB 0x0Eu
+#define OD_DRIVE_ONLINE_TUNING_PI_BANDWIDTH_HZ_SUB 0x0Fu
+#define OD_DRIVE_ONLINE_TUNING_LIMITED_MEMORY_SUB 0x10u
+#define OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_ENABLE_SUB 0x11u
+#define OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_V_SUB 0x12u
+#define OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_I_SAT_A_SUB 0x13u
+#define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_BANDWIDTH_HZ_SUB 0x14u
+#define OD_DRIVE_ONLINE_TUNING_DECOUPLING_ENABLE_SUB 0x15u
+#define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_ENABLE_SUB 0x16u
+#define OD_DRIVE_YAO_2020_DPCC_IDX 0x2501u
 #define OD_DRIVE_YAO_2020_DPCC_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_YAO_2020_DPCC_OBSERVER_ENABLE_SUB 0x01u
 #define OD_DRIVE_YAO_2020_DPCC_Q_D_SUB 0x02u
@@ -290,54 +332,12 @@
 #define OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_SUB 0x28u
 #define OD_DRIVE_YAO_2020_DPCC_P_HAT_D_A_SUB 0x29u
 #define OD_DRIVE_YAO_2020_DPCC_P_HAT_Q_A_SUB 0x2Au
-#define OD_DRIVE_ZHAO_2022_IDX 0x2207u
+#define OD_DRIVE_ZHAO_2022_IDX 0x2502u
 #define OD_DRIVE_ZHAO_2022_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_ZHAO_2022_K1_V_A_SUB 0x01u
 #define OD_DRIVE_ZHAO_2022_K2_V_A_SUB 0x02u
 #define OD_DRIVE_ZHAO_2022_G_V_A_SUB 0x03u
 #define OD_DRIVE_ZHAO_2022_LIMITED_SUB 0x04u
-#define OD_DRIVE_STEP_COST_IDX 0x2208u
-#define OD_DRIVE_STEP_COST_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
-#define OD_DRIVE_STEP_COST_STEP_CYCLES_LAST_SUB 0x01u
-#define OD_DRIVE_STEP_COST_STEP_CYCLES_MAX_SUB 0x02u
-#define OD_DRIVE_STEP_COST_STEP_CYCLES_MEAN_SUB 0x03u
-#define OD_DRIVE_STEP_COST_CYCLE_CLOCK_HZ_SUB 0x04u
-#define OD_DRIVE_STEP_COST_STEPS_MEASURED_SUB 0x05u
-#define OD_DRIVE_SAFE_STATE_IDX 0x2209u
-#define OD_DRIVE_SAFE_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
-#define OD_DRIVE_SAFE_STATE_MEAS_TIMEOUT_PERIODS_SUB 0x01u
-#define OD_DRIVE_SAFE_STATE_REASON_SUB 0x02u
-#define OD_DRIVE_SAFE_STATE_ENTRIES_SUB 0x03u
-#define OD_DRIVE_SAFE_STATE_ENTERED_AT_SAMPLE_SUB 0x04u
-#define OD_DRIVE_SAFE_STATE_CLEAR_SUB 0x05u
-#define OD_DRIVE_SAFE_STATE_NON_FINITE_REJECTED_SUB 0x06u
-#define OD_DRIVE_TRACE_IDX 0x2300u
-#define OD_DRIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
-#define OD_DRIVE_TRACE_STATE_SUB 0x01u
-#define OD_DRIVE_TRACE_TRIGGER_SIGNAL_SUB 0x02u
-#define OD_DRIVE_TRACE_TRIGGER_LEVEL_SUB 0x03u
-#define OD_DRIVE_TRACE_TRIGGER_EDGE_SUB 0x04u
-#define OD_DRIVE_TRACE_PRETRIGGER_SAMPLES_SUB 0x05u
-#define OD_DRIVE_TRACE_DECIMATION_SUB 0x06u
-#define OD_DRIVE_TRACE_SIGNAL_COUNT_SUB 0x07u
-#define OD_DRIVE_TRACE_SIGNAL_1_SUB 0x08u
-#define OD_DRIVE_TRACE_SIGNAL_2_SUB 0x09u
-#define OD_DRIVE_TRACE_SIGNAL_3_SUB 0x0Au
-#define OD_DRIVE_TRACE_SIGNAL_4_SUB 0x0Bu
-#define OD_DRIVE_TRACE_SIGNAL_5_SUB 0x0Cu
-#define OD_DRIVE_TRACE_SIGNAL_6_SUB 0x0Du
-#define OD_DRIVE_TRACE_SIGNAL_7_SUB 0x0Eu
-#define OD_DRIVE_TRACE_SIGNAL_8_SUB 0x0Fu
-#define OD_DRIVE_TRACE_CAPTURED_BYTES_SUB 0x10u
-#define OD_DRIVE_TRACE_TRIGGER_ROW_SUB 0x11u
-#define OD_DRIVE_TRACE_BUFFER_IDX 0x2301u
-#define OD_DRIVE_LIVE_TRACE_IDX 0x2302u
-#define OD_DRIVE_LIVE_TRACE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
-#define OD_DRIVE_LIVE_TRACE_VALUE_1_SUB 0x01u
-#define OD_DRIVE_LIVE_TRACE_VALUE_2_SUB 0x02u
-#define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_SUB 0x03u
-#define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_SUB 0x04u
-#define OD_DRIVE_LIVE_TRACE_DECIMATION_SUB 0x05u
 #define OD_DRIVE_ERROR_CODE_IDX 0x603Fu
 #define OD_DRIVE_CONTROLWORD_IDX 0x6040u
 #define OD_DRIVE_STATUSWORD_IDX 0x6041u
@@ -409,17 +409,9 @@ typedef struct {
     float psi_hat_Wb;
     uint8_t pole_pairs;
     float Vmax_V;
-    float pi_bandwidth_Hz;
-    uint8_t limited_memory;
-    uint8_t deadtime_comp_enable;
-    float deadtime_comp_V;
-    float deadtime_comp_I_sat_A;
-    float estimator_bandwidth_Hz;
     float J_hat_kgm2;
     uint8_t vlimit_radial;
-    uint8_t decoupling_enable;
     float angle_advance_periods;
-    uint8_t estimator_enable;
 } od_drive_controller_t;
 
 
@@ -434,17 +426,9 @@ typedef struct {
     X(0x2200u, 0x07u, x2200_Controller, psi_hat_Wb, 0.041999999433755875f) \
     X(0x2200u, 0x08u, x2200_Controller, pole_pairs, 5u) \
     X(0x2200u, 0x09u, x2200_Controller, Vmax_V, 139.0f) \
-    X(0x2200u, 0x0Au, x2200_Controller, pi_bandwidth_Hz, 1000.0f) \
-    X(0x2200u, 0x0Bu, x2200_Controller, limited_memory, 0u) \
-    X(0x2200u, 0x0Cu, x2200_Controller, deadtime_comp_enable, 0u) \
-    X(0x2200u, 0x0Du, x2200_Controller, deadtime_comp_V, 0.0f) \
-    X(0x2200u, 0x0Eu, x2200_Controller, deadtime_comp_I_sat_A, 1.0f) \
-    X(0x2200u, 0x0Fu, x2200_Controller, estimator_bandwidth_Hz, 900.0f) \
-    X(0x2200u, 0x10u, x2200_Controller, J_hat_kgm2, 2.9999999242136255e-05f) \
-    X(0x2200u, 0x11u, x2200_Controller, vlimit_radial, 0u) \
-    X(0x2200u, 0x12u, x2200_Controller, decoupling_enable, 1u) \
-    X(0x2200u, 0x13u, x2200_Controller, angle_advance_periods, 1.5f) \
-    X(0x2200u, 0x14u, x2200_Controller, estimator_enable, 1u)
+    X(0x2200u, 0x0Au, x2200_Controller, J_hat_kgm2, 2.9999999242136255e-05f) \
+    X(0x2200u, 0x0Bu, x2200_Controller, vlimit_radial, 0u) \
+    X(0x2200u, 0x0Cu, x2200_Controller, angle_advance_periods, 1.5f)
 
 #define OD_DRIVE_CONTROLLER_CONTROLLER_DEFAULT 2u
 #define OD_DRIVE_CONTROLLER_TS_S_DEFAULT 5.500000042957254e-05f
@@ -455,72 +439,9 @@ typedef struct {
 #define OD_DRIVE_CONTROLLER_PSI_HAT_WB_DEFAULT 0.041999999433755875f
 #define OD_DRIVE_CONTROLLER_POLE_PAIRS_DEFAULT 5u
 #define OD_DRIVE_CONTROLLER_VMAX_V_DEFAULT 139.0f
-#define OD_DRIVE_CONTROLLER_PI_BANDWIDTH_HZ_DEFAULT 1000.0f
-#define OD_DRIVE_CONTROLLER_LIMITED_MEMORY_DEFAULT 0u
-#define OD_DRIVE_CONTROLLER_DEADTIME_COMP_ENABLE_DEFAULT 0u
-#define OD_DRIVE_CONTROLLER_DEADTIME_COMP_V_DEFAULT 0.0f
-#define OD_DRIVE_CONTROLLER_DEADTIME_COMP_I_SAT_A_DEFAULT 1.0f
-#define OD_DRIVE_CONTROLLER_ESTIMATOR_BANDWIDTH_HZ_DEFAULT 900.0f
 #define OD_DRIVE_CONTROLLER_J_HAT_KGM2_DEFAULT 2.9999999242136255e-05f
 #define OD_DRIVE_CONTROLLER_VLIMIT_RADIAL_DEFAULT 0u
-#define OD_DRIVE_CONTROLLER_DECOUPLING_ENABLE_DEFAULT 1u
 #define OD_DRIVE_CONTROLLER_ANGLE_ADVANCE_PERIODS_DEFAULT 1.5f
-#define OD_DRIVE_CONTROLLER_ESTIMATOR_ENABLE_DEFAULT 1u
-
-/* 0x2201 Online tuning */
-typedef struct {
-    uint8_t highest_sub_index_supported;
-    uint8_t enable;
-    float det_threshold_A2;
-    uint8_t average_m;
-    uint8_t separate_d_axis;
-    float det_A2;
-    float K1_hat_V_A;
-    float K2_hat_V_A;
-    float K1_bar_V_A;
-    float K2_bar_V_A;
-    float L_hat_H;
-    uint32_t identifications;
-    float K1_active_V_A;
-    float K2_active_V_A;
-    uint32_t gain_updates;
-} od_drive_online_tuning_t;
-
-
-/* 0x2201 Online tuning, parameters: X(index, subindex, record, field, EDS default) */
-#define OD_DRIVE_ONLINE_TUNING_PARAMS(X) \
-    X(0x2201u, 0x01u, x2201_online_tuning, enable, 0u) \
-    X(0x2201u, 0x02u, x2201_online_tuning, det_threshold_A2, 0.20000000298023224f) \
-    X(0x2201u, 0x03u, x2201_online_tuning, average_m, 8u) \
-    X(0x2201u, 0x04u, x2201_online_tuning, separate_d_axis, 0u)
-
-/* 0x2201 Online tuning, status: X(index, subindex, record, field, EDS default) */
-#define OD_DRIVE_ONLINE_TUNING_STATUS(X) \
-    X(0x2201u, 0x05u, x2201_online_tuning, det_A2, 0.0f) \
-    X(0x2201u, 0x06u, x2201_online_tuning, K1_hat_V_A, 0.0f) \
-    X(0x2201u, 0x07u, x2201_online_tuning, K2_hat_V_A, 0.0f) \
-    X(0x2201u, 0x08u, x2201_online_tuning, K1_bar_V_A, 0.0f) \
-    X(0x2201u, 0x09u, x2201_online_tuning, K2_bar_V_A, 0.0f) \
-    X(0x2201u, 0x0Au, x2201_online_tuning, L_hat_H, 0.0f) \
-    X(0x2201u, 0x0Bu, x2201_online_tuning, identifications, 0u) \
-    X(0x2201u, 0x0Cu, x2201_online_tuning, K1_active_V_A, 0.0f) \
-    X(0x2201u, 0x0Du, x2201_online_tuning, K2_active_V_A, 0.0f) \
-    X(0x2201u, 0x0Eu, x2201_online_tuning, gain_updates, 0u)
-
-#define OD_DRIVE_ONLINE_TUNING_ENABLE_DEFAULT 0u
-#define OD_DRIVE_ONLINE_TUNING_DET_THRESHOLD_A2_DEFAULT 0.20000000298023224f
-#define OD_DRIVE_ONLINE_TUNING_AVERAGE_M_DEFAULT 8u
-#define OD_DRIVE_ONLINE_TUNING_SEPARATE_D_AXIS_DEFAULT 0u
-#define OD_DRIVE_ONLINE_TUNING_DET_A2_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_K1_HAT_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_K2_HAT_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_K1_BAR_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_K2_BAR_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_L_HAT_H_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_IDENTIFICATIONS_DEFAULT 0u
-#define OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_K2_ACTIVE_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ONLINE_TUNING_GAIN_UPDATES_DEFAULT 0u
 
 /* 0x2202 References */
 typedef struct {
@@ -614,167 +535,6 @@ typedef struct {
 #define OD_DRIVE_DRIVE_STATUS_SPEED_RAD_S_DEFAULT 0.0f
 #define OD_DRIVE_DRIVE_STATUS_IQ_REF_ACTIVE_A_DEFAULT 0.0f
 #define OD_DRIVE_DRIVE_STATUS_LAST_SAMPLE_INDEX_DEFAULT 0u
-
-/* 0x2206 Yao 2020 DPCC */
-typedef struct {
-    uint8_t highest_sub_index_supported;
-    uint8_t observer_enable;
-    float Q_d;
-    float Q_q;
-    float inj_id_A;
-    uint8_t gain_select;
-    float kL_low_H_Vs;
-    float kR_low_ohm_Vs;
-    float kL_high_H_Vs;
-    float kR_high_ohm_Vs;
-    float th_L_V;
-    float th_R_V;
-    uint32_t n_settle;
-    uint32_t n_avg;
-    uint32_t n_hold;
-    uint32_t n_timeout;
-    uint8_t n_rounds;
-    uint8_t rereference;
-    float steady_tol_w_rad_s;
-    float steady_tol_iq_A;
-    float min_speed_rad_s;
-    uint8_t ident_command;
-    uint8_t ident_state;
-    uint8_t abort_reason;
-    float progress;
-    float R_hat_ohm;
-    float L_hat_H;
-    float R_id_ohm;
-    float L_id_H;
-    uint8_t L_converged;
-    uint8_t R_converged;
-    float t_L_conv_s;
-    float t_R_conv_s;
-    float dM_d_V;
-    float dM_q_V;
-    uint8_t motor_class;
-    uint8_t gains_high;
-    uint8_t rls_enable;
-    float rls_lambda;
-    float rls_R_hat_ohm;
-    float rls_L_hat_H;
-    float p_hat_d_A;
-    float p_hat_q_A;
-} od_drive_yao_2020_dpcc_t;
-
-
-/* 0x2206 Yao 2020 DPCC, parameters: X(index, subindex, record, field, EDS default) */
-#define OD_DRIVE_YAO_2020_DPCC_PARAMS(X) \
-    X(0x2206u, 0x01u, x2206_yao_2020_dpcc, observer_enable, 1u) \
-    X(0x2206u, 0x02u, x2206_yao_2020_dpcc, Q_d, 0.4000000059604645f) \
-    X(0x2206u, 0x03u, x2206_yao_2020_dpcc, Q_q, 0.4000000059604645f) \
-    X(0x2206u, 0x04u, x2206_yao_2020_dpcc, inj_id_A, -2.0f) \
-    X(0x2206u, 0x05u, x2206_yao_2020_dpcc, gain_select, 0u) \
-    X(0x2206u, 0x06u, x2206_yao_2020_dpcc, kL_low_H_Vs, 0.004999999888241291f) \
-    X(0x2206u, 0x07u, x2206_yao_2020_dpcc, kR_low_ohm_Vs, 4.0f) \
-    X(0x2206u, 0x08u, x2206_yao_2020_dpcc, kL_high_H_Vs, 1.9999999494757503e-05f) \
-    X(0x2206u, 0x09u, x2206_yao_2020_dpcc, kR_high_ohm_Vs, 0.03999999910593033f) \
-    X(0x2206u, 0x0Au, x2206_yao_2020_dpcc, th_L_V, 0.10000000149011612f) \
-    X(0x2206u, 0x0Bu, x2206_yao_2020_dpcc, th_R_V, 0.029999999329447746f) \
-    X(0x2206u, 0x0Cu, x2206_yao_2020_dpcc, n_settle, 200u) \
-    X(0x2206u, 0x0Du, x2206_yao_2020_dpcc, n_avg, 50u) \
-    X(0x2206u, 0x0Eu, x2206_yao_2020_dpcc, n_hold, 200u) \
-    X(0x2206u, 0x0Fu, x2206_yao_2020_dpcc, n_timeout, 300000u) \
-    X(0x2206u, 0x10u, x2206_yao_2020_dpcc, n_rounds, 1u) \
-    X(0x2206u, 0x11u, x2206_yao_2020_dpcc, rereference, 1u) \
-    X(0x2206u, 0x12u, x2206_yao_2020_dpcc, steady_tol_w_rad_s, 5.0f) \
-    X(0x2206u, 0x13u, x2206_yao_2020_dpcc, steady_tol_iq_A, 0.05000000074505806f) \
-    X(0x2206u, 0x14u, x2206_yao_2020_dpcc, min_speed_rad_s, 50.0f) \
-    X(0x2206u, 0x15u, x2206_yao_2020_dpcc, ident_command, 0u) \
-    X(0x2206u, 0x25u, x2206_yao_2020_dpcc, rls_enable, 0u) \
-    X(0x2206u, 0x26u, x2206_yao_2020_dpcc, rls_lambda, 0.9950000047683716f)
-
-/* 0x2206 Yao 2020 DPCC, status: X(index, subindex, record, field, EDS default) */
-#define OD_DRIVE_YAO_2020_DPCC_STATUS(X) \
-    X(0x2206u, 0x16u, x2206_yao_2020_dpcc, ident_state, 0u) \
-    X(0x2206u, 0x17u, x2206_yao_2020_dpcc, abort_reason, 0u) \
-    X(0x2206u, 0x18u, x2206_yao_2020_dpcc, progress, 0.0f) \
-    X(0x2206u, 0x19u, x2206_yao_2020_dpcc, R_hat_ohm, 0.0f) \
-    X(0x2206u, 0x1Au, x2206_yao_2020_dpcc, L_hat_H, 0.0f) \
-    X(0x2206u, 0x1Bu, x2206_yao_2020_dpcc, R_id_ohm, 0.0f) \
-    X(0x2206u, 0x1Cu, x2206_yao_2020_dpcc, L_id_H, 0.0f) \
-    X(0x2206u, 0x1Du, x2206_yao_2020_dpcc, L_converged, 0u) \
-    X(0x2206u, 0x1Eu, x2206_yao_2020_dpcc, R_converged, 0u) \
-    X(0x2206u, 0x1Fu, x2206_yao_2020_dpcc, t_L_conv_s, 0.0f) \
-    X(0x2206u, 0x20u, x2206_yao_2020_dpcc, t_R_conv_s, 0.0f) \
-    X(0x2206u, 0x21u, x2206_yao_2020_dpcc, dM_d_V, 0.0f) \
-    X(0x2206u, 0x22u, x2206_yao_2020_dpcc, dM_q_V, 0.0f) \
-    X(0x2206u, 0x23u, x2206_yao_2020_dpcc, motor_class, 0u) \
-    X(0x2206u, 0x24u, x2206_yao_2020_dpcc, gains_high, 0u) \
-    X(0x2206u, 0x27u, x2206_yao_2020_dpcc, rls_R_hat_ohm, 0.0f) \
-    X(0x2206u, 0x28u, x2206_yao_2020_dpcc, rls_L_hat_H, 0.0f) \
-    X(0x2206u, 0x29u, x2206_yao_2020_dpcc, p_hat_d_A, 0.0f) \
-    X(0x2206u, 0x2Au, x2206_yao_2020_dpcc, p_hat_q_A, 0.0f)
-
-#define OD_DRIVE_YAO_2020_DPCC_OBSERVER_ENABLE_DEFAULT 1u
-#define OD_DRIVE_YAO_2020_DPCC_Q_D_DEFAULT 0.4000000059604645f
-#define OD_DRIVE_YAO_2020_DPCC_Q_Q_DEFAULT 0.4000000059604645f
-#define OD_DRIVE_YAO_2020_DPCC_INJ_ID_A_DEFAULT -2.0f
-#define OD_DRIVE_YAO_2020_DPCC_GAIN_SELECT_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_KL_LOW_H_VS_DEFAULT 0.004999999888241291f
-#define OD_DRIVE_YAO_2020_DPCC_KR_LOW_OHM_VS_DEFAULT 4.0f
-#define OD_DRIVE_YAO_2020_DPCC_KL_HIGH_H_VS_DEFAULT 1.9999999494757503e-05f
-#define OD_DRIVE_YAO_2020_DPCC_KR_HIGH_OHM_VS_DEFAULT 0.03999999910593033f
-#define OD_DRIVE_YAO_2020_DPCC_TH_L_V_DEFAULT 0.10000000149011612f
-#define OD_DRIVE_YAO_2020_DPCC_TH_R_V_DEFAULT 0.029999999329447746f
-#define OD_DRIVE_YAO_2020_DPCC_N_SETTLE_DEFAULT 200u
-#define OD_DRIVE_YAO_2020_DPCC_N_AVG_DEFAULT 50u
-#define OD_DRIVE_YAO_2020_DPCC_N_HOLD_DEFAULT 200u
-#define OD_DRIVE_YAO_2020_DPCC_N_TIMEOUT_DEFAULT 300000u
-#define OD_DRIVE_YAO_2020_DPCC_N_ROUNDS_DEFAULT 1u
-#define OD_DRIVE_YAO_2020_DPCC_REREFERENCE_DEFAULT 1u
-#define OD_DRIVE_YAO_2020_DPCC_STEADY_TOL_W_RAD_S_DEFAULT 5.0f
-#define OD_DRIVE_YAO_2020_DPCC_STEADY_TOL_IQ_A_DEFAULT 0.05000000074505806f
-#define OD_DRIVE_YAO_2020_DPCC_MIN_SPEED_RAD_S_DEFAULT 50.0f
-#define OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_IDENT_STATE_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_ABORT_REASON_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_PROGRESS_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_R_HAT_OHM_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_L_HAT_H_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_R_ID_OHM_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_L_ID_H_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_L_CONVERGED_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_R_CONVERGED_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_T_L_CONV_S_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_T_R_CONV_S_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_DM_D_V_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_DM_Q_V_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_MOTOR_CLASS_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_GAINS_HIGH_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_RLS_ENABLE_DEFAULT 0u
-#define OD_DRIVE_YAO_2020_DPCC_RLS_LAMBDA_DEFAULT 0.9950000047683716f
-#define OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_P_HAT_D_A_DEFAULT 0.0f
-#define OD_DRIVE_YAO_2020_DPCC_P_HAT_Q_A_DEFAULT 0.0f
-
-/* 0x2207 Zhao 2022 */
-typedef struct {
-    uint8_t highest_sub_index_supported;
-    float K1_V_A;
-    float K2_V_A;
-    float G_V_A;
-    uint8_t limited;
-} od_drive_zhao_2022_t;
-
-
-/* 0x2207 Zhao 2022, status: X(index, subindex, record, field, EDS default) */
-#define OD_DRIVE_ZHAO_2022_STATUS(X) \
-    X(0x2207u, 0x01u, x2207_zhao_2022, K1_V_A, 0.0f) \
-    X(0x2207u, 0x02u, x2207_zhao_2022, K2_V_A, 0.0f) \
-    X(0x2207u, 0x03u, x2207_zhao_2022, G_V_A, 0.0f) \
-    X(0x2207u, 0x04u, x2207_zhao_2022, limited, 0u)
-
-#define OD_DRIVE_ZHAO_2022_K1_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ZHAO_2022_K2_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ZHAO_2022_G_V_A_DEFAULT 0.0f
-#define OD_DRIVE_ZHAO_2022_LIMITED_DEFAULT 0u
 
 /* 0x2208 Step cost */
 typedef struct {
@@ -923,6 +683,246 @@ typedef struct {
 #define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_1_DEFAULT 2u
 #define OD_DRIVE_LIVE_TRACE_LIVE_SIGNAL_2_DEFAULT 1u
 #define OD_DRIVE_LIVE_TRACE_DECIMATION_DEFAULT 8u
+
+/* 0x2500 Online tuning */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t enable;
+    float det_threshold_A2;
+    uint8_t average_m;
+    uint8_t separate_d_axis;
+    float det_A2;
+    float K1_hat_V_A;
+    float K2_hat_V_A;
+    float K1_bar_V_A;
+    float K2_bar_V_A;
+    float L_hat_H;
+    uint32_t identifications;
+    float K1_active_V_A;
+    float K2_active_V_A;
+    uint32_t gain_updates;
+    float pi_bandwidth_Hz;
+    uint8_t limited_memory;
+    uint8_t deadtime_comp_enable;
+    float deadtime_comp_V;
+    float deadtime_comp_I_sat_A;
+    float estimator_bandwidth_Hz;
+    uint8_t decoupling_enable;
+    uint8_t estimator_enable;
+} od_drive_online_tuning_t;
+
+
+/* 0x2500 Online tuning, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_ONLINE_TUNING_PARAMS(X) \
+    X(0x2500u, 0x01u, x2500_online_tuning, enable, 0u) \
+    X(0x2500u, 0x02u, x2500_online_tuning, det_threshold_A2, 0.20000000298023224f) \
+    X(0x2500u, 0x03u, x2500_online_tuning, average_m, 8u) \
+    X(0x2500u, 0x04u, x2500_online_tuning, separate_d_axis, 0u) \
+    X(0x2500u, 0x0Fu, x2500_online_tuning, pi_bandwidth_Hz, 1000.0f) \
+    X(0x2500u, 0x10u, x2500_online_tuning, limited_memory, 0u) \
+    X(0x2500u, 0x11u, x2500_online_tuning, deadtime_comp_enable, 0u) \
+    X(0x2500u, 0x12u, x2500_online_tuning, deadtime_comp_V, 0.0f) \
+    X(0x2500u, 0x13u, x2500_online_tuning, deadtime_comp_I_sat_A, 1.0f) \
+    X(0x2500u, 0x14u, x2500_online_tuning, estimator_bandwidth_Hz, 900.0f) \
+    X(0x2500u, 0x15u, x2500_online_tuning, decoupling_enable, 1u) \
+    X(0x2500u, 0x16u, x2500_online_tuning, estimator_enable, 1u)
+
+/* 0x2500 Online tuning, status: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_ONLINE_TUNING_STATUS(X) \
+    X(0x2500u, 0x05u, x2500_online_tuning, det_A2, 0.0f) \
+    X(0x2500u, 0x06u, x2500_online_tuning, K1_hat_V_A, 0.0f) \
+    X(0x2500u, 0x07u, x2500_online_tuning, K2_hat_V_A, 0.0f) \
+    X(0x2500u, 0x08u, x2500_online_tuning, K1_bar_V_A, 0.0f) \
+    X(0x2500u, 0x09u, x2500_online_tuning, K2_bar_V_A, 0.0f) \
+    X(0x2500u, 0x0Au, x2500_online_tuning, L_hat_H, 0.0f) \
+    X(0x2500u, 0x0Bu, x2500_online_tuning, identifications, 0u) \
+    X(0x2500u, 0x0Cu, x2500_online_tuning, K1_active_V_A, 0.0f) \
+    X(0x2500u, 0x0Du, x2500_online_tuning, K2_active_V_A, 0.0f) \
+    X(0x2500u, 0x0Eu, x2500_online_tuning, gain_updates, 0u)
+
+#define OD_DRIVE_ONLINE_TUNING_ENABLE_DEFAULT 0u
+#define OD_DRIVE_ONLINE_TUNING_DET_THRESHOLD_A2_DEFAULT 0.20000000298023224f
+#define OD_DRIVE_ONLINE_TUNING_AVERAGE_M_DEFAULT 8u
+#define OD_DRIVE_ONLINE_TUNING_SEPARATE_D_AXIS_DEFAULT 0u
+#define OD_DRIVE_ONLINE_TUNING_DET_A2_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_K1_HAT_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_K2_HAT_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_K1_BAR_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_K2_BAR_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_L_HAT_H_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_IDENTIFICATIONS_DEFAULT 0u
+#define OD_DRIVE_ONLINE_TUNING_K1_ACTIVE_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_K2_ACTIVE_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_GAIN_UPDATES_DEFAULT 0u
+#define OD_DRIVE_ONLINE_TUNING_PI_BANDWIDTH_HZ_DEFAULT 1000.0f
+#define OD_DRIVE_ONLINE_TUNING_LIMITED_MEMORY_DEFAULT 0u
+#define OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_ENABLE_DEFAULT 0u
+#define OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_V_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_DEADTIME_COMP_I_SAT_A_DEFAULT 1.0f
+#define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_BANDWIDTH_HZ_DEFAULT 900.0f
+#define OD_DRIVE_ONLINE_TUNING_DECOUPLING_ENABLE_DEFAULT 1u
+#define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_ENABLE_DEFAULT 1u
+
+/* 0x2501 Yao 2020 DPCC */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t observer_enable;
+    float Q_d;
+    float Q_q;
+    float inj_id_A;
+    uint8_t gain_select;
+    float kL_low_H_Vs;
+    float kR_low_ohm_Vs;
+    float kL_high_H_Vs;
+    float kR_high_ohm_Vs;
+    float th_L_V;
+    float th_R_V;
+    uint32_t n_settle;
+    uint32_t n_avg;
+    uint32_t n_hold;
+    uint32_t n_timeout;
+    uint8_t n_rounds;
+    uint8_t rereference;
+    float steady_tol_w_rad_s;
+    float steady_tol_iq_A;
+    float min_speed_rad_s;
+    uint8_t ident_command;
+    uint8_t ident_state;
+    uint8_t abort_reason;
+    float progress;
+    float R_hat_ohm;
+    float L_hat_H;
+    float R_id_ohm;
+    float L_id_H;
+    uint8_t L_converged;
+    uint8_t R_converged;
+    float t_L_conv_s;
+    float t_R_conv_s;
+    float dM_d_V;
+    float dM_q_V;
+    uint8_t motor_class;
+    uint8_t gains_high;
+    uint8_t rls_enable;
+    float rls_lambda;
+    float rls_R_hat_ohm;
+    float rls_L_hat_H;
+    float p_hat_d_A;
+    float p_hat_q_A;
+} od_drive_yao_2020_dpcc_t;
+
+
+/* 0x2501 Yao 2020 DPCC, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_YAO_2020_DPCC_PARAMS(X) \
+    X(0x2501u, 0x01u, x2501_yao_2020_dpcc, observer_enable, 1u) \
+    X(0x2501u, 0x02u, x2501_yao_2020_dpcc, Q_d, 0.4000000059604645f) \
+    X(0x2501u, 0x03u, x2501_yao_2020_dpcc, Q_q, 0.4000000059604645f) \
+    X(0x2501u, 0x04u, x2501_yao_2020_dpcc, inj_id_A, -2.0f) \
+    X(0x2501u, 0x05u, x2501_yao_2020_dpcc, gain_select, 0u) \
+    X(0x2501u, 0x06u, x2501_yao_2020_dpcc, kL_low_H_Vs, 0.004999999888241291f) \
+    X(0x2501u, 0x07u, x2501_yao_2020_dpcc, kR_low_ohm_Vs, 4.0f) \
+    X(0x2501u, 0x08u, x2501_yao_2020_dpcc, kL_high_H_Vs, 1.9999999494757503e-05f) \
+    X(0x2501u, 0x09u, x2501_yao_2020_dpcc, kR_high_ohm_Vs, 0.03999999910593033f) \
+    X(0x2501u, 0x0Au, x2501_yao_2020_dpcc, th_L_V, 0.10000000149011612f) \
+    X(0x2501u, 0x0Bu, x2501_yao_2020_dpcc, th_R_V, 0.029999999329447746f) \
+    X(0x2501u, 0x0Cu, x2501_yao_2020_dpcc, n_settle, 200u) \
+    X(0x2501u, 0x0Du, x2501_yao_2020_dpcc, n_avg, 50u) \
+    X(0x2501u, 0x0Eu, x2501_yao_2020_dpcc, n_hold, 200u) \
+    X(0x2501u, 0x0Fu, x2501_yao_2020_dpcc, n_timeout, 300000u) \
+    X(0x2501u, 0x10u, x2501_yao_2020_dpcc, n_rounds, 1u) \
+    X(0x2501u, 0x11u, x2501_yao_2020_dpcc, rereference, 1u) \
+    X(0x2501u, 0x12u, x2501_yao_2020_dpcc, steady_tol_w_rad_s, 5.0f) \
+    X(0x2501u, 0x13u, x2501_yao_2020_dpcc, steady_tol_iq_A, 0.05000000074505806f) \
+    X(0x2501u, 0x14u, x2501_yao_2020_dpcc, min_speed_rad_s, 50.0f) \
+    X(0x2501u, 0x15u, x2501_yao_2020_dpcc, ident_command, 0u) \
+    X(0x2501u, 0x25u, x2501_yao_2020_dpcc, rls_enable, 0u) \
+    X(0x2501u, 0x26u, x2501_yao_2020_dpcc, rls_lambda, 0.9950000047683716f)
+
+/* 0x2501 Yao 2020 DPCC, status: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_YAO_2020_DPCC_STATUS(X) \
+    X(0x2501u, 0x16u, x2501_yao_2020_dpcc, ident_state, 0u) \
+    X(0x2501u, 0x17u, x2501_yao_2020_dpcc, abort_reason, 0u) \
+    X(0x2501u, 0x18u, x2501_yao_2020_dpcc, progress, 0.0f) \
+    X(0x2501u, 0x19u, x2501_yao_2020_dpcc, R_hat_ohm, 0.0f) \
+    X(0x2501u, 0x1Au, x2501_yao_2020_dpcc, L_hat_H, 0.0f) \
+    X(0x2501u, 0x1Bu, x2501_yao_2020_dpcc, R_id_ohm, 0.0f) \
+    X(0x2501u, 0x1Cu, x2501_yao_2020_dpcc, L_id_H, 0.0f) \
+    X(0x2501u, 0x1Du, x2501_yao_2020_dpcc, L_converged, 0u) \
+    X(0x2501u, 0x1Eu, x2501_yao_2020_dpcc, R_converged, 0u) \
+    X(0x2501u, 0x1Fu, x2501_yao_2020_dpcc, t_L_conv_s, 0.0f) \
+    X(0x2501u, 0x20u, x2501_yao_2020_dpcc, t_R_conv_s, 0.0f) \
+    X(0x2501u, 0x21u, x2501_yao_2020_dpcc, dM_d_V, 0.0f) \
+    X(0x2501u, 0x22u, x2501_yao_2020_dpcc, dM_q_V, 0.0f) \
+    X(0x2501u, 0x23u, x2501_yao_2020_dpcc, motor_class, 0u) \
+    X(0x2501u, 0x24u, x2501_yao_2020_dpcc, gains_high, 0u) \
+    X(0x2501u, 0x27u, x2501_yao_2020_dpcc, rls_R_hat_ohm, 0.0f) \
+    X(0x2501u, 0x28u, x2501_yao_2020_dpcc, rls_L_hat_H, 0.0f) \
+    X(0x2501u, 0x29u, x2501_yao_2020_dpcc, p_hat_d_A, 0.0f) \
+    X(0x2501u, 0x2Au, x2501_yao_2020_dpcc, p_hat_q_A, 0.0f)
+
+#define OD_DRIVE_YAO_2020_DPCC_OBSERVER_ENABLE_DEFAULT 1u
+#define OD_DRIVE_YAO_2020_DPCC_Q_D_DEFAULT 0.4000000059604645f
+#define OD_DRIVE_YAO_2020_DPCC_Q_Q_DEFAULT 0.4000000059604645f
+#define OD_DRIVE_YAO_2020_DPCC_INJ_ID_A_DEFAULT -2.0f
+#define OD_DRIVE_YAO_2020_DPCC_GAIN_SELECT_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_KL_LOW_H_VS_DEFAULT 0.004999999888241291f
+#define OD_DRIVE_YAO_2020_DPCC_KR_LOW_OHM_VS_DEFAULT 4.0f
+#define OD_DRIVE_YAO_2020_DPCC_KL_HIGH_H_VS_DEFAULT 1.9999999494757503e-05f
+#define OD_DRIVE_YAO_2020_DPCC_KR_HIGH_OHM_VS_DEFAULT 0.03999999910593033f
+#define OD_DRIVE_YAO_2020_DPCC_TH_L_V_DEFAULT 0.10000000149011612f
+#define OD_DRIVE_YAO_2020_DPCC_TH_R_V_DEFAULT 0.029999999329447746f
+#define OD_DRIVE_YAO_2020_DPCC_N_SETTLE_DEFAULT 200u
+#define OD_DRIVE_YAO_2020_DPCC_N_AVG_DEFAULT 50u
+#define OD_DRIVE_YAO_2020_DPCC_N_HOLD_DEFAULT 200u
+#define OD_DRIVE_YAO_2020_DPCC_N_TIMEOUT_DEFAULT 300000u
+#define OD_DRIVE_YAO_2020_DPCC_N_ROUNDS_DEFAULT 1u
+#define OD_DRIVE_YAO_2020_DPCC_REREFERENCE_DEFAULT 1u
+#define OD_DRIVE_YAO_2020_DPCC_STEADY_TOL_W_RAD_S_DEFAULT 5.0f
+#define OD_DRIVE_YAO_2020_DPCC_STEADY_TOL_IQ_A_DEFAULT 0.05000000074505806f
+#define OD_DRIVE_YAO_2020_DPCC_MIN_SPEED_RAD_S_DEFAULT 50.0f
+#define OD_DRIVE_YAO_2020_DPCC_IDENT_COMMAND_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_IDENT_STATE_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_ABORT_REASON_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_PROGRESS_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_R_HAT_OHM_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_L_HAT_H_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_R_ID_OHM_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_L_ID_H_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_L_CONVERGED_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_R_CONVERGED_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_T_L_CONV_S_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_T_R_CONV_S_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_DM_D_V_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_DM_Q_V_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_MOTOR_CLASS_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_GAINS_HIGH_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_RLS_ENABLE_DEFAULT 0u
+#define OD_DRIVE_YAO_2020_DPCC_RLS_LAMBDA_DEFAULT 0.9950000047683716f
+#define OD_DRIVE_YAO_2020_DPCC_RLS_R_HAT_OHM_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_RLS_L_HAT_H_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_P_HAT_D_A_DEFAULT 0.0f
+#define OD_DRIVE_YAO_2020_DPCC_P_HAT_Q_A_DEFAULT 0.0f
+
+/* 0x2502 Zhao 2022 */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float K1_V_A;
+    float K2_V_A;
+    float G_V_A;
+    uint8_t limited;
+} od_drive_zhao_2022_t;
+
+
+/* 0x2502 Zhao 2022, status: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_ZHAO_2022_STATUS(X) \
+    X(0x2502u, 0x01u, x2502_zhao_2022, K1_V_A, 0.0f) \
+    X(0x2502u, 0x02u, x2502_zhao_2022, K2_V_A, 0.0f) \
+    X(0x2502u, 0x03u, x2502_zhao_2022, G_V_A, 0.0f) \
+    X(0x2502u, 0x04u, x2502_zhao_2022, limited, 0u)
+
+#define OD_DRIVE_ZHAO_2022_K1_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ZHAO_2022_K2_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ZHAO_2022_G_V_A_DEFAULT 0.0f
+#define OD_DRIVE_ZHAO_2022_LIMITED_DEFAULT 0u
 
 /* 0x2200:01 Controller.controller */
 enum {

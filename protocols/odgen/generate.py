@@ -1,5 +1,6 @@
-"""Every generated file, by name or by path: a node's (render), a run's (generate: both nodes and eds_common.h,
-from protocols/eds, or from a user's law merged into drive.eds first by protocols/gen_law.py: law_eds)."""
+"""Every generated file, by name or by path: a node's (render), a build's (generate: the merged EDS files, both
+nodes and eds_common.h). The drive's EDS is protocols/eds/drive.eds with the law folders merged into it by
+protocols/gen_law.py (law_eds): the papers' (firmware_shim/laws/*/) always, a user's on top."""
 
 from __future__ import annotations
 
@@ -30,14 +31,15 @@ def render(node: str, eds_dir: Path | None = None) -> dict[str, str]:
     return files
 
 
-def law_eds(law: Path, out_eds: Path) -> None:
-    """The merged EDS files of a user's law (gen_law.py) in out_eds: drive.eds with the law, plant.eds, common.ini."""
+def law_eds(law: Path | None, out_eds: Path) -> None:
+    """The merged EDS files in out_eds: drive.eds with the papers' law folders and a user's (None: none) merged
+    (gen_law.py), plant.eds, common.ini."""
     sys.path.insert(0, str(HERE))
     try:
         import gen_law
     finally:
         sys.path.remove(str(HERE))
-    _, _, text = gen_law.merge(EDS_DIR / "drive.eds", law, C_TYPES.keys())
+    text = gen_law.merge_all(EDS_DIR / "drive.eds", law, C_TYPES.keys())
     out_eds.mkdir(parents=True, exist_ok=True)
     (out_eds / "drive.eds").write_text(text)
     for name in ("plant.eds", eds_reader.COMMON):
@@ -45,18 +47,19 @@ def law_eds(law: Path, out_eds: Path) -> None:
 
 
 def generate(law: Path | None, out_dir: Path | None) -> dict[Path, str] | int:
-    """Every generated file by path (under out_dir/eds and out_dir/generated, else protocols/generated), or
-    gen_od's exit status (2) after a one-line refusal."""
+    """Every generated file by path (under out_dir/eds and out_dir/generated, else protocols/generated and its
+    eds/), or gen_od's exit status (2) after a one-line refusal."""
     with tempfile.TemporaryDirectory() as tmp:
-        eds_dir, files = None, {}
         try:
-            if law is not None:
-                assert out_dir is not None  # gen_od.py refuses --law without --out
-                eds_dir = Path(tmp) / "eds"
-                law_eds(law, eds_dir)
-                files = {out_dir / "eds" / p.name: p.read_text() for p in sorted(eds_dir.iterdir())}
+            assert law is None or out_dir is not None  # gen_od.py refuses --law without --out
+            eds_dir = Path(tmp) / "eds"
+            law_eds(law, eds_dir)
             out = OUT_DIR if out_dir is None else out_dir / "generated"
-            eds_reader.emcy_table(eds_dir or EDS_DIR, NODES)  # no code or name declared twice
+            files = {
+                (OUT_DIR if out_dir is None else out_dir) / "eds" / p.name: p.read_text()
+                for p in sorted(eds_dir.iterdir())
+            }
+            eds_reader.emcy_table(eds_dir, NODES)  # no code or name declared twice
             for node in NODES:
                 files |= {out / name: text for name, text in render(node, eds_dir).items()}
             files[out / "eds_common.h"] = common_header(eds_dir)

@@ -3,7 +3,7 @@
  * Over real SDO frames (in-process co_membus), for every readable entry
  * 0x2000-0x2FFF of both generated object dictionaries: writing it into a TPDO
  * mapping is accepted exactly when the EDS marks it PDOMapping=1 (CO_ODF_PDO)
- * and refused with 0x06040041 otherwise.  Then the Zhao 2022 (0x2207) values
+ * and refused with 0x06040041 otherwise.  Then the Zhao 2022 (0x2502) values
  * and the Drive status counters, mappable since they are per-period values,
  * go into the drive's TPDO3 (synchronous): each SYNC sends the values of the
  * moment, so a value that changes per period is traced per period.  Read-only
@@ -88,12 +88,12 @@ static float f32_of(const uint8_t *b)
 static void zhao_per_period(void)
 {
     start(&od_drive, 0x20);
-    /* TPDO3 <- 0x2207:04 limited + 0x2207:01 K1_V_A (5 bytes); TPDO4 <- 0x2204:01 current_steps +
+    /* TPDO3 <- 0x2502:04 limited + 0x2502:01 K1_V_A (5 bytes); TPDO4 <- 0x2204:01 current_steps +
      * 0x2204:02 lost_measurements (8 bytes) */
     CHECK(sdo_w(0x1802, 1, 0x80000000u | 0x3A0u, 4) == 0, "TPDO3 invalid");
     CHECK(sdo_w(0x1A02, 0, 0, 1) == 0, "TPDO3 count 0");
-    CHECK(sdo_w(0x1A02, 1, 0x22070408u, 4) == 0, "0x2207:04 limited refused");
-    CHECK(sdo_w(0x1A02, 2, 0x22070120u, 4) == 0, "0x2207:01 K1_V_A refused");
+    CHECK(sdo_w(0x1A02, 1, 0x25020408u, 4) == 0, "0x2502:04 limited refused");
+    CHECK(sdo_w(0x1A02, 2, 0x25020120u, 4) == 0, "0x2502:01 K1_V_A refused");
     CHECK(sdo_w(0x1A02, 0, 2, 1) == 0, "TPDO3 count 2");
     CHECK(sdo_w(0x1802, 2, 1, 1) == 0, "TPDO3 synchronous");
     CHECK(sdo_w(0x1802, 1, 0x3A0u, 4) == 0, "TPDO3 valid");
@@ -107,15 +107,15 @@ static void zhao_per_period(void)
     /* a read-only value cannot be received: RPDO3 refuses it */
     CHECK(sdo_w(0x1402, 1, 0x80000000u | 0x420u, 4) == 0, "RPDO3 invalid");
     CHECK(sdo_w(0x1602, 0, 0, 1) == 0, "RPDO3 count 0");
-    CHECK(sdo_w(0x1602, 1, 0x22070120u, 4) == CO_ABORT_NO_MAP, "read-only 0x2207:01 accepted in an RPDO");
+    CHECK(sdo_w(0x1602, 1, 0x25020120u, 4) == CO_ABORT_NO_MAP, "read-only 0x2502:01 accepted in an RPDO");
 
     co_nmt_command(&g_tb.node, CO_NMT_CS_START);
     const int n = 6;
     int ok = 0;
     for (int k = 0; k < n; ++k) {
         /* what the drive app writes per current step (drive_app.c refresh) */
-        OD_DRIVE.mfr.x2207_zhao_2022.limited = (uint8_t)(k == 1 || k == 2);
-        OD_DRIVE.mfr.x2207_zhao_2022.K1_V_A = 188.9f;
+        OD_DRIVE.mfr.x2502_zhao_2022.limited = (uint8_t)(k == 1 || k == 2);
+        OD_DRIVE.mfr.x2502_zhao_2022.K1_V_A = 188.9f;
         OD_DRIVE.mfr.x2204_drive_status.current_steps = (uint32_t)k;
         const uint8_t sync[1] = {(uint8_t)(k + 1)};
         inject(0x080u, sync, 1);

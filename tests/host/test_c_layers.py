@@ -8,7 +8,8 @@ The include lines of protocols/canopen/*.c and *.h are read; a module is a file 
   - the module graph has no cycle (co_node -> co_pdo -> co_node was the old one).
 The checker itself is tested on the old layout, rebuilt in a temporary folder.
 
-The controller cores (firmware_shim/core/*.c, *.h) have no include cycle either (issue 26: the
+The controller cores (firmware_shim/core/*.c, *.h) and each paper's law folder (firmware_shim/laws/*/) have
+no include cycle either (issue 26: the
 Yao 2020 DPCC and its identification included each other; the shared model, configuration and
 state are now in yao2020_model, below both).
 """
@@ -22,6 +23,7 @@ from bench.paths import REPO
 
 CANOPEN = REPO / "protocols" / "canopen"
 CORE = REPO / "firmware_shim" / "core"
+LAWS = REPO / "firmware_shim" / "laws"  # the papers' law folders
 SERVICE_PREFIXES = ("co_pdo", "co_sdo", "co_emcy", "co_od")
 NODE = "co_node"
 INCLUDE_RE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.M)
@@ -137,6 +139,10 @@ def test_checker_on_synthetic_graphs() -> None:
 def test_controller_cores_have_no_include_cycle() -> None:
     graph = module_graph(CORE)
     assert find_cycle(graph) is None, f"include cycle: {' -> '.join(find_cycle(graph) or [])}"
+    for folder in sorted(LAWS.iterdir()):  # each paper's law folder
+        law = module_graph(folder)
+        assert find_cycle(law) is None, f"{folder.name}: include cycle: {' -> '.join(find_cycle(law) or [])}"
+        graph |= law
     assert {"yao2020_dpcc", "yao2020_identification", "yao2020_model"} <= graph.keys()
     # Yao 2020: model <- identification <- dpcc; neither the identification nor the RLS
     # baseline reaches the DPCC.

@@ -26,11 +26,11 @@ PLANT_ID, DRIVE_ID = 0x10, 0x20
 CASES = [
     # (scenario, overrides, the key named, node, EDS object, period, abort code, what the EDS says)
     (YOU, {"controller.pi_bandwidth_Hz": "50000"}, "controller.pi_bandwidth_Hz = 50000", DRIVE_ID,
-     "Controller.pi_bandwidth_Hz", 0, 0x06040043, "range 1 .. 100000"),
+     "Online tuning.pi_bandwidth_Hz", 0, 0x06040043, "range 1 .. 100000"),
     (YOU, {"controller.estimator_bandwidth_Hz": "20000"}, "controller.estimator_bandwidth_Hz = 20000", DRIVE_ID,
-     "Controller.estimator_bandwidth_Hz", 0, 0x06040043, "1/(2 Ts) = 9090.91"),
+     "Online tuning.estimator_bandwidth_Hz", 0, 0x06040043, "1/(2 Ts) = 9090.91"),
     (YOU, {"controller.deadtime_comp_enable": "1", "controller.estimator_enable": "0"},
-     "controller.estimator_enable = 0", DRIVE_ID, "Controller.estimator_enable", 0, 0x06040043, "range 0 .. 1"),
+     "controller.estimator_enable = 0", DRIVE_ID, "Online tuning.estimator_enable", 0, 0x06040043, "range 0 .. 1"),
     # a plant without resistance is a model the plant takes; the drive's estimate starts from it and is refused
     (YOU, {"motor.R_ohm": "0"}, "controller.R_hat_ohm = 0", DRIVE_ID, "Controller.R_hat_ohm", 0, 0x06090032,
      "range 0.0001 .. 1000"),

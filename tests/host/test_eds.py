@@ -148,6 +148,7 @@ INC = [
         "plant_rt/node",
         "firmware_shim/core",
         "firmware_shim/shim",
+        *(str(d.relative_to(REPO)) for d in sorted((REPO / "firmware_shim" / "laws").iterdir())),
     )
 ]
 

@@ -116,12 +116,16 @@ def test_a_status_valid_if_not_among_the_results_is_read_at_the_end(tmp_path: Pa
     assert ("drive", USER_RECORD, ("L_est_H", "updates")) in result_reads(eds)
 
 
-def test_a_law_without_a_record_identifies_nothing_and_traces_the_drive_view(tmp_path: Path) -> None:
+def test_a_law_without_results_identifies_nothing_and_traces_the_drive_view(tmp_path: Path) -> None:
+    """The PI shares You 2019's record (its pipeline settings) with empty Results.pi= and Source.pi= and the
+    drive's view as Trace.pi= (firmware_shim/laws/you2019/law.eds)."""
     from bench.laws import DRIVE_VIEW, law_info
     from bench.run.verdict.summary import identified
 
     eds = merged_eds(tmp_path)
-    assert law_info("pi", eds).record is None and law_info("pi", eds).trace == DRIVE_VIEW
+    pi = law_info("pi", eds)
+    assert pi.record == law_info("deadbeat_you2019", eds).record and pi.results == () and pi.source is None
+    assert pi.trace == DRIVE_VIEW
     ident = identified(_decoder({("Controller", "controller"): 1}), eds)
     assert ident == {"controller": "pi", "paper": None, "note": "not applicable: the pi controller identifies nothing"}
 

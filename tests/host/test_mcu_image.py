@@ -70,8 +70,8 @@ def run_master(bus: can.BusABC) -> Result:
         }
         assert res.identity["device_type"] == od[0x1000].default
         assert res.identity["vendor_id"] == od[0x1018][1].default
-        node.sdo["Controller"]["pi_bandwidth_Hz"].raw = 800.0
-        res.config_read_back = node.sdo["Controller"]["pi_bandwidth_Hz"].raw
+        node.sdo["Online tuning"]["pi_bandwidth_Hz"].raw = 800.0
+        res.config_read_back = node.sdo["Online tuning"]["pi_bandwidth_Hz"].raw
 
         node.rpdo.read(from_od=True)  # the drive's RPDOs as drive.eds maps them (the plant's TPDOs)
         node.tpdo.read(from_od=True)

@@ -21,10 +21,11 @@ import pytest
 from bench.paths import REPO
 
 CORE = REPO / "firmware_shim" / "core"
+LAWS = REPO / "firmware_shim" / "laws"  # the papers' law folders: portable as the cores, their headers their own
 GENERATED = REPO / "protocols" / "generated"
 # the EDS's names, defaults and enumerations as plain C (protocols/gen_od.py): the core's one generated input
 PLAIN_GENERATED = {"od_drive_fields.h"}
-SOURCES = sorted(CORE.glob("*.c"))
+SOURCES = sorted(CORE.glob("*.c")) + sorted(LAWS.glob("*/*.c"))
 ARM_FLAGS = [
     "-mcpu=cortex-m4",
     "-mthumb",
@@ -60,7 +61,7 @@ def test_builds_for_cortex_m4f_without_warnings(src: Path, tmp_path: Path) -> No
     gcc, size = _tool("arm-none-eabi-gcc"), _tool("arm-none-eabi-size")
     obj = tmp_path / (src.stem + ".o")
     res = subprocess.run(
-        [gcc, *ARM_FLAGS, f"-I{CORE}", f"-I{GENERATED}", "-c", str(src), "-o", str(obj)],
+        [gcc, *ARM_FLAGS, f"-I{CORE}", f"-I{src.parent}", f"-I{GENERATED}", "-c", str(src), "-o", str(obj)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -73,15 +74,15 @@ def test_builds_for_cortex_m4f_without_warnings(src: Path, tmp_path: Path) -> No
     assert data >= 0 and bss >= 0
 
 
-@pytest.mark.parametrize("path", sorted(CORE.glob("*.[ch]")), ids=lambda p: p.name)
+@pytest.mark.parametrize("path", sorted(CORE.glob("*.[ch]")) + sorted(LAWS.glob("*/*.[ch]")), ids=lambda p: p.name)
 def test_no_os_headers(path: Path) -> None:
-    local = {p.name for p in CORE.glob("*.h")} | PLAIN_GENERATED
+    local = {p.name for p in CORE.glob("*.h")} | {p.name for p in path.parent.glob("*.h")} | PLAIN_GENERATED
     bad = []
     for kind, name in INCLUDE_RE.findall(path.read_text()):
         if kind == "<" and name not in ALLOWED_SYSTEM_HEADERS:
             bad.append(f"<{name}>")
         elif kind == '"' and name not in local:
-            bad.append(f'"{name}" (not a header of firmware_shim/core)')
+            bad.append(f'"{name}" (not a header of firmware_shim/core or of its own folder)')
     assert not bad, (
         f"{path.name} includes {', '.join(bad)}; the core may use only "
         f"{sorted(ALLOWED_SYSTEM_HEADERS)}, its own headers and {sorted(PLAIN_GENERATED)}"

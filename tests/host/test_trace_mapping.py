@@ -98,7 +98,7 @@ def test_node_refuses_an_unmappable_entry_and_accepts_zhao2022(nodes) -> None:  
     _map_tpdo3(drive, [("Zhao 2022", "K1_V_A"), ("Zhao 2022", "K2_V_A")])
     mapping = drive.sdo[0x1A02]
     assert mapping[0].raw == 2
-    assert mapping[1].raw == 0x2207_01_20 and mapping[2].raw == 0x2207_02_20
+    assert mapping[1].raw == 0x2502_01_20 and mapping[2].raw == 0x2502_02_20
 
 
 def test_zhao2022_limited_traced_per_period(nodes) -> None:  # type: ignore[no-untyped-def]

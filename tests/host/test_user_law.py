@@ -48,8 +48,10 @@ def _edit(law: Path, old: str, new: str, count: int = 1) -> None:
 
 # (what the edit does, old, new, count, what the refusal says, the section it names)
 REFUSALS = [
-    ("index outside the user range", "[2400", "[2500", -1, "outside 0x2400..0x24FF", "2500"),
-    ("index used by drive.eds", "[2400", "[2207", -1, "already used in drive.eds", "2207"),
+    ("index outside the user range", "[2400", "[2600", -1, "outside 0x2400..0x24FF", "2600"),
+    ("index used by drive.eds", "[2400", "[2203", -1, "already used in drive.eds", "2203"),
+    ("index of a paper's law", "[2400", "[2501", -1, "already used in drive.eds (by the law folder yao2020)", "2501"),
+    ("a paper's law's name", "CurrentLaws=zero_law", "CurrentLaws=pi", 1, "already a value of Controller", "2400"),
     (
         "two records",
         "[2400]",
@@ -125,13 +127,16 @@ def test_gen_refuses_a_bad_fragment_in_one_line_and_writes_nothing(
 def test_gen_merges_the_law_into_the_drive_eds_and_its_registry(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert _gen_od().main(["--law", str(FIXTURE), "--out", str(out)]) == 0
+    # the drive as built (protocols/generated/eds: drive.eds with the papers' law folders) and the user's law after it
     plain = configparser.ConfigParser(strict=False, interpolation=None)
-    plain.read(REPO / "protocols" / "eds" / "drive.eds")
+    plain.read(REPO / "protocols" / "generated" / "eds" / "drive.eds")
     merged = configparser.ConfigParser(strict=False, interpolation=None)
     merged.read(out / "eds" / "drive.eds")
     names = plain.get("2200sub1", "valuenames").split(",")
+    assert {"pi", "deadbeat_you2019", "dpcc_yao2020", "incremental_zhao2022"} <= set(names)
     assert merged.get("2200sub1", "valuenames").split(",") == [*names, "zero_law"]
     assert int(merged.get("2200sub1", "highlimit")) == len(names)
+    assert merged.get("2200sub1", "defaultvalue") == plain.get("2200sub1", "defaultvalue")  # its DefaultLaw
     count = int(plain.get("ManufacturerObjects", "supportedobjects"))
     assert int(merged.get("ManufacturerObjects", "supportedobjects")) == count + 1
     assert int(merged.get("ManufacturerObjects", str(count + 1)), 0) == 0x2400

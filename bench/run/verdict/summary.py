@@ -95,12 +95,13 @@ def law_name(value: float | None, eds: Path | None = None) -> str | None:
 
 def identified(dec: Decoder, eds: Path | None = None) -> dict[str, Any]:
     """Per-law results (its record's Results, bench/laws.py); a value whose ValidIf entry is zero is
-    None, with that entry's NotApplicableNote; a law without a record says it identifies nothing."""
+    None, with that entry's NotApplicableNote; a law without results (no record, or `Results.<law>=` empty: the
+    PI) says it identifies nothing."""
     kind = law_name(dec.sdo.drive.get("Controller", "controller"), eds) or "unknown"
     out: dict[str, Any] = {"controller": kind}
     info = law_info(kind, eds) if kind != "unknown" else None
-    if info is None or info.record is None:
-        out["paper"] = None
+    if info is None or info.record is None or not info.results:
+        out["paper"] = info.source if info is not None else None
         out["note"] = f"not applicable: the {kind} controller identifies nothing"
         return out
     out["paper"] = info.source

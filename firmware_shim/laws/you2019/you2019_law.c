@@ -11,17 +11,21 @@
 
 CURRENT_LAW_STATE_FITS(you2019_law_state_t);
 
-/* 0x2201 Online tuning -> the identification's configuration (same names) */
-static void you2019_law_ident_config(const od_drive_online_tuning_t *rec, you2019_identification_config_t *ic)
+/* Its record (law.eds: 0x2500 Online tuning, the Sec. 6 tuning and the drive pipeline's settings) ->
+ * the identification's configuration (same names); the PI tunes nothing. */
+static void you2019_law_ident_config(const od_drive_online_tuning_t *rec, int deadbeat,
+                                     you2019_identification_config_t *ic)
 {
     memset(ic, 0, sizeof *ic);
-    if (rec == NULL) return; /* the PI: no tuning */
-#define COPY(index, sub, record, field, eds_default) ic->field = rec->field;
-    OD_DRIVE_ONLINE_TUNING_PARAMS(COPY)
-#undef COPY
+    if (!deadbeat) return;
+    ic->enable = rec->enable;
+    ic->det_threshold_A2 = rec->det_threshold_A2;
+    ic->average_m = rec->average_m;
+    ic->separate_d_axis = rec->separate_d_axis;
 }
 
-static void you2019_law_configure(you2019_law_state_t *st, const drive_config_t *c, const void *record, int switched)
+static void you2019_law_configure(you2019_law_state_t *st, const drive_config_t *c, const od_drive_online_tuning_t *r,
+                                  int switched)
 {
     if (switched) {
         you2019_deadbeat_reset(&st->db);
@@ -29,7 +33,7 @@ static void you2019_law_configure(you2019_law_state_t *st, const drive_config_t 
         you2019_estimator_reset(&st->est);
         you2019_identification_reset(&st->ident);
     }
-    you2019_law_ident_config((const od_drive_online_tuning_t *)record, &st->ident_cfg);
+    you2019_law_ident_config(r, st->deadbeat, &st->ident_cfg);
     float Aq, Bq, Ad, Bd;
     /* You 2019 Eq. 2-3, Eq. 17 */
     you2019_deadbeat_model_gains(c->Ts_s, c->R_hat_ohm, c->Lq_hat_H, &Aq, &Bq);
@@ -38,9 +42,9 @@ static void you2019_law_configure(you2019_law_state_t *st, const drive_config_t 
     you2019_deadbeat_controller_gains(Ad, Bd, &st->db.K1d_V_A, &st->db.K2d_V_A);
     you2019_estimator_set_model(&st->est, 0u, Aq, Bq);
     you2019_estimator_set_model(&st->est, 1u, Ad, Bd);
-    you2019_estimator_design_pi(c->estimator_bandwidth_Hz, &st->est, 0u, c->Ts_s);
-    you2019_estimator_design_pi(c->estimator_bandwidth_Hz, &st->est, 1u, c->Ts_s);
-    pi_current_design(c->pi_bandwidth_Hz, &st->pi, c->R_hat_ohm, c->Ld_hat_H, c->Lq_hat_H);
+    you2019_estimator_design_pi(r->estimator_bandwidth_Hz, &st->est, 0u, c->Ts_s);
+    you2019_estimator_design_pi(r->estimator_bandwidth_Hz, &st->est, 1u, c->Ts_s);
+    pi_current_design(r->pi_bandwidth_Hz, &st->pi, c->R_hat_ohm, c->Ld_hat_H, c->Lq_hat_H);
     st->Lq_active_H = c->Lq_hat_H;
     st->Ld_active_H = c->Ld_hat_H;
     st->pending_q = st->pending_d = 0u;
@@ -51,28 +55,28 @@ static void you2019_law_configure_deadbeat(void *state, const drive_config_t *c,
 {
     you2019_law_state_t *st = (you2019_law_state_t *)state;
     st->deadbeat = 1u;
-    you2019_law_configure(st, c, record, switched);
+    you2019_law_configure(st, c, (const od_drive_online_tuning_t *)record, switched);
 }
 
 static void you2019_law_configure_pi(void *state, const drive_config_t *c, const void *record, int switched)
 {
     you2019_law_state_t *st = (you2019_law_state_t *)state;
     st->deadbeat = 0u;
-    you2019_law_configure(st, c, NULL, switched);
-    (void)record;
+    you2019_law_configure(st, c, (const od_drive_online_tuning_t *)record, switched);
 }
 
 /* You 2019 Fig. 16: gains averaged at the speed-loop execution are loaded
  * into the deadbeat controller and the estimator model at the next current
  * period; the estimator PI two current periods after that. */
-static void you2019_law_apply_pending_gains(you2019_law_state_t *st, const drive_config_t *c)
+static void you2019_law_apply_pending_gains(you2019_law_state_t *st, const drive_config_t *c,
+                                            const od_drive_online_tuning_t *r)
 {
     if (st->est_pi_countdown != 0u) {
         st->est_pi_countdown--;
         if (st->est_pi_countdown == 0u) {
             /* You 2019 Eq. 8/9 with the identified model gains */
-            you2019_estimator_design_pi(c->estimator_bandwidth_Hz, &st->est, 0u, c->Ts_s);
-            you2019_estimator_design_pi(c->estimator_bandwidth_Hz, &st->est, 1u, c->Ts_s);
+            you2019_estimator_design_pi(r->estimator_bandwidth_Hz, &st->est, 0u, c->Ts_s);
+            you2019_estimator_design_pi(r->estimator_bandwidth_Hz, &st->est, 1u, c->Ts_s);
         }
     }
     if (st->pending_q == 0u && st->pending_d == 0u) {
@@ -105,12 +109,12 @@ static void you2019_law_step(void *state, const drive_config_t *c, const void *r
                              current_law_out_t *o)
 {
     you2019_law_state_t *st = (you2019_law_state_t *)state;
-    (void)record;
-    you2019_law_apply_pending_gains(st, c);
+    const od_drive_online_tuning_t *r = (const od_drive_online_tuning_t *)record;
+    you2019_law_apply_pending_gains(st, c, r);
 
     /* You 2019 Eq. 4: decoupling voltages with estimated parameters */
     const float w = in->omega_e_rad_s;
-    if (c->decoupling_enable != 0u) {
+    if (r->decoupling_enable != 0u) {
         o->v_q_ff_V = w * st->Ld_active_H * in->i_d_A + w * c->psi_hat_Wb;
         o->v_d_ff_V = -w * st->Lq_active_H * in->i_q_A;
     } else {
@@ -143,13 +147,14 @@ static void you2019_law_step(void *state, const drive_config_t *c, const void *r
     dq_inv_park(o->v_d_V, o->v_q_V, st->cos_cmd, st->sin_cmd, &o->v_alpha_V, &o->v_beta_V);
 
     /* You 2019 Eq. 5-9 estimator, Eq. 7 dead-time compensation */
-    if (c->estimator_enable != 0u) {
+    if (r->estimator_enable != 0u) {
         you2019_estimator_step(&st->est, in->i_d_A, in->i_q_A, o->v_d_star_V, o->v_q_star_V, c->Ts_s);
-        if (c->deadtime_comp_enable != 0u) {
-            you2019_estimator_deadtime(c->deadtime_comp_V, c->deadtime_comp_I_sat_A, &st->est, st->cos_cmd,
+        if (r->deadtime_comp_enable != 0u) {
+            you2019_estimator_deadtime(r->deadtime_comp_V, r->deadtime_comp_I_sat_A, &st->est, st->cos_cmd,
                                        st->sin_cmd);
             o->v_alpha_V += st->est.v_dt_alpha_V;
             o->v_beta_V += st->est.v_dt_beta_V;
+            o->v_after_limit_V = r->deadtime_comp_V; /* added per phase after the limit */
         }
     }
 }
@@ -160,9 +165,10 @@ static void you2019_law_commit(void *state, const drive_config_t *c, const void 
                                const current_law_out_t *applied)
 {
     you2019_law_state_t *st = (you2019_law_state_t *)state;
-    (void)record;
+    const od_drive_online_tuning_t *r = (const od_drive_online_tuning_t *)record;
+    (void)c;
     if (st->deadbeat != 0u) {
-        you2019_deadbeat_commit(c->limited_memory, &st->db, applied->v_d_star_V, applied->v_q_star_V);
+        you2019_deadbeat_commit(r->limited_memory, &st->db, applied->v_d_star_V, applied->v_q_star_V);
     } else {
         pi_current_commit(&st->pi, applied->v_d_star_V, applied->v_q_star_V);
     }
@@ -200,7 +206,7 @@ static void you2019_law_reset(void *state)
     pi_current_reset(&st->pi);
 }
 
-/* 0x2201 Online tuning, its status entries (q axis) */
+/* Its record's status entries (q axis) */
 static void you2019_law_status(const void *state, const drive_config_t *c, void *record)
 {
     const you2019_law_state_t *st = (const you2019_law_state_t *)state;
@@ -233,12 +239,12 @@ static void you2019_law_signals(const void *state, float g[TRACE_SIG_COUNT])
     g[TRACE_SIG_ID_HAT] = st->est.i_hat_d_A;
 }
 
-/* The pipeline's rules, whichever law is selected (they are drive fields) */
-static current_law_verdict_t you2019_law_check_pipeline(const drive_config_t *c)
+/* The pipeline's rules, whichever law is selected (its record's settings against the drive's period) */
+static current_law_verdict_t you2019_law_check_pipeline(const drive_config_t *c, const od_drive_online_tuning_t *r)
 {
-    if (c->deadtime_comp_enable != 0u && c->estimator_enable == 0u)
+    if (r->deadtime_comp_enable != 0u && r->estimator_enable == 0u)
         return CURRENT_LAW_INCOMPATIBLE; /* You 2019 Eq. 7 compensation uses the estimated currents */
-    if (c->estimator_bandwidth_Hz * 2.0f * c->Ts_s >= 1.0f) return CURRENT_LAW_INCOMPATIBLE; /* above Nyquist */
+    if (r->estimator_bandwidth_Hz * 2.0f * c->Ts_s >= 1.0f) return CURRENT_LAW_INCOMPATIBLE; /* above Nyquist */
     return CURRENT_LAW_OK;
 }
 
@@ -246,18 +252,18 @@ static current_law_verdict_t you2019_law_check_deadbeat(const drive_config_t *c,
                                                         int selected)
 {
     const od_drive_online_tuning_t *t = (const od_drive_online_tuning_t *)record;
-    if (t != NULL && t->enable != 0u && (!selected || mode == (uint8_t)OD_DRIVE_MODE_OPEN_LOOP))
+    if (t->enable != 0u && (!selected || mode == (uint8_t)OD_DRIVE_MODE_OPEN_LOOP))
         return CURRENT_LAW_INCOMPATIBLE; /* the tuning identifies deadbeat gains in closed loop */
-    return you2019_law_check_pipeline(c);
+    return you2019_law_check_pipeline(c, t);
 }
 
 static current_law_verdict_t you2019_law_check_pi(const drive_config_t *c, const void *record, uint8_t mode,
                                                   int selected)
 {
-    (void)record;
+    const od_drive_online_tuning_t *r = (const od_drive_online_tuning_t *)record;
     (void)mode;
     (void)selected;
-    if (c->pi_bandwidth_Hz * 6.0f * c->Ts_s >= 1.0f)
+    if (r->pi_bandwidth_Hz * 6.0f * c->Ts_s >= 1.0f)
         return CURRENT_LAW_INCOMPATIBLE; /* PI phase margin 90 deg - 2 pi f 1.5 Ts <= 0 */
     return CURRENT_LAW_OK;
 }
