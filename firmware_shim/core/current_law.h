@@ -18,8 +18,9 @@
  *              estimators, identification); optional;
  *   reset      forget the memories (open loop, safe state: the command was not
  *              the law's); identified model values may be kept;
- *   status     write the status entries of its EDS record (the read-only ones);
- *   signals    its quantities in the drive's trace (trace_recorder.h ids).
+ *   status     write the status entries of its EDS record (the read-only ones):
+ *              what it shows and traces (its record's Trace= entries, a
+ *              scenario's [trace]), the one path of a law's quantities.
  *
  * motulator's blocks (output() then update()) and moteus' SimplePI (Config /
  * State / Apply) are the model.  A law is one C file (two at most) and an EDS
@@ -37,12 +38,12 @@
 #define CURRENT_LAW_H
 
 #include <math.h>
+#include <stddef.h> /* NULL for a descriptor's unset members */
 #include <stdint.h>
 
 #include "dq_math.h"
 #include "drive_config.h"
 #include "od_drive_fields.h"
-#include "trace_recorder.h"
 
 /* Room for the selected law's state and its record in drive_t. */
 #define CURRENT_LAW_STATE_BYTES 2048u
@@ -87,7 +88,6 @@ typedef struct current_law {
     void (*speed_step)(void *state, const drive_config_t *cfg, const void *record); /* at the outer loops' rate */
     void (*reset)(void *state);
     void (*status)(const void *state, const drive_config_t *cfg, void *record);
-    void (*signals)(const void *state, float signals[TRACE_SIG_COUNT]);
     /* Cross-field rules of its record against the drive's configuration (mode: References.mode);
      * selected: the candidate configuration selects this law. */
     current_law_verdict_t (*check)(const drive_config_t *cfg, const void *record, uint8_t mode, int selected);

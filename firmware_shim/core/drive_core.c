@@ -159,7 +159,6 @@ static void drive_fill_signals(drive_t *drv, const drive_meas_t *m)
 {
     float *g = drv->st.signals;
     const drive_state_t *s = &drv->st;
-    memset(g, 0, sizeof drv->st.signals); /* what the law does not trace reads 0 */
     g[TRACE_SIG_IQ_REF] = s->iq_ref_A;
     g[TRACE_SIG_IQ] = s->i_q_A;
     g[TRACE_SIG_ID_REF] = s->id_ref_A;
@@ -178,7 +177,6 @@ static void drive_fill_signals(drive_t *drv, const drive_meas_t *m)
     g[TRACE_SIG_I_A] = m->i_a_A;
     g[TRACE_SIG_I_B] = m->i_b_A;
     g[TRACE_SIG_V_LIMITED] = (float)s->out.v_limited;
-    if (drv->law != NULL && drv->law->law->signals != NULL) drv->law->law->signals(drv->law_state, g);
 }
 
 void drive_reset_controller_memory(drive_t *drv)

@@ -1,5 +1,10 @@
-/* trace_recorder.h - oscilloscope-style capture of internal signals at the
- * current-loop rate into a fixed RAM buffer (no allocation). */
+/* trace_recorder.h - oscilloscope-style capture of the drive's own signals at
+ * the current-loop rate into a fixed RAM buffer (no allocation).
+ *
+ * The signals are the drive's, whichever law runs: its measurements,
+ * references and the law's command as current_law_out_t gives it.  A law's
+ * own quantities are the status entries of its EDS record, traced by PDO
+ * (its record's Trace= entries, a scenario's [trace]) like any entry. */
 #ifndef TRACE_RECORDER_H
 #define TRACE_RECORDER_H
 
@@ -17,20 +22,10 @@ typedef enum {
     TRACE_SIG_ID,
     TRACE_SIG_VQ, /* total q voltage after limit (incl. feed-forward) */
     TRACE_SIG_VD,
-    TRACE_SIG_VQ_STAR, /* decoupled q command actually applied (You 2019 Eq. 35) */
+    TRACE_SIG_VQ_STAR, /* decoupled q command actually applied (the law's v_q_star_V) */
     TRACE_SIG_VD_STAR,
     TRACE_SIG_V_ALPHA,
     TRACE_SIG_V_BETA,
-    TRACE_SIG_DET,    /* You 2019 Eq. 25, q axis */
-    TRACE_SIG_K1_HAT, /* You 2019 Eq. 24, q axis */
-    TRACE_SIG_K2_HAT,
-    TRACE_SIG_K1_BAR,    /* You 2019 Eq. 28 */
-    TRACE_SIG_K2_BAR,    /* You 2019 Eq. 29 */
-    TRACE_SIG_L_HAT,     /* You 2019 Eq. 32 */
-    TRACE_SIG_K1_ACTIVE, /* gain used by the deadbeat controller */
-    TRACE_SIG_K2_ACTIVE,
-    TRACE_SIG_IQ_HAT, /* You 2019 Eq. 5 */
-    TRACE_SIG_ID_HAT,
     TRACE_SIG_OMEGA, /* estimated mechanical speed */
     TRACE_SIG_OMEGA_REF,
     TRACE_SIG_THETA, /* mechanical angle */
@@ -38,7 +33,7 @@ typedef enum {
     TRACE_SIG_POS_REF,
     TRACE_SIG_I_A,
     TRACE_SIG_I_B,
-    TRACE_SIG_V_LIMITED, /* 1 when You 2019 Eq. 33 limited the vector */
+    TRACE_SIG_V_LIMITED, /* 1 when the law limited the vector to Vmax_V */
     TRACE_SIG_COUNT
 } trace_signal_t;
 

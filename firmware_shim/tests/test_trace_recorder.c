@@ -83,7 +83,7 @@ int main(void)
     c.signal_0 = TRACE_SIG_IQ_REF;
     c.signal_1 = TRACE_SIG_IQ;
     c.signal_2 = TRACE_SIG_VQ;
-    c.signal_3 = TRACE_SIG_DET;
+    c.signal_3 = TRACE_SIG_V_LIMITED;
     c.trigger_signal = TRACE_SIG_IQ_REF;
     c.trigger_edge = TRACE_EDGE_RISING;
     c.trigger_level = 0.5f;

@@ -3,7 +3,7 @@
 #include "current_law.h"
 
 static const od_drive_online_tuning_t x2500_defaults = {
-    .highest_sub_index_supported = 22u,
+    .highest_sub_index_supported = 24u,
     .enable = 0u,
     .det_threshold_A2 = 0.20000000298023224f,
     .average_m = 8u,
@@ -26,6 +26,8 @@ static const od_drive_online_tuning_t x2500_defaults = {
     .estimator_bandwidth_Hz = 900.0f,
     .decoupling_enable = 1u,
     .estimator_enable = 1u,
+    .i_hat_q_A = 0.0f,
+    .i_hat_d_A = 0.0f,
 };
 _Static_assert(sizeof(od_drive_online_tuning_t) <= CURRENT_LAW_RECORD_BYTES, "record 0x2500 Online tuning exceeds CURRENT_LAW_RECORD_BYTES (current_law.h)");
 static const od_drive_yao_2020_dpcc_t x2501_defaults = {

@@ -230,7 +230,7 @@ static const od_drive_ram_t defaults = {
     .mfr.x2302_live_trace.live_signal_1 = 0x2u,
     .mfr.x2302_live_trace.live_signal_2 = 0x1u,
     .mfr.x2302_live_trace.decimation = 0x8u,
-    .mfr.x2500_online_tuning.highest_sub_index_supported = 0x16u,
+    .mfr.x2500_online_tuning.highest_sub_index_supported = 0x18u,
     .mfr.x2500_online_tuning.enable = 0x0u,
     .mfr.x2500_online_tuning.det_threshold_A2 = 0.20000000298023224f,
     .mfr.x2500_online_tuning.average_m = 0x8u,
@@ -253,6 +253,8 @@ static const od_drive_ram_t defaults = {
     .mfr.x2500_online_tuning.estimator_bandwidth_Hz = 900.0f,
     .mfr.x2500_online_tuning.decoupling_enable = 0x1u,
     .mfr.x2500_online_tuning.estimator_enable = 0x1u,
+    .mfr.x2500_online_tuning.i_hat_q_A = 0.0f,
+    .mfr.x2500_online_tuning.i_hat_d_A = 0.0f,
     .mfr.x2501_yao_2020_dpcc.highest_sub_index_supported = 0x2Au,
     .mfr.x2501_yao_2020_dpcc.observer_enable = 0x1u,
     .mfr.x2501_yao_2020_dpcc.Q_d = 0.4000000059604645f,
@@ -569,6 +571,8 @@ static const co_od_entry_t entries[] = {
     {0x2500u, 0x14u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.estimator_bandwidth_Hz), &OD_DRIVE.mfr.x2500_online_tuning.estimator_bandwidth_Hz, {.f = 1.0f}, {.f = 20000.0f}}, /* estimator_bandwidth_Hz */
     {0x2500u, 0x15u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.decoupling_enable), &OD_DRIVE.mfr.x2500_online_tuning.decoupling_enable, {.i = 0}, {.i = 1}}, /* decoupling_enable */
     {0x2500u, 0x16u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2500_online_tuning.estimator_enable), &OD_DRIVE.mfr.x2500_online_tuning.estimator_enable, {.i = 0}, {.i = 1}}, /* estimator_enable */
+    {0x2500u, 0x17u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.i_hat_q_A), &OD_DRIVE.mfr.x2500_online_tuning.i_hat_q_A, {.i = 0}, {.i = 0}}, /* i_hat_q_A */
+    {0x2500u, 0x18u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2500_online_tuning.i_hat_d_A), &OD_DRIVE.mfr.x2500_online_tuning.i_hat_d_A, {.i = 0}, {.i = 0}}, /* i_hat_d_A */
     {0x2501u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.highest_sub_index_supported), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2501u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.observer_enable), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.observer_enable, {.i = 0}, {.i = 1}}, /* observer_enable */
     {0x2501u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2501_yao_2020_dpcc.Q_d), &OD_DRIVE.mfr.x2501_yao_2020_dpcc.Q_d, {.f = 0.0f}, {.f = 0.9900000095367432f}}, /* Q_d */

@@ -288,6 +288,8 @@
 #define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_BANDWIDTH_HZ_SUB 0x14u
 #define OD_DRIVE_ONLINE_TUNING_DECOUPLING_ENABLE_SUB 0x15u
 #define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_ENABLE_SUB 0x16u
+#define OD_DRIVE_ONLINE_TUNING_I_HAT_Q_A_SUB 0x17u
+#define OD_DRIVE_ONLINE_TUNING_I_HAT_D_A_SUB 0x18u
 #define OD_DRIVE_YAO_2020_DPCC_IDX 0x2501u
 #define OD_DRIVE_YAO_2020_DPCC_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_YAO_2020_DPCC_OBSERVER_ENABLE_SUB 0x01u
@@ -709,6 +711,8 @@ typedef struct {
     float estimator_bandwidth_Hz;
     uint8_t decoupling_enable;
     uint8_t estimator_enable;
+    float i_hat_q_A;
+    float i_hat_d_A;
 } od_drive_online_tuning_t;
 
 
@@ -738,7 +742,9 @@ typedef struct {
     X(0x2500u, 0x0Bu, x2500_online_tuning, identifications, 0u) \
     X(0x2500u, 0x0Cu, x2500_online_tuning, K1_active_V_A, 0.0f) \
     X(0x2500u, 0x0Du, x2500_online_tuning, K2_active_V_A, 0.0f) \
-    X(0x2500u, 0x0Eu, x2500_online_tuning, gain_updates, 0u)
+    X(0x2500u, 0x0Eu, x2500_online_tuning, gain_updates, 0u) \
+    X(0x2500u, 0x17u, x2500_online_tuning, i_hat_q_A, 0.0f) \
+    X(0x2500u, 0x18u, x2500_online_tuning, i_hat_d_A, 0.0f)
 
 #define OD_DRIVE_ONLINE_TUNING_ENABLE_DEFAULT 0u
 #define OD_DRIVE_ONLINE_TUNING_DET_THRESHOLD_A2_DEFAULT 0.20000000298023224f
@@ -762,6 +768,8 @@ typedef struct {
 #define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_BANDWIDTH_HZ_DEFAULT 900.0f
 #define OD_DRIVE_ONLINE_TUNING_DECOUPLING_ENABLE_DEFAULT 1u
 #define OD_DRIVE_ONLINE_TUNING_ESTIMATOR_ENABLE_DEFAULT 1u
+#define OD_DRIVE_ONLINE_TUNING_I_HAT_Q_A_DEFAULT 0.0f
+#define OD_DRIVE_ONLINE_TUNING_I_HAT_D_A_DEFAULT 0.0f
 
 /* 0x2501 Yao 2020 DPCC */
 typedef struct {

@@ -78,14 +78,15 @@ def configure_motor(
     sdo["Run control"]["mode"].raw = 0
     sdo["Run control"]["run_periods"].raw = RUN_FOREVER
     motor, ctl, outer = sdo["Motor model"], drive.sdo["Controller"], drive.sdo["Outer loops"]
-    ctl["controller"].raw = 1  # pi (drive.eds 0x2200:01 ValueNames)
+    ctl["controller"].raw = 1  # pi (0x2200:01 ValueNames, the papers' law folders in order)
+    you = drive.sdo["Online tuning"]  # the PI's and You 2019's record: You 2019's drive pipeline (its law.eds)
     # You 2019's current estimator predicts i(k+1) by forward Euler: unstable at Ts >> L/R (3 ms here)
-    ctl["estimator_enable"].raw = 0
+    you["estimator_enable"].raw = 0
     bw = 1.0 / (12 * cycle_s)  # the bandwidths before Ts: each is checked against it (< 1/(6 Ts), 1/(2 Ts))
-    ctl["pi_bandwidth_Hz"].raw = max(1.0, bw)
+    you["pi_bandwidth_Hz"].raw = max(1.0, bw)
     if law is not None:
         ctl["controller"].raw = law(drive, max(1.0, bw))
-    ctl["estimator_bandwidth_Hz"].raw = max(1.0, bw)
+    you["estimator_bandwidth_Hz"].raw = max(1.0, bw)
     ctl["speed_loop_divider"].raw = 1  # the speed loop's Nyquist (x the divider) and the cascade's order
     outer["position_bandwidth_Hz"].raw = max(0.01, bw / 8)
     outer["speed_bandwidth_Hz"].raw = max(0.1, bw / 2)

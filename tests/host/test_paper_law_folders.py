@@ -121,3 +121,28 @@ def test_the_drive_core_knows_no_laws_feature() -> None:
     you = (LAWS / "you2019" / "law.eds").read_text()
     for entry in ("deadtime_comp_enable", "estimator_enable", "decoupling_enable", "limited_memory", "pi_bandwidth_Hz"):
         assert f"ParameterName={entry}\n" in you
+
+
+def test_a_papers_law_traces_through_its_record(hil_run) -> None:  # type: ignore[no-untyped-def]
+    """One trace path (issue 41): a law's quantities are its record's status entries, traced by PDO as a user's
+    law's are; You 2019's estimator prediction i_hat_q(k) (Eq. 5-9), traced by name, is the current sampled two
+    periods later in a matched ideal run. The law interface has no signals member and the drive's recorder knows
+    the drive's own signals only."""
+    scenario = {
+        "scenario": {"name": "you2019-estimator-trace", "periods": 200},
+        "motor": {"preset": "you2019", "mech_mode": "locked"},
+        "drive": {"preset": "ideal"},
+        "controller": {"controller": "deadbeat_you2019", "Vmax_V": 139.0},
+        "trace": {"pdo3": ["Online tuning.i_hat_q_A", "Online tuning.i_hat_d_A"]},
+        "events": [{"at_period": 20, "references": {"iq_ref_A": 1.0}}],
+    }
+    run = hil_run(scenario, bus="direct")
+    run.expect_status("ok")
+    t = run.traces
+    iq, i_hat = t["iq_A"].astype(float), t["i_hat_q_A"].astype(float)
+    assert abs(i_hat[20:190] - iq[22:192]).max() < 1e-5  # the prediction of k+2, at the step too
+    assert abs(i_hat[20:190] - iq[20:190]).max() > 0.5  # not the present current
+    law_face = re.sub(r"/\*.*?\*/", "", (CORE / "current_law.h").read_text(), flags=re.S)
+    assert "signals" not in law_face and "trace_recorder" not in law_face
+    recorder = (CORE / "trace_recorder.h").read_text()
+    assert not re.search(r"you\s*_?2019|yao\s*_?2020|zhao\s*_?2022", recorder, re.IGNORECASE)

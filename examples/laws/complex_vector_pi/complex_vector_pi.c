@@ -228,7 +228,6 @@ const current_law_t current_law_complex_vector_pi = {
     .speed_step = 0,
     .reset = cvpi_reset,
     .status = cvpi_status,
-    .signals = 0,
     .check = cvpi_check,
     .command = 0,
 };

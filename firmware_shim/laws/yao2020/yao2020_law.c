@@ -140,7 +140,6 @@ const current_law_t current_law_dpcc_yao2020 = {
     .speed_step = NULL,
     .reset = yao2020_law_reset,
     .status = yao2020_law_status,
-    .signals = NULL,
     .check = NULL,
     .command = yao2020_law_command,
 };

@@ -222,21 +222,8 @@ static void you2019_law_status(const void *state, const drive_config_t *c, void 
     t->K1_active_V_A = st->db.K1q_V_A;
     t->K2_active_V_A = st->db.K2q_V_A;
     t->gain_updates = st->n_gain_updates;
-}
-
-static void you2019_law_signals(const void *state, float g[TRACE_SIG_COUNT])
-{
-    const you2019_law_state_t *st = (const you2019_law_state_t *)state;
-    g[TRACE_SIG_DET] = st->ident.q.det_A2;
-    g[TRACE_SIG_K1_HAT] = st->ident.q.K1_hat_V_A;
-    g[TRACE_SIG_K2_HAT] = st->ident.q.K2_hat_V_A;
-    g[TRACE_SIG_K1_BAR] = st->ident.q.K1_bar_V_A;
-    g[TRACE_SIG_K2_BAR] = st->ident.q.K2_bar_V_A;
-    g[TRACE_SIG_L_HAT] = st->ident.q.L_hat_H;
-    g[TRACE_SIG_K1_ACTIVE] = st->db.K1q_V_A;
-    g[TRACE_SIG_K2_ACTIVE] = st->db.K2q_V_A;
-    g[TRACE_SIG_IQ_HAT] = st->est.i_hat_q_A;
-    g[TRACE_SIG_ID_HAT] = st->est.i_hat_d_A;
+    t->i_hat_q_A = st->est.i_hat_q_A;
+    t->i_hat_d_A = st->est.i_hat_d_A;
 }
 
 /* The pipeline's rules, whichever law is selected (its record's settings against the drive's period) */
@@ -277,7 +264,6 @@ const current_law_t current_law_deadbeat_you2019 = {
     .speed_step = you2019_law_speed_step,
     .reset = you2019_law_reset,
     .status = you2019_law_status,
-    .signals = you2019_law_signals,
     .check = you2019_law_check_deadbeat,
     .command = NULL,
 };
@@ -291,7 +277,6 @@ const current_law_t current_law_pi = {
     .speed_step = NULL,
     .reset = you2019_law_reset,
     .status = NULL,
-    .signals = you2019_law_signals,
     .check = you2019_law_check_pi,
     .command = NULL,
 };
