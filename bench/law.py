@@ -22,8 +22,8 @@ from bench.root import REPO, STATE  # not bench.paths: it reads BENCH_BUILD_DIR 
 
 COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
 HELP = (
-    "a user's current law: a folder of one or two C files and law.eds (one record in 0x2400..0x24FF naming "
-    "the law in CurrentLaws=NAME); built first (make LAW=DIR into build/laws/NAME-<hash of DIR>/), then used: "
+    "a user's current law: a folder of C files (and headers) and law.eds (one record in 0x2400..0x24FF naming "
+    "the law in CurrentLaws=NAME, as the papers' folders firmware_shim/laws/*/ do); built first (make LAW=DIR into build/laws/NAME-<hash of DIR>/), then used: "
     'select it with [controller] controller = "NAME" (docs/YOUR_CONTROLLER.md)'
 )
 CURRENT_LAWS = re.compile(r"^\s*CurrentLaws\s*=\s*([A-Za-z0-9_]*)", re.MULTILINE)
@@ -61,7 +61,7 @@ def law_name(law: Path) -> str:
     if not law.is_dir():
         raise LawBuildError(f"{law}: no such folder")
     if not frag.is_file():
-        raise LawBuildError(f"{frag}: missing (a law folder holds one or two C files and one EDS fragment, law.eds)")
+        raise LawBuildError(f"{frag}: missing (a law folder holds its C files and one EDS fragment, law.eds)")
     m = CURRENT_LAWS.search(frag.read_text())
     if m is None or not m.group(1):
         raise LawBuildError(f"{frag}: no CurrentLaws=<law name> key in its record's section")

@@ -1,6 +1,6 @@
 /* drive_law_slot.c - the law slot, a component of the drive app (drive_law_slot.h): the parameter records
  * 0x2200-0x2203 -> drive_config_t and their checks, and every law's EDS record (its CurrentLaws key:
- * 0x2201, 0x2206, 0x2207, a user law's 0x24xx), bound generically through the registry
+ * the papers' law folders' 0x25xx, a user law's 0x24xx), bound generically through the registry
  * (firmware_shim/core/current_law.h): its parameters reach the selected law, it checks them, its
  * commands act at once, its status entries are the law's own.  Each record is bound to this file's
  * handlers at init (drive_law_slot_bind): the parameter records to ext_config, the laws' to ext_law.

@@ -2,7 +2,7 @@
  * (current_law.h): the deadbeat predictive law with one-period delay
  * compensation (Eq. 9-12), its sliding-mode observer (Eq. 13-18), the R/L
  * identification by d-axis injection (Sec. IV-E, started and aborted by the
- * ident_command entry of its EDS record 0x2206) and the RLS baseline beside it
+ * ident_command entry of its EDS record 0x2501, law.eds) and the RLS baseline beside it
  * (Sec. VI-B, Eq. 46-48).  A surface-mounted law: L_hat = Lq_hat_H; it limits
  * its own command radially to Vmax_V.  Registered as current_law_dpcc_yao2020. */
 #ifndef YAO2020_LAW_H

@@ -51,7 +51,7 @@ typedef struct {
     float min_speed_rad_s;      /* default 50 */
     float R_min_ohm, R_max_ohm; /* estimate clamps, default 1e-4, 1e3 */
     float L_min_H, L_max_H;     /* default 1e-7, 1 */
-    /* the other parameters of the drive's Yao 2020 DPCC record (0x2206), not
+    /* the other parameters of the drive's Yao 2020 DPCC record (0x2501, law.eds), not
      * read by the DPCC: the drive's RLS baseline (Yao 2020 Sec. VI-B) beside it,
      * and the identification command the drive app acts on */
     uint8_t rls_enable;

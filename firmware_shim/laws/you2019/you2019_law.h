@@ -12,7 +12,7 @@
  *   - Sec. 6 online tuning (Eq. 22-32) and the Fig. 16 gain pipeline: gains
  *     averaged at the speed-loop execution are loaded into the deadbeat law and
  *     the estimator model at the next current period, the estimator PI two
- *     current periods after that (deadbeat law only; its EDS record 0x2201
+ *     current periods after that (deadbeat law only; its EDS record 0x2500
  *     Online tuning).
  * Registered as current_law_deadbeat_you2019 and current_law_pi. */
 #ifndef YOU2019_LAW_H
@@ -31,7 +31,7 @@ typedef struct {
     you2019_deadbeat_state_t db;
     pi_current_state_t pi;
     you2019_estimator_state_t est;
-    you2019_identification_config_t ident_cfg; /* from 0x2201 (enable 0 for the PI) */
+    you2019_identification_config_t ident_cfg; /* from its record (law.eds; enable 0 for the PI) */
     you2019_identification_state_t ident;
     /* active model used for feed-forward (config or identified, You 2019 Eq. 32) */
     float Lq_active_H, Ld_active_H;
