@@ -69,7 +69,7 @@ ifneq ($(words $(LAW)),1)
 $(error LAW=$(LAW): a path with white space, which make cannot take: link the folder from a path without (ln -s '<folder>' /tmp/my_law; make LAW=/tmp/my_law))
 endif
 LAW_DIR  := $(patsubst %/,%,$(strip $(LAW)))
-LAW_NAMES := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_, ]*\).*/\1/p' \
+LAW_NAMES := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_,[:space:]]*\).*/\1/p' \
               '$(LAW_DIR)/law.eds' 2>/dev/null | head -n 1 | tr ',' ' ')
 LAW_NAME := $(firstword $(LAW_NAMES))
 ifeq ($(LAW_NAME),)
@@ -310,7 +310,8 @@ $(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
 # ... and fills the members the drive calls unconditionally, with a state that fits (firmware_shim/law/law_check.c).
 $(LAW_CHECKED): firmware_shim/law/law_check.c $(LIBFW)
 	@mkdir -p $(BUILD)/bin
-	@for n in $(LAW_NAMES); do $(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n $< $(LIBFW) -lm -o $(BUILD)/bin/law_check && \
+	@for n in $(LAW_NAMES); do rm -f $(BUILD)/law_check.err; \
+	 $(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n $< $(LIBFW) -lm -o $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err && \
 	 $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
 	 sed 's|^law_check: |make: LAW=$(LAW): |' $(BUILD)/law_check.err >&2; exit 1; }; done
 	@touch $@

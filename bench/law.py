@@ -23,10 +23,11 @@ from bench.root import REPO, STATE  # not bench.paths: it reads BENCH_BUILD_DIR 
 COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
 HELP = (
     "a user's current law: a folder of C files (and headers) and law.eds (one record in 0x2400..0x24FF naming "
-    "the law in CurrentLaws=NAME, as the papers' folders firmware_shim/laws/*/ do); built first (make LAW=DIR into build/laws/NAME-<hash of DIR>/), then used: "
+    "the law in CurrentLaws=NAME, as the papers' folders firmware_shim/laws/*/ do); built first (make LAW=DIR "
+    "into build/laws/NAME-<hash of DIR>/), then used: "
     'select it with [controller] controller = "NAME" (docs/YOUR_CONTROLLER.md)'
 )
-CURRENT_LAWS = re.compile(r"^\s*CurrentLaws\s*=\s*([A-Za-z0-9_]*)", re.MULTILINE)
+CURRENT_LAWS = re.compile(r"^\s*CurrentLaws\s*=\s*([A-Za-z0-9_,\t ]*)", re.MULTILINE)
 COMPILE = re.compile(r"\s-c\s+(\S+\.c)\s+-o\s")
 ERROR_LINES = 12
 
@@ -57,15 +58,22 @@ def take_law(argv: list[str]) -> tuple[Path | None, list[str]]:
 
 
 def law_name(law: Path) -> str:
+    """The folder's (first) law name: its build folder's name, the law a hil_run selects."""
+    return law_names_of(law)[0]
+
+
+def law_names_of(law: Path) -> tuple[str, ...]:
+    """Every law the folder's record names (CurrentLaws=a,b: laws sharing the record)."""
     frag = law / "law.eds"
     if not law.is_dir():
         raise LawBuildError(f"{law}: no such folder")
     if not frag.is_file():
         raise LawBuildError(f"{frag}: missing (a law folder holds its C files and one EDS fragment, law.eds)")
     m = CURRENT_LAWS.search(frag.read_text())
-    if m is None or not m.group(1):
+    names = tuple(n.strip() for n in (m.group(1) if m else "").split(",") if n.strip())
+    if not names:
         raise LawBuildError(f"{frag}: no CurrentLaws=<law name> key in its record's section")
-    return m.group(1)
+    return names
 
 
 def build(law: Path, repo: Path = REPO, state: Path = STATE, goals: tuple[str, ...] = ()) -> Path:
@@ -253,7 +261,7 @@ def use(law: Path) -> int:
         print(f"bench: --law {law}: {exc}", file=sys.stderr)
         return 2
     os.environ["BENCH_BUILD_DIR"] = str(out)
-    os.environ["BENCH_LAW"] = law_name(law)  # its name: a run that never selects it is refused (scenario.py)
+    os.environ["BENCH_LAW"] = ",".join(law_names_of(law))  # a run that selects none of them is refused
     return 0
 
 

@@ -94,7 +94,9 @@ def _law_names(frag: Path, raw: configparser.ConfigParser, top: str, existing: l
                 f"{frag} [{top}]: CurrentLaws={name}: not a lower-case C identifier (laws sharing the record: "
                 "CurrentLaws=<a>,<b>)"
             )
-        if name in existing or names.count(name) > 1:
+        if names.count(name) > 1:
+            raise LawError(f"{frag} [{top}]: CurrentLaws={name}: named twice")
+        if name in existing:
             raise LawError(f"{frag} [{top}]: CurrentLaws={name}: already a value of Controller.controller")
     return names
 
@@ -288,11 +290,16 @@ def merge_all(drive_eds: Path, user_law: Path | None, supported: Collection[int]
 
 
 def _default_law(text: str) -> str:
-    """Controller.controller's DefaultValue: the value its DefaultLaw key names (none merged: as drive.eds says)."""
+    """Controller.controller's DefaultValue: the value its DefaultLaw key names (no key: as drive.eds says); a
+    DefaultLaw that names no merged law is refused (the drive would start in open loop without a word)."""
     base = _parse(text, "drive.eds")
     wanted = base.get(LAW_ENTRY, "DefaultLaw", fallback="").strip()
     names = [n.strip() for n in base.get(LAW_ENTRY, "ValueNames").split(",")]
-    return _set_key(text, LAW_ENTRY, "DefaultValue", str(names.index(wanted))) if wanted in names else text
+    if not wanted:
+        return text
+    if wanted not in names:
+        raise LawError(f"drive.eds [{LAW_ENTRY}]: DefaultLaw={wanted}: not one of the merged laws ({', '.join(names)})")
+    return _set_key(text, LAW_ENTRY, "DefaultValue", str(names.index(wanted)))
 
 
 def _canopen_check(frag: Path, top: str, text: str) -> None:

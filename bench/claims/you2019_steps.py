@@ -86,7 +86,9 @@ def claim_saturated_step(bus: str) -> ClaimResult:
         },
         "5 <= periods to 98 % <= 8, at least one saturated command, |iq| < 5 A",
         5 <= reach <= 8 and saturated >= 1 and bounded,
-        details={"memory_reading": "unlimited v(k-2) memory (default); see firmware_shim/core/you2019_deadbeat.c"},
+        details={
+            "memory_reading": "unlimited v(k-2) memory (default); see firmware_shim/laws/you2019/you2019_deadbeat.c"
+        },
     )
 
 

@@ -70,7 +70,7 @@ def law_build(settings: Settings, law: Path, option: str) -> LawBuild:
     """The session's build of a law folder: `make LAW=law` (bench/law.py) the first time it is asked for, and
     again only in a new session; a folder whose content changed since is refused (the runs of one session use
     one build of it). LawBuildError's message, or the change, as `option`'s refusal."""
-    from bench.law import LawBuildError, build, digest, law_name
+    from bench.law import LawBuildError, build, digest, law_name, law_names_of
 
     try:
         if not law.is_dir():
@@ -84,7 +84,7 @@ def law_build(settings: Settings, law: Path, option: str) -> LawBuild:
             )
         if known is None:
             out = build(law)
-            known = settings.laws[law] = LawBuild(law, out, law_name(law), now)
+            known = settings.laws[law] = LawBuild(law, out, law_name(law), now, ",".join(law_names_of(law)))
         return known
     except LawBuildError as exc:
         raise LawRefusal(f"{option} {law}: {exc}") from None

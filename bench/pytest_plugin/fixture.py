@@ -96,7 +96,7 @@ class HilRunner:
             sets.insert(0, f"controller.controller={built.name}")  # the law= of this call, selected at the start
         sets += table_overrides(path, {"faults": faults, "events": events})
         shown = "the scenario dict" if isinstance(scenario, Mapping) else None  # else the file names itself
-        env = {} if not chosen or built is None else {"BENCH_BUILD_DIR": str(built.out), "BENCH_LAW": built.name}
+        env = {} if not chosen or built is None else {"BENCH_BUILD_DIR": str(built.out), "BENCH_LAW": built.names}
         check_scenario(path, sets, shown, built.out if chosen and built is not None else None)
         folder = self._runs.folder / run_name
         cmd = command(path, folder, bus, sets, list(extra_args))

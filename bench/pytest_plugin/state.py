@@ -15,8 +15,9 @@ class LawBuild:
 
     folder: Path  # the user's law folder (absolute)
     out: Path  # its build (bench/law.py build_folder): BENCH_BUILD_DIR of its runs
-    name: str  # law.eds's CurrentLaws=
+    name: str  # law.eds's CurrentLaws= (its first law: the one a hil_run selects)
     digest: str  # bench.law.digest of the folder when built
+    names: str = ""  # every law of CurrentLaws=, comma-separated (BENCH_LAW of its runs)
 
 
 @dataclass

@@ -23,18 +23,21 @@ def add_set_argument(p: Any, help: str) -> None:
 
 
 def unselected_law(scenarios: list[Scenario], what: str = "the scenario") -> str | None:
-    """Under `--law DIR` (bench/law.py sets BENCH_LAW to the law's name): a refusal when none of these
-    scenarios selects the user's law (controller.controller, at the start or in an event), else None."""
-    name = os.environ.get("BENCH_LAW")
-    if not name:
+    """Under `--law DIR` (bench/law.py sets BENCH_LAW to the folder's law names, comma-separated): a refusal
+    when none of these scenarios selects one of the user's laws (controller.controller, at the start or in an
+    event), else None."""
+    given = [n for n in os.environ.get("BENCH_LAW", "").split(",") if n]
+    if not given:
         return None
-    value = law_names().index(name) if name in law_names() else -1
+    name = given[0]
+    values = {law_names().index(n) for n in given if n in law_names()}
     for sc in scenarios:
         for st in [*sc.settings, *(x for e in sc.events for x in e.settings)]:
-            if st.key == "controller.controller" and int(st.value) == value:
+            if st.key == "controller.controller" and int(st.value) in values:
                 return None
+    which = f"the law {name}" if len(given) == 1 else f"any of the laws {', '.join(given)}"
     return (
-        f'--law: {what} does not select the law {name}: set [controller] controller = "{name}" '
+        f'--law: {what} does not select {which}: set [controller] controller = "{name}" '
         f"(or --set controller.controller={name})"
     )
 

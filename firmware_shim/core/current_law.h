@@ -23,8 +23,8 @@
  *              scenario's [trace]), the one path of a law's quantities.
  *
  * motulator's blocks (output() then update()) and moteus' SimplePI (Config /
- * State / Apply) are the model.  A law is one C file (two at most) and an EDS
- * record: the record's section names the law in its CurrentLaws key, and
+ * State / Apply) are the model.  A law is a folder of C files and one EDS
+ * record (law.eds): the record's section names the law in its CurrentLaws key, and
  * protocols/gen_od.py writes the registry (current_law_table.c) from the
  * EDS's Controller.controller value names: the row of value name N is bound to
  * the descriptor `const current_law_t current_law_N` of the law's C file.  The

@@ -36,7 +36,8 @@ drive_config_verdict_t drive_config_check(const drive_config_t *c, uint8_t mode,
         const current_law_entry_t *e = &current_law_table[i];
         if (e->law->check == NULL) continue;
         const void *rec = e->record_default;
-        if (e->record_index != 0u && record_of != NULL) rec = record_of(e->record_index, user);
+        const void *held = e->record_index != 0u && record_of != NULL ? record_of(e->record_index, user) : NULL;
+        if (held != NULL) rec = held; /* none held: its EDS defaults */
         if (e->law->check(c, rec, mode, ctrl == e->value) != CURRENT_LAW_OK) return DRIVE_CONFIG_INCOMPATIBLE;
     }
     return DRIVE_CONFIG_OK;
@@ -186,13 +187,16 @@ void drive_reset_controller_memory(drive_t *drv)
 
 /* A law's command is a voltage the inverter can make: finite, and inside the
  * circle of radius Vmax_V (0: no limit) plus what the law says it adds after
- * its limit (a dead-time compensation: at most its amplitude on each phase). */
+ * its limit (a dead-time compensation: at most its amplitude on each phase,
+ * itself finite, not negative and not above Vmax_V). */
 static uint8_t drive_law_fault(const drive_config_t *c, const current_law_out_t *o)
 {
-    const float va = o->v_alpha_V, vb = o->v_beta_V;
+    const float va = o->v_alpha_V, vb = o->v_beta_V, extra = o->v_after_limit_V;
     if (!((va - va) == 0.0f) || !((vb - vb) == 0.0f)) return (uint8_t)DRIVE_LAW_FAULT_NON_FINITE;
+    if (!(extra >= 0.0f) || !((extra - extra) == 0.0f)) return (uint8_t)DRIVE_LAW_FAULT_NON_FINITE;
     if (c->Vmax_V > 0.0f) {
-        const float bound = c->Vmax_V * 1.001f + 2.0f * o->v_after_limit_V;
+        if (extra > c->Vmax_V) return (uint8_t)DRIVE_LAW_FAULT_OUT_OF_LIMIT;
+        const float bound = c->Vmax_V * 1.001f + 2.0f * extra;
         if (va * va + vb * vb > bound * bound) return (uint8_t)DRIVE_LAW_FAULT_OUT_OF_LIMIT;
     }
     return (uint8_t)DRIVE_LAW_FAULT_NONE;

@@ -28,7 +28,7 @@ static double bench(uint8_t controller, uint8_t tuning, long n)
     cfg.Lq_hat_H = 0.8f * cfg.Lq_hat_H;
     drive_init(&drv, &cfg);
     od_drive_online_tuning_t *tuning_record = (od_drive_online_tuning_t *)drive_law_record(&drv);
-    if (tuning_record != NULL) { /* the deadbeat law's record: You 2019 online tuning */
+    if (tuning_record != NULL) { /* You 2019 record (its law folder; the PI shares it) */
         tuning_record->enable = tuning;
         drive_apply_config(&drv);
     }

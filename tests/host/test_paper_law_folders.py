@@ -146,3 +146,25 @@ def test_a_papers_law_traces_through_its_record(hil_run) -> None:  # type: ignor
     assert "signals" not in law_face and "trace_recorder" not in law_face
     recorder = (CORE / "trace_recorder.h").read_text()
     assert not re.search(r"you\s*_?2019|yao\s*_?2020|zhao\s*_?2022", recorder, re.IGNORECASE)
+
+
+def test_a_default_law_that_names_no_law_is_refused(tmp_path: Path) -> None:
+    """drive.eds' DefaultLaw must name a merged law: else the drive would start in open loop without a word."""
+    gen = _gen_law()
+    eds = tmp_path / "drive.eds"
+    eds.write_text(PLAIN_EDS.read_text().replace("DefaultLaw=deadbeat_you2019", "DefaultLaw=deadbeat_you2091"))
+    with pytest.raises(gen.LawError, match=r"\[2200sub1\]: DefaultLaw=deadbeat_you2091: not one of the merged laws"):
+        gen.merge_all(eds, None, _supported())
+
+
+def test_law_with_several_names_is_selected_by_any(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`--law DIR` of a folder whose record names several laws (BENCH_LAW=a,b): a scenario that selects any of them
+    runs; one that selects none is refused naming them all."""
+    from bench.scenario import load
+    from bench.scenario.overrides import unselected_law
+
+    monkeypatch.setenv("BENCH_LAW", "pi,deadbeat_you2019")
+    step = REPO / "scenarios" / "you2019_step.toml"  # selects deadbeat_you2019
+    assert unselected_law([load(step)]) is None
+    refusal = unselected_law([load(step, ["controller.controller=dpcc_yao2020", "motor.preset=zhao2022"])])
+    assert refusal is not None and "any of the laws pi, deadbeat_you2019" in refusal

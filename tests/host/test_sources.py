@@ -5,7 +5,7 @@
    be preceded by "You 2019", "Yao 2020" or "Zhao 2022", either a few words before it or at the
    start of the same comment / string (three papers share equation numbers, so a bare "Eq. 5"
    is ambiguous).  protocols/generated is made from the EDS files and is not scanned.
-2. A core file named after its paper, firmware_shim/core/<paper>_<law>.c, defines only
+2. A file of a paper's law folder, firmware_shim/laws/<paper>/<paper>_<law>.c, defines only
    functions named <paper>_<law>_* (file name = function prefix), and its header only
    such functions and types <paper>_<law>_*_t.
 """

@@ -52,6 +52,7 @@ REFUSALS = [
     ("index used by drive.eds", "[2400", "[2203", -1, "already used in drive.eds", "2203"),
     ("index of a paper's law", "[2400", "[2501", -1, "already used in drive.eds (by the law folder yao2020)", "2501"),
     ("a paper's law's name", "CurrentLaws=zero_law", "CurrentLaws=pi", 1, "already a value of Controller", "2400"),
+    ("a law named twice", "CurrentLaws=zero_law", "CurrentLaws=zero_law,zero_law", 1, "named twice", "2400"),
     (
         "two records",
         "[2400]",

@@ -318,10 +318,12 @@ def cortex_m4() -> dict[str, Any]:
     core = REPO / "firmware_shim" / "core"
     objs = []
     with tempfile.TemporaryDirectory() as td:
-        for src in sorted(core.glob("*.c")):
+        # the drive's cores and the papers' law folders (each on its own include path)
+        for src in sorted(core.glob("*.c")) + sorted((REPO / "firmware_shim" / "laws").glob("*/*.c")):
             obj = Path(td) / (src.stem + ".o")
+            inc = [f"-I{core}", f"-I{src.parent}", f"-I{REPO / 'protocols' / 'generated'}"]
             r = subprocess.run(
-                [gcc, *ARM_FLAGS, f"-I{core}", f"-I{REPO / 'protocols' / 'generated'}", str(src), "-o", str(obj)],
+                [gcc, *ARM_FLAGS, *inc, str(src), "-o", str(obj)],
                 capture_output=True,
                 text=True,
                 timeout=120,

@@ -190,7 +190,7 @@ def _yao2020(r: dict[str, Any], L: _Lines) -> None:
 
 def _cortex_m4(r: dict[str, Any], L: _Lines) -> None:
     """The Cortex-M4F build of the firmware core: compiler, flags and a size table per object."""
-    cm = L.sec(r, "cortex_m4", "Cortex-M4F build of firmware_shim/core (arm-none-eabi-gcc)")
+    cm = L.sec(r, "cortex_m4", "Cortex-M4F build of firmware_shim/core and laws/ (arm-none-eabi-gcc)")
     if cm:
         L.append(f"  {cm['compiler']}; flags: {cm['flags']}")
         L.append(f"  {'object':<26}{'text':>8}{'data':>8}{'bss':>8}")

@@ -206,7 +206,16 @@ static void you2019_law_reset(void *state)
     pi_current_reset(&st->pi);
 }
 
-/* Its record's status entries (q axis) */
+/* Its record's status entries (q axis); the PI: the estimator's prediction only (it tunes nothing) */
+static void you2019_law_status_pi(const void *state, const drive_config_t *c, void *record)
+{
+    const you2019_law_state_t *st = (const you2019_law_state_t *)state;
+    od_drive_online_tuning_t *t = (od_drive_online_tuning_t *)record;
+    (void)c;
+    t->i_hat_q_A = st->est.i_hat_q_A;
+    t->i_hat_d_A = st->est.i_hat_d_A;
+}
+
 static void you2019_law_status(const void *state, const drive_config_t *c, void *record)
 {
     const you2019_law_state_t *st = (const you2019_law_state_t *)state;
@@ -276,7 +285,7 @@ const current_law_t current_law_pi = {
     .commit = you2019_law_commit,
     .speed_step = NULL,
     .reset = you2019_law_reset,
-    .status = NULL,
+    .status = you2019_law_status_pi,
     .check = you2019_law_check_pi,
     .command = NULL,
 };
