@@ -7,7 +7,7 @@ import sys
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from bench import cli_box, cli_runs, cli_tools
+    from bench import cli_box, cli_motor, cli_runs, cli_tools
 
     p = argparse.ArgumentParser(
         prog="bench",
@@ -30,6 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
         cli_runs.add_faults,
         cli_tools.add_perf,
         cli_runs.add_demo,
+        cli_motor.add_motor,
     ):
         add(sub)
     return p

@@ -15,6 +15,27 @@ def _law_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--law", type=Path, default=None, metavar="DIR", help=HELP)
 
 
+def _motor_override(text: str) -> str:
+    """--motor DIR as the override it is: motor.folder = "<DIR, absolute>" (a TOML string)."""
+    import json
+
+    return f"motor.folder={json.dumps(str(Path(text).expanduser().resolve()))}"
+
+
+def _motor_option(p: argparse.ArgumentParser) -> None:
+    """--motor DIR: the scenario's motor from a motor folder (the same as --set motor.folder=DIR)."""
+    p.add_argument(
+        "--motor",
+        dest="overrides",
+        action="append",
+        type=_motor_override,
+        metavar="DIR",
+        help="your motor: a motor folder (motor.toml and a flux-map table psi_d(id, iq), psi_q(id, iq), CSV or "
+        ".npz; docs/YOUR_MOTOR.md); the plant runs the flux-map model with it (= --set motor.folder=DIR; "
+        "`bench motor check DIR` checks a folder, `bench motor example DIR` writes the example)",
+    )
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     if args.drive_profile == "cia402":
         from bench.cia402.command import run as run_cia402
@@ -43,6 +64,7 @@ def add_run(sub: Any) -> None:
 
     cia402_arguments(r)
     _law_option(r)
+    _motor_option(r)
     r.set_defaults(func=_cmd_run)
 
 
@@ -120,6 +142,7 @@ def add_sweep(sub: Any) -> None:
     )
     sweep_args(sw)
     _law_option(sw)
+    _motor_option(sw)
     sw.set_defaults(func=_cmd_sweep)
 
 

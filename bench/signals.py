@@ -12,6 +12,10 @@ from dataclasses import dataclass
 
 # Longest suffix first: "_V_A" before "_A", "_rad_s" before "_s".
 UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
+    ("_K_per_W", "K/W"),
+    ("_J_per_K", "J/K"),
+    ("_per_K", "1/K"),
+    ("_degC", "°C"),
     ("_ohm_Vs", "Ω/(V·s)"),
     ("_H_Vs", "H/(V·s)"),
     ("_rad_s2", "rad/s²"),

@@ -60,6 +60,7 @@ class Scenario:
     expect: tuple[str, ...] = ("ok",)
     faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/scenario/faults.py)
     raw: dict[str, Any] = field(default_factory=dict)
+    motor_folder: Any = None  # bench.motor.MotorFolder of [motor] folder (its map is written to the plant's 0x2008)
 
     def event_periods(self) -> list[int]:
         return sorted({e.at_period for e in self.events})

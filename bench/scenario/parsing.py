@@ -40,12 +40,22 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     if preset is not None and preset not in PRESETS:
         raise ScenarioError(f"{where}: motor.preset = {preset!r}: expected one of {', '.join(PRESETS)}")
     sc.preset = preset
+    folder = motor.pop("folder", None)
+    if folder is not None:
+        from bench.motor.settings import folder_settings
+
+        sc.motor_folder, own = folder_settings(where, folder, tables)
+        sc.settings.extend(own)  # before the scenario's own [motor] keys, which come after and over them
     for section in SECTION_OBJECTS:
         values = motor if section == "motor" else raw.get(section, {})
         if not isinstance(values, dict):
             raise ScenarioError(f"{where}: [{section}] must be a table")
         for key, value in (drive_preset(where, values) if section == "drive" else values).items():
             sc.settings.append(setting(where, section, key, value, tables))
+    if sc.motor_folder is not None:
+        from bench.motor.settings import check_range
+
+        check_range(where, sc.motor_folder, _trip_level(sc))
     sc.events = _events(raw, where, periods, tables)
     sc.events.sort(key=lambda e: e.at_period)
     try:
@@ -115,6 +125,18 @@ def _events(raw: dict[str, Any], where: str, periods: int, tables: dict[str, dic
             raise ScenarioError(f"{w}: an event must change something")
         out.append(Event(at, settings))
     return out
+
+
+def _trip_level(sc: Scenario) -> float:
+    """The plant's over-current trip level at the start: the scenario's drive.I_trip_A, else its motor preset's."""
+    for s in sc.settings:
+        if s.key == "drive.I_trip_A":
+            return float(s.value)
+    if sc.preset is None:
+        return value_at(sc, "drive.I_trip_A", 0)
+    from bench.scenario.presets import motor_preset
+
+    return float(motor_preset(sc.preset).values["I_trip_A"])
 
 
 def value_at(sc: Scenario, key: str, period: int) -> float:

@@ -41,6 +41,9 @@ double plant_machine_Lq_inc_H(const plant_config_t *c, double iq_A)
 
 double plant_machine_torque_Nm(const plant_state_t *s, const plant_config_t *c)
 {
+    if (c->model == PLANT_MODEL_FLUX_MAP) {
+        return plant_machine_flux_torque_Nm(s, c);
+    }
     const double id = s->id_A, iq = s->iq_A;
     return 1.5 * (double)c->pole_pairs * ((c->Ld_H * id + c->psi_Wb) * iq - plant_machine_psi_q_Wb(c, iq) * id);
 }
@@ -200,6 +203,9 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c)
     s->theta_m_rad = plant_machine_wrap_2pi(s->theta_m_rad, &s->revolutions);
     plant_machine_resync_angle(s, c);
 
+    if (c->model == PLANT_MODEL_FLUX_MAP) {
+        return plant_machine_flux_prepare(s, c, p);
+    }
     double Lmin = (c->Ld_H < c->Lq_H) ? c->Ld_H : c->Lq_H;
     if (c->sat_enable && c->sat_Lq_inf_H < Lmin) {
         Lmin = c->sat_Lq_inf_H;

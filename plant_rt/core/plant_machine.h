@@ -46,6 +46,28 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c);
  * (v_alpha_V, v_beta_V) held in the frame of c->hold_frame. */
 void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V);
 
+/* The mechanics' part of an RK4 derivative, shared by the current (plant_machine_step.c) and the flux
+ * (plant_machine_fluxmap.c) paths: the speed's derivative and the friction and load powers (0 unless FREE). */
+static inline void plant_machine_mech_deriv(const plant_config_t *c, bool free_mech, double invJ, double Te, double wm,
+                                            double *dw, double *p_fric, double *p_load)
+{
+    if (free_mech) {
+        *dw = (Te - c->B_Nm_per_rad_s * wm - c->T_load_Nm) * invJ;
+        *p_fric = c->B_Nm_per_rad_s * wm * wm;
+        *p_load = c->T_load_Nm * wm;
+    } else {
+        *dw = 0.0;
+        *p_fric = 0.0;
+        *p_load = 0.0;
+    }
+}
+
+/* The flux-map model (plant_machine_fluxmap.c): its preparation (the stiffness bound, the fluxes from the present
+ * currents, the temperature), its step and its torque. */
+int plant_machine_flux_prepare(plant_state_t *s, const plant_config_t *c, double p);
+void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0);
+double plant_machine_flux_torque_Nm(const plant_state_t *s, const plant_config_t *c);
+
 /* Shared by plant_machine.c and plant_machine_step.c: an angle into [0, 2 pi) (whole turns counted in *revs when
  * not NULL), and the electrical angle and its sine/cosine recomputed from the mechanical one. */
 double plant_machine_wrap_2pi(double x, int64_t *revs);

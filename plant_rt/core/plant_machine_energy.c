@@ -23,6 +23,9 @@ static double wq_energy(const plant_config_t *c, double iq_A)
 
 double plant_machine_magnetic_energy_J(const plant_state_t *s, const plant_config_t *c)
 {
+    if (c->model == PLANT_MODEL_FLUX_MAP) {
+        return s->W_mag_J; /* integrated by the step (plant_machine_fluxmap.c) */
+    }
     return 1.5 * (0.5 * c->Ld_H * s->id_A * s->id_A + wq_energy(c, s->iq_A));
 }
 

@@ -62,15 +62,7 @@ static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
     dy[Y_S] = we * ce;
     dy[Y_TH] = wm;
     const double Te = 1.5 * k->p * (psid * iq - psiq * id);
-    if (k->free_mech) {
-        dy[Y_W] = (Te - c->B_Nm_per_rad_s * wm - c->T_load_Nm) * k->invJ;
-        dy[Y_EFR] = c->B_Nm_per_rad_s * wm * wm;
-        dy[Y_ELD] = c->T_load_Nm * wm;
-    } else {
-        dy[Y_W] = 0.0;
-        dy[Y_EFR] = 0.0;
-        dy[Y_ELD] = 0.0;
-    }
+    plant_machine_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[Y_W], &dy[Y_EFR], &dy[Y_ELD]);
     dy[Y_EIN] = 1.5 * (vd * id + vq * iq);
     dy[Y_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
     dy[Y_EME] = Te * wm;
@@ -205,7 +197,9 @@ void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alph
     const double vd0 = va * ce + vb * se;
     const double vq0 = -va * se + vb * ce;
 
-    if (s->exact) {
+    if (c->model == PLANT_MODEL_FLUX_MAP) {
+        plant_machine_flux_step(s, c, va, vb, vd0, vq0);
+    } else if (s->exact) {
         step_exact(s, c, vd0, vq0);
     } else {
         step_rk4(s, c, va, vb, vd0, vq0);

@@ -57,6 +57,10 @@ void plant_config_defaults(plant_config_t *c)
     c->rng_seed = UINT64_C(0x5EED);
     c->rk4_h_rel = 0.02;
     c->rk4_min_substeps = 1u;
+    c->model = PLANT_MODEL_DQ_LINEAR;
+    c->flux_map = NULL;
+    c->T_ref_degC = 20.0;
+    c->T_amb_degC = 20.0;
     plant_config_ideal(c);
 }
 
@@ -69,6 +73,10 @@ void plant_init(plant_state_t *s, const plant_config_t *c)
     memset(s, 0, sizeof(*s));
     s->cos_e = 1.0;
     s->sin_e = 0.0;
+    if (c != NULL) {
+        s->T_winding_degC = c->T_amb_degC;
+        s->R_winding_ohm = c->R_ohm;
+    }
     if (c == NULL) {
         s->status = PLANT_ERR_NULL;
         return;
@@ -101,7 +109,12 @@ static int validate(const plant_config_t *c)
                            c->adc_noise_std_A,
                            c->adc_full_scale_A,
                            c->I_trip_A,
-                           c->rk4_h_rel};
+                           c->rk4_h_rel,
+                           c->R_alpha_per_K,
+                           c->T_ref_degC,
+                           c->T_amb_degC,
+                           c->thermal_R_K_per_W,
+                           c->thermal_C_J_per_K};
     for (size_t i = 0; i < sizeof(vals) / sizeof(vals[0]); ++i) {
         if (!isfinite(vals[i])) {
             return PLANT_ERR_NONFINITE;
@@ -159,6 +172,18 @@ static int validate(const plant_config_t *c)
     if (!(c->rk4_h_rel > 0.0) || c->rk4_h_rel > 1.0) {
         return PLANT_ERR_RK4;
     }
+    if (c->model != PLANT_MODEL_DQ_LINEAR && c->model != PLANT_MODEL_FLUX_MAP) {
+        return PLANT_ERR_ENUM;
+    }
+    if (c->model == PLANT_MODEL_FLUX_MAP && plant_flux_map_check(c->flux_map) != 0) {
+        return PLANT_ERR_FLUXMAP;
+    }
+    if (c->R_alpha_per_K < 0.0 || c->thermal_R_K_per_W < 0.0 || c->thermal_C_J_per_K < 0.0) {
+        return PLANT_ERR_THERMAL;
+    }
+    if (c->model == PLANT_MODEL_DQ_LINEAR && (c->R_alpha_per_K != 0.0 || c->thermal_C_J_per_K != 0.0)) {
+        return PLANT_ERR_THERMAL; /* the exact path keeps R constant: the thermal model is the flux map's */
+    }
     return PLANT_OK;
 }
 
@@ -190,6 +215,7 @@ void plant_set_currents(plant_state_t *s, double id_A, double iq_A)
 {
     s->id_A = id_A;
     s->iq_A = iq_A;
+    s->psi_stale = true; /* the flux-map model takes its fluxes from these currents */
 }
 
 void plant_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s)

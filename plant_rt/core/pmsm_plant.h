@@ -57,6 +57,7 @@
 #include <stdint.h>
 
 #include "od_plant_fields.h" /* the EDS's enumerations (protocols/gen_od.py) */
+#include "plant_fluxmap.h"
 #include "plant_rng.h"
 
 /* constants of the blocks */
@@ -81,7 +82,9 @@ enum {
     PLANT_ERR_TRIP = -13,     /* I_trip < 0 */
     PLANT_ERR_RK4 = -14,      /* rk4_h_rel not in (0, 1] */
     PLANT_ERR_EXPM = -15,     /* matrix exponential failed (overflow) */
-    PLANT_ERR_ENUM = -16      /* modulation/hold enum out of range */
+    PLANT_ERR_ENUM = -16,     /* modulation/hold/model enum out of range */
+    PLANT_ERR_FLUXMAP = -17,  /* flux_map model without a usable map (plant_flux_map_check) */
+    PLANT_ERR_THERMAL = -18   /* thermal parameters negative, or a thermal model on the dq_linear model */
 };
 
 /* the values of the EDS (ValueNames of Motor model.mech_mode, Inverter.mod_limit / hold_frame) */
@@ -90,6 +93,12 @@ typedef enum {
     PLANT_MECH_LOCKED = OD_PLANT_MECH_MODE_LOCKED,              /* omega = 0, theta held */
     PLANT_MECH_IMPOSED_SPEED = OD_PLANT_MECH_MODE_IMPOSED_SPEED /* dynamometer holds omega_imposed_rad_s */
 } plant_mech_mode_t;
+
+/* the electrical model (ValueNames of Motor model.model) */
+typedef enum {
+    PLANT_MODEL_DQ_LINEAR = OD_PLANT_MODEL_DQ_LINEAR, /* R, Ld, Lq, psi (+ the q-axis saturation knob) */
+    PLANT_MODEL_FLUX_MAP = OD_PLANT_MODEL_FLUX_MAP    /* psi_d(id, iq), psi_q(id, iq) tables (plant_fluxmap.h) */
+} plant_model_t;
 
 typedef enum {
     PLANT_MOD_NONE = OD_PLANT_MOD_LIMIT_NONE,         /* command applied as is */
@@ -124,6 +133,22 @@ typedef struct {
     bool sat_enable;
     double sat_I_A;      /* current where L_inc drop is half of (Lq - Lq_inf) */
     double sat_Lq_inf_H; /* incremental inductance at |iq| -> inf */
+
+    /* flux-map model (plant_machine_fluxmap.c): the states are the flux
+     * linkages, the currents come from the inverted map, Te = 1.5 p (psi_d iq
+     * - psi_q id); always on the RK4 path.  Ld_H, Lq_H, psi_Wb and the
+     * saturation knob are not used by it.  The map belongs to the caller. */
+    plant_model_t model;
+    const plant_flux_map_t *flux_map;
+    /* winding temperature (flux_map model only): R = R_ohm (1 + R_alpha_per_K
+     * (T - T_ref_degC)), C dT/dt = P_copper - (T - T_amb_degC) / R_th, one
+     * exact first-order step a period with the period's mean copper loss.
+     * thermal_C_J_per_K == 0: T stays at T_amb_degC. */
+    double R_alpha_per_K;
+    double T_ref_degC;
+    double T_amb_degC;
+    double thermal_R_K_per_W;
+    double thermal_C_J_per_K;
 
     /* mechanics (plant_machine) */
     plant_mech_mode_t mech_mode;
@@ -214,6 +239,19 @@ typedef struct {
     bool tripped;
     /* energy (plant_machine) */
     plant_energy_t energy;
+    /* flux-map model (plant_machine_fluxmap.c): the flux linkages (the
+     * states; id_A/iq_A above follow from them), the magnetic energy as the
+     * integral of i . dpsi, the incremental inductances at the present
+     * currents, the winding's temperature and resistance */
+    double psi_d_Wb, psi_q_Wb;
+    bool psi_stale; /* plant_set_currents: the fluxes follow at the next step */
+    double W_mag_J;
+    double cell_min_A; /* the map's narrowest cell (the sub-steps' bound on the cells crossed) */
+    double Ldd_H, Ldq_H, Lqd_H, Lqq_H;
+    double T_winding_degC, R_winding_ohm;
+    uint32_t outside_map_periods; /* periods that ended with the currents outside the map's grid */
+    uint32_t newton_failures;     /* inversions that did not converge (should stay 0) */
+    int32_t newton_evals_max;     /* the most map evaluations one inversion took */
     /* sensors: ADC noise (plant_sensors) */
     plant_rng_t rng;
 

@@ -33,6 +33,12 @@ static void publish_sample(plant_app_t *app, uint8_t sync_counter, uint8_t statu
     p->theta_m_rad = app->meas.theta_m_true_rad;
     p->torque_Nm = app->meas.torque_Nm;
     p->energy_in_J = app->state.energy.in_J;
+    p->Ldd_H = app->state.Ldd_H;
+    p->Ldq_H = app->state.Ldq_H;
+    p->Lqd_H = app->state.Lqd_H;
+    p->Lqq_H = app->state.Lqq_H;
+    p->T_winding_degC = app->state.T_winding_degC;
+    p->R_winding_ohm = app->state.R_winding_ohm;
     od_plant_mfr_t *m = plant_mfr(app->node);
     OD_PLANT_MEASUREMENT_STATUS(MEASUREMENT_SET)
     OD_PLANT_PLANT_STATE_STATUS(PLANT_STATE_SET)

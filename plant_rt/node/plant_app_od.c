@@ -29,6 +29,13 @@ static void config_from(const od_plant_mfr_t *m, plant_config_t *c)
     co_field_map_to_core(config_rows, N_CONFIG_ROWS, m, c);
 }
 
+/* The app's configuration: the OD's values and the app's own flux map. */
+static void config_of(const plant_app_t *app, const od_plant_mfr_t *m, plant_config_t *c)
+{
+    config_from(m, c);
+    c->flux_map = plant_fluxmap_obj_map(&app->fluxmap);
+}
+
 void plant_app_config_from_od(plant_config_t *c) { config_from(plant_od_mfr(&od_plant), c); }
 
 static void config_to(od_plant_mfr_t *m, const plant_config_t *c)
@@ -48,7 +55,8 @@ static od_plant_mfr_t *od_of(const plant_app_t *app)
 
 void plant_app_model_reset(plant_app_t *app, od_plant_mfr_t *m)
 {
-    config_from(m, &app->cfg);
+    plant_fluxmap_obj_init(&app->fluxmap, &m->x2008_flux_map); /* a reset forgets the map, as the OD's values */
+    config_of(app, m, &app->cfg);
     plant_init(&app->state, &app->cfg);
     memset(&app->meas, 0, sizeof app->meas);
     app->cfg_dirty = false;
@@ -85,7 +93,7 @@ bool plant_app_realtime_mode(const plant_app_t *app) { return plant_od_realtime(
 void plant_app_apply_pending(plant_app_t *app)
 {
     plant_config_t *c = &app->scratch_cfg;
-    config_from(plant_mfr(app->node), c);
+    config_of(app, plant_mfr(app->node), c);
     if (plant_prepare(&app->state, c) == PLANT_OK) {
         app->cfg = *c;
         if (app->reseed) plant_rng_seed(&app->state.rng, app->cfg.rng_seed);
@@ -110,7 +118,7 @@ static uint32_t model_check(void *object, const co_od_entry_t *e, const uint8_t 
     uint32_t n = e->size <= sizeof saved ? e->size : (uint32_t)sizeof saved;
     memcpy(saved, e->data, n);
     co_od_store(e, data, len);
-    config_from(plant_mfr(app->node), &app->scratch_cfg);
+    config_of(app, plant_mfr(app->node), &app->scratch_cfg);
     memcpy(e->data, saved, n);
     app->scratch_state = app->state;
     return plant_prepare(&app->scratch_state, &app->scratch_cfg) == PLANT_OK ? 0u : CO_ABORT_PARAM_INCOMPAT;
@@ -181,6 +189,29 @@ static void run_written(void *object, const co_od_entry_t *e)
     }
 }
 
+/* 0x2008: a download is checked whole and replaces the live map only when it passes, never while running (the
+ * step reads the tables); the model is prepared again at the next SYNC.  An upload reads the live map. */
+static uint32_t fluxmap_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
+{
+    (void)e;
+    plant_app_t *app = (plant_app_t *)object;
+    if (plant_app_running(app)) return CO_ABORT_DATA_STATE;
+    return plant_fluxmap_obj_accept(&app->fluxmap, data, len);
+}
+
+static void fluxmap_written(void *object, const co_od_entry_t *e)
+{
+    (void)e;
+    ((plant_app_t *)object)->cfg_dirty = true;
+}
+
+static void fluxmap_read(void *object, const co_od_entry_t *e)
+{
+    (void)e;
+    plant_app_t *app = (plant_app_t *)object;
+    plant_fluxmap_obj_publish(&app->fluxmap, &plant_mfr(app->node)->x2008_flux_map);
+}
+
 /* 0x2007 is read: its figures from the statistics (the percentiles are computed here, not per period); :12 reset
  * (a command: reads back 0). */
 static void timing_read(void *object, const co_od_entry_t *e)
@@ -206,6 +237,7 @@ void plant_app_bind_objects(plant_app_t *app, co_node_t *node)
     app->ext_preset = (co_od_ext_t){app, NULL, preset_check, preset_written};
     app->ext_run = (co_od_ext_t){app, NULL, NULL, run_written};
     app->ext_timing = (co_od_ext_t){app, timing_read, NULL, timing_written};
+    app->ext_fluxmap = (co_od_ext_t){app, fluxmap_read, fluxmap_check, fluxmap_written};
     /* which object owns which index (the model's three records share one) */
     const struct {
         uint16_t index;
@@ -214,6 +246,7 @@ void plant_app_bind_objects(plant_app_t *app, co_node_t *node)
         {OD_PLANT_MOTOR_MODEL_IDX, &app->ext_model}, {OD_PLANT_INVERTER_IDX, &app->ext_model},
         {OD_PLANT_SENSORS_IDX, &app->ext_model},     {OD_PLANT_MOTOR_PRESET_IDX, &app->ext_preset},
         {OD_PLANT_RUN_CONTROL_IDX, &app->ext_run},   {OD_PLANT_REALTIME_TIMING_IDX, &app->ext_timing},
+        {OD_PLANT_FLUX_MAP_IDX, &app->ext_fluxmap},
     };
     for (size_t i = 0; i < sizeof objects / sizeof objects[0]; ++i)
         (void)co_node_bind(node, objects[i].index, objects[i].ext);

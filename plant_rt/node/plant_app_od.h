@@ -12,6 +12,7 @@
  *       0x2004         motor preset: writing a name loads it into 0x2000-0x2002
  *                      (unknown name -> abort 0x06090030);
  *       0x2007         real-time timing: computed when read, :12 reset;
+ *       0x2008         flux map: a download checked whole (plant_fluxmap_obj.h), in PRE-OPERATIONAL only;
  *   - the model's reset (init, NMT reset node) and the pending configuration applied at a SYNC. */
 #ifndef PLANT_APP_OD_H
 #define PLANT_APP_OD_H
@@ -22,6 +23,7 @@
 #include "co_node.h"
 #include "od_plant_fields.h"
 #include "od_plant.h"
+#include "plant_fluxmap_obj.h"
 #include "plant_timing.h"
 #include "pmsm_plant.h"
 
@@ -55,6 +57,12 @@ typedef struct { /* 0x2005 Plant state: the model's truth, REAL32 in the OD */
     double theta_m_rad;
     double torque_Nm;
     double energy_in_J;
+    double Ldd_H; /* the flux_map model's incremental inductances at the present currents */
+    double Ldq_H;
+    double Lqd_H;
+    double Lqq_H;
+    double T_winding_degC;
+    double R_winding_ohm;
 } plant_app_plant_state_t;
 
 typedef struct {
@@ -62,7 +70,9 @@ typedef struct {
     /* The objects the app owns, bound at init (co_node_bind, hooks.bind): the model records and the preset
      * (0x2000-0x2002, 0x2004: checked against the whole configuration, in effect at the next SYNC), run control
      * (0x2003) and the real-time timing (0x2007: computed when read). */
-    co_od_ext_t ext_model, ext_preset, ext_run, ext_timing;
+    co_od_ext_t ext_model, ext_preset, ext_run, ext_timing, ext_fluxmap;
+    /* 0x2008 Flux map: the tables of the flux_map model (plant_config_t.flux_map points into them) */
+    plant_fluxmap_obj_t fluxmap;
 
     /* model */
     plant_config_t cfg; /* applied configuration */

@@ -171,7 +171,7 @@ void co_od_store(const co_od_entry_t *e, const uint8_t *buf, uint32_t len)
         s[len] = '\0'; /* storage is size + 1 bytes */
     } else if (e->datatype == CO_DT_DOMAIN) {
         co_domain_t *d = (co_domain_t *)e->data;
-        memcpy(d->data, buf, len);
+        if (d->data != buf) memmove(d->data, buf, len); /* a segmented download streamed in place already */
         d->size = len;
     }
 }

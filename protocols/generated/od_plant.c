@@ -145,7 +145,7 @@ static const od_plant_ram_t defaults = {
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_6 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_8 = 0x0u,
-    .mfr.x2000_motor_model.highest_sub_index_supported = 0xFu,
+    .mfr.x2000_motor_model.highest_sub_index_supported = 0x15u,
     .mfr.x2000_motor_model.R_ohm = 1.399999976158142f,
     .mfr.x2000_motor_model.Ld_H = 0.004459999967366457f,
     .mfr.x2000_motor_model.Lq_H = 0.004540000110864639f,
@@ -161,6 +161,12 @@ static const od_plant_ram_t defaults = {
     .mfr.x2000_motor_model.sat_Lq_inf_H = 0.0009079999872483313f,
     .mfr.x2000_motor_model.rk4_h_rel = 0.019999999552965164f,
     .mfr.x2000_motor_model.rk4_min_substeps = 0x1u,
+    .mfr.x2000_motor_model.model = 0x0u,
+    .mfr.x2000_motor_model.R_alpha_per_K = 0.0f,
+    .mfr.x2000_motor_model.T_ref_degC = 20.0f,
+    .mfr.x2000_motor_model.T_amb_degC = 20.0f,
+    .mfr.x2000_motor_model.thermal_R_K_per_W = 0.0f,
+    .mfr.x2000_motor_model.thermal_C_J_per_K = 0.0f,
     .mfr.x2001_Inverter.highest_sub_index_supported = 0x8u,
     .mfr.x2001_Inverter.Ts_s = 5.500000042957254e-05f,
     .mfr.x2001_Inverter.Vdc_V = 300.0f,
@@ -189,13 +195,19 @@ static const od_plant_ram_t defaults = {
     .mfr.x2003_run_control.trip_active = 0x0u,
     .mfr.x2003_run_control.state = 0x0u,
     .mfr.x2004_motor_preset = "you2019",
-    .mfr.x2005_plant_state.highest_sub_index_supported = 0x6u,
+    .mfr.x2005_plant_state.highest_sub_index_supported = 0xCu,
     .mfr.x2005_plant_state.id_A = 0.0f,
     .mfr.x2005_plant_state.iq_A = 0.0f,
     .mfr.x2005_plant_state.omega_m_rad_s = 0.0f,
     .mfr.x2005_plant_state.theta_m_rad = 0.0f,
     .mfr.x2005_plant_state.torque_Nm = 0.0f,
     .mfr.x2005_plant_state.energy_in_J = 0.0f,
+    .mfr.x2005_plant_state.Ldd_H = 0.0f,
+    .mfr.x2005_plant_state.Ldq_H = 0.0f,
+    .mfr.x2005_plant_state.Lqd_H = 0.0f,
+    .mfr.x2005_plant_state.Lqq_H = 0.0f,
+    .mfr.x2005_plant_state.T_winding_degC = 20.0f,
+    .mfr.x2005_plant_state.R_winding_ohm = 0.0f,
     .mfr.x2007_realtime_timing.highest_sub_index_supported = 0x12u,
     .mfr.x2007_realtime_timing.periods = 0x0u,
     .mfr.x2007_realtime_timing.sync_lateness_min_us = 0.0f,
@@ -385,6 +397,12 @@ static const co_od_entry_t entries[] = {
     {0x2000u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H), &OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H, {.f = 1.0000000116860974e-07f}, {.f = 10.0f}}, /* sat_Lq_inf_H */
     {0x2000u, 0x0Eu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_h_rel), &OD_PLANT.mfr.x2000_motor_model.rk4_h_rel, {.f = 9.999999747378752e-05f}, {.f = 1.0f}}, /* rk4_h_rel */
     {0x2000u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps), &OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps, {.i = 1}, {.i = 100000}}, /* rk4_min_substeps */
+    {0x2000u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.model), &OD_PLANT.mfr.x2000_motor_model.model, {.i = 0}, {.i = 1}}, /* model */
+    {0x2000u, 0x11u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.R_alpha_per_K), &OD_PLANT.mfr.x2000_motor_model.R_alpha_per_K, {.f = 0.0f}, {.f = 0.009999999776482582f}}, /* R_alpha_per_K */
+    {0x2000u, 0x12u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_ref_degC), &OD_PLANT.mfr.x2000_motor_model.T_ref_degC, {.f = -50.0f}, {.f = 250.0f}}, /* T_ref_degC */
+    {0x2000u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_amb_degC), &OD_PLANT.mfr.x2000_motor_model.T_amb_degC, {.f = -50.0f}, {.f = 250.0f}}, /* T_amb_degC */
+    {0x2000u, 0x14u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.thermal_R_K_per_W), &OD_PLANT.mfr.x2000_motor_model.thermal_R_K_per_W, {.f = 0.0f}, {.f = 100.0f}}, /* thermal_R_K_per_W */
+    {0x2000u, 0x15u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.thermal_C_J_per_K), &OD_PLANT.mfr.x2000_motor_model.thermal_C_J_per_K, {.f = 0.0f}, {.f = 1000000.0f}}, /* thermal_C_J_per_K */
     {0x2001u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2001_Inverter.highest_sub_index_supported), &OD_PLANT.mfr.x2001_Inverter.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2001u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.Ts_s), &OD_PLANT.mfr.x2001_Inverter.Ts_s, {.f = 9.999999974752427e-07f}, {.f = 0.10000000149011612f}}, /* Ts_s */
     {0x2001u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.Vdc_V), &OD_PLANT.mfr.x2001_Inverter.Vdc_V, {.f = 0.0f}, {.f = 2000.0f}}, /* Vdc_V */
@@ -420,6 +438,12 @@ static const co_od_entry_t entries[] = {
     {0x2005u, 0x04u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.theta_m_rad), &OD_PLANT.mfr.x2005_plant_state.theta_m_rad, {.i = 0}, {.i = 0}}, /* theta_m_rad */
     {0x2005u, 0x05u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.torque_Nm), &OD_PLANT.mfr.x2005_plant_state.torque_Nm, {.i = 0}, {.i = 0}}, /* torque_Nm */
     {0x2005u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.energy_in_J), &OD_PLANT.mfr.x2005_plant_state.energy_in_J, {.i = 0}, {.i = 0}}, /* energy_in_J */
+    {0x2005u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.Ldd_H), &OD_PLANT.mfr.x2005_plant_state.Ldd_H, {.i = 0}, {.i = 0}}, /* Ldd_H */
+    {0x2005u, 0x08u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.Ldq_H), &OD_PLANT.mfr.x2005_plant_state.Ldq_H, {.i = 0}, {.i = 0}}, /* Ldq_H */
+    {0x2005u, 0x09u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.Lqd_H), &OD_PLANT.mfr.x2005_plant_state.Lqd_H, {.i = 0}, {.i = 0}}, /* Lqd_H */
+    {0x2005u, 0x0Au, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.Lqq_H), &OD_PLANT.mfr.x2005_plant_state.Lqq_H, {.i = 0}, {.i = 0}}, /* Lqq_H */
+    {0x2005u, 0x0Bu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.T_winding_degC), &OD_PLANT.mfr.x2005_plant_state.T_winding_degC, {.i = 0}, {.i = 0}}, /* T_winding_degC */
+    {0x2005u, 0x0Cu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.R_winding_ohm), &OD_PLANT.mfr.x2005_plant_state.R_winding_ohm, {.i = 0}, {.i = 0}}, /* R_winding_ohm */
     {0x2006u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ, 0, &OD_PLANT.mfr.x2006_timing_histograms, {.i = 0}, {.i = 0}}, /* Timing histograms */
     {0x2007u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.highest_sub_index_supported), &OD_PLANT.mfr.x2007_realtime_timing.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2007u, 0x01u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.periods), &OD_PLANT.mfr.x2007_realtime_timing.periods, {.i = 0}, {.i = 0}}, /* periods */
@@ -440,6 +464,7 @@ static const co_od_entry_t entries[] = {
     {0x2007u, 0x10u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.sync_overruns), &OD_PLANT.mfr.x2007_realtime_timing.sync_overruns, {.i = 0}, {.i = 0}}, /* sync_overruns */
     {0x2007u, 0x11u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.worst_period), &OD_PLANT.mfr.x2007_realtime_timing.worst_period, {.i = 0}, {.i = 0}}, /* worst_period */
     {0x2007u, 0x12u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2007_realtime_timing.reset), &OD_PLANT.mfr.x2007_realtime_timing.reset, {.i = 0}, {.i = 1}}, /* reset */
+    {0x2008u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ | CO_ODF_WRITE, 0, &OD_PLANT.mfr.x2008_flux_map, {.i = 0}, {.i = 0}}, /* Flux map */
     {0x2100u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported), &OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2100u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_a_A), &OD_PLANT.mfr.x2100_Measurement.i_a_A, {.i = 0}, {.i = 0}}, /* i_a_A */
     {0x2100u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_b_A), &OD_PLANT.mfr.x2100_Measurement.i_b_A, {.i = 0}, {.i = 0}}, /* i_b_A */

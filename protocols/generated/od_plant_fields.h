@@ -185,6 +185,12 @@
 #define OD_PLANT_MOTOR_MODEL_SAT_LQ_INF_H_SUB 0x0Du
 #define OD_PLANT_MOTOR_MODEL_RK4_H_REL_SUB 0x0Eu
 #define OD_PLANT_MOTOR_MODEL_RK4_MIN_SUBSTEPS_SUB 0x0Fu
+#define OD_PLANT_MOTOR_MODEL_MODEL_SUB 0x10u
+#define OD_PLANT_MOTOR_MODEL_R_ALPHA_PER_K_SUB 0x11u
+#define OD_PLANT_MOTOR_MODEL_T_REF_DEGC_SUB 0x12u
+#define OD_PLANT_MOTOR_MODEL_T_AMB_DEGC_SUB 0x13u
+#define OD_PLANT_MOTOR_MODEL_THERMAL_R_K_PER_W_SUB 0x14u
+#define OD_PLANT_MOTOR_MODEL_THERMAL_C_J_PER_K_SUB 0x15u
 #define OD_PLANT_INVERTER_IDX 0x2001u
 #define OD_PLANT_INVERTER_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_INVERTER_TS_S_SUB 0x01u
@@ -224,6 +230,12 @@
 #define OD_PLANT_PLANT_STATE_THETA_M_RAD_SUB 0x04u
 #define OD_PLANT_PLANT_STATE_TORQUE_NM_SUB 0x05u
 #define OD_PLANT_PLANT_STATE_ENERGY_IN_J_SUB 0x06u
+#define OD_PLANT_PLANT_STATE_LDD_H_SUB 0x07u
+#define OD_PLANT_PLANT_STATE_LDQ_H_SUB 0x08u
+#define OD_PLANT_PLANT_STATE_LQD_H_SUB 0x09u
+#define OD_PLANT_PLANT_STATE_LQQ_H_SUB 0x0Au
+#define OD_PLANT_PLANT_STATE_T_WINDING_DEGC_SUB 0x0Bu
+#define OD_PLANT_PLANT_STATE_R_WINDING_OHM_SUB 0x0Cu
 #define OD_PLANT_TIMING_HISTOGRAMS_IDX 0x2006u
 #define OD_PLANT_REALTIME_TIMING_IDX 0x2007u
 #define OD_PLANT_REALTIME_TIMING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
@@ -245,6 +257,7 @@
 #define OD_PLANT_REALTIME_TIMING_SYNC_OVERRUNS_SUB 0x10u
 #define OD_PLANT_REALTIME_TIMING_WORST_PERIOD_SUB 0x11u
 #define OD_PLANT_REALTIME_TIMING_RESET_SUB 0x12u
+#define OD_PLANT_FLUX_MAP_IDX 0x2008u
 #define OD_PLANT_MEASUREMENT_IDX 0x2100u
 #define OD_PLANT_MEASUREMENT_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_MEASUREMENT_I_A_A_SUB 0x01u
@@ -275,6 +288,12 @@ typedef struct {
     float sat_Lq_inf_H;
     float rk4_h_rel;
     uint32_t rk4_min_substeps;
+    uint8_t model;
+    float R_alpha_per_K;
+    float T_ref_degC;
+    float T_amb_degC;
+    float thermal_R_K_per_W;
+    float thermal_C_J_per_K;
 } od_plant_motor_model_t;
 
 
@@ -294,7 +313,13 @@ typedef struct {
     X(0x2000u, 0x0Cu, x2000_motor_model, sat_I_A, 8.0f) \
     X(0x2000u, 0x0Du, x2000_motor_model, sat_Lq_inf_H, 0.0009079999872483313f) \
     X(0x2000u, 0x0Eu, x2000_motor_model, rk4_h_rel, 0.019999999552965164f) \
-    X(0x2000u, 0x0Fu, x2000_motor_model, rk4_min_substeps, 1u)
+    X(0x2000u, 0x0Fu, x2000_motor_model, rk4_min_substeps, 1u) \
+    X(0x2000u, 0x10u, x2000_motor_model, model, 0u) \
+    X(0x2000u, 0x11u, x2000_motor_model, R_alpha_per_K, 0.0f) \
+    X(0x2000u, 0x12u, x2000_motor_model, T_ref_degC, 20.0f) \
+    X(0x2000u, 0x13u, x2000_motor_model, T_amb_degC, 20.0f) \
+    X(0x2000u, 0x14u, x2000_motor_model, thermal_R_K_per_W, 0.0f) \
+    X(0x2000u, 0x15u, x2000_motor_model, thermal_C_J_per_K, 0.0f)
 
 #define OD_PLANT_MOTOR_MODEL_R_OHM_DEFAULT 1.399999976158142f
 #define OD_PLANT_MOTOR_MODEL_LD_H_DEFAULT 0.004459999967366457f
@@ -311,6 +336,12 @@ typedef struct {
 #define OD_PLANT_MOTOR_MODEL_SAT_LQ_INF_H_DEFAULT 0.0009079999872483313f
 #define OD_PLANT_MOTOR_MODEL_RK4_H_REL_DEFAULT 0.019999999552965164f
 #define OD_PLANT_MOTOR_MODEL_RK4_MIN_SUBSTEPS_DEFAULT 1u
+#define OD_PLANT_MOTOR_MODEL_MODEL_DEFAULT 0u
+#define OD_PLANT_MOTOR_MODEL_R_ALPHA_PER_K_DEFAULT 0.0f
+#define OD_PLANT_MOTOR_MODEL_T_REF_DEGC_DEFAULT 20.0f
+#define OD_PLANT_MOTOR_MODEL_T_AMB_DEGC_DEFAULT 20.0f
+#define OD_PLANT_MOTOR_MODEL_THERMAL_R_K_PER_W_DEFAULT 0.0f
+#define OD_PLANT_MOTOR_MODEL_THERMAL_C_J_PER_K_DEFAULT 0.0f
 
 /* 0x2001 Inverter */
 typedef struct {
@@ -426,6 +457,12 @@ typedef struct {
     float theta_m_rad;
     float torque_Nm;
     float energy_in_J;
+    float Ldd_H;
+    float Ldq_H;
+    float Lqd_H;
+    float Lqq_H;
+    float T_winding_degC;
+    float R_winding_ohm;
 } od_plant_plant_state_t;
 
 
@@ -436,7 +473,13 @@ typedef struct {
     X(0x2005u, 0x03u, x2005_plant_state, omega_m_rad_s, 0.0f) \
     X(0x2005u, 0x04u, x2005_plant_state, theta_m_rad, 0.0f) \
     X(0x2005u, 0x05u, x2005_plant_state, torque_Nm, 0.0f) \
-    X(0x2005u, 0x06u, x2005_plant_state, energy_in_J, 0.0f)
+    X(0x2005u, 0x06u, x2005_plant_state, energy_in_J, 0.0f) \
+    X(0x2005u, 0x07u, x2005_plant_state, Ldd_H, 0.0f) \
+    X(0x2005u, 0x08u, x2005_plant_state, Ldq_H, 0.0f) \
+    X(0x2005u, 0x09u, x2005_plant_state, Lqd_H, 0.0f) \
+    X(0x2005u, 0x0Au, x2005_plant_state, Lqq_H, 0.0f) \
+    X(0x2005u, 0x0Bu, x2005_plant_state, T_winding_degC, 20.0f) \
+    X(0x2005u, 0x0Cu, x2005_plant_state, R_winding_ohm, 0.0f)
 
 #define OD_PLANT_PLANT_STATE_ID_A_DEFAULT 0.0f
 #define OD_PLANT_PLANT_STATE_IQ_A_DEFAULT 0.0f
@@ -444,6 +487,12 @@ typedef struct {
 #define OD_PLANT_PLANT_STATE_THETA_M_RAD_DEFAULT 0.0f
 #define OD_PLANT_PLANT_STATE_TORQUE_NM_DEFAULT 0.0f
 #define OD_PLANT_PLANT_STATE_ENERGY_IN_J_DEFAULT 0.0f
+#define OD_PLANT_PLANT_STATE_LDD_H_DEFAULT 0.0f
+#define OD_PLANT_PLANT_STATE_LDQ_H_DEFAULT 0.0f
+#define OD_PLANT_PLANT_STATE_LQD_H_DEFAULT 0.0f
+#define OD_PLANT_PLANT_STATE_LQQ_H_DEFAULT 0.0f
+#define OD_PLANT_PLANT_STATE_T_WINDING_DEGC_DEFAULT 20.0f
+#define OD_PLANT_PLANT_STATE_R_WINDING_OHM_DEFAULT 0.0f
 
 /* 0x2007 Realtime timing */
 typedef struct {
@@ -561,6 +610,12 @@ enum {
     OD_PLANT_MECH_MODE_FREE = 0,
     OD_PLANT_MECH_MODE_LOCKED = 1,
     OD_PLANT_MECH_MODE_IMPOSED_SPEED = 2
+};
+
+/* 0x2000:10 Motor model.model */
+enum {
+    OD_PLANT_MODEL_DQ_LINEAR = 0,
+    OD_PLANT_MODEL_FLUX_MAP = 1
 };
 
 /* 0x2001:03 Inverter.mod_limit */

@@ -111,7 +111,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
             "bench.emcy",
         ),
     ),
-    ("scenario", ("bench.scenario", "bench.run.options")),
+    ("scenario", ("bench.scenario", "bench.run.options", "bench.motor")),
     ("bus and nodes", ("bench.run.bus",)),
     ("configuration and the PDO loop", ("bench.run.loop",)),
     ("frames", ("bench.run.record",)),
@@ -121,7 +121,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
     ("a run", ("bench.run",)),
     ("studies and masters", ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults")),
     ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
-    ("the command line", ("bench.cli", "bench.cli_tools", "bench.cli_runs", "bench.cli_box")),
+    ("the command line", ("bench.cli", "bench.cli_tools", "bench.cli_runs", "bench.cli_box", "bench.cli_motor")),
     ("the pytest plugin", ("bench.pytest_plugin",)),
 ]
 

@@ -127,12 +127,24 @@ class Configurator:
         if (s.param.node, s.param.obj, s.param.name) == ("drive", "Safe state", "clear") and int(s.value) == 1:
             self._reenable_after_clear()
 
+    def _write_flux_map(self, motor: Any) -> None:
+        """The motor folder's flux map into the plant's 0x2008 (a segmented SDO download of its bytes)."""
+        blob = motor.map.blob()
+        try:
+            self.plant.sdo["Flux map"].raw = blob
+        except SdoAbortedError as exc:
+            raise SettingRefused(
+                f"the plant refused the flux map of {motor.map_file} ({len(blob)} bytes to 0x2008 Flux map): {exc}"
+            ) from None
+
     def configure(self) -> None:
         self.period = 0
         sc, plant, drive = self.sc, self.plant, self.drive
         self.configure_heartbeats()
         if sc.preset:
             plant.sdo["Motor preset"].raw = sc.preset
+        if sc.motor_folder is not None:  # the map first: the plant refuses model = flux_map without one
+            self._write_flux_map(sc.motor_folder)
         plant.sdo["Sensors"]["rng_seed"].raw = sc.seed
         plant.sdo["Run control"]["mode"].raw = 0 if sc.timing == "lockstep" else 1
         for s in sc.settings:

@@ -1,0 +1,82 @@
+"""`bench motor`: a user's motor folder (docs/YOUR_MOTOR.md) checked and summarised (check), or the example folder
+written (example). Its parser and its handlers; bench/cli.py puts the commands together."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    from bench.motor import MotorError, load
+
+    try:
+        m = load(args.folder)
+    except MotorError as exc:
+        print(f"bench motor check: {exc}", file=sys.stderr)
+        return 65
+    fm = m.map
+    Ld, Lq, psi = fm.small_signal()
+    print(f"{m.name}  ({m.path})")
+    print(f"  source: {m.source}")
+    print(
+        f"  map: {m.map_file.name}, {len(fm.id_A)} x {len(fm.iq_A)} points, id {fm.id_A[0]:g} .. {fm.id_A[-1]:g} A, "
+        f"iq {fm.iq_A[0]:g} .. {fm.iq_A[-1]:g} A: invertible"
+    )
+    print(
+        f"  at zero current: Ld {Ld * 1e3:.4g} mH, Lq {Lq * 1e3:.4g} mH, psi {psi * 1e3:.4g} mWb "
+        "(written as the plant's Ld_H, Lq_H, psi_Wb: what the drive is configured from)"
+    )
+    idg, iqg = np.meshgrid(fm.id_A, fm.iq_A, indexing="ij")
+    e = fm.eval(idg, iqg)
+    for name in ("Ldd_H", "Lqq_H"):
+        v = e[name]
+        print(f"  incremental {name[:3]} over the map: {v.min() * 1e3:.4g} .. {v.max() * 1e3:.4g} mH")
+    extra = ", ".join(f"{k} = {v:g}" for k, v in m.values.items())
+    print(f"  plant values: {extra}")
+    return 0
+
+
+def _cmd_example(args: argparse.Namespace) -> int:
+    from bench.motor.example import write_example
+
+    try:
+        folder = write_example(Path(args.folder))
+    except FileExistsError as exc:
+        print(f"bench motor example: {exc}", file=sys.stderr)
+        return 73
+    print(f"wrote {folder}/motor.toml and {folder}/flux_map.csv: run it with `bench run SCENARIO --motor {folder}`")
+    return 0
+
+
+def add_motor(sub: Any) -> None:
+    mo = sub.add_parser(
+        "motor",
+        help="check a motor folder (flux map from design data), or write the example one",
+        description="A motor folder is motor.toml (name, source, pole pairs, R and its temperature model, "
+        "mechanics) and a flux-map table psi_d(id, iq), psi_q(id, iq) as CSV or .npz (docs/YOUR_MOTOR.md). "
+        'Select it in a scenario with [motor] folder = "DIR" or on the command line with '
+        "`bench run SCENARIO --motor DIR`: the plant then runs the flux-map model.",
+    )
+    ms = mo.add_subparsers(dest="motor_command", metavar="SUBCOMMAND", required=True)
+    c = ms.add_parser(
+        "check",
+        help="read and check a motor folder, print what the plant will run",
+        description="Reads motor.toml and the flux-map table and checks them as a run would (monotonic grids, "
+        "finite values, an invertible map); each refusal names the file, the row and the value; exit 65.",
+    )
+    c.add_argument("folder", type=Path, help="the motor folder")
+    c.set_defaults(func=_cmd_check)
+    ex = ms.add_parser(
+        "example",
+        help="write the example motor folder (You 2019's motor with an assumed saturating flux map)",
+        description="Writes motor.toml and flux_map.csv of the example motor (bench/motor/example.py: an "
+        "analytic co-energy saturation model, its parameters ASSUMED) into FOLDER (created; refused when it "
+        "already holds a motor.toml).",
+    )
+    ex.add_argument("folder", type=Path, help="where to write it")
+    ex.set_defaults(func=_cmd_example)

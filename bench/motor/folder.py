@@ -1,0 +1,218 @@
+"""A motor folder (docs/YOUR_MOTOR.md): `motor.toml` (the motor's name, source, pole pairs, R and its temperature
+model, mechanics) and its flux-map table (CSV or NumPy .npz), read and checked before anything starts. Every refusal
+(MotorError) names the file, the row or key, and the value; nothing is half-loaded.
+
+    [motor]
+    name = "..."               # required
+    source = "..."             # required: where the data comes from (FEA run, measurement, a model and its paper)
+    pole_pairs = 4             # required
+    R_ohm = 0.2                # required: phase resistance at T_ref_degC
+    J_kgm2 = 1e-3              # optional (the preset's otherwise); B_Nm_per_rad_s too
+    [flux_map]
+    file = "flux_map.csv"      # required: CSV (id_A,iq_A,psi_d_Wb,psi_q_Wb, a row per grid point) or .npz
+    [thermal]                  # optional: R follows the winding's temperature (plant.eds Motor model)
+    R_alpha_per_K = 0.00393
+    T_ref_degC = 20
+    T_amb_degC = 40
+    thermal_R_K_per_W = 0.5
+    thermal_C_J_per_K = 400
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.motor.fluxmap import MAX_POINTS, FluxMap
+
+DESCRIPTION = "motor.toml"
+COLUMNS = ("id_A", "iq_A", "psi_d_Wb", "psi_q_Wb")
+MOTOR_KEYS = {"name": str, "source": str, "pole_pairs": int, "R_ohm": float, "J_kgm2": float, "B_Nm_per_rad_s": float}
+REQUIRED = ("name", "source", "pole_pairs", "R_ohm")
+THERMAL_KEYS = ("R_alpha_per_K", "T_ref_degC", "T_amb_degC", "thermal_R_K_per_W", "thermal_C_J_per_K")
+
+
+class MotorError(ValueError):
+    """A motor folder the bench refuses: the message names the file, the row or key, and the value."""
+
+
+@dataclass(frozen=True)
+class MotorFolder:
+    path: Path
+    name: str
+    source: str
+    map: FluxMap
+    map_file: Path
+    values: dict[str, float | int] = field(default_factory=dict)  # plant.eds Motor model entries, by name
+    rows: dict[tuple[int, int], int] = field(default_factory=dict)  # grid point -> CSV row (for messages)
+
+    def where(self, i: int | None, j: int | None, other: tuple[int, int] | None = None) -> str:
+        """A grid point (and the one it is compared with) as the user finds it: the CSV rows, or the arrays' indices
+        of an .npz."""
+        if i is None or j is None:
+            return str(self.map_file)
+        if (i, j) in self.rows:
+            then = f" and row {self.rows[other]}" if other in self.rows else ""
+            return f"{self.map_file}: row {self.rows[(i, j)]}{then}"
+        return f"{self.map_file}: [{i}, {j}] (id_A = {self.map.id_A[i]:g}, iq_A = {self.map.iq_A[j]:g})"
+
+
+def load(folder: str | Path) -> MotorFolder:
+    """The motor folder at `folder`, read and checked (MotorError otherwise)."""
+    path = Path(folder).resolve()
+    desc = path / DESCRIPTION
+    if not path.is_dir():
+        raise MotorError(f"{path}: not a folder (a motor folder holds {DESCRIPTION} and its flux-map table)")
+    if not desc.is_file():
+        raise MotorError(f"{desc}: missing (a motor folder's description: docs/YOUR_MOTOR.md)")
+    try:
+        raw = tomllib.loads(desc.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise MotorError(f"{desc}: not valid TOML: {exc}") from None
+    for table in raw:
+        if table not in ("motor", "flux_map", "thermal"):
+            raise MotorError(f"{desc}: unknown table [{table}]; allowed: [motor], [flux_map], [thermal]")
+    values = _motor_values(desc, raw.get("motor"))
+    values.update(_thermal_values(desc, raw.get("thermal")))
+    fm = raw.get("flux_map")
+    if not isinstance(fm, dict) or not isinstance(fm.get("file"), str):
+        raise MotorError(f'{desc}: [flux_map] file = "..." is required (a .csv or .npz in the folder)')
+    if set(fm) - {"file"}:
+        raise MotorError(f"{desc}: unknown key flux_map.{sorted(set(fm) - {'file'})[0]}; allowed: file")
+    map_file = path / fm["file"]
+    if not map_file.is_file():
+        raise MotorError(f"{desc}: flux_map.file = {fm['file']!r}: {map_file} is missing")
+    if map_file.suffix == ".csv":
+        fmap, rows = _read_csv(map_file)
+    elif map_file.suffix == ".npz":
+        fmap, rows = _read_npz(map_file), {}
+    else:
+        raise MotorError(f"{desc}: flux_map.file = {fm['file']!r}: expected a .csv or .npz table")
+    motor = MotorFolder(path, str(values.pop("name")), str(values.pop("source")), fmap, map_file, values, rows)
+    problems = fmap.problems()
+    if problems:
+        lines = [f"{motor.where(p.i, p.j, p.other)}: {p.what}" for p in problems]
+        raise MotorError("the flux map is refused:\n  " + "\n  ".join(lines))
+    return motor
+
+
+def _motor_values(desc: Path, motor: Any) -> dict[str, Any]:
+    if not isinstance(motor, dict):
+        raise MotorError(f"{desc}: missing [motor] table with at least {', '.join(REQUIRED)}")
+    out: dict[str, Any] = {}
+    for key, value in motor.items():
+        if key not in MOTOR_KEYS:
+            raise MotorError(f"{desc}: unknown key motor.{key}; allowed: {', '.join(MOTOR_KEYS)}")
+        kind = MOTOR_KEYS[key]
+        ok = isinstance(value, str) if kind is str else _number(value, integer=kind is int)
+        if not ok or (kind is str and not value.strip()):
+            raise MotorError(f"{desc}: motor.{key} = {value!r}: expected {_kind(kind)}")
+        out[key] = value
+    for key in REQUIRED:
+        if key not in out:
+            raise MotorError(f"{desc}: motor.{key} is required")
+    if not out["R_ohm"] > 0:
+        raise MotorError(f"{desc}: motor.R_ohm = {out['R_ohm']!r}: a phase resistance must be > 0")
+    return out
+
+
+def _thermal_values(desc: Path, thermal: Any) -> dict[str, float]:
+    if thermal is None:
+        return {}
+    if not isinstance(thermal, dict):
+        raise MotorError(f"{desc}: [thermal] must be a table")
+    out: dict[str, float] = {}
+    for key, value in thermal.items():
+        if key not in THERMAL_KEYS:
+            raise MotorError(f"{desc}: unknown key thermal.{key}; allowed: {', '.join(THERMAL_KEYS)}")
+        if not _number(value, integer=False):
+            raise MotorError(f"{desc}: thermal.{key} = {value!r}: expected a number")
+        out[key] = float(value)
+    return out
+
+
+def _number(v: Any, integer: bool) -> bool:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return False
+    return float(v) == int(v) if integer else True
+
+
+def _kind(kind: type) -> str:
+    return {str: "a non-empty string", int: "an integer", float: "a finite number"}[kind]
+
+
+def _read_csv(path: Path) -> tuple[FluxMap, dict[tuple[int, int], int]]:
+    """A row per grid point (any order; '#' lines are comments): the grid is the sorted distinct id_A and iq_A."""
+    points: dict[tuple[float, float], tuple[float, float, int]] = {}
+    with path.open(newline="") as f:
+        lines = [(n, line) for n, line in enumerate(f, start=1) if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise MotorError(f"{path}: empty (expected a header {','.join(COLUMNS)} and a row per grid point)")
+    header_row, header = lines[0]
+    cols = [c.strip() for c in next(csv.reader([header]))]
+    if cols != list(COLUMNS):
+        raise MotorError(f"{path}: row {header_row}: header {','.join(cols)!r}: expected {','.join(COLUMNS)}")
+    for n, line in lines[1:]:
+        cells = [c.strip() for c in next(csv.reader([line]))]
+        if len(cells) != len(COLUMNS):
+            raise MotorError(f"{path}: row {n}: {len(cells)} values, expected {len(COLUMNS)} ({','.join(COLUMNS)})")
+        vals = []
+        for col, cell in zip(COLUMNS, cells, strict=True):
+            try:
+                v = float(cell)
+            except ValueError:
+                raise MotorError(f"{path}: row {n}: {col} = {cell!r} is not a number") from None
+            if not math.isfinite(v):
+                raise MotorError(f"{path}: row {n}: {col} = {cell!r} is not finite")
+            vals.append(v)
+        key = (vals[0], vals[1])
+        if key in points:
+            raise MotorError(
+                f"{path}: row {n}: the point id_A = {key[0]:g}, iq_A = {key[1]:g} is already row {points[key][2]}"
+            )
+        points[key] = (vals[2], vals[3], n)
+    ids = np.array(sorted({k[0] for k in points}))
+    iqs = np.array(sorted({k[1] for k in points}))
+    if len(ids) > MAX_POINTS or len(iqs) > MAX_POINTS or len(ids) < 2 or len(iqs) < 2:
+        raise MotorError(
+            f"{path}: {len(ids)} values of id_A and {len(iqs)} of iq_A: a map needs 2 .. {MAX_POINTS} per axis"
+        )
+    pd = np.empty((len(ids), len(iqs)))
+    pq = np.empty_like(pd)
+    rows: dict[tuple[int, int], int] = {}
+    for i, a in enumerate(ids):
+        for j, b in enumerate(iqs):
+            if (a, b) not in points:
+                raise MotorError(
+                    f"{path}: the grid is not complete: no row for id_A = {a:g}, iq_A = {b:g} "
+                    f"({len(points)} rows for a {len(ids)} x {len(iqs)} grid)"
+                )
+            pd[i, j], pq[i, j], rows[(i, j)] = points[(a, b)]
+    return FluxMap(ids, iqs, pd, pq), rows
+
+
+def _read_npz(path: Path) -> FluxMap:
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise MotorError(f"{path}: not a NumPy .npz file: {exc}") from None
+    missing = [c for c in COLUMNS if c not in z.files]
+    if missing:
+        raise MotorError(
+            f"{path}: missing array {missing[0]} (expected {', '.join(COLUMNS)}; has {', '.join(z.files)})"
+        )
+    ids, iqs = np.asarray(z["id_A"], float), np.asarray(z["iq_A"], float)
+    if ids.ndim != 1 or iqs.ndim != 1:
+        raise MotorError(f"{path}: id_A and iq_A must be 1-D grids (shapes {ids.shape}, {iqs.shape})")
+    for name in ("id_A", "iq_A"):
+        g = ids if name == "id_A" else iqs
+        bad = np.flatnonzero(~np.isfinite(g))
+        if len(bad):
+            raise MotorError(f"{path}: {name}[{bad[0]}] = {g[bad[0]]} is not finite")
+    return FluxMap(ids, iqs, np.asarray(z["psi_d_Wb"], float), np.asarray(z["psi_q_Wb"], float))

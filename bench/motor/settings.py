@@ -1,0 +1,59 @@
+"""What a motor folder gives a scenario ([motor] folder = "DIR", `bench run --motor DIR`): the plant settings of
+plant.eds "Motor model" (the folder's values, model = flux_map, and the map's small-signal Ld_H, Lq_H, psi_Wb, which
+the drive's controller is configured from), and the check of the map's range against the inverter's trip level
+(the plant must not extrapolate the map before it trips)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from bench.eds import Param
+from bench.motor.folder import MotorError, MotorFolder, load
+from bench.scenario.model import ScenarioError, Setting
+from bench.scenario.settings import setting
+
+
+def resolve(where: str, folder: Any) -> Path:
+    """The folder a scenario names: relative to the scenario file's folder (to the working folder for a text)."""
+    if not isinstance(folder, str) or not folder:
+        raise ScenarioError(f"{where}: motor.folder = {folder!r}: expected a folder path (a string)")
+    p = Path(folder).expanduser()
+    if p.is_absolute():
+        return p
+    base = Path(where).parent if Path(where).is_file() else Path.cwd()
+    return base / p
+
+
+def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]) -> tuple[MotorFolder, list[Setting]]:
+    """The motor folder and its plant settings, each checked against the EDS as a scenario's own."""
+    path = resolve(where, folder)
+    try:
+        motor = load(path)
+    except MotorError as exc:
+        raise ScenarioError(f"{where}: motor.folder = {folder!r}: {exc}") from None
+    Ld, Lq, psi = motor.map.small_signal()
+    # the model first: the plant accepts the thermal entries on the flux-map model only
+    values: dict[str, Any] = {"model": "flux_map", "Ld_H": Ld, "Lq_H": Lq, "psi_Wb": psi, **motor.values}
+    out = []
+    for key, value in values.items():
+        try:
+            out.append(setting(str(motor.path / "motor.toml"), "motor", key, value, tables))
+        except ScenarioError as exc:
+            raise ScenarioError(f"{where}: motor.folder = {folder!r}: {exc}") from None
+    return motor, out
+
+
+def check_range(where: str, motor: MotorFolder, trip_A: float) -> None:
+    """The map must cover the currents the plant can reach before its over-current trip: [-I_trip, I_trip] on
+    both axes (a trip level of 0, off, asks for nothing)."""
+    if trip_A <= 0:
+        return
+    fm = motor.map
+    for axis, g in (("id_A", fm.id_A), ("iq_A", fm.iq_A)):
+        if g[0] > -trip_A or g[-1] < trip_A:
+            raise ScenarioError(
+                f"{where}: the flux map {motor.map_file} covers {axis} {g[0]:g} .. {g[-1]:g} A, but the inverter trips "
+                f"only at {trip_A:g} A (drive.I_trip_A): the plant would extrapolate the map; extend the map to "
+                f"+-{trip_A:g} A or set a lower drive.I_trip_A"
+            )
