@@ -3,6 +3,7 @@
  * Prints ns/period and periods/s for several configurations and the resident
  * memory before/after 10^6 periods (from /proc/self/statm).
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
@@ -33,6 +34,30 @@ static long rss_pages(void)
 }
 
 static volatile double g_sink;
+
+/* The example motor's map (examples/motors/saturating_you2019, bench/motor/example.py's co-energy model) on its
+ * 33 x 33 grid of 1 A steps; `saturating` 0 tabulates the linear model instead. */
+#define NG 33
+static double g_grid[NG], g_pd[NG * NG], g_pq[NG * NG];
+static plant_flux_map_t g_map = {NG, NG, g_grid, g_grid, g_pd, g_pq};
+
+static void tabulate(const plant_config_t *c, int saturating)
+{
+    const double a = 0.55, Id = 8.0, b = 0.4, Iq = 5.0, kappa = 2.5e-4, Ix = 5.0;
+    for (int i = 0; i < NG; ++i) g_grid[i] = -16.0 + (double)i;
+    for (int i = 0; i < NG; ++i)
+        for (int j = 0; j < NG; ++j) {
+            const double id = g_grid[i], iq = g_grid[j], x = iq / Ix;
+            if (saturating) {
+                g_pd[i * NG + j] =
+                    c->psi_Wb + c->Ld_H * (a * id + (1 - a) * Id * atan(id / Id)) - kappa * Ix * log1p(x * x);
+                g_pq[i * NG + j] = c->Lq_H * (b * iq + (1 - b) * Iq * atan(iq / Iq)) - 2 * kappa * id * x / (1 + x * x);
+            } else {
+                g_pd[i * NG + j] = c->psi_Wb + c->Ld_H * id;
+                g_pq[i * NG + j] = c->Lq_H * iq;
+            }
+        }
+}
 
 /* Runs n periods of sample+step with a rotating command; returns ns/period. */
 static double run(plant_state_t *s, const plant_config_t *c, long n, int with_sample)
@@ -113,6 +138,17 @@ int main(int argc, char **argv)
     plant_config_t cs = c;
     cs.sat_enable = true;
     bench("imposed 1000 rpm, saturation (RK4)", &cs, n / 4);
+
+    plant_config_t cm = c;
+    cm.model = PLANT_MODEL_FLUX_MAP;
+    cm.flux_map = &g_map;
+    tabulate(&c, 0);
+    cm.mech_mode = PLANT_MECH_LOCKED;
+    bench("locked rotor, flux map 33x33 (linear)", &cm, n / 4);
+    cm.mech_mode = PLANT_MECH_IMPOSED_SPEED;
+    bench("imposed 1000 rpm, flux map 33x33 (linear)", &cm, n / 4);
+    tabulate(&c, 1);
+    bench("imposed 1000 rpm, flux map 33x33 (saturating)", &cm, n / 4);
 
     /* memory: everything on; a short warm-up first so that lazily mapped
      * libm/libc pages are already resident, then 2 x 10^6 periods. */
