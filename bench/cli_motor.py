@@ -45,7 +45,7 @@ def _cmd_example(args: argparse.Namespace) -> int:
     from bench.motor.example import write_example
 
     try:
-        folder = write_example(Path(args.folder))
+        folder = write_example(Path(args.folder), args.example)
     except FileExistsError as exc:
         print(f"bench motor example: {exc}", file=sys.stderr)
         return 73
@@ -54,6 +54,8 @@ def _cmd_example(args: argparse.Namespace) -> int:
 
 
 def add_motor(sub: Any) -> None:
+    from bench.motor.example import DEFAULT, EXAMPLES
+
     mo = sub.add_parser(
         "motor",
         help="check a motor folder (flux map from design data), or write the example one",
@@ -73,10 +75,16 @@ def add_motor(sub: Any) -> None:
     c.set_defaults(func=_cmd_check)
     ex = ms.add_parser(
         "example",
-        help="write the example motor folder (You 2019's motor with an assumed saturating flux map)",
+        help="write an example motor folder (a paper's motor with an assumed saturating flux map)",
         description="Writes motor.toml and flux_map.csv of the example motor (bench/motor/example.py: an "
         "analytic co-energy saturation model, its parameters ASSUMED) into FOLDER (created; refused when it "
         "already holds a motor.toml).",
     )
     ex.add_argument("folder", type=Path, help="where to write it")
+    ex.add_argument(
+        "--example",
+        choices=sorted(EXAMPLES),
+        default=DEFAULT,
+        help=f"which: a paper's motor with an assumed saturating map (default {DEFAULT})",
+    )
     ex.set_defaults(func=_cmd_example)

@@ -15,6 +15,7 @@ reported beside them.
 
 from __future__ import annotations
 
+from bench.claims.saturation import finding_yao2020_saturation
 from bench.claims.yao2020_common import (
     GAIN_X,
     MOTORS,
@@ -31,10 +32,18 @@ from bench.claims.yao2020_common import (
 from bench.claims.yao2020_identification import claim_gain_speed, claim_high_frequency, claim_rls_flux
 from bench.claims.yao2020_low_frequency import claim_low_frequency, claim_observer
 
-ALL = [claim_observer, claim_low_frequency, claim_high_frequency, claim_gain_speed, claim_rls_flux]
+ALL = [
+    claim_observer,
+    claim_low_frequency,
+    claim_high_frequency,
+    claim_gain_speed,
+    claim_rls_flux,
+    finding_yao2020_saturation,
+]
 
 __all__ = [
     "ALL",
+    "finding_yao2020_saturation",
     "GAIN_X",
     "MOTORS",
     "PAPER",

@@ -9,12 +9,14 @@ from the paper's sentences; the paper's numbers are reported beside them.
     you2019_steps.py   Section 5: steps (Fig. 8-9, 18-19), mismatches (Fig. 11-14, 20-21),
                        frequency response (Fig. 10, 26)
     you2019_tuning.py  Sections 6-7: identification (Eq. 22-27, Fig. 20-21), online tuning (Fig. 22-25)
+    saturation.py      a finding (issue 42): Eq. 32's L_hat on a saturating machine (examples/motors/)
 
 `bench reproduce` runs ALL, in its order.
 """
 
 from __future__ import annotations
 
+from bench.claims.saturation import finding_you2019_saturation
 from bench.claims.you2019_common import PAPER, STEP_AT, base, closed_loop_response, model_gains
 from bench.claims.you2019_steps import (
     claim_frequency_response,
@@ -40,10 +42,12 @@ ALL = [
     claim_tuning,
     claim_tuning_position_profile,
     claim_frequency_response,
+    finding_you2019_saturation,
 ]
 
 __all__ = [
     "ALL",
+    "finding_you2019_saturation",
     "PAPER",
     "STEP_AT",
     "base",

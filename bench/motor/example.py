@@ -1,5 +1,5 @@
-"""The example motor folder (examples/motors/saturating_you2019/, docs/YOUR_MOTOR.md): You 2019's motor (the
-plant's preset "you2019": R, pole pairs, the unsaturated Ld, Lq and psi of its Table A1) with a saturating,
+"""The example motor folders (examples/motors/saturating_you2019/ and saturating_yao2020/, docs/YOUR_MOTOR.md): a
+paper's motor (a plant preset's R, pole pairs, the unsaturated Ld, Lq and psi of its table) with a saturating,
 cross-saturating flux map generated here from an analytic co-energy model, so that the map is reciprocal
 (d psi_d/d iq = d psi_q/d id, as a lossless magnetic field's is) and its incremental inductances are known in
 closed form (EXAMPLE_MODEL).
@@ -60,29 +60,8 @@ class SaturationModel:
         return {"Ldd_H": ldd, "Ldq_H": ldq, "Lqd_H": ldq, "Lqq_H": lqq}
 
 
-# You 2019 Table A1 (the plant's preset you2019): psi_f, Ld0, Lq0; the saturation parameters ASSUMED.
-EXAMPLE_MODEL = SaturationModel(
-    psi_f_Wb=0.042, Ld0_H=4.46e-3, Lq0_H=4.54e-3, a=0.55, Id_A=8.0, b=0.4, Iq_A=5.0, kappa_H=2.5e-4, Ix_A=5.0
-)
-GRID_A = np.linspace(-16.0, 16.0, 33)  # 1 A steps, beyond the preset's 12 A trip level
-NAME = "saturating_you2019"
-
-SOURCE = (
-    "R, pole pairs and the unsaturated Ld, Lq, psi: You 2019 Table A1 (the plant's preset you2019); the flux map: "
-    "the analytic co-energy model of bench/motor/example.py, its saturation parameters ASSUMED (a = 0.55, Id = 8 A, "
-    "b = 0.4, Iq = 5 A, kappa = 0.25 mH, Ix = 5 A), tabulated on a 33 x 33 grid of 1 A steps"
-)
-MOTOR_TOML = f"""\
-# The example motor folder (docs/YOUR_MOTOR.md), written by `bench motor example DIR` (bench/motor/example.py).
-[motor]
-name = "You 2019 motor with an assumed saturating flux map"
-source = "{SOURCE}"
-pole_pairs = 5
-R_ohm = 1.4
-
-[flux_map]
-file = "flux_map.csv"
-
+GRID_A = np.linspace(-16.0, 16.0, 33)  # 1 A steps
+THERMAL = """
 [thermal]
 # ASSUMED: a copper winding (0.00393 1/K) in a small machine: 2 K/W to the housing, 60 J/K, a 2-minute time constant
 R_alpha_per_K = 0.00393
@@ -93,19 +72,73 @@ thermal_C_J_per_K = 60.0
 """
 
 
+@dataclass(frozen=True)
+class Example:
+    """An example motor folder: a paper's motor (a plant preset's R, pole pairs, unsaturated Ld, Lq, psi) with the
+    co-energy saturation model above, its parameters ASSUMED."""
+
+    title: str
+    paper: str  # where the motor's own values come from
+    pole_pairs: int
+    R_ohm: float
+    model: SaturationModel
+    thermal: str = THERMAL
+
+    def source(self) -> str:
+        m = self.model
+        return (
+            f"R, pole pairs and the unsaturated Ld, Lq, psi: {self.paper}; the flux map: the analytic co-energy "
+            f"model of bench/motor/example.py, its saturation parameters ASSUMED (a = {m.a:g}, Id = {m.Id_A:g} A, "
+            f"b = {m.b:g}, Iq = {m.Iq_A:g} A, kappa = {m.kappa_H * 1e3:g} mH, Ix = {m.Ix_A:g} A), tabulated on a "
+            f"{len(GRID_A)} x {len(GRID_A)} grid of 1 A steps"
+        )
+
+    def motor_toml(self) -> str:
+        return (
+            "# An example motor folder (docs/YOUR_MOTOR.md), written by `bench motor example DIR` "
+            "(bench/motor/example.py).\n"
+            f'[motor]\nname = "{self.title}"\nsource = "{self.source()}"\npole_pairs = {self.pole_pairs}\n'
+            f'R_ohm = {self.R_ohm!r}\n\n[flux_map]\nfile = "flux_map.csv"\n{self.thermal}'
+        )
+
+
+EXAMPLES = {
+    # You 2019 Table A1 (the plant's preset you2019)
+    "saturating_you2019": Example(
+        "You 2019 motor with an assumed saturating flux map",
+        "You 2019 Table A1 (the plant's preset you2019)",
+        5,
+        1.4,
+        SaturationModel(0.042, 4.46e-3, 4.54e-3, a=0.55, Id_A=8.0, b=0.4, Iq_A=5.0, kappa_H=2.5e-4, Ix_A=5.0),
+    ),
+    # Yao 2020 Table I, the low-power motor (the plant's preset yao2020_low): its identification study's motor
+    "saturating_yao2020": Example(
+        "Yao 2020 low-power motor with an assumed saturating flux map",
+        "Yao 2020 Table I, the low-power motor (the plant's preset yao2020_low)",
+        4,
+        2.2,
+        SaturationModel(0.12, 5.5e-3, 5.5e-3, a=0.55, Id_A=8.0, b=0.4, Iq_A=5.0, kappa_H=3.0e-4, Ix_A=5.0),
+        thermal="",
+    ),
+}
+DEFAULT = "saturating_you2019"
+EXAMPLE_MODEL = EXAMPLES[DEFAULT].model
+
+
 def example_map(model: SaturationModel = EXAMPLE_MODEL, grid_A: np.ndarray = GRID_A) -> FluxMap:
     idg, iqg = np.meshgrid(grid_A, grid_A, indexing="ij")
     pd, pq = model.fluxes(idg, iqg)
     return FluxMap(grid_A.copy(), grid_A.copy(), pd, pq)
 
 
-def write_example(folder: Path) -> Path:
-    """The example motor folder at `folder` (created; an existing motor.toml there is refused)."""
+def write_example(folder: Path, name: str = DEFAULT) -> Path:
+    """The example motor folder `name` (EXAMPLES) at `folder` (created; an existing motor.toml there is refused)."""
+    ex = EXAMPLES[name]
     folder.mkdir(parents=True, exist_ok=True)
     desc = folder / "motor.toml"
     if desc.exists():
         raise FileExistsError(f"{desc} exists: choose an empty folder")
-    fmap = example_map()
+    fmap = example_map(ex.model)
     lines = [
         "# id_A,iq_A in A; psi_d_Wb,psi_q_Wb in Wb (peak, per phase); a row per grid point",
         "id_A,iq_A,psi_d_Wb,psi_q_Wb",
@@ -114,5 +147,5 @@ def write_example(folder: Path) -> Path:
         for j, b in enumerate(fmap.iq_A):
             lines.append(f"{a:g},{b:g},{float(fmap.psi_d_Wb[i, j])!r},{float(fmap.psi_q_Wb[i, j])!r}")
     (folder / "flux_map.csv").write_text("\n".join(lines) + "\n")
-    desc.write_text(MOTOR_TOML)
+    desc.write_text(ex.motor_toml())
     return folder

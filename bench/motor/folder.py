@@ -8,6 +8,7 @@ model, mechanics) and its flux-map table (CSV or NumPy .npz), read and checked b
     pole_pairs = 4             # required
     R_ohm = 0.2                # required: phase resistance at T_ref_degC
     J_kgm2 = 1e-3              # optional (the preset's otherwise); B_Nm_per_rad_s too
+    I_trip_A = 12              # optional: the over-current trip level (default: where the map ends)
     [flux_map]
     file = "flux_map.csv"      # required: CSV (id_A,iq_A,psi_d_Wb,psi_q_Wb, a row per grid point) or .npz
     [thermal]                  # optional: R follows the winding's temperature (plant.eds Motor model)
@@ -33,7 +34,15 @@ from bench.motor.fluxmap import MAX_POINTS, FluxMap
 
 DESCRIPTION = "motor.toml"
 COLUMNS = ("id_A", "iq_A", "psi_d_Wb", "psi_q_Wb")
-MOTOR_KEYS = {"name": str, "source": str, "pole_pairs": int, "R_ohm": float, "J_kgm2": float, "B_Nm_per_rad_s": float}
+MOTOR_KEYS = {
+    "name": str,
+    "source": str,
+    "pole_pairs": int,
+    "R_ohm": float,
+    "J_kgm2": float,
+    "B_Nm_per_rad_s": float,
+    "I_trip_A": float,
+}
 REQUIRED = ("name", "source", "pole_pairs", "R_ohm")
 THERMAL_KEYS = ("R_alpha_per_K", "T_ref_degC", "T_amb_degC", "thermal_R_K_per_W", "thermal_C_J_per_K")
 

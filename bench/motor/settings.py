@@ -1,6 +1,7 @@
 """What a motor folder gives a scenario ([motor] folder = "DIR", `bench run --motor DIR`): the plant settings of
 plant.eds "Motor model" (the folder's values, model = flux_map, and the map's small-signal Ld_H, Lq_H, psi_Wb, which
-the drive's controller is configured from), and the check of the map's range against the inverter's trip level
+the drive's controller is configured from; the over-current trip level, the folder's I_trip_A or where the map
+ends), and the check of the map's range against the inverter's trip level
 (the plant must not extrapolate the map before it trips)."""
 
 from __future__ import annotations
@@ -35,18 +36,26 @@ def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]
     Ld, Lq, psi = motor.map.small_signal()
     # the model first: the plant accepts the thermal entries on the flux-map model only
     values: dict[str, Any] = {"model": "flux_map", "Ld_H": Ld, "Lq_H": Lq, "psi_Wb": psi, **motor.values}
+    trip = values.pop("I_trip_A", None)
+    if trip is None:  # the plant trips where the map ends, not past it
+        trip = min(-float(motor.map.id_A[0]), float(motor.map.id_A[-1]), -float(motor.map.iq_A[0]),
+                   float(motor.map.iq_A[-1]))  # fmt: skip
+        trip = max(trip, 0.0)
     out = []
-    for key, value in values.items():
-        try:
-            out.append(setting(str(motor.path / "motor.toml"), "motor", key, value, tables))
-        except ScenarioError as exc:
-            raise ScenarioError(f"{where}: motor.folder = {folder!r}: {exc}") from None
+    desc = str(motor.path / "motor.toml")
+    try:
+        for key, value in values.items():
+            out.append(setting(desc, "motor", key, value, tables))
+        out.append(setting(desc, "drive", "I_trip_A", trip, tables))
+    except ScenarioError as exc:
+        raise ScenarioError(f"{where}: motor.folder = {folder!r}: {exc}") from None
     return motor, out
 
 
 def check_range(where: str, motor: MotorFolder, trip_A: float) -> None:
     """The map must cover the currents the plant can reach before its over-current trip: [-I_trip, I_trip] on
-    both axes (a trip level of 0, off, asks for nothing)."""
+    both axes (a trip level of 0, off, asks for nothing). The folder's trip level (motor.I_trip_A, else the map's
+    range) is the default; a scenario's drive.I_trip_A beyond the map is refused."""
     if trip_A <= 0:
         return
     fm = motor.map

@@ -128,8 +128,9 @@ def _events(raw: dict[str, Any], where: str, periods: int, tables: dict[str, dic
 
 
 def _trip_level(sc: Scenario) -> float:
-    """The plant's over-current trip level at the start: the scenario's drive.I_trip_A, else its motor preset's."""
-    for s in sc.settings:
+    """The plant's over-current trip level at the start: the last drive.I_trip_A written (a motor folder's, then the
+    scenario's own), else its motor preset's."""
+    for s in reversed(sc.settings):
         if s.key == "drive.I_trip_A":
             return float(s.value)
     if sc.preset is None:

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from bench.sweep.report import boundary_plot, distributions, format_distributions, heatmap, histogram
+from bench.sweep.report import boundary_plot, distributions, format_distributions, heatmap, histogram, line_plot
 from bench.sweep.table import TABLE
 
 SHOWN = ("status", "periods_to_settle", "overshoot_pct", "steady_state_error_A", "error_growth_per_period")
@@ -75,6 +75,14 @@ def write_outputs(
         name = f"heatmap_{metric}.png"
         heatmap(out / name, space.grid, rows, metric, sc.name)
         plots.append(name)
+    if len(space.grid) == 1 and not args.bisect and not space.samples:
+        # one key: the metric against it; with a motor folder, the identified inductances against its truth
+        truth = sorted({k for r in rows for k in r if k.startswith("motor.L")})
+        ident = sorted({k for r in rows for k in r if k.startswith("identified.") and k.endswith("L_hat_H")})
+        lines = [*ident, *truth] if truth and ident and args.metric is None else [metric]
+        name = f"line_{'inductance' if lines != [metric] else metric}.png"
+        if line_plot(out / name, space.grid[0][0], rows, lines, sc.name):
+            plots.append(name)
     if space.samples:
         from bench.sweep.point import NUMERIC as M
 

@@ -25,10 +25,12 @@ NUMERIC = tuple(m for m in METRICS if m != "status")
 
 
 class ErrorEnvelope:
-    """A sink that keeps iq_ref - iq per period (float32, 4 bytes a period) for the growth metric."""
+    """A sink that keeps iq_ref - iq per period (float32, 4 bytes a period) for the growth metric, and the last
+    sampled dq currents (the operating point a motor folder's truth is read at)."""
 
     def __init__(self) -> None:
         self._parts: list[np.ndarray] = []
+        self.last_dq: tuple[float, float] | None = None
 
     def begin(self, signals: Any, ctx: Any) -> None:
         pass
@@ -36,6 +38,8 @@ class ErrorEnvelope:
     def write(self, chunk: dict[str, np.ndarray]) -> None:
         if "iq_A" in chunk and "iq_ref_A" in chunk:
             self._parts.append((chunk["iq_ref_A"] - chunk["iq_A"]).astype(np.float32))
+        if "id_A" in chunk and "iq_A" in chunk and len(chunk["iq_A"]):
+            self.last_dq = (float(chunk["id_A"][-1]), float(chunk["iq_A"][-1]))
 
     def end(self, summary: dict[str, Any]) -> None:
         pass
@@ -91,11 +95,26 @@ def run_point(scenario_text: str, where: str, fixed: list[str], values: dict[str
     for k, v in s["identified"].items():
         if _number(v) is not None:
             row[f"identified.{k}"] = _number(v)
+    row.update(motor_truth(sc, env.last_dq))
     row["periods"] = int(s["periods"])
     row["loop_s"] = float(s["timing"].get("run_wall_s") or 0.0)
     row["point_s"] = time.perf_counter() - t0
     row["worker_pid"] = os.getpid()
     return row
+
+
+def motor_truth(sc: Any, dq: tuple[float, float] | None) -> dict[str, float]:
+    """With a motor folder ([motor] folder): its map's incremental inductances at the point's last operating point
+    (motor.Ldd_H, motor.Lqq_H, motor.Ldq_H) and the chord of psi_q from iq = 0 (motor.Lqq_chord_H): the truth an
+    identified L_hat is compared with (docs/YOUR_MOTOR.md)."""
+    if sc.motor_folder is None or dq is None or not all(math.isfinite(v) for v in dq):
+        return {}
+    fm = sc.motor_folder.map
+    e = fm.eval(dq[0], dq[1])
+    out = {f"motor.{k}": float(e[k]) for k in ("Ldd_H", "Lqq_H", "Ldq_H")}
+    if dq[1] != 0.0:
+        out["motor.Lqq_chord_H"] = float((e["psi_q_Wb"] - fm.eval(dq[0], 0.0)["psi_q_Wb"]) / dq[1])
+    return out
 
 
 def run_batch(scenario_text: str, where: str, fixed: list[str], batch: list[dict[str, str]]) -> list[dict[str, Any]]:

@@ -82,6 +82,35 @@ def histogram(path: Path, rows: list[dict[str, Any]], metric: str, title: str) -
     return True
 
 
+def line_plot(path: Path, key: str, rows: list[dict[str, Any]], metrics: list[str], title: str) -> bool:
+    """One grid key: each metric against it (a study over one key, e.g. the identified L_hat and a motor folder's
+    true incremental inductance over the current); False when no row has a number."""
+    pts = []
+    for r in rows:
+        try:
+            pts.append((float(r[key]), r))
+        except (KeyError, TypeError, ValueError):
+            continue
+    pts.sort(key=lambda p: p[0])
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    drawn = False
+    for m in metrics:
+        xy = [(x, float(r[m])) for x, r in pts if r.get(m) is not None and math.isfinite(float(r[m]))]
+        if xy:
+            ax.plot(*zip(*xy, strict=True), marker="o", label=m)
+            drawn = True
+    if drawn:
+        ax.set_xlabel(key)
+        ax.grid(True, alpha=0.3)
+        ax.legend()
+        ax.set_title(title)
+        fig.tight_layout()
+        fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return drawn
+
+
 def heatmap(path: Path, grid: list[tuple[str, list[str]]], rows: list[dict[str, Any]], metric: str, title: str) -> None:
     """Two grid keys; a cell is the metric's median over the cell's points (several with samples)."""
     plt = _plt()

@@ -20,6 +20,7 @@ CLAIMS = {
     "tuning": y.claim_tuning,
     "tuning_position_profile": y.claim_tuning_position_profile,
     "frequency_response": y.claim_frequency_response,
+    "saturation_finding": y.finding_you2019_saturation,
 }
 
 

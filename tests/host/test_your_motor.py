@@ -222,14 +222,44 @@ def test_a_folder_without_its_table_or_description_is_refused(tmp_path: Path) ->
 
 
 def test_a_map_smaller_than_the_trip_level_is_refused(tmp_path: Path) -> None:
+    """The plant must trip before it would extrapolate the map: without a trip level of its own the folder's run
+    trips where the map ends; a scenario's (or the folder's) level beyond it is refused, naming both."""
     g = np.linspace(-10.0, 10.0, 5)
     idg, iqg = np.meshgrid(g, g, indexing="ij")
     folder = write_folder(tmp_path / "small", g, g, LD_H * idg + PSI_WB, LQ_H * iqg)
-    res = bench_cli("run", STEP, "--bus", "direct", "--no-viewer", "--out", tmp_path / "o", "--motor", folder)
-    assert res.returncode != 0
+    run = ("run", STEP, "--bus", "direct", "--no-viewer", "--motor", folder)
+    bench_cli(*run, "--out", tmp_path / "o1", expect=0)
+    import json
+
+    assert json.loads((tmp_path / "o1" / "summary.json").read_text())["plant"]["I_trip_A"] == 10.0
+    res = bench_cli(*run, "--out", tmp_path / "o2", "--set", "drive.I_trip_A=12")
+    assert res.returncode != 0 and not (tmp_path / "o2").exists()
     assert "covers id_A -10 .. 10 A, but the inverter trips only at 12 A" in res.stderr, res.stderr
-    ok = bench_cli(
-        "run", STEP, "--bus", "direct", "--no-viewer", "--out", tmp_path / "o2", "--motor", folder,
-        "--set", "drive.I_trip_A=9",
-    )  # fmt: skip
-    assert ok.returncode == 0, ok.stderr
+    write_folder(tmp_path / "small2", g, g, LD_H * idg + PSI_WB, LQ_H * iqg, I_trip_A=11.0)
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--no-viewer", "--motor", tmp_path / "small2", "--out", tmp_path / "o3"
+    )
+    assert res.returncode != 0 and "trips only at 11 A" in res.stderr, res.stderr
+
+
+def test_the_ready_sweep_puts_the_identified_L_beside_the_maps_truth(tmp_path: Path) -> None:
+    """bench sweep over the step's amplitude on the example motor: each row carries the identified L_hat and the map's
+    incremental Lq at the row's own last operating point (as bench/motor/fluxmap.py evaluates the map), and the
+    plot draws them together."""
+    import pyarrow.parquet as pq
+
+    from bench.motor import load
+
+    out = tmp_path / "sweep"
+    args = ("sweep", REPO / "scenarios" / "you2019_saturation.toml", "--motor", EXAMPLE)
+    bench_cli(*args, "--grid", "references.iq_ref_A=2,6,10", "--serial", "--out", out, expect=0)
+    rows = pq.read_table(out / "sweep.parquet").to_pylist()
+    assert [r["references.iq_ref_A"] for r in rows] == ["2", "6", "10"]
+    fm = load(EXAMPLE).map
+    for r in rows:
+        assert r["status"] == "ok"
+        lqq = float(fm.eval(0.0, float(r["references.iq_ref_A"]))["Lqq_H"])
+        assert abs(r["motor.Lqq_H"] - lqq) < 1e-4 * lqq, r  # the loop holds iq at its reference (REAL32 samples)
+        assert 0.5 * lqq < r["identified.L_hat_H"] < 1.2 * lqq, r
+    assert rows[-1]["motor.Lqq_H"] < 0.6 * rows[0]["motor.Lqq_H"]  # it saturates over the sweep
+    assert (out / "line_inductance.png").stat().st_size > 5000
