@@ -49,6 +49,14 @@ INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
 LAW_DIRS := $(patsubst %/law.eds,%,$(wildcard firmware_shim/laws/*/law.eds))
 INC += $(addprefix -I,$(LAW_DIRS))
 
+# The FMU loader (plant_rt/fmu/: host glue, dlopen): the standard FMI 2.0/3.0 headers come with FMPy (the bench's
+# fmu extra, which `make setup` installs); a build without them refuses every FMU (plant.eds 0x2009's abort).
+FMI_HDRS_PY := import fmpy, os; print(os.path.join(os.path.dirname(fmpy.__file__), "c-code"))
+FMI_INC := $(shell (test -x .venv/bin/python && .venv/bin/python -c '$(FMI_HDRS_PY)' || python3 -c '$(FMI_HDRS_PY)') 2>/dev/null)
+FMU_SRC := $(wildcard plant_rt/fmu/*.c)
+FMU_CFLAGS := $(if $(FMI_INC),-isystem $(FMI_INC),-DPLANT_FMU_NO_FMI)  # the standard headers: not held to our warnings
+INC += -Iplant_rt/fmu
+
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/od_*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
 PLANT_SRC := $(wildcard plant_rt/core/*.c)
@@ -162,9 +170,10 @@ SAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-fr
 SAN_DIR   := $(BUILD)/sanitize/bin
 SAN_NODE_SRC := $(CO_SRC) $(SCAN_SRC)
 sanitize: $(SAN_DIR)/plant_node $(SAN_DIR)/drive_node $(SAN_DIR)/fault_gateway
-$(SAN_DIR)/plant_node: $(SAN_NODE_SRC) $(PLANT_SRC) $(wildcard plant_rt/node/*.c) $(wildcard plant_rt/*/*.h protocols/*/*.h)
+$(SAN_DIR)/plant_node: $(SAN_NODE_SRC) $(PLANT_SRC) $(wildcard plant_rt/node/*.c) $(FMU_SRC) \
+    $(wildcard plant_rt/*/*.h protocols/*/*.h)
 	@mkdir -p $(@D)
-	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -lm -pthread -o $@
+	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(FMU_CFLAGS) $(filter %.c,$^) -lm -ldl -pthread -o $@
 $(SAN_DIR)/drive_node: $(SAN_NODE_SRC) $(FW_SRC) $(wildcard firmware_shim/shim/*.c) \
     $(wildcard firmware_shim/*/*.h firmware_shim/laws/*/*.h protocols/*/*.h)
 	@mkdir -p $(@D)
@@ -204,6 +213,9 @@ $(BUILD)/obj/protocols/tools/%.o: protocols/tools/%.c
 $(BUILD)/obj/plant_rt/node/%.o: plant_rt/node/%.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -c $< -o $@
+$(BUILD)/obj/plant_rt/fmu/%.o: plant_rt/fmu/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_HOST) $(INC) $(FMU_CFLAGS) -MMD -MP -c $< -o $@
 $(BUILD)/obj/firmware_shim/shim/%.o: firmware_shim/shim/%.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -c $< -o $@
@@ -258,9 +270,9 @@ $(BUILD)/tests/fw_%: firmware_shim/tests/%.c $(LIBFW) $(LIBPLANT)
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(LIBFW) $(LIBPLANT) -lm -o $@
 
-$(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c)) $(LIBPLANT) $(LIBSCAN) $(LIBCO)
+$(BUILD)/bin/plant_node: $(call obj,$(wildcard plant_rt/node/*.c) $(FMU_SRC)) $(LIBPLANT) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) $^ -lm -pthread -o $@
+	$(CC) $(CFLAGS_HOST) $^ -lm -ldl -pthread -o $@
 $(BUILD)/bin/drive_node: $(call obj,$(wildcard firmware_shim/shim/*.c)) $(LIBFW) $(LIBSCAN) $(LIBCO)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_HOST) $^ -lm -o $@
@@ -272,10 +284,11 @@ $(BUILD)/tests/protocols_test_fault_injector: protocols/faults/tests/test_fault_
 $(BUILD)/bin/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) $(LIBSCAN)
 	@mkdir -p $(@D) $(BUILD)/deps
 	$(CC) $(CFLAGS_HOST) $(INC) -MMD -MP -MF $(BUILD)/deps/$(@F).d $< $(FAULT_SRC) $(LIBSCAN) -o $@
-HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(PLANT_APP_SRC) $(SHIM_APP_SRC) $(wildcard bench/direct/*.c) $(FAULT_SRC)
+HIL_SRC := $(PLANT_SRC) $(FW_SRC) $(CO_SRC) $(PLANT_APP_SRC) $(SHIM_APP_SRC) $(wildcard bench/direct/*.c) $(FAULT_SRC) \
+           $(FMU_SRC)
 $(BUILD)/libhil.so: $(call obj,$(HIL_SRC))
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_HOST) -shared $^ -lm -pthread -o $@  # the flags: -flto compiles here (-ffile-prefix-map too)
+	$(CC) $(CFLAGS_HOST) -shared $^ -lm -ldl -pthread -o $@  # the flags: -flto compiles here (-ffile-prefix-map too)
 
 clean:
 	rm -rf $(BUILD)

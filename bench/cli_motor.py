@@ -53,12 +53,24 @@ def _cmd_example(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_fmu_build(args: argparse.Namespace) -> int:
+    from bench.motor.fmu_build import FmuBuildError, build_source_fmu
+
+    try:
+        out = build_source_fmu(Path(args.source), Path(args.out))
+    except FmuBuildError as exc:
+        print(f"bench motor fmu-build: {exc}", file=sys.stderr)
+        return 65
+    print(f'wrote {out}: use it with [motor.fmu] file = "{out}" (docs/YOUR_MOTOR.md)')
+    return 0
+
+
 def add_motor(sub: Any) -> None:
     from bench.motor.example import DEFAULT, EXAMPLES
 
     mo = sub.add_parser(
         "motor",
-        help="check a motor folder (flux map from design data), or write the example one",
+        help="check a motor folder (flux map from design data), write the example one, build a source FMU",
         description="A motor folder is motor.toml (name, source, pole pairs, R and its temperature model, "
         "mechanics) and a flux-map table psi_d(id, iq), psi_q(id, iq) as CSV or .npz (docs/YOUR_MOTOR.md). "
         'Select it in a scenario with [motor] folder = "DIR" or on the command line with '
@@ -88,3 +100,13 @@ def add_motor(sub: Any) -> None:
         help=f"which: a paper's motor with an assumed saturating map (default {DEFAULT})",
     )
     ex.set_defaults(func=_cmd_example)
+    fb = ms.add_parser(
+        "fmu-build",
+        help="build a C source FMU (modelDescription.xml + sources/*.c) into a Linux x86-64 co-simulation .fmu",
+        description="Compiles SOURCE's sources/*.c against the standard FMI headers (FMPy's copy) into "
+        "binaries/linux64/ID.so (FMI 2.0; x86_64-linux for 3.0) and zips the FMU; e.g. the bench's own linear "
+        "PMSM: `bench motor fmu-build examples/fmu/linear_pmsm linear_pmsm.fmu`.",
+    )
+    fb.add_argument("source", type=Path, help="the source FMU's folder")
+    fb.add_argument("out", type=Path, help="the .fmu to write")
+    fb.set_defaults(func=_cmd_fmu_build)

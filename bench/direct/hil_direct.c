@@ -27,6 +27,7 @@
 #include "od_drive.h"
 #include "od_plant.h"
 #include "plant_app.h"
+#include "plant_fmu.h"
 
 #include "hil_internal.h"
 #include "hil_lock.h"
@@ -192,6 +193,7 @@ int hil_open(uint8_t plant_id, uint8_t drive_id)
     H.plant_port = co_membus_port(&H.bus);
     H.drive_port = co_membus_port(&H.bus);
     plant_app_init(&H.plant);
+    plant_app_set_fmu_loader(&H.plant, plant_fmu_load_text);
     co_node_init(&H.plant_node, &od_plant, plant_id, co_membus_tx, &H.bus.ports[H.plant_port], plant_app_hooks(),
                  &H.plant, H.now_us);
     plant_app_bind(&H.plant, &H.plant_node);

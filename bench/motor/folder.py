@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from bench.motor.fluxmap import MAX_POINTS, FluxMap
+from bench.scenario.model import ScenarioError
 
 DESCRIPTION = "motor.toml"
 COLUMNS = ("id_A", "iq_A", "psi_d_Wb", "psi_q_Wb")
@@ -225,3 +226,14 @@ def _read_npz(path: Path) -> FluxMap:
         if len(bad):
             raise MotorError(f"{path}: {name}[{bad[0]}] = {g[bad[0]]} is not finite")
     return FluxMap(ids, iqs, np.asarray(z["psi_d_Wb"], float), np.asarray(z["psi_q_Wb"], float))
+
+
+def resolve(where: str, folder: Any, key: str = "motor.folder", what: str = "a folder path") -> Path:
+    """The path a scenario names: relative to the scenario file's folder (to the working folder for a text)."""
+    if not isinstance(folder, str) or not folder:
+        raise ScenarioError(f"{where}: {key} = {folder!r}: expected {what} (a string)")
+    p = Path(folder).expanduser()
+    if p.is_absolute():
+        return p
+    base = Path(where).parent if Path(where).is_file() else Path.cwd()
+    return base / p

@@ -6,24 +6,12 @@ ends), and the check of the map's range against the inverter's trip level
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from bench.eds import Param
-from bench.motor.folder import MotorError, MotorFolder, load
+from bench.motor.folder import MotorError, MotorFolder, load, resolve
 from bench.scenario.model import ScenarioError, Setting
 from bench.scenario.settings import setting
-
-
-def resolve(where: str, folder: Any) -> Path:
-    """The folder a scenario names: relative to the scenario file's folder (to the working folder for a text)."""
-    if not isinstance(folder, str) or not folder:
-        raise ScenarioError(f"{where}: motor.folder = {folder!r}: expected a folder path (a string)")
-    p = Path(folder).expanduser()
-    if p.is_absolute():
-        return p
-    base = Path(where).parent if Path(where).is_file() else Path.cwd()
-    return base / p
 
 
 def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]) -> tuple[MotorFolder, list[Setting]]:
@@ -66,3 +54,19 @@ def check_range(where: str, motor: MotorFolder, trip_A: float) -> None:
                 f"only at {trip_A:g} A (drive.I_trip_A): the plant would extrapolate the map; extend the map to "
                 f"+-{trip_A:g} A or set a lower drive.I_trip_A"
             )
+
+
+def fmu_settings(
+    where: str, table: Any, preset: str | None, motor: dict[str, Any], tables: dict[str, dict[str, Param]]
+) -> tuple[Any, list[Setting]]:
+    """[motor.fmu]: the FMU checked and extracted (bench/motor/fmu.py) and the plant's model = fmu. The pole pairs
+    (for dq inputs or outputs) are the scenario's motor.pole_pairs, else its preset's."""
+    from bench.motor.fmu import load_fmu
+
+    pp = motor.get("pole_pairs")
+    if pp is None:
+        from bench.scenario.presets import motor_preset
+
+        pp = motor_preset(preset or "you2019").pole_pairs
+    fmu = load_fmu(where, table, int(pp))
+    return fmu, [setting(where, "motor", "model", "fmu", tables)]

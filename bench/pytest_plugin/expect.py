@@ -72,7 +72,7 @@ def _bound(x: float, what: str) -> float:
 
 def expect_status(run: Measured, *statuses: str) -> None:
     """The run ended with one of `statuses` (ok, tripped, diverged, non_finite, frames_lost, node_lost,
-    interference, law_fault, realtime_overrun); with none given, with a status its scenario expects
+    interference, law_fault, realtime_overrun, plant_fault); with none given, with a status its scenario expects
     (`scenario.expect`: exit 0)."""
     __tracebackhide__ = True
     got = f"the run's status is {run.status} (exit status {run.exit_code})"

@@ -285,6 +285,7 @@ def print_result(out: Path, result: Any) -> None:
         f"first in period {bs.get('interference', {}).get('first_period')}",
         "law_fault": _law_fault(s),
         "realtime_overrun": _realtime_overrun(s),
+        "plant_fault": _plant_fault(s),
     }.get(status, "")
     if status == "ok":
         print("status: ok")
@@ -307,6 +308,20 @@ def _files_written(s: dict[str, Any], out: Path) -> list[str]:
     plots = files.get("plots") or []
     shown = ["summary.json", *[n for n in names if n]]
     return shown + (plots if len(plots) <= 3 else [f"{len(plots)} plots (*.svg)"])
+
+
+def _plant_fault(s: dict[str, Any]) -> str:
+    from bench.emcy import emcy_names
+
+    names = emcy_names()
+    e = next(
+        (e for e in s.get("emcy", []) if e["node"] == "plant" and names.get(int(e["code"], 16)) == "model_fault"), None
+    )
+    at = f" at period {e['period']}" if e else ""
+    return (
+        f"the plant's model failed{at} (its FMU's doStep returned an error, EMCY 0xFF20; the plant's log says which): "
+        "the inverter was switched off and the model no longer stepped; the frames up to there are kept"
+    )
 
 
 def _law_fault(s: dict[str, Any]) -> str:

@@ -22,6 +22,7 @@ STATUSES = (
     "interference",
     "law_fault",
     "realtime_overrun",
+    "plant_fault",
 )
 
 
@@ -61,6 +62,7 @@ class Scenario:
     faults: list[Fault] = field(default_factory=list)  # [[faults]] (bench/scenario/faults.py)
     raw: dict[str, Any] = field(default_factory=dict)
     motor_folder: Any = None  # bench.motor.MotorFolder of [motor] folder (its map is written to the plant's 0x2008)
+    motor_fmu: Any = None  # bench.motor.fmu.FmuPlant of [motor.fmu] (its text is written to the plant's 0x2009)
 
     def event_periods(self) -> list[int]:
         return sorted({e.at_period for e in self.events})

@@ -41,6 +41,14 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         raise ScenarioError(f"{where}: motor.preset = {preset!r}: expected one of {', '.join(PRESETS)}")
     sc.preset = preset
     folder = motor.pop("folder", None)
+    fmu = motor.pop("fmu", None)
+    if folder is not None and fmu is not None:
+        raise ScenarioError(f"{where}: [motor] takes a folder (a flux map) or an fmu, not both")
+    if fmu is not None:
+        from bench.motor.settings import fmu_settings
+
+        sc.motor_fmu, own = fmu_settings(where, fmu, preset, motor, tables)
+        sc.settings.extend(own)
     if folder is not None:
         from bench.motor.settings import folder_settings
 

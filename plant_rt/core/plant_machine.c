@@ -41,6 +41,9 @@ double plant_machine_Lq_inc_H(const plant_config_t *c, double iq_A)
 
 double plant_machine_torque_Nm(const plant_state_t *s, const plant_config_t *c)
 {
+    if (c->model == PLANT_MODEL_EXTERNAL) {
+        return 0.0; /* not an output of the external model */
+    }
     if (c->model == PLANT_MODEL_FLUX_MAP) {
         return plant_machine_flux_torque_Nm(s, c);
     }
@@ -205,6 +208,10 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c)
 
     if (c->model == PLANT_MODEL_FLUX_MAP) {
         return plant_machine_flux_prepare(s, c, p);
+    }
+    if (c->model == PLANT_MODEL_EXTERNAL) {
+        s->exact = false; /* the model is the caller's: its speed and angle come from its outputs */
+        return PLANT_OK;
     }
     double Lmin = (c->Ld_H < c->Lq_H) ? c->Ld_H : c->Lq_H;
     if (c->sat_enable && c->sat_Lq_inf_H < Lmin) {

@@ -68,6 +68,11 @@ int plant_machine_flux_prepare(plant_state_t *s, const plant_config_t *c, double
 void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0);
 double plant_machine_flux_torque_Nm(const plant_state_t *s, const plant_config_t *c);
 
+/* The external model (plant_machine_external.c): one period through the caller's plant_external_t, the state
+ * (currents, angle, speed) from its outputs; and the state from its initial outputs (plant_external_restart). */
+void plant_machine_external_step(plant_state_t *s, const plant_config_t *c, double va, double vb);
+void plant_machine_external_take(plant_state_t *s, const plant_config_t *c, const plant_external_out_t *out);
+
 /* Shared by plant_machine.c and plant_machine_step.c: an angle into [0, 2 pi) (whole turns counted in *revs when
  * not NULL), and the electrical angle and its sine/cosine recomputed from the mechanical one. */
 double plant_machine_wrap_2pi(double x, int64_t *revs);

@@ -197,7 +197,9 @@ void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alph
     const double vd0 = va * ce + vb * se;
     const double vq0 = -va * se + vb * ce;
 
-    if (c->model == PLANT_MODEL_FLUX_MAP) {
+    if (c->model == PLANT_MODEL_EXTERNAL) {
+        plant_machine_external_step(s, c, va, vb);
+    } else if (c->model == PLANT_MODEL_FLUX_MAP) {
         plant_machine_flux_step(s, c, va, vb, vd0, vq0);
     } else if (s->exact) {
         step_exact(s, c, vd0, vq0);

@@ -172,8 +172,11 @@ static int validate(const plant_config_t *c)
     if (!(c->rk4_h_rel > 0.0) || c->rk4_h_rel > 1.0) {
         return PLANT_ERR_RK4;
     }
-    if (c->model != PLANT_MODEL_DQ_LINEAR && c->model != PLANT_MODEL_FLUX_MAP) {
+    if (c->model != PLANT_MODEL_DQ_LINEAR && c->model != PLANT_MODEL_FLUX_MAP && c->model != PLANT_MODEL_EXTERNAL) {
         return PLANT_ERR_ENUM;
+    }
+    if (c->model == PLANT_MODEL_EXTERNAL && (c->external == NULL || c->external->step == NULL)) {
+        return PLANT_ERR_EXTERNAL;
     }
     if (c->model == PLANT_MODEL_FLUX_MAP && plant_flux_map_check(c->flux_map) != 0) {
         return PLANT_ERR_FLUXMAP;
@@ -209,7 +212,28 @@ int plant_prepare(plant_state_t *s, const plant_config_t *c)
 /* helpers                                                                */
 /* ===================================================================== */
 
-void plant_clear_trip(plant_state_t *s) { s->tripped = false; }
+void plant_clear_trip(plant_state_t *s)
+{
+    if (s->external_error == 0) { /* a failed external model is not stepped again: its trip stays */
+        s->tripped = false;
+    }
+}
+
+int plant_external_restart(plant_state_t *s, const plant_config_t *c)
+{
+    if (c->model != PLANT_MODEL_EXTERNAL || c->external == NULL || c->external->restart == NULL) {
+        return 0;
+    }
+    plant_external_out_t out;
+    const int rc = c->external->restart(c->external->ctx, &out);
+    s->external_error = rc;
+    if (rc == 0) {
+        plant_machine_external_take(s, c, &out);
+    } else {
+        s->tripped = true;
+    }
+    return rc;
+}
 
 void plant_set_currents(plant_state_t *s, double id_A, double iq_A)
 {

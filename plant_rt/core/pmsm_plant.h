@@ -84,7 +84,8 @@ enum {
     PLANT_ERR_EXPM = -15,     /* matrix exponential failed (overflow) */
     PLANT_ERR_ENUM = -16,     /* modulation/hold/model enum out of range */
     PLANT_ERR_FLUXMAP = -17,  /* flux_map model without a usable map (plant_flux_map_check) */
-    PLANT_ERR_THERMAL = -18   /* thermal parameters negative, or a thermal model on the dq_linear model */
+    PLANT_ERR_THERMAL = -18,  /* thermal parameters negative, or a thermal model on the dq_linear model */
+    PLANT_ERR_EXTERNAL = -19  /* fmu model without an external model (plant_external_t) */
 };
 
 /* the values of the EDS (ValueNames of Motor model.mech_mode, Inverter.mod_limit / hold_frame) */
@@ -97,8 +98,28 @@ typedef enum {
 /* the electrical model (ValueNames of Motor model.model) */
 typedef enum {
     PLANT_MODEL_DQ_LINEAR = OD_PLANT_MODEL_DQ_LINEAR, /* R, Ld, Lq, psi (+ the q-axis saturation knob) */
-    PLANT_MODEL_FLUX_MAP = OD_PLANT_MODEL_FLUX_MAP    /* psi_d(id, iq), psi_q(id, iq) tables (plant_fluxmap.h) */
+    PLANT_MODEL_FLUX_MAP = OD_PLANT_MODEL_FLUX_MAP,   /* psi_d(id, iq), psi_q(id, iq) tables (plant_fluxmap.h) */
+    PLANT_MODEL_EXTERNAL = OD_PLANT_MODEL_FMU         /* an external model (plant_external_t): an FMU */
 } plant_model_t;
+
+/* An external machine model (model == PLANT_MODEL_EXTERNAL), e.g. a co-simulation FMU (plant_rt/fmu/): it
+ * replaces the machine block, electrical and mechanical; the inverter (modulation limit, dead time, trip) and
+ * the sensors stay the plant's.  Its outputs in the stator frame: the currents (amplitude-invariant alpha-beta)
+ * and the mechanical angle and speed. */
+typedef struct {
+    double i_alpha_A, i_beta_A;
+    double theta_m_rad;
+    double omega_m_rad_s;
+} plant_external_out_t;
+
+typedef struct {
+    void *ctx;
+    /* Advance the model by h_s from t_s with the applied stator-frame voltage held; its outputs at t_s + h_s.
+     * Returns 0, or a non-zero error of the model (the plant then latches its trip and stops stepping it). */
+    int (*step)(void *ctx, double t_s, double h_s, double v_alpha_V, double v_beta_V, plant_external_out_t *out);
+    /* Back to the model's initial state; its outputs there.  Returns 0 or an error. */
+    int (*restart)(void *ctx, plant_external_out_t *out);
+} plant_external_t;
 
 typedef enum {
     PLANT_MOD_NONE = OD_PLANT_MOD_LIMIT_NONE,         /* command applied as is */
@@ -140,6 +161,7 @@ typedef struct {
      * saturation knob are not used by it.  The map belongs to the caller. */
     plant_model_t model;
     const plant_flux_map_t *flux_map;
+    const plant_external_t *external; /* model == PLANT_MODEL_EXTERNAL: the caller's (an FMU) */
     /* winding temperature (flux_map model only): R = R_ohm (1 + R_alpha_per_K
      * (T - T_ref_degC)), C dT/dt = P_copper - (T - T_amb_degC) / R_th, one
      * exact first-order step a period with the period's mean copper loss.
@@ -252,6 +274,8 @@ typedef struct {
     uint32_t outside_map_periods; /* periods that ended with the currents outside the map's grid */
     uint32_t newton_failures;     /* inversions that did not converge (should stay 0) */
     int32_t newton_evals_max;     /* the most map evaluations one inversion took */
+    /* external model (plant_machine_external.c): its last error (0: none; the model is then no longer stepped) */
+    int32_t external_error;
     /* sensors: ADC noise (plant_sensors) */
     plant_rng_t rng;
 
@@ -291,6 +315,9 @@ void plant_sample(plant_state_t *s, const plant_config_t *c, plant_meas_t *m);
  * (peak phase voltage vector, amplitude-invariant Clarke). */
 void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V);
 void plant_clear_trip(plant_state_t *s);
+/* The external model back to its initial state and the plant's state from its outputs (no-op for the other
+ * models); returns the model's error (0: none). */
+int plant_external_restart(plant_state_t *s, const plant_config_t *c);
 
 /* Helpers for tests / bench set-up. */
 void plant_set_currents(plant_state_t *s, double id_A, double iq_A);

@@ -187,7 +187,9 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     if (app->state.tripped && !rc->trip_active) {
         rc->trip_active = 1u;
         uint8_t msef[5] = {(uint8_t)app->k, (uint8_t)(app->k >> 8), 0, 0, 0};
-        app->trip_emcy = app->drive_lost ? PLANT_EMCY_DRIVE_LOST : PLANT_EMCY_OVERCURRENT;
+        app->trip_emcy = app->drive_lost                  ? PLANT_EMCY_DRIVE_LOST
+                         : app->state.external_error != 0 ? PLANT_EMCY_MODEL_FAULT
+                                                          : PLANT_EMCY_OVERCURRENT;
         co_emcy_raise(node, app->trip_emcy, app->drive_lost ? CO_ERR_REG_COMMUNICATION : CO_ERR_REG_CURRENT, msef);
     }
     /* the next period's commands; the sample's command status: a period missed since the previous sample, a held

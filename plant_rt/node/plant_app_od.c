@@ -34,6 +34,7 @@ static void config_of(const plant_app_t *app, const od_plant_mfr_t *m, plant_con
 {
     config_from(m, c);
     c->flux_map = plant_fluxmap_obj_map(&app->fluxmap);
+    c->external = app->external;
 }
 
 void plant_app_config_from_od(plant_config_t *c) { config_from(plant_od_mfr(&od_plant), c); }
@@ -56,6 +57,9 @@ static od_plant_mfr_t *od_of(const plant_app_t *app)
 void plant_app_model_reset(plant_app_t *app, od_plant_mfr_t *m)
 {
     plant_fluxmap_obj_init(&app->fluxmap, &m->x2008_flux_map); /* a reset forgets the map, as the OD's values */
+    app->external = NULL;                                      /* ... and the FMU (written again to be used) */
+    app->external_restart = false;
+    m->x2009_FMU = (co_domain_t){app->fmu_text, 0u, (uint32_t)sizeof app->fmu_text};
     config_of(app, m, &app->cfg);
     plant_init(&app->state, &app->cfg);
     memset(&app->meas, 0, sizeof app->meas);
@@ -97,6 +101,10 @@ void plant_app_apply_pending(plant_app_t *app)
     if (plant_prepare(&app->state, c) == PLANT_OK) {
         app->cfg = *c;
         if (app->reseed) plant_rng_seed(&app->state.rng, app->cfg.rng_seed);
+        if (app->external_restart && app->cfg.model == PLANT_MODEL_EXTERNAL) {
+            (void)plant_external_restart(&app->state, &app->cfg); /* its initial state; a failure trips */
+            app->external_restart = false;
+        }
         ++app->config_applies;
     } else {
         ++app->config_errors;
@@ -212,6 +220,28 @@ static void fluxmap_read(void *object, const co_od_entry_t *e)
     plant_fluxmap_obj_publish(&app->fluxmap, &plant_mfr(app->node)->x2008_flux_map);
 }
 
+/* 0x2009: the host's loader loads the FMU the text names (never while running: the step calls it); the model starts
+ * from its initial state at the next SYNC. */
+static uint32_t fmu_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
+{
+    (void)e;
+    plant_app_t *app = (plant_app_t *)object;
+    if (plant_app_running(app)) return CO_ABORT_DATA_STATE;
+    if (app->fmu_load == NULL) return CO_ABORT_UNSUPPORTED;
+    const plant_external_t *ext = NULL;
+    const uint32_t abort = app->fmu_load(data, len, &ext);
+    if (abort != 0u) return abort;
+    app->external = ext;
+    app->external_restart = true;
+    return 0u;
+}
+
+static void fmu_written(void *object, const co_od_entry_t *e)
+{
+    (void)e;
+    ((plant_app_t *)object)->cfg_dirty = true;
+}
+
 /* 0x2007 is read: its figures from the statistics (the percentiles are computed here, not per period); :12 reset
  * (a command: reads back 0). */
 static void timing_read(void *object, const co_od_entry_t *e)
@@ -238,6 +268,7 @@ void plant_app_bind_objects(plant_app_t *app, co_node_t *node)
     app->ext_run = (co_od_ext_t){app, NULL, NULL, run_written};
     app->ext_timing = (co_od_ext_t){app, timing_read, NULL, timing_written};
     app->ext_fluxmap = (co_od_ext_t){app, fluxmap_read, fluxmap_check, fluxmap_written};
+    app->ext_fmu = (co_od_ext_t){app, NULL, fmu_check, fmu_written};
     /* which object owns which index (the model's three records share one) */
     const struct {
         uint16_t index;
@@ -246,7 +277,7 @@ void plant_app_bind_objects(plant_app_t *app, co_node_t *node)
         {OD_PLANT_MOTOR_MODEL_IDX, &app->ext_model}, {OD_PLANT_INVERTER_IDX, &app->ext_model},
         {OD_PLANT_SENSORS_IDX, &app->ext_model},     {OD_PLANT_MOTOR_PRESET_IDX, &app->ext_preset},
         {OD_PLANT_RUN_CONTROL_IDX, &app->ext_run},   {OD_PLANT_REALTIME_TIMING_IDX, &app->ext_timing},
-        {OD_PLANT_FLUX_MAP_IDX, &app->ext_fluxmap},
+        {OD_PLANT_FLUX_MAP_IDX, &app->ext_fluxmap},  {OD_PLANT_FMU_IDX, &app->ext_fmu},
     };
     for (size_t i = 0; i < sizeof objects / sizeof objects[0]; ++i)
         (void)co_node_bind(node, objects[i].index, objects[i].ext);

@@ -13,6 +13,7 @@
  *                      (unknown name -> abort 0x06090030);
  *       0x2007         real-time timing: computed when read, :12 reset;
  *       0x2008         flux map: a download checked whole (plant_fluxmap_obj.h), in PRE-OPERATIONAL only;
+ *       0x2009         FMU: a text the host's loader (plant_rt/fmu/) loads, in PRE-OPERATIONAL only;
  *   - the model's reset (init, NMT reset node) and the pending configuration applied at a SYNC. */
 #ifndef PLANT_APP_OD_H
 #define PLANT_APP_OD_H
@@ -65,12 +66,24 @@ typedef struct { /* 0x2005 Plant state: the model's truth, REAL32 in the OD */
     double R_winding_ohm;
 } plant_app_plant_state_t;
 
+/* Loads the external model a 0x2009 "FMU" text describes (host glue, plant_rt/fmu/: the node's main or the direct
+ * mode sets it): 0 and *ext, or an SDO abort code. */
+typedef uint32_t (*plant_app_fmu_load_t)(const uint8_t *text, uint32_t len, const plant_external_t **ext);
+
+#define PLANT_APP_FMU_TEXT_BYTES 4096u
+
 typedef struct {
     co_node_t *node;
     /* The objects the app owns, bound at init (co_node_bind, hooks.bind): the model records and the preset
      * (0x2000-0x2002, 0x2004: checked against the whole configuration, in effect at the next SYNC), run control
      * (0x2003) and the real-time timing (0x2007: computed when read). */
-    co_od_ext_t ext_model, ext_preset, ext_run, ext_timing, ext_fluxmap;
+    co_od_ext_t ext_model, ext_preset, ext_run, ext_timing, ext_fluxmap, ext_fmu;
+    /* 0x2009 FMU: its text (a download lands here), the loader the host gave, the model it loaded
+     * (plant_config_t.external) and whether the model starts afresh at the next SYNC */
+    uint8_t fmu_text[PLANT_APP_FMU_TEXT_BYTES];
+    plant_app_fmu_load_t fmu_load;
+    const plant_external_t *external;
+    bool external_restart;
     /* 0x2008 Flux map: the tables of the flux_map model (plant_config_t.flux_map points into them) */
     plant_fluxmap_obj_t fluxmap;
 
@@ -103,6 +116,8 @@ typedef struct {
 
 /* Zero the app and load the OD defaults into the model (callable before co_node_init). */
 void plant_app_init(plant_app_t *app);
+/* The host's FMU loader (after plant_app_init; none: 0x2009 refuses every FMU). */
+static inline void plant_app_set_fmu_loader(plant_app_t *app, plant_app_fmu_load_t load) { app->fmu_load = load; }
 /* Remember the node (co_node_init's bind hook does it, and binds the app's objects). */
 void plant_app_bind(plant_app_t *app, co_node_t *node);
 

@@ -21,6 +21,7 @@
 #include "co_runtime.h"
 #include "od_plant.h"
 #include "plant_app.h"
+#include "plant_fmu.h"
 #include "plant_pacing.h"
 
 #define EXIT_USAGE 64
@@ -169,6 +170,7 @@ int main(int argc, char **argv)
 
     static const co_runtime_app_t app_poll = {.poll = lockstep_poll};
     plant_app_init(&g_app);
+    plant_app_set_fmu_loader(&g_app, plant_fmu_load_text);
     if (co_runtime_open(&g_rt, iface, &od_plant, node_id, plant_app_hooks(), &app_poll, &g_app) != 0) {
         fprintf(stderr, "plant_node: cannot open CAN interface '%s'\n", iface);
         return 1;

@@ -397,7 +397,7 @@ static const co_od_entry_t entries[] = {
     {0x2000u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H), &OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H, {.f = 1.0000000116860974e-07f}, {.f = 10.0f}}, /* sat_Lq_inf_H */
     {0x2000u, 0x0Eu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_h_rel), &OD_PLANT.mfr.x2000_motor_model.rk4_h_rel, {.f = 9.999999747378752e-05f}, {.f = 1.0f}}, /* rk4_h_rel */
     {0x2000u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps), &OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps, {.i = 1}, {.i = 100000}}, /* rk4_min_substeps */
-    {0x2000u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.model), &OD_PLANT.mfr.x2000_motor_model.model, {.i = 0}, {.i = 1}}, /* model */
+    {0x2000u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.model), &OD_PLANT.mfr.x2000_motor_model.model, {.i = 0}, {.i = 2}}, /* model */
     {0x2000u, 0x11u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.R_alpha_per_K), &OD_PLANT.mfr.x2000_motor_model.R_alpha_per_K, {.f = 0.0f}, {.f = 0.009999999776482582f}}, /* R_alpha_per_K */
     {0x2000u, 0x12u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_ref_degC), &OD_PLANT.mfr.x2000_motor_model.T_ref_degC, {.f = -50.0f}, {.f = 250.0f}}, /* T_ref_degC */
     {0x2000u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_amb_degC), &OD_PLANT.mfr.x2000_motor_model.T_amb_degC, {.f = -50.0f}, {.f = 250.0f}}, /* T_amb_degC */
@@ -465,6 +465,7 @@ static const co_od_entry_t entries[] = {
     {0x2007u, 0x11u, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2007_realtime_timing.worst_period), &OD_PLANT.mfr.x2007_realtime_timing.worst_period, {.i = 0}, {.i = 0}}, /* worst_period */
     {0x2007u, 0x12u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2007_realtime_timing.reset), &OD_PLANT.mfr.x2007_realtime_timing.reset, {.i = 0}, {.i = 1}}, /* reset */
     {0x2008u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ | CO_ODF_WRITE, 0, &OD_PLANT.mfr.x2008_flux_map, {.i = 0}, {.i = 0}}, /* Flux map */
+    {0x2009u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ | CO_ODF_WRITE, 0, &OD_PLANT.mfr.x2009_FMU, {.i = 0}, {.i = 0}}, /* FMU */
     {0x2100u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported), &OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2100u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_a_A), &OD_PLANT.mfr.x2100_Measurement.i_a_A, {.i = 0}, {.i = 0}}, /* i_a_A */
     {0x2100u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_b_A), &OD_PLANT.mfr.x2100_Measurement.i_b_A, {.i = 0}, {.i = 0}}, /* i_b_A */

@@ -258,6 +258,7 @@
 #define OD_PLANT_REALTIME_TIMING_WORST_PERIOD_SUB 0x11u
 #define OD_PLANT_REALTIME_TIMING_RESET_SUB 0x12u
 #define OD_PLANT_FLUX_MAP_IDX 0x2008u
+#define OD_PLANT_FMU_IDX 0x2009u
 #define OD_PLANT_MEASUREMENT_IDX 0x2100u
 #define OD_PLANT_MEASUREMENT_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_MEASUREMENT_I_A_A_SUB 0x01u
@@ -615,7 +616,8 @@ enum {
 /* 0x2000:10 Motor model.model */
 enum {
     OD_PLANT_MODEL_DQ_LINEAR = 0,
-    OD_PLANT_MODEL_FLUX_MAP = 1
+    OD_PLANT_MODEL_FLUX_MAP = 1,
+    OD_PLANT_MODEL_FMU = 2
 };
 
 /* 0x2001:03 Inverter.mod_limit */
@@ -646,5 +648,6 @@ enum {
 /* EMCY error codes ([EmergencyCodes] of plant.eds) */
 #define PLANT_EMCY_OVERCURRENT 0x2310u /* over-current trip (CiA 301 0x23xx current, device output side) */
 #define PLANT_EMCY_DRIVE_LOST 0xFF10u /* inverter switched off because the drive's heartbeat was lost (real time) */
+#define PLANT_EMCY_MODEL_FAULT 0xFF20u /* the plant's model failed (an FMU's doStep returned an error): the inverter is switched off, the model no longer stepped */
 
 #endif /* OD_PLANT_FIELDS_H */

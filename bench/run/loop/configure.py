@@ -137,6 +137,15 @@ class Configurator:
                 f"the plant refused the flux map of {motor.map_file} ({len(blob)} bytes to 0x2008 Flux map): {exc}"
             ) from None
 
+    def _write_fmu(self, fmu: Any) -> None:
+        """The FMU's description into the plant's 0x2009 (the plant loads and initializes it there)."""
+        try:
+            self.plant.sdo["FMU"].raw = fmu.text.encode()
+        except SdoAbortedError as exc:
+            raise SettingRefused(
+                f"the plant refused the FMU {fmu.path} (0x2009 FMU; the plant's log says why): {exc}"
+            ) from None
+
     def configure(self) -> None:
         self.period = 0
         sc, plant, drive = self.sc, self.plant, self.drive
@@ -145,6 +154,8 @@ class Configurator:
             plant.sdo["Motor preset"].raw = sc.preset
         if sc.motor_folder is not None:  # the map first: the plant refuses model = flux_map without one
             self._write_flux_map(sc.motor_folder)
+        if sc.motor_fmu is not None:  # the FMU first: the plant refuses model = fmu without one
+            self._write_fmu(sc.motor_fmu)
         plant.sdo["Sensors"]["rng_seed"].raw = sc.seed
         plant.sdo["Run control"]["mode"].raw = 0 if sc.timing == "lockstep" else 1
         for s in sc.settings:

@@ -18,6 +18,8 @@ Status (one word, and a distinct exit code for each bad one):
   realtime_overrun  a real-time run whose plant counted overruns (plant.eds "Realtime timing": a command not at
                the plant by the next SYNC deadline, or a SYNC more than a period late); before frames_lost at the
                same period: in real time a command that misses its period is also missing from it
+  plant_fault  the plant's own model failed (an FMU's doStep returned an error: EMCY model_fault 0xFF20); the
+               plant switched its inverter off and stopped stepping the model; the frames up to there are kept
 A real-time run's summary has a "realtime" block: the plant's timing record and the bus-side timing
 (bench/run/verdict/realtime.py); a lockstep run's has none.
 A scenario may expect a bad status (scenario.expect); the run then passes when it gets it.
@@ -48,11 +50,13 @@ EXIT_CODES = {
     "interference": 9,
     "law_fault": 10,
     "realtime_overrun": 11,
+    "plant_fault": 12,
 }
 EXIT_EXPECTATION_NOT_MET = 7
 assert set(EXIT_CODES) == set(STATUSES)
 # at the same period, the root cause first
 PRIORITY = (
+    "plant_fault",
     "node_lost",
     "interference",
     "non_finite",

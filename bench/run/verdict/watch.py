@@ -19,6 +19,8 @@ from bench.run.verdict.summary import divergence_bound_A, plant_values, verdict
 # The drive's EMCYs of a safe state its current law caused (status law_fault): its command non-finite or
 # beyond Vmax_V (0xFF06), a step longer than the period on a bare-metal target (0xFF07).
 LAW_FAULT_EMCY = frozenset(emcy_codes("safe_law_output", "safe_overrun"))
+# The plant's EMCY of a model that failed (status plant_fault): an FMU's doStep returned an error.
+PLANT_FAULT_EMCY = frozenset(emcy_codes("model_fault"))
 # The plant's inverter trip latched (Measurement.status, plant.eds BitNames)
 STATUS_TRIP = bits("plant", "Measurement", "status")["trip"]
 
@@ -82,12 +84,16 @@ class LoopWatch:
         # The drive refused its law (a non-finite or beyond-Vmax_V command; a step longer than the period on a
         # bare-metal target) and entered its safe state: its EMCY, the first one's period
         law_faults = [e["period"] for e in dec.emcy if e["node"] == "drive" and int(e["code"], 16) in LAW_FAULT_EMCY]
+        plant_faults = [
+            e["period"] for e in dec.emcy if e["node"] == "plant" and int(e["code"], 16) in PLANT_FAULT_EMCY
+        ]
         bound = self.bound_A
         rt = self._realtime(dec)
         if rt is not None:
             bstats["realtime"] = rt
         flags = {
             "law_fault": bool(law_faults),
+            "plant_fault": bool(plant_faults),
             "non_finite": bool(bstats["non_finite_values"]),
             "diverged": (bound is not None and self.max_phase_A > bound) or bool(oscillating),
             "tripped": self.first_trip_period is not None or bool(trip_active),
@@ -97,6 +103,7 @@ class LoopWatch:
         }
         first = {
             "law_fault": min(law_faults) if law_faults else None,
+            "plant_fault": min(plant_faults) if plant_faults else None,
             "non_finite": dec.stats.first_non_finite_period,
             "tripped": self.first_trip_period,
             "diverged": self.first_beyond_bound_period

@@ -143,6 +143,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "all`), run beside this one in each round of the realtime section, their order alternating",
     )
     p.add_argument(
+        "--realtime-motor",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="also run the realtime section's bench with this motor folder (its flux-map plant, docs/YOUR_MOTOR.md), "
+        "e.g. examples/motors/saturating_you2019",
+    )
+    p.add_argument(
         "--realtime-serve",
         action="store_true",
         help="run the realtime section's bench with its live view (--serve --serve-for 0)",
@@ -216,8 +224,19 @@ def realtime_sizes(args: argparse.Namespace) -> RtSizes:
                 f"run `make -C {against} all`)"
             )
     serve = bool(getattr(args, "realtime_serve", False))
+    motor = getattr(args, "realtime_motor", None)
+    if motor is not None:
+        motor = Path(motor).resolve()
+        if not (motor / "motor.toml").is_file():
+            raise ValueError(f"--realtime-motor {motor}: not a motor folder (no motor.toml; docs/YOUR_MOTOR.md)")
     return RtSizes(
-        periods=periods, ts_us=ts, burners=burners, runs=runs, serve=serve, against=str(against) if against else None
+        periods=periods,
+        ts_us=ts,
+        burners=burners,
+        runs=runs,
+        serve=serve,
+        against=str(against) if against else None,
+        motor=str(motor) if motor else None,
     )
 
 

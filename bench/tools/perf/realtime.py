@@ -61,6 +61,7 @@ class RtSizes:
     runs: int = 1  # rounds per Ts: cyclictest, then the bench (and the other checkout)
     serve: bool = False  # the bench with its live view
     against: str | None = None  # a second built checkout of the bench, run beside this one
+    motor: str | None = None  # a motor folder (docs/YOUR_MOTOR.md): the bench once more with it, the flux-map plant
 
     @property
     def loaded(self) -> bool:
@@ -74,8 +75,11 @@ def have_cyclictest() -> bool:
 # ---------------------------------------------------------------- the bench
 
 
-def bench_argv(ts_us: float, periods: int, out: Path, serve: bool = False, against: str | None = None) -> list[str]:
-    """The whole `bench run` as a user runs it (another checkout: its own `python -m bench.cli`, run in it)."""
+def bench_argv(
+    ts_us: float, periods: int, out: Path, serve: bool = False, against: str | None = None, motor: str | None = None
+) -> list[str]:
+    """The whole `bench run` as a user runs it (another checkout: its own `python -m bench.cli`, run in it; a motor
+    folder: its flux-map plant)."""
     exe = [sys.executable, "-m", "bench.cli"] if against else bench_command()
     return [
         *exe,
@@ -90,6 +94,7 @@ def bench_argv(ts_us: float, periods: int, out: Path, serve: bool = False, again
         f"drive.Ts_s={ts_us * 1e-6:g}",
         "--set",
         f"scenario.periods={periods}",
+        *(["--motor", motor] if motor else []),
         "--out",
         str(out),
     ]
@@ -101,11 +106,11 @@ def _six(src: dict[str, Any], prefix: str) -> dict[str, float | None]:
 
 
 def bench_realtime(
-    ts_us: float, periods: int, work: Path, serve: bool = False, against: str | None = None
+    ts_us: float, periods: int, work: Path, serve: bool = False, against: str | None = None, motor: str | None = None
 ) -> dict[str, Any]:
     """One whole `bench run` in direct real time; its summary's "realtime" (all of it kept in the JSON)."""
-    out = work / f"rt_{ts_us:g}us"
-    argv = bench_argv(ts_us, periods, out, serve, against)
+    out = work / f"rt_{ts_us:g}us{'_motor' if motor else ''}"
+    argv = bench_argv(ts_us, periods, out, serve, against, motor)
     m = measure(argv, timeout=3 * periods * ts_us * 1e-6 + 900, cwd=Path(against) if against else REPO)
     text = m.stdout + m.stderr
     notes = [ln.strip() for ln in text.splitlines() if "SCHED_FIFO" in ln or "mlockall" in ln or "real time" in ln]
@@ -252,6 +257,13 @@ def _round(sizes: RtSizes, ts: float, rnd: int, work: Path, say: Any) -> dict[st
         key = "against" if side else "bench"
         row[key] = b
         row["compare" if not side else "compare_against"] = compare(ts, b, ct, sizes.periods, sizes.loaded)
+    if sizes.motor:
+        say(
+            f"realtime: bench run with the motor folder {sizes.motor} at Ts = {ts:g} us, {sizes.periods:,} periods{tag}"
+        )
+        b = _part(bench_realtime, ts, sizes.periods, work, sizes.serve, None, sizes.motor)
+        row["motor"] = b
+        row["compare_motor"] = compare(ts, b, ct, sizes.periods, sizes.loaded)
     return row
 
 
@@ -270,7 +282,7 @@ def realtime(sizes: RtSizes, note: Any = None, work: Path | None = None) -> dict
     errors = [
         f"Ts {k} us, {side}: {r[side]['error']}"
         for k, r in rows.items()
-        for side in ("cyclictest", "bench", "against")
+        for side in ("cyclictest", "bench", "against", "motor")
         if side in r and "error" in r[side]
     ]
     return {

@@ -17,7 +17,11 @@ from bench.tools.perf.realtime import (
 )
 
 COLS = ("p50", "p99", "p99_9", "max")
-SIDES = (("bench", "compare", "bench"), ("against", "compare_against", "against"))
+SIDES = (
+    ("bench", "compare", "bench"),
+    ("against", "compare_against", "against"),
+    ("motor", "compare_motor", "flux map"),  # --realtime-motor DIR: the same run on a motor folder's flux-map plant
+)
 
 
 def _us(x: float | None) -> str:
