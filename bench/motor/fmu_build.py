@@ -47,7 +47,7 @@ def build_source_fmu(src: Path, out: Path, cc: str = "cc") -> Path:
     with tempfile.TemporaryDirectory(prefix="fmu-build-") as td:
         lib = Path(td) / "binaries" / platform / f"{ident}.so"
         lib.parent.mkdir(parents=True)
-        argv = [cc, "-std=c11", "-O2", "-fPIC", "-shared", "-isystem", str(fmi_headers())]
+        argv = [cc, "-std=c11", "-O2", "-fPIC", "-shared", "-isystem", str(fmi_headers()), f"-I{src / 'sources'}"]
         argv += [str(s) for s in sources] + ["-lm", "-o", str(lib)]
         res = subprocess.run(argv, capture_output=True, text=True, check=False)
         if res.returncode != 0:
@@ -57,7 +57,8 @@ def build_source_fmu(src: Path, out: Path, cc: str = "cc") -> Path:
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
             z.write(desc, "modelDescription.xml")
             z.write(lib, f"binaries/{platform}/{ident}.so")
-            for s in sources:
-                z.write(s, f"sources/{s.name}")
+            for s in sorted((src / "sources").iterdir()):  # its C files and headers (a link is stored as its file)
+                if s.suffix in (".c", ".h"):
+                    z.write(s.resolve(), f"sources/{s.name}")
         shutil.move(tmp, out)  # whole or not at all
     return out

@@ -24,11 +24,19 @@ OUTPUTS = {"i_a_A": "i_a", "i_b_A": "i_b", "theta_m_rad": "theta_m", "omega_m_ra
 
 
 @pytest.fixture(scope="module")
-def fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("fmu") / "linear_pmsm.fmu"
-    res = bench_cli("motor", "fmu-build", SOURCE, out, expect=0)
-    assert "wrote" in res.stdout
+def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """The example as FMI 2.0 (examples/fmu/linear_pmsm) and 3.0 (linear_pmsm_fmi3, the same model)."""
+    d = tmp_path_factory.mktemp("fmu")
+    out = {2: d / "linear_pmsm.fmu", 3: d / "linear_pmsm_fmi3.fmu"}
+    for src, fmu_file in ((SOURCE, out[2]), (SOURCE.with_name("linear_pmsm_fmi3"), out[3])):
+        res = bench_cli("motor", "fmu-build", src, fmu_file, expect=0)
+        assert "wrote" in res.stdout
     return out
+
+
+@pytest.fixture(scope="module")
+def fmu(fmus: dict[int, Path]) -> Path:
+    return fmus[2]
 
 
 def scenario(fmu: Path | None, periods: int = 200, **fmu_keys: Any) -> dict[str, Any]:
@@ -47,21 +55,23 @@ def scenario(fmu: Path | None, periods: int = 200, **fmu_keys: Any) -> dict[str,
 
 
 @pytest.mark.parametrize(
-    "over, fmu_params",
+    "fmi, over, fmu_params",
     [
-        ({"controller.L_hat_ratio": 0.6}, {}),
-        ({"controller.L_hat_ratio": 1.4}, {}),
-        ({"motor.mech_mode": "imposed_speed", "motor.omega_imposed_rad_s": 150.0}, {"omega_imposed": 150.0}),
+        (2, {"controller.L_hat_ratio": 0.6}, {}),
+        (2, {"controller.L_hat_ratio": 1.4}, {}),
+        (2, {"motor.mech_mode": "imposed_speed", "motor.omega_imposed_rad_s": 150.0}, {"omega_imposed": 150.0}),
+        (3, {"motor.mech_mode": "imposed_speed", "motor.omega_imposed_rad_s": 150.0}, {"omega_imposed": 150.0}),
     ],
-    ids=["L_hat_0.6", "L_hat_1.4", "150_rad_s"],
+    ids=["fmi2-L_hat_0.6", "fmi2-L_hat_1.4", "fmi2-150_rad_s", "fmi3-150_rad_s"],
 )
 def test_the_example_fmu_reproduces_the_built_in_plant(
-    hil_run: HilRunner, fmu: Path, over: dict[str, Any], fmu_params: dict[str, float]
+    hil_run: HilRunner, fmus: dict[int, Path], fmi: int, over: dict[str, Any], fmu_params: dict[str, float]
 ) -> None:
-    """The regression net of issue 42: the linear PMSM as an FMU (RK4, 20 steps a period) against the plant's exact
-    discretization, locked with a mismatched controller and at an imposed speed: <= 1e-6 A."""
+    """The regression net of issue 42: the linear PMSM as an FMU (RK4, 20 steps a period; FMI 2.0 and 3.0) against
+    the plant's exact discretization, locked with a mismatched controller and at an imposed speed: <= 1e-6 A."""
     built_in = hil_run(scenario(None), over, bus="direct", name="built-in").expect_status("ok")
-    with_fmu = hil_run(scenario(fmu, parameters=fmu_params), over, bus="direct", name="fmu").expect_status("ok")
+    sc = scenario(fmus[fmi], parameters=fmu_params)
+    with_fmu = hil_run(sc, over, bus="direct", name="fmu").expect_status("ok")
     for col in ("i_a_A", "i_b_A", "theta_m_rad"):
         diff = np.abs(built_in[col].astype(float) - with_fmu[col].astype(float)).max()
         assert diff <= 1e-6, f"{col}: the FMU plant differs from the built-in plant by {diff:.3g}"

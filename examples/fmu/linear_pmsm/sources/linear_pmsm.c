@@ -8,74 +8,9 @@
  * the rotor turns at omega_imposed (0: locked).  Classical RK4 with `substeps` steps a communication step.
  * Outputs: the phase currents a and b (amplitude-invariant inverse Clarke), the mechanical angle and speed.
  * A test's fault: doStep returns fmi2Error once the communication point reaches fail_at (> 0). */
-#include <math.h>
-#include <stdlib.h>
-#include <string.h>
-
 #include "fmi2Functions.h"
 
-enum { V_ALPHA, V_BETA, I_A, I_B, THETA_M, OMEGA_M, N_IO };
-enum { P_R = 10, P_LD, P_LQ, P_PSI, P_POLES, P_OMEGA, P_SUBSTEPS, P_FAIL_AT, P_END };
-
-typedef struct {
-    double io[N_IO];
-    double par[P_END - P_R];
-    double id, iq, theta_m;
-    int failed;
-} model_t;
-
-static const double k_defaults[P_END - P_R] = {1.4, 4.46e-3, 4.54e-3, 0.042, 5.0, 0.0, 20.0, 0.0};
-
-static double *ref(model_t *m, fmi2ValueReference vr)
-{
-    if (vr < N_IO) return &m->io[vr];
-    if (vr >= P_R && vr < P_END) return &m->par[vr - P_R];
-    return NULL;
-}
-
-static void outputs(model_t *m)
-{
-    const double te = m->par[P_POLES - P_R] * m->theta_m, c = cos(te), s = sin(te);
-    const double ial = c * m->id - s * m->iq, ibe = s * m->id + c * m->iq;
-    m->io[I_A] = ial;
-    m->io[I_B] = -0.5 * ial + 0.5 * sqrt(3.0) * ibe;
-    m->io[THETA_M] = m->theta_m;
-    m->io[OMEGA_M] = m->par[P_OMEGA - P_R];
-}
-
-static void reset_state(model_t *m)
-{
-    m->id = m->iq = m->theta_m = 0.0;
-    m->failed = 0;
-    outputs(m);
-}
-
-/* d/dt (id, iq) at the angle th_m */
-static void deriv(const model_t *m, double th_m, double id, double iq, double *did, double *diq)
-{
-    const double R = m->par[0], Ld = m->par[1], Lq = m->par[2], psi = m->par[3], p = m->par[4];
-    const double w = p * m->par[P_OMEGA - P_R], te = p * th_m, c = cos(te), s = sin(te);
-    const double vd = c * m->io[V_ALPHA] + s * m->io[V_BETA], vq = -s * m->io[V_ALPHA] + c * m->io[V_BETA];
-    *did = (vd - R * id + w * Lq * iq) / Ld;
-    *diq = (vq - R * iq - w * Ld * id - w * psi) / Lq;
-}
-
-static void advance(model_t *m, double h_total)
-{
-    const int n = (int)(m->par[P_SUBSTEPS - P_R] >= 1.0 ? m->par[P_SUBSTEPS - P_R] : 1.0);
-    const double h = h_total / n, wm = m->par[P_OMEGA - P_R];
-    for (int k = 0; k < n; ++k) {
-        const double th = m->theta_m;
-        double a1, b1, a2, b2, a3, b3, a4, b4;
-        deriv(m, th, m->id, m->iq, &a1, &b1);
-        deriv(m, th + 0.5 * h * wm, m->id + 0.5 * h * a1, m->iq + 0.5 * h * b1, &a2, &b2);
-        deriv(m, th + 0.5 * h * wm, m->id + 0.5 * h * a2, m->iq + 0.5 * h * b2, &a3, &b3);
-        deriv(m, th + h * wm, m->id + h * a3, m->iq + h * b3, &a4, &b4);
-        m->id += h / 6.0 * (a1 + 2.0 * (a2 + a3) + a4);
-        m->iq += h / 6.0 * (b1 + 2.0 * (b2 + b3) + b4);
-        m->theta_m += h * wm;
-    }
-}
+#include "linear_pmsm_model.h"
 
 /* ------------------------------------------------------------------ FMI 2.0 */
 
@@ -96,8 +31,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         return NULL;
     model_t *m = calloc(1, sizeof *m);
     if (m == NULL) return NULL;
-    memcpy(m->par, k_defaults, sizeof m->par);
-    reset_state(m);
+    model_init(m);
     return m;
 }
 
@@ -130,10 +64,7 @@ fmi2Status fmi2Terminate(fmi2Component c)
 
 fmi2Status fmi2Reset(fmi2Component c)
 {
-    model_t *m = (model_t *)c;
-    memcpy(m->par, k_defaults, sizeof m->par);
-    memset(m->io, 0, sizeof m->io);
-    reset_state(m);
+    model_init((model_t *)c);
     return fmi2OK;
 }
 
@@ -151,7 +82,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
 {
     for (size_t i = 0; i < n; ++i) {
         double *p = ref((model_t *)c, vr[i]);
-        if (p == NULL || vr[i] == I_A || vr[i] == I_B || vr[i] == THETA_M || vr[i] == OMEGA_M) return fmi2Error;
+        if (p == NULL || !model_settable(vr[i])) return fmi2Error;
         *p = v[i];
     }
     return fmi2OK;
@@ -160,15 +91,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior)
 {
     (void)noSetPrior;
-    model_t *m = (model_t *)c;
-    const double fail_at = m->par[P_FAIL_AT - P_R];
-    if (m->failed || (fail_at > 0.0 && t >= fail_at)) {
-        m->failed = 1;
-        return fmi2Error;
-    }
-    advance(m, h);
-    outputs(m);
-    return fmi2OK;
+    return model_do_step((model_t *)c, t, h) == 0 ? fmi2OK : fmi2Error;
 }
 
 /* ------------------------------------------------------------------ the rest of the interface: not used */

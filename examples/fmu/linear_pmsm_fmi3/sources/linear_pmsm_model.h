@@ -1,0 +1,1 @@
+../../linear_pmsm/sources/linear_pmsm_model.h
