@@ -70,22 +70,12 @@ fmi2Status fmi2Reset(fmi2Component c)
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[])
 {
-    for (size_t i = 0; i < n; ++i) {
-        double *p = ref((model_t *)c, vr[i]);
-        if (p == NULL) return fmi2Error;
-        v[i] = *p;
-    }
-    return fmi2OK;
+    return model_get((model_t *)c, vr, n, v) == 0 ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[])
 {
-    for (size_t i = 0; i < n; ++i) {
-        double *p = ref((model_t *)c, vr[i]);
-        if (p == NULL || !model_settable(vr[i])) return fmi2Error;
-        *p = v[i];
-    }
-    return fmi2OK;
+    return model_set((model_t *)c, vr, n, v) == 0 ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior)

@@ -84,6 +84,28 @@ static void model_init(model_t *m)
 /* whether the master may set this variable (the inputs and the parameters) */
 static int model_settable(uint32_t vr) { return vr == V_ALPHA || vr == V_BETA || (vr >= P_R && vr < P_END); }
 
+/* the values of n variables: 0, or -1 at an unknown value reference */
+static int model_get(model_t *m, const uint32_t vr[], size_t n, double v[])
+{
+    for (size_t i = 0; i < n; ++i) {
+        const double *p = ref(m, vr[i]);
+        if (p == NULL) return -1;
+        v[i] = *p;
+    }
+    return 0;
+}
+
+/* n variables set: 0, or -1 at one the master may not set */
+static int model_set(model_t *m, const uint32_t vr[], size_t n, const double v[])
+{
+    for (size_t i = 0; i < n; ++i) {
+        double *p = ref(m, vr[i]);
+        if (p == NULL || !model_settable(vr[i])) return -1;
+        *p = v[i];
+    }
+    return 0;
+}
+
 /* one communication step [t, t + h]: 0, or -1 once it failed (fail_at, a test's fault: for good after that) */
 static int model_do_step(model_t *m, double t, double h)
 {

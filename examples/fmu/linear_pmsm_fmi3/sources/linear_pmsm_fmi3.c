@@ -60,24 +60,12 @@ fmi3Status fmi3Reset(fmi3Instance c)
 
 fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 v[], size_t nv)
 {
-    if (nv != n) return fmi3Error;
-    for (size_t i = 0; i < n; ++i) {
-        double *p = ref((model_t *)c, vr[i]);
-        if (p == NULL) return fmi3Error;
-        v[i] = *p;
-    }
-    return fmi3OK;
+    return nv == n && model_get((model_t *)c, vr, n, v) == 0 ? fmi3OK : fmi3Error;
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 v[], size_t nv)
 {
-    if (nv != n) return fmi3Error;
-    for (size_t i = 0; i < n; ++i) {
-        double *p = ref((model_t *)c, vr[i]);
-        if (p == NULL || !model_settable(vr[i])) return fmi3Error;
-        *p = v[i];
-    }
-    return fmi3OK;
+    return nv == n && model_set((model_t *)c, vr, n, v) == 0 ? fmi3OK : fmi3Error;
 }
 
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetPrior, fmi3Boolean *eventNeeded,
