@@ -52,6 +52,7 @@ if TYPE_CHECKING:
 
 SECTIONS = (
     "plant_core",
+    "motor_models",
     "closed_loop",
     "firmware",
     "yao2020_identification",
@@ -151,6 +152,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "e.g. examples/motors/saturating_you2019",
     )
     p.add_argument(
+        "--realtime-fmu",
+        action="store_true",
+        help="also run the realtime section's bench with the example FMU as the plant (examples/fmu/linear_pmsm, "
+        "built by the section)",
+    )
+    p.add_argument(
         "--realtime-serve",
         action="store_true",
         help="run the realtime section's bench with its live view (--serve --serve-for 0)",
@@ -166,6 +173,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
     from bench.tools.perf.cores import closed_loop, cortex_m4, firmware, plant_core, yao2020_identification_cost
     from bench.tools.perf.live import rerun_live
     from bench.tools.perf.mcu import mcu_in_the_loop
+    from bench.tools.perf.motors import motor_models
     from bench.tools.perf.pipeline import Sizes, pipeline
     from bench.tools.perf.realtime import realtime
     from bench.tools.perf.soak import soak
@@ -179,6 +187,7 @@ def _functions(args: argparse.Namespace, note: Any) -> dict[str, Any]:
         sizes.peers = False
     return {
         "plant_core": plant_core,
+        "motor_models": motor_models,
         "closed_loop": closed_loop,
         "firmware": firmware,
         "yao2020_identification": yao2020_identification_cost,
@@ -237,6 +246,7 @@ def realtime_sizes(args: argparse.Namespace) -> RtSizes:
         serve=serve,
         against=str(against) if against else None,
         motor=str(motor) if motor else None,
+        fmu=bool(getattr(args, "realtime_fmu", False)),
     )
 
 

@@ -62,6 +62,7 @@ class RtSizes:
     serve: bool = False  # the bench with its live view
     against: str | None = None  # a second built checkout of the bench, run beside this one
     motor: str | None = None  # a motor folder (docs/YOUR_MOTOR.md): the bench once more with it, the flux-map plant
+    fmu: bool = False  # the bench once more with the example FMU as the plant (bench/tools/perf/motors.py)
 
     @property
     def loaded(self) -> bool:
@@ -76,7 +77,13 @@ def have_cyclictest() -> bool:
 
 
 def bench_argv(
-    ts_us: float, periods: int, out: Path, serve: bool = False, against: str | None = None, motor: str | None = None
+    ts_us: float,
+    periods: int,
+    out: Path,
+    serve: bool = False,
+    against: str | None = None,
+    motor: str | None = None,
+    extra: tuple[str, ...] = (),
 ) -> list[str]:
     """The whole `bench run` as a user runs it (another checkout: its own `python -m bench.cli`, run in it; a motor
     folder: its flux-map plant)."""
@@ -95,6 +102,7 @@ def bench_argv(
         "--set",
         f"scenario.periods={periods}",
         *(["--motor", motor] if motor else []),
+        *extra,
         "--out",
         str(out),
     ]
@@ -106,11 +114,17 @@ def _six(src: dict[str, Any], prefix: str) -> dict[str, float | None]:
 
 
 def bench_realtime(
-    ts_us: float, periods: int, work: Path, serve: bool = False, against: str | None = None, motor: str | None = None
+    ts_us: float,
+    periods: int,
+    work: Path,
+    serve: bool = False,
+    against: str | None = None,
+    motor: str | None = None,
+    extra: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """One whole `bench run` in direct real time; its summary's "realtime" (all of it kept in the JSON)."""
-    out = work / f"rt_{ts_us:g}us{'_motor' if motor else ''}"
-    argv = bench_argv(ts_us, periods, out, serve, against, motor)
+    out = work / f"rt_{ts_us:g}us{'_motor' if motor else ''}{'_extra' if extra else ''}"
+    argv = bench_argv(ts_us, periods, out, serve, against, motor, extra)
     m = measure(argv, timeout=3 * periods * ts_us * 1e-6 + 900, cwd=Path(against) if against else REPO)
     text = m.stdout + m.stderr
     notes = [ln.strip() for ln in text.splitlines() if "SCHED_FIFO" in ln or "mlockall" in ln or "real time" in ln]
@@ -264,6 +278,13 @@ def _round(sizes: RtSizes, ts: float, rnd: int, work: Path, say: Any) -> dict[st
         b = _part(bench_realtime, ts, sizes.periods, work, sizes.serve, None, sizes.motor)
         row["motor"] = b
         row["compare_motor"] = compare(ts, b, ct, sizes.periods, sizes.loaded)
+    if sizes.fmu:
+        from bench.tools.perf.motors import example_fmu_args
+
+        say(f"realtime: bench run with the example FMU at Ts = {ts:g} us, {sizes.periods:,} periods{tag}")
+        b = _part(bench_realtime, ts, sizes.periods, work, sizes.serve, None, None, tuple(example_fmu_args(work)))
+        row["fmu"] = b
+        row["compare_fmu"] = compare(ts, b, ct, sizes.periods, sizes.loaded)
     return row
 
 
@@ -282,7 +303,7 @@ def realtime(sizes: RtSizes, note: Any = None, work: Path | None = None) -> dict
     errors = [
         f"Ts {k} us, {side}: {r[side]['error']}"
         for k, r in rows.items()
-        for side in ("cyclictest", "bench", "against", "motor")
+        for side in ("cyclictest", "bench", "against", "motor", "fmu")
         if side in r and "error" in r[side]
     ]
     return {

@@ -67,6 +67,16 @@ def _plant_core(r: dict[str, Any], L: _Lines) -> None:
             L.append(f"  plant_perf resident pages: {p['rss_pages']}")
 
 
+def _motor_models(r: dict[str, Any], L: _Lines) -> None:
+    """The whole `bench run` with each machine model (bench/tools/perf/motors.py), interleaved rounds."""
+    p = L.sec(r, "motor_models", "machine models: the linear plant, a flux map, an FMU (whole bench run, direct)")
+    if p:
+        L.append(f"  {p['scenario']}, {p['periods']:,} periods, {p['rounds']} interleaved rounds (medians)")
+        L.append(f"  {'model':<48}{'loop us/period':>16}{'whole command s':>17}")
+        for name, m in p["models"].items():
+            L.append(f"  {name:<48}{m['median_loop_us_per_period']:>16.3f}{m['median_wall_s']:>17.2f}")
+
+
 def _closed_loop(r: dict[str, Any], L: _Lines) -> None:
     """Plant and controller in one process: the bare cores and direct mode against the loop target, then
     direct mode's resident memory over 2 x 10^6 periods."""
@@ -240,6 +250,7 @@ def _cores(r: dict[str, Any], L: _Lines) -> None:
     for section in (
         _machine,
         _plant_core,
+        _motor_models,
         _closed_loop,
         _firmware,
         _sweep_scaling,

@@ -21,6 +21,7 @@ SIDES = (
     ("bench", "compare", "bench"),
     ("against", "compare_against", "against"),
     ("motor", "compare_motor", "flux map"),  # --realtime-motor DIR: the same run on a motor folder's flux-map plant
+    ("fmu", "compare_fmu", "FMU"),  # --realtime-fmu: the same run with the example FMU as the plant
 )
 
 
