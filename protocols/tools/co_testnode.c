@@ -25,6 +25,12 @@ static void on_reset(void *user, co_node_t *node, int communication_only)
     OD_PLANT.mfr.x2006_timing_histograms.data = g_domain;
     OD_PLANT.mfr.x2006_timing_histograms.size = 128;
     OD_PLANT.mfr.x2006_timing_histograms.capacity = 0;
+    OD_PLANT.mfr.x2008_flux_map.data = g_domain;
+    OD_PLANT.mfr.x2008_flux_map.size = 64;
+    OD_PLANT.mfr.x2008_flux_map.capacity = 0;
+    OD_PLANT.mfr.x2009_FMU.data = g_domain;
+    OD_PLANT.mfr.x2009_FMU.size = 32;
+    OD_PLANT.mfr.x2009_FMU.capacity = 0;
     OD_DRIVE.mfr.x2301_trace_buffer.data = g_domain;
     OD_DRIVE.mfr.x2301_trace_buffer.size = 300;
     OD_DRIVE.mfr.x2301_trace_buffer.capacity = 0;
