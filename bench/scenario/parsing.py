@@ -126,8 +126,8 @@ def _events(raw: dict[str, Any], where: str, periods: int, tables: dict[str, dic
                     f"{w}: unknown key {section!r}; an event holds at_period and tables {', '.join(SECTION_OBJECTS)}"
                 )
             for key, value in values.items():
-                if section == "motor" and key == "preset":
-                    raise ScenarioError(f"{w}: motor.preset cannot change during a run")
+                if section == "motor" and key in ("preset", "folder", "fmu"):
+                    raise ScenarioError(f"{w}: motor.{key} cannot change during a run")
                 settings.append(setting(w, section, key, value, tables))
         if not settings:
             raise ScenarioError(f"{w}: an event must change something")
