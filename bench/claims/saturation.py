@@ -39,7 +39,8 @@ def winding_R(folder: Any) -> float:
     runs)."""
     m = load(folder)
     v = m.values
-    return float(v["R_ohm"]) * (1 + float(v.get("R_alpha_per_K", 0.0)) * (float(v.get("T_amb_degC", 20.0)) - 20.0))
+    t_amb, t_ref = float(v.get("T_amb_degC", 20.0)), float(v.get("T_ref_degC", 20.0))
+    return float(v["R_ohm"]) * (1 + float(v.get("R_alpha_per_K", 0.0)) * (t_amb - t_ref))
 
 
 # ---------------------------------------------------------------- You 2019

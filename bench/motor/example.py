@@ -134,10 +134,11 @@ def example_map(model: SaturationModel = EXAMPLE_MODEL, grid_A: np.ndarray = GRI
 def write_example(folder: Path, name: str = DEFAULT) -> Path:
     """The example motor folder `name` (EXAMPLES) at `folder` (created; an existing motor.toml there is refused)."""
     ex = EXAMPLES[name]
+    desc, table = folder / "motor.toml", folder / "flux_map.csv"
+    for f in (desc, table):
+        if f.exists():
+            raise FileExistsError(f"{f} exists: choose an empty folder")
     folder.mkdir(parents=True, exist_ok=True)
-    desc = folder / "motor.toml"
-    if desc.exists():
-        raise FileExistsError(f"{desc} exists: choose an empty folder")
     fmap = example_map(ex.model)
     lines = [
         "# id_A,iq_A in A; psi_d_Wb,psi_q_Wb in Wb (peak, per phase); a row per grid point",
@@ -146,6 +147,9 @@ def write_example(folder: Path, name: str = DEFAULT) -> Path:
     for i, a in enumerate(fmap.id_A):
         for j, b in enumerate(fmap.iq_A):
             lines.append(f"{a:g},{b:g},{float(fmap.psi_d_Wb[i, j])!r},{float(fmap.psi_q_Wb[i, j])!r}")
-    (folder / "flux_map.csv").write_text("\n".join(lines) + "\n")
-    desc.write_text(ex.motor_toml())
+    # each file whole or not at all: written beside, then renamed
+    for f, text in ((table, "\n".join(lines) + "\n"), (desc, ex.motor_toml())):
+        part = f.with_name(f.name + ".part")
+        part.write_text(text)
+        part.replace(f)
     return folder

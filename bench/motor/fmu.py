@@ -15,7 +15,10 @@ state folder, and described to the plant as the text of its object 0x2009 "FMU" 
 from __future__ import annotations
 
 import hashlib
+import math
+import os
 import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -103,6 +106,8 @@ def load_fmu(where: str, table: Any, pole_pairs: int) -> FmuPlant:
         md = read_model_description(str(path), validate=True)
     except Exception as exc:  # noqa: BLE001 - FMPy's validation names the problem
         raise ScenarioError(f"{where}: {path}: not a valid FMU: {exc}") from None
+    if not md.fmiVersion.startswith(("2", "3")):
+        raise ScenarioError(f"{where}: {path}: FMI {md.fmiVersion}: the bench runs FMI 2.0 and 3.0 co-simulation FMUs")
     fmi = 2 if md.fmiVersion.startswith("2") else 3
     if md.coSimulation is None:
         raise ScenarioError(f"{where}: {path}: no co-simulation interface (the bench runs co-simulation FMUs)")
@@ -146,8 +151,8 @@ def load_fmu(where: str, table: Any, pole_pairs: int) -> FmuPlant:
         raise ScenarioError(f"{where}: motor.fmu.parameters must be a table of the FMU's parameters")
     for name, value in params.items():
         v = _check_var(where, md, f"motor.fmu.parameters.{name}", name, "parameter", vars_)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ScenarioError(f"{where}: motor.fmu.parameters.{name} = {value!r}: expected a number")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ScenarioError(f"{where}: motor.fmu.parameters.{name} = {value!r}: expected a finite number")
         lines.append(f"param {v.valueReference} {float(value)!r}")
     sub = table.get("substeps", 1)
     if isinstance(sub, bool) or not isinstance(sub, int) or not 1 <= sub <= 10000:
@@ -169,11 +174,12 @@ def _extracted(path: Path, extract: Any) -> Path:
     digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
     folder = STATE / "fmu" / f"{path.stem}-{digest}"
     if not (folder / "modelDescription.xml").is_file():
-        tmp = folder.with_name(folder.name + ".part")
-        shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir(parents=True)
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=folder.parent))  # this process's own
         extract(str(path), unzipdir=str(tmp))
-        shutil.rmtree(folder, ignore_errors=True)
-        tmp.rename(folder)
+        try:
+            os.rename(tmp, folder)  # atomic; another process that got there first keeps its (same) copy
+        except OSError:
+            shutil.rmtree(tmp, ignore_errors=True)
     (folder / "resources").mkdir(exist_ok=True)
     return folder

@@ -8,7 +8,8 @@ model, mechanics) and its flux-map table (CSV or NumPy .npz), read and checked b
     pole_pairs = 4             # required
     R_ohm = 0.2                # required: phase resistance at T_ref_degC
     J_kgm2 = 1e-3              # optional (the preset's otherwise); B_Nm_per_rad_s too
-    I_trip_A = 12              # optional: the over-current trip level (default: where the map ends)
+    I_trip_A = 12              # optional: the over-current trip level, per phase (default: sqrt(3)/2 of where the map
+                               # ends: the dq currents stay inside it)
     [flux_map]
     file = "flux_map.csv"      # required: CSV (id_A,iq_A,psi_d_Wb,psi_q_Wb, a row per grid point) or .npz
     [thermal]                  # optional: R follows the winding's temperature (plant.eds Motor model)
@@ -85,6 +86,8 @@ def load(folder: str | Path) -> MotorFolder:
         raw = tomllib.loads(desc.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise MotorError(f"{desc}: not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MotorError(f"{desc}: cannot read: {exc}") from None
     for table in raw:
         if table not in ("motor", "flux_map", "thermal"):
             raise MotorError(f"{desc}: unknown table [{table}]; allowed: [motor], [flux_map], [thermal]")
@@ -160,8 +163,11 @@ def _kind(kind: type) -> str:
 def _read_csv(path: Path) -> tuple[FluxMap, dict[tuple[int, int], int]]:
     """A row per grid point (any order; '#' lines are comments): the grid is the sorted distinct id_A and iq_A."""
     points: dict[tuple[float, float], tuple[float, float, int]] = {}
-    with path.open(newline="") as f:
-        lines = [(n, line) for n, line in enumerate(f, start=1) if line.strip() and not line.lstrip().startswith("#")]
+    try:
+        with path.open(newline="") as f:
+            lines = [(n, ln) for n, ln in enumerate(f, start=1) if ln.strip() and not ln.lstrip().startswith("#")]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MotorError(f"{path}: cannot read (a CSV of UTF-8 text): {exc}") from None
     if not lines:
         raise MotorError(f"{path}: empty (expected a header {','.join(COLUMNS)} and a row per grid point)")
     header_row, header = lines[0]
@@ -210,7 +216,7 @@ def _read_csv(path: Path) -> tuple[FluxMap, dict[tuple[int, int], int]]:
 def _read_npz(path: Path) -> FluxMap:
     try:
         z = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError) as exc:
         raise MotorError(f"{path}: not a NumPy .npz file: {exc}") from None
     missing = [c for c in COLUMNS if c not in z.files]
     if missing:

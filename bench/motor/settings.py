@@ -6,12 +6,17 @@ ends), and the check of the map's range against the inverter's trip level
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from bench.eds import Param
 from bench.motor.folder import MotorError, MotorFolder, load, resolve
 from bench.scenario.model import ScenarioError, Setting
 from bench.scenario.settings import setting
+
+# The trip is per phase (plant_inverter.c): a phase current of at most I_trip allows a dq current (amplitude-invariant)
+# of up to 2/sqrt(3) I_trip along an axis between two phases; the map must hold that.
+DQ_PER_PHASE = math.sqrt(3.0) / 2.0
 
 
 def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]) -> tuple[MotorFolder, list[Setting]]:
@@ -25,10 +30,17 @@ def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]
     # the model first: the plant accepts the thermal entries on the flux-map model only
     values: dict[str, Any] = {"model": "flux_map", "Ld_H": Ld, "Lq_H": Lq, "psi_Wb": psi, **motor.values}
     trip = values.pop("I_trip_A", None)
-    if trip is None:  # the plant trips where the map ends, not past it
-        trip = min(-float(motor.map.id_A[0]), float(motor.map.id_A[-1]), -float(motor.map.iq_A[0]),
+    if trip is None:  # the plant trips before the dq currents can leave the map
+        edge = min(-float(motor.map.id_A[0]), float(motor.map.id_A[-1]), -float(motor.map.iq_A[0]),
                    float(motor.map.iq_A[-1]))  # fmt: skip
-        trip = max(trip, 0.0)
+        if edge <= 0.0:
+            raise ScenarioError(
+                f"{where}: motor.folder = {folder!r}: the flux map {motor.map_file} covers id_A "
+                f"{motor.map.id_A[0]:g} .. {motor.map.id_A[-1]:g} A and iq_A {motor.map.iq_A[0]:g} .. "
+                f"{motor.map.iq_A[-1]:g} A: a run's currents take both signs (a step's overshoot, the trip's "
+                "transient); extend the map to negative and positive currents on both axes (docs/YOUR_MOTOR.md)"
+            )
+        trip = edge * DQ_PER_PHASE
     out = []
     desc = str(motor.path / "motor.toml")
     try:
@@ -42,17 +54,20 @@ def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]
 
 def check_range(where: str, motor: MotorFolder, trip_A: float) -> None:
     """The map must cover the currents the plant can reach before its over-current trip: [-I_trip, I_trip] on
-    both axes (a trip level of 0, off, asks for nothing). The folder's trip level (motor.I_trip_A, else the map's
-    range) is the default; a scenario's drive.I_trip_A beyond the map is refused."""
+    both axes, times 2/sqrt(3) (the trip is per phase); a trip level of 0, off, asks for nothing. The folder's
+    trip level (motor.I_trip_A, else where the map ends, times sqrt(3)/2) is the default; a scenario's
+    drive.I_trip_A beyond the map is refused."""
     if trip_A <= 0:
         return
     fm = motor.map
+    reach = trip_A / DQ_PER_PHASE
     for axis, g in (("id_A", fm.id_A), ("iq_A", fm.iq_A)):
-        if g[0] > -trip_A or g[-1] < trip_A:
+        if g[0] > -reach * (1 - 1e-9) or g[-1] < reach * (1 - 1e-9):  # (rounding of the default)
             raise ScenarioError(
-                f"{where}: the flux map {motor.map_file} covers {axis} {g[0]:g} .. {g[-1]:g} A, but the inverter trips "
-                f"only at {trip_A:g} A (drive.I_trip_A): the plant would extrapolate the map; extend the map to "
-                f"+-{trip_A:g} A or set a lower drive.I_trip_A"
+                f"{where}: the flux map {motor.map_file} covers {axis} {g[0]:g} .. {g[-1]:g} A, but with the "
+                f"inverter's trip at {trip_A:g} A a phase (drive.I_trip_A) the dq currents reach +-{reach:.4g} A: "
+                f"the plant would extrapolate the map; extend the map to +-{reach:.4g} A or set drive.I_trip_A "
+                f"<= {min(-g[0], g[-1]) * DQ_PER_PHASE:.4g} A"
             )
 
 

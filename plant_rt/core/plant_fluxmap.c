@@ -78,6 +78,7 @@ int plant_flux_map_currents(const plant_flux_map_t *m, double psi_d_Wb, double p
             dd *= 0.5;
             dq *= 0.5;
         }
+        if (r22 > r2) break; /* no step helped: the previous point is the best found */
         const bool small = fabs(dd) + fabs(dq) <= NEWTON_TOL_REL * (1.0 + fabs(nd) + fabs(nq));
         id = nd;
         iq = nq;

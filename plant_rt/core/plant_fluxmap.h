@@ -56,8 +56,8 @@ int plant_flux_map_check(const plant_flux_map_t *m);
 void plant_flux_map_eval(const plant_flux_map_t *m, double id_A, double iq_A, plant_flux_eval_t *out);
 
 /* The currents whose interpolated flux linkages are (psi_d_Wb, psi_q_Wb): Newton from (*id_A, *iq_A), the
- * answer written back.  Returns the evaluations used (>= 1), or -1 when it did not converge (the best point
- * found is written back). */
+ * answer written back.  Returns the evaluations used (>= 1), or -1 when it did not converge (the point with the
+ * smallest residual found is written back). */
 int plant_flux_map_currents(const plant_flux_map_t *m, double psi_d_Wb, double psi_q_Wb, double *id_A, double *iq_A);
 
 /* The smallest incremental inductance on the diagonal over the grid's corners (the integration's stiffness

@@ -209,6 +209,9 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c)
     if (c->model == PLANT_MODEL_FLUX_MAP) {
         return plant_machine_flux_prepare(s, c, p);
     }
+    s->prepared_map = NULL;      /* a later switch to a flux map takes its fluxes afresh */
+    s->R_winding_ohm = c->R_ohm; /* 0x2005's status on the models without a thermal model */
+    s->T_winding_degC = c->T_amb_degC;
     if (c->model == PLANT_MODEL_EXTERNAL) {
         s->exact = false; /* the model is the caller's: its speed and angle come from its outputs */
         return PLANT_OK;

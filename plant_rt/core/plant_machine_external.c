@@ -13,7 +13,15 @@
 
 void plant_machine_external_take(plant_state_t *s, const plant_config_t *c, const plant_external_out_t *out)
 {
-    s->theta_m_rad = plant_machine_wrap_2pi(out->theta_m_rad, &s->revolutions);
+    /* the model's angle may wrap or not: whole turns counted from the change of the wrapped angle */
+    const double th = plant_machine_wrap_2pi(out->theta_m_rad, NULL);
+    const double d = th - s->theta_m_rad;
+    if (d < -0.5 * PLANT_TWO_PI) {
+        ++s->revolutions;
+    } else if (d > 0.5 * PLANT_TWO_PI) {
+        --s->revolutions;
+    }
+    s->theta_m_rad = th;
     s->omega_m_rad_s = out->omega_m_rad_s;
     plant_machine_resync_angle(s, c);
     /* Park: the rotor-frame currents of the model's stator-frame ones */
@@ -26,8 +34,14 @@ void plant_machine_external_step(plant_state_t *s, const plant_config_t *c, doub
     if (s->external_error != 0) {
         return;
     }
+    if (c->external == NULL || c->external->step == NULL) { /* a model that went away (a failed reload) */
+        s->external_error = -5;
+        s->tripped = true;
+        return;
+    }
     plant_external_out_t out;
-    const int rc = c->external->step(c->external->ctx, s->t_s, c->Ts_s, va, vb, &out);
+    /* the model's own time: from its (re)start */
+    const int rc = c->external->step(c->external->ctx, s->t_s - s->external_t0_s, c->Ts_s, va, vb, &out);
     if (rc != 0 || !isfinite(out.i_alpha_A) || !isfinite(out.i_beta_A) || !isfinite(out.theta_m_rad) ||
         !isfinite(out.omega_m_rad_s)) {
         s->external_error = rc != 0 ? rc : -1;

@@ -117,7 +117,11 @@ int plant_machine_flux_prepare(plant_state_t *s, const plant_config_t *c, double
     if (!(c->thermal_C_J_per_K > 0.0) || s->k == 0u) {
         s->T_winding_degC = c->T_amb_degC; /* the winding starts at the ambient; without a thermal model it stays */
     }
-    refresh(s, c, true);
+    /* the fluxes from the currents (and the magnetic energy's reference) before the run and after a switch of
+     * model or map; a mid-run change of another parameter keeps them, and the energy account with them */
+    const bool fresh = s->k == 0u || s->psi_stale || s->prepared_map != c->flux_map;
+    refresh(s, c, fresh);
+    s->prepared_map = c->flux_map;
     const double Rmax = s->R_winding_ohm > c->R_ohm ? s->R_winding_ohm : c->R_ohm;
     s->lam_base = Rmax / Lmin;
     if (c->mech_mode == PLANT_MECH_FREE) {

@@ -184,6 +184,9 @@ static int validate(const plant_config_t *c)
     if (c->R_alpha_per_K < 0.0 || c->thermal_R_K_per_W < 0.0 || c->thermal_C_J_per_K < 0.0) {
         return PLANT_ERR_THERMAL;
     }
+    if (!(1.0 + c->R_alpha_per_K * (c->T_amb_degC - c->T_ref_degC) > 0.0)) {
+        return PLANT_ERR_THERMAL; /* R would not be positive at the ambient */
+    }
     if (c->model == PLANT_MODEL_DQ_LINEAR && (c->R_alpha_per_K != 0.0 || c->thermal_C_J_per_K != 0.0)) {
         return PLANT_ERR_THERMAL; /* the exact path keeps R constant: the thermal model is the flux map's */
     }
@@ -227,6 +230,7 @@ int plant_external_restart(plant_state_t *s, const plant_config_t *c)
     plant_external_out_t out;
     const int rc = c->external->restart(c->external->ctx, &out);
     s->external_error = rc;
+    s->external_t0_s = s->t_s;
     if (rc == 0) {
         plant_machine_external_take(s, c, &out);
     } else {

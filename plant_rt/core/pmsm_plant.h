@@ -268,7 +268,8 @@ typedef struct {
     double psi_d_Wb, psi_q_Wb;
     bool psi_stale; /* plant_set_currents: the fluxes follow at the next step */
     double W_mag_J;
-    double cell_min_A; /* the map's narrowest cell (the sub-steps' bound on the cells crossed) */
+    double cell_min_A;                    /* the map's narrowest cell (the sub-steps' bound on the cells crossed) */
+    const plant_flux_map_t *prepared_map; /* the map the fluxes were last taken from */
     double Ldd_H, Ldq_H, Lqd_H, Lqq_H;
     double T_winding_degC, R_winding_ohm;
     uint32_t outside_map_periods; /* periods that ended with the currents outside the map's grid */
@@ -276,6 +277,7 @@ typedef struct {
     int32_t newton_evals_max;     /* the most map evaluations one inversion took */
     /* external model (plant_machine_external.c): its last error (0: none; the model is then no longer stepped) */
     int32_t external_error;
+    double external_t0_s; /* the plant's time at the model's (re)start: the model's time is t_s minus this */
     /* sensors: ADC noise (plant_sensors) */
     plant_rng_t rng;
 

@@ -75,7 +75,7 @@ static int take(plant_fmu_spec_t *s, const char *key, char *val, char *err, size
     int bad = 0;
     if (strcmp(key, "fmi") == 0) {
         bad = number(val, &x) || !(x == 2.0 || x == 3.0);
-        s->fmi = (int)x;
+        if (!bad) s->fmi = (int)x;
     } else if (strcmp(key, "library") == 0) {
         bad = copy(s->library, sizeof s->library, val);
     } else if (strcmp(key, "identifier") == 0) {
@@ -99,10 +99,10 @@ static int take(plant_fmu_spec_t *s, const char *key, char *val, char *err, size
         s->has_omega = 1;
     } else if (strcmp(key, "pole_pairs") == 0) {
         bad = number(val, &x) || x < 1.0 || x > 1000.0 || x != floor(x);
-        s->pole_pairs = (int)x;
+        if (!bad) s->pole_pairs = (int)x;
     } else if (strcmp(key, "substeps") == 0) {
         bad = number(val, &x) || x < 1.0 || x > 10000.0 || x != floor(x);
-        s->substeps = (uint32_t)x;
+        if (!bad) s->substeps = (uint32_t)x;
     } else if (strcmp(key, "param") == 0) {
         char *sp = strchr(val, ' ');
         if (sp == NULL || s->n_params >= PLANT_FMU_MAX_PARAMS) {

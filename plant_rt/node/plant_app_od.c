@@ -197,13 +197,21 @@ static void run_written(void *object, const co_od_entry_t *e)
     }
 }
 
-/* 0x2008: a download is checked whole and replaces the live map only when it passes, never while running (the
- * step reads the tables); the model is prepared again at the next SYNC.  An upload reads the live map. */
+/* 0x2008 and 0x2009 are written before a run: in PRE-OPERATIONAL, before the first SYNC after a reset (the model
+ * in use reads the tables and steps the FMU from the first period on; a mid-run change would step one period with
+ * the new model and the old state). */
+static bool model_object_writable(const plant_app_t *app)
+{
+    return app->node->nmt != CO_NMT_OPERATIONAL && !app->started;
+}
+
+/* 0x2008: a download is checked whole and replaces the live map only when it passes; the model is prepared again
+ * at the next SYNC.  An upload reads the live map. */
 static uint32_t fluxmap_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
 {
     (void)e;
     plant_app_t *app = (plant_app_t *)object;
-    if (plant_app_running(app)) return CO_ABORT_DATA_STATE;
+    if (!model_object_writable(app)) return CO_ABORT_DATA_STATE;
     return plant_fluxmap_obj_accept(&app->fluxmap, data, len);
 }
 
@@ -220,17 +228,23 @@ static void fluxmap_read(void *object, const co_od_entry_t *e)
     plant_fluxmap_obj_publish(&app->fluxmap, &plant_mfr(app->node)->x2008_flux_map);
 }
 
-/* 0x2009: the host's loader loads the FMU the text names (never while running: the step calls it); the model starts
- * from its initial state at the next SYNC. */
+/* 0x2009: the host's loader loads the FMU the text names; the model starts from its initial state at the next
+ * SYNC.  A refused text leaves the plant without an FMU (the loader unloads the one before first). */
 static uint32_t fmu_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
 {
     (void)e;
     plant_app_t *app = (plant_app_t *)object;
-    if (plant_app_running(app)) return CO_ABORT_DATA_STATE;
+    if (!model_object_writable(app)) return CO_ABORT_DATA_STATE;
     if (app->fmu_load == NULL) return CO_ABORT_UNSUPPORTED;
     const plant_external_t *ext = NULL;
     const uint32_t abort = app->fmu_load(data, len, &ext);
-    if (abort != 0u) return abort;
+    if (abort != 0u) {
+        /* the loader let the FMU loaded before go: the plant has no external model any more */
+        app->external = NULL;
+        app->cfg.external = NULL;
+        app->cfg_dirty = true;
+        return abort;
+    }
     app->external = ext;
     app->external_restart = true;
     return 0u;

@@ -11,7 +11,11 @@
  *     increasing, a non-finite value, a flux that falls with its current, a
  *     NULL map; thermal parameters on the linear model (PLANT_ERR_THERMAL);
  *  4. energy: in = copper + magnetic + mechanical on a saturating map
- *     (residual < 1e-6 of the input);
+ *     (residual < 1e-6 of the input).  The magnetic energy is integrated
+ *     from the same derivatives, so this checks that the torque, power and
+ *     flux terms are one consistent model (a wrong factor or sign in one
+ *     fails it), not the integration's accuracy (checks 2 and the host
+ *     test's independent integration do that);
  *  5. the winding's temperature: with a constant current held by its steady
  *     voltage, T settles where T - T_amb = R_th * 1.5 R(T) i^2.
  */

@@ -222,24 +222,41 @@ def test_a_folder_without_its_table_or_description_is_refused(tmp_path: Path) ->
 
 
 def test_a_map_smaller_than_the_trip_level_is_refused(tmp_path: Path) -> None:
-    """The plant must trip before it would extrapolate the map: without a trip level of its own the folder's run
-    trips where the map ends; a scenario's (or the folder's) level beyond it is refused, naming both."""
+    """The plant must trip before it would extrapolate the map; the trip is per phase, so a dq current reaches
+    2/sqrt(3) times it: without a trip level of its own the folder's run trips at sqrt(3)/2 of where the map ends;
+    a scenario's (or the folder's) level beyond that is refused, naming both; a map of one sign is refused."""
+    import json
+
     g = np.linspace(-10.0, 10.0, 5)
     idg, iqg = np.meshgrid(g, g, indexing="ij")
     folder = write_folder(tmp_path / "small", g, g, LD_H * idg + PSI_WB, LQ_H * iqg)
     run = ("run", STEP, "--bus", "direct", "--no-viewer", "--motor", folder)
     bench_cli(*run, "--out", tmp_path / "o1", expect=0)
-    import json
-
-    assert json.loads((tmp_path / "o1" / "summary.json").read_text())["plant"]["I_trip_A"] == 10.0
+    trip = json.loads((tmp_path / "o1" / "summary.json").read_text())["plant"]["I_trip_A"]
+    assert abs(trip - 10.0 * np.sqrt(3) / 2) < 1e-5, trip  # REAL32 in the OD
     res = bench_cli(*run, "--out", tmp_path / "o2", "--set", "drive.I_trip_A=12")
     assert res.returncode != 0 and not (tmp_path / "o2").exists()
-    assert "covers id_A -10 .. 10 A, but the inverter trips only at 12 A" in res.stderr, res.stderr
-    write_folder(tmp_path / "small2", g, g, LD_H * idg + PSI_WB, LQ_H * iqg, I_trip_A=11.0)
+    assert "covers id_A -10 .. 10 A, but with the inverter's trip at 12 A a phase" in res.stderr, res.stderr
+    assert "the dq currents reach +-13.86 A" in res.stderr and "drive.I_trip_A <= 8.66 A" in res.stderr
+    write_folder(tmp_path / "small2", g, g, LD_H * idg + PSI_WB, LQ_H * iqg, I_trip_A=9.0)
     res = bench_cli(
         "run", STEP, "--bus", "direct", "--no-viewer", "--motor", tmp_path / "small2", "--out", tmp_path / "o3"
     )
-    assert res.returncode != 0 and "trips only at 11 A" in res.stderr, res.stderr
+    assert res.returncode != 0 and "trip at 9 A a phase" in res.stderr, res.stderr
+    half = np.linspace(0.0, 10.0, 3)  # a one-quadrant map, as FEA often gives one
+    idh, iqh = np.meshgrid(g, half, indexing="ij")
+    write_folder(tmp_path / "half", g, half, LD_H * idh + PSI_WB, LQ_H * iqh)
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--no-viewer", "--motor", tmp_path / "half", "--out", tmp_path / "o4"
+    )
+    assert res.returncode != 0 and "iq_A 0 .. 10 A: a run's currents take both signs" in res.stderr, res.stderr
+
+
+def test_the_cli_names_every_example() -> None:
+    from bench.cli_motor import EXAMPLE_NAMES
+    from bench.motor.example import EXAMPLES
+
+    assert set(EXAMPLE_NAMES) == set(EXAMPLES)
 
 
 def test_the_ready_sweep_puts_the_identified_L_beside_the_maps_truth(tmp_path: Path) -> None:
