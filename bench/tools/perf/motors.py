@@ -8,15 +8,14 @@ use (example_fmu_args)."""
 
 from __future__ import annotations
 
-import json
+import shutil
 import statistics
 import tempfile
 from pathlib import Path
 from typing import Any
 
 from bench.paths import REPO
-from bench.tools.perf.common import measure
-from bench.tools.perf.pipeline import bench_command
+from bench.tools.perf.pipeline import whole_run
 
 SCENARIO = REPO / "scenarios" / "you2019_step.toml"
 EXAMPLE_MOTOR = REPO / "examples" / "motors" / "saturating_you2019"
@@ -38,31 +37,15 @@ def example_fmu_args(work: Path) -> list[str]:
 
 
 def _one(work: Path, name: str, extra: list[str], periods: int) -> dict[str, Any]:
-    out = work / f"{name}"
-    argv = [
-        *bench_command(),
-        "run",
-        str(SCENARIO.relative_to(REPO)),
-        "--bus",
-        "direct",
-        "--no-viewer",
-        "--set",
-        f"scenario.periods={periods}",
-        *extra,
-        "--out",
-        str(out),
-    ]
-    m = measure(argv, timeout=1800, cwd=REPO).check(f"bench run ({name})")
-    s = json.loads((out / "summary.json").read_text())
-    import shutil
-
+    out = work / name
+    r = whole_run(periods, out, tuple(extra))
     shutil.rmtree(out, ignore_errors=True)
-    t = s["timing"]
+    loop = r["loop_run_wall_s"]
     return {
-        "status": s["status"],
-        "wall_s": m.wall_s,
-        "loop_periods_per_s": t.get("periods_per_s"),
-        "loop_us_per_period": 1e6 * t["run_wall_s"] / periods if t.get("run_wall_s") else None,
+        "status": r["status"],
+        "wall_s": r["wall_s"],
+        "loop_periods_per_s": periods / loop if loop else None,
+        "loop_us_per_period": 1e6 * loop / periods if loop else None,
     }
 
 

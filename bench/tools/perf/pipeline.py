@@ -111,8 +111,8 @@ def _bytes(folder: Path) -> dict[str, int]:
     return {p.name: p.stat().st_size for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def whole_run(periods: int, out: Path) -> dict[str, Any]:
-    """One `bench run ... --bus direct --no-viewer` process to its end (fresh out folder)."""
+def whole_run(periods: int, out: Path, extra: tuple[str, ...] = ()) -> dict[str, Any]:
+    """One `bench run ... --bus direct --no-viewer [extra]` process to its end (fresh out folder)."""
     argv = [
         *bench_command(),
         "run",
@@ -122,6 +122,7 @@ def whole_run(periods: int, out: Path) -> dict[str, Any]:
         "--no-viewer",
         "--set",
         f"scenario.periods={periods}",
+        *extra,
         "--out",
         str(out),
     ]
