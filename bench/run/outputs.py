@@ -287,12 +287,13 @@ def print_result(out: Path, result: Any) -> None:
         "realtime_overrun": _realtime_overrun(s),
         "plant_fault": _plant_fault(s),
     }.get(status, "")
+    at, also = _first_events(s)
     if status == "ok":
         print("status: ok")
     elif result.expected:
-        print(f"status: {status} (expected by the scenario): {why}")
+        print(f"status: {status}{at} (expected by the scenario): {why}{also}")
     else:
-        print(f"status: {status.upper()}: {why} (exit {result.exit_code})")
+        print(f"status: {status.upper()}{at}: {why} (exit {result.exit_code}){also}")
     if status == "ok" and not result.expected:
         print(f"status: the scenario expected {', '.join(s['expect'])} (exit {result.exit_code})")
     print(f"results in {out}/: {', '.join(_files_written(s, out))}")
@@ -409,3 +410,15 @@ def _frames_lost(s: dict[str, Any]) -> str:
     if log.get("truncated_line"):
         parts.append(f"the log is truncated (it ends mid-line at line {log['truncated_line']})")
     return "; ".join(parts) or f"{bs['lost_frames']} frames lost"
+
+
+def _first_events(s: dict[str, Any]) -> tuple[str, str]:
+    """(" at period N" of the status's first event, "; later: ..." the other raised flags with theirs): the
+    status names the event that came first (bench/run/verdict/summary.py verdict)."""
+    first = s.get("status_first_period") or {}
+
+    def at(flag: str) -> str:
+        return "" if first.get(flag) is None else f" at period {first[flag]}"
+
+    others = [f"{k}{at(k)}" for k in first if k != s["status"]]
+    return at(s["status"]), (f"; also raised: {', '.join(others)}" if others else "")

@@ -179,6 +179,7 @@ class Pipeline:
             timing=timing,
             links=links or {},
         )
+        summary["status_first_period"] = watch.first_periods
         if floor is not None and summary.get("realtime"):  # the host's floor probed before the run (direct)
             summary["realtime"]["floor"] = floor
         if faults is not None:

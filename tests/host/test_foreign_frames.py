@@ -319,3 +319,56 @@ def test_a_trace_tpdo_reordered_after_the_next_sync_is_late_not_interference(
     _same_traces(res.trace, res0.trace)
     extra = np.insert(frames, sync[k + 1] + 1, frames[tpdo])  # a copy after SYNC k+1: row k has its own
     assert _decode(extra).summary["bus_stats"]["interference"]["by_cob_id"] == {"0x4A0": 1}
+
+
+# ---------------------------------------------------------------------------------------- the teardown
+
+
+def _emcy(code: int, node: int, t_us: int) -> np.ndarray:
+    f = np.zeros(1, dtype=FRAME_DTYPE)
+    f["cob_id"], f["dlc"], f["t_us"], f["sender"] = 0x080 + node, 8, t_us, 255
+    f["data"][0, :3] = [code & 0xFF, code >> 8, 0x11]
+    return f
+
+
+def _teardown_at(frames: np.ndarray) -> int:
+    """The master's NMT Stop that ends the run (CiA 301 command 0x02), to the plant first."""
+    nmt = np.flatnonzero((frames["cob_id"] == 0) & (frames["dlc"] == 2) & (frames["data"][:, 0] == 0x02))
+    assert len(nmt) == 2, "a run ends with NMT Stop to each of its two nodes"
+    assert frames["data"][nmt[0], 1] == PLANT and frames["data"][nmt[1], 1] == DRIVE
+    return int(nmt[0])
+
+
+def test_an_alarm_of_the_teardown_is_not_the_runs(clean: tuple[RunResult, np.ndarray]) -> None:
+    """The race of issue 52: the plant's process stopped first, the drive outlives its heartbeat-consumer time
+    and sends EMCY 0x8130 (then its safe state's 0xFF04). After the teardown's NMT Stop it is listed apart, with how
+    long after the stop it came, and changes neither the run's EMCYs nor its status nor its traces."""
+    ref, frames = clean
+    at = _teardown_at(frames)
+    t = int(frames["t_us"][-1])
+    late = np.concatenate([_emcy(0x8130, DRIVE, t + 1_000_000), _emcy(0xFF04, DRIVE, t + 1_000_100)])
+    res = _decode(np.concatenate([frames, late]))
+    assert res.status == "ok" and res.summary["emcy"] == []
+    td = res.summary["teardown"]
+    assert [(e["node"], e["code"], e["period"]) for e in td["emcy"]] == [
+        ("drive", "0x8130", None),
+        ("drive", "0xFF04", None),
+    ]
+    assert td["emcy"][0]["after_stop_s"] == pytest.approx((t + 1_000_000 - int(frames["t_us"][at])) / 1e6)
+    assert td["frames"] == len(frames) - at + 2
+    _same_traces(res.trace, ref.trace)
+
+
+def test_an_alarm_in_the_run_is_still_the_runs(clean: tuple[RunResult, np.ndarray]) -> None:
+    """The same EMCY before the teardown (mid-run, and between the loop's end and the NMT Stop) is the run's,
+    with its period: the teardown's cut takes nothing from the run."""
+    ref, frames = clean
+    lo, hi = _loop_span(frames)
+    at = _teardown_at(frames)
+    mid = lo + (hi - lo) // 2
+    spliced = np.insert(frames, [mid, at], np.concatenate([_emcy(0x8130, DRIVE, 0), _emcy(0x8130, PLANT, 0)]))
+    res = _decode(spliced)
+    got = [(e["node"], e["code"]) for e in res.summary["emcy"]]
+    assert got == [("drive", "0x8130"), ("plant", "0x8130")]
+    assert 0 < res.summary["emcy"][0]["period"] < res.summary["emcy"][1]["period"] == ref.summary["periods"] - 1
+    assert res.summary["teardown"]["emcy"] == []

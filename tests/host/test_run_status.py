@@ -4,6 +4,7 @@ that arrived is never counted as a lost frame."""
 
 from __future__ import annotations
 
+import json
 import struct
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,8 @@ from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.run.pipeline import Pipeline
 from bench.run.sinks import FrameCollector
-from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET
+from bench.run.verdict.summary import EXIT_CODES, EXIT_EXPECTATION_NOT_MET, verdict
+from bench.run.verdict.watch import swing_seen_from
 from bench.scenario import ScenarioError, load, parse
 
 STEP = REPO / "scenarios" / "you2019_step.toml"
@@ -111,6 +113,10 @@ def test_cli_exit_code_is_the_status(tmp_path: Path) -> None:
         "run", STEP, "--bus", "direct", "--no-viewer", "--out", tmp_path / "r", "--set", "drive.I_trip_A=0.5", expect=3
     )
     assert "TRIPPED" in res.stdout and (tmp_path / "r" / "summary.json").exists()
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    # the console line names the first event and its period
+    assert f"status: TRIPPED at period {s['first_trip_period']}: " in res.stdout, res.stdout
+    assert s["status_first_period"]["tripped"] == s["first_trip_period"]
 
 
 def test_runaway_without_voltage_limit_trips_by_default_and_diverges_without_trip() -> None:
@@ -155,3 +161,18 @@ def test_stopped_at_period_is_the_last_period_on_the_bus() -> None:
     again = pipe.finish("t", "vcan0", stopped=stale)
     assert again.status == "node_lost" and again.summary["periods"] == last + 1
     assert again.summary["stopped"]["at_period"] == last, again.summary["stopped"]
+
+
+def test_a_trip_followed_by_swings_is_tripped() -> None:
+    """Statuses name the first cause (issue 52): a flux-map run tripped at period 370 and then swung until its
+    window ended; the swing is measured over the window's last fifth, after the trip, and is the trip's doing."""
+    step = {"at_period": 20, "window_periods": 480, "periods_to_settle": None}
+    assert swing_seen_from([step], [20], 370) == 404  # 20 + 480 - 96: the measured fifth's first period
+    flags = {"tripped": True, "diverged": True}
+    assert verdict(flags, ("ok",), {"tripped": 370, "diverged": 404})[:2] == ("tripped", EXIT_CODES["tripped"])
+    # no trip, or one inside the measured fifth (the swing was there before it): the oscillation from its step
+    assert swing_seen_from([step], [20], None) == 20 and swing_seen_from([step], [20], 450) == 20
+    assert verdict(flags, ("ok",), {"tripped": 450, "diverged": 20})[0] == "diverged"
+    # a settled step, or one that does not oscillate, gives no period
+    assert swing_seen_from([{**step, "periods_to_settle": 3}], [20], None) is None
+    assert swing_seen_from([step], [], None) is None

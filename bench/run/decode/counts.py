@@ -26,6 +26,7 @@ class DecodeStats:
     first_interference_period: int | None = None
     first_lost_period: int | None = None  # the first period with a missing frame, a gap or a misaligned sample
     after_loop_frames: int = 0
+    teardown_frames: int = 0  # from the master's NMT Stop that ends the run on (decoder.py: never judged)
     sync_counter_gaps: int = 0
     sample_index_mismatches: int = 0
     pdos: dict[int, PdoStats] = field(default_factory=dict)

@@ -20,6 +20,12 @@ period, or a foreign SYNC inside the loop, is interference (the nodes may have a
 run's status says so). What comes after the plant's final hold announcement is after the loop:
 counted, never judged.
 
+The teardown: the master ends every run with NMT Stop to its nodes (bench/run/loop/session.py). From that
+command on, every frame is the teardown's: counted (DecodeStats.teardown_frames) and its EMCYs listed apart
+(Decoder.teardown_emcy, summary.json "teardown"), never a row, an EMCY of the run or a cause of its status.
+A node stopped while the other still runs may miss its heartbeats (its consumer fires after 1 s), and an alarm
+of the teardown is not one of the run.
+
 Profiles: "hil" (the default) is the above, the project's plant and drive. "cia402" is the bench as the
 CiA 402 master of a drive (`bench run --drive-profile cia402`): no plant node, no lockstep; the bench
 produces SYNC as the drive's 0x1005/0x1019 say and every such SYNC from the first one starts a period; the
@@ -32,6 +38,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from canopen.nmt import NMT_COMMANDS
 
 from bench.eds import default_node_id
 from bench.run.bus.frames import FRAME_DTYPE
@@ -46,6 +53,8 @@ __all__ = ["DecodeStats", "Decoder", "PdoStats", "Profile", "layout_from_sdo"]
 
 Profile = Literal["hil", "cia402"]
 KIND_FOREIGN, KIND_KNOWN, KIND_EMCY = 0, 1, 2  # what an identifier is to the run
+# the master's command that begins a run's teardown (CiA 301 NMT Stop: a STOPPED node sends no PDO and no EMCY)
+TEARDOWN_NMT = NMT_COMMANDS["STOPPED"]
 
 
 class Decoder:
@@ -84,6 +93,8 @@ class Decoder:
         self._known: np.ndarray = self._base_known()
         self._kind = self._kinds()
         self.emcy: list[dict[str, object]] = []
+        self.teardown_emcy: list[dict[str, object]] = []  # EMCYs after the teardown's NMT Stop: not the run's
+        self.teardown_from_us: int | None = None  # the time stamp of the teardown's NMT Stop, once seen
 
     def _base_known(self) -> np.ndarray:
         """Identifiers a run uses outside its PDOs: NMT, SYNC, EMCY, SDO, heartbeats of the nodes."""
@@ -146,6 +157,36 @@ class Decoder:
         if len(frames) == 0:
             return None
         self.stats.frames += len(frames)
+        if self.teardown_from_us is None:
+            cut = teardown_start(frames)
+            if cut is None:
+                return self._feed(frames, last)
+            self.teardown_from_us = int(frames["t_us"][cut])
+            rows = self._feed(frames[:cut], last) if cut else None
+            frames = frames[cut:]
+        else:
+            rows = None
+        self._teardown(frames)
+        return rows
+
+    def _teardown(self, frames: np.ndarray) -> None:
+        """Frames of the teardown: counted, their EMCYs listed apart, each with how long after the NMT Stop it
+        came (no period: the run's periods have ended)."""
+        self.stats.teardown_frames += len(frames)
+        cob = frames["cob_id"] & 0x7FF
+        self._count_foreign(cob, self._kind[cob])  # the bus's foreign traffic, wherever it comes
+        hit = np.flatnonzero(self._kind[cob] == KIND_EMCY)
+        hit = hit[frames["dlc"][hit] == 8][: max(0, 1000 - len(self.teardown_emcy))]
+        if len(hit) == 0:
+            return
+        after_s = (frames["t_us"][hit].astype(np.int64) - (self.teardown_from_us or 0)) / 1e6
+        zero = np.zeros(len(frames), dtype=np.int64)
+        for e, dt in zip(emcy_records(frames, zero, hit, self._names(), len(hit)), after_s.tolist(), strict=True):
+            self.teardown_emcy.append({**e, "period": None, "after_stop_s": dt})
+
+    def _feed(self, frames: np.ndarray, last: bool) -> dict[str, np.ndarray] | None:
+        if len(frames) == 0:
+            return None
         buf = np.concatenate([self._carry, frames]) if len(self._carry) else frames
         new_from = len(self._carry)
         if self.layout is None:
@@ -268,32 +309,51 @@ class Decoder:
         kind = self._kind[cob]  # one lookup for both
         if (kind == KIND_EMCY).any():
             self._emcy(frames, periods, np.flatnonzero(kind == KIND_EMCY))
+        self._count_foreign(cob, kind)
+
+    def _count_foreign(self, cob: np.ndarray, kind: np.ndarray) -> None:
         foreign = kind == KIND_FOREIGN
         if foreign.any():
             ids, n = np.unique(cob[foreign], return_counts=True)
             for i, c in zip(ids.tolist(), n.tolist(), strict=True):
                 self.stats.foreign[i] = self.stats.foreign.get(i, 0) + c
 
+    def _names(self) -> dict[int, str]:
+        return {0x080 + nid: node.name for nid, node in self.sdo.nodes.items()}
+
     def _emcy(self, frames: np.ndarray, periods: np.ndarray, hit: np.ndarray) -> None:
         """EMCY frames of the nodes (CiA 301: code, error register, 5 bytes manufacturer-specific)."""
-        if len(self.emcy) >= 1000:
-            return
-        names = {0x080 + nid: node.name for nid, node in self.sdo.nodes.items()}
-        cob = frames["cob_id"]
-        hit = hit[frames["dlc"][hit] == 8]
-        for i in hit[: 1000 - len(self.emcy)].tolist():
-            d = bytes(frames["data"][i])
-            self.emcy.append(
-                {
-                    "period": max(0, int(periods[i])),
-                    "node": names[int(cob[i])],
-                    "code": f"0x{int.from_bytes(d[:2], 'little'):04X}",
-                    "error_register": d[2],
-                    "data": d[3:8].hex(),
-                }
-            )
+        if len(self.emcy) < 1000:
+            self.emcy.extend(emcy_records(frames, periods, hit, self._names(), 1000 - len(self.emcy)))
 
     def _follow_sdo(self, frames: np.ndarray, periods: np.ndarray) -> None:
         m = self.sdo.mask(frames)
         if m.any():
             self.sdo.feed(frames[m], periods[m])
+
+
+def teardown_start(frames: np.ndarray) -> int | None:
+    """The index of the master's NMT Stop (to one node or to all) in these frames, the teardown's first frame."""
+    hit = np.flatnonzero((frames["cob_id"] == 0) & (frames["dlc"] == 2) & (frames["data"][:, 0] == TEARDOWN_NMT))
+    return int(hit[0]) if len(hit) else None
+
+
+def emcy_records(
+    frames: np.ndarray, periods: np.ndarray, hit: np.ndarray, names: dict[int, str], room: int
+) -> list[dict[str, object]]:
+    """EMCY frames of the nodes (CiA 301: code, error register, 5 bytes manufacturer-specific), at most `room`."""
+    cob = frames["cob_id"]
+    hit = hit[frames["dlc"][hit] == 8]
+    out: list[dict[str, object]] = []
+    for i in hit[: max(0, room)].tolist():
+        d = bytes(frames["data"][i])
+        out.append(
+            {
+                "period": max(0, int(periods[i])),
+                "node": names[int(cob[i])],
+                "code": f"0x{int.from_bytes(d[:2], 'little'):04X}",
+                "error_register": d[2],
+                "data": d[3:8].hex(),
+            }
+        )
+    return out

@@ -4,7 +4,7 @@ same over SocketCAN (vcan0, can0) and in direct mode (in-process).
 Sequence: node processes up -> NMT reset -> configuration by SDO from the EDS names (preset,
 model, controller with its mismatch, PDO wiring, trace PDOs) -> NMT start -> run the periods
 between events in lockstep ("run N periods then hold" object of the plant), applying each
-event's SDO writes at its exact period -> read the statuses -> NMT pre-operational. Every
+event's SDO writes at its exact period -> read the statuses -> NMT Stop (the teardown). Every
 frame of it is on the bus, where the recorder (bench/run/record/sources.py) takes it: the session
 returns nothing the frames do not also say (bench/run/decode/sdo_log.py reads it back from them).
 
@@ -96,9 +96,14 @@ class Session(SessionBus):
             self.liveness.disarm()
             self.liveness.close()
         try:
+            # The teardown begins with NMT Stop to both nodes, before any process is stopped: a STOPPED node
+            # sends no PDO and no EMCY (CiA 301), so a drive that outlives the plant's heartbeat by more than its
+            # consumer time (a loaded host stops the processes one after the other) raises no alarm; and the
+            # decoder takes every frame from this command on as the teardown's, never the run's
+            # (bench/run/decode/decoder.py TEARDOWN_NMT), whatever a slow node still sends.
             for n in (self.plant, self.drive):
                 try:
-                    n.nmt.send_command(0x80)
+                    n.nmt.state = "STOPPED"  # python canopen's NMT table: the command 0x02
                 except Exception:  # noqa: BLE001 - shutting down whatever happened
                     pass
         finally:

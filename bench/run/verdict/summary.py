@@ -232,6 +232,8 @@ def build_summary(
         "status_flags": flags,
         "stopped": stopped,
         "emcy": dec.emcy[:100],
+        # from the master's NMT Stop that ends the run on: its frames and EMCYs, never judged (decoder.py)
+        "teardown": {"frames": dec.stats.teardown_frames, "emcy": dec.teardown_emcy[:100]},
         "first_trip_period": first_trip_period,
         "first_non_finite_period": dec.stats.first_non_finite_period,
         "oscillating_steps": oscillating,

@@ -35,6 +35,7 @@ class LoopWatch:
         self.timing = realtime.BusTiming()  # a real-time run's SYNC and command time stamps per period
         # the overview's timing series of a real-time run (realtime.envelopes), set by judge()
         self.timing_envelopes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.first_periods: dict[str, int | None] = {}  # each raised status flag's first period (judge)
 
     def begin(self, dec: Decoder) -> None:
         self.bound_A = divergence_bound_A(plant_values(dec))  # the plant as configured
@@ -108,7 +109,7 @@ class LoopWatch:
             "tripped": self.first_trip_period,
             "diverged": self.first_beyond_bound_period
             if self.first_beyond_bound_period is not None
-            else (oscillating[0] if oscillating else None),
+            else swing_seen_from(steps, oscillating, self.first_trip_period),
             "interference": bstats["interference"]["first_period"],
             "frames_lost": dec.stats.first_lost_period,
         }
@@ -119,6 +120,8 @@ class LoopWatch:
             at = stopped.get("at_period")
             first[stopped["status"]] = at if at is not None else dec.stats.periods
         status, code, expected = verdict(flags, expect, first)
+        # each raised flag's first period (summary.json "status_first_period"): the status is the earliest
+        self.first_periods = {k: first.get(k) for k, v in flags.items() if v}
         return status, code, expected, flags, oscillating
 
     def _realtime(self, dec: Decoder) -> dict[str, Any] | None:
@@ -134,3 +137,18 @@ class LoopWatch:
         assert rt is not None
         self.timing_envelopes = realtime.envelopes(pp, rt["plant"])
         return rt
+
+
+def swing_seen_from(steps: list[dict[str, Any]], oscillating: list[int], trip: int | None) -> int | None:
+    """The period an oscillation counts from in the order of events: its step's period (an unstable loop swings
+    from its step on), unless the plant tripped inside the step's window before the last fifth of it where the
+    swing is measured (stats.StepTracker): after a trip the inverter no longer applies the loop's command, and
+    the swing seen then is the trip's doing; it counts from that fifth's first period. So a trip at period 370
+    followed by swings is "tripped", with "diverged" in the flags."""
+    seen = []
+    for s in steps:
+        if s["at_period"] not in oscillating or s["periods_to_settle"] is not None:
+            continue
+        tail = s["at_period"] + s["window_periods"] - max(1, s["window_periods"] // 5)
+        seen.append(tail if trip is not None and s["at_period"] <= trip < tail else s["at_period"])
+    return min(seen) if seen else None
