@@ -125,7 +125,7 @@ NODE_BINS   := $(if $(wildcard plant_rt/node/*.c),$(BUILD)/bin/plant_node) \
                $(if $(wildcard firmware_shim/shim/*.c),$(BUILD)/bin/drive_node) $(BUILD)/bin/fault_gateway
 SHLIB       := $(if $(PLANT_SRC)$(FW_SRC),$(BUILD)/libhil.so)
 
-.PHONY: all clean demo test setup fuzz format mcu sanitize law package
+.PHONY: all clean demo test setup fuzz format mcu sanitize law package soak
 
 # The drive firmware as a bare-metal Cortex-M4F image (QEMU mps2-an386; docs/PORTING.md):
 # the portable CANopen slave, drive app and cores, the port layer (firmware_shim/port)
@@ -197,6 +197,12 @@ demo: setup
 
 test: setup
 	@bash scripts/run_tests.sh
+
+# The soak (docs/CI.md): the comparing vcan tests in a loop under busy loops, counting false verdicts.
+# make soak SOAK_ARGS="--rounds 5 --tests 30 --suite 3"
+SOAK_ARGS ?=
+soak: setup
+	@.venv/bin/python scripts/soak.py $(SOAK_ARGS)
 
 # The hand-written C (protocols/generated is gen_od.py's: its .clang-format turns formatting off).
 STYLE_C = $(shell find firmware_shim plant_rt protocols bench/direct -name '*.[ch]' -not -path 'protocols/generated/*')

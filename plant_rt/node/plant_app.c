@@ -165,6 +165,13 @@ static void hook_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
     take_command(app, plant_timing_actuated(&app->timing, node, pdo, timed(app), app->k));
 }
 
+static void hook_on_rpdo_received(void *user, co_node_t *node, uint8_t pdo)
+{
+    plant_app_t *app = user_app(user, node);
+    const co_pdo_t *p = &node->rpdo[pdo];
+    if (p == plant_timing_cmd_rpdo(node)) take_command(app, plant_timing_received(&app->timing, p, timed(app), app->k));
+}
+
 static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
 {
     plant_app_t *app = user_app(user, node);
@@ -261,6 +268,7 @@ static const co_hooks_t k_hooks = {
     .bind = hook_bind,
     .on_sync = hook_on_sync,
     .on_rpdo = hook_on_rpdo,
+    .on_rpdo_received = hook_on_rpdo_received,
     .on_nmt = hook_on_nmt,
     .on_reset = hook_on_reset,
     .on_hb_timeout = hook_on_hb_timeout,

@@ -101,13 +101,18 @@ static bool seen(const plant_timing_t *t, const co_pdo_t *p)
     return t->cmd_seen && p->last_rx_us == t->cmd_seen_rx_us;
 }
 
+plant_cmd_t plant_timing_received(plant_timing_t *t, const co_pdo_t *p, bool timed, uint64_t k)
+{
+    t->cmd_seen = true;
+    t->cmd_seen_rx_us = p->last_rx_us;
+    return plant_timing_arrival(t, p->last_rx_us, timed, k);
+}
+
 plant_cmd_t plant_timing_scan(plant_timing_t *t, const co_node_t *node, bool timed, uint64_t k)
 {
     const co_pdo_t *p = plant_timing_cmd_rpdo(node);
     if (!p || !p->rx_buffered || seen(t, p)) return PLANT_CMD_NONE;
-    t->cmd_seen = true;
-    t->cmd_seen_rx_us = p->last_rx_us;
-    return plant_timing_arrival(t, p->last_rx_us, timed, k);
+    return plant_timing_received(t, p, timed, k);
 }
 
 plant_cmd_t plant_timing_actuated(plant_timing_t *t, const co_node_t *node, uint8_t pdo, bool timed, uint64_t k)

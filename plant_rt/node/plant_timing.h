@@ -73,6 +73,11 @@ void plant_timing_publish(const plant_timing_t *t, od_plant_realtime_timing_t *f
 const co_pdo_t *plant_timing_cmd_rpdo(const co_node_t *node);
 /* A command frame was received at t_us: on time, or one of a missed period (late). */
 plant_cmd_t plant_timing_arrival(plant_timing_t *t, int64_t t_us, bool timed, uint64_t k);
+/* The command RPDO `p` received a frame (the node's on_rpdo_received hook, each frame when it came): taken as
+ * arrival() takes it. A drive late by several periods sends their commands in a burst, each of which overwrites
+ * the synchronous RPDO's buffer before the SYNC: every one of them is counted (a late one pays off what is owed),
+ * so the last is the current period's and the plant's hold at the end of a segment is announced. */
+plant_cmd_t plant_timing_received(plant_timing_t *t, const co_pdo_t *p, bool timed, uint64_t k);
 /* A command frame in the command RPDO's receive buffer not accounted for yet: taken as arrival() takes it. */
 plant_cmd_t plant_timing_scan(plant_timing_t *t, const co_node_t *node, bool timed, uint64_t k);
 /* The synchronous RPDO `pdo` was actuated at this SYNC: its frame is taken if scan() did not see it yet. */

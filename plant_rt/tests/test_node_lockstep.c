@@ -254,11 +254,41 @@ static void test_realtime_overrun_before_a_late_sync(void)
     printf("real time: a command 5 us after its deadline, before a SYNC 20 us late: applied, 1 overrun, 0 missed\n");
 }
 
+/* Real time: a drive late by several periods sends their commands in a burst, which reaches the plant before it
+ * looks (the CAN box under load, issue 52). Each is counted, the owed ones late, the last the current period's, so
+ * the hold at the segment's end is announced; counting only the frame left in the RPDO's buffer took the burst for
+ * one late command, the plant waited for one that had come, and the loop stalled with both nodes alive. */
+static void test_realtime_burst_of_late_commands(void)
+{
+    tb_t *tb = &g_tb;
+    tb_init(tb);
+    tb_w_u8(tb, 0x2003, OD_PLANT_RUN_CONTROL_MODE_SUB, 1);
+    tb_w_u32(tb, 0x2003, OD_PLANT_RUN_CONTROL_RUN_PERIODS_SUB, 4);
+    tb_nmt(tb, 0x01u);
+    const int64_t Ts = 55;
+    for (int j = 0; j < 4; ++j) { /* SYNCs 0..3 at their deadlines, no command: periods 0, 1, 2 missed */
+        tb->bus.now_us = 1000 + j * Ts;
+        plant_app_realtime_tick(&tb->app, tb->bus.now_us, 0);
+        tb_deliver(tb);
+    }
+    CHECK(tb->n_sync == 4 && RC.missed_commands == 3 && RC.state == 1u, "SYNCs %u missed %u state %u",
+          (unsigned)tb->n_sync, (unsigned)RC.missed_commands, (unsigned)RC.state);
+    tb->bus.now_us += 20;
+    for (int j = 0; j < 4; ++j) tb_cmd(tb, 1.0f + (float)j, 0.0f); /* the commands of periods 0..3 at once */
+    tb_poll(tb);
+    CHECK(RC.late_commands == 3, "late %u (the three owed)", (unsigned)RC.late_commands);
+    CHECK(RC.state == 0u && RC.period_index == 3u, "the hold announced: state %u at period %u", (unsigned)RC.state,
+          (unsigned)RC.period_index);
+    printf("real time, a burst of 4 commands after 3 missed periods: %u late, the hold announced at period %u\n",
+           (unsigned)RC.late_commands, (unsigned)RC.period_index);
+}
+
 int main(void)
 {
     test_holds_and_timeout();
     test_run_periods();
     test_realtime_tick();
     test_realtime_overrun_before_a_late_sync();
+    test_realtime_burst_of_late_commands();
     return check_finish("test_node_lockstep");
 }

@@ -99,6 +99,12 @@ static void service_on_rpdo(void *ctx, uint8_t pdo)
     if (node->hooks.on_rpdo) node->hooks.on_rpdo(node->user, node, pdo);
 }
 
+static void service_on_rpdo_rx(void *ctx, uint8_t pdo)
+{
+    co_node_t *node = (co_node_t *)ctx;
+    if (node->hooks.on_rpdo_received) node->hooks.on_rpdo_received(node->user, node, pdo);
+}
+
 static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data, uint32_t len);
 
 void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn tx, void *tx_user,
@@ -117,6 +123,7 @@ void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn 
     node->pdo_env.emcy = &node->emcy;
     node->pdo_env.ext_of = service_ext_of;
     node->pdo_env.on_rpdo = service_on_rpdo;
+    node->pdo_env.on_rpdo_rx = service_on_rpdo_rx;
     node->pdo_env.ctx = node;
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
         co_rpdo_init(&node->rpdo[i], i, &node->pdo_env);

@@ -52,6 +52,9 @@ typedef struct {
     void (*on_sync)(void *user, co_node_t *node, uint8_t counter);
     /* An RPDO wrote the OD (event-driven types at reception, synchronous ones at the SYNC). */
     void (*on_rpdo)(void *user, co_node_t *node, uint8_t pdo);
+    /* An RPDO frame was received and accepted (each frame, when it came; a synchronous one is then buffered, and a
+     * second before the SYNC replaces the first: this tells the owner of every arrival). */
+    void (*on_rpdo_received)(void *user, co_node_t *node, uint8_t pdo);
     /* NMT state changed. */
     void (*on_nmt)(void *user, co_node_t *node, co_nmt_state_t state);
     /* The OD was restored to its defaults (reset node: communication_only = 0). */

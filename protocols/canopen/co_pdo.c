@@ -242,6 +242,12 @@ static void notify_rpdo(const co_pdo_t *p)
     if (env->on_rpdo) env->on_rpdo(env->ctx, p->link.number);
 }
 
+static void notify_rx(const co_pdo_t *p)
+{
+    const co_pdo_env_t *env = p->link.env;
+    if (env->on_rpdo_rx) env->on_rpdo_rx(env->ctx, p->link.number);
+}
+
 void co_rpdo_receive(co_pdo_t *p, const co_frame_t *frame, int64_t now_us)
 {
     uint16_t id = (uint16_t)(frame->cob_id & 0x7FFu);
@@ -268,8 +274,10 @@ void co_rpdo_receive(co_pdo_t *p, const co_frame_t *frame, int64_t now_us)
     if (p->trans_type <= 240u) {
         memcpy(p->rx_buf, frame->data, p->bytes); /* actuated at the next SYNC */
         p->rx_buffered = true;
+        notify_rx(p); /* each frame, also of a burst that overwrites the buffer before the SYNC */
     } else {
         store_mapped(p, frame->data);
+        notify_rx(p);
         notify_rpdo(p);
     }
 }

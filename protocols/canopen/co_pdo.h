@@ -27,6 +27,7 @@ typedef struct {
     /* The owner's callbacks (optional), given ctx back. */
     co_od_ext_t *(*ext_of)(void *ctx, uint16_t index); /* the object's binding (co_od.h), or NULL */
     void (*on_rpdo)(void *ctx, uint8_t pdo);           /* an RPDO wrote the OD */
+    void (*on_rpdo_rx)(void *ctx, uint8_t pdo);        /* an RPDO frame was accepted (each one, when it came) */
     void *ctx;
 } co_pdo_env_t;
 

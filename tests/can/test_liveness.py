@@ -69,10 +69,14 @@ def test_lockstep_under_cpu_load_is_bit_identical(vcan0: str, tmp_path: Path) ->
         for h in hogs:
             h.kill()
             h.wait()
-    for res in (quiet, loaded):
-        assert res.status == "ok", (res.summary["stopped"], res.summary["bus_stats"])
-        assert res.summary["bus_stats"]["lost_frames"] == 0
-        assert res.counters["plant_missed_commands"] == 0 and res.counters["plant_late_commands"] == 0
+    for name, res in (("quiet", quiet), ("loaded", loaded)):
+        s = res.summary
+        # what a failure needs to be explained (it once failed under load with its message lost): the first
+        # cause and its period, the stop, the EMCYs, the lost frames by kind, the run's folder
+        why = (name, s["status"], s["status_first_period"], s["stopped"], s["emcy"][:5], str(tmp_path / name))
+        assert res.status == "ok", why
+        assert s["bus_stats"]["lost_frames"] == 0, (why, {k: v for k, v in s["bus_stats"].items() if "missing" in k})
+        assert res.counters["plant_missed_commands"] == 0 and res.counters["plant_late_commands"] == 0, why
     assert direct.trace is not None and quiet.trace is not None and loaded.trace is not None
     _same(loaded.trace, quiet.trace)
     _same(loaded.trace, direct.trace)

@@ -8,6 +8,7 @@ the timing histograms readable by SDO."""
 from __future__ import annotations
 
 import struct
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ TS_S = 10e-3
 PERIODS = 150
 
 
-def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
+def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str, tmp_path: Path) -> None:
     # In real time a command that misses its period is late or lost (counted below): the run may end
     # realtime_overrun (the plant counted it) or frames_lost in a VM, which cannot pace sub-ms work reliably.
     raw = {
@@ -43,9 +44,12 @@ def test_realtime_mode_paces_sync_and_counts_lateness(vcan0: str) -> None:
         },
         "events": [{"at_period": 50, "references": {"iq_ref_A": 1.0}}],
     }
-    run = run_raw(raw, vcan0, keep_frames=True)
+    run = run_raw(raw, vcan0, out=tmp_path / "run", keep_frames=True)  # its log and summary kept for a failure
     frames = run.frames
     assert frames is not None
+    s = run.result.summary
+    why = (s["status"], s["status_first_period"], s["bus_stats"]["interference"], s["emcy"][:5], str(tmp_path))
+    assert run.result.expected, why
     sync_t = frames["t_us"][frames["cob_id"] == 0x080].astype(float) * 1e-6
     assert len(sync_t) == PERIODS
     # SYNC k+1 - SYNC k: paced by clock_nanosleep(TIMER_ABSTIME), not by the loop's speed

@@ -159,7 +159,8 @@ def _restamped(f: np.ndarray, layout: Any) -> np.ndarray:
 
 
 def _plant_report(f: np.ndarray, values: dict[str, float]) -> np.ndarray:
-    """The plant's timing record read by SDO after the loop (expedited uploads), as the master does."""
+    """The plant's timing record read by SDO after the loop (expedited uploads), as the master does: before its
+    teardown."""
     rec = load("plant")["Realtime timing"]
     plant = default_node_id("plant")
     extra = np.zeros(2 * len(values), dtype=f.dtype)
@@ -171,8 +172,11 @@ def _plant_report(f: np.ndarray, values: dict[str, float]) -> np.ndarray:
         extra[2 * j]["data"] = [0x40, *head, 0, 0, 0, 0]
         extra[2 * j + 1]["data"] = [0x43, *head, *payload]
     extra["dlc"] = 8
-    extra["t_us"] = int(f["t_us"][-1]) + 1 + np.arange(len(extra))
-    return np.concatenate([f, extra])
+    # before the run's teardown (the master's NMT Stop: what follows it is not the run's), after the rest
+    stop = np.flatnonzero((f["cob_id"] == 0) & (f["dlc"] == 2) & (f["data"][:, 0] == 0x02))
+    at = int(stop[0]) if len(stop) else len(f)
+    extra["t_us"] = int(f["t_us"][at - 1]) + np.arange(len(extra))
+    return np.insert(f, at, extra)
 
 
 def _decode(f: np.ndarray, expect: tuple[str, ...] = ("ok",), chunk: int = 337) -> RunResult:

@@ -39,7 +39,7 @@ def test_a_log_cut_mid_line_is_said_truncated(tmp_path: Path, log_text: bytes) -
     assert res.returncode != 0  # the run the log records is not all there
     said = res.stdout + res.stderr
     assert "TRUNCATED" in said and f"line {line}" in said, said
-    assert re.search(rf"status: FRAMES_LOST: .*truncated .*line {line}", res.stdout), res.stdout
+    assert re.search(rf"status: FRAMES_LOST at period \d+: .*truncated .*line {line}", res.stdout), res.stdout
     log = json.loads((out / "summary.json").read_text())["log"]
     assert log["truncated_line"] == line and log["truncated_line_dropped"] is True
     assert log["unparsable_lines"] == 0 and log["frames_skipped"] == 0

@@ -225,6 +225,11 @@ class Rows:
         drop = np.zeros_like(dup)
         if shift:
             per, dup, drop = _late_to_free_row(per, dup & ~lost, r0, late.realtime)
+            if late.realtime:
+                # real time: a drive late for its SYNCs answers them in a burst, its trace TPDOs before or after
+                # its commands as its steps ran (a TCG-emulated box under load: 2-4 periods at once); those no free
+                # row takes are its own frames, late (the period's value is not known: lost), not interference
+                lost |= dup
             dup |= lost
         st.interfere(pdo.cob_id, per[dup & ~lost])
         st.lost(per[lost])

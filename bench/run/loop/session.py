@@ -38,6 +38,8 @@ from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
 
 PROGRESS = Callable[[int, int], None]
+BOOT_S = 10.0  # the nodes' boot-up messages after the NMT reset: the wait for a node that is not ours
+BOOT_ALIVE_S = 120.0  # ... and for nodes whose processes this run started, while they are all alive
 
 
 class Session(SessionBus):
@@ -141,18 +143,30 @@ class Session(SessionBus):
 
         for n in (self.plant, self.drive):
             self.net.subscribe(0x700 + n.id, on_boot)
-        deadline = time.monotonic() + 10
         # Nodes just started announce themselves; a reset node announces again.
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x81)
-        all_booted.wait(timeout=max(0.0, deadline - time.monotonic()))
+        self._wait_booted(all_booted, booted)
         for n in (self.plant, self.drive):
             self.net.unsubscribe(0x700 + n.id, on_boot)
             if not booted.get(n.id):
+                ended = [f"the {name}'s process ended" for name, p in self.node_procs.items() if not p.alive()]
                 raise RuntimeError(
                     f"node 0x{n.id:02X} did not answer the NMT reset with a boot-up message "
-                    f"(is it on bus {self.opts.bus}?)"
+                    f"({'; '.join(ended) or f'is it on bus {self.opts.bus}?'})"
                 )
+
+    def _wait_booted(self, all_booted: threading.Event, booted: dict[int, bool]) -> None:
+        """BOOT_S for the boot-up messages; longer, up to BOOT_ALIVE_S, while each node still silent is one whose
+        process this run started and which still runs (a loaded host, the CAN box under load: a node process once
+        took over 10 s to start there). A node of no process of ours (a physical one, --no-plant) gets BOOT_S."""
+        ours = {self.plant.id: self.node_procs.get("plant"), self.drive.id: self.node_procs.get("drive")}
+        t0 = time.monotonic()
+        while not all_booted.wait(timeout=0.2):
+            waited = time.monotonic() - t0
+            silent = [ours[n] for n in ours if not booted.get(n)]
+            if waited > BOOT_ALIVE_S or (waited > BOOT_S and not all(p is not None and p.alive() for p in silent)):
+                return
 
     # ---------------------------------------------------------------- run
     def _run_segment(self, n: int, target_index: int, tick: Callable[[], None] | None) -> None:
