@@ -42,6 +42,10 @@ def _cmd_check(args: argparse.Namespace) -> int:
         print(f"  incremental {name[:3]} over the map: {v.min() * 1e3:.4g} .. {v.max() * 1e3:.4g} mH")
     extra = ", ".join(f"{k} = {v:g}" for k, v in m.values.items())
     print(f"  plant values: {extra}")
+    from bench.motor.trip import describe
+
+    for line in describe(m):
+        print(f"  {line}")
     return 0
 
 

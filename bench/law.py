@@ -18,6 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from bench.law_upgrade import explain
 from bench.root import REPO, STATE  # not bench.paths: it reads BENCH_BUILD_DIR once, at import
 
 COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
@@ -222,7 +223,8 @@ MAKE_ERROR = re.compile(r"^Makefile:\d+: \*\*\* (.*?)\.?  Stop\.$")
 
 def _failure(lines: list[str], law: Path) -> str:
     """The first lines that say why: gen_od's refusal, the Makefile's, the missing descriptor, else the
-    compiler's first error lines (they name the user's file)."""
+    compiler's first error lines (they name the user's file), after what changed in the law interface when they
+    name a part of it that a version removed (bench/law_upgrade.py)."""
     for line in lines:
         if line.startswith("gen_od:") and not line.startswith("gen_od: wrote"):
             return line
@@ -250,6 +252,9 @@ def _failure(lines: list[str], law: Path) -> str:
             seen.add(where)
         shown.append(ln)
     shown = shown[:ERROR_LINES]
+    upgrade = explain(lines)  # a law written against an earlier interface: what changed, and what to write instead
+    if upgrade is not None:
+        return f"the law in {law} does not compile: {upgrade}\nthe compiler's first error:\n" + "\n".join(shown)
     return f"the law in {law} does not compile:\n" + "\n".join(shown)
 
 

@@ -8,9 +8,10 @@ C identifier; several laws that share the record: CurrentLaws=<a>,<b>). A paper'
 only in where their folder lives, and so in the index range of their record: the papers' folders
 (firmware_shim/laws/*/, BENCH_LAWS 0x2500 .. 0x25FF) are merged into every build, in the order of their
 records' indices; a user's folder (USER_LAWS 0x2400 .. 0x24FF) after them. The merge is text-level: the
-record's sections are appended to drive.eds, listed in [ManufacturerObjects] (SupportedObjects counted
-up), and the names appended to Controller.controller's ValueNames (HighLimit raised); its DefaultLaw key
-names the law the drive starts with (DefaultValue, once every folder is merged). Every refusal is one
+record's sections are appended to drive.eds (laid out as every EDS reader takes them: portable), listed in
+[ManufacturerObjects] (SupportedObjects counted up), and the names appended to Controller.controller's
+ValueNames (HighLimit raised); its DefaultLaw key names the law the drive starts with (DefaultValue, once every
+folder is merged). Every refusal is one
 line naming the fragment, the section and what is wrong (LawError). Plain python with `canopen`, nothing
 of the bench (as gen_od.py).
 """
@@ -73,7 +74,7 @@ def _record(frag: Path, raw: configparser.ConfigParser) -> tuple[str, int]:
 
 def _check_index(frag: Path, top: str, index: int, text: str, base: configparser.ConfigParser, indices: range) -> None:
     if any(int(m.group(1), 16) == index for m in map(SECTION.match, base.sections()) if m):
-        owner = re.search(rf"^; law folder (\S+): .*\n\[{index:04X}\]", text, re.MULTILINE | re.IGNORECASE)
+        owner = re.search(rf"^\[{index:04X}\]\n{PROVENANCE} (\S+):", text, re.MULTILINE | re.IGNORECASE)
         by = f" (by the law folder {owner.group(1)})" if owner else ""
         raise LawError(f"{frag} [{top}]: index 0x{index:04X} already used in drive.eds{by}")
     if index not in indices:
@@ -241,6 +242,67 @@ def _set_key(text: str, section: str, key: str, value: str) -> str:
     return text[: m.start(1)] + new + text[m.end(1) :]
 
 
+PROVENANCE = "; law folder"  # the comment naming the folder a merged record came from
+PROSE = ("Description", "Source", "Denotation")  # keys whose values are words for a person, read by no program
+SPELLED = ((">=", " is at least "), ("<=", " is at most "), ("!=", " is not "), ("==", " is "), ("=", " is "))
+HEADER = re.compile(r"\[([^\]]*)\](.*)\Z")
+
+
+def portable(text: str, what: str) -> str:
+    """An EDS text in the layout every EDS reader takes (CiA 306's INI syntax as the strictest reader has it:
+    canopen-monitor 4.1.0 splits the file at its blank lines, takes a block's first line for its [section] and
+    every other line but a ';' comment for key=value at each '='). A section is one block: its header alone on its
+    line first, a comment directly above a header moved under it, no blank line inside, one between sections;
+    comments start with ';'; a value continued on an indented line joined into one; `key=value` without blanks
+    around the first '='; a '=' inside a prose value (PROSE) spelled out in words (SPELLED), anywhere else
+    refused (LawError naming `what`, the section and the key). What configparser reads (python canopen, Lely's
+    dcf-tools) is unchanged but for those words."""
+    blocks: list[list[str]] = []
+    waiting: list[str] = []  # comments since the last blank or key line: a header right after them takes them
+    keyed = False  # the last line was a key's (an indented line after it continues its value)
+    for raw in text.splitlines():
+        line = raw.strip()
+        head = HEADER.match(line)
+        if head is not None:
+            rest = head.group(2).strip()
+            rest = rest if not rest or rest.startswith(";") else f"; {rest.lstrip('#').strip()}"
+            blocks.append([f"[{head.group(1).strip()}]", *waiting, *([rest] if rest else [])])
+            waiting, keyed = [], False
+        elif line.startswith((";", "#")):
+            waiting.append(line if line.startswith(";") else f"; {line.lstrip('#').strip()}")
+        elif not line:
+            if blocks:  # comments a blank line follows head no section: they stay where they stand
+                blocks[-1] += waiting
+                waiting = []
+        elif not blocks:
+            raise LawError(f"{what}: {line}: a key before any [section]")
+        elif keyed and not waiting and raw[:1].isspace():
+            blocks[-1][-1] += f" {line}"  # configparser's continuation line
+        else:
+            blocks[-1] += waiting
+            blocks[-1].append(line)
+            waiting, keyed = [], True
+    if blocks:
+        blocks[-1] += waiting
+    return "\n\n".join("\n".join(_spelled(ln, what, b[0]) for ln in b) for b in blocks) + "\n"
+
+
+def _spelled(line: str, what: str, section: str) -> str:
+    if line.startswith(("[", ";")):
+        return line
+    key, _, value = (part.strip() for part in line.partition("="))
+    if "=" in value:
+        if key.lower() not in (k.lower() for k in PROSE):
+            raise LawError(
+                f"{what} {section}: {key}={value}: a '=' in the value (EDS readers such as canopen-monitor take "
+                "every '=' of a line for the key's end): only prose keys may hold one"
+            )
+        for sign, words in SPELLED:
+            value = value.replace(sign, words)
+        value = re.sub(r" {2,}", " ", value)
+    return f"{key}={value}"
+
+
 def merge_text(
     text: str, law_dir: Path, supported: Collection[int], indices: range = USER_LAWS
 ) -> tuple[list[str], int, str]:
@@ -264,7 +326,11 @@ def merge_text(
     text = _set_key(text, LAW_ENTRY, "ValueNames", ",".join([*names, *new]))
     if base.has_option(LAW_ENTRY, "HighLimit"):
         text = _set_key(text, LAW_ENTRY, "HighLimit", str(len(names) + len(new) - 1))
-    text = text.rstrip("\n") + f"\n\n; law folder {law_dir.name}: {', '.join(new)}\n" + ftext.strip("\n") + "\n"
+    # the folder's name as a comment under its record's header (above it, canopen-monitor refuses the file: portable)
+    ftext = portable(ftext, str(frag)).replace(
+        f"[{top}]\n", f"[{top}]\n{PROVENANCE} {law_dir.name}: {', '.join(new)}\n", 1
+    )
+    text = text.rstrip("\n") + "\n\n" + ftext
     _canopen_check(frag, top, text)
     return new, index, text
 

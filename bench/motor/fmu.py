@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.extras import missing_extra
 from bench.motor.folder import resolve
 from bench.scenario.model import ScenarioError
 
@@ -98,7 +99,7 @@ def load_fmu(where: str, table: Any, pole_pairs: int) -> FmuPlant:
     try:
         from fmpy import extract, read_model_description
     except ImportError:
-        raise ScenarioError(f"{where}: [motor.fmu] needs FMPy: pip install 'pmsm-hil-bench[fmu]'") from None
+        raise ScenarioError(f"{where}: {missing_extra('fmu', '[motor.fmu]', 'FMPy is not installed')}") from None
     path = resolve(where, table["file"], "motor.fmu.file", "a path to an .fmu").resolve()
     if not path.is_file():
         raise ScenarioError(f"{where}: motor.fmu.file = {table['file']!r}: {path} is missing")

@@ -13,6 +13,8 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from bench.extras import missing_extra
+
 
 class FmuBuildError(RuntimeError):
     """The source FMU does not build: the message names the file and the compiler's words."""
@@ -23,7 +25,7 @@ def fmi_headers() -> Path:
     try:
         import fmpy
     except ImportError:
-        raise FmuBuildError("FMPy is not installed: pip install 'pmsm-hil-bench[fmu]'") from None
+        raise FmuBuildError(missing_extra("fmu", "bench motor fmu-build", "FMPy is not installed")) from None
     return Path(os.path.dirname(fmpy.__file__)) / "c-code"
 
 

@@ -2,7 +2,8 @@
 plant.eds "Motor model" (the folder's values, model = flux_map, and the map's small-signal Ld_H, Lq_H, psi_Wb, which
 the drive's controller is configured from; the over-current trip level, the folder's I_trip_A or where the map
 ends), and the check of the map's range against the inverter's trip level
-(the plant must not extrapolate the map before it trips)."""
+(the plant must not extrapolate the map before it trips) and, given the scenario, against what the trip does
+(bench/motor/trip.py: the short-circuit current at the run's speed)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from typing import Any
 
 from bench.eds import Param
 from bench.motor.folder import MotorError, MotorFolder, load, resolve
+from bench.motor.trip import TripNote
 from bench.scenario.model import ScenarioError, Setting
 from bench.scenario.settings import setting
 
@@ -52,13 +54,15 @@ def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]
     return motor, out
 
 
-def check_range(where: str, motor: MotorFolder, trip_A: float) -> None:
+def check_range(where: str, motor: MotorFolder, trip_A: float, scenario: Any = None) -> TripNote | None:
     """The map must cover the currents the plant can reach before its over-current trip: [-I_trip, I_trip] on
     both axes, times 2/sqrt(3) (the trip is per phase); a trip level of 0, off, asks for nothing. The folder's
     trip level (motor.I_trip_A, else where the map ends, times sqrt(3)/2) is the default; a scenario's
-    drive.I_trip_A beyond the map is refused."""
+    drive.I_trip_A beyond the map is refused.  With the scenario (parsed, its events too), the currents after the
+    trip as well: its drive.trip_reaction at its speed (bench/motor/trip.py check_trip: a refusal, or for a free
+    rotor the note the run's summary should carry)."""
     if trip_A <= 0:
-        return
+        return None
     fm = motor.map
     reach = trip_A / DQ_PER_PHASE
     for axis, g in (("id_A", fm.id_A), ("iq_A", fm.iq_A)):
@@ -69,6 +73,11 @@ def check_range(where: str, motor: MotorFolder, trip_A: float) -> None:
                 f"the plant would extrapolate the map; extend the map to +-{reach:.4g} A or set drive.I_trip_A "
                 f"<= {min(-g[0], g[-1]) * DQ_PER_PHASE:.4g} A"
             )
+    if scenario is None:
+        return None
+    from bench.motor.trip import check_trip
+
+    return check_trip(where, motor, scenario, trip_A)
 
 
 def fmu_settings(

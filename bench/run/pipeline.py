@@ -301,6 +301,8 @@ def run_scenario(
         injected,
         floor=sess.direct.floor if sess.direct is not None else sess.floor,
     )
+    if sc.trip_note:  # a free rotor whose trip reaction may leave its flux map (bench/motor/trip.py): never silent
+        res.summary.setdefault("notes", []).append(sc.trip_note)
     if collector is not None:
         res.trace = collector.trace
     return res

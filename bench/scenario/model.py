@@ -63,6 +63,7 @@ class Scenario:
     raw: dict[str, Any] = field(default_factory=dict)
     motor_folder: Any = None  # bench.motor.MotorFolder of [motor] folder (its map is written to the plant's 0x2008)
     motor_fmu: Any = None  # bench.motor.fmu.FmuPlant of [motor.fmu] (its text is written to the plant's 0x2009)
+    trip_note: str | None = None  # a free rotor whose trip reaction may leave the flux map (bench/motor/trip.py)
 
     def event_periods(self) -> list[int]:
         return sorted({e.at_period for e in self.events})

@@ -60,12 +60,13 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
             raise ScenarioError(f"{where}: [{section}] must be a table")
         for key, value in (drive_preset(where, values) if section == "drive" else values).items():
             sc.settings.append(setting(where, section, key, value, tables))
-    if sc.motor_folder is not None:
-        from bench.motor.settings import check_range
-
-        check_range(where, sc.motor_folder, _trip_level(sc))
     sc.events = _events(raw, where, periods, tables)
     sc.events.sort(key=lambda e: e.at_period)
+    if sc.motor_folder is not None:  # the trip level, and what the trip does at the run's speed (events included)
+        from bench.motor.settings import check_range
+
+        note = check_range(where, sc.motor_folder, _trip_level(sc), sc)
+        sc.trip_note = None if note is None else note.text
     try:
         sc.trace = trace_table(where, raw["trace"]) if "trace" in raw else default_trace(sc)
         sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))

@@ -6,10 +6,9 @@ import importlib.metadata
 import os
 import shutil
 import subprocess
-import sys
 from dataclasses import dataclass
 
-from bench import canbus, mcu
+from bench import canbus, extras, mcu
 from bench.paths import BIN, MISSING_BUILD
 from bench.root import INSTALLED
 from bench.run.bus import vm
@@ -76,16 +75,11 @@ def collect() -> tuple[list[Check], str]:
         checks.append(
             Check(f"VM fallback: {what}", ok, detail if ok else "missing", "" if ok else detail, optional=af.af_can)
         )
-    for dist in ("python-can", "canopen", "rerun-sdk", "numpy", "matplotlib", "virtme-ng"):
+    checks.append(Check(extras.DIST, True, f"{_py_version(extras.DIST) or 'source'} from {extras.describe_origin()}"))
+    for dist in ("python-can", "canopen", "numpy", "virtme-ng"):  # the package's own dependencies
         ver = _py_version(dist)
-        checks.append(
-            Check(
-                dist,
-                ver is not None,
-                ver or "not installed",
-                "" if ver else _install_hint(dist),
-            )
-        )
+        checks.append(Check(dist, ver is not None, ver or "not installed", "" if ver else _install_hint(dist)))
+    checks += [extra_check(extra) for extra in extras.EXTRAS]
     for label, cmd, optional, pkg in (
         ("gcc", ["gcc", "--version"], False, "gcc"),
         ("clang (fuzzing)", ["clang", "--version"], True, "clang libclang-rt-14-dev"),
@@ -173,15 +167,37 @@ def report() -> int:
             "No SocketCAN and no VM fallback: install what the 'VM fallback' lines above name"
             + ("." if INSTALLED else " (`make setup` does it in a clone).")
         )
+    absent = [c.name for c in checks if c.name.startswith("[") and not c.ok]
+    if absent:
+        print(
+            f"Optional, not installed: {', '.join(absent)} (not a problem: the runs work without; each line says "
+            f"how to add it{_keeping_numpy()})."
+        )
     problems = [c for c in checks if not c.ok and not c.optional]
     if problems:
         print(f"{len(problems)} problem(s) above; each line says the command that fixes it.")
     return 0 if mode != "none" and not problems else 1
 
 
+def _keeping_numpy() -> str:
+    numpy = _py_version("numpy")
+    return f", your numpy {numpy} kept" if numpy and INSTALLED else ""
+
+
+def extra_check(extra: str) -> Check:
+    """One of the package's extras (bench/extras.py): optional, its distributions' versions, and when one is missing
+    the line that adds the extra from where the bench came, the installed numpy pinned (extras.install_command)."""
+    versions = {d: _py_version(d) for d in extras.DISTS[extra]}
+    ok = all(versions.values())
+    have = ", ".join(f"{d} {v or 'not installed'}" for d, v in versions.items())
+    fix = "" if ok else extras.install_command(extra) if INSTALLED else "make setup  (every extra, requirements.lock's)"
+    return Check(f"[{extra}] extra", ok, have if ok else f"{have}; optional: {extras.PURPOSE[extra]}", fix, True)
+
+
 def _install_hint(dist: str) -> str:
-    """How to install a missing Python distribution: pip into the running interpreter for an installed
-    package (a pip user has no Makefile), `make setup` in a clone (its pinned set in .venv)."""
+    """How to install a missing dependency: for an installed package (a pip user has no Makefile) the bench again from
+    where it came, which brings its dependencies, the installed numpy pinned; `make setup` in a clone (its pinned set
+    in .venv)."""
     if INSTALLED:
-        return f'{sys.executable} -m pip install "{dist}"'
+        return extras.install_command()
     return f"make setup  (installs the pinned {dist} into .venv)"

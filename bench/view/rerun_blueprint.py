@@ -9,9 +9,15 @@ from __future__ import annotations
 import math
 import re
 
+import rerun as rr
 import rerun.blueprint as rrb
 
 from bench.signals import SignalInfo
+
+# The [view] extra installs rerun-sdk 0.41 beside numpy 2 and 0.23.1 beside numpy 1.x (pyproject.toml). The bench's
+# calls are the same in both but for what 0.23 lacks: TimePanel's timeline (here), spawn()'s server_memory_limit and
+# executable_path and flush()'s timeout (bench/view/rerun_sink.py). The one version check, used where they differ.
+RERUN_0_23 = tuple(int(x) for x in rr.__version__.split(".")[:2] if x.isdigit()) < (0, 24)
 
 # A readable view name per unit (the quantity plotted); any other unit is named by itself.
 QUANTITY_OF_UNIT: dict[str, str] = {
@@ -86,6 +92,11 @@ def _unit_order(unit: str) -> tuple[int, str]:
     return (order.index(unit), "") if unit in order else (len(order), unit)
 
 
+def _time_panel(timeline: str) -> rrb.TimePanel:
+    """The time panel, collapsed, on `timeline` (rerun-sdk 0.23: on the recording's first timeline, `period`)."""
+    return rrb.TimePanel(state="collapsed") if RERUN_0_23 else rrb.TimePanel(state="collapsed", timeline=timeline)
+
+
 def blueprint_for(signals: list[SignalInfo], timing: bool = False) -> rrb.Blueprint:
     """One TimeSeriesView per unit present (origin `/{unit_slug}`): currents and voltages large on
     top, the other units in a grid below; `timing` (a real-time run): the timing view under the top ones."""
@@ -112,7 +123,7 @@ def blueprint_for(signals: list[SignalInfo], timing: bool = False) -> rrb.Bluepr
         root,
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline="sim_time"),
+        _time_panel("sim_time"),
         auto_views=False,
     )
 
@@ -126,6 +137,6 @@ def events_blueprint(signals: list[SignalInfo], timing: bool = False) -> rrb.Blu
         rrb.Vertical(views.root_container, panel, row_shares=[4.0, 1.0]) if views.root_container else panel,
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline="period"),
+        _time_panel("period"),
         auto_views=False,
     )

@@ -32,7 +32,7 @@ import rerun as rr
 
 from bench.run.verdict.realtime import COMMAND_T, SYNC_T, TIMING_COLUMNS, BusTiming, summary_segments
 from bench.signals import SignalInfo
-from bench.view.rerun_blueprint import TIMING, blueprint_for, entity_path, events_blueprint
+from bench.view.rerun_blueprint import RERUN_0_23, TIMING, blueprint_for, entity_path, events_blueprint
 from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
 from bench.view.serve import serve as _serve
 
@@ -79,21 +79,21 @@ def _spawn_viewer(name: str, grpc_port: int, memory_limit: str, rrd: Path | None
     try:
         # Not connect=True: a viewer that died at start (no usable display) would leave the
         # stream buffering the whole run for a connection that never comes.
+        newer: dict[str, Any] = {"server_memory_limit": memory_limit, "executable_path": _viewer_executable()}
         rr.spawn(
             port=grpc_port,
             connect=False,
             memory_limit=memory_limit,
-            server_memory_limit=memory_limit,
             hide_welcome_screen=True,
-            executable_path=_viewer_executable(),
             recording=live_rec,
+            **({} if RERUN_0_23 else newer),
         )
     except Exception as exc:  # noqa: BLE001 - the .rrd still gets everything
         first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"rerun: no viewer spawned ({first_line}){saved}", flush=True)
         return None
     if listening(grpc_port, within_s=1.0):
-        live_rec.set_sinks(rr.GrpcSink(f"rerun+http://127.0.0.1:{grpc_port}/proxy"))
+        live_rec.connect_grpc(f"rerun+http://127.0.0.1:{grpc_port}/proxy")
         return live_rec
     print(
         f"rerun: the spawned viewer is not listening on port {grpc_port} (it failed to start, see above){saved}",
@@ -150,7 +150,7 @@ class RerunSink:
         if self.rrd is not None:
             self.rrd.parent.mkdir(parents=True, exist_ok=True)
             self.file = rr.RecordingStream(APPLICATION_ID, recording_id=name)
-            self.file.set_sinks(rr.FileSink(str(self.rrd)))
+            self.file.save(str(self.rrd))
 
     @property
     def url(self) -> str | None:
@@ -277,7 +277,7 @@ class RerunSink:
             self.file.disconnect()  # writes the footer and closes the file
         if self.live is not None:
             try:
-                self.live.flush(timeout_sec=10.0)
+                self.live.flush() if RERUN_0_23 else self.live.flush(timeout_sec=10.0)  # 0.23: 2 s without progress
             except Exception as exc:  # noqa: BLE001 - a slow viewer must not fail the run
                 print(f"rerun: live viewer did not take all data ({exc})", file=sys.stderr, flush=True)
 

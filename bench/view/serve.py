@@ -216,7 +216,7 @@ def serve(
 def stream(name: str, grpc_port: int, bind: str) -> rr.RecordingStream:
     live = rr.RecordingStream(APPLICATION_ID, recording_id=name)
     host = _connect_host(bind)
-    live.set_sinks(rr.GrpcSink(f"rerun+http://{f'[{host}]' if ':' in host else host}:{grpc_port}/proxy"))
+    live.connect_grpc(f"rerun+http://{f'[{host}]' if ':' in host else host}:{grpc_port}/proxy")
     return live
 
 

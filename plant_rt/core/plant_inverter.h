@@ -26,7 +26,9 @@ void plant_inverter_check_trip(plant_state_t *s, const plant_config_t *c, double
 /* The voltage applied over the next period for the command
  * (v_alpha_V, v_beta_V): trip on a non-finite command, modulation limit
  * (-> v_lim_*), dead time from the phase currents at the start of the period
- * (ia_A, ib_A, ic_A), zero while tripped (-> v_app_*). */
+ * (ia_A, ib_A, ic_A), zero while tripped (-> v_app_*; with trip_reaction
+ * pulses_off the machine's period then follows the diodes instead, and
+ * v_app_* becomes their mean voltage: plant_bridge.h). */
 void plant_inverter_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V, double ia_A,
                          double ib_A, double ic_A);
 

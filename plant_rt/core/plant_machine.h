@@ -45,6 +45,9 @@ int plant_machine_prepare(plant_state_t *s, const plant_config_t *c);
 /* Advance the machine one period Ts with the applied voltage
  * (v_alpha_V, v_beta_V) held in the frame of c->hold_frame. */
 void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V);
+/* Advance the machine one period Ts with the bridge's switches off (trip_reaction pulses_off): the diodes give
+ * the voltage (plant_bridge.h, s->bridge); v_app_* become its mean over the period.  Built-in models only. */
+void plant_machine_step_bridge(plant_state_t *s, const plant_config_t *c);
 
 /* The mechanics' part of an RK4 derivative, shared by the current (plant_machine_step.c) and the flux
  * (plant_machine_fluxmap.c) paths: the speed's derivative and the friction and load powers (0 unless FREE). */
@@ -67,6 +70,7 @@ static inline void plant_machine_mech_deriv(const plant_config_t *c, bool free_m
 int plant_machine_flux_prepare(plant_state_t *s, const plant_config_t *c, double p);
 void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0);
 double plant_machine_flux_torque_Nm(const plant_state_t *s, const plant_config_t *c);
+void plant_machine_flux_step_bridge(plant_state_t *s, const plant_config_t *c);
 
 /* The external model (plant_machine_external.c): one period through the caller's plant_external_t, the state
  * (currents, angle, speed) from its outputs; and the state from its initial outputs (plant_external_restart). */

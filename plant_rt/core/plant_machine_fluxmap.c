@@ -33,7 +33,8 @@ typedef struct {
     double va, vb, vd0, vq0;
     double p, R, invJ;
     bool rotor_hold, free_mech;
-    double id, iq; /* the last inversion: the next one's start */
+    double id, iq;          /* the last inversion: the next one's start */
+    plant_bridge_t *bridge; /* the switches off (trip_reaction pulses_off): the diodes give the voltage */
 } flux_ctx_t;
 
 /* (id, iq) at (psi_d, psi_q), from the last solution. */
@@ -53,7 +54,17 @@ static void flux_deriv(flux_ctx_t *k, const double *y, double *dy)
     invert(k, y[F_PD], y[F_PQ]);
     const double id = k->id, iq = k->iq, wm = y[F_W], we = k->p * wm;
     double vd, vq;
-    if (k->rotor_hold) {
+    if (k->bridge != NULL) {
+        /* d i/dt = L^-1 d psi/dt with L the interpolant's incremental inductance at the currents */
+        plant_flux_eval_t e;
+        plant_flux_map_eval(c->flux_map, id, iq, &e);
+        const double det = e.Ldd_H * e.Lqq_H - e.Ldq_H * e.Lqd_H; /* > 0: a checked map */
+        const double Bdd = e.Lqq_H / det, Bdq = -e.Ldq_H / det, Bqd = -e.Lqd_H / det, Bqq = e.Ldd_H / det;
+        const double fd = -k->R * id + we * y[F_PQ], fq = -k->R * iq - we * y[F_PD];
+        const plant_bridge_lin_t l = {
+            y[F_C], y[F_S], we, id, iq, Bdd * fd + Bdq * fq, Bqd * fd + Bqq * fq, {{Bdd, Bdq}, {Bqd, Bqq}}};
+        plant_bridge_voltage(k->bridge, &l, &vd, &vq);
+    } else if (k->rotor_hold) {
         vd = k->vd0;
         vq = k->vq0;
     } else {
@@ -159,63 +170,70 @@ static void thermal_step(plant_state_t *s, const plant_config_t *c, double coppe
  * by at most FLUX_CELL_FRACTION of the narrowest cell (the current's change estimated from the voltage and the
  * back-EMF over L_min). */
 #define FLUX_CELL_FRACTION 0.0625
-static uint32_t substeps(const plant_state_t *s, const plant_config_t *c, double p, double va, double vb)
+static double stiff_substeps(const plant_state_t *s, const plant_config_t *c, double p)
 {
     const double lam = s->lam_base + p * fabs(s->omega_m_rad_s);
+    return ceil(c->Ts_s * lam / c->rk4_h_rel);
+}
+
+static double cell_substeps(const plant_state_t *s, const plant_config_t *c, double p, double va, double vb)
+{
     const double w = p * fabs(s->omega_m_rad_s);
     const double dpsi = c->Ts_s * (sqrt(va * va + vb * vb) + w * hypot(s->psi_d_Wb, s->psi_q_Wb) +
                                    s->R_winding_ohm * hypot(s->id_A, s->iq_A));
-    const double cells = dpsi / (s->Lmin_H * s->cell_min_A * FLUX_CELL_FRACTION);
-    double nreal = ceil(c->Ts_s * lam / c->rk4_h_rel);
-    if (cells > nreal) nreal = ceil(cells);
+    return dpsi / (s->Lmin_H * s->cell_min_A * FLUX_CELL_FRACTION);
+}
+
+static uint32_t clamp_substeps(const plant_config_t *c, double nreal)
+{
     uint32_t n = !(nreal < (double)FLUX_RK4_MAX_SUBSTEPS) ? FLUX_RK4_MAX_SUBSTEPS : (uint32_t)nreal;
     if (n < c->rk4_min_substeps) n = c->rk4_min_substeps;
     return n < 1u ? 1u : n;
 }
 
-void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
+static uint32_t substeps(const plant_state_t *s, const plant_config_t *c, double p, double va, double vb)
+{
+    double nreal = stiff_substeps(s, c, p);
+    const double cells = cell_substeps(s, c, p, va, vb);
+    if (cells > nreal) nreal = ceil(cells);
+    return clamp_substeps(c, nreal);
+}
+
+/* The context and the start state of a period. */
+static void flux_begin(flux_ctx_t *k, double *y, plant_state_t *s, const plant_config_t *c, double va, double vb,
+                       double vd0, double vq0)
 {
     if (s->psi_stale) refresh(s, c, true);
-    flux_ctx_t k;
-    k.c = c;
-    k.s = s;
-    k.va = va;
-    k.vb = vb;
-    k.vd0 = vd0;
-    k.vq0 = vq0;
-    k.p = (double)c->pole_pairs;
-    k.R = s->R_winding_ohm;
-    k.rotor_hold = (c->hold_frame == PLANT_HOLD_ROTOR);
-    k.free_mech = (c->mech_mode == PLANT_MECH_FREE);
-    k.invJ = k.free_mech ? 1.0 / c->J_kgm2 : 0.0;
-    k.id = s->id_A;
-    k.iq = s->iq_A;
-
-    const uint32_t n = substeps(s, c, k.p, va, vb);
-    s->last_substeps = n;
-    const double h = c->Ts_s / (double)n;
-    double y[F_N], k1[F_N], k2[F_N], k3[F_N], k4[F_N], yt[F_N];
-    memset(y, 0, sizeof(y));
+    k->c = c;
+    k->s = s;
+    k->va = va;
+    k->vb = vb;
+    k->vd0 = vd0;
+    k->vq0 = vq0;
+    k->p = (double)c->pole_pairs;
+    k->R = s->R_winding_ohm;
+    k->rotor_hold = (c->hold_frame == PLANT_HOLD_ROTOR);
+    k->free_mech = (c->mech_mode == PLANT_MECH_FREE);
+    k->invJ = k->free_mech ? 1.0 / c->J_kgm2 : 0.0;
+    k->id = s->id_A;
+    k->iq = s->iq_A;
+    k->bridge = NULL;
+    memset(y, 0, sizeof(double) * F_N);
     y[F_PD] = s->psi_d_Wb;
     y[F_PQ] = s->psi_q_Wb;
     y[F_C] = s->cos_e;
     y[F_S] = s->sin_e;
     y[F_W] = s->omega_m_rad_s;
-    for (uint32_t it = 0; it < n; ++it) {
-        flux_deriv(&k, y, k1);
-        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + 0.5 * h * k1[i];
-        flux_deriv(&k, yt, k2);
-        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + 0.5 * h * k2[i];
-        flux_deriv(&k, yt, k3);
-        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + h * k3[i];
-        flux_deriv(&k, yt, k4);
-        for (int i = 0; i < F_N; ++i) y[i] += (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-    }
+}
+
+/* The state from a period's end state. */
+static void flux_end(flux_ctx_t *k, plant_state_t *s, const plant_config_t *c, const double *y)
+{
     s->psi_d_Wb = y[F_PD];
     s->psi_q_Wb = y[F_PQ];
-    invert(&k, s->psi_d_Wb, s->psi_q_Wb);
-    s->id_A = k.id;
-    s->iq_A = k.iq;
+    invert(k, s->psi_d_Wb, s->psi_q_Wb);
+    s->id_A = k->id;
+    s->iq_A = k->iq;
     s->omega_m_rad_s = y[F_W];
     s->energy.in_J += y[F_EIN];
     s->energy.copper_J += y[F_ECU];
@@ -230,4 +248,72 @@ void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double v
     if (!plant_flux_map_inside(c->flux_map, s->id_A, s->iq_A)) ++s->outside_map_periods;
     thermal_step(s, c, y[F_ECU]);
     refresh(s, c, false);
+}
+
+void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
+{
+    flux_ctx_t k;
+    double y[F_N], k1[F_N], k2[F_N], k3[F_N], k4[F_N], yt[F_N];
+    flux_begin(&k, y, s, c, va, vb, vd0, vq0);
+    const uint32_t n = substeps(s, c, k.p, va, vb);
+    s->last_substeps = n;
+    const double h = c->Ts_s / (double)n;
+    for (uint32_t it = 0; it < n; ++it) {
+        flux_deriv(&k, y, k1);
+        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + 0.5 * h * k1[i];
+        flux_deriv(&k, yt, k2);
+        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + 0.5 * h * k2[i];
+        flux_deriv(&k, yt, k3);
+        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + h * k3[i];
+        flux_deriv(&k, yt, k4);
+        for (int i = 0; i < F_N; ++i) y[i] += (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+    }
+    flux_end(&k, s, c, y);
+}
+
+/* ---- the switches off (plant_bridge.h): the flux states with the diodes' voltage ---- */
+
+static void br_deriv(void *ctx, const double *y, double *dy) { flux_deriv((flux_ctx_t *)ctx, y, dy); }
+
+static void br_currents(void *ctx, const double *y, double *ia, double *ib)
+{
+    flux_ctx_t *k = (flux_ctx_t *)ctx;
+    invert(k, y[F_PD], y[F_PQ]);
+    *ia = y[F_C] * k->id - y[F_S] * k->iq;
+    *ib = y[F_S] * k->id + y[F_C] * k->iq;
+}
+
+/* the fluxes of the map at the given currents (a projection moves the currents by rounding errors only) */
+static void br_set_currents(void *ctx, double *y, double ia, double ib)
+{
+    flux_ctx_t *k = (flux_ctx_t *)ctx;
+    const double n2 = y[F_C] * y[F_C] + y[F_S] * y[F_S];
+    k->id = (y[F_C] * ia + y[F_S] * ib) / n2;
+    k->iq = (-y[F_S] * ia + y[F_C] * ib) / n2;
+    plant_flux_eval_t e;
+    plant_flux_map_eval(k->c->flux_map, k->id, k->iq, &e);
+    y[F_PD] = e.psi_d_Wb;
+    y[F_PQ] = e.psi_q_Wb;
+}
+
+void plant_machine_flux_step_bridge(plant_state_t *s, const plant_config_t *c)
+{
+    flux_ctx_t k;
+    double y[F_N];
+    flux_begin(&k, y, s, c, 0.0, 0.0, 0.0, 0.0);
+    k.bridge = &s->bridge;
+    s->bridge.Vdc_V = c->Vdc_V;
+    /* the sub-steps: the stiffness bound's, PLANT_BRIDGE_SUBSTEPS times; while a phase conducts, at least those of
+     * a period with the largest voltage the diodes apply (2/3 Vdc on a phase); all off, the currents stay zero and
+     * the fluxes still (the diodes hold the back-EMF), so the cells crossed do not count */
+    const plant_bridge_t *b = &s->bridge;
+    double nreal = stiff_substeps(s, c, k.p) * (double)PLANT_BRIDGE_SUBSTEPS;
+    if (!(b->active && b->phase[0] == 0 && b->phase[1] == 0 && b->phase[2] == 0)) {
+        const double cells = cell_substeps(s, c, k.p, (2.0 / 3.0) * c->Vdc_V, 0.0);
+        if (cells > nreal) nreal = ceil(cells);
+    }
+    s->last_substeps = clamp_substeps(c, nreal);
+    const plant_bridge_model_t m = {&k, F_N, br_deriv, br_currents, br_set_currents};
+    plant_bridge_period(&s->bridge, &m, y, c->Ts_s, s->last_substeps);
+    flux_end(&k, s, c, y);
 }

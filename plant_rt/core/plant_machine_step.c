@@ -30,6 +30,7 @@ typedef struct {
     bool rotor_hold;
     bool free_mech;
     double invJ;
+    plant_bridge_t *bridge; /* the switches off (trip_reaction pulses_off): the diodes give the voltage */
 } rk_ctx_t;
 
 static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
@@ -38,14 +39,6 @@ static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
     const double id = y[Y_ID], iq = y[Y_IQ], ce = y[Y_C], se = y[Y_S];
     const double wm = y[Y_W];
     const double we = k->p * wm;
-    double vd, vq;
-    if (k->rotor_hold) {
-        vd = k->vd0;
-        vq = k->vq0;
-    } else {
-        vd = k->va * ce + k->vb * se;
-        vq = -k->va * se + k->vb * ce;
-    }
     double psiq, Linc;
     if (c->sat_enable) {
         const double Is = c->sat_I_A, Li = c->sat_Lq_inf_H, x = iq / Is;
@@ -56,6 +49,24 @@ static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
         Linc = c->Lq_H;
     }
     const double psid = c->Ld_H * id + c->psi_Wb;
+    double vd, vq;
+    if (k->bridge != NULL) {
+        const plant_bridge_lin_t l = {ce,
+                                      se,
+                                      we,
+                                      id,
+                                      iq,
+                                      (-c->R_ohm * id + we * psiq) / c->Ld_H,
+                                      (-c->R_ohm * iq - we * psid) / Linc,
+                                      {{1.0 / c->Ld_H, 0.0}, {0.0, 1.0 / Linc}}};
+        plant_bridge_voltage(k->bridge, &l, &vd, &vq);
+    } else if (k->rotor_hold) {
+        vd = k->vd0;
+        vq = k->vq0;
+    } else {
+        vd = k->va * ce + k->vb * se;
+        vq = -k->va * se + k->vb * ce;
+    }
     dy[Y_ID] = (vd - c->R_ohm * id + we * psiq) / c->Ld_H;
     dy[Y_IQ] = (vq - c->R_ohm * iq - we * psid) / Linc;
     dy[Y_C] = -we * se;
@@ -68,20 +79,22 @@ static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
     dy[Y_EME] = Te * wm;
 }
 
-static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
+/* The context, the sub-steps of the period (the stiffness bound) and the start state of the RK4 path. */
+static uint32_t rk_begin(rk_ctx_t *k, double *y, plant_state_t *s, const plant_config_t *c, double va, double vb,
+                         double vd0, double vq0)
 {
-    rk_ctx_t k;
-    k.c = c;
-    k.va = va;
-    k.vb = vb;
-    k.vd0 = vd0;
-    k.vq0 = vq0;
-    k.p = (double)c->pole_pairs;
-    k.rotor_hold = (c->hold_frame == PLANT_HOLD_ROTOR);
-    k.free_mech = (c->mech_mode == PLANT_MECH_FREE);
-    k.invJ = k.free_mech ? 1.0 / c->J_kgm2 : 0.0;
+    k->c = c;
+    k->va = va;
+    k->vb = vb;
+    k->vd0 = vd0;
+    k->vq0 = vq0;
+    k->p = (double)c->pole_pairs;
+    k->rotor_hold = (c->hold_frame == PLANT_HOLD_ROTOR);
+    k->free_mech = (c->mech_mode == PLANT_MECH_FREE);
+    k->invJ = k->free_mech ? 1.0 / c->J_kgm2 : 0.0;
+    k->bridge = NULL;
 
-    const double lam = s->lam_base + k.p * fabs(s->omega_m_rad_s);
+    const double lam = s->lam_base + k->p * fabs(s->omega_m_rad_s);
     double nreal = ceil(c->Ts_s * lam / c->rk4_h_rel);
     uint32_t n;
     if (!(nreal < (double)PLANT_RK4_MAX_SUBSTEPS)) {
@@ -96,15 +109,40 @@ static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, doubl
         n = 1u;
     }
     s->last_substeps = n;
-    const double h = c->Ts_s / (double)n;
-
-    double y[Y_N], k1[Y_N], k2[Y_N], k3[Y_N], k4[Y_N], yt[Y_N];
-    memset(y, 0, sizeof(y));
+    memset(y, 0, sizeof(double) * Y_N);
     y[Y_ID] = s->id_A;
     y[Y_IQ] = s->iq_A;
     y[Y_C] = s->cos_e;
     y[Y_S] = s->sin_e;
     y[Y_W] = s->omega_m_rad_s;
+    return n;
+}
+
+/* The state from the RK4 path's end state. */
+static void rk_end(plant_state_t *s, const plant_config_t *c, const double *y)
+{
+    s->id_A = y[Y_ID];
+    s->iq_A = y[Y_IQ];
+    s->omega_m_rad_s = y[Y_W];
+    s->energy.in_J += y[Y_EIN];
+    s->energy.copper_J += y[Y_ECU];
+    s->energy.mech_J += y[Y_EME];
+    s->energy.friction_J += y[Y_EFR];
+    s->energy.load_J += y[Y_ELD];
+    if (y[Y_TH] != 0.0) {
+        s->theta_m_rad = plant_machine_wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
+        /* cos/sin were integrated too (to RK4 accuracy); re-derive them from
+         * theta_m so the angle and the encoder stay exactly consistent. */
+        plant_machine_resync_angle(s, c);
+    }
+}
+
+static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
+{
+    rk_ctx_t k;
+    double y[Y_N], k1[Y_N], k2[Y_N], k3[Y_N], k4[Y_N], yt[Y_N];
+    const uint32_t n = rk_begin(&k, y, s, c, va, vb, vd0, vq0);
+    const double h = c->Ts_s / (double)n;
     for (uint32_t it = 0; it < n; ++it) {
         rk_deriv(&k, y, k1);
         for (int i = 0; i < Y_N; ++i) {
@@ -123,20 +161,42 @@ static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, doubl
             y[i] += (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
         }
     }
-    s->id_A = y[Y_ID];
-    s->iq_A = y[Y_IQ];
-    s->omega_m_rad_s = y[Y_W];
-    s->energy.in_J += y[Y_EIN];
-    s->energy.copper_J += y[Y_ECU];
-    s->energy.mech_J += y[Y_EME];
-    s->energy.friction_J += y[Y_EFR];
-    s->energy.load_J += y[Y_ELD];
-    if (y[Y_TH] != 0.0) {
-        s->theta_m_rad = plant_machine_wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
-        /* cos/sin were integrated too (to RK4 accuracy); re-derive them from
-         * theta_m so the angle and the encoder stay exactly consistent. */
-        plant_machine_resync_angle(s, c);
-    }
+    rk_end(s, c, y);
+}
+
+/* ---- the switches off (plant_bridge.h): the same RK4 model, its voltage from the diodes ---- */
+
+static void br_deriv(void *ctx, const double *y, double *dy) { rk_deriv((const rk_ctx_t *)ctx, y, dy); }
+
+static void br_currents(void *ctx, const double *y, double *ia, double *ib)
+{
+    (void)ctx;
+    *ia = y[Y_C] * y[Y_ID] - y[Y_S] * y[Y_IQ];
+    *ib = y[Y_S] * y[Y_ID] + y[Y_C] * y[Y_IQ];
+}
+
+static void br_set_currents(void *ctx, double *y, double ia, double ib)
+{
+    (void)ctx;
+    const double n2 = y[Y_C] * y[Y_C] + y[Y_S] * y[Y_S]; /* the inverse of br_currents' rotation */
+    y[Y_ID] = (y[Y_C] * ia + y[Y_S] * ib) / n2;
+    y[Y_IQ] = (-y[Y_S] * ia + y[Y_C] * ib) / n2;
+}
+
+/* The linear model (exact or RK4 path alike) for one period with the switches off: its RK4 path with the diodes'
+ * voltage, each change of conduction located (plant_bridge_period).  The bridge is physical: hold_frame does not
+ * apply to it. */
+static void step_bridge_rk4(plant_state_t *s, const plant_config_t *c)
+{
+    rk_ctx_t k;
+    double y[Y_N];
+    const uint32_t n = rk_begin(&k, y, s, c, 0.0, 0.0, 0.0, 0.0);
+    k.bridge = &s->bridge;
+    s->bridge.Vdc_V = c->Vdc_V;
+    const plant_bridge_model_t m = {&k, Y_N, br_deriv, br_currents, br_set_currents};
+    s->last_substeps = n * PLANT_BRIDGE_SUBSTEPS;
+    plant_bridge_period(&s->bridge, &m, y, c->Ts_s, s->last_substeps);
+    rk_end(s, c, y);
 }
 
 /* ===================================================================== */
@@ -188,6 +248,19 @@ static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, do
             s->sin_e = se * s->rot_c + ce * s->rot_s;
         }
     }
+}
+
+void plant_machine_step_bridge(plant_state_t *s, const plant_config_t *c)
+{
+    if (c->model == PLANT_MODEL_FLUX_MAP) {
+        plant_machine_flux_step_bridge(s, c);
+    } else if (c->model == PLANT_MODEL_DQ_LINEAR) {
+        step_bridge_rk4(s, c);
+    } else {
+        return; /* the external model: refused by plant_prepare */
+    }
+    s->v_app_alpha_V = s->bridge.v_mean_alpha_V;
+    s->v_app_beta_V = s->bridge.v_mean_beta_V;
 }
 
 void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V)

@@ -169,6 +169,10 @@ static int validate(const plant_config_t *c)
     if (c->I_trip_A < 0.0) {
         return PLANT_ERR_TRIP;
     }
+    if (c->trip_reaction != PLANT_TRIP_ACTIVE_SHORT_CIRCUIT &&
+        (c->trip_reaction != PLANT_TRIP_PULSES_OFF || !(c->Vdc_V > 0.0) || c->model == PLANT_MODEL_EXTERNAL)) {
+        return PLANT_ERR_REACTION; /* the diodes clamp to Vdc; an external model holds one voltage a period */
+    }
     if (!(c->rk4_h_rel > 0.0) || c->rk4_h_rel > 1.0) {
         return PLANT_ERR_RK4;
     }
@@ -219,6 +223,7 @@ void plant_clear_trip(plant_state_t *s)
 {
     if (s->external_error == 0) { /* a failed external model is not stepped again: its trip stays */
         s->tripped = false;
+        s->bridge.active = false; /* the next trip takes its diodes' state from the currents again */
     }
 }
 
@@ -243,7 +248,8 @@ void plant_set_currents(plant_state_t *s, double id_A, double iq_A)
 {
     s->id_A = id_A;
     s->iq_A = iq_A;
-    s->psi_stale = true; /* the flux-map model takes its fluxes from these currents */
+    s->psi_stale = true;      /* the flux-map model takes its fluxes from these currents */
+    s->bridge.active = false; /* and a bridge with its pulses off its diodes' state */
 }
 
 void plant_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_rad, double omega_m_rad_s)
@@ -297,7 +303,12 @@ void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, dou
     plant_machine_phase_currents(s, &ia, &ib, &ic); /* at the start of the period */
     plant_inverter_check_trip(s, c, ia, ib, ic);
     plant_inverter_step(s, c, v_alpha_V, v_beta_V, ia, ib, ic);
-    plant_machine_step(s, c, s->v_app_alpha_V, s->v_app_beta_V);
+    if (s->tripped && c->trip_reaction == PLANT_TRIP_PULSES_OFF) {
+        plant_machine_step_bridge(s, c); /* the diodes' voltage; v_app_* its mean over the period */
+    } else {
+        s->bridge.active = false;
+        plant_machine_step(s, c, s->v_app_alpha_V, s->v_app_beta_V);
+    }
     s->k++;
     s->t_s = (double)s->k * c->Ts_s;
     plant_machine_phase_currents(s, &ia, &ib, &ic); /* at its end */

@@ -47,6 +47,9 @@
  *  - plant_machine: electrical model, mechanics, energy (exact / RK4 paths);
  *  - plant_inverter: modulation limit, dead time, over-current trip, the
  *    applied voltage the machine holds over the period;
+ *  - plant_bridge: once tripped with trip_reaction pulses_off, the bridge
+ *    as six diodes against Vdc (the machine's RK4 with each change of the
+ *    diodes' conduction located);
  *  - plant_sensors: ADC of the phase currents, encoder.
  */
 #ifndef PMSM_PLANT_H
@@ -57,6 +60,7 @@
 #include <stdint.h>
 
 #include "od_plant_fields.h" /* the EDS's enumerations (protocols/gen_od.py) */
+#include "plant_bridge.h"
 #include "plant_fluxmap.h"
 #include "plant_rng.h"
 
@@ -85,7 +89,8 @@ enum {
     PLANT_ERR_ENUM = -16,     /* modulation/hold/model enum out of range */
     PLANT_ERR_FLUXMAP = -17,  /* flux_map model without a usable map (plant_flux_map_check) */
     PLANT_ERR_THERMAL = -18,  /* thermal parameters negative, or a thermal model on the dq_linear model */
-    PLANT_ERR_EXTERNAL = -19  /* fmu model without an external model (plant_external_t) */
+    PLANT_ERR_EXTERNAL = -19, /* fmu model without an external model (plant_external_t) */
+    PLANT_ERR_REACTION = -20  /* trip_reaction out of range, or pulses_off without Vdc_V > 0 or on the fmu model */
 };
 
 /* the values of the EDS (ValueNames of Motor model.mech_mode, Inverter.mod_limit / hold_frame) */
@@ -131,6 +136,16 @@ typedef enum {
     PLANT_HOLD_STATOR = OD_PLANT_HOLD_FRAME_STATOR, /* real inverter: alpha-beta command constant */
     PLANT_HOLD_ROTOR = OD_PLANT_HOLD_FRAME_ROTOR    /* idealised model: dq command constant (for comparison) */
 } plant_hold_frame_t;
+
+/* What the bridge does once tripped (ValueNames of Inverter.trip_reaction; docs/YOUR_MOTOR.md) */
+typedef enum {
+    /* three switches of one side on: the terminals shorted, 0 V applied (with a turning rotor the short-circuit
+     * current flows: id -> -psi w^2 Lq / (R^2 + w^2 Ld Lq), iq -> -psi w R / (R^2 + w^2 Ld Lq)) */
+    PLANT_TRIP_ACTIVE_SHORT_CIRCUIT = OD_PLANT_TRIP_REACTION_ACTIVE_SHORT_CIRCUIT,
+    /* all six off: the currents flow through the freewheeling diodes against the DC link until they reach zero;
+     * the back-EMF drives a current only where its spread between phases exceeds Vdc (plant_bridge.h) */
+    PLANT_TRIP_PULSES_OFF = OD_PLANT_TRIP_REACTION_PULSES_OFF
+} plant_trip_reaction_t;
 
 /* ---- parameters ------------------------------------------------------- */
 typedef struct {
@@ -200,12 +215,16 @@ typedef struct {
     uint32_t encoder_lines;  /* 0 = ideal angle; else 4*lines counts/rev */
     uint64_t rng_seed;
 
-    /* protection (plant_inverter): the trip latches (applied voltage 0 from
-     * then on, until plant_clear_trip) when |i| of any phase exceeds
+    /* protection (plant_inverter): the trip latches (the bridge off from then
+     * on, until plant_clear_trip: trip_reaction) when |i| of any phase exceeds
      * I_trip_A, and - even with the level off - on a non-finite voltage
      * command or phase current (a broken model state cannot be integrated
      * further).  The presets set a level derived from the motor (presets.c). */
     double I_trip_A; /* over-current level, peak phase A; 0 = off */
+    /* what "off" means once tripped: 0 V (active short circuit, the default: a run is what it was before the
+     * choice existed) or the switches off (the diodes conduct against Vdc_V; plant_bridge.h).  The external
+     * model steps a period with one held voltage, which cannot follow the diodes: pulses_off is refused there. */
+    plant_trip_reaction_t trip_reaction;
 
     /* numerics of the RK4 path (FREE mechanics or saturation; plant_machine) */
     double rk4_h_rel;          /* max h*lambda per sub-step (default 0.02) */
@@ -259,6 +278,7 @@ typedef struct {
     double v_lim_alpha_V, v_lim_beta_V; /* command after modulation limit */
     double v_app_alpha_V, v_app_beta_V; /* actually applied (dead time, trip) */
     bool tripped;
+    plant_bridge_t bridge; /* trip_reaction pulses_off: the diodes' conduction state (plant_bridge.h) */
     /* energy (plant_machine) */
     plant_energy_t energy;
     /* flux-map model (plant_machine_fluxmap.c): the flux linkages (the

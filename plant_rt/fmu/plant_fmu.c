@@ -1,10 +1,12 @@
 /* plant_fmu.c - a co-simulation FMU as the plant's external machine model (plant_fmu.h): the 0x2009 text parsed,
- * the binary loaded with dlopen, FMI 2.0 or 3.0 co-simulation through the standard headers' function types.
+ * the binary loaded with dlopen, FMI 2.0 or 3.0 co-simulation through the standard's C interface as
+ * plant_fmi_api.h declares it (no external FMI header).
  * Host glue (dlfcn, stdio): not part of the portable core.  One model a process (a plant node is one process;
  * the direct mode's library holds one plant). */
 #include "plant_fmu.h"
 
 #include "co_od.h"
+#include "plant_fmi_api.h"
 
 #include <dlfcn.h>
 #include <math.h>
@@ -12,11 +14,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#ifndef PLANT_FMU_NO_FMI
-#include "fmi2FunctionTypes.h"
-#include "fmi3FunctionTypes.h"
-#endif
 
 #define SQRT3 1.732050807568877293527446341505872367
 
@@ -160,59 +157,43 @@ int plant_fmu_parse(const char *text, size_t len, plant_fmu_spec_t *spec, char *
 
 /* ------------------------------------------------------------------ the model */
 
-#ifdef PLANT_FMU_NO_FMI
-
-int plant_fmu_available(void) { return 0; }
-int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, char *err, size_t err_len)
-{
-    (void)spec;
-    (void)ext;
-    say(err, err_len, "this plant was built without the FMI headers (install the bench's fmu extra: FMPy)");
-    return -1;
-}
-void plant_fmu_unload(void) {}
-
-#else
-
 static struct {
     void *dl;
     plant_fmu_spec_t spec;
     int loaded;
     double theta_m; /* the model's last angle (dq inputs) */
     /* FMI 2 */
-    fmi2Component c2;
-    fmi2CallbackFunctions cb2;
-    fmi2InstantiateTYPE *inst2;
-    fmi2FreeInstanceTYPE *free2;
-    fmi2SetupExperimentTYPE *setup2;
-    fmi2EnterInitializationModeTYPE *enter2;
-    fmi2ExitInitializationModeTYPE *exit2;
-    fmi2SetRealTYPE *set2;
-    fmi2GetRealTYPE *get2;
-    fmi2DoStepTYPE *step2;
-    fmi2TerminateTYPE *term2;
-    fmi2ResetTYPE *reset2;
+    plant_fmi2_component_t c2;
+    plant_fmi2_callbacks_t cb2;
+    plant_fmi2_instantiate_fn inst2;
+    plant_fmi2_free_instance_fn free2;
+    plant_fmi2_setup_experiment_fn setup2;
+    plant_fmi2_instance_fn enter2;
+    plant_fmi2_instance_fn exit2;
+    plant_fmi2_set_real_fn set2;
+    plant_fmi2_get_real_fn get2;
+    plant_fmi2_do_step_fn step2;
+    plant_fmi2_instance_fn term2;
+    plant_fmi2_instance_fn reset2;
     /* FMI 3 */
-    fmi3Instance c3;
-    fmi3InstantiateCoSimulationTYPE *inst3;
-    fmi3FreeInstanceTYPE *free3;
-    fmi3EnterInitializationModeTYPE *enter3;
-    fmi3ExitInitializationModeTYPE *exit3;
-    fmi3SetFloat64TYPE *set3;
-    fmi3GetFloat64TYPE *get3;
-    fmi3DoStepTYPE *step3;
-    fmi3TerminateTYPE *term3;
-    fmi3ResetTYPE *reset3;
+    plant_fmi3_instance_t c3;
+    plant_fmi3_instantiate_cs_fn inst3;
+    plant_fmi3_free_instance_fn free3;
+    plant_fmi3_enter_init_fn enter3;
+    plant_fmi3_instance_fn exit3;
+    plant_fmi3_set_float64_fn set3;
+    plant_fmi3_get_float64_fn get3;
+    plant_fmi3_do_step_fn step3;
+    plant_fmi3_instance_fn term3;
+    plant_fmi3_instance_fn reset3;
     plant_external_t ext;
 } F;
 
-int plant_fmu_available(void) { return 1; }
-
-static void fmu_log2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
-                     fmi2String message, ...)
+static void fmu_log2(plant_fmi2_environment_t env, plant_fmi2_string_t name, plant_fmi2_status_t status,
+                     plant_fmi2_string_t category, plant_fmi2_string_t message, ...)
 {
     (void)env;
-    if (status < fmi2Warning) return;
+    if (status < PLANT_FMI2_WARNING) return;
     va_list ap;
     va_start(ap, message);
     fprintf(stderr, "plant: FMU %s [%s]: ", name ? name : "?", category ? category : "");
@@ -221,23 +202,24 @@ static void fmu_log2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status s
     va_end(ap);
 }
 
-static void fmu_log3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
+static void fmu_log3(plant_fmi3_environment_t env, plant_fmi3_status_t status, plant_fmi3_string_t category,
+                     plant_fmi3_string_t message)
 {
     (void)env;
-    if (status < fmi3Warning) return;
+    if (status < PLANT_FMI3_WARNING) return;
     fprintf(stderr, "plant: FMU [%s]: %s\n", category ? category : "", message ? message : "");
 }
 
 static int set_reals(const uint32_t *vr, const double *v, size_t n)
 {
-    if (F.spec.fmi == 2) return F.set2(F.c2, vr, n, v) > fmi2Warning ? -1 : 0;
-    return F.set3(F.c3, vr, n, v, n) > fmi3Warning ? -1 : 0;
+    if (F.spec.fmi == 2) return F.set2(F.c2, vr, n, v) > PLANT_FMI2_WARNING ? -1 : 0;
+    return F.set3(F.c3, vr, n, v, n) > PLANT_FMI3_WARNING ? -1 : 0;
 }
 
 static int get_reals(const uint32_t *vr, double *v, size_t n)
 {
-    if (F.spec.fmi == 2) return F.get2(F.c2, vr, n, v) > fmi2Warning ? -1 : 0;
-    return F.get3(F.c3, vr, n, v, n) > fmi3Warning ? -1 : 0;
+    if (F.spec.fmi == 2) return F.get2(F.c2, vr, n, v) > PLANT_FMI2_WARNING ? -1 : 0;
+    return F.get3(F.c3, vr, n, v, n) > PLANT_FMI3_WARNING ? -1 : 0;
 }
 
 /* The model's outputs in the plant's terms (stator frame, mechanical angle and speed). */
@@ -270,13 +252,13 @@ static int outputs(plant_external_out_t *out)
 static int do_step(double t, double h)
 {
     if (F.spec.fmi == 2) {
-        const fmi2Status st = F.step2(F.c2, t, h, fmi2True);
-        return st > fmi2Warning ? (int)st : 0;
+        const plant_fmi2_status_t st = F.step2(F.c2, t, h, PLANT_FMI2_TRUE);
+        return st > PLANT_FMI2_WARNING ? (int)st : 0;
     }
-    fmi3Boolean event = fmi3False, terminate = fmi3False, early = fmi3False;
-    fmi3Float64 last = t;
-    const fmi3Status st = F.step3(F.c3, t, h, fmi3True, &event, &terminate, &early, &last);
-    if (st > fmi3Warning) return (int)st;
+    bool event = false, terminate = false, early = false;
+    double last = t;
+    const plant_fmi3_status_t st = F.step3(F.c3, t, h, true, &event, &terminate, &early, &last);
+    if (st > PLANT_FMI3_WARNING) return (int)st;
     return terminate ? 6 : 0;
 }
 
@@ -314,10 +296,10 @@ static int initialize(char *err, size_t n)
     }
     int bad;
     if (F.spec.fmi == 2) {
-        bad = F.setup2(F.c2, fmi2False, 0.0, 0.0, fmi2False, 0.0) > fmi2Warning || F.enter2(F.c2) > fmi2Warning ||
-              F.exit2(F.c2) > fmi2Warning;
+        bad = F.setup2(F.c2, PLANT_FMI2_FALSE, 0.0, 0.0, PLANT_FMI2_FALSE, 0.0) > PLANT_FMI2_WARNING ||
+              F.enter2(F.c2) > PLANT_FMI2_WARNING || F.exit2(F.c2) > PLANT_FMI2_WARNING;
     } else {
-        bad = F.enter3(F.c3, fmi3False, 0.0, 0.0, fmi3False, 0.0) > fmi3Warning || F.exit3(F.c3) > fmi3Warning;
+        bad = F.enter3(F.c3, false, 0.0, 0.0, false, 0.0) > PLANT_FMI3_WARNING || F.exit3(F.c3) > PLANT_FMI3_WARNING;
     }
     if (bad) say(err, n, "the FMU's initialization failed");
     return bad ? -1 : 0;
@@ -326,7 +308,7 @@ static int initialize(char *err, size_t n)
 static int ext_restart(void *ctx, plant_external_out_t *out)
 {
     (void)ctx;
-    const int bad = F.spec.fmi == 2 ? F.reset2(F.c2) > fmi2Warning : F.reset3(F.c3) > fmi3Warning;
+    const int bad = F.spec.fmi == 2 ? F.reset2(F.c2) > PLANT_FMI2_WARNING : F.reset3(F.c3) > PLANT_FMI3_WARNING;
     if (bad || initialize(NULL, 0) != 0) return -4;
     return outputs(out);
 }
@@ -367,26 +349,26 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
     }
     int missing = 0;
     if (spec->fmi == 2) {
-        F.inst2 = (fmi2InstantiateTYPE *)sym("fmi2Instantiate", err, err_len, &missing);
-        F.free2 = (fmi2FreeInstanceTYPE *)sym("fmi2FreeInstance", err, err_len, &missing);
-        F.setup2 = (fmi2SetupExperimentTYPE *)sym("fmi2SetupExperiment", err, err_len, &missing);
-        F.enter2 = (fmi2EnterInitializationModeTYPE *)sym("fmi2EnterInitializationMode", err, err_len, &missing);
-        F.exit2 = (fmi2ExitInitializationModeTYPE *)sym("fmi2ExitInitializationMode", err, err_len, &missing);
-        F.set2 = (fmi2SetRealTYPE *)sym("fmi2SetReal", err, err_len, &missing);
-        F.get2 = (fmi2GetRealTYPE *)sym("fmi2GetReal", err, err_len, &missing);
-        F.step2 = (fmi2DoStepTYPE *)sym("fmi2DoStep", err, err_len, &missing);
-        F.term2 = (fmi2TerminateTYPE *)sym("fmi2Terminate", err, err_len, &missing);
-        F.reset2 = (fmi2ResetTYPE *)sym("fmi2Reset", err, err_len, &missing);
+        F.inst2 = (plant_fmi2_instantiate_fn)sym("fmi2Instantiate", err, err_len, &missing);
+        F.free2 = (plant_fmi2_free_instance_fn)sym("fmi2FreeInstance", err, err_len, &missing);
+        F.setup2 = (plant_fmi2_setup_experiment_fn)sym("fmi2SetupExperiment", err, err_len, &missing);
+        F.enter2 = (plant_fmi2_instance_fn)sym("fmi2EnterInitializationMode", err, err_len, &missing);
+        F.exit2 = (plant_fmi2_instance_fn)sym("fmi2ExitInitializationMode", err, err_len, &missing);
+        F.set2 = (plant_fmi2_set_real_fn)sym("fmi2SetReal", err, err_len, &missing);
+        F.get2 = (plant_fmi2_get_real_fn)sym("fmi2GetReal", err, err_len, &missing);
+        F.step2 = (plant_fmi2_do_step_fn)sym("fmi2DoStep", err, err_len, &missing);
+        F.term2 = (plant_fmi2_instance_fn)sym("fmi2Terminate", err, err_len, &missing);
+        F.reset2 = (plant_fmi2_instance_fn)sym("fmi2Reset", err, err_len, &missing);
     } else {
-        F.inst3 = (fmi3InstantiateCoSimulationTYPE *)sym("fmi3InstantiateCoSimulation", err, err_len, &missing);
-        F.free3 = (fmi3FreeInstanceTYPE *)sym("fmi3FreeInstance", err, err_len, &missing);
-        F.enter3 = (fmi3EnterInitializationModeTYPE *)sym("fmi3EnterInitializationMode", err, err_len, &missing);
-        F.exit3 = (fmi3ExitInitializationModeTYPE *)sym("fmi3ExitInitializationMode", err, err_len, &missing);
-        F.set3 = (fmi3SetFloat64TYPE *)sym("fmi3SetFloat64", err, err_len, &missing);
-        F.get3 = (fmi3GetFloat64TYPE *)sym("fmi3GetFloat64", err, err_len, &missing);
-        F.step3 = (fmi3DoStepTYPE *)sym("fmi3DoStep", err, err_len, &missing);
-        F.term3 = (fmi3TerminateTYPE *)sym("fmi3Terminate", err, err_len, &missing);
-        F.reset3 = (fmi3ResetTYPE *)sym("fmi3Reset", err, err_len, &missing);
+        F.inst3 = (plant_fmi3_instantiate_cs_fn)sym("fmi3InstantiateCoSimulation", err, err_len, &missing);
+        F.free3 = (plant_fmi3_free_instance_fn)sym("fmi3FreeInstance", err, err_len, &missing);
+        F.enter3 = (plant_fmi3_enter_init_fn)sym("fmi3EnterInitializationMode", err, err_len, &missing);
+        F.exit3 = (plant_fmi3_instance_fn)sym("fmi3ExitInitializationMode", err, err_len, &missing);
+        F.set3 = (plant_fmi3_set_float64_fn)sym("fmi3SetFloat64", err, err_len, &missing);
+        F.get3 = (plant_fmi3_get_float64_fn)sym("fmi3GetFloat64", err, err_len, &missing);
+        F.step3 = (plant_fmi3_do_step_fn)sym("fmi3DoStep", err, err_len, &missing);
+        F.term3 = (plant_fmi3_instance_fn)sym("fmi3Terminate", err, err_len, &missing);
+        F.reset3 = (plant_fmi3_instance_fn)sym("fmi3Reset", err, err_len, &missing);
     }
     if (missing) {
         dlclose(F.dl);
@@ -394,11 +376,12 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
         return -1;
     }
     if (spec->fmi == 2) {
-        F.cb2 = (fmi2CallbackFunctions){fmu_log2, calloc, free, NULL, NULL};
-        F.c2 = F.inst2(spec->identifier, fmi2CoSimulation, spec->token, spec->resources, &F.cb2, fmi2False, fmi2False);
+        F.cb2 = (plant_fmi2_callbacks_t){fmu_log2, calloc, free, NULL, NULL};
+        F.c2 = F.inst2(spec->identifier, PLANT_FMI2_CO_SIMULATION, spec->token, spec->resources, &F.cb2,
+                       PLANT_FMI2_FALSE, PLANT_FMI2_FALSE);
     } else {
-        F.c3 = F.inst3(spec->identifier, spec->token, spec->resources, fmi3False, fmi3False, fmi3False, fmi3False, NULL,
-                       0, NULL, fmu_log3, NULL);
+        F.c3 = F.inst3(spec->identifier, spec->token, spec->resources, false, false, false, false, NULL, 0, NULL,
+                       fmu_log3, NULL);
     }
     if ((spec->fmi == 2 && F.c2 == NULL) || (spec->fmi == 3 && F.c3 == NULL)) {
         say(err, err_len, "%s: the FMU's instantiation failed (token %s)", spec->library, spec->token);
@@ -422,16 +405,10 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
     return 0;
 }
 
-#endif
-
 uint32_t plant_fmu_load_text(const uint8_t *text, uint32_t len, const plant_external_t **ext)
 {
     static plant_fmu_spec_t spec; /* not on the stack: ~2.5 kB, and a load is not in the period's path */
     char err[1400];
-    if (!plant_fmu_available()) {
-        fprintf(stderr, "plant: 0x2009 FMU refused: this plant was built without the FMI headers (FMPy)\n");
-        return CO_ABORT_UNSUPPORTED;
-    }
     if (plant_fmu_parse((const char *)text, len, &spec, err, sizeof err) != 0 ||
         plant_fmu_load(&spec, ext, err, sizeof err) != 0) {
         fprintf(stderr, "plant: 0x2009 FMU refused: %s\n", err);

@@ -1,7 +1,8 @@
 /* plant_fmu.h - a co-simulation FMU (FMI 2.0 or 3.0, a Linux x86-64 binary) as the plant's external machine model
- * (plant_external_t, pmsm_plant.h): host glue, loaded with dlopen through the standard FMI headers (FMPy's copy,
- * the Makefile's FMI_INC).  The bench checks the FMU against its modelDescription.xml and extracts it
- * (bench/motor/fmu.py); the plant gets what it needs as the text of its object 0x2009 "FMU" (plant.eds):
+ * (plant_external_t, pmsm_plant.h): host glue, loaded with dlopen through the standard's C interface, declared by
+ * plant_fmi_api.h (the project's own, no external FMI header: the loader is always built).  The bench checks the
+ * FMU against its modelDescription.xml and extracts it (bench/motor/fmu.py); the plant gets what it needs as the
+ * text of its object 0x2009 "FMU" (plant.eds):
  *
  *     fmi 2                       2 or 3
  *     library /x/binaries/linux64/linear_pmsm.so
@@ -57,10 +58,7 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
 /* Terminate, free and unload the loaded model (none: no-op). */
 void plant_fmu_unload(void);
 /* The plant app's loader (plant_app_set_fmu_loader): parse and load a 0x2009 text; 0, or the SDO abort code
- * (0x06090030 a bad text or an FMU that does not load, 0x06010000 a build without the FMI headers); the reason
- * on stderr, the plant's log. */
+ * 0x06090030 (a bad text or an FMU that does not load); the reason on stderr, the plant's log. */
 uint32_t plant_fmu_load_text(const uint8_t *text, uint32_t len, const plant_external_t **ext);
-/* Whether this build has the FMI headers (else plant_fmu_load refuses every FMU). */
-int plant_fmu_available(void);
 
 #endif

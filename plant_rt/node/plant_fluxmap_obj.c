@@ -44,11 +44,15 @@ static void point_into(plant_flux_map_t *m, const double *words, uint32_t n_d, u
     m->psi_q_Wb = words + n_d + n_q + n_d * n_q;
 }
 
+/* The abort codes (plant.eds 0x2008): a download of the wrong length for its header - a truncated table above all
+ * (a transfer cut short, a file cut) - is CiA 301's 0x0607 0013 "length of service parameter too low" (0x0607 0012
+ * too high), as the stack answers any object given too few or too many bytes: the length is what is wrong, and a
+ * tool that shows the code says so.  0x0609 0030 "value range of parameter exceeded" is for a map whose bytes are
+ * all there but whose values are not a map (header, sizes, not finite, grids, not invertible). */
 uint32_t plant_fluxmap_obj_accept(plant_fluxmap_obj_t *o, const uint8_t *data, uint32_t len)
 {
-    if (len < PLANT_FLUXMAP_HEADER_BYTES || memcmp(data, "FMAP", 4) != 0 || u32_le(data + 4) != 1u) {
-        return CO_ABORT_INVALID_VALUE;
-    }
+    if (len < PLANT_FLUXMAP_HEADER_BYTES) return CO_ABORT_TOO_SHORT; /* not even the header: cut short */
+    if (memcmp(data, "FMAP", 4) != 0 || u32_le(data + 4) != 1u) return CO_ABORT_INVALID_VALUE;
     const uint32_t n_d = u32_le(data + 8), n_q = u32_le(data + 12);
     if (n_d < 2u || n_q < 2u || n_d > PLANT_FLUXMAP_MAX_POINTS || n_q > PLANT_FLUXMAP_MAX_POINTS) {
         return CO_ABORT_INVALID_VALUE;

@@ -32,7 +32,8 @@ typedef struct {
 /* No map; the DOMAIN `d` (the OD's 0x2008) points at the object's buffer. */
 void plant_fluxmap_obj_init(plant_fluxmap_obj_t *o, co_domain_t *d);
 /* A completed download of `len` bytes (in o->blob): 0 and the live map replaced, or an SDO abort code
- * (CO_ABORT_INVALID_VALUE: layout, sizes or plant_flux_map_check; the live map unchanged). */
+ * (CO_ABORT_TOO_SHORT / CO_ABORT_TOO_LONG: fewer / more bytes than its header's sizes take; CO_ABORT_INVALID_VALUE:
+ * header, sizes or plant_flux_map_check; the live map unchanged). */
 uint32_t plant_fluxmap_obj_accept(plant_fluxmap_obj_t *o, const uint8_t *data, uint32_t len);
 /* Before an upload: the blob holds the live map's bytes, `d` its size. */
 void plant_fluxmap_obj_publish(plant_fluxmap_obj_t *o, co_domain_t *d);

@@ -167,7 +167,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2000_motor_model.T_amb_degC = 20.0f,
     .mfr.x2000_motor_model.thermal_R_K_per_W = 0.0f,
     .mfr.x2000_motor_model.thermal_C_J_per_K = 0.0f,
-    .mfr.x2001_Inverter.highest_sub_index_supported = 0x8u,
+    .mfr.x2001_Inverter.highest_sub_index_supported = 0x9u,
     .mfr.x2001_Inverter.Ts_s = 5.500000042957254e-05f,
     .mfr.x2001_Inverter.Vdc_V = 300.0f,
     .mfr.x2001_Inverter.mod_limit = 0x0u,
@@ -176,6 +176,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2001_Inverter.I_trip_A = 12.0f,
     .mfr.x2001_Inverter.Ts_pwm_s = 5.500000042957254e-05f,
     .mfr.x2001_Inverter.hold_frame = 0x0u,
+    .mfr.x2001_Inverter.trip_reaction = 0x0u,
     .mfr.x2002_Sensors.highest_sub_index_supported = 0x7u,
     .mfr.x2002_Sensors.adc_lsb_A = 0.0f,
     .mfr.x2002_Sensors.adc_offset_a_A = 0.0f,
@@ -412,6 +413,7 @@ static const co_od_entry_t entries[] = {
     {0x2001u, 0x06u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.I_trip_A), &OD_PLANT.mfr.x2001_Inverter.I_trip_A, {.f = 0.0f}, {.f = 10000.0f}}, /* I_trip_A */
     {0x2001u, 0x07u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.Ts_pwm_s), &OD_PLANT.mfr.x2001_Inverter.Ts_pwm_s, {.f = 0.0f}, {.f = 0.10000000149011612f}}, /* Ts_pwm_s */
     {0x2001u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.hold_frame), &OD_PLANT.mfr.x2001_Inverter.hold_frame, {.i = 0}, {.i = 1}}, /* hold_frame */
+    {0x2001u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2001_Inverter.trip_reaction), &OD_PLANT.mfr.x2001_Inverter.trip_reaction, {.i = 0}, {.i = 1}}, /* trip_reaction */
     {0x2002u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2002_Sensors.highest_sub_index_supported), &OD_PLANT.mfr.x2002_Sensors.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2002u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_lsb_A), &OD_PLANT.mfr.x2002_Sensors.adc_lsb_A, {.f = 0.0f}, {.f = 10.0f}}, /* adc_lsb_A */
     {0x2002u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2002_Sensors.adc_offset_a_A), &OD_PLANT.mfr.x2002_Sensors.adc_offset_a_A, {.f = -10.0f}, {.f = 10.0f}}, /* adc_offset_a_A */

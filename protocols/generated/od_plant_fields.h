@@ -201,6 +201,7 @@
 #define OD_PLANT_INVERTER_I_TRIP_A_SUB 0x06u
 #define OD_PLANT_INVERTER_TS_PWM_S_SUB 0x07u
 #define OD_PLANT_INVERTER_HOLD_FRAME_SUB 0x08u
+#define OD_PLANT_INVERTER_TRIP_REACTION_SUB 0x09u
 #define OD_PLANT_SENSORS_IDX 0x2002u
 #define OD_PLANT_SENSORS_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_SENSORS_ADC_LSB_A_SUB 0x01u
@@ -355,6 +356,7 @@ typedef struct {
     float I_trip_A;
     float Ts_pwm_s;
     uint8_t hold_frame;
+    uint8_t trip_reaction;
 } od_plant_inverter_t;
 
 
@@ -367,7 +369,8 @@ typedef struct {
     X(0x2001u, 0x05u, x2001_Inverter, deadtime_I_sat_A, 0.3333333432674408f) \
     X(0x2001u, 0x06u, x2001_Inverter, I_trip_A, 12.0f) \
     X(0x2001u, 0x07u, x2001_Inverter, Ts_pwm_s, 5.500000042957254e-05f) \
-    X(0x2001u, 0x08u, x2001_Inverter, hold_frame, 0u)
+    X(0x2001u, 0x08u, x2001_Inverter, hold_frame, 0u) \
+    X(0x2001u, 0x09u, x2001_Inverter, trip_reaction, 0u)
 
 #define OD_PLANT_INVERTER_TS_S_DEFAULT 5.500000042957254e-05f
 #define OD_PLANT_INVERTER_VDC_V_DEFAULT 300.0f
@@ -377,6 +380,7 @@ typedef struct {
 #define OD_PLANT_INVERTER_I_TRIP_A_DEFAULT 12.0f
 #define OD_PLANT_INVERTER_TS_PWM_S_DEFAULT 5.500000042957254e-05f
 #define OD_PLANT_INVERTER_HOLD_FRAME_DEFAULT 0u
+#define OD_PLANT_INVERTER_TRIP_REACTION_DEFAULT 0u
 
 /* 0x2002 Sensors */
 typedef struct {
@@ -631,6 +635,12 @@ enum {
 enum {
     OD_PLANT_HOLD_FRAME_STATOR = 0,
     OD_PLANT_HOLD_FRAME_ROTOR = 1
+};
+
+/* 0x2001:09 Inverter.trip_reaction */
+enum {
+    OD_PLANT_TRIP_REACTION_ACTIVE_SHORT_CIRCUIT = 0,
+    OD_PLANT_TRIP_REACTION_PULSES_OFF = 1
 };
 
 /* 0x2003:01 Run control.mode */

@@ -27,20 +27,20 @@ from bench.run.loop.session_bus import SessionBus
 from bench.scenario import load
 
 TUNE = REPO / "tests" / "scenarios" / "parity.toml"
-CONSUMER_S = RunOptions().heartbeat_timeout_ms / 1000
 
 
 @pytest.fixture
 def slow_drive_stop(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The plant's process stopped first, the drive's only after the drive's heartbeat-consumer time and a
-    half: the drive sees the plant's heartbeat end while it still runs."""
+    """The plant's process stopped first, the drive's only after the drive's heartbeat-consumer time (0x1016 as
+    the run configured it: longer in the CAN box, options.py BOX_CONSUMER_MS) and half a second: the drive sees the
+    plant's heartbeat end while it still runs."""
     stop_nodes = SessionBus._stop_nodes
 
     def stop_plant_then_wait(self: SessionBus) -> None:
         plant = self.node_procs.get("plant")
         if plant is not None:
             plant.stop()
-            time.sleep(CONSUMER_S + 0.5)
+            time.sleep(self.config.consumer_ms / 1000 + 0.5)  # type: ignore[attr-defined]  # a Session
         stop_nodes(self)
 
     monkeypatch.setattr(SessionBus, "_stop_nodes", stop_plant_then_wait)

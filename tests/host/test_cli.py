@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import importlib.metadata
+import json
 import re
+import shlex
 import sys
+from typing import Any
 
 import pytest
 from bench_cli import bench_cli
 
 from bench.canbus import probe_af_can
+from bench.paths import REPO
 
 
 def test_help_lists_commands() -> None:
@@ -111,10 +116,117 @@ def test_the_readme_lists_every_exit_code() -> None:
 
 
 def test_doctor_tells_a_pip_user_pip_and_a_clone_make_setup(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A missing dependency of an installed package: the bench again from where it came (which brings it), the
+    installed numpy pinned, not a bare `pip install "python-can"` that may move numpy; in a clone: make setup."""
     from bench.tools import doctor
 
     monkeypatch.setattr(doctor, "INSTALLED", True)  # a pip-installed package: no Makefile to run
-    hint = doctor._install_hint("rerun-sdk")
-    assert f'{sys.executable} -m pip install "rerun-sdk"' == hint and "make" not in hint
+    numpy = importlib.metadata.version("numpy")
+    hint = doctor._install_hint("python-can")  # the bench's origin here: this clone (bench.extras.origin)
+    assert hint == shlex.join([sys.executable, "-m", "pip", "install", "-e", str(REPO), f"numpy=={numpy}"]), hint
     monkeypatch.setattr(doctor, "INSTALLED", False)
-    assert doctor._install_hint("rerun-sdk").startswith("make setup")
+    assert doctor._install_hint("python-can").startswith("make setup")
+
+
+class _Dist:
+    """A stand-in for importlib.metadata's distribution of the bench, with the direct_url.json pip wrote (or none)."""
+
+    def __init__(self, direct_url: dict[str, Any] | None, version: str = "0.9.1") -> None:
+        self.version = version
+        self._text = None if direct_url is None else json.dumps(direct_url)
+
+    def read_text(self, name: str) -> str | None:
+        return self._text if name == "direct_url.json" else None
+
+
+SHA = "0123456789abcdef0123456789abcdef01234567"
+
+
+@pytest.mark.parametrize(
+    "direct_url, kind, args",
+    [
+        (None, "index", ["pmsm-hil-bench[view]==0.9.1"]),
+        (
+            {"url": "https://github.com/lab/pmsm-hil-bench.git", "vcs_info": {"vcs": "git", "commit_id": SHA}},
+            "git",
+            [f"pmsm-hil-bench[view] @ git+https://github.com/lab/pmsm-hil-bench.git@{SHA}"],
+        ),
+        (
+            {"url": "ssh://git@lab/x.git", "vcs_info": {"vcs": "git", "commit_id": SHA}, "subdirectory": "bench"},
+            "git",
+            [f"pmsm-hil-bench[view] @ git+ssh://git@lab/x.git@{SHA}#subdirectory=bench"],
+        ),
+        ({"url": "file:///opt/my%20benches/pmsm", "dir_info": {}}, "folder", ["/opt/my benches/pmsm[view]"]),
+        ({"url": "file:///src/pmsm", "dir_info": {"editable": True}}, "editable", ["-e", "/src/pmsm[view]"]),
+        (
+            {"url": "file:///w/pmsm_hil_bench-0.9.1-py3-none-linux_x86_64.whl", "archive_info": {}},
+            "archive",
+            ["pmsm-hil-bench[view] @ file:///w/pmsm_hil_bench-0.9.1-py3-none-linux_x86_64.whl"],
+        ),
+    ],
+    ids=["pypi", "git", "git-subdirectory", "folder", "editable", "wheel"],
+)
+def test_the_extras_hint_names_the_source_and_keeps_numpy(
+    monkeypatch: pytest.MonkeyPatch, direct_url: dict[str, Any] | None, kind: str, args: list[str]
+) -> None:
+    """bench.extras: the install line adds the extra to the bench from where pip installed it (PEP 610's
+    direct_url.json: git at the installed commit, a folder, an editable folder, a wheel; none: an index at the
+    installed version), with `numpy==<installed>`, as every message that names a missing extra says it."""
+    from bench import extras
+
+    monkeypatch.setattr(extras, "INSTALLED", True)
+    monkeypatch.setattr(importlib.metadata, "distribution", lambda name: _Dist(direct_url))
+    numpy = f"numpy=={importlib.metadata.version('numpy')}"
+    assert extras.origin()[0] == kind
+    assert extras.requirement("view") == [*args, numpy]
+    line = extras.missing_extra("view", "bench replay", "no module 'rerun'")
+    assert line == (
+        f"bench replay needs the package's [view] extra (no module 'rerun'): "
+        f"{shlex.join([sys.executable, '-m', 'pip', 'install', *args, numpy])}"
+    )
+    assert "pip install 'pmsm-hil-bench[view]'" not in line  # the bare line of before, which named no source
+
+
+def test_doctor_reports_a_missing_extra_as_optional_with_a_line_that_keeps_numpy(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A pip user without [view]: the extra's line is optional (`--`, not `NO`), names what it brings and how to add
+    it from where the bench came with the installed numpy pinned; doctor's exit status stays 0."""
+    from bench import extras
+    from bench.tools import doctor
+
+    real = doctor._py_version
+    monkeypatch.setattr(doctor, "_py_version", lambda d: None if d == "rerun-sdk" else real(d))
+    monkeypatch.setattr(doctor, "INSTALLED", True)
+    numpy = importlib.metadata.version("numpy")
+    view = doctor.extra_check("view")
+    assert (view.ok, view.optional) == (False, True)
+    assert "rerun-sdk not installed" in view.detail and "optional: run.rrd" in view.detail, view.detail
+    assert view.fix == extras.install_command("view")  # from this clone, the bench's origin here
+    assert view.fix == shlex.join([sys.executable, "-m", "pip", "install", "-e", f"{REPO}[view]", f"numpy=={numpy}"])
+    checks = [doctor.Check("gcc", True, "12"), view, doctor.extra_check("fmu")]
+    monkeypatch.setattr(doctor, "collect", lambda: (checks, "host"))
+    assert doctor.report() == 0
+    out = capsys.readouterr().out
+    assert re.search(r"\[-- \] \[view\] extra +rerun-sdk not installed", out), out
+    assert f"fix: {view.fix}" in out and "problem(s)" not in out, out
+    assert "Optional, not installed: [view] extra (not a problem" in out and f"your numpy {numpy} kept" in out, out
+    broken = [*checks, doctor.Check("python-can", False, "not installed")]
+    monkeypatch.setattr(doctor, "collect", lambda: (broken, "host"))
+    assert doctor.report() == 1  # a missing dependency still is a problem
+    assert "1 problem(s) above" in capsys.readouterr().out
+
+
+def test_the_extras_tables_name_pyproject_s_extras() -> None:
+    """bench/extras.py's tables (the modules, the distributions doctor shows, the purposes) cover exactly the extras
+    of pyproject.toml but [all] and [dev], and each distribution doctor shows is one the extra installs."""
+    import tomllib
+
+    from bench import extras
+
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    features = {k: v for k, v in declared.items() if k not in ("all", "dev")}
+    assert set(extras.EXTRAS) == set(extras.DISTS) == set(extras.PURPOSE) == set(features)
+    for extra, dists in extras.DISTS.items():
+        names = {re.split(r"[<>=!~;\[ ]", r, maxsplit=1)[0].lower() for r in features[extra]}
+        assert set(dists) <= names, (extra, set(dists) - names)

@@ -106,6 +106,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
             "bench.metrics",
             "bench.laws",
             "bench.law",
+            "bench.law_upgrade",
             "bench.extras",
             "bench.signals",
             "bench.emcy",

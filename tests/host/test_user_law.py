@@ -92,6 +92,8 @@ REFUSALS = [
     ("unsupported data type", "DataType=0x0006", "DataType=0x0009", 1, "DataType 0x0009 not supported", "2400sub2"),
     ("a default that is not a number", "DefaultValue=0.5", "DefaultValue=half", 1, "not a number", "2400sub1"),
     ("a default out of its range", "DefaultValue=0.5", "DefaultValue=2", 1, "outside LowLimit..HighLimit", "2400sub1"),
+    # a '=' in a value that is not prose: the EDS the bench writes must load in canopen-monitor (issue 52)
+    ("a '=' in a value", "ParameterName=gain\n", "ParameterName=gain\nUnit=V=A\n", 1, "a '=' in the value", "2400sub1"),
     (
         "a sub-entry canopen refuses",
         "PDOMapping=0\nDescription=a parameter the law does not",

@@ -4,10 +4,12 @@ of the repository (the C nodes built at install time; the plain install, no extr
 plugin the package enables: in direct mode with two workers (two laws in one session, a vcan test skipped on a
 host without can-utils), with a broken expectation, over vcan (the CAN box on this host), and `bench
 run|sweep|replay` from a folder that is not the clone. The wheel's contents are listed against the build they
-must carry."""
+must carry. Issue 52: the extras `.[view,fmu]` installed beside numpy 1.26 and pytest 8.3 in one pip command, a run
+recorded (run.rrd) and an FMU built and run with them, bench doctor there."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -18,6 +20,7 @@ import venv
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.paths import REPO
@@ -25,6 +28,10 @@ from bench.paths import REPO
 EXAMPLE = REPO / "examples" / "ci_project"
 PIP_TIMEOUT_S = 1800
 USER_PINS = ["pytest==8.3.5", "numpy==1.26.4", "pytest-xdist==3.8.0"]  # a firmware team's own, next to the bench
+EXTRAS_PINS = ["numpy==1.26.*", "pytest==8.3.*"]  # issue 52: the extras beside a team's numpy 1.x
+# what pip picks for them beside numpy 1.26: the releases of pyproject.toml's ranges that take numpy 1.x, the
+# oldest each range allows (the lock's, beside numpy 2, are the repository's own set-up's)
+EXTRAS_PICKED = {"rerun-sdk": "0.23.1", "fmpy": "0.3.22"}
 CACHE = Path(tempfile.mkdtemp(prefix="bench-user-cache-"))
 
 
@@ -37,7 +44,11 @@ def _run(
     env = {k: v for k, v in os.environ.items() if not k.startswith(("BENCH_", "PYTEST_", "VIRTUAL_ENV"))}
     env.pop("PYTHONPATH", None)
     env["BENCH_CACHE_DIR"] = str(CACHE)
-    return subprocess.run(argv, cwd=cwd, env={**env, **(extra or {})}, capture_output=True, text=True, timeout=timeout)
+    env = {**env, **(extra or {})}
+    # stdin: none, as in a CI job (`rerun rrd print` waits on a terminal's)
+    return subprocess.run(
+        argv, cwd=cwd, env=env, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout
+    )
 
 
 @pytest.fixture(scope="module")
@@ -155,12 +166,11 @@ def test_bench_run_sweep_and_replay_outside_the_clone(user: Path) -> None:
     res = _run(sweep, work)
     assert res.returncode == 2 and not (work / "sweep1").exists(), res.stdout[-2000:] + res.stderr
     assert "bench sweep needs the package's [sweep] extra" in res.stderr, res.stderr
-    assert "pip install 'pmsm-hil-bench[sweep]'" in res.stderr, res.stderr
+    # the line adds the extra from where the bench came (this repository's folder), the user's numpy pinned
+    assert f"bin/python -m pip install '{REPO}[sweep]' numpy==1.26.4" in res.stderr, res.stderr
     replay = _run([bench, "replay", "run1/bus.log", "--no-viewer", "--out", "replay1"], work)
     assert replay.returncode == 0, replay.stdout[-2000:] + replay.stderr
     assert "no run.rrd: a Rerun recording needs the package's [view] extra" in replay.stderr, replay.stderr
-    import numpy as np
-
     ran, replayed = np.load(work / "run1" / "traces.npy"), np.load(work / "replay1" / "traces.npy")
     assert ran.dtype.names == replayed.dtype.names
     assert all(np.array_equal(ran[n], replayed[n], equal_nan=True) for n in ran.dtype.names)
@@ -214,3 +224,88 @@ def test_the_wheel_holds_the_build_and_no_path_of_its_machine(tmp_path: Path) ->
     machine = [str(REPO).encode(), b"build/setuptools"]
     leaks = [n for n in names if any(m in z.read(n) for m in machine)]
     assert not leaks, leaks
+
+
+@pytest.fixture(scope="module")
+def extras_user(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]]:
+    """A fresh venv with `<repository>[view,fmu]` beside numpy 1.26 and pytest 8.3, in one pip command as a team's
+    CI runs it; the versions pip picked."""
+    home = tmp_path_factory.mktemp("extras")
+    env_dir = home / "venv"
+    venv.EnvBuilder(with_pip=True).create(env_dir)
+    py = str(env_dir / "bin" / "python")
+    res = _run([py, "-m", "pip", "install", "-q", *EXTRAS_PINS, f"{REPO}[view,fmu]"], home, PIP_TIMEOUT_S)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    dists = ("numpy", "pytest", "rerun-sdk", "fmpy", "pyarrow", "matplotlib")
+    code = f"import importlib.metadata as m; print(*(m.version(d) for d in {dists!r}))"
+    got = _run([py, "-c", code], home)
+    assert got.returncode == 0, got.stderr
+    versions = dict(zip(dists, got.stdout.split(), strict=True))
+    assert versions["numpy"].startswith("1.26.") and versions["pytest"].startswith("8.3."), versions  # the team's
+    assert {d: versions[d] for d in EXTRAS_PICKED} == EXTRAS_PICKED, versions
+    return home, versions
+
+
+def test_the_extras_beside_numpy_1_26_record_a_run(extras_user: tuple[Path, dict[str, str]]) -> None:
+    """`bench run` of the example project's step writes a Rerun recording with rerun-sdk 0.23.1 on numpy 1.26 (its
+    pyarrow <26: 26 refuses numpy 1.x at import), which its own rerun reads back; doctor there: [view] and [fmu]
+    installed, [sweep] optional, with a line that adds it from this repository and keeps numpy 1.26."""
+    home, versions = extras_user
+    work = home / "record"
+    work.mkdir()
+    bench = str(home / "venv" / "bin" / "bench")
+    scenario = str(EXAMPLE / "scenarios" / "iq_step.toml")
+    res = _run([bench, "run", scenario, "--bus", "direct", "--no-viewer", "--out", "run1"], work)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    out = work / "run1"
+    assert json.loads((out / "summary.json").read_text())["status"] == "ok"
+    rrd = out / "run.rrd"
+    assert rrd.is_file() and rrd.stat().st_size > 0, sorted(p.name for p in out.iterdir())
+    printed = _run([str(home / "venv" / "bin" / "rerun"), "rrd", "print", str(rrd)], work, timeout=300)
+    assert printed.returncode == 0 and "/A/iq_A" in printed.stdout, printed.stdout[-2000:] + printed.stderr[-2000:]
+    doctor = _run([bench, "doctor"], work)
+    text = doctor.stdout
+    assert doctor.returncode == 0 and "problem(s)" not in text, text  # a missing extra is no problem
+    assert re.search(rf"\[ok \] \[view\] extra +rerun-sdk {versions['rerun-sdk']}, pyarrow ", text), text
+    assert re.search(rf"\[ok \] \[fmu\] extra +fmpy {versions['fmpy']}", text), text
+    assert re.search(r"\[-- \] \[sweep\] extra +dask not installed", text), text
+    assert f"-m pip install '{REPO}[sweep]' numpy=={versions['numpy']}" in text, text
+    assert "Optional, not installed: [sweep] extra" in text, text
+
+
+FMU_SCENARIO = """[scenario]
+name = "fmu-step"
+periods = 200
+
+[motor]
+preset = "you2019"
+
+[motor.fmu]
+file = "linear_pmsm.fmu"
+inputs = { v_alpha_V = "v_alpha", v_beta_V = "v_beta" }
+outputs = { i_a_A = "i_a", i_b_A = "i_b", theta_m_rad = "theta_m", omega_m_rad_s = "omega_m" }
+
+[drive]
+preset = "ideal"
+
+[[events]]
+at_period = 20
+references = { iq_ref_A = 1.0 }
+"""
+
+
+def test_the_extras_beside_numpy_1_26_build_and_run_an_fmu(extras_user: tuple[Path, dict[str, str]]) -> None:
+    """docs/YOUR_MOTOR.md section 8 with FMPy 0.3.22 on numpy 1.26: `bench motor fmu-build` of the example FMU
+    (FMPy's FMI headers), then a run with it as the plant (FMPy reads and validates it): status ok, the step ran."""
+    home, _ = extras_user
+    work = home / "fmu"
+    work.mkdir()
+    bench = str(home / "venv" / "bin" / "bench")
+    build = _run([bench, "motor", "fmu-build", str(REPO / "examples" / "fmu" / "linear_pmsm"), "linear_pmsm.fmu"], work)
+    assert build.returncode == 0 and (work / "linear_pmsm.fmu").is_file(), build.stdout + build.stderr
+    (work / "fmu_step.toml").write_text(FMU_SCENARIO)
+    res = _run([bench, "run", "fmu_step.toml", "--bus", "direct", "--no-viewer", "--out", "fmu1"], work)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    assert json.loads((work / "fmu1" / "summary.json").read_text())["status"] == "ok"
+    iq = np.load(work / "fmu1" / "traces.npy")["iq_A"]
+    assert np.abs(iq).max() > 0.5  # the FMU plant answered the step

@@ -69,6 +69,8 @@ class Configurator:
         self.opts = opts
         self.plant = plant
         self.drive = drive
+        # the nodes' consumer time (0x1016): the bench's own, longer in the CAN box (Session.open, BOX_CONSUMER_MS)
+        self.consumer_ms = opts.heartbeat_timeout_ms
         self.plant_values: dict[str, Any] = {}
         self.references: list[tuple[int, str, float]] = []
         self.applied: list[tuple[int, str, float]] = []  # every setting with the period it took effect
@@ -209,7 +211,7 @@ class Configurator:
     def configure_heartbeats(self) -> None:
         """CiA 301 error control: each node produces a heartbeat (0x1017) and consumes the other's
         (0x1016: a lost drive stops the plant, EMCY 0x8130 from either tells the bench)."""
-        hb, to = self.opts.heartbeat_ms, self.opts.heartbeat_timeout_ms
+        hb, to = self.opts.heartbeat_ms, self.consumer_ms
         if not 0 < hb < to <= 0xFFFF:
             raise ValueError(f"heartbeat {hb} ms, consumer time {to} ms: need 0 < heartbeat < consumer time <= 65535")
         for node, other in ((self.plant, self.drive), (self.drive, self.plant)):

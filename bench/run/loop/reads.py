@@ -28,7 +28,7 @@ STEP_COST = (
 )
 PLANT_VALUES = (
     ("Motor model", ("R_ohm", "Ld_H", "Lq_H", "psi_Wb", "pole_pairs", "J_kgm2", "mech_mode", "omega_imposed_rad_s")),
-    ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A")),
+    ("Inverter", ("Ts_s", "Vdc_V", "I_trip_A", "trip_reaction")),
 )
 
 

@@ -33,7 +33,7 @@ from bench.run.loop.configure import Configurator
 from bench.run.loop.direct_loop import DirectLoop
 from bench.run.loop.reads import END_READS, REALTIME_READS, STEP_COST
 from bench.run.loop.session_bus import SessionBus
-from bench.run.options import MCU_STALL_S, RunOptions
+from bench.run.options import BOX_CONSUMER_MS, MCU_STALL_S, RunOptions
 from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
 
@@ -68,6 +68,8 @@ class Session(SessionBus):
             self.direct = DirectLoop(self.hil, self.opts, realtime=self.sc.timing == "realtime")
         else:
             self._open_bus()
+            if self.box is not None:  # QEMU's emulation may starve one node for seconds: options.py BOX_CONSUMER_MS
+                self.config.consumer_ms = max(self.opts.heartbeat_timeout_ms, BOX_CONSUMER_MS)
         if isinstance(self.net.bus, DirectBus):
             # The nodes' answers go to the master's listeners on the sending thread (DirectBus.attach): no
             # notifier thread to start and stop per run (what canopen's connect() would do), nothing to poll.
@@ -124,7 +126,7 @@ class Session(SessionBus):
     def linger(self) -> None:
         """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
         fires after the consumer time): the consumer time plus a margin, simulated in direct mode."""
-        wait = self.opts.heartbeat_timeout_ms / 1000.0 + 0.3
+        wait = self.config.consumer_ms / 1000.0 + 0.3
         if self.hil is not None:
             self.hil.linger(wait)  # its frames go with the final drain of the recorder
         else:

@@ -111,7 +111,10 @@ class LoopWatch:
             if self.first_beyond_bound_period is not None
             else swing_seen_from(steps, oscillating, self.first_trip_period),
             "interference": bstats["interference"]["first_period"],
-            "frames_lost": dec.stats.first_lost_period,
+            # a log shorter than the run its master ran (cut, a recorder that lost the end): from where it ends
+            "frames_lost": dec.stats.first_lost_period
+            if dec.stats.first_lost_period is not None or not short
+            else dec.stats.periods,
         }
         if rt is not None:  # a real-time run: the plant counted overruns (a lockstep run's flags stay as they were)
             flags["realtime_overrun"] = realtime.overran(rt)
