@@ -148,7 +148,8 @@ def _write_summary(out: Path, res: RunResult, name: str) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from bench.run.outputs import Progress, print_result
+    from bench.run.console import print_result
+    from bench.run.outputs import Progress
     from bench.run.pipeline import replay_log
     from bench.run.sinks import TRACES_FILE, TraceFileSink
 

@@ -23,6 +23,7 @@ CAN_DIR = Path(__file__).parent / "can"
 # build, and those that build in the repository's tree with make.
 SERIAL = {
     "test_box.py": "box",  # boots, kills and stops the CAN box
+    "test_hil_cancel.py": "box",  # pytest sessions that boot the CAN box and are cancelled
     "test_user_project.py": "box",  # a user's project over vcan0 through the box; pip builds the wheel in build/
     "test_reproduce_report.py": "box",  # the claims of a paper over vcan0 through the box
     "test_example_law.py": "box",  # runs over vcan0 and the MCU image through the box

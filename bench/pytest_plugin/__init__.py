@@ -103,10 +103,17 @@ def pytest_configure(config: pytest.Config) -> None:
     )
     config.addinivalue_line(
         "markers",
-        "hil(bus=None, law=None, drive=None): a HIL test's needs: its runs' bus (vcan0, can0, ...) and law folder "
-        "(hil_run's defaults), drive='mcu' for the Cortex-M4F image; skipped naming what this host lacks (no "
-        "kernel CAN nor the CAN box's pieces, no can-utils, no QEMU for the image) unless --hil-require",
+        "hil(bus=None, law=None, motor=None, drive=None): a HIL test's needs: its runs' bus (vcan0, can0, ...), law "
+        "folder and motor (a motor folder, or an FMU mapping as a dict) as hil_run's defaults, drive='mcu' for the "
+        "Cortex-M4F image; skipped naming what this host lacks (no kernel CAN nor the CAN box's pieces, no "
+        "can-utils, no QEMU for the image) unless --hil-require",
     )
+    from bench.pytest_plugin.box import BoxHooks
+    from bench.pytest_plugin.cancel import CANCEL, Cancel
+
+    cancel = config.stash[CANCEL] = Cancel(config)
+    config.pluginmanager.register(cancel, "pmsm_hil_cancel")
+    config.pluginmanager.register(BoxHooks(config, cancel), "pmsm_hil_box")
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -120,8 +127,9 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         problem = settings.bus_problems[settings.bus] = bus_problem(settings.bus, settings.bus_option)
         if problem is not None:
             raise pytest.UsageError(problem)
-    if not hasattr(config, "workerinput"):  # one CAN box per session, shared by the xdist workers
-        _stop_box_at_end(config)
+    from bench.pytest_plugin import box
+
+    box.start(config)  # one CAN box per session, shared by the xdist workers
     if settings.law is not None:  # an xdist worker too: the controller's build, found current (no compile)
         from bench.pytest_plugin.checks import restore, use_law
 
@@ -129,7 +137,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         config.add_cleanup(lambda: restore(before))
 
 
-MARKER_KEYS = ("bus", "law", "drive")
+MARKER_KEYS = ("bus", "law", "motor", "drive")
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -159,34 +167,6 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
         pytest.skip(problem)
 
 
-def _stop_box_at_end(config: pytest.Config) -> None:
-    """The session's vcan runs on a host without kernel CAN share one CAN box (docs/VM.md), which the first
-    of them boots; the session stops it at its end when the session booted it. Its runs (and xdist workers)
-    inherit a token of the session in BENCH_BOX_OWNER, which the box they boot records: a box that was up
-    before, or that a user or another session started meanwhile, stays up."""
-    import os
-    import uuid
-
-    from bench.run.bus.box import life
-
-    if life.read_info() is not None:
-        return
-    before = os.environ.get(life.OWNER_ENV)
-    token = os.environ[life.OWNER_ENV] = f"pytest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-
-    def down_if_ours() -> None:
-        if before is None:
-            os.environ.pop(life.OWNER_ENV, None)
-        else:
-            os.environ[life.OWNER_ENV] = before
-        info = life.read_info()
-        # a slot another process holds (another session's run) keeps it up: its idle timeout powers it off
-        if info is not None and info.booted_by == token and not life.slots_held_by_others(info):
-            life.down()
-
-    config.add_cleanup(down_if_ours)
-
-
 @pytest.fixture(scope="session")
 def hil_bus(pytestconfig: pytest.Config) -> str:
     """The session's bus (--hil-bus, ini hil_bus; default direct)."""
@@ -195,9 +175,9 @@ def hil_bus(pytestconfig: pytest.Config) -> str:
 
 @pytest.fixture
 def hil_run(request: pytest.FixtureRequest) -> HilRunner:
-    """Runs a scenario: hil_run(scenario, overrides=None, *, bus=None, name=None, faults=None, events=None,
-    timeout=None, extra_args=()) returns the run's HilRun (summary, steps, status, exit code, traces, folder);
-    bench/pytest_plugin/fixture.py (HilRunner) says more."""
+    """Runs a scenario: hil_run(scenario, overrides=None, *, bus=None, law=None, motor=None, name=None, faults=None,
+    events=None, timeout=None, extra_args=()) returns the run's HilRun (summary, steps, status, exit code, traces,
+    folder); bench/pytest_plugin/fixture.py (HilRunner) says more."""
     from bench.pytest_plugin.fixture import HilRunner
 
     return HilRunner(request, request.config.stash[SETTINGS])
@@ -207,6 +187,11 @@ def hil_run(request: pytest.FixtureRequest) -> HilRunner:
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, Any, Any]:
     """A failing test that ran scenarios: a report section naming each run's folder, bus log and recording."""
     report = yield
+    from bench.pytest_plugin.box import BOX
+
+    log = item.config.stash.get(BOX, None)
+    if log is not None and log.pending:  # an xdist worker's box lines, for the controller to print
+        report.hil_box_lines, log.pending = log.pending, []
     texts = item.stash.get(RUN_TEXTS, None)
     if texts and report.failed:
         title = "HIL run" if len(texts) == 1 else f"HIL runs ({len(texts)})"

@@ -178,6 +178,7 @@ def report_text(run: HilRun) -> str:
         f"run folder:  {run.folder}",
         f"scenario:    {run.scenario or run.summary.get('scenario')} on bus {run.bus}",
         f"status:      {run.status} (exit status {run.exit_code}{expected})",
+        *_motor_line(run.summary.get("motor")),
         f"summary:     {run.folder / 'summary.json'}",
         f"traces:      {run.folder / 'traces.npy'} (numpy.load)",
         f"plots:       {', '.join(p.name for p in sorted(run.folder.glob('*.svg'))) or 'none written'}",
@@ -186,6 +187,13 @@ def report_text(run: HilRun) -> str:
     ]
     lines += [f"step:        {step_line(s)}" for s in run.steps]
     return "\n".join(lines)
+
+
+def _motor_line(block: Any) -> list[str]:
+    """The report's line on a motor folder or FMU (summary.json "motor"); none for a built-in motor."""
+    if not isinstance(block, dict) or not (block.get("folder") or block.get("fmu")):
+        return []
+    return [f"motor:       {block.get('folder') or block.get('fmu')} (content {block.get('digest')})"]
 
 
 def junit_properties(run: HilRun, prefix: str = "hil_") -> list[tuple[str, object]]:

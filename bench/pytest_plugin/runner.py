@@ -11,7 +11,7 @@ import shutil
 import signal
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
@@ -132,16 +132,16 @@ def scenario_file(scenario: Any, search: Sequence[Path], runs: RunFolders, name:
     return found.resolve(), runs.next(sanitize(name or found.stem)).name
 
 
-def check_scenario(path: Path, overrides: list[str], shown: str | None, build: Path | None = None) -> None:
+def check_scenario(path: Path, overrides: list[str], shown: str | None, build: Path | None = None) -> Any:
     """The scenario as `bench run` will read it (bench.scenario: every key, type and range against the EDS),
-    in this process so a bad one fails the test before any run. Skipped when this process already read another
-    build's EDS than the runs will (bench.paths imported before --hil-law set BENCH_BUILD_DIR): `bench run`
-    then refuses a bad scenario itself (exit 2, its message in the failure)."""
+    in this process so a bad one fails the test before any run; the Scenario read. Skipped (None) when this
+    process already read another build's EDS than the runs will (bench.paths imported before --hil-law set
+    BENCH_BUILD_DIR): `bench run` then refuses a bad scenario itself (exit 2, its message in the failure)."""
     import bench.paths
 
     env = str(build) if build is not None else os.environ.get("BENCH_BUILD_DIR")
     if bench.paths.BUILD != Path(env or bench.paths.REPO / "build").resolve():
-        return  # a law's build (hil_run's law=): `bench run` checks the scenario against that build's EDS
+        return None  # a law's build (hil_run's law=): `bench run` checks the scenario against that build's EDS
     from bench.scenario import ScenarioError, load, unselected_law
 
     try:
@@ -151,6 +151,7 @@ def check_scenario(path: Path, overrides: list[str], shown: str | None, build: P
     refusal = unselected_law([sc])
     if refusal is not None:
         refuse(f"hil_run: {shown or path}: {refusal}")
+    return sc
 
 
 def command(path: Path, folder: Path, bus: str, overrides: list[str], extra: Sequence[str]) -> list[str]:
@@ -169,9 +170,18 @@ def _stop(proc: subprocess.Popen[str]) -> tuple[str, str]:
         return proc.communicate()
 
 
-def execute(cmd: list[str], timeout: float | None, env: Mapping[str, str] | None = None) -> tuple[int, str, str, bool]:
-    """(exit status, stdout, stderr, whether it ran out of `timeout` seconds); the run ends with the test.
-    env: variables set for this run on top of this process's (a law's BENCH_BUILD_DIR)."""
+def execute(
+    cmd: list[str],
+    timeout: float | None,
+    env: Mapping[str, str] | None = None,
+    started: Callable[[int], None] | None = None,
+) -> tuple[int, str, str, bool]:
+    """(exit status, stdout, stderr, whether it ran out of `timeout` seconds); the run ends with the test: a
+    Ctrl-C or a cancelled session (bench/pytest_plugin/cancel.py) stops it, a second signal held off meanwhile.
+    env: variables set for this run on top of this process's (a law's BENCH_BUILD_DIR); started: given the run's
+    PID once it is started."""
+    from bench.stop import deferred
+
     full = None if not env else {**os.environ, **env}
     proc = subprocess.Popen(
         cmd,
@@ -181,14 +191,21 @@ def execute(cmd: list[str], timeout: float | None, env: Mapping[str, str] | None
         text=True,
         errors="replace",
         env=full,
+        # its own process group: a terminal's Ctrl-C, `timeout` or a CI job's stop signal the session's group, and
+        # a second signal to a run that is already stopping (the group's, then _stop's) would cut its cleanup short
+        # (its box slot left unclean); the run gets the one SIGTERM of _stop
+        process_group=0,
     )
     try:
+        if started is not None:
+            started(proc.pid)
         out, err = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
         out, err = _stop(proc)
         return proc.returncode, out, err, True
-    except BaseException:  # Ctrl-C in pytest, or pytest-timeout: no bench run left behind
-        _stop(proc)
+    except BaseException:  # Ctrl-C in pytest, a cancelled session, pytest-timeout: no bench run left behind
+        with deferred():
+            _stop(proc)
         raise
     return proc.returncode, out, err, False
 
@@ -282,3 +299,26 @@ def provenance(path: Path, bus: str, law: LawBuild | None) -> list[tuple[str, st
     if law is not None:
         props += [("law", law.name), ("law_digest", law.digest), ("law_folder", str(law.folder))]
     return props
+
+
+def motor_properties(block: Any) -> list[tuple[str, str]]:
+    """summary.json's "motor" block (bench.run.command.motor_block) as JUnit properties: motor (the folder, the
+    FMU, or builtin:<preset>) and motor_digest (16 hex of its files)."""
+    if not isinstance(block, Mapping):
+        return []
+    if "builtin" in block:
+        return [("motor", f"builtin:{block['builtin']}")]
+    where = block.get("folder") or block.get("fmu")
+    return [("motor", str(where)), ("motor_digest", str(block.get("digest")))] if where else []
+
+
+def bench_command() -> list[str]:
+    """The bench of this environment as a plain shell runs it: the venv's `bench` script by its absolute path (no
+    activated venv, no PATH needed), else this interpreter with `-m bench.cli` (what hil_run runs)."""
+    python = Path(os.path.abspath(sys.executable))  # not resolved: a venv's python is a link out of the venv
+    script = python.parent / "bench"
+    try:  # pip's script of this package (it imports bench.cli), not another program of that name
+        ours = os.access(script, os.X_OK) and b"bench.cli" in script.read_bytes()[:1000]
+    except OSError:
+        ours = False
+    return [str(script)] if ours else [str(python), "-m", "bench.cli"]

@@ -21,7 +21,8 @@ from typing import Any
 from bench.eds import add_node_id_arguments
 from bench.paths import lost_in_vm
 from bench.run.bus.buses import bus_problem
-from bench.run.outputs import Outputs, print_result
+from bench.run.console import print_result
+from bench.run.outputs import Outputs
 from bench.run.record.canlog import LOG_FORMATS
 from bench.run.vm_run import run_in_vm_capture
 from bench.scenario import Scenario, ScenarioError, add_set_argument, load, scenario_path, unselected_law
@@ -187,6 +188,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     except ScenarioError as exc:
         print(f"bench run: {exc}", file=sys.stderr)
         return 2, None, None
+    motor = motor_block(sc)  # the files as the scenario's load read them, not as they are at the run's end
     problem, in_vm = bus_problem(args)
     if problem:
         print(f"bench run: {problem}", file=sys.stderr)
@@ -236,6 +238,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         return 1, None, None
     # The loop is complete and decoded: from here on its results are kept, whatever comes.
     assert outputs is not None
+    result.summary["motor"] = motor
     cut = _finish_keeping(outputs, result, partial)
     if out.exists():
         out.rmdir()
@@ -252,6 +255,39 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     else:
         outputs.serve(args)
     return result.exit_code, result, out
+
+
+def motor_block(sc: Scenario) -> dict[str, Any]:
+    """summary.json "motor": the plant's motor as the run had it. A motor folder ([motor] folder, --motor DIR) or
+    an FMU ([motor.fmu]): {"folder": its absolute path or null, "fmu": the .fmu's or null, "name": motor.toml's
+    name or the FMU's model, "digest": 16 hex of the SHA-256 of its files} (the folder's motor.toml and the flux-map
+    table it names; the .fmu file: an FMU's mapping and parameters are the scenario's). A built-in motor:
+    {"builtin": its preset}."""
+    from bench.motor.folder import DESCRIPTION
+
+    if sc.motor_folder is not None:
+        folder = Path(sc.motor_folder.path)
+        files = [folder / DESCRIPTION, Path(sc.motor_folder.map_file)]
+        return {"folder": str(folder), "fmu": None, "name": sc.motor_folder.name, "digest": files_digest(folder, files)}
+    if sc.motor_fmu is not None:
+        fmu = Path(sc.motor_fmu.path)
+        digest = files_digest(fmu.parent, [fmu])
+        return {"folder": None, "fmu": str(fmu), "name": sc.motor_fmu.model_name, "digest": digest}
+    return {"builtin": sc.preset}
+
+
+def files_digest(base: Path, files: list[Path]) -> str | None:
+    """16 hex of the SHA-256 of the files, each by its path from `base` and its bytes (bench.law.digest's way);
+    None when one can no longer be read (removed during the run: the run's results are kept all the same)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    try:
+        for f in files:
+            h.update(os.path.relpath(f, base).encode() + b"\0" + f.read_bytes() + b"\0")
+    except OSError:
+        return None
+    return h.hexdigest()[:16]
 
 
 def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:

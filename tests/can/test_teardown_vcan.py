@@ -14,6 +14,7 @@ green run). Here the race is provoked deterministically: the drive's stop is del
 
 from __future__ import annotations
 
+import struct
 import time
 from pathlib import Path
 from typing import Any
@@ -22,8 +23,10 @@ import pytest
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
+from bench.run.bus.buses import box_wanted
 from bench.run.loop.session import Session
 from bench.run.loop.session_bus import SessionBus
+from bench.run.options import BOX_CONSUMER_MS
 from bench.scenario import load
 
 TUNE = REPO / "tests" / "scenarios" / "parity.toml"
@@ -74,6 +77,13 @@ def test_a_drive_that_outlives_the_plant_raises_no_alarm(vcan0: str, tmp_path: P
     assert res.summary["emcy"] == [], res.summary["emcy"]
     # the drive was STOPPED when the plant's heartbeat ended: it sent nothing at all
     assert res.summary["teardown"]["emcy"] == [], res.summary["teardown"]
+    # each node consumes the other's heartbeat with the run's consumer time: 5 s in the CAN box, whose emulation
+    # may starve one node for seconds (options.py BOX_CONSUMER_MS), the bench's 1 s elsewhere
+    want = BOX_CONSUMER_MS if box_wanted(vcan0) is not None else RunOptions().heartbeat_timeout_ms
+    log = "\n".join(p.read_text() for p in (tmp_path / "run").glob("*.log"))
+    for node, other in ((0x10, 0x20), (0x20, 0x10)):
+        write = struct.pack("<BHBI", 0x23, 0x1016, 1, (other << 16) | want).hex().upper()
+        assert f"{0x600 + node:03X}#{write}" in log, (node, want)
 
 
 def test_an_alarm_after_the_runs_end_is_the_teardowns(

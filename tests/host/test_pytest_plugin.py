@@ -11,15 +11,16 @@ import math
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import tomllib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
 import pytest
-from bench_cli import bench_cli
 from law_util import zero_law_as
 
 from bench.pytest_plugin.result import HilRun, load_run
@@ -155,13 +156,20 @@ def test_a_broken_bound_names_the_measured_figure_the_bound_and_the_run(
     assert f"summary:     {second / 'summary.json'}" in out and f"traces:      {second / 'traces.npy'}" in out, out
     assert "plots:       overview.svg, step_00_iq_p20.svg" in out, out
     assert PLUGIN_FRAMES not in out and "Traceback" not in out, out
-    # the reproduce line runs as pasted (its own new folder beside the test's) and gives the same figure
+    # the reproduce line runs as pasted into a plain shell (no venv activated, the bench by its absolute path),
+    # each paste into a new folder beside the test's, and gives the same figure
     line = next(x for x in out.splitlines() if x.startswith("reproduce:") and str(second) in x)
-    argv = shlex.split(line.removeprefix("reproduce:"))
-    assert argv[0] == "bench"
-    bench_cli(*argv[1:], "--no-viewer", cwd=root, env=_env(), timeout=600, expect=0)
-    redone = json.loads(Path(f"{second}-again", "summary.json").read_text())
-    assert redone["steps"][0]["overshoot_pct"] == measured
+    line = line.removeprefix("reproduce:").strip()
+    assert Path(shlex.split(line)[0]).is_absolute(), line
+    plain = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/")}
+    for _ in range(2):
+        res = subprocess.run(["bash", "-c", line], cwd=root, env=plain, capture_output=True, text=True, timeout=600)
+        assert res.returncode == 0, f"{line}\n{res.stdout}{res.stderr}"
+    again = sorted(second.parent.glob(f"{second.name}-again-*"))
+    assert len(again) == 2, again
+    for folder in again:
+        redone = json.loads((folder / "summary.json").read_text())
+        assert redone["steps"][0]["overshoot_pct"] == measured
 
 
 def test_the_key_figures_are_junit_properties(session: tuple[pytest.RunResult, Path]) -> None:
@@ -316,7 +324,79 @@ def test_two_laws_in_one_session_a_marker_skip_and_the_junit_provenance(
     assert "--hil-require: hil(bus=...) nosuchbus0: " in _output(required), _output(required)
 
 
+# ------------------------------------------------------------------ a cancelled session (the box's: test_hil_cancel.py)
+
+CANCELLED = f"""
+def test_a_long_run(hil_run):
+    hil_run({str(STEP)!r}, {{"scenario.periods": 5_000_000}})
+
+
+def test_a_long_wait():  # without xdist never reached: the session stops after the first; with it, cancelled too
+    import time
+
+    time.sleep(600)
+"""
+
+
+@pytest.mark.parametrize("xdist", [[], ["-n", "2"]], ids=["one-process", "xdist"])
+def test_a_sigterm_cancels_the_running_test_and_ends_the_session(tmp_path: Path, xdist: list[str]) -> None:
+    """SIGTERM to pytest while a direct run runs: the run is stopped, the test skipped naming the signal, the
+    session interrupted after it (under xdist: no worker reported crashed, none replaced), no traceback."""
+    (tmp_path / "test_cancel.py").write_text(CANCELLED)
+    (tmp_path / "pytest.ini").write_text("[pytest]\n")
+    argv = [sys.executable, "-m", "pytest", *PLUGIN, "-rs", *xdist, "-p", "xdist" if xdist else "no:xdist"]
+    proc = subprocess.Popen(
+        [*argv, "test_cancel.py"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        deadline = time.monotonic() + 300
+        while not _pids(f"bench.cli run .*{tmp_path}") and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(1)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    said = out + err
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, said
+    assert "SKIPPED [1] test_cancel.py:2: cancelled by SIGTERM: the test was stopped" in out, said
+    assert "Interrupted: cancelled by SIGTERM" in out, said
+    assert _result_line(out) == (f"{2 if xdist else 1} skipped"), said
+    assert "Traceback" not in said and "crashed" not in said and "replacing" not in said, said
+    assert not _pids(f"bench.cli run .*{tmp_path}")  # hil_run stopped its run
+    assert "hil: CAN box" not in said  # a session that used no box says nothing of it
+
+
+def _result_line(out: str) -> str:
+    """pytest's last line's counts: '1 skipped' of '===== 1 skipped in 4.88s ====='."""
+    return out.strip().splitlines()[-1].strip("= ").split(" in ")[0]
+
+
+def _pids(pattern: str) -> list[str]:
+    return subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True).stdout.split()
+
+
 # ------------------------------------------------------------------ the pieces, without a run
+
+
+def test_the_box_line_and_which_runs_go_to_the_box() -> None:
+    from bench.pytest_plugin.box import BoxLog, needs, summary_line
+    from bench.pytest_plugin.runner import bench_command
+
+    assert summary_line(BoxLog()) is None  # no box used: no line
+    log = BoxLog(boots=[{"test": "t", "reason": "r", "s": 97.25, "worker": "gw1"}], runs=3, slots={2, 1})
+    log.end = "stopped at the session's end (this session booted it)"
+    assert summary_line(log) == (
+        "hil: CAN box: booted once by this session (97.2 s, gw1); 3 runs in it, slots 1, 2; stopped at the "
+        "session's end (this session booted it)"
+    )
+    before = BoxLog(up_before="someone", runs=1, slots={4}, end="left up: ...")
+    assert summary_line(before) == "hil: CAN box: up before this session; 1 run in it, slot 4; left up: ..."
+    assert needs("direct") is None and needs("can0") is None
+    assert needs("vcan0", ["--drive", "mcu"]) is None and needs("vcan0", ["--drive=mcu"]) is None  # a VM of its own
+    assert needs("vcan0", ["--box"]) == "asked for (--box or BENCH_BOX=1)"
+    bench = bench_command()
+    assert Path(bench[0]).is_absolute() and Path(bench[0]).is_file(), bench
 
 
 def _fake_run(tmp_path: Path, steps: list[dict[str, Any]], **summary: Any) -> HilRun:

@@ -17,7 +17,7 @@ from rrd_util import read_recording
 
 from bench.eds import default_node_id, load
 from bench.run import RunOptions, run_scenario
-from bench.run.outputs import _realtime_overrun
+from bench.run.console import _realtime_overrun
 from bench.run.pipeline import Pipeline, RunResult, replay_log
 from bench.run.record.canlog import CandumpWriter
 from bench.run.sinks import FrameCollector

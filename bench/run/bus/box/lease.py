@@ -223,6 +223,7 @@ def acquire(links: tuple[str, ...], say: Any = None, wait_s: float = 3600.0) -> 
                 continue
             life.touch_use()
             meta = {"pid": os.getpid(), "buses": list(links), "since": time.time(), "ns": f"b{slot}"}
+            meta["owner"] = os.environ.get(life.OWNER_ENV)  # a pytest session's runs: life.slots_held_by_others
             (life.BOX_DIR / f"slot-{slot}.json").write_text(json.dumps(meta))
             lease = Lease(info, slot, fh, links)
             try:

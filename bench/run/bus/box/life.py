@@ -79,16 +79,18 @@ def read_info() -> BoxInfo | None:
     return info
 
 
-def slots_held_by_others(info: BoxInfo) -> bool:
-    """Whether a slot of the box is held by a process other than this one (its run's slot-N.json names it)."""
+def slots_held_by_others(info: BoxInfo, owner: str | None = None) -> bool:
+    """Whether a slot of the box is held by a process other than this one (its run's slot-N.json names it) and,
+    given `owner` (a session's BENCH_BOX_OWNER), not by a run of that session either: a cancelled pytest session
+    stops the box it booted even while one of its own runs is still giving its slot back."""
     for slot in range(1, info.slots + 1):
         if not slot_held(slot):
             continue
         try:
-            pid = json.loads((BOX_DIR / f"slot-{slot}.json").read_text()).get("pid")
+            meta = json.loads((BOX_DIR / f"slot-{slot}.json").read_text())
         except (OSError, ValueError):
             return True
-        if pid != os.getpid():
+        if meta.get("pid") != os.getpid() and (owner is None or meta.get("owner") != owner):
             return True
     return False
 
