@@ -210,7 +210,7 @@ def _frames_lost(s: dict[str, Any]) -> str:
 
 
 def _first_events(s: dict[str, Any]) -> tuple[str, str]:
-    """(" at period N" of the status's first event, "; later: ..." the other raised flags with theirs): the
+    """(" at period N" of the status's first event, "; also raised: ..." the other raised flags with theirs): the
     status names the event that came first (bench/run/verdict/summary.py verdict)."""
     first = s.get("status_first_period") or {}
 

@@ -52,8 +52,9 @@ MCU_HEARTBEAT_TIMEOUT_MS = 5000
 # The nodes' own consumer time (0x1016) when they run in the CAN box: QEMU's software emulation under a loaded host
 # starves one node process of the guest while the other runs (the soak of issue 52 saw a plant silent for 1.5 s
 # during configuration, and the drive's 1 s consumer raised EMCY 0x8130: in the loop it would have entered its safe
-# state). The bench's own watch keeps heartbeat_timeout_ms and judges such a node by its process (liveness.py
-# STARVED_S, the same 5 s); the nodes, which cannot tell a starved peer from a dead one, get the same allowance.
+# state). The bench's own watch keeps heartbeat_timeout_ms and, in lockstep, judges such a node by its process
+# (liveness.py STARVED_S, the same 5 s); the nodes, which cannot tell a starved peer from a dead one, get the same
+# allowance (in real time too: the box cannot hold a real-time period anyway, docs/VM.md).
 BOX_CONSUMER_MS = 5000
 # ... and under two burners plus a second VM the image answered an SDO read after 12 s (its emulation and the
 # serial path starved): with --drive mcu the master waits this long for the image's SDO answers, and in

@@ -118,8 +118,8 @@ plant_cmd_t plant_timing_scan(plant_timing_t *t, const co_node_t *node, bool tim
 plant_cmd_t plant_timing_actuated(plant_timing_t *t, const co_node_t *node, uint8_t pdo, bool timed, uint64_t k)
 {
     const co_pdo_t *p = plant_timing_cmd_rpdo(node);
-    plant_cmd_t got = PLANT_CMD_NONE;
-    if (p && p == &node->rpdo[pdo] && !seen(t, p)) got = plant_timing_arrival(t, p->last_rx_us, timed, k);
+    if (!p || p != &node->rpdo[pdo]) return PLANT_CMD_NONE; /* another RPDO: the command's accounting unchanged */
+    plant_cmd_t got = seen(t, p) ? PLANT_CMD_NONE : plant_timing_arrival(t, p->last_rx_us, timed, k);
     t->cmd_seen = false;
     return got;
 }

@@ -50,7 +50,7 @@ def slow_drive_stop(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def _drive_not_stopped(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The teardown's NMT Stop reaches the plant only: the drive stays PRE-OPERATIONAL and its heartbeat
+    """The teardown's NMT Stop reaches the plant only: the drive stays OPERATIONAL and its heartbeat
     consumer fires, as on a bus where the command did not reach it in time."""
     close = Session.close
 

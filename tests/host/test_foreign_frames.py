@@ -372,3 +372,17 @@ def test_an_alarm_in_the_run_is_still_the_runs(clean: tuple[RunResult, np.ndarra
     assert got == [("drive", "0x8130"), ("plant", "0x8130")]
     assert 0 < res.summary["emcy"][0]["period"] < res.summary["emcy"][1]["period"] == ref.summary["periods"] - 1
     assert res.summary["teardown"]["emcy"] == []
+
+
+def test_another_masters_stop_is_not_the_teardown(clean: tuple[RunResult, np.ndarray]) -> None:
+    """NMT Stop to a node that is not the run's (another master on a shared bus) mid-run: a foreign frame of the
+    bus, not the run's end; the run's own Stop still begins its teardown."""
+    ref, frames = clean
+    lo, hi = _loop_span(frames)
+    stop = np.zeros(1, dtype=FRAME_DTYPE)
+    stop["dlc"], stop["sender"] = 2, 255
+    stop["data"][0, :2] = [0x02, 0x05]
+    res = _decode(np.insert(frames, (lo + hi) // 2, stop))
+    assert res.status == "ok" and res.summary["periods"] == ref.summary["periods"]
+    assert res.summary["teardown"]["frames"] == len(frames) - _teardown_at(frames)
+    _same_traces(res.trace, ref.trace)

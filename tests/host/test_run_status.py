@@ -167,12 +167,10 @@ def test_a_trip_followed_by_swings_is_tripped() -> None:
     """Statuses name the first cause (issue 52): a flux-map run tripped at period 370 and then swung until its
     window ended; the swing is measured over the window's last fifth, after the trip, and is the trip's doing."""
     step = {"at_period": 20, "window_periods": 480, "periods_to_settle": None}
-    assert swing_seen_from([step], [20], 370) == 404  # 20 + 480 - 96: the measured fifth's first period
+    assert swing_seen_from([step], 370) == 404  # 20 + 480 - 96: the measured fifth's first period
     flags = {"tripped": True, "diverged": True}
     assert verdict(flags, ("ok",), {"tripped": 370, "diverged": 404})[:2] == ("tripped", EXIT_CODES["tripped"])
     # no trip, or one inside the measured fifth (the swing was there before it): the oscillation from its step
-    assert swing_seen_from([step], [20], None) == 20 and swing_seen_from([step], [20], 450) == 20
+    assert swing_seen_from([step], None) == 20 and swing_seen_from([step], 450) == 20
     assert verdict(flags, ("ok",), {"tripped": 450, "diverged": 20})[0] == "diverged"
-    # a settled step, or one that does not oscillate, gives no period
-    assert swing_seen_from([{**step, "periods_to_settle": 3}], [20], None) is None
-    assert swing_seen_from([step], [], None) is None
+    assert swing_seen_from([], None) is None  # no step swings

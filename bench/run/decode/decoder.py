@@ -20,7 +20,8 @@ period, or a foreign SYNC inside the loop, is interference (the nodes may have a
 run's status says so). What comes after the plant's final hold announcement is after the loop:
 counted, never judged.
 
-The teardown: the master ends every run with NMT Stop to its nodes (bench/run/loop/session.py). From that
+The teardown: the master of a run (bench/run/loop/session.py; not the CiA 402 master's) ends it with NMT Stop to
+its nodes (bench/run/loop/session.py). From that
 command on, every frame is the teardown's: counted (DecodeStats.teardown_frames) and its EMCYs listed apart
 (Decoder.teardown_emcy, summary.json "teardown"), never a row, an EMCY of the run or a cause of its status.
 A node stopped while the other still runs may miss its heartbeats (its consumer fires after 1 s), and an alarm
@@ -158,7 +159,7 @@ class Decoder:
             return None
         self.stats.frames += len(frames)
         if self.teardown_from_us is None:
-            cut = teardown_start(frames)
+            cut = teardown_start(frames, tuple(self.sdo.nodes))
             if cut is None:
                 return self._feed(frames, last)
             self.teardown_from_us = int(frames["t_us"][cut])
@@ -332,9 +333,12 @@ class Decoder:
             self.sdo.feed(frames[m], periods[m])
 
 
-def teardown_start(frames: np.ndarray) -> int | None:
-    """The index of the master's NMT Stop (to one node or to all) in these frames, the teardown's first frame."""
-    hit = np.flatnonzero((frames["cob_id"] == 0) & (frames["dlc"] == 2) & (frames["data"][:, 0] == TEARDOWN_NMT))
+def teardown_start(frames: np.ndarray, node_ids: tuple[int, ...]) -> int | None:
+    """The index of the master's NMT Stop to all nodes or to one of the run's (`node_ids`) in these frames, the
+    teardown's first frame. A Stop to another node (another master's on a shared bus) is not this run's end."""
+    to = frames["data"][:, 1]
+    ours = (to == 0) | np.isin(to, np.asarray(node_ids, dtype=np.uint8))
+    hit = np.flatnonzero((frames["cob_id"] == 0) & (frames["dlc"] == 2) & (frames["data"][:, 0] == TEARDOWN_NMT) & ours)
     return int(hit[0]) if len(hit) else None
 
 

@@ -41,7 +41,9 @@ class Late:
     """What the HIL rows of one call allow after the SYNC a frame was meant for."""
 
     realtime: bool  # Run control.mode: a command may be late in any period
-    late_ok: np.ndarray | None  # lockstep with a command timeout: the periods whose sample says one was missed
+    # the periods whose sample says the period before ended without its command (lockstep with a command timeout:
+    # where a late command may come; real time: where the drive was late, with its trace TPDOs)
+    late_ok: np.ndarray | None
     misaligned: np.ndarray  # periods holding a measurement of the next period's sample (a SYNC lost)
 
 
@@ -185,7 +187,7 @@ class Rows:
         misaligned = self._misaligned(buf, period_of, r0, r1)
         realtime = self.sdo.plant.get("Run control", "mode") == 1
         late_ok: np.ndarray | None = None
-        if not realtime and int(self.sdo.plant.get("Run control", "command_timeout_us") or 0) > 0:
+        if realtime or int(self.sdo.plant.get("Run control", "command_timeout_us") or 0) > 0:
             late_ok = self._missed(buf, period_of, r0, r1)
         return Late(realtime, late_ok, misaligned)
 
@@ -225,11 +227,12 @@ class Rows:
         drop = np.zeros_like(dup)
         if shift:
             per, dup, drop = _late_to_free_row(per, dup & ~lost, r0, late.realtime)
-            if late.realtime:
+            if late.realtime and late.late_ok is not None:
                 # real time: a drive late for its SYNCs answers them in a burst, its trace TPDOs before or after
-                # its commands as its steps ran (a TCG-emulated box under load: 2-4 periods at once); those no free
-                # row takes are its own frames, late (the period's value is not known: lost), not interference
-                lost |= dup
+                # its commands as its steps ran (a TCG-emulated box under load: 2-4 periods at once); where the
+                # plant's samples say a period went without its command, those no free row takes are its own
+                # frames, late (the period's value is not known: lost); anywhere else a second one is interference
+                lost |= dup & (np.isin(per, late.late_ok) | np.isin(per + 1, late.late_ok))
             dup |= lost
         st.interfere(pdo.cob_id, per[dup & ~lost])
         st.lost(per[lost])
@@ -344,7 +347,8 @@ def _late_to_free_row(
     the row before when that row is free (before r0 it was emitted with the last chunk: the frame is
     dropped). In real time a drive that missed several SYNCs answers them all at once: a run of m frames in
     a row moves to the m - 1 rows before it when they are all free; in lockstep a run of three is not a
-    late pair. Returns the new rows, the duplicates left (interference) and the frames dropped."""
+    late pair. Returns the new rows, the duplicates left (interference; in real time maybe late frames:
+    _one_per_period) and the frames dropped."""
     drop = np.zeros_like(dup)
     if not dup.any():
         return per, dup, drop

@@ -27,6 +27,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from bench.run.bus.direct import DirectBus, Hil
 from bench.run.bus.direct_sdo import DirectSdo
 from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
+from bench.run.bus.nodes import NodeProcess
 from bench.run.loop import master
 from bench.run.loop.bus_loop import BusLoop
 from bench.run.loop.configure import Configurator
@@ -162,7 +163,11 @@ class Session(SessionBus):
         """BOOT_S for the boot-up messages; longer, up to BOOT_ALIVE_S, while each node still silent is one whose
         process this run started and which still runs (a loaded host, the CAN box under load: a node process once
         took over 10 s to start there). A node of no process of ours (a physical one, --no-plant) gets BOOT_S."""
-        ours = {self.plant.id: self.node_procs.get("plant"), self.drive.id: self.node_procs.get("drive")}
+        # a node process of this run's (not the MCU image's serial bridge, alive whatever the image does)
+        ours = {
+            n.id: p if isinstance(p, NodeProcess) else None
+            for n, p in ((self.plant, self.node_procs.get("plant")), (self.drive, self.node_procs.get("drive")))
+        }
         t0 = time.monotonic()
         while not all_booted.wait(timeout=0.2):
             waited = time.monotonic() - t0

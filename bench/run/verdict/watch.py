@@ -72,11 +72,12 @@ class LoopWatch:
         trip_active = dec.sdo.plant.get("Run control", "trip_active")
         # A loop that never settles and still swings over half its step at the end of the window
         # oscillates (an unstable loop held by the voltage limit): diverged, though bounded.
-        oscillating = [
-            s["at_period"]
+        swinging = [
+            s
             for s in steps
             if s["periods_to_settle"] is None and (s["tail_peak_to_peak_A"] or 0.0) > 0.5 * abs(s["to_A"] - s["from_A"])
         ]
+        oscillating = [s["at_period"] for s in swinging]
         # The periods the master ran (its run_periods writes, in the log): a log with fewer (cut short, a
         # recorder that lost the end) or more is not the run, unless the run stopped early.
         planned = sum(int(v) for _, v in dec.sdo.changes("Run control.run_periods", node="plant") if 0 < v < 0xFFFFFFFF)
@@ -109,7 +110,7 @@ class LoopWatch:
             "tripped": self.first_trip_period,
             "diverged": self.first_beyond_bound_period
             if self.first_beyond_bound_period is not None
-            else swing_seen_from(steps, oscillating, self.first_trip_period),
+            else swing_seen_from(swinging, self.first_trip_period),
             "interference": bstats["interference"]["first_period"],
             # a log shorter than the run its master ran (cut, a recorder that lost the end): from where it ends
             "frames_lost": dec.stats.first_lost_period
@@ -142,16 +143,14 @@ class LoopWatch:
         return rt
 
 
-def swing_seen_from(steps: list[dict[str, Any]], oscillating: list[int], trip: int | None) -> int | None:
-    """The period an oscillation counts from in the order of events: its step's period (an unstable loop swings
-    from its step on), unless the plant tripped inside the step's window before the last fifth of it where the
-    swing is measured (stats.StepTracker): after a trip the inverter no longer applies the loop's command, and
-    the swing seen then is the trip's doing; it counts from that fifth's first period. So a trip at period 370
-    followed by swings is "tripped", with "diverged" in the flags."""
+def swing_seen_from(swinging: list[dict[str, Any]], trip: int | None) -> int | None:
+    """The period an oscillation counts from in the order of events, over the steps that swing (judge): its
+    step's period (an unstable loop swings from its step on), unless the plant tripped inside the step's window
+    before the last fifth of it where the swing is measured (stats.StepTracker): after a trip the inverter no
+    longer applies the loop's command, and the swing seen then is the trip's doing; it counts from that fifth's
+    first period. So a trip at period 370 followed by swings is "tripped", with "diverged" in the flags."""
     seen = []
-    for s in steps:
-        if s["at_period"] not in oscillating or s["periods_to_settle"] is not None:
-            continue
+    for s in swinging:
         tail = s["at_period"] + s["window_periods"] - max(1, s["window_periods"] // 5)
         seen.append(tail if trip is not None and s["at_period"] <= trip < tail else s["at_period"])
     return min(seen) if seen else None
