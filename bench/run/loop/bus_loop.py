@@ -22,9 +22,12 @@ POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a 
 
 
 class BusLoop:
-    def __init__(self, plant: canopen.RemoteNode, opts: RunOptions, liveness: Liveness | None) -> None:
+    def __init__(
+        self, plant: canopen.RemoteNode, opts: RunOptions, liveness: Liveness | None, stall_s: float | None = None
+    ) -> None:
         self.plant = plant
         self.opts = opts
+        self.stall_s = opts.stall_s if stall_s is None else stall_s  # longer in the CAN box (options.BOX_STALL_S)
         self.liveness = liveness
         self._hold = threading.Event()
         self._hold_index = -1
@@ -70,12 +73,12 @@ class BusLoop:
             was, index = index, (got if got is not None else index)
             if index != was:
                 moved = time.monotonic()
-            elif time.monotonic() - moved > self.opts.stall_s:  # also when the plant stops answering SDO
+            elif time.monotonic() - moved > self.stall_s:  # also when the plant stops answering SDO
                 self.check_alive(index)
                 raise LoopStopped(
                     "frames_lost",
                     f"the loop stalled at period {index}: both nodes alive, no "
-                    f"progress for {self.opts.stall_s:g} s (a frame of the loop was lost on the "
+                    f"progress for {self.stall_s:g} s (a frame of the loop was lost on the "
                     "bus, or the plant no longer answers SDO)",
                     at_period=index,
                 )

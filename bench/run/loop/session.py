@@ -34,7 +34,7 @@ from bench.run.loop.configure import Configurator
 from bench.run.loop.direct_loop import DirectLoop
 from bench.run.loop.reads import END_READS, REALTIME_READS, STEP_COST
 from bench.run.loop.session_bus import SessionBus
-from bench.run.options import BOX_CONSUMER_MS, MCU_STALL_S, RunOptions
+from bench.run.options import BOX_CONSUMER_MS, BOX_STALL_S, MCU_STALL_S, RunOptions
 from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
 
@@ -78,7 +78,9 @@ class Session(SessionBus):
         else:
             self.net.connect()
         for n in (self.plant, self.drive):  # added and subscribed by master.new_master
-            n.sdo.RESPONSE_TIMEOUT = MCU_STALL_S if n is self.drive and self.opts.drive == "mcu" else 5.0
+            n.sdo.RESPONSE_TIMEOUT = (
+                MCU_STALL_S if n is self.drive and self.opts.drive == "mcu" else BOX_STALL_S if self.box else 5.0
+            )
             if self.hil is not None:  # expedited transfers in one C call each (bench/run/bus/direct_sdo.py)
                 DirectSdo(n.sdo, self.hil).install()
         if self.hil is None:  # in direct mode the loop is in this process, on simulated time
@@ -193,7 +195,9 @@ class Session(SessionBus):
         """Run every period; `tick` is called between chunks (direct) or while waiting (bus)."""
         sc = self.sc
         if self.hil is None:
-            self.bus_loop = BusLoop(self.plant, self.opts, self.liveness)
+            self.bus_loop = BusLoop(
+                self.plant, self.opts, self.liveness, max(self.opts.stall_s, BOX_STALL_S) if self.box else None
+            )
             self.net.subscribe(self.config.hold_cob, self.bus_loop.on_hold)
             if self.kernel_filters is not None:
                 self.net.bus.set_filters([*self.kernel_filters, {"can_id": self.config.hold_cob, "can_mask": 0x7FF}])
