@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -33,9 +34,18 @@ def _status() -> dict:
 
 
 def _qemus() -> list[int]:
-    """The CAN box's QEMUs (its control port is named box.control; a `bench vm` of another test is not one)."""
+    """This checkout's CAN box QEMUs (its control port is named box.control; a `bench vm` of another test is not
+    one, nor the box of another checkout on the same machine: its command line names that checkout's folder)."""
     out = subprocess.run(["pgrep", "-f", "qemu-system-x86_64.*box.control"], capture_output=True, text=True).stdout
-    return [int(p) for p in out.split()]
+    ours = re.compile(re.escape(str(REPO)) + r"(/|,|\s|$)")
+    return [int(p) for p in out.split() if ours.search(_cmdline(int(p)))]
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return ""
 
 
 @pytest.fixture(scope="module")
