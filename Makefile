@@ -42,7 +42,7 @@ CSTD    := -std=c11
 CFLAGS_CORE := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -fPIC
 CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
 CFLAGS_HOST := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -D_GNU_SOURCE -fPIC
-INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated \
+INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated -Iplant_rt/blocks -Iplant_rt/models \
        -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Iprotocols/faults -Itests/c
 # The papers' current laws: law folders as a user's (firmware_shim/laws/<paper>/: C files, headers, law.eds), built
 # into every drive; gen_od.py merges their law.eds records (protocols/gen_law.py).
@@ -56,7 +56,7 @@ INC += -Iplant_rt/fmu
 
 CO_SRC    := $(wildcard protocols/canopen/*.c) $(wildcard protocols/generated/od_*.c)
 SCAN_SRC  := $(wildcard protocols/socketcan/*.c)
-PLANT_SRC := $(wildcard plant_rt/core/*.c)
+PLANT_SRC := $(wildcard plant_rt/blocks/*.c plant_rt/core/*.c plant_rt/models/*/*.c)
 FW_SRC    := $(wildcard firmware_shim/core/*.c) $(foreach d,$(LAW_DIRS),$(wildcard $(d)/*.c)) \
              protocols/generated/current_law_table.c
 # The node apps: every source of their folders but the process's main (a node app is portable glue).

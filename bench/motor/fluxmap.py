@@ -1,5 +1,5 @@
 """A motor's flux map: psi_d(id, iq) and psi_q(id, iq) on a rectangular grid, as the plant interpolates it
-(bilinear in a cell, the edge cell extended beyond the grid: plant_rt/core/plant_fluxmap.c), its incremental
+(bilinear in a cell, the edge cell extended beyond the grid: plant_rt/blocks/plant_fluxmap.c), its incremental
 inductances, its small-signal values at zero current, the bytes the plant's object 0x2008 "Flux map" takes, and the
 checks that make it usable (FluxMapProblem: where and what)."""
 

@@ -12,8 +12,12 @@
 #include <math.h>
 #include <string.h>
 
+#include "dq_linear/dq_linear.h"
+#include "external/external.h"
+#include "plant_angle.h"
 #include "plant_inverter.h"
 #include "plant_machine.h"
+#include "plant_models.h"
 #include "plant_sensors.h"
 
 /* ===================================================================== */
@@ -169,21 +173,23 @@ static int validate(const plant_config_t *c)
     if (c->I_trip_A < 0.0) {
         return PLANT_ERR_TRIP;
     }
+    const plant_model_desc_t *model = plant_model_find(c->model);
     if (c->trip_reaction != PLANT_TRIP_ACTIVE_SHORT_CIRCUIT &&
-        (c->trip_reaction != PLANT_TRIP_PULSES_OFF || !(c->Vdc_V > 0.0) || c->model == PLANT_MODEL_EXTERNAL)) {
-        return PLANT_ERR_REACTION; /* the diodes clamp to Vdc; an external model holds one voltage a period */
+        (c->trip_reaction != PLANT_TRIP_PULSES_OFF || !(c->Vdc_V > 0.0) ||
+         (model != NULL && model->step_bridge == NULL))) {
+        return PLANT_ERR_REACTION; /* the diodes clamp to Vdc; a model holding one voltage a period cannot follow */
     }
     if (!(c->rk4_h_rel > 0.0) || c->rk4_h_rel > 1.0) {
         return PLANT_ERR_RK4;
     }
-    if (c->model != PLANT_MODEL_DQ_LINEAR && c->model != PLANT_MODEL_FLUX_MAP && c->model != PLANT_MODEL_EXTERNAL) {
-        return PLANT_ERR_ENUM;
+    if (model == NULL) {
+        return PLANT_ERR_ENUM; /* not a registered model (plant_models.c) */
     }
-    if (c->model == PLANT_MODEL_EXTERNAL && (c->external == NULL || c->external->step == NULL)) {
-        return PLANT_ERR_EXTERNAL;
-    }
-    if (c->model == PLANT_MODEL_FLUX_MAP && plant_flux_map_check(c->flux_map) != 0) {
-        return PLANT_ERR_FLUXMAP;
+    if (model->validate != NULL) {
+        const int rc = model->validate(c);
+        if (rc != PLANT_OK) {
+            return rc;
+        }
     }
     if (c->R_alpha_per_K < 0.0 || c->thermal_R_K_per_W < 0.0 || c->thermal_C_J_per_K < 0.0) {
         return PLANT_ERR_THERMAL;
@@ -191,8 +197,8 @@ static int validate(const plant_config_t *c)
     if (!(1.0 + c->R_alpha_per_K * (c->T_amb_degC - c->T_ref_degC) > 0.0)) {
         return PLANT_ERR_THERMAL; /* R would not be positive at the ambient */
     }
-    if (c->model == PLANT_MODEL_DQ_LINEAR && (c->R_alpha_per_K != 0.0 || c->thermal_C_J_per_K != 0.0)) {
-        return PLANT_ERR_THERMAL; /* the exact path keeps R constant: the thermal model is the flux map's */
+    if (!model->thermal && (c->R_alpha_per_K != 0.0 || c->thermal_C_J_per_K != 0.0)) {
+        return PLANT_ERR_THERMAL; /* the model keeps R constant (dq_linear's exact path): no thermal model */
     }
     return PLANT_OK;
 }
@@ -210,6 +216,9 @@ int plant_prepare(plant_state_t *s, const plant_config_t *c)
     if (rc == PLANT_OK) {
         plant_inverter_prepare(s, c);
         rc = plant_machine_prepare(s, c);
+    }
+    if (rc != PLANT_OK) {
+        s->model = NULL; /* a refused configuration has no model: nothing steps (status) */
     }
     s->status = rc;
     return rc;
@@ -237,7 +246,7 @@ int plant_external_restart(plant_state_t *s, const plant_config_t *c)
     s->external_error = rc;
     s->external_t0_s = s->t_s;
     if (rc == 0) {
-        plant_machine_external_take(s, c, &out);
+        external_take(s, c, &out);
     } else {
         s->tripped = true;
     }
@@ -259,9 +268,9 @@ void plant_set_mech(plant_state_t *s, const plant_config_t *c, double theta_m_ra
 
 double plant_torque_Nm(const plant_state_t *s, const plant_config_t *c) { return plant_machine_torque_Nm(s, c); }
 
-double plant_psi_q_Wb(const plant_config_t *c, double iq_A) { return plant_machine_psi_q_Wb(c, iq_A); }
+double plant_psi_q_Wb(const plant_config_t *c, double iq_A) { return dq_linear_psi_q_Wb(c, iq_A); }
 
-double plant_Lq_inc_H(const plant_config_t *c, double iq_A) { return plant_machine_Lq_inc_H(c, iq_A); }
+double plant_Lq_inc_H(const plant_config_t *c, double iq_A) { return dq_linear_Lq_inc_H(c, iq_A); }
 
 double plant_magnetic_energy_J(const plant_state_t *s, const plant_config_t *c)
 {
@@ -300,7 +309,7 @@ void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, dou
         return;
     }
     double ia, ib, ic;
-    plant_machine_phase_currents(s, &ia, &ib, &ic); /* at the start of the period */
+    plant_angle_phase_currents(s, &ia, &ib, &ic); /* at the start of the period */
     plant_inverter_check_trip(s, c, ia, ib, ic);
     plant_inverter_step(s, c, v_alpha_V, v_beta_V, ia, ib, ic);
     if (s->tripped && c->trip_reaction == PLANT_TRIP_PULSES_OFF) {
@@ -311,14 +320,14 @@ void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, dou
     }
     s->k++;
     s->t_s = (double)s->k * c->Ts_s;
-    plant_machine_phase_currents(s, &ia, &ib, &ic); /* at its end */
+    plant_angle_phase_currents(s, &ia, &ib, &ic); /* at its end */
     plant_inverter_check_trip(s, c, ia, ib, ic);
 }
 
 void plant_sample(plant_state_t *s, const plant_config_t *c, plant_meas_t *m)
 {
     double ia, ib, ic;
-    plant_machine_phase_currents(s, &ia, &ib, &ic);
+    plant_angle_phase_currents(s, &ia, &ib, &ic);
     m->i_a_true_A = ia;
     m->i_b_true_A = ib;
     m->i_c_true_A = ic;

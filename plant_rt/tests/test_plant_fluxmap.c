@@ -1,5 +1,5 @@
 /*
- * The flux-map model (plant_fluxmap.h, plant_machine_fluxmap.c).  Checks:
+ * The flux-map model (plant_fluxmap.h, models/flux_map/flux_map.c).  Checks:
  *  1. the inversion: random points of a saturating, cross-coupled map are
  *     found again from their fluxes (<= 1e-10 A), inside and outside the grid;
  *  2. a map that tabulates the linear model (psi_d = Ld id + psi, psi_q =

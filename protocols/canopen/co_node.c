@@ -85,11 +85,14 @@ static void reset(co_node_t *node, int communication_only)
 
 /* ------------------------------------------------------------------ hooks as the services see them */
 
-static co_od_ext_t *service_ext_of(void *ctx, uint16_t index) { return co_node_ext((const co_node_t *)ctx, index); }
+static co_od_ext_t *service_ext_of(void *ctx, uint16_t index)
+{
+    return co_bindings_find(&((const co_node_t *)ctx)->bindings, index);
+}
 
 static void service_pre_read(void *ctx, const co_od_entry_t *e)
 {
-    co_od_ext_t *x = co_node_ext((const co_node_t *)ctx, e->index);
+    co_od_ext_t *x = co_bindings_find(&((const co_node_t *)ctx)->bindings, e->index);
     if (x != NULL && x->read != NULL) x->read(x->object, e);
 }
 
@@ -240,7 +243,7 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
         abort = co_pdo_check_write(pdo, e, data, node->c_sync_cob);
         if (abort) return abort;
     }
-    co_od_ext_t *x = co_node_ext(node, e->index);
+    co_od_ext_t *x = co_bindings_find(&node->bindings, e->index);
     if (x != NULL && x->check != NULL) {
         abort = x->check(x->object, e, data, len);
         if (abort) return abort;

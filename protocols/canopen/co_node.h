@@ -15,6 +15,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "co_bindings.h"
 #include "co_emcy.h"
 #include "co_frame.h"
 #include "co_od.h"
@@ -63,13 +64,6 @@ typedef struct {
     void (*on_hb_timeout)(void *user, co_node_t *node, uint8_t node_id);
 } co_hooks_t;
 
-/* The objects bound to their owners, sorted by index. */
-#define CO_NODE_BINDINGS 48u
-typedef struct {
-    uint16_t index;
-    co_od_ext_t *ext;
-} co_binding_t;
-
 typedef struct {
     uint8_t node_id;
     uint16_t time_ms;
@@ -107,8 +101,7 @@ struct co_node {
     uint32_t syncs; /* SYNC events processed */
 
     /* Objects bound to their owners (co_node_bind). */
-    co_binding_t bindings[CO_NODE_BINDINGS];
-    uint8_t n_bindings;
+    co_bindings_t bindings;
 
     /* Services, wired to this node by co_node_init. */
     co_emcy_t emcy;

@@ -194,7 +194,7 @@ static void test_bind_refusals(void)
         const uint16_t index = g_tb.node.od->entries[i].index;
         if (co_node_ext(&g_tb.node, index) == NULL && co_node_bind(&g_tb.node, index, &spare) == 0) ++ok;
     }
-    CHECK(g_tb.node.n_bindings == CO_NODE_BINDINGS, "the table fills up (%u)", (unsigned)g_tb.node.n_bindings);
+    CHECK(g_tb.node.bindings.n == CO_NODE_BINDINGS, "the table fills up (%u)", (unsigned)g_tb.node.bindings.n);
     CHECK(co_node_ext(&g_tb.node, 0x2202u) == &g_app.refs, "an earlier binding stays");
     printf("bindings: %d more objects bound until the table of %u was full\n", ok, (unsigned)CO_NODE_BINDINGS);
 }

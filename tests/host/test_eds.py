@@ -144,6 +144,8 @@ INC = [
         "protocols/canopen",
         "protocols/generated",
         "protocols/faults",
+        "plant_rt/blocks",
+        "plant_rt/models",
         "plant_rt/core",
         "plant_rt/node",
         "firmware_shim/core",

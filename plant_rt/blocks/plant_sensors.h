@@ -10,7 +10,7 @@
 #ifndef PLANT_SENSORS_H
 #define PLANT_SENSORS_H
 
-#include "pmsm_plant.h"
+#include "plant_types.h"
 
 /* The measured fields of *m (i_a_A, i_b_A, theta_m_rad, encoder_count) from
  * the true phase currents and mechanical angle ([0, 2pi)); consumes two

@@ -13,7 +13,7 @@
 #ifndef PLANT_INVERTER_H
 #define PLANT_INVERTER_H
 
-#include "pmsm_plant.h"
+#include "plant_types.h"
 
 /* For a validated c: the dead-time error magnitude Vdt_V. */
 void plant_inverter_prepare(plant_state_t *s, const plant_config_t *c);

@@ -1,20 +1,20 @@
 /*
- * plant_machine_step.c - the machine block's step (plant_machine_step,
- * plant_machine.h): one period Ts with the applied voltage held, on the
- * exact path (the discretization plant_machine.c prepared: expm(A Ts) and the
- * energy integrals as quadratic forms) or on the RK4 path (q-axis saturation,
- * free mechanics: the substeps from the stiffness bound).  Model and
- * integration scheme: pmsm_plant.h.
+ * dq_linear_step.c - the linear dq model's step (dq_linear.h): one period Ts with the applied voltage held, on the
+ * exact path (the discretization dq_linear.c prepared: expm(A Ts) and the energy integrals as quadratic forms) or
+ * on the RK4 path (q-axis saturation, free mechanics: plant_rk4.h), and with the switches off (plant_bridge.h).
+ * Model and integration scheme: pmsm_plant.h.
  *
  * Only <math.h>/<string.h>: no OS, no heap, no stdio.
  */
 #include <math.h>
 #include <string.h>
 
-#include "plant_machine.h"
+#include "dq_linear_step.h"
+#include "plant_angle.h"
+#include "plant_bridge.h"
+#include "plant_rk4.h"
 
 #define PLANT_RESYNC_PERIODS 1024u /* recompute cos/sin(theta_e) from theta_m */
-#define PLANT_RK4_MAX_SUBSTEPS 100000u
 
 /* ===================================================================== */
 /* RK4 path                                                              */
@@ -33,8 +33,9 @@ typedef struct {
     plant_bridge_t *bridge; /* the switches off (trip_reaction pulses_off): the diodes give the voltage */
 } rk_ctx_t;
 
-static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
+static void rk_deriv(void *ctx, const double *y, double *dy)
 {
+    const rk_ctx_t *k = (const rk_ctx_t *)ctx;
     const plant_config_t *c = k->c;
     const double id = y[Y_ID], iq = y[Y_IQ], ce = y[Y_C], se = y[Y_S];
     const double wm = y[Y_W];
@@ -73,7 +74,7 @@ static void rk_deriv(const rk_ctx_t *k, const double *y, double *dy)
     dy[Y_S] = we * ce;
     dy[Y_TH] = wm;
     const double Te = 1.5 * k->p * (psid * iq - psiq * id);
-    plant_machine_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[Y_W], &dy[Y_EFR], &dy[Y_ELD]);
+    plant_rk4_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[Y_W], &dy[Y_EFR], &dy[Y_ELD]);
     dy[Y_EIN] = 1.5 * (vd * id + vq * iq);
     dy[Y_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
     dy[Y_EME] = Te * wm;
@@ -94,20 +95,7 @@ static uint32_t rk_begin(rk_ctx_t *k, double *y, plant_state_t *s, const plant_c
     k->invJ = k->free_mech ? 1.0 / c->J_kgm2 : 0.0;
     k->bridge = NULL;
 
-    const double lam = s->lam_base + k->p * fabs(s->omega_m_rad_s);
-    double nreal = ceil(c->Ts_s * lam / c->rk4_h_rel);
-    uint32_t n;
-    if (!(nreal < (double)PLANT_RK4_MAX_SUBSTEPS)) {
-        n = PLANT_RK4_MAX_SUBSTEPS;
-    } else {
-        n = (uint32_t)nreal;
-    }
-    if (n < c->rk4_min_substeps) {
-        n = c->rk4_min_substeps;
-    }
-    if (n < 1u) {
-        n = 1u;
-    }
+    const uint32_t n = plant_rk4_clamp_substeps(c, plant_rk4_stiff_substeps(s, c, k->p));
     s->last_substeps = n;
     memset(y, 0, sizeof(double) * Y_N);
     y[Y_ID] = s->id_A;
@@ -130,43 +118,23 @@ static void rk_end(plant_state_t *s, const plant_config_t *c, const double *y)
     s->energy.friction_J += y[Y_EFR];
     s->energy.load_J += y[Y_ELD];
     if (y[Y_TH] != 0.0) {
-        s->theta_m_rad = plant_machine_wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
+        s->theta_m_rad = plant_angle_wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
         /* cos/sin were integrated too (to RK4 accuracy); re-derive them from
          * theta_m so the angle and the encoder stay exactly consistent. */
-        plant_machine_resync_angle(s, c);
+        plant_angle_resync(s, c);
     }
 }
 
 static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
 {
     rk_ctx_t k;
-    double y[Y_N], k1[Y_N], k2[Y_N], k3[Y_N], k4[Y_N], yt[Y_N];
+    double y[Y_N];
     const uint32_t n = rk_begin(&k, y, s, c, va, vb, vd0, vq0);
-    const double h = c->Ts_s / (double)n;
-    for (uint32_t it = 0; it < n; ++it) {
-        rk_deriv(&k, y, k1);
-        for (int i = 0; i < Y_N; ++i) {
-            yt[i] = y[i] + 0.5 * h * k1[i];
-        }
-        rk_deriv(&k, yt, k2);
-        for (int i = 0; i < Y_N; ++i) {
-            yt[i] = y[i] + 0.5 * h * k2[i];
-        }
-        rk_deriv(&k, yt, k3);
-        for (int i = 0; i < Y_N; ++i) {
-            yt[i] = y[i] + h * k3[i];
-        }
-        rk_deriv(&k, yt, k4);
-        for (int i = 0; i < Y_N; ++i) {
-            y[i] += (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-        }
-    }
+    plant_rk4_run(rk_deriv, &k, y, Y_N, n, c->Ts_s / (double)n);
     rk_end(s, c, y);
 }
 
 /* ---- the switches off (plant_bridge.h): the same RK4 model, its voltage from the diodes ---- */
-
-static void br_deriv(void *ctx, const double *y, double *dy) { rk_deriv((const rk_ctx_t *)ctx, y, dy); }
 
 static void br_currents(void *ctx, const double *y, double *ia, double *ib)
 {
@@ -193,7 +161,7 @@ static void step_bridge_rk4(plant_state_t *s, const plant_config_t *c)
     const uint32_t n = rk_begin(&k, y, s, c, 0.0, 0.0, 0.0, 0.0);
     k.bridge = &s->bridge;
     s->bridge.Vdc_V = c->Vdc_V;
-    const plant_bridge_model_t m = {&k, Y_N, br_deriv, br_currents, br_set_currents};
+    const plant_bridge_model_t m = {&k, Y_N, rk_deriv, br_currents, br_set_currents};
     s->last_substeps = n * PLANT_BRIDGE_SUBSTEPS;
     plant_bridge_period(&s->bridge, &m, y, c->Ts_s, s->last_substeps);
     rk_end(s, c, y);
@@ -240,9 +208,9 @@ static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, do
             th += PLANT_TWO_PI;
             s->revolutions--;
         }
-        s->theta_m_rad = plant_machine_wrap_2pi(th, &s->revolutions);
+        s->theta_m_rad = plant_angle_wrap_2pi(th, &s->revolutions);
         if (++s->resync >= PLANT_RESYNC_PERIODS) {
-            plant_machine_resync_angle(s, c);
+            plant_angle_resync(s, c);
         } else {
             s->cos_e = ce * s->rot_c - se * s->rot_s;
             s->sin_e = se * s->rot_c + ce * s->rot_s;
@@ -250,31 +218,11 @@ static void step_exact(plant_state_t *s, const plant_config_t *c, double vd0, do
     }
 }
 
-void plant_machine_step_bridge(plant_state_t *s, const plant_config_t *c)
-{
-    if (c->model == PLANT_MODEL_FLUX_MAP) {
-        plant_machine_flux_step_bridge(s, c);
-    } else if (c->model == PLANT_MODEL_DQ_LINEAR) {
-        step_bridge_rk4(s, c);
-    } else {
-        return; /* the external model: refused by plant_prepare */
-    }
-    s->v_app_alpha_V = s->bridge.v_mean_alpha_V;
-    s->v_app_beta_V = s->bridge.v_mean_beta_V;
-}
+void dq_linear_step_bridge(plant_state_t *s, const plant_config_t *c) { step_bridge_rk4(s, c); }
 
-void plant_machine_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, double v_beta_V)
+void dq_linear_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
 {
-    const double va = v_alpha_V, vb = v_beta_V;
-    const double ce = s->cos_e, se = s->sin_e;
-    const double vd0 = va * ce + vb * se;
-    const double vq0 = -va * se + vb * ce;
-
-    if (c->model == PLANT_MODEL_EXTERNAL) {
-        plant_machine_external_step(s, c, va, vb);
-    } else if (c->model == PLANT_MODEL_FLUX_MAP) {
-        plant_machine_flux_step(s, c, va, vb, vd0, vq0);
-    } else if (s->exact) {
+    if (s->exact) {
         step_exact(s, c, vd0, vq0);
     } else {
         step_rk4(s, c, va, vb, vd0, vq0);

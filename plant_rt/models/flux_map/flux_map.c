@@ -1,6 +1,6 @@
 /*
- * plant_machine_fluxmap.c - the machine block on the flux-map model
- * (plant_config_t.model == PLANT_MODEL_FLUX_MAP; tables: plant_fluxmap.h).
+ * flux_map.c - the flux-map machine model (Motor model.model = flux_map; its descriptor plant_model_flux_map,
+ * plant_model.h; the tables and their inversion: plant_fluxmap.h).
  *
  * States: the flux linkages in the rotor frame, motor convention,
  *     d psi_d/dt = vd - R id + w psi_q
@@ -8,7 +8,7 @@
  * with (id, iq) the inverse of the map at (psi_d, psi_q), the torque
  * Te = 1.5 p (psi_d iq - psi_q id) and the magnetic energy as the integral of
  * 1.5 (id dpsi_d + iq dpsi_q).  Classical RK4 with the fixed sub-steps of the
- * RK4 path (pmsm_plant.h): N = max(rk4_min_substeps, ceil(Ts lambda /
+ * RK4 path (plant_rk4.h): N = max(rk4_min_substeps, ceil(Ts lambda /
  * rk4_h_rel)), lambda = R / L_min + |w| (+ the electromechanical frequency in
  * FREE mode), L_min the map's smallest incremental inductance.  Each stage
  * inverts the map by Newton's method from the previous stage's currents.
@@ -21,9 +21,11 @@
 #include <math.h>
 #include <string.h>
 
-#include "plant_machine.h"
-
-#define FLUX_RK4_MAX_SUBSTEPS 100000u
+#include "plant_angle.h"
+#include "plant_bridge.h"
+#include "plant_fluxmap.h"
+#include "plant_model.h"
+#include "plant_rk4.h"
 
 enum { F_PD, F_PQ, F_C, F_S, F_TH, F_W, F_EIN, F_ECU, F_EME, F_EFR, F_ELD, F_EMAG, F_N };
 
@@ -48,8 +50,9 @@ static void invert(flux_ctx_t *k, double psi_d, double psi_q)
     }
 }
 
-static void flux_deriv(flux_ctx_t *k, const double *y, double *dy)
+static void flux_deriv(void *ctx, const double *y, double *dy)
 {
+    flux_ctx_t *k = (flux_ctx_t *)ctx;
     const plant_config_t *c = k->c;
     invert(k, y[F_PD], y[F_PQ]);
     const double id = k->id, iq = k->iq, wm = y[F_W], we = k->p * wm;
@@ -77,7 +80,7 @@ static void flux_deriv(flux_ctx_t *k, const double *y, double *dy)
     dy[F_S] = we * y[F_C];
     dy[F_TH] = wm;
     const double Te = 1.5 * k->p * (y[F_PD] * iq - y[F_PQ] * id);
-    plant_machine_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[F_W], &dy[F_EFR], &dy[F_ELD]);
+    plant_rk4_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[F_W], &dy[F_EFR], &dy[F_ELD]);
     dy[F_EIN] = 1.5 * (vd * id + vq * iq);
     dy[F_ECU] = 1.5 * k->R * (id * id + iq * iq);
     dy[F_EME] = Te * wm;
@@ -118,7 +121,7 @@ static void refresh(plant_state_t *s, const plant_config_t *c, bool fluxes)
     s->R_winding_ohm = c->R_ohm * (1.0 + c->R_alpha_per_K * (s->T_winding_degC - c->T_ref_degC));
 }
 
-int plant_machine_flux_prepare(plant_state_t *s, const plant_config_t *c, double p)
+static int flux_prepare(plant_state_t *s, const plant_config_t *c, double p)
 {
     const double Lmin = plant_flux_map_Lmin_H(c->flux_map);
     plant_flux_eval_t e0;
@@ -143,7 +146,7 @@ int plant_machine_flux_prepare(plant_state_t *s, const plant_config_t *c, double
     return PLANT_OK;
 }
 
-double plant_machine_flux_torque_Nm(const plant_state_t *s, const plant_config_t *c)
+static double flux_torque_Nm(const plant_state_t *s, const plant_config_t *c)
 {
     return 1.5 * (double)c->pole_pairs * (s->psi_d_Wb * s->iq_A - s->psi_q_Wb * s->id_A);
 }
@@ -170,12 +173,6 @@ static void thermal_step(plant_state_t *s, const plant_config_t *c, double coppe
  * by at most FLUX_CELL_FRACTION of the narrowest cell (the current's change estimated from the voltage and the
  * back-EMF over L_min). */
 #define FLUX_CELL_FRACTION 0.0625
-static double stiff_substeps(const plant_state_t *s, const plant_config_t *c, double p)
-{
-    const double lam = s->lam_base + p * fabs(s->omega_m_rad_s);
-    return ceil(c->Ts_s * lam / c->rk4_h_rel);
-}
-
 static double cell_substeps(const plant_state_t *s, const plant_config_t *c, double p, double va, double vb)
 {
     const double w = p * fabs(s->omega_m_rad_s);
@@ -184,19 +181,12 @@ static double cell_substeps(const plant_state_t *s, const plant_config_t *c, dou
     return dpsi / (s->Lmin_H * s->cell_min_A * FLUX_CELL_FRACTION);
 }
 
-static uint32_t clamp_substeps(const plant_config_t *c, double nreal)
-{
-    uint32_t n = !(nreal < (double)FLUX_RK4_MAX_SUBSTEPS) ? FLUX_RK4_MAX_SUBSTEPS : (uint32_t)nreal;
-    if (n < c->rk4_min_substeps) n = c->rk4_min_substeps;
-    return n < 1u ? 1u : n;
-}
-
 static uint32_t substeps(const plant_state_t *s, const plant_config_t *c, double p, double va, double vb)
 {
-    double nreal = stiff_substeps(s, c, p);
+    double nreal = plant_rk4_stiff_substeps(s, c, p);
     const double cells = cell_substeps(s, c, p, va, vb);
     if (cells > nreal) nreal = ceil(cells);
-    return clamp_substeps(c, nreal);
+    return plant_rk4_clamp_substeps(c, nreal);
 }
 
 /* The context and the start state of a period. */
@@ -242,38 +232,26 @@ static void flux_end(flux_ctx_t *k, plant_state_t *s, const plant_config_t *c, c
     s->energy.load_J += y[F_ELD];
     s->W_mag_J += y[F_EMAG];
     if (y[F_TH] != 0.0) {
-        s->theta_m_rad = plant_machine_wrap_2pi(s->theta_m_rad + y[F_TH], &s->revolutions);
-        plant_machine_resync_angle(s, c);
+        s->theta_m_rad = plant_angle_wrap_2pi(s->theta_m_rad + y[F_TH], &s->revolutions);
+        plant_angle_resync(s, c);
     }
     if (!plant_flux_map_inside(c->flux_map, s->id_A, s->iq_A)) ++s->outside_map_periods;
     thermal_step(s, c, y[F_ECU]);
     refresh(s, c, false);
 }
 
-void plant_machine_flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
+static void flux_step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
 {
     flux_ctx_t k;
-    double y[F_N], k1[F_N], k2[F_N], k3[F_N], k4[F_N], yt[F_N];
+    double y[F_N];
     flux_begin(&k, y, s, c, va, vb, vd0, vq0);
     const uint32_t n = substeps(s, c, k.p, va, vb);
     s->last_substeps = n;
-    const double h = c->Ts_s / (double)n;
-    for (uint32_t it = 0; it < n; ++it) {
-        flux_deriv(&k, y, k1);
-        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + 0.5 * h * k1[i];
-        flux_deriv(&k, yt, k2);
-        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + 0.5 * h * k2[i];
-        flux_deriv(&k, yt, k3);
-        for (int i = 0; i < F_N; ++i) yt[i] = y[i] + h * k3[i];
-        flux_deriv(&k, yt, k4);
-        for (int i = 0; i < F_N; ++i) y[i] += (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-    }
+    plant_rk4_run(flux_deriv, &k, y, F_N, n, c->Ts_s / (double)n);
     flux_end(&k, s, c, y);
 }
 
 /* ---- the switches off (plant_bridge.h): the flux states with the diodes' voltage ---- */
-
-static void br_deriv(void *ctx, const double *y, double *dy) { flux_deriv((flux_ctx_t *)ctx, y, dy); }
 
 static void br_currents(void *ctx, const double *y, double *ia, double *ib)
 {
@@ -296,7 +274,7 @@ static void br_set_currents(void *ctx, double *y, double ia, double ib)
     y[F_PQ] = e.psi_q_Wb;
 }
 
-void plant_machine_flux_step_bridge(plant_state_t *s, const plant_config_t *c)
+static void flux_step_bridge(plant_state_t *s, const plant_config_t *c)
 {
     flux_ctx_t k;
     double y[F_N];
@@ -307,13 +285,36 @@ void plant_machine_flux_step_bridge(plant_state_t *s, const plant_config_t *c)
      * a period with the largest voltage the diodes apply (2/3 Vdc on a phase); all off, the currents stay zero and
      * the fluxes still (the diodes hold the back-EMF), so the cells crossed do not count */
     const plant_bridge_t *b = &s->bridge;
-    double nreal = stiff_substeps(s, c, k.p) * (double)PLANT_BRIDGE_SUBSTEPS;
+    double nreal = plant_rk4_stiff_substeps(s, c, k.p) * (double)PLANT_BRIDGE_SUBSTEPS;
     if (!(b->active && b->phase[0] == 0 && b->phase[1] == 0 && b->phase[2] == 0)) {
         const double cells = cell_substeps(s, c, k.p, (2.0 / 3.0) * c->Vdc_V, 0.0);
         if (cells > nreal) nreal = ceil(cells);
     }
-    s->last_substeps = clamp_substeps(c, nreal);
-    const plant_bridge_model_t m = {&k, F_N, br_deriv, br_currents, br_set_currents};
+    s->last_substeps = plant_rk4_clamp_substeps(c, nreal);
+    const plant_bridge_model_t m = {&k, F_N, flux_deriv, br_currents, br_set_currents};
     plant_bridge_period(&s->bridge, &m, y, c->Ts_s, s->last_substeps);
     flux_end(&k, s, c, y);
 }
+
+static double flux_magnetic_energy_J(const plant_state_t *s, const plant_config_t *c)
+{
+    (void)c;
+    return s->W_mag_J; /* integrated by the step */
+}
+
+static int flux_validate(const plant_config_t *c)
+{
+    return plant_flux_map_check(c->flux_map) != 0 ? PLANT_ERR_FLUXMAP : PLANT_OK;
+}
+
+const plant_model_desc_t plant_model_flux_map = {
+    .id = OD_PLANT_MODEL_FLUX_MAP,
+    .name = "flux_map",
+    .thermal = true,
+    .validate = flux_validate,
+    .prepare = flux_prepare,
+    .step = flux_step,
+    .step_bridge = flux_step_bridge,
+    .torque_Nm = flux_torque_Nm,
+    .magnetic_energy_J = flux_magnetic_energy_J,
+};

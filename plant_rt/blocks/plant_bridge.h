@@ -31,7 +31,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#define PLANT_BRIDGE_MAX_Y 12      /* the longest model state (plant_machine_fluxmap.c) */
+#define PLANT_BRIDGE_MAX_Y 12      /* the longest model state (models/flux_map/flux_map.c) */
 #define PLANT_BRIDGE_MAX_EVENTS 64 /* conduction changes located a period (more: the rest of it is not located) */
 /* The bridge's period takes this many times the model's RK4 sub-steps: the diodes drive the current with up to
  * 2/3 Vdc, far beyond what the current's own scale suggests, and RK4's error scales with that forcing (Vdc / R);
