@@ -4,36 +4,18 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Collection
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.commands import Command
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from bench import cli_box, cli_motor, cli_runs, cli_tools
+def build_parser(full: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, from the table (bench/commands.py); full: as there."""
+    from bench.commands import build_parser as from_table
 
-    p = argparse.ArgumentParser(
-        prog="bench",
-        description="Hardware-in-the-loop bench for PMSM deadbeat current control over CANopen "
-        "(SocketCAN; a virtme-ng VM supplies vcan when the host kernel has no CAN).",
-    )
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for add in (
-        cli_tools.add_doctor,
-        cli_tools.add_vm,
-        cli_box.add_box,
-        cli_tools.add_pingpong,
-        cli_tools.add_plan,
-        cli_runs.add_run,
-        cli_runs.add_capture,
-        cli_runs.add_replay,
-        cli_tools.add_export,
-        cli_runs.add_sweep,
-        cli_runs.add_reproduce,
-        cli_runs.add_faults,
-        cli_tools.add_perf,
-        cli_runs.add_demo,
-        cli_motor.add_motor,
-    ):
-        add(sub)
-    return p
+    return from_table(full)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,11 +53,13 @@ def _stdout_gone() -> None:
     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
-def _with_law(argv: list[str]) -> tuple[list[str], int]:
-    """`--law DIR` of a command that runs the drive (bench/law.py): built, then BENCH_BUILD_DIR points the
+def _with_law(command: Command | None, argv: list[str]) -> tuple[list[str], int]:
+    """`--law DIR` of a command that takes it (its row says so; bench/law.py): built, then BENCH_BUILD_DIR points the
     bench at its build; argv without it, and 0 or the exit status of a law that does not build."""
     import os
 
+    if command is None or not command.law:
+        return argv, 0
     from bench.law import LawBuildError, take_law, use
 
     try:
@@ -92,23 +76,27 @@ def _with_law(argv: list[str]) -> tuple[list[str], int]:
 
 
 def _main(argv: list[str]) -> int:
-    early = _lacking_before_law(argv)
-    if early:
+    from bench.commands import find
+
+    command = find(argv[0]) if argv else None
+    helping = bool({"-h", "--help"} & set(argv))
+    early = _lacking(command, None) if command is not None and not helping else None
+    if early:  # before its --law is built (minutes for nothing)
         print(early, file=sys.stderr)
         return 2
-    argv, rc = _with_law(argv)
+    argv, rc = _with_law(command, argv)
     if rc:
         return rc
-    if argv[:1] in (["run"], ["demo"]) and not {"-h", "--help"} & set(argv) and not _cia402(argv):
+    if command is not None and command.viewer is not None and not helping and command.viewer(argv):
         from bench.view.worker import prestart
 
         prestart()  # the viewer and plot processes import rerun and matplotlib while we import the rest
-    parser = build_parser()
+    parser = build_parser(argv[:1])  # the chosen command's arguments only
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 64
-    refusal = _needs_extra(args)
+    refusal = _lacking(find(args.command), args)
     if refusal:
         print(refusal, file=sys.stderr)
         return 2
@@ -120,37 +108,17 @@ def _main(argv: list[str]) -> int:
     return rc
 
 
-# the commands that cannot do without an extra (bench/extras.py); a run without [view] only has no run.rrd
-NEEDS_EXTRA = {"sweep": ("sweep",), "reproduce": ("view", "sweep"), "perf": ("view", "sweep")}
-
-
-def _lacking_before_law(argv: list[str]) -> str | None:
-    """A command that cannot run without an extra, refused before its --law is built (minutes for nothing)."""
-    if not argv or argv[0] not in NEEDS_EXTRA or {"-h", "--help"} & set(argv):
-        return None
-    return _needs_extra(argparse.Namespace(command=argv[0]))
-
-
-def _needs_extra(args: argparse.Namespace) -> str | None:
+def _lacking(command: Command | None, args: argparse.Namespace | None) -> str | None:
+    """The refusal of a command that cannot run without an extra it lacks (bench/extras.py; a run without [view]
+    only has no run.rrd): its own extras, and with its parsed arguments those its options need."""
+    from bench.commands import needs
     from bench.extras import lacking, missing_extra
 
-    needs = list(NEEDS_EXTRA.get(args.command, ()))
-    if args.command in ("run", "replay", "demo") and getattr(args, "serve", False):
-        needs.append("view")
-    if args.command == "run" and getattr(args, "drive_profile", None) == "cia402":
-        needs.append("view")  # its figure: matplotlib
-    for extra in needs:
+    for extra in needs(command, args) if command is not None else ():
         module = lacking(extra)
         if module is not None:
-            return missing_extra(extra, f"bench {args.command}", f"no module {module!r}")
+            return missing_extra(extra, f"bench {command.name}", f"no module {module!r}")
     return None
-
-
-def _cia402(argv: list[str]) -> bool:
-    """`bench run --drive-profile cia402` draws its own plot: no viewer processes."""
-    return "--drive-profile=cia402" in argv or any(
-        a == "--drive-profile" and b == "cia402" for a, b in zip(argv, argv[1:], strict=False)
-    )
 
 
 if __name__ == "__main__":

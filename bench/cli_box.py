@@ -1,5 +1,6 @@
 """`bench box up|status|down|tap on|off`: the CAN box, one VM booted once that carries the vcan buses of every run on a
-host whose kernel has no CAN (bench/run/bus/box, docs/VM.md)."""
+host whose kernel has no CAN (bench/run/bus/box, docs/VM.md). Its arguments and its handler; its row of the
+command table (bench/commands.py) names it and says what it is."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import time
 from typing import Any
 
 
-def _cmd_box(args: argparse.Namespace) -> int:
+def cmd_box(args: argparse.Namespace) -> int:
     from bench.run.bus.box import life
     from bench.run.bus.box.control import BoxError
 
@@ -79,17 +80,7 @@ def _print_status(st: dict[str, Any], as_json: bool) -> int:
     return 0 if st["state"] == "up" else 3
 
 
-def add_box(sub: Any) -> None:
-    b = sub.add_parser(
-        "box",
-        help="the CAN box: one VM that carries vcan buses where the host's kernel has no CAN (up, status, down)",
-        description="The CAN box: on a host whose kernel has no SocketCAN (or cannot make vcan links), runs over "
-        "vcan use one VM booted once (~15-60 s) instead of one per run. The VM holds only what needs the "
-        "kernel (the vcan links, the C node processes, candump, the fault gateway); the bench's Python stays "
-        "on the host and reaches each run's bus over SLCAN, which python-can speaks. `bench run --bus vcan0` "
-        "starts a box itself when none is up; the box powers off after --idle-timeout seconds unused. "
-        "Exit status of status: 0 up, 3 down.",
-    )
+def box_arguments(b: argparse.ArgumentParser) -> None:
     b.add_argument(
         "action",
         choices=("up", "status", "down", "tap"),
@@ -105,4 +96,3 @@ def add_box(sub: Any) -> None:
         help="up: power off after S seconds without a run (default 600, or BENCH_BOX_IDLE_S; 0: never)",
     )
     b.add_argument("--json", action="store_true", help="status as JSON (the tap channels of each slot)")
-    b.set_defaults(func=_cmd_box)

@@ -1,12 +1,12 @@
 """`bench motor`: a user's motor folder (docs/YOUR_MOTOR.md) checked and summarised (check), or the example folder
-written (example). Its parser and its handlers; bench/cli.py puts the commands together."""
+written (example), a source FMU built (fmu-build). Its arguments and its handlers; its row of the command table
+(bench/commands.py) names it and says what it is."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 # the example folders' names (bench/motor/example.py EXAMPLES; a test keeps them equal): `bench --help` builds
 # this parser without importing numpy
@@ -73,15 +73,15 @@ def _cmd_fmu_build(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_motor(sub: Any) -> None:
-    mo = sub.add_parser(
-        "motor",
-        help="check a motor folder (flux map from design data), write the example one, build a source FMU",
-        description="A motor folder is motor.toml (name, source, pole pairs, R and its temperature model, "
-        "mechanics) and a flux-map table psi_d(id, iq), psi_q(id, iq) as CSV or .npz (docs/YOUR_MOTOR.md). "
-        'Select it in a scenario with [motor] folder = "DIR" or on the command line with '
-        "`bench run SCENARIO --motor DIR`: the plant then runs the flux-map model.",
-    )
+_SUBCOMMANDS = {"check": _cmd_check, "example": _cmd_example, "fmu-build": _cmd_fmu_build}
+
+
+def cmd_motor(args: argparse.Namespace) -> int:
+    """`bench motor SUBCOMMAND`: the subcommand's handler (motor_arguments makes one a must)."""
+    return _SUBCOMMANDS[args.motor_command](args)
+
+
+def motor_arguments(mo: argparse.ArgumentParser) -> None:
     ms = mo.add_subparsers(dest="motor_command", metavar="SUBCOMMAND", required=True)
     c = ms.add_parser(
         "check",
@@ -90,7 +90,6 @@ def add_motor(sub: Any) -> None:
         "finite values, an invertible map); each refusal names the file, the row and the value; exit 65.",
     )
     c.add_argument("folder", type=Path, help="the motor folder")
-    c.set_defaults(func=_cmd_check)
     ex = ms.add_parser(
         "example",
         help="write an example motor folder (a paper's motor with an assumed saturating flux map)",
@@ -105,7 +104,6 @@ def add_motor(sub: Any) -> None:
         default=EXAMPLE_NAMES[0],
         help=f"which: a paper's motor with an assumed saturating map (default {EXAMPLE_NAMES[0]})",
     )
-    ex.set_defaults(func=_cmd_example)
     fb = ms.add_parser(
         "fmu-build",
         help="build a C source FMU (modelDescription.xml + sources/*.c) into a Linux x86-64 co-simulation .fmu",
@@ -115,4 +113,3 @@ def add_motor(sub: Any) -> None:
     )
     fb.add_argument("source", type=Path, help="the source FMU's folder")
     fb.add_argument("out", type=Path, help="the .fmu to write")
-    fb.set_defaults(func=_cmd_fmu_build)

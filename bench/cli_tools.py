@@ -1,31 +1,21 @@
 """`bench` commands that look at the machine, the bus and the bench itself: doctor, vm, pingpong, plan, export, perf
-(each its parser and its handler; bench/cli.py puts them together)."""
+(each its arguments and its handler; their rows of the command table, bench/commands.py, name them and say what
+they are)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 
-def _cmd_doctor(args: argparse.Namespace) -> int:
+def cmd_doctor(args: argparse.Namespace) -> int:
     from bench.tools.doctor import report
 
     return report()
 
 
-def add_doctor(sub: Any) -> None:
-    d = sub.add_parser(
-        "doctor",
-        help="report kernel CAN, vcan0, VM fallback and tool versions",
-        description="One screen: what the bench found, each problem with the command that fixes it. "
-        "Exit 0 when CAN work can run (on the host or in the VM).",
-    )
-    d.set_defaults(func=_cmd_doctor)
-
-
-def _cmd_vm(args: argparse.Namespace) -> int:
+def cmd_vm(args: argparse.Namespace) -> int:
     from bench.run.bus.vm import VmError, VmOptions, run_in_vm
 
     cmd = list(args.cmd)
@@ -53,14 +43,7 @@ def _cmd_vm(args: argparse.Namespace) -> int:
         return 69
 
 
-def add_vm(sub: Any) -> None:
-    v = sub.add_parser(
-        "vm",
-        help="run a command inside the micro-VM with a real vcan0",
-        description="Boot Debian's stock kernel under QEMU (virtme-ng), bring up vcan0, run CMD in the "
-        "current directory (the repository and the current directory are shared "
-        "read-write) and return CMD's exit status. Example: bench vm -- candump -n 1 vcan0",
-    )
+def vm_arguments(v: argparse.ArgumentParser) -> None:
     v.add_argument("--cpus", type=int, default=2, help="guest CPUs (default 2)")
     v.add_argument("--memory", default="2G", help="guest memory (default 2G)")
     v.add_argument("--timeout", type=float, default=3600.0, help="seconds before the VM is killed (default 3600)")
@@ -76,10 +59,9 @@ def add_vm(sub: Any) -> None:
         "can{N-1}, link type can, down until given a bit rate (0 .. 4; default 0)",
     )
     v.add_argument("cmd", nargs=argparse.REMAINDER, help="-- CMD [ARGS...]")
-    v.set_defaults(func=_cmd_vm)
 
 
-def _cmd_pingpong(args: argparse.Namespace) -> int:
+def cmd_pingpong(args: argparse.Namespace) -> int:
     from bench.tools.pingpong import run_pingpong
 
     res = run_pingpong(args.iface, args.count)
@@ -88,19 +70,12 @@ def _cmd_pingpong(args: argparse.Namespace) -> int:
     return 0 if res.bad == 0 and res.verified == res.frames else 1
 
 
-def add_pingpong(sub: Any) -> None:
-    pp = sub.add_parser(
-        "pingpong",
-        help="C ping-pong between two processes on a CAN interface (needs SocketCAN)",
-        description="Start an echo and a ping C process on IFACE, verify every answer, print "
-        "round-trip statistics. Run it through `bench vm --` on hosts without CAN.",
-    )
+def pingpong_arguments(pp: argparse.ArgumentParser) -> None:
     pp.add_argument("--iface", default="vcan0")
     pp.add_argument("--count", type=int, default=1000)
-    pp.set_defaults(func=_cmd_pingpong)
 
 
-def _cmd_plan(args: argparse.Namespace) -> int:
+def cmd_plan(args: argparse.Namespace) -> int:
     from bench.tools.plan import format_plan, make_plan
 
     try:
@@ -114,15 +89,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_plan(sub: Any) -> None:
-    pl = sub.add_parser(
-        "plan",
-        help="will the PDO set fit a real-time period on this bus?",
-        description="Bits per control period of the configured PDO set (from the EDS files) with "
-        "worst-case bit stuffing, bus load, whether Ts fits in real time, the fastest "
-        "period that does, and what to change. Example: bench plan --bitrate 1000000 "
-        "--ts 55e-6",
-    )
+def plan_arguments(pl: argparse.ArgumentParser) -> None:
     pl.add_argument("--bitrate", type=float, default=1e6, help="nominal bit rate, bit/s (default 1e6)")
     pl.add_argument("--fd", action="store_true", help="CAN FD with bit-rate switch")
     pl.add_argument("--data-bitrate", type=float, default=None, help="CAN FD data-phase bit rate, bit/s")
@@ -131,10 +98,9 @@ def add_plan(sub: Any) -> None:
     pl.add_argument("--trace-pdos", type=int, default=0, help="live-trace PDOs added per period (default 0)")
     pl.add_argument("--trace-decimation", type=int, default=1, help="one trace PDO every N periods (default 1)")
     pl.add_argument("--json", action="store_true", help="print one JSON object")
-    pl.set_defaults(func=_cmd_plan)
 
 
-def _cmd_export(args: argparse.Namespace) -> int:
+def cmd_export(args: argparse.Namespace) -> int:
     from bench.run.record.canlog import LOG_FORMATS, export
 
     ext = args.dest.suffix.lstrip(".")
@@ -152,20 +118,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_export(sub: Any) -> None:
-    ex = sub.add_parser(
-        "export",
-        help="convert a CAN log (candump .log, .asc, .blf) to another format",
-        description="Convert a CAN log: .asc (Vector ASCII) and .blf (Vector binary) with "
-        "python-can's writers, .log (candump) with the bench's C writer. Example: "
-        "bench export runs/x/bus.log runs/x/bus.blf",
-    )
+def export_arguments(ex: argparse.ArgumentParser) -> None:
     ex.add_argument("log", type=Path, help="the log to read")
     ex.add_argument("dest", type=Path, help="the file to write (.log, .asc or .blf)")
-    ex.set_defaults(func=_cmd_export)
 
 
-def _cmd_perf(args: argparse.Namespace) -> int:
+def cmd_perf(args: argparse.Namespace) -> int:
     from bench.root import INSTALLED
     from bench.tools.perf import main as perf_main
 
@@ -180,22 +138,7 @@ def _cmd_perf(args: argparse.Namespace) -> int:
     return perf_main(args)
 
 
-def add_perf(sub: Any) -> None:
-    from bench.tools.perf import add_arguments as perf_args
+def perf_arguments(pf: argparse.ArgumentParser) -> None:
+    from bench.tools.perf import add_arguments
 
-    pf = sub.add_parser(
-        "perf",
-        help="benchmarks: what a user waits for (whole commands beside the loop and a peer "
-        "simulator), cores, instruction counts, Cortex-M4F size, CANopen, vcan",
-        description="Prints measured figures (never asserted), side by side in one run: the whole "
-        "`bench run` process beside the loop's own rate, the Python API and "
-        "gym-electric-motor on the same scenario (pipeline section, with its targets); "
-        "plant and controller cost per period in-process, instruction counts under "
-        "callgrind, Cortex-M4F code size, CANopen frame cost, and (unless --quick) "
-        "lockstep periods/s over vcan beside the C ping-pong floor of the same frames, "
-        "in one VM run; real time (realtime section): 10^6 periods of `bench run` in direct real time at 100 and "
-        "55 us beside cyclictest at the same interval and priority (SYNC lateness p50/p99/p99.9/max, overruns, the "
-        "ratio). --only SECTION,... runs some sections.",
-    )
-    perf_args(pf)
-    pf.set_defaults(func=_cmd_perf)
+    add_arguments(pf)

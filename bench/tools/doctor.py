@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from bench import canbus, extras, mcu
 from bench.paths import BIN, MISSING_BUILD
 from bench.root import INSTALLED
-from bench.run.bus import vm
+from bench.run import vm_readiness
 
 
 @dataclass
@@ -69,7 +69,7 @@ def collect() -> tuple[list[Check], str]:
             optional=True,
         )
     )
-    vm_items = vm.readiness()
+    vm_items = vm_readiness()
     vm_ok = all(ok for _, ok, _ in vm_items)
     for what, ok, detail in vm_items:
         checks.append(
@@ -122,9 +122,9 @@ def collect() -> tuple[list[Check], str]:
 
 def _box_state() -> str:
     """The CAN box's state in one line (bench box status says more)."""
-    from bench.run.bus.box import life
+    from bench.run import box_status
 
-    st = life.status()
+    st = box_status()
     if st["state"] == "down":
         last = st.get("last_end")
         return "down (the next vcan run boots it, ~15-60 s; or `bench box up`)" + (

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
 import importlib.metadata
 import json
 import re
 import shlex
+import subprocess
 import sys
 from typing import Any
 
@@ -17,9 +19,77 @@ from bench.paths import REPO
 
 
 def test_help_lists_commands() -> None:
-    out = bench_cli("--help").stdout
-    for cmd in ("doctor", "vm", "demo"):
-        assert cmd in out
+    """`bench --help` lists every command of the table (bench/commands.py) with its help line, in the table's order,
+    and the parser knows exactly the table's commands."""
+    from bench.cli import build_parser
+    from bench.commands import COMMANDS
+
+    out = bench_cli("--help", env={"COLUMNS": "200"}).stdout
+    listed = [c for c in COMMANDS if c.help is not None]
+    places = [m.start() if (m := re.search(rf"\n    {c.name}\s", out)) else -1 for c in listed]
+    assert -1 not in places and places == sorted(places), out
+    for c in listed:
+        assert " ".join(c.help.split()[:4]) in " ".join(out.split()), (c.name, out)
+    sub = next(a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction")
+    assert list(sub.choices) == [c.name for c in COMMANDS]  # type: ignore[attr-defined]
+
+
+def test_help_imports_no_command() -> None:
+    """`bench --help` is the rows' help lines: no command's module is imported, nor numpy or canopen."""
+    code = (
+        "import sys\nfrom bench.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "print(sorted(m for m in sys.modules if m in ('numpy', 'canopen') or m.startswith('bench.run')))"
+    )
+    res = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
+    assert "COMMAND" in res.stdout and res.stdout.splitlines()[-1] == "[]", res.stdout
+
+
+def test_a_command_parsed_alone_is_the_command_of_the_whole_parser() -> None:
+    """`bench CMD` builds CMD's arguments only (bench/commands.py): its parser is the one of the whole table."""
+    from bench.cli import build_parser
+    from bench.commands import COMMANDS
+
+    def sub(full: list[str] | None) -> dict[str, argparse.ArgumentParser]:
+        act = next(a for a in build_parser(full)._actions if isinstance(a, argparse._SubParsersAction))
+        return dict(act.choices)
+
+    whole = sub(None)
+    for c in COMMANDS:
+        alone = sub([c.name])
+        assert alone[c.name].format_help() == whole[c.name].format_help(), c.name
+        assert [a.dest for a in alone[c.name]._actions] == [a.dest for a in whole[c.name]._actions], c.name
+        others = [n for n in alone if n != c.name]
+        assert all(len(alone[n]._actions) == 1 for n in others)  # -h only: not built
+
+
+def test_the_extras_a_command_needs_come_from_its_row(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every extra missing: a command whose row needs extras is refused naming its first (before --law builds),
+    the others are not; --serve and the CiA 402 master's figure add [view] to run, replay and demo."""
+    from bench import cli, extras
+    from bench.commands import COMMANDS, find
+
+    monkeypatch.setattr(extras, "lacking", lambda extra: f"{extra}_module")
+    for c in COMMANDS:
+        refusal = cli._lacking(c, None)
+        if c.needs:
+            assert refusal is not None and f"bench {c.name} needs the package's [{c.needs[0]}] extra" in refusal
+        else:
+            assert refusal is None, c.name
+    parse = cli.build_parser().parse_args
+    step = str(REPO / "scenarios" / "you2019_step.toml")
+    for argv in (["run", step, "--serve"], ["run", step, "--drive-profile", "cia402"], ["replay", "x.log", "--serve"]):
+        assert "[view] extra" in (cli._lacking(find(argv[0]), parse(argv)) or ""), argv
+    assert cli._lacking(find("demo"), parse(["demo", "--serve"])) is not None
+    for argv in (["run", step], ["replay", "x.log"], ["demo"]):
+        assert cli._lacking(find(argv[0]), parse(argv)) is None, argv
+
+
+def test_the_commands_that_take_law_are_the_rows_that_say_so() -> None:
+    """bench/law.py's own list of the commands take_law reads --law from, and the table's rows with law=True."""
+    from bench.commands import COMMANDS
+    from bench.law import COMMANDS as LAW_COMMANDS
+
+    assert set(LAW_COMMANDS) == {c.name for c in COMMANDS if c.law}
 
 
 def test_doctor_reports_can_and_fallback() -> None:

@@ -79,6 +79,7 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 def test_the_graph_is_read() -> None:
     g = _graph()
     assert "bench.run.options" in g["bench.run.loop.session"] and "bench.scenario" in g["bench.run.command"]
+    assert "bench.run.bus.box.life" in g["bench.run"]  # a face's imports of what it re-exports are arrows too
 
 
 def test_the_bench_imports_without_a_circle() -> None:
@@ -122,7 +123,10 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
     ("a run", ("bench.run",)),
     ("studies and masters", ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults")),
     ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
-    ("the command line", ("bench.cli", "bench.cli_tools", "bench.cli_runs", "bench.cli_box", "bench.cli_motor")),
+    (
+        "the command line",
+        ("bench.cli", "bench.commands", "bench.cli_tools", "bench.cli_runs", "bench.cli_box", "bench.cli_motor"),
+    ),
     ("the pytest plugin", ("bench.pytest_plugin",)),
 ]
 
@@ -164,3 +168,50 @@ def test_the_architecture_shows_every_floor() -> None:
     table = text[text.index("### The floors of `bench/`") :]
     rows = [line.split("|")[1].strip() for line in table.splitlines() if line.startswith("| ") and "---" not in line]
     assert rows[1 : len(FLOORS) + 1] == [name for name, _ in FLOORS]
+
+
+# Faces (issue 53): the modules under a prefix use a package through its face (its __init__.py) only, never a module
+# inside it, so that the package can move its inner floors without breaking them. (user prefix, package)
+FACES: list[tuple[str, str]] = [("bench.tools", "bench.run")]
+
+
+def behind_faces(graph: dict[str, set[str]], faces: list[tuple[str, str]] = FACES) -> list[str]:
+    return sorted(
+        f"{m} -> {t} (use {package}'s face, {package})"
+        for user, package in faces
+        for m, ts in graph.items()
+        if m == user or m.startswith(user + ".")
+        for t in ts
+        if t.startswith(package + ".")
+    )
+
+
+def test_the_tools_use_the_run_s_face_only() -> None:
+    arrows = behind_faces(_graph())
+    assert not arrows, "\n".join(arrows)
+
+
+def test_an_import_behind_a_face_is_found() -> None:
+    graph = {
+        "bench.tools.perf.vcan": {"bench.run", "bench.run.pipeline", "bench.paths"},
+        "bench.tools.doctor": {"bench.run"},
+        "bench.reproduce.report": {"bench.run.pipeline"},
+    }
+    assert behind_faces(graph) == ["bench.tools.perf.vcan -> bench.run.pipeline (use bench.run's face, bench.run)"]
+
+
+def test_the_run_s_face_names_what_it_imports() -> None:
+    """bench/run/__init__.py: each public name resolves to the object of the module its table names; the table,
+    __all__ and the face's TYPE_CHECKING imports (the arrows this graph sees) say the same."""
+    import importlib
+
+    import bench.run as face
+
+    path = BENCH / "run" / "__init__.py"
+    typed: dict[str, tuple[str, str]] = {}
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("bench.run."):
+            typed |= {a.asname or a.name: (node.module or "", a.name) for a in node.names}
+    assert typed == face._WHERE and sorted(face.__all__) == sorted(face._WHERE)
+    for name, (module, attr) in face._WHERE.items():
+        assert getattr(face, name) is getattr(importlib.import_module(module), attr), name

@@ -80,18 +80,18 @@ def _plugin(td: Path, tag: str, box: bool) -> dict[str, Any]:
 
 def box(args: Any) -> dict[str, Any]:
     """The section; `args.repetitions` runs of each box figure (default 3), one of each VM-per-run figure."""
-    from bench.run.bus.box import life
+    from bench.run import box_down, box_info
 
     reps = max(1, getattr(args, "repetitions", None) or 3)
     res: dict[str, Any] = {"repetitions": reps, "runs": {"box": [], "vm_per_run": [], "direct": []}}
     res["demo"] = {"box": [], "vm_per_run": []}
     res["plugin"] = {"box": [], "vm_per_run": []}
-    life.down()
+    box_down()
     with tempfile.TemporaryDirectory(prefix="bench-perf-box-", dir=REPO / "build") as tmp:
         td = Path(tmp)  # under the repository: a folder the VM of a run of its own shares
         res["vm_true_s"] = round(measure(_bench("vm", "--", "true"), timeout=900, cwd=REPO).check("bench vm").wall_s, 2)
         res["box_boot_s"] = round(measure(_bench("box", "up"), timeout=900, cwd=REPO).check("bench box up").wall_s, 2)
-        info = life.read_info()
+        info = box_info()
         res["box_booted_s"] = info.booted_s if info is not None else None
         for i in range(reps):  # interleaved: box, direct, and (first pass) a VM per run, then the next pass
             res["runs"]["box"].append(_run(td, f"box{i}", "vcan0", True))
@@ -102,7 +102,7 @@ def box(args: Any) -> dict[str, Any]:
                 res["runs"]["vm_per_run"].append(_run(td, "vm0", "vcan0", False))
                 res["demo"]["vm_per_run"].append(_demo(td, "demo-vm0", False))
                 res["plugin"]["vm_per_run"].append(_plugin(td, "vm0", False))
-    life.down()
+    box_down()
     return res
 
 

@@ -40,8 +40,7 @@ def _json_default(o: Any) -> Any:
 
 
 def api(periods: int, folder: Path) -> dict[str, Any]:
-    from bench.run import RunOptions, run_scenario
-    from bench.run.sinks import TraceFileSink
+    from bench.run import RunOptions, TraceFileSink, run_scenario
 
     folder.mkdir(parents=True, exist_ok=True)
     sc = _scenario(periods)
@@ -62,9 +61,7 @@ def api(periods: int, folder: Path) -> dict[str, Any]:
 
 
 def _session_loop(periods: int, recorded: bool) -> dict[str, Any]:
-    from bench.run.loop.session import Session
-    from bench.run.options import RunOptions
-    from bench.run.record.sources import DirectSource
+    from bench.run import DirectSource, RunOptions, Session
 
     opts = RunOptions(bus="direct")
     sess = Session(_scenario(periods), opts)

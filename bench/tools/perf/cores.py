@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.paths import BUILD, REPO, binary
-from bench.run.loop.configure import enable_cia402
+from bench.run import enable_cia402
 from bench.tools.perf.common import TARGET_LOOP_MPS, TARGET_PLANT_MPS, YAO2020_DSP_US, first_line, run, statm_pages
 
 ARM_FLAGS = [
@@ -125,7 +125,7 @@ def _direct(plant_sdo: dict[tuple[str, str], float | int]) -> dict[str, Any]:
     import canopen
 
     from bench.eds import default_node_id, eds_path
-    from bench.run.bus.direct import DirectBus, Hil
+    from bench.run import DirectBus, Hil
 
     hil = Hil()
     net = canopen.Network()

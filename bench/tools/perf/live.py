@@ -61,9 +61,7 @@ def live_follow(log: Path, periods_per_update: int = 1000, periods: int | None =
     `periods_per_update` periods (cut anywhere, mid-line too) and times each update of the VM path
     of `bench run` (LogFollower.drain -> Pipeline.feed -> traces.npy + .rrd sinks, no viewer).
     Reports the median update early in the run and late in it: equal when an update is O(new)."""
-    from bench.run.pipeline import Pipeline
-    from bench.run.record.sources import LogFollower
-    from bench.run.sinks import TraceFileSink
+    from bench.run import LogFollower, Pipeline, TraceFileSink
     from bench.view.rerun_sink import RerunSink
 
     size = log.stat().st_size

@@ -96,8 +96,7 @@ def memory_verdict(samples: list[tuple[float, int]]) -> dict[str, Any]:
 
 
 def inside(periods: int, out: Path) -> int:
-    from bench.run.options import RunOptions
-    from bench.run.pipeline import capture_to_log
+    from bench.run import RunOptions, capture_to_log
     from bench.scenario import load
 
     keep = PERF_DIR / "vm_soak"
@@ -130,7 +129,7 @@ def inside(periods: int, out: Path) -> int:
 def soak(periods: int = SOAK_PERIODS) -> dict[str, Any]:
     """Host side: the run inside the VM (or on the host's vcan0), then every frame of its log checked."""
     from bench.canbus import host_has_vcan
-    from bench.run.bus.vm import VmOptions, run_in_vm
+    from bench.run import VmOptions, run_in_vm
     from bench.tools.perf.vcan import recorder_check
 
     out = PERF_DIR / "soak.json"

@@ -95,8 +95,7 @@ def _floor(iface: str, periods: int, extra: int, record: Path | None) -> dict[st
 def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
     """The bus half of `bench run` (bench.run.pipeline.capture_to_log: nodes, master, candump's
     log into `keep`); the host decodes the log."""
-    from bench.run.options import RunOptions
-    from bench.run.pipeline import capture_to_log
+    from bench.run import RunOptions, capture_to_log
 
     if keep.exists():
         shutil.rmtree(keep)
@@ -118,8 +117,7 @@ def _capture(sc: Any, iface: str, keep: Path) -> dict[str, Any]:
 
 def _unrecorded(sc: Any, iface: str) -> dict[str, Any]:
     """The same loop with no recorder at all (what RunOptions(record=False) means over a bus)."""
-    from bench.run.loop.session import Session
-    from bench.run.options import RunOptions
+    from bench.run import RunOptions, Session
 
     sess = Session(sc, RunOptions(bus=iface, record=False))
     t0 = time.monotonic()
@@ -214,9 +212,7 @@ def recorder_check(d: Path) -> dict[str, Any]:
     """Every frame of a recorded lockstep run, checked: decoded in kernel time-stamp order (as
     `bench run` and `bench replay` do) and in candump's log order, SYNC-counter gaps, missing
     measurements and commands, per COB-ID counts against what the periods should have sent."""
-    from bench.run.loop.configure import HOLD_TPDO
-    from bench.run.pipeline import Pipeline, replay_log
-    from bench.run.record.canlog import read_frames
+    from bench.run import HOLD_TPDO, Pipeline, read_frames, replay_log
 
     meta = json.loads((d / "perf_capture.json").read_text())
     periods = int(meta["periods"])
@@ -256,7 +252,7 @@ def recorder_check(d: Path) -> dict[str, Any]:
 
 def vcan(args: argparse.Namespace) -> dict[str, Any]:
     from bench.canbus import host_has_vcan
-    from bench.run.bus.vm import VmOptions, run_in_vm
+    from bench.run import VmOptions, run_in_vm
 
     out = PERF_DIR / "vm.json"
     out.unlink(missing_ok=True)
