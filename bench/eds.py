@@ -213,3 +213,18 @@ def _params(node: str, objects: tuple[str, ...]) -> dict[str, Param]:
                 value_names(eds_path(node), var),
             )
     return out
+
+
+# A plant record named "Model <name>" is the machine model <name>'s own (protocols/odgen/model.py, plant_rt/models/)
+MODEL_RECORD = "Model "
+
+
+def model_records() -> tuple[str, ...]:
+    """The machine models' own records of plant.eds ("Model <name>"), in index order: their parameters are a
+    scenario's [motor] keys beside Motor model's."""
+    from canopen.objectdictionary import ODRecord
+
+    od = load("plant")
+    return tuple(
+        od[i].name for i in sorted(od.indices) if isinstance(od[i], ODRecord) and od[i].name.startswith(MODEL_RECORD)
+    )

@@ -7,12 +7,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from bench.eds import Param, params
+from bench.eds import Param, model_records, params
 from bench.laws import law_records
 from bench.scenario.model import ScenarioError, Setting
 
 SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "motor": ("plant", ("Motor model",)),
+    # the motor model's record and each machine model's own (plant.eds "Model <name>": plant_rt/models/<name>/)
+    "motor": ("plant", ("Motor model", *model_records())),
     "drive": ("plant", ("Inverter", "Sensors", "Run control")),
     # the drive's own records and every current law's (drive.eds CurrentLaws, a user law's too)
     "controller": ("drive", ("Controller", "Outer loops", *law_records(), "Safe state")),

@@ -101,6 +101,15 @@ typedef enum {
     PLANT_TRIP_PULSES_OFF = OD_PLANT_TRIP_REACTION_PULSES_OFF
 } plant_trip_reaction_t;
 
+/* The machine models' own records (plant.eds "Model <name>", generated: OD_PLANT_MODEL_RECORDS), each as the EDS
+ * has it (REAL32 values: what travels over SDO), by its OD member: c->params.x200A_model_harmonic.psi_5_Wb. */
+#define PLANT_MODEL_PARAMS_MEMBER(name, type, record, index, fields) type record;
+typedef struct {
+    OD_PLANT_MODEL_RECORDS(PLANT_MODEL_PARAMS_MEMBER)
+    uint8_t none_; /* a model without a record of its own: the struct is never empty */
+} plant_model_params_t;
+#undef PLANT_MODEL_PARAMS_MEMBER
+
 /* ---- parameters ------------------------------------------------------- */
 typedef struct {
     /* timing (every block) */
@@ -131,6 +140,7 @@ typedef struct {
     plant_model_t model;
     const plant_flux_map_t *flux_map;
     const plant_external_t *external; /* model == PLANT_MODEL_EXTERNAL: the caller's (an FMU) */
+    plant_model_params_t params;      /* the models' own records (above) */
     /* winding temperature (flux_map model only): R = R_ohm (1 + R_alpha_per_K
      * (T - T_ref_degC)), C dT/dt = P_copper - (T - T_amb_degC) / R_th, one
      * exact first-order step a period with the period's mean copper loss.

@@ -65,6 +65,12 @@ void plant_config_defaults(plant_config_t *c)
     c->flux_map = NULL;
     c->T_ref_degC = 20.0;
     c->T_amb_degC = 20.0;
+    /* the machine models' own records at the EDS's defaults */
+#define PLANT_MODEL_DEFAULT(index, sub, record, field, eds_default) c->params.record.field = eds_default;
+#define PLANT_MODEL_DEFAULTS(name, type, record, index, fields) fields(PLANT_MODEL_DEFAULT)
+    OD_PLANT_MODEL_RECORDS(PLANT_MODEL_DEFAULTS)
+#undef PLANT_MODEL_DEFAULTS
+#undef PLANT_MODEL_DEFAULT
     plant_config_ideal(c);
 }
 

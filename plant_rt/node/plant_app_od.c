@@ -14,13 +14,20 @@
 #define PLANT_ROW(index, sub, record, field, eds_default) \
     CO_FIELD_MAP_ROW(od_plant_mfr_t, plant_config_t, record, field),
 /* one list a line (clang-format would run the macro lists together) */
+/* the machine models' own records (plant_types.h: plant_model_params_t, by the record's member) */
+#define MODEL_ROW(index, sub, record, field, eds_default) \
+    CO_FIELD_MAP_ROW_IN(od_plant_mfr_t, plant_config_t, params.record, record, field),
+#define MODEL_ROWS(name, type, record, index, fields) fields(MODEL_ROW)
 /* clang-format off */
 static const co_field_map_t config_rows[] = {
     OD_PLANT_MOTOR_MODEL_PARAMS(PLANT_ROW)
     OD_PLANT_INVERTER_PARAMS(PLANT_ROW)
-    OD_PLANT_SENSORS_PARAMS(PLANT_ROW)};
+    OD_PLANT_SENSORS_PARAMS(PLANT_ROW)
+    OD_PLANT_MODEL_RECORDS(MODEL_ROWS)};
 /* clang-format on */
 #undef PLANT_ROW
+#undef MODEL_ROWS
+#undef MODEL_ROW
 #define N_CONFIG_ROWS (sizeof config_rows / sizeof config_rows[0])
 
 static void config_from(const od_plant_mfr_t *m, plant_config_t *c)
@@ -116,8 +123,8 @@ void plant_app_apply_pending(plant_app_t *app)
 
 /* ------------------------------------------------------------------ the objects */
 
-/* 0x2000-0x2002: validate a write against the whole configuration: store it temporarily, read the config back,
- * restore, try plant_prepare on a copy. Sub-index 0 (the entry count) is the node's own. */
+/* 0x2000-0x2002 and the models' records: validate a write against the whole configuration: store it temporarily, read
+ * the config back, restore, try plant_prepare on a copy. Sub-index 0 (the entry count) is the node's own. */
 static uint32_t model_check(void *object, const co_od_entry_t *e, const uint8_t *data, uint32_t len)
 {
     plant_app_t *app = (plant_app_t *)object;
@@ -295,4 +302,8 @@ void plant_app_bind_objects(plant_app_t *app, co_node_t *node)
     };
     for (size_t i = 0; i < sizeof objects / sizeof objects[0]; ++i)
         (void)co_node_bind(node, objects[i].index, objects[i].ext);
+        /* each machine model's own record is checked against the whole configuration, as the motor model's */
+#define MODEL_RECORD_BIND(name, type, record, index, fields) (void)co_node_bind(node, index, &app->ext_model);
+    OD_PLANT_MODEL_RECORDS(MODEL_RECORD_BIND)
+#undef MODEL_RECORD_BIND
 }

@@ -932,6 +932,10 @@ typedef struct {
 #define OD_DRIVE_ZHAO_2022_G_V_A_DEFAULT 0.0f
 #define OD_DRIVE_ZHAO_2022_LIMITED_DEFAULT 0u
 
+/* the machine models' own records ("Model <name>"): X(name, record type, record member, index, its
+ * parameters' X-macro list) */
+#define OD_DRIVE_MODEL_RECORDS(X)
+
 /* 0x2200:01 Controller.controller */
 enum {
     OD_DRIVE_CONTROLLER_OPEN_LOOP = 0,

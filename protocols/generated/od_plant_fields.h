@@ -610,6 +610,10 @@ typedef struct {
 #define OD_PLANT_VOLTAGE_COMMAND_V_ALPHA_V_DEFAULT 0.0f
 #define OD_PLANT_VOLTAGE_COMMAND_V_BETA_V_DEFAULT 0.0f
 
+/* the machine models' own records ("Model <name>"): X(name, record type, record member, index, its
+ * parameters' X-macro list) */
+#define OD_PLANT_MODEL_RECORDS(X)
+
 /* 0x2000:09 Motor model.mech_mode */
 enum {
     OD_PLANT_MECH_MODE_FREE = 0,

@@ -31,6 +31,7 @@ def fields_header(node: str, model: NodeModel, eds: Path) -> str:
             "",
             *model.defines,
             *model.field_lists,
+            *model_records(up, model),
             *enums(node, model.od, model.raw),
             *bits(node, model.od, model.raw, f"{node}.eds"),
             *emcy_defines(up, eds_reader.emcy_codes(eds_reader.parse(eds), str(eds)), f"{node}.eds"),
@@ -94,3 +95,14 @@ def common_header(eds_dir: Path | None = None) -> str:
             "",
         ]
     )
+
+
+def model_records(up: str, model: NodeModel) -> list[str]:
+    """X(name, record type, record member, index, field list) of each machine model's own record ("Model <name>")."""
+    rows = "".join(f" \\\n    X({n}, {t}, {m}, 0x{i:04X}u, {f})" for n, t, m, i, f in model.model_records)
+    return [
+        "/* the machine models' own records (\"Model <name>\"): X(name, record type, record member, index, its",
+        " * parameters' X-macro list) */",
+        f"#define OD_{up}_MODEL_RECORDS(X){rows}",
+        "",
+    ]

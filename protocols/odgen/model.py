@@ -43,6 +43,13 @@ class NodeModel:
     mfr_fields: list[str] = field(default_factory=list)  # members of od_<node>_mfr_t
     defines: list[str] = field(default_factory=list)  # OD_<NODE>_<OBJECT>_IDX, OD_<NODE>_<OBJECT>_<MEMBER>_SUB
     field_lists: list[str] = field(default_factory=list)  # plain manufacturer records' typedefs and X-macros
+    # a machine model's own record (plant.eds "Model <name>"): (name, record type, member, index, its field list)
+    model_records: list[tuple[str, str, str, int, str]] = field(default_factory=list)
+
+
+# A plant record named "Model <name>" is the machine model <name>'s own (plant_rt/models/<name>/): the plant's
+# configuration carries it whole (plant_types.h, plant_model_params_t) and its node app copies and checks it.
+MODEL_RECORD = "Model "
 
 
 def eds_path(node: str, eds_dir: Path | None = None) -> Path:
@@ -82,6 +89,9 @@ def _add_object(node: str, eds: Path, model: NodeModel, obj: ODVariable | ODReco
     area.append(f"{rtype} {oname};")
     if index >= 0x2000:
         model.field_lists.append(field_list(macro_base, obj, oname, subs))
+    if plain and obj.name.startswith(MODEL_RECORD):
+        name = c_ident(obj.name[len(MODEL_RECORD) :]).lower()
+        model.model_records.append((name, rtype, oname, index, f"OD_{macro_base}_PARAMS"))
 
 
 def _add_entry(
