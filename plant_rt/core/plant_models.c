@@ -11,7 +11,8 @@
 #define PLANT_MODELS(X) \
     X(plant_model_dq_linear) \
     X(plant_model_flux_map) \
-    X(plant_model_external)
+    X(plant_model_external) \
+    X(plant_model_harmonic)
 /* clang-format on */
 
 #define PLANT_MODEL_DECLARE(d) extern const plant_model_desc_t d;

@@ -228,6 +228,11 @@ static const od_plant_ram_t defaults = {
     .mfr.x2007_realtime_timing.sync_overruns = 0x0u,
     .mfr.x2007_realtime_timing.worst_period = 0x0u,
     .mfr.x2007_realtime_timing.reset = 0x0u,
+    .mfr.x200A_model_harmonic.highest_sub_index_supported = 0x4u,
+    .mfr.x200A_model_harmonic.psi_5_Wb = 0.0f,
+    .mfr.x200A_model_harmonic.psi_7_Wb = 0.0f,
+    .mfr.x200A_model_harmonic.cogging_Nm = 0.0f,
+    .mfr.x200A_model_harmonic.cogging_periods = 0x0u,
     .mfr.x2100_Measurement.highest_sub_index_supported = 0x6u,
     .mfr.x2100_Measurement.i_a_A = 0.0f,
     .mfr.x2100_Measurement.i_b_A = 0.0f,
@@ -398,7 +403,7 @@ static const co_od_entry_t entries[] = {
     {0x2000u, 0x0Du, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H), &OD_PLANT.mfr.x2000_motor_model.sat_Lq_inf_H, {.f = 1.0000000116860974e-07f}, {.f = 10.0f}}, /* sat_Lq_inf_H */
     {0x2000u, 0x0Eu, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_h_rel), &OD_PLANT.mfr.x2000_motor_model.rk4_h_rel, {.f = 9.999999747378752e-05f}, {.f = 1.0f}}, /* rk4_h_rel */
     {0x2000u, 0x0Fu, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps), &OD_PLANT.mfr.x2000_motor_model.rk4_min_substeps, {.i = 1}, {.i = 100000}}, /* rk4_min_substeps */
-    {0x2000u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.model), &OD_PLANT.mfr.x2000_motor_model.model, {.i = 0}, {.i = 2}}, /* model */
+    {0x2000u, 0x10u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.model), &OD_PLANT.mfr.x2000_motor_model.model, {.i = 0}, {.i = 3}}, /* model */
     {0x2000u, 0x11u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.R_alpha_per_K), &OD_PLANT.mfr.x2000_motor_model.R_alpha_per_K, {.f = 0.0f}, {.f = 0.009999999776482582f}}, /* R_alpha_per_K */
     {0x2000u, 0x12u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_ref_degC), &OD_PLANT.mfr.x2000_motor_model.T_ref_degC, {.f = -50.0f}, {.f = 250.0f}}, /* T_ref_degC */
     {0x2000u, 0x13u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2000_motor_model.T_amb_degC), &OD_PLANT.mfr.x2000_motor_model.T_amb_degC, {.f = -50.0f}, {.f = 250.0f}}, /* T_amb_degC */
@@ -468,6 +473,11 @@ static const co_od_entry_t entries[] = {
     {0x2007u, 0x12u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2007_realtime_timing.reset), &OD_PLANT.mfr.x2007_realtime_timing.reset, {.i = 0}, {.i = 1}}, /* reset */
     {0x2008u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ | CO_ODF_WRITE, 0, &OD_PLANT.mfr.x2008_flux_map, {.i = 0}, {.i = 0}}, /* Flux map */
     {0x2009u, 0x00u, CO_DT_DOMAIN, CO_ODF_READ | CO_ODF_WRITE, 0, &OD_PLANT.mfr.x2009_FMU, {.i = 0}, {.i = 0}}, /* FMU */
+    {0x200Au, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x200A_model_harmonic.highest_sub_index_supported), &OD_PLANT.mfr.x200A_model_harmonic.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x200Au, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x200A_model_harmonic.psi_5_Wb), &OD_PLANT.mfr.x200A_model_harmonic.psi_5_Wb, {.f = -1.0f}, {.f = 1.0f}}, /* psi_5_Wb */
+    {0x200Au, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x200A_model_harmonic.psi_7_Wb), &OD_PLANT.mfr.x200A_model_harmonic.psi_7_Wb, {.f = -1.0f}, {.f = 1.0f}}, /* psi_7_Wb */
+    {0x200Au, 0x03u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x200A_model_harmonic.cogging_Nm), &OD_PLANT.mfr.x200A_model_harmonic.cogging_Nm, {.f = -1000.0f}, {.f = 1000.0f}}, /* cogging_Nm */
+    {0x200Au, 0x04u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x200A_model_harmonic.cogging_periods), &OD_PLANT.mfr.x200A_model_harmonic.cogging_periods, {.i = 0}, {.i = 1000}}, /* cogging_periods */
     {0x2100u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported), &OD_PLANT.mfr.x2100_Measurement.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2100u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_a_A), &OD_PLANT.mfr.x2100_Measurement.i_a_A, {.i = 0}, {.i = 0}}, /* i_a_A */
     {0x2100u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_b_A), &OD_PLANT.mfr.x2100_Measurement.i_b_A, {.i = 0}, {.i = 0}}, /* i_b_A */

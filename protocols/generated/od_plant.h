@@ -263,6 +263,7 @@ typedef struct {
     od_plant_realtime_timing_t x2007_realtime_timing;
     co_domain_t x2008_flux_map;
     co_domain_t x2009_FMU;
+    od_plant_model_harmonic_t x200A_model_harmonic;
     od_plant_measurement_t x2100_Measurement;
     od_plant_voltage_command_t x2102_voltage_command;
 } od_plant_mfr_t;

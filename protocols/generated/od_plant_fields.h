@@ -260,6 +260,12 @@
 #define OD_PLANT_REALTIME_TIMING_RESET_SUB 0x12u
 #define OD_PLANT_FLUX_MAP_IDX 0x2008u
 #define OD_PLANT_FMU_IDX 0x2009u
+#define OD_PLANT_MODEL_HARMONIC_IDX 0x200Au
+#define OD_PLANT_MODEL_HARMONIC_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_PLANT_MODEL_HARMONIC_PSI_5_WB_SUB 0x01u
+#define OD_PLANT_MODEL_HARMONIC_PSI_7_WB_SUB 0x02u
+#define OD_PLANT_MODEL_HARMONIC_COGGING_NM_SUB 0x03u
+#define OD_PLANT_MODEL_HARMONIC_COGGING_PERIODS_SUB 0x04u
 #define OD_PLANT_MEASUREMENT_IDX 0x2100u
 #define OD_PLANT_MEASUREMENT_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_MEASUREMENT_I_A_A_SUB 0x01u
@@ -566,6 +572,28 @@ typedef struct {
 #define OD_PLANT_REALTIME_TIMING_WORST_PERIOD_DEFAULT 0u
 #define OD_PLANT_REALTIME_TIMING_RESET_DEFAULT 0u
 
+/* 0x200A Model harmonic */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float psi_5_Wb;
+    float psi_7_Wb;
+    float cogging_Nm;
+    uint16_t cogging_periods;
+} od_plant_model_harmonic_t;
+
+
+/* 0x200A Model harmonic, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_PLANT_MODEL_HARMONIC_PARAMS(X) \
+    X(0x200Au, 0x01u, x200A_model_harmonic, psi_5_Wb, 0.0f) \
+    X(0x200Au, 0x02u, x200A_model_harmonic, psi_7_Wb, 0.0f) \
+    X(0x200Au, 0x03u, x200A_model_harmonic, cogging_Nm, 0.0f) \
+    X(0x200Au, 0x04u, x200A_model_harmonic, cogging_periods, 0u)
+
+#define OD_PLANT_MODEL_HARMONIC_PSI_5_WB_DEFAULT 0.0f
+#define OD_PLANT_MODEL_HARMONIC_PSI_7_WB_DEFAULT 0.0f
+#define OD_PLANT_MODEL_HARMONIC_COGGING_NM_DEFAULT 0.0f
+#define OD_PLANT_MODEL_HARMONIC_COGGING_PERIODS_DEFAULT 0u
+
 /* 0x2100 Measurement */
 typedef struct {
     uint8_t highest_sub_index_supported;
@@ -612,7 +640,8 @@ typedef struct {
 
 /* the machine models' own records ("Model <name>"): X(name, record type, record member, index, its
  * parameters' X-macro list) */
-#define OD_PLANT_MODEL_RECORDS(X)
+#define OD_PLANT_MODEL_RECORDS(X) \
+    X(harmonic, od_plant_model_harmonic_t, x200A_model_harmonic, 0x200Au, OD_PLANT_MODEL_HARMONIC_PARAMS)
 
 /* 0x2000:09 Motor model.mech_mode */
 enum {
@@ -625,7 +654,8 @@ enum {
 enum {
     OD_PLANT_MODEL_DQ_LINEAR = 0,
     OD_PLANT_MODEL_FLUX_MAP = 1,
-    OD_PLANT_MODEL_FMU = 2
+    OD_PLANT_MODEL_FMU = 2,
+    OD_PLANT_MODEL_HARMONIC = 3
 };
 
 /* 0x2001:03 Inverter.mod_limit */
