@@ -1,5 +1,5 @@
-/* plant_fmu.c - a co-simulation FMU as the plant's external machine model (plant_fmu.h): the 0x2009 text parsed,
- * the binary loaded with dlopen, FMI 2.0 or 3.0 co-simulation through the standard's C interface as
+/* plant_fmu.c - a co-simulation FMU as the plant's external machine model (plant_fmu.h): the spec of its 0x2009 text
+ * (plant_fmu_text.c), the binary loaded with dlopen, FMI 2.0 or 3.0 co-simulation through the standard's C interface as
  * plant_fmi_api.h declares it (no external FMI header).
  * Host glue (dlfcn, stdio): not part of the portable core.  One model a process (a plant node is one process;
  * the direct mode's library holds one plant). */
@@ -16,144 +16,6 @@
 #include <string.h>
 
 #define SQRT3 1.732050807568877293527446341505872367
-
-static void say(char *err, size_t n, const char *fmt, ...)
-{
-    if (err == NULL || n == 0) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, n, fmt, ap);
-    va_end(ap);
-}
-
-/* ------------------------------------------------------------------ the 0x2009 text */
-
-static int frame_of(const char *v, plant_fmu_frame_t *f, int phase_ok)
-{
-    if (strcmp(v, "alpha_beta") == 0) {
-        *f = PLANT_FMU_AB;
-    } else if (strcmp(v, "dq") == 0) {
-        *f = PLANT_FMU_DQ;
-    } else if (phase_ok && strcmp(v, "phase") == 0) {
-        *f = PLANT_FMU_PHASE;
-    } else {
-        return -1;
-    }
-    return 0;
-}
-
-static int number(const char *v, double *x)
-{
-    char *end = NULL;
-    *x = strtod(v, &end);
-    return (end != v && *end == '\0' && isfinite(*x)) ? 0 : -1;
-}
-
-static int vref(const char *v, uint32_t *r)
-{
-    char *end = NULL;
-    const unsigned long x = strtoul(v, &end, 10);
-    if (end == v || *end != '\0' || x > 0xFFFFFFFFul) return -1;
-    *r = (uint32_t)x;
-    return 0;
-}
-
-static int copy(char *dst, size_t n, const char *v)
-{
-    if (strlen(v) >= n) return -1;
-    strcpy(dst, v);
-    return 0;
-}
-
-/* One "key value" line into the spec; 0 or -1. */
-static int take(plant_fmu_spec_t *s, const char *key, char *val, char *err, size_t n)
-{
-    double x;
-    int bad = 0;
-    if (strcmp(key, "fmi") == 0) {
-        bad = number(val, &x) || !(x == 2.0 || x == 3.0);
-        if (!bad) s->fmi = (int)x;
-    } else if (strcmp(key, "library") == 0) {
-        bad = copy(s->library, sizeof s->library, val);
-    } else if (strcmp(key, "identifier") == 0) {
-        bad = copy(s->identifier, sizeof s->identifier, val);
-    } else if (strcmp(key, "token") == 0) {
-        bad = copy(s->token, sizeof s->token, val);
-    } else if (strcmp(key, "resources") == 0) {
-        bad = copy(s->resources, sizeof s->resources, val);
-    } else if (strcmp(key, "inputs") == 0) {
-        bad = frame_of(val, &s->inputs, 0);
-    } else if (strcmp(key, "outputs") == 0) {
-        bad = frame_of(val, &s->outputs, 1);
-    } else if (strcmp(key, "in0") == 0 || strcmp(key, "in1") == 0) {
-        bad = vref(val, &s->in_vr[key[2] - '0']);
-    } else if (strcmp(key, "out0") == 0 || strcmp(key, "out1") == 0) {
-        bad = vref(val, &s->out_vr[key[3] - '0']);
-    } else if (strcmp(key, "theta") == 0) {
-        bad = vref(val, &s->theta_vr);
-    } else if (strcmp(key, "omega") == 0) {
-        bad = vref(val, &s->omega_vr);
-        s->has_omega = 1;
-    } else if (strcmp(key, "pole_pairs") == 0) {
-        bad = number(val, &x) || x < 1.0 || x > 1000.0 || x != floor(x);
-        if (!bad) s->pole_pairs = (int)x;
-    } else if (strcmp(key, "substeps") == 0) {
-        bad = number(val, &x) || x < 1.0 || x > 10000.0 || x != floor(x);
-        if (!bad) s->substeps = (uint32_t)x;
-    } else if (strcmp(key, "param") == 0) {
-        char *sp = strchr(val, ' ');
-        if (sp == NULL || s->n_params >= PLANT_FMU_MAX_PARAMS) {
-            bad = 1;
-        } else {
-            *sp = '\0';
-            bad = vref(val, &s->param_vr[s->n_params]) || number(sp + 1, &s->param_value[s->n_params]);
-            ++s->n_params;
-        }
-    } else {
-        say(err, n, "0x2009 FMU: unknown key %s", key);
-        return -1;
-    }
-    if (bad) say(err, n, "0x2009 FMU: bad value for %s: %s", key, val);
-    return bad ? -1 : 0;
-}
-
-int plant_fmu_parse(const char *text, size_t len, plant_fmu_spec_t *spec, char *err, size_t err_len)
-{
-    memset(spec, 0, sizeof *spec);
-    spec->pole_pairs = 1;
-    spec->substeps = 1u;
-    char line[1200];
-    size_t i = 0;
-    unsigned seen = 0u; /* fmi, library, token, in0, in1, out0, out1, theta */
-    while (i < len) {
-        size_t j = i;
-        while (j < len && text[j] != '\n') ++j;
-        const size_t n = j - i;
-        if (n >= sizeof line) {
-            say(err, err_len, "0x2009 FMU: a line longer than %zu characters", sizeof line - 1);
-            return -1;
-        }
-        memcpy(line, text + i, n);
-        line[n] = '\0';
-        i = j + 1;
-        if (n == 0) continue;
-        char *sp = strchr(line, ' ');
-        if (sp == NULL) {
-            say(err, err_len, "0x2009 FMU: line without a value: %s", line);
-            return -1;
-        }
-        *sp = '\0';
-        if (take(spec, line, sp + 1, err, err_len) != 0) return -1;
-        const char *keys[] = {"fmi", "library", "token", "in0", "in1", "out0", "out1", "theta"};
-        for (unsigned k = 0; k < 8u; ++k)
-            if (strcmp(line, keys[k]) == 0) seen |= 1u << k;
-    }
-    if (seen != 0xFFu) {
-        say(err, err_len, "0x2009 FMU: fmi, library, token, in0, in1, out0, out1 and theta are required");
-        return -1;
-    }
-    return 0;
-}
 
 /* ------------------------------------------------------------------ the model */
 
@@ -290,7 +152,8 @@ static int initialize(char *err, size_t n)
 {
     for (uint32_t i = 0; i < F.spec.n_params; ++i) {
         if (set_reals(&F.spec.param_vr[i], &F.spec.param_value[i], 1)) {
-            say(err, n, "the FMU refused parameter value reference %u = %g", F.spec.param_vr[i], F.spec.param_value[i]);
+            plant_fmu_say(err, n, "the FMU refused parameter value reference %u = %g", F.spec.param_vr[i],
+                          F.spec.param_value[i]);
             return -1;
         }
     }
@@ -301,7 +164,7 @@ static int initialize(char *err, size_t n)
     } else {
         bad = F.enter3(F.c3, false, 0.0, 0.0, false, 0.0) > PLANT_FMI3_WARNING || F.exit3(F.c3) > PLANT_FMI3_WARNING;
     }
-    if (bad) say(err, n, "the FMU's initialization failed");
+    if (bad) plant_fmu_say(err, n, "the FMU's initialization failed");
     return bad ? -1 : 0;
 }
 
@@ -331,7 +194,7 @@ static void *sym(const char *name, char *err, size_t n, int *missing)
 {
     void *p = dlsym(F.dl, name);
     if (p == NULL && !*missing) {
-        say(err, n, "%s has no function %s", F.spec.library, name);
+        plant_fmu_say(err, n, "%s has no function %s", F.spec.library, name);
         *missing = 1;
     }
     return p;
@@ -343,7 +206,7 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
     F.spec = *spec;
     F.dl = dlopen(spec->library, RTLD_NOW | RTLD_LOCAL);
     if (F.dl == NULL) {
-        say(err, err_len, "cannot load %s: %s", spec->library, dlerror());
+        plant_fmu_say(err, err_len, "cannot load %s: %s", spec->library, dlerror());
         memset(&F, 0, sizeof F);
         return -1;
     }
@@ -384,7 +247,7 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
                        fmu_log3, NULL);
     }
     if ((spec->fmi == 2 && F.c2 == NULL) || (spec->fmi == 3 && F.c3 == NULL)) {
-        say(err, err_len, "%s: the FMU's instantiation failed (token %s)", spec->library, spec->token);
+        plant_fmu_say(err, err_len, "%s: the FMU's instantiation failed (token %s)", spec->library, spec->token);
         dlclose(F.dl);
         memset(&F, 0, sizeof F);
         return -1;
@@ -396,7 +259,7 @@ int plant_fmu_load(const plant_fmu_spec_t *spec, const plant_external_t **ext, c
     }
     plant_external_out_t out;
     if (outputs(&out) != 0) {
-        say(err, err_len, "%s: the FMU's outputs cannot be read", spec->library);
+        plant_fmu_say(err, err_len, "%s: the FMU's outputs cannot be read", spec->library);
         plant_fmu_unload();
         return -1;
     }
