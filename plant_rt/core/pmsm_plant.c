@@ -96,6 +96,10 @@ void plant_init(plant_state_t *s, const plant_config_t *c)
     plant_energy_reset(s, c);
 }
 
+static int validate_inverter(const plant_config_t *c);
+static int validate_model(const plant_config_t *c);
+
+/* Every value finite, the timing, the motor and the mechanics, then the inverter's (validate_inverter). */
 static int validate(const plant_config_t *c)
 {
     const double vals[] = {c->Ts_s,
@@ -152,6 +156,12 @@ static int validate(const plant_config_t *c)
     if (c->B_Nm_per_rad_s < 0.0 || c->J_kgm2 < 0.0 || (c->mech_mode == PLANT_MECH_FREE && !(c->J_kgm2 > 0.0))) {
         return PLANT_ERR_MECH;
     }
+    return validate_inverter(c);
+}
+
+/* The inverter's and the sensors' settings, then the model's (validate_model). */
+static int validate_inverter(const plant_config_t *c)
+{
     if (c->mod_limit != PLANT_MOD_NONE && c->mod_limit != PLANT_MOD_SVPWM_HEX && c->mod_limit != PLANT_MOD_CIRCLE) {
         return PLANT_ERR_ENUM;
     }
@@ -179,6 +189,12 @@ static int validate(const plant_config_t *c)
     if (c->I_trip_A < 0.0) {
         return PLANT_ERR_TRIP;
     }
+    return validate_model(c);
+}
+
+/* The trip reaction, the numerics and the chosen model: registered, its own checks, the thermal model's. */
+static int validate_model(const plant_config_t *c)
+{
     const plant_model_desc_t *model = plant_model_find(c->model);
     if (c->trip_reaction != PLANT_TRIP_ACTIVE_SHORT_CIRCUIT &&
         (c->trip_reaction != PLANT_TRIP_PULSES_OFF || !(c->Vdc_V > 0.0) ||
