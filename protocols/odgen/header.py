@@ -101,7 +101,7 @@ def model_records(up: str, model: NodeModel) -> list[str]:
     """X(name, record type, record member, index, field list) of each machine model's own record ("Model <name>")."""
     rows = "".join(f" \\\n    X({n}, {t}, {m}, 0x{i:04X}u, {f})" for n, t, m, i, f in model.model_records)
     return [
-        "/* the machine models' own records (\"Model <name>\"): X(name, record type, record member, index, its",
+        '/* the machine models\' own records ("Model <name>"): X(name, record type, record member, index, its',
         " * parameters' X-macro list) */",
         f"#define OD_{up}_MODEL_RECORDS(X){rows}",
         "",
