@@ -62,35 +62,11 @@ class TripNote:
     text: str
 
 
-class _Interp:
-    """The map's bilinear interpolant (plant_fluxmap.c, edge cells extended) with each cell's coefficients taken
-    once: psi = f00 + a u + b w + c u w in the cell, u and w its fractional coordinates."""
-
-    def __init__(self, fm: FluxMap) -> None:
-        self.gd, self.gq = fm.id_A, fm.iq_A
-        self.hd, self.hq = np.diff(fm.id_A), np.diff(fm.iq_A)
-        self.coef = []
-        for t in (fm.psi_d_Wb, fm.psi_q_Wb):
-            f00, f01, f10, f11 = t[:-1, :-1], t[:-1, 1:], t[1:, :-1], t[1:, 1:]
-            self.coef.append((f00, f10 - f00, f01 - f00, f11 - f10 - f01 + f00))
-
-    def __call__(self, idv: np.ndarray, iqv: np.ndarray) -> tuple[np.ndarray, ...]:
-        """psi_d, psi_q, Ldd, Ldq, Lqd, Lqq at the points."""
-        i = np.minimum(np.maximum(np.searchsorted(self.gd, idv, side="right") - 1, 0), len(self.gd) - 2)
-        j = np.minimum(np.maximum(np.searchsorted(self.gq, iqv, side="right") - 1, 0), len(self.gq) - 2)
-        hd, hq = self.hd[i], self.hq[j]
-        u, w = (idv - self.gd[i]) / hd, (iqv - self.gq[j]) / hq
-        out = []
-        for f00, a, b, c in self.coef:
-            A, B, C = a[i, j], b[i, j], c[i, j]
-            out += [f00[i, j] + A * u + B * w + C * u * w, (A + C * w) / hd, (B + C * u) / hq]
-        pd, ldd, ldq, pq, lqd, lqq = out
-        return pd, pq, ldd, ldq, lqd, lqq
-
-
-def _derivative(f: _Interp, R: float, w: float, i: np.ndarray) -> np.ndarray:
-    """d(id, iq)/dt with the terminals shorted, on the interpolant (i: (n, 2)): L_inc^-1 (-R i + w (psi_q, -psi_d))."""
-    pd, pq, ldd, ldq, lqd, lqq = f(i[:, 0], i[:, 1])
+def _derivative(fm: FluxMap, R: float, w: float, i: np.ndarray) -> np.ndarray:
+    """d(id, iq)/dt with the terminals shorted, on the plant's interpolant (i: (n, 2)): L_inc^-1 (-R i + w (psi_q,
+    -psi_d))."""
+    e = fm.eval(i[:, 0], i[:, 1])
+    pd, pq, ldd, ldq, lqd, lqq = (e[k] for k in ("psi_d_Wb", "psi_q_Wb", "Ldd_H", "Ldq_H", "Lqd_H", "Lqq_H"))
     fd = -R * i[:, 0] + w * pq
     fq = -R * i[:, 1] - w * pd
     det = ldd * lqq - ldq * lqd
@@ -128,12 +104,11 @@ def short_circuit(fm: FluxMap, R_ohm: float, w_e: float, reach_A: float) -> Shor
         L_max = float(max(e["Ldd_H"].max(), e["Lqq_H"].max()))
         h = H_REL / (abs(w_e) + R_ohm / L_min)
         t_end = min(6.0 * L_max / R_ohm, 2.0 * 2.0 * math.pi / abs(w_e))
-        f = _Interp(fm)
         for _ in range(int(math.ceil(t_end / h))):
-            k1 = _derivative(f, R_ohm, w_e, i)
-            k2 = _derivative(f, R_ohm, w_e, i + 0.5 * h * k1)
-            k3 = _derivative(f, R_ohm, w_e, i + 0.5 * h * k2)
-            k4 = _derivative(f, R_ohm, w_e, i + h * k3)
+            k1 = _derivative(fm, R_ohm, w_e, i)
+            k2 = _derivative(fm, R_ohm, w_e, i + 0.5 * h * k1)
+            k3 = _derivative(fm, R_ohm, w_e, i + 0.5 * h * k2)
+            k4 = _derivative(fm, R_ohm, w_e, i + h * k3)
             i = i + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
             lo, hi = np.minimum(lo, i.min(axis=0)), np.maximum(hi, i.max(axis=0))
     tol = 1e-9 * max(abs(fm.id_A[0]), abs(fm.id_A[-1]), abs(fm.iq_A[0]), abs(fm.iq_A[-1]))
