@@ -78,6 +78,7 @@ class Engine:
             self.where = f"the Dask cluster at {self.client.scheduler.address} ({len(info['workers'])} workers)"
         else:
             from bench.stop import spawn_ignoring_sigint
+            from bench.sweep.heartbeat import QuietClose
 
             n = workers or os.cpu_count() or 1
             with contextlib.redirect_stderr(open(os.devnull, "w")):  # noqa: SIM115 - distributed's start-up chatter
@@ -90,6 +91,9 @@ class Engine:
                         host="127.0.0.1",
                         silence_logs=logging.ERROR,  # no warnings of the tasks a stop cancels
                         dashboard_address=dashboard_address if dashboard else None,
+                        # each worker cancels its heartbeat in flight before it closes its comms (no error
+                        # on the terminal at a stop); set up before its first beat: bench/sweep/heartbeat.py
+                        plugins=(QuietClose(),),
                     )
                 )
             self.client = Client(self.cluster)
