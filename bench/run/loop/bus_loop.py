@@ -13,12 +13,16 @@ import time
 from collections.abc import Callable
 
 import canopen
+from can import CanError
 from canopen.sdo.exceptions import SdoError
 
 from bench.run.bus.liveness import Liveness, LoopStopped
 from bench.run.options import RunOptions
 
 POLL_ANSWER_S = 0.4  # SDO answer time of the progress poll during a segment (a fallback: a miss costs nothing)
+# The master's own bus failing (the CAN box's SLCAN port closes when its VM ends: "Could not read from serial
+# device") is, in a run whose box or node died, the watch's to name: it is given this long to see it.
+BUS_ERROR_GRACE_S = 10.0
 
 
 class BusLoop:
@@ -99,8 +103,21 @@ class BusLoop:
             time.sleep(POLL_ANSWER_S)
             sdo.responses = queue.Queue()
             return None
+        except CanError:
+            self._bus_failed(-1 if self._hold_index < 0 else self._hold_index)
+            raise
         finally:
             sdo.RESPONSE_TIMEOUT = wait
+
+    def _bus_failed(self, index: int) -> None:
+        """The master's bus failed under a request: when a node or the CAN box died (the box's SLCAN port closes
+        with its VM), the watch names it within BUS_ERROR_GRACE_S, and that is the run's end (node_lost), not the
+        bus's error; else the error is the run's (the caller re-raises it). Found under load: the bus's read error
+        reached the run before the watch saw the box's VM end (test_box: exit 1 instead of 8)."""
+        end = time.monotonic() + BUS_ERROR_GRACE_S
+        while self.liveness is not None and time.monotonic() < end:
+            self.check_alive(index)
+            time.sleep(0.2)
 
     def check_alive(self, index: int) -> None:
         if self.liveness is None:
