@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.cia402 import NO_LOCKSTEP
+from bench.cia402 import NO_LOCKSTEP, cia402_bus
 from bench.cia402.outcome import Interrupted, summary_text
 from bench.cia402.plan import PlanError, Segment, choose_cycle, ignored_keys, targets
 from bench.eds import eds_path
@@ -69,7 +69,7 @@ def validate(args: argparse.Namespace) -> tuple[Scenario, float, float, list[Seg
         raise PlanError(f"--drive-id = {args.drive_id}: a node-ID is 1 .. 127")
     if args.drive_id == BENCH_ID:
         raise PlanError(f"--drive-id 0x{BENCH_ID:02X} is the bench's own heartbeat node-ID")
-    if args.bus == "direct":
+    if cia402_bus(args).in_process:
         raise PlanError("--drive-profile cia402 needs a CAN bus (--bus vcan0, can0, ...)")
     lockstep_only = {
         "--drive-bus": args.drive_bus is not None,
@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from bench.canbus import probe_af_can
 
-    if args.interface == "socketcan" and not probe_af_can().af_can:
+    if cia402_bus(args).kernel_can and not probe_af_can().af_can:
         print(
             "bench run: this machine has no SocketCAN (AF_CAN): the CiA 402 master reaches a drive on a "
             "bus through a python-can interface (--interface slcan --bus socket://127.0.0.1:PORT, a CAN box slot's "

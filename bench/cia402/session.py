@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.cia402 import NO_LOCKSTEP
+from bench.cia402 import NO_LOCKSTEP, cia402_bus
 from bench.cia402.layout import Layout
 from bench.cia402.master import DriveRefused, DriveStopped, Master
 from bench.cia402.outcome import Interrupted, ignore_signals, raise_on_signals, summary_text, write_summary
@@ -96,7 +96,7 @@ class Session:
 
     def _recorder(self) -> Any:
         log = self.partial / "candump.log"
-        if self.args.interface == "socketcan":
+        if cia402_bus(self.args).kernel_can:  # candump records a kernel's CAN interface
             from bench.run.record.sources import CandumpSource
 
             return CandumpSource(self.args.bus, log, follow=False)

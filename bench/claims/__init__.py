@@ -111,8 +111,11 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
     (bench/reproduce/views.py)."""
     import json
 
+    from bench.run.bus.buses import choose_bus
     from bench.run.record.canlog import CandumpWriter
     from bench.run.sinks import TRACES_FILE, FrameCollector, TraceFileSink
+
+    kind = choose_bus(bus, box=False)  # what the run writes itself and needs (run_scenario chooses the box)
 
     if _TRACE is not None and "trace" not in raw:
         raw = {**raw, "trace": {f"pdo{n}": list(names) for n, names in _TRACE.items()}}
@@ -129,13 +132,13 @@ def run_raw(raw: dict[str, Any], bus: str, out: Path | None = None, keep_frames:
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         sinks.append(TraceFileSink(out / TRACES_FILE))
-        if bus == "direct":
-            frame_sinks.append(CandumpWriter(out / "bus.log", "direct"))
+        if kind.log_from_frames:  # else candump's own log is the log
+            frame_sinks.append(CandumpWriter(out / "bus.log", bus))
     collector = FrameCollector() if keep_frames else None
     if collector is not None:
         frame_sinks.append(collector)
     tmp = None
-    if out is None and bus != "direct":
+    if out is None and not kind.in_process:  # a folder for candump's log and the nodes' output
         tmp = Path(tempfile.mkdtemp(prefix=f"claim-{sc.name}-"))
     try:
         res = run_scenario(sc, RunOptions(bus=bus, out=out or tmp), sinks, frame_sinks, keep_trace=True)

@@ -47,7 +47,9 @@ def main(args: argparse.Namespace) -> int:
     if args.out is not None and (lost := lost_in_vm(args.out)) is not None:
         print(f"bench faults: --out {lost}", file=sys.stderr)
         return 2
-    if args.bus != "direct":
+    from bench.run.bus.buses import choose_bus
+
+    if not choose_bus(args.bus, box=False).in_process:
         from bench.canbus import probe_af_can
 
         if not probe_af_can().af_can:

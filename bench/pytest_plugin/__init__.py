@@ -121,12 +121,11 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     """The bus is there (or the VM can supply it) and the law builds, before any test: else a usage error."""
     config = session.config
     settings = config.stash[SETTINGS]
-    if settings.bus != "direct":
-        from bench.pytest_plugin.checks import bus_problem
+    from bench.pytest_plugin.checks import bus_problem  # none for the direct bus
 
-        problem = settings.bus_problems[settings.bus] = bus_problem(settings.bus, settings.bus_option)
-        if problem is not None:
-            raise pytest.UsageError(problem)
+    problem = settings.bus_problems[settings.bus] = bus_problem(settings.bus, settings.bus_option)
+    if problem is not None:
+        raise pytest.UsageError(problem)
     from bench.pytest_plugin import box
 
     box.start(config)  # one CAN box per session, shared by the xdist workers

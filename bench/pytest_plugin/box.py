@@ -99,14 +99,12 @@ def start(config: pytest.Config) -> None:
 def needs(bus: str, extra_args: Sequence[str] = ()) -> str | None:
     """Why a `bench run --bus BUS EXTRA_ARGS` goes through the CAN box (bench.run.bus.buses.box_wanted), or None:
     --drive mcu and the emulated controllers boot a VM of their own."""
-    if bus == "direct" or not bus.startswith("vcan"):
-        return None
     args = list(extra_args)
     if _option(args, "--drive") == "mcu":
         return None
-    from bench.run.bus.buses import box_wanted
+    from bench.run.bus.buses import choose_bus
 
-    return box_wanted(bus, _option(args, "--drive-bus"), "--box" in args)
+    return choose_bus(bus, drive_bus=_option(args, "--drive-bus"), force_box="--box" in args).box_why()
 
 
 def _option(args: list[str], name: str) -> str | None:

@@ -19,9 +19,12 @@ def bus_problem(bus: str, option: str = "--hil-bus", drive: str = "node") -> str
     """What stops `bench run --bus BUS` here, said as `bench run` would (bench.run.bus.buses) with the
     plugin's option, or None. On a host without kernel CAN a vcan/can bus runs in the VM: then the VM's
     missing pieces, each with the command that installs it."""
-    if drive == "mcu" and bus == "direct":
-        return f"--drive mcu needs a CAN bus (the image's UART joins one in the VM), not {option} direct"
-    if bus == "direct":
+    from bench.run.bus.buses import choose_bus
+
+    kind = choose_bus(bus, box=False)  # the CAN box is asked below, once the bus is known to be one
+    if drive == "mcu" and kind.in_process:
+        return f"--drive mcu needs a CAN bus (the image's UART joins one in the VM), not {option} {bus}"
+    if kind.in_process:
         return None
     if not IFNAME.fullmatch(bus):
         return f"{option} {bus!r}: not a bus: 'direct' or a CAN interface name (vcan0, can0, ...)"
@@ -32,17 +35,15 @@ def bus_problem(bus: str, option: str = "--hil-bus", drive: str = "node") -> str
     if problem:
         text = problem.replace(f"--bus {bus}", f"{option} {bus}", 1).replace("use --bus direct", "use the direct bus")
         if "no such CAN interface" in text:
-            text += _create_hint(bus)
+            text += _create_hint(bus, kind.virtual)
         return text
     if shutil.which("candump") is None:
         return (
             f"{option} {bus}: candump (can-utils) is not installed: every SocketCAN run records its bus with it "
             "(Debian/Ubuntu: apt-get install can-utils)"
         )
-    from bench.run.bus.buses import box_wanted
-
-    in_vm = in_vm or box_wanted(bus) is not None  # the CAN box is a VM too: the same pieces
-    if in_vm and not bus.startswith("vcan") and drive != "mcu":
+    in_vm = in_vm or choose_bus(bus).box_why() is not None  # the CAN box is a VM too: the same pieces
+    if in_vm and not kind.virtual and drive != "mcu":
         return (
             f"{option} {bus}: this host's kernel has no SocketCAN, so there is no {bus} here; `bench run --bus {bus}` "
             "would run an emulated CAN controller in the bench's VM, not a physical adapter: use vcan0 (or direct) "
@@ -60,8 +61,8 @@ def bus_problem(bus: str, option: str = "--hil-bus", drive: str = "node") -> str
     return None
 
 
-def _create_hint(bus: str) -> str:
-    if bus.startswith("vcan"):
+def _create_hint(bus: str, virtual: bool) -> str:
+    if virtual:
         return f" (create it: sudo ip link add dev {bus} type vcan && sudo ip link set up {bus})"
     return " (`ip -details link show` lists this machine's interfaces)"
 

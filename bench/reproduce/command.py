@@ -162,8 +162,6 @@ def _out_folder(args: argparse.Namespace) -> tuple[Path, str | None]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from bench.canbus import host_has_vcan
-
     papers = _papers(args.paper)
     if args.collect_only:  # inside the VM, into the folder the host made
         collect(papers, args.bus, args.out or Path("reports") / time.strftime("%Y%m%d-%H%M%S"))
@@ -174,9 +172,9 @@ def main(args: argparse.Namespace) -> int:
         return 2
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
-    from bench.run.bus.buses import box_wanted  # vcan in the CAN box: the claims run here
+    from bench.run.bus.buses import choose_bus  # vcan in the CAN box: the claims run here
 
-    if args.bus != "direct" and not host_has_vcan(args.bus) and box_wanted(args.bus) is None:
+    if choose_bus(args.bus).needs_own_vm():  # neither in process, nor the CAN box, nor this host's SocketCAN
         results = _collect_in_vm(args, out)
         if results is None:
             return 1

@@ -14,6 +14,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from bench.run.bus.buses import bus_of_args
 from bench.run.sinks import TRACES_FILE, TraceFileSink
 from bench.scenario import Scenario
 
@@ -113,10 +114,10 @@ class Outputs:
         self.frame_sinks: list[Any] = []
         self.log_path = folder / "bus.log"
         self.interrupted = False  # a Ctrl-C while the results were written: no serving after them
-        if args.bus == "direct":  # over a bus, candump's own log is the log
+        if bus_of_args(args).log_from_frames:  # over a kernel's CAN, candump's own log is the log
             from bench.run.record.canlog import CandumpWriter
 
-            self.frame_sinks.append(CandumpWriter(self.log_path, "direct"))
+            self.frame_sinks.append(CandumpWriter(self.log_path, args.bus))
 
     def _view_worker(self) -> Any:
         from bench.view.worker import ViewWorker

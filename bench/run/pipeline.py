@@ -11,7 +11,6 @@ feeds a log's frames through the same `Pipeline`.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -235,8 +234,10 @@ def run_scenario(
     `keep_trace` also returns the whole trace in memory (O(periods): for short runs and tests);
     `envelopes=False` leaves out the signals' envelopes (RunResult.envelopes, for an overview plot: a sweep's
     point draws none), the same summary for less work.
-    Over SocketCAN the frames come from candump's log in `opts.out` (which must be set)."""
-    from bench.run.record.sources import BoxCandumpSource, CandumpSource, DirectSource, ListenerSource
+    Over SocketCAN the frames come from candump's log in `opts.out` (which must be set). The bus's kind is chosen
+    once (bench/run/bus/buses.py bus_of): the session, the recorder and the CAN box's lease ask it."""
+    from bench.run.bus.buses import bus_of
+    from bench.run.recorder import RunRecorders
 
     opts = opts or RunOptions()
     sinks = list(sinks or [])
@@ -245,32 +246,20 @@ def run_scenario(
         sinks.append(collector)
     pipe = Pipeline(opts.plant_id, opts.drive_id, sinks, frame_sinks, sc.expect, envelopes)
     t0 = time.monotonic()
-    sess = Session(sc, opts)
+    kind = bus_of(opts, bool(sc.faults))
+    sess = Session(sc, opts, kind)
+    recorders = RunRecorders(sess) if opts.record else None
     source: Any = None
     ran = False
     try:
         if opts.out is not None:
             opts.out.mkdir(parents=True, exist_ok=True)
-        if opts.bus != "direct" and opts.interface == "socketcan":
-            sess.box = _lease_box(sess)
-        if opts.bus != "direct" and opts.interface == "socketcan" and opts.record:
-            if opts.out is None:
-                raise ValueError("a run over SocketCAN needs opts.out for candump's log")
-            sess.prepare_links()
-            if sess.box is not None:
-                source = BoxCandumpSource(sess.box, opts.bus)
-            else:
-                source = CandumpSource(opts.bus, opts.out / "candump.log")
+        sess.box = kind.lease(sc.timing == "realtime")  # the CAN box's slot, when the buses are there
+        if recorders is not None:  # candump, before the nodes start
+            source = kind.recorder(recorders, opened=False)
         sess.open()
-        if sess.hil is not None and sess.direct is not None and opts.record:
-            # a chunk's worth of frames decoded at once (a real-time run's every 0.2 s: its live view)
-            realtime = sc.timing == "realtime"
-            source = DirectSource(sess.hil, opts.chunk_periods, min_frames=0 if realtime else opts.chunk_periods)
-            sess.direct.on_chunk = source.collect
-            sess.direct.on_stop = source.release
-        elif source is None and opts.record:
-            source = ListenerSource()
-            sess.net.notifier.add_listener(source)
+        if recorders is not None and source is None:  # libhil's frames, or the master's bus
+            source = kind.recorder(recorders, opened=True)
 
         def tick() -> None:
             if source is not None:
@@ -308,33 +297,12 @@ def run_scenario(
     return res
 
 
-def _lease_box(sess: Session) -> Any:
-    """The run's share of the CAN box when its vcan buses go there (buses.box_reason), else None; the first
-    run of a box says why it is used."""
-    from bench.run.bus.box.lease import acquire
-    from bench.run.bus.buses import box_wanted
-
-    names = tuple(dict.fromkeys((sess.opts.bus, sess.drive_side_bus())))
-    why = box_wanted(names[0], names[1] if len(names) > 1 else None, sess.opts.box)
-    if why is None:
-        return None
-    if sess.sc.timing == "realtime":
-        print(
-            "bench: warning: a real-time run in the CAN box - its nodes run under QEMU's software emulation, which "
-            "cannot hold periods below a few ms; the plant's own timing record in the box judges it "
-            "(realtime_overrun when it overran), not this host's clock (docs/VM.md, docs/REALTIME.md)",
-            file=sys.stderr,
-            flush=True,
-        )
-    return acquire(names, say=lambda text: print(f"{text} [{why}]", file=sys.stderr, flush=True))
-
-
 def _end_box(sess: Session, keep: Path | None) -> None:
     """The run's share of the box given back (what is left of its processes killed, its namespace removed),
     what it wrote in the box (the processes' output, candump's log) moved into the run's folder. Once."""
     lease, sess.box = sess.box, None
     if lease is not None:
-        lease.close(keep=keep)
+        sess.kind.release(lease, keep)
 
 
 def capture_to_log(sc: Scenario, opts: RunOptions) -> tuple[float, dict[str, Any] | None, dict[str, dict[str, Any]]]:

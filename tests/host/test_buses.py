@@ -50,3 +50,12 @@ def test_the_box_supplies_vcan_buses_and_a_vm_emulated_controllers_on_one_bus(mo
     opts = vm_options(_args("can0", "can1"))
     assert opts.can_controllers == 2 and opts.interfaces == ()
     assert vm_options(_args("vcan1")).interfaces == ("vcan1",) and vm_options(_args("vcan1")).can_controllers == 0
+
+
+@pytest.mark.parametrize("bus,interface", [("direct", "socketcan"), ("can0", "pcan")])
+def test_the_mcu_image_needs_a_kernels_can_bus(bus: str, interface: str) -> None:
+    """--drive mcu joins the image's UART to a SocketCAN bus: not the direct bus, not a python-can adapter's."""
+    args = _args(bus)
+    args.interface, args.drive, args.drive_id = interface, "mcu", 0x20
+    problem, in_vm = bus_problem(args)
+    assert problem is not None and "over a SocketCAN bus" in problem and not in_vm

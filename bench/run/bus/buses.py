@@ -1,31 +1,111 @@
-"""Which buses a run asks for (--bus, --drive-bus) and whether this host, or the VM, can give them:
-what is wrong is said with the fix (the bad option, what the machine has, the command that would help)."""
+"""Which bus a run uses, chosen here and nowhere else (choose_bus: the one module that reads bus names; every other
+module asks the chosen kind, bench/run/bus/kind.py), and whether this host, or the VM, can give the buses a run asks
+for (--bus, --drive-bus): what is wrong is said with the fix (the bad option, what the machine has, the command that
+would help)."""
 
 from __future__ import annotations
 
 import argparse
 import re
+from typing import Any
 
+from bench.run.bus.kind import BusKind, SettingRefused
+from bench.run.bus.kind_adapter import AdapterKind
+from bench.run.bus.kind_box import CanBoxKind
+from bench.run.bus.kind_direct import DirectKind
+from bench.run.bus.kind_socketcan import HostSocketCanKind
+from bench.run.options import RunOptions
+
+DIRECT = "direct"  # --bus direct: libhil's in-process bus
+SOCKETCAN = "socketcan"  # python-can's interface for the kernel's CAN (the default --interface)
 VM_CAN = re.compile(r"can[0-3]")  # the emulated controllers the VM can supply
 VCAN = re.compile(r"vcan\d{1,3}")
+
+
+def choose_bus(
+    bus: str,
+    interface: str = SOCKETCAN,
+    drive_bus: str | None = None,
+    *,
+    faults: bool = False,
+    force_box: bool = False,
+    box: bool = True,
+) -> BusKind:
+    """The kind of the bus `bus` (through python-can's `interface`; the drive on `drive_bus`): the direct bus, a
+    python-can adapter, vcan buses in the CAN box (when `box` allows it and box_wanted says why), or SocketCAN on this
+    host. `faults`: the scenario has [[faults]] (over SocketCAN the drive gets a bus of its own: drive_side)."""
+    if bus == DIRECT:
+        return DirectKind(bus, drive_bus)
+    drive = drive_side(bus, drive_bus, faults)
+    if interface != SOCKETCAN:
+        return AdapterKind(bus, drive)
+    names = tuple(dict.fromkeys((bus, drive)))
+    why = box_wanted(names[0], names[1] if len(names) > 1 else None, force_box) if box else None
+    if why is not None:
+        return CanBoxKind(bus, drive, why)
+    make = tuple(n for n in names if faults and VCAN.fullmatch(n))
+    return HostSocketCanKind(bus, drive, make=make, virtual=bus.startswith("vcan"))
+
+
+def bus_of(opts: RunOptions, faults: bool = False, box: bool = True) -> BusKind:
+    """choose_bus for a run's options (its scenario has [[faults]]: `faults`; `box` False: never the CAN box, as for
+    a Session made outside run_scenario, which leases none)."""
+    return choose_bus(opts.bus, opts.interface, opts.drive_bus, faults=faults, force_box=opts.box, box=box)
+
+
+def bus_of_args(args: Any) -> BusKind:
+    """choose_bus for a command line's --bus, --interface, --drive-bus and --box (those it has)."""
+    return choose_bus(
+        args.bus,
+        getattr(args, "interface", SOCKETCAN),
+        getattr(args, "drive_bus", None),
+        force_box=getattr(args, "box", False),
+    )
+
+
+def vm_links(names: tuple[str, ...]) -> tuple[tuple[str, ...], int]:
+    """For a VM of the run's own (bench/run/vm_run.py): the interfaces it makes (vcanN) and how many emulated CAN
+    controllers (Kvaser PCIcan, SJA1000) it gives on one emulated bus: as many as the highest canN asks."""
+    cans = [int(n[3:]) for n in names if VM_CAN.fullmatch(n)]
+    return tuple(n for n in names if not VM_CAN.fullmatch(n)), max(cans) + 1 if cans else 0
+
+
+def drive_side(bus: str, drive_bus: str | None, faults: bool) -> str:
+    """The drive's interface: --drive-bus, or with [[faults]] a bus of its own joined to the plant's by the fault
+    gateway (vcanN -> vcanN+1 unless --drive-bus names another)."""
+    if not faults:
+        return drive_bus or bus
+    name = drive_bus
+    if name is None:
+        m = re.fullmatch(r"vcan(\d+)", bus)
+        if m is None:
+            raise SettingRefused(
+                f"[[faults]] over {bus}: name the drive's own bus with --drive-bus (the fault gateway joins two "
+                "buses; on one bus every node hears every frame and nothing can be injected)"
+            )
+        name = f"vcan{int(m.group(1)) + 1}"
+    if name == bus:
+        raise SettingRefused(f"[[faults]]: --drive-bus {name} is the plant's bus; the fault gateway needs two buses")
+    return name
 
 
 def bus_problem(args: argparse.Namespace) -> tuple[str | None, bool]:
     """(what is wrong with --bus / --drive-bus, whether the VM supplies them)."""
     from bench.canbus import probe_af_can
 
+    kind = choose_bus(args.bus, args.interface, args.drive_bus, box=False)  # the box is asked below, when it can be
     if args.drive_bus is not None:
-        if args.bus == "direct":
+        if kind.in_process:
             return "--drive-bus needs a CAN bus (--bus can0 --drive-bus can1); the direct bus has no interfaces", False
         if args.no_drive:
             return "--drive-bus names the drive node's interface; with --no-drive the bench starts no drive", False
     if getattr(args, "drive", "node") == "mcu":  # through the VM, whose serial port joins the image's UART
-        problem = _mcu_problem(args)
+        problem = _mcu_problem(args, kind)
         if problem:
             return problem, False
         problem = _vm_problem(args, "--drive mcu runs in the VM (its serial port joins the image's UART)")
         return problem, problem is None
-    if args.bus == "direct" or args.interface != "socketcan":
+    if not kind.kernel_can:
         return None, False
     names = list(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
     if box_wanted(args.bus, args.drive_bus, getattr(args, "box", False)):
@@ -87,13 +167,13 @@ def _host_link_problem(name: str, opt: str, bitrate: int | None) -> str | None:
     return None
 
 
-def _mcu_problem(args: argparse.Namespace) -> str | None:
+def _mcu_problem(args: argparse.Namespace, kind: BusKind) -> str | None:
     """What stops `--drive mcu` (the Cortex-M4F image over SLCAN) here, or None."""
     import shutil
 
     from bench.eds import default_node_id
 
-    if args.bus == "direct" or args.interface != "socketcan":
+    if not kind.kernel_can:
         return "--drive mcu reaches the image over a SocketCAN bus: use --bus vcan0 (or can0 --drive-bus can1)"
     if getattr(args, "no_drive", False):
         return "--drive mcu starts the drive image; with --no-drive the bench starts no drive"

@@ -12,6 +12,7 @@ from canopen.profiles.p402 import State402
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.eds import eds_path, float_limits
+from bench.run.bus.kind import SettingRefused
 from bench.run.loop.reads import PLANT_VALUES
 from bench.scenario import Setting
 
@@ -21,10 +22,6 @@ if TYPE_CHECKING:
 
 HOLD_TPDO = 4  # the plant TPDO the bench maps to the hold announcement
 OBJECT_DOES_NOT_EXIST = 0x06020000  # SDO abort code (CiA 301)
-
-
-class SettingRefused(RuntimeError):
-    """A node refused a value of the scenario (SDO abort): bad input, named with the EDS's limits."""
 
 
 def _entry(node: canopen.RemoteNode, obj: str, sub: str | None = None):  # type: ignore[no-untyped-def]
@@ -64,8 +61,17 @@ class Configurator:
     values, every setting applied and the reference changes with their periods, the hold announcement's
     COB-ID."""
 
-    def __init__(self, sc: Scenario, opts: RunOptions, plant: canopen.RemoteNode, drive: canopen.RemoteNode) -> None:
+    def __init__(
+        self,
+        sc: Scenario,
+        opts: RunOptions,
+        plant: canopen.RemoteNode,
+        drive: canopen.RemoteNode,
+        maps_from_eds: bool = False,
+    ) -> None:
         self.sc = sc
+        # the PDO maps read from the EDS, not by SDO (the in-process bus's nodes: BusKind.in_process, wire_pdos)
+        self.maps_from_eds = maps_from_eds
         self.opts = opts
         self.plant = plant
         self.drive = drive
@@ -230,7 +236,7 @@ class Configurator:
         # sixteen: the same writes follow, with half the transfers. Over a bus by SDO (a physical drive may
         # keep a stored configuration); in direct mode from the EDS: the in-process nodes are this project's,
         # built from the same EDS and reset just before (tests/host/test_direct_sdo.py compares both reads).
-        from_od = self.opts.bus == "direct"
+        from_od = self.maps_from_eds
         for m in (plant.tpdo[1], plant.tpdo[2], drive.tpdo[1], drive.rpdo[1], drive.rpdo[2], plant.rpdo[1]):
             m.read(from_od=from_od)
         plant.tpdo[HOLD_TPDO].read(from_od=from_od)

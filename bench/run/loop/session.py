@@ -24,8 +24,10 @@ import can
 from canopen.sdo.base import SdoVariable
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
+from bench.run.bus.buses import bus_of
 from bench.run.bus.direct import DirectBus, Hil
 from bench.run.bus.direct_sdo import DirectSdo
+from bench.run.bus.kind import BusKind
 from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
 from bench.run.bus.nodes import NodeProcess
 from bench.run.loop import master
@@ -34,7 +36,7 @@ from bench.run.loop.configure import Configurator
 from bench.run.loop.direct_loop import DirectLoop
 from bench.run.loop.reads import END_READS, REALTIME_READS, STEP_COST
 from bench.run.loop.session_bus import SessionBus
-from bench.run.options import BOX_CONSUMER_MS, BOX_STALL_S, MCU_STALL_S, RunOptions
+from bench.run.options import MCU_STALL_S, RunOptions
 from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
 
@@ -48,29 +50,31 @@ class Session(SessionBus):
     canopen network, a Configurator (the SDO configuration), the loop driver (DirectLoop in process, lockstep
     segments over a bus) and the Liveness watch."""
 
-    def __init__(self, sc: Scenario, opts: RunOptions) -> None:
-        # the master's Network and RemoteNodes (bench/run/loop/master.py): in direct mode kept between runs
-        direct = opts.bus == "direct"
-        self.master = (master.take if direct else master.new_master)(opts.plant_id, opts.drive_id)
-        self._kept = direct  # given back at close
-        super().__init__(sc, opts, self.master.net, self.master.plant)
+    def __init__(self, sc: Scenario, opts: RunOptions, kind: BusKind | None = None) -> None:
+        """`kind`: the run's bus (buses.bus_of; by default the one its options name, never the CAN box: a box is
+        leased by run_scenario, which passes the kind it chose)."""
+        kind = kind or bus_of(opts, bool(sc.faults), box=False)
+        # the master's Network and RemoteNodes (bench/run/loop/master.py): on the in-process bus kept between runs
+        self.master = (master.take if kind.in_process else master.new_master)(opts.plant_id, opts.drive_id)
+        self._kept = kind.in_process  # given back at close
+        super().__init__(sc, opts, self.master.net, self.master.plant, kind)
         self.drive = self.master.drive
-        self.config = Configurator(sc, opts, self.plant, self.drive)
+        self.config = Configurator(sc, opts, self.plant, self.drive, maps_from_eds=kind.in_process)
         self.direct: DirectLoop | None = None  # direct mode: the in-process loop (its on_chunk, on_stop)
         self.bus_loop: BusLoop | None = None  # over a bus: the lockstep segments (run())
         self.liveness: Liveness | None = None
 
     def open(self) -> None:
-        if self.opts.bus == "direct":
+        if self.kind.in_process:
             self.hil = Hil(self.opts.plant_id, self.opts.drive_id)
             if self.sc.faults:
                 self.hil.set_faults(rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id))
-            self.net.bus = DirectBus(self.hil)
+            self.net.bus = self.kind.master_bus(self.opts, self.hil)
             self.direct = DirectLoop(self.hil, self.opts, realtime=self.sc.timing == "realtime")
         else:
             self._open_bus()
-            if self.box is not None:  # QEMU's emulation may starve one node for seconds: options.py BOX_CONSUMER_MS
-                self.config.consumer_ms = max(self.opts.heartbeat_timeout_ms, BOX_CONSUMER_MS)
+            # the CAN box: QEMU's emulation may starve one node for seconds (options.py BOX_CONSUMER_MS)
+            self.config.consumer_ms = self.kind.consumer_ms(self.config.consumer_ms)
         if isinstance(self.net.bus, DirectBus):
             # The nodes' answers go to the master's listeners on the sending thread (DirectBus.attach): no
             # notifier thread to start and stop per run (what canopen's connect() would do), nothing to poll.
@@ -79,7 +83,7 @@ class Session(SessionBus):
             self.net.connect()
         for n in (self.plant, self.drive):  # added and subscribed by master.new_master
             n.sdo.RESPONSE_TIMEOUT = (
-                MCU_STALL_S if n is self.drive and self.opts.drive == "mcu" else BOX_STALL_S if self.box else 5.0
+                MCU_STALL_S if n is self.drive and self.opts.drive == "mcu" else self.kind.sdo_timeout_s()
             )
             if self.hil is not None:  # expedited transfers in one C call each (bench/run/bus/direct_sdo.py)
                 DirectSdo(n.sdo, self.hil).install()
@@ -195,14 +199,9 @@ class Session(SessionBus):
         """Run every period; `tick` is called between chunks (direct) or while waiting (bus)."""
         sc = self.sc
         if self.hil is None:
-            self.bus_loop = BusLoop(
-                self.plant, self.opts, self.liveness, max(self.opts.stall_s, BOX_STALL_S) if self.box else None
-            )
+            self.bus_loop = BusLoop(self.plant, self.opts, self.liveness, self.kind.stall_s(self.opts.stall_s))
             self.net.subscribe(self.config.hold_cob, self.bus_loop.on_hold)
-            if self.kernel_filters is not None:
-                self.net.bus.set_filters([*self.kernel_filters, {"can_id": self.config.hold_cob, "can_mask": 0x7FF}])
-            elif self.box is not None:
-                self.box.add_master_ids([(self.config.hold_cob, 0x7FF)])
+            self.kind.hear_also(self.net.bus, self.box, self.config.hold_cob)
         for n in (self.plant, self.drive):
             n.nmt.send_command(0x01)
         if self.liveness is not None:

@@ -1,42 +1,41 @@
-"""The nodes and buses of a run's master (SessionBus, the base of Session in bench/run/loop/session.py): the
-drive's side of the bus (its own with [[faults]]), the CAN links brought up and their state noted before and
-after, the node processes (or the MCU image's serial bridge) and the fault gateway started and stopped, the
-master's own bus with its kernel filters (or the CAN box's SLCAN port), and the plant's CPU kept for a real-time
-run on this host."""
+"""The nodes and buses of a run's master (SessionBus, the base of Session in bench/run/loop/session.py): the CAN
+links brought up and their state noted before and after, the node processes (or the MCU image's serial bridge) and
+the fault gateway started and stopped, the master's own bus, and the plant's CPU kept for a real-time run on this
+host. What differs between kinds of bus (the drive's side, the links, the master's bus and its filters) the run's
+BusKind answers (bench/run/bus/kind.py)."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
-import can
 import canopen
 
-from bench.canbus import ensure_vcan, link_info, prepare_can_link
-from bench.run.bus.buses import VCAN
 from bench.run.bus.cpus import PlantCpu, plant_cpu
 from bench.run.bus.direct import Hil, probe_host_floor
 from bench.run.bus.gateway import FaultGateway
+from bench.run.bus.kind import BusKind, SettingRefused
 from bench.run.bus.nodes import NodeProcess
 from bench.run.bus.slcan_bridge import SlcanBridge
-from bench.run.loop.configure import SettingRefused
 from bench.run.options import RunOptions
 from bench.scenario import Scenario
 from bench.scenario.faults import rules_text
 
 
 class SessionBus:
-    """The nodes and buses of one run: what Session.open starts over a bus and Session.close stops."""
+    """The nodes and buses of one run: what Session.open starts over a bus and Session.close stops. What differs
+    from one kind of bus to another the run's BusKind says (bench/run/bus/kind.py), chosen once (buses.choose_bus)."""
 
-    def __init__(self, sc: Scenario, opts: RunOptions, net: canopen.Network, plant: canopen.RemoteNode) -> None:
+    def __init__(
+        self, sc: Scenario, opts: RunOptions, net: canopen.Network, plant: canopen.RemoteNode, kind: BusKind
+    ) -> None:
         self.sc = sc
         self.opts = opts
+        self.kind = kind
         self.net, self.plant = net, plant
         self.hil: Hil | None = None
         self.procs: list[NodeProcess | SlcanBridge] = []
         self.node_procs: dict[str, NodeProcess | SlcanBridge] = {}  # over a bus: the processes by node
-        self.kernel_filters: list[dict[str, int]] | None = None
         self.gateway: FaultGateway | None = None  # the fault injector between the buses (faults over SocketCAN)
         # each SocketCAN interface of the run: what the kernel reports of it before and after (canbus.link_info)
         self.links: dict[str, dict[str, Any]] = {}
@@ -46,31 +45,12 @@ class SessionBus:
         self.plant_cpu: PlantCpu | None = None  # real time over this host's SocketCAN (hold_plant_cpu)
         self.floor: dict[str, float] | None = None  # the host's floor, probed by hold_plant_cpu
 
-    def drive_side_bus(self) -> str:
-        """The drive's interface: --drive-bus, or with [[faults]] over SocketCAN a bus of its own joined to
-        the plant's by the fault gateway (vcanN -> vcanN+1 unless --drive-bus names another)."""
-        if not self.sc.faults or self.opts.bus == "direct":
-            return self.opts.drive_bus or self.opts.bus
-        name = self.opts.drive_bus
-        if name is None:
-            m = re.fullmatch(r"vcan(\d+)", self.opts.bus)
-            if m is None:
-                raise SettingRefused(
-                    f"[[faults]] over {self.opts.bus}: name the drive's own bus with --drive-bus (the fault gateway "
-                    "joins two buses; on one bus every node hears every frame and nothing can be injected)"
-                )
-            name = f"vcan{int(m.group(1)) + 1}"
-        if name == self.opts.bus:
-            raise SettingRefused(
-                f"[[faults]]: --drive-bus {name} is the plant's bus; the fault gateway needs two buses"
-            )
-        return name
-
     def _check_node_faults(self) -> None:
         """Over a bus the gateway freezes and kills node processes the bench started (their PIDs): a fault on a
         node it did not start (--no-drive, a physical drive, the MCU image) is refused before anything starts."""
-        if self.opts.interface != "socketcan" and self.sc.faults:
-            raise SettingRefused("[[faults]] need SocketCAN (the fault gateway joins two SocketCAN interfaces)")
+        refusal = self.kind.faults_refusal() if self.sc.faults else None
+        if refusal is not None:
+            raise SettingRefused(refusal)
         ours = {"plant": self.opts.start_plant, "drive": self.opts.start_drive and self.opts.drive == "node"}
         for f in self.sc.faults:
             if f.kind in ("freeze", "kill") and f.node is not None and not ours[f.node]:
@@ -83,27 +63,20 @@ class SessionBus:
     def prepare_links(self) -> None:
         """CAN controllers up at their bit rate (canbus.prepare_can_link), their state before the run noted;
         before anything listens on them (the recorder). Once per session."""
-        if self.links or self.opts.bus == "direct" or self.opts.interface != "socketcan":
+        if self.links or not self.kind.kernel_can:
             return
-        if self.box is not None:  # in the run's namespace of the box
-            infos = self.box.link_infos(list(dict.fromkeys((self.opts.bus, self.drive_side_bus()))))
-            self.links.update({name: {"before": info} for name, info in infos.items()})
-            return
-        for name in dict.fromkeys((self.opts.bus, self.drive_side_bus())):
-            if VCAN.fullmatch(name) and self.sc.faults:
-                ensure_vcan(name)
-            prepare_can_link(name, self.opts.bitrate)
-            self.links[name] = {"before": link_info(name)}
+        infos = self.kind.prepare_links(self.box, self.opts.bitrate)
+        self.links.update({name: {"before": info} for name, info in infos.items()})
 
     def _open_bus(self) -> None:
         """Over SocketCAN (or another python-can interface): the node processes (or the MCU image's serial
-        bridge), the fault gateway between two buses, and the master's own bus with kernel filters."""
+        bridge), the fault gateway between two buses, and the master's own bus (BusKind.master_bus)."""
         out = self.opts.out
 
         def log(name: str) -> Path | None:
             return None if out is None else out / f"{name}.out"
 
-        drive_bus = self.drive_side_bus()
+        drive_bus = self.kind.drive_bus
         self._check_node_faults()
         self.prepare_links()
         if self.opts.start_plant:
@@ -135,35 +108,11 @@ class SessionBus:
                 raise ValueError("a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)")
             rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
             self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids, box=self.box).start()
-        if self.box is not None:
-            # the slot's SLCAN port (python-can's slcan interface): the box passes it SDO answers and heartbeats
-            # only (box/life.py MASTER_IDS), and the hold announcement once configured (run())
-            self.net.bus = can.Bus(interface="slcan", channel=self.box.master_channel, sleep_after_open=0)
-            self.net.listeners.append(_BridgeErrors())  # a box that ends breaks the port: judged in run()
-            return
-        # The master only needs its nodes' SDO answers and heartbeats: filtering in the kernel keeps the
-        # PDO stream (thousands of frames per second) out of this process's socket, which a slow Python
-        # (the VM) could not drain, and which the recorder records anyway. EMCYs stay out too: a node
-        # may send hundreds a second (one per foreign SYNC), which left the master's notifier seconds
-        # behind in the VM (heartbeats and SDO answers queued behind them: a live node taken for lost);
-        # the decoder lists every EMCY from the record, and the heartbeats judge liveness.
-        ids = (self.opts.plant_id, self.opts.drive_id)
-        filters = [{"can_id": 0x580 + i, "can_mask": 0x7FF} for i in ids]
-        filters += [{"can_id": 0x700 + i, "can_mask": 0x7FF} for i in ids]
-        self.kernel_filters = filters if self.opts.interface == "socketcan" else None
-        kwargs: dict[str, object] = {"interface": self.opts.interface, "channel": self.opts.bus}
-        if self.kernel_filters is not None:
-            kwargs["can_filters"] = filters
-        if self.opts.bitrate:
-            kwargs["bitrate"] = self.opts.bitrate
-        if self.opts.fd:
-            kwargs["fd"] = True
-            if self.opts.data_bitrate:
-                kwargs["data_bitrate"] = self.opts.data_bitrate
-        self.net.bus = can.Bus(**kwargs)  # type: ignore[arg-type]
+        self.net.bus = self.kind.master_bus(self.opts, self.box)
+        self.net.listeners.extend(self.kind.master_listeners())
 
     def _plant_here_in_real_time(self) -> bool:
-        return self.sc.timing == "realtime" and self.box is None and self.hil is None and self.opts.start_plant
+        return self.sc.timing == "realtime" and self.kind.nodes_here and self.opts.start_plant
 
     def hold_plant_cpu(self) -> None:
         """Real time with plant_node on this host, once configured: the host's floor probed at the plant's period on
@@ -194,20 +143,6 @@ class SessionBus:
             p.stop()
         if self.gateway is not None:
             self.gateway.stop()  # after the nodes: it writes its log of actions
-        after = self.box.link_infos(list(self.links)) if self.box is not None and self.links else {}
+        after = self.kind.link_infos(self.box, list(self.links)) if self.links else {}
         for name, rec in self.links.items():
-            rec["after"] = after[name] if self.box is not None else link_info(name)
-
-
-class _BridgeErrors(can.Listener):
-    """Takes the errors of the master's SLCAN bridge port (python-can's notifier thread would print a traceback
-    for each): a port that breaks ends the run through Session._check_box."""
-
-    def __init__(self) -> None:
-        self.errors: list[Exception] = []
-
-    def on_message_received(self, msg: can.Message) -> None:
-        pass
-
-    def on_error(self, exc: Exception) -> None:
-        self.errors.append(exc)
+            rec["after"] = after[name]
