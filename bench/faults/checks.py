@@ -226,12 +226,23 @@ def check_measurement_timeout(bus: str, law: Law) -> FaultCheck:
     )
 
 
+def freeze_timeout_us(bus: str) -> int:
+    """The plant's command timeout for the freeze check: 600 ms against the nodes' 1 s heartbeat-consumer time;
+    where the bus gives its nodes a longer consumer time (the CAN box: 5 s, BOX_CONSUMER_MS) half of it. A stall
+    of the loop longer than the timeout elsewhere in the run holds a command the fault did not cause, the freeze
+    plus a stall longer than the consumer time loses the drive: half the consumer time bounds both stalls alike
+    (in the box under two busy loops a 0.6 s timeout held period 56 too, issue 52)."""
+    from bench.run.bus.buses import choose_bus
+
+    return max(600_000, choose_bus(bus, faults=True).consumer_ms(1000) * 1000 // 2)
+
+
 def check_freeze_drive(bus: str, law: Law) -> FaultCheck:
     # n x the command timeout (plus up to one heartbeat period) well within the heartbeat consumer time (1 s)
     # that the frozen drive's silence must not reach; each the longest it can be: a loaded machine's stall
     # beyond it elsewhere in the run would hold a command the fault did not cause
     p, n = STEP_AT + 10, 1
-    raw = with_command_timeout(base("fc-freeze-drive", law=law), 600_000)
+    raw = with_command_timeout(base("fc-freeze-drive", law=law), freeze_timeout_us(bus))
     clean, hit = _pair(
         raw, with_fault(raw, ["frames_lost"], {"kind": "freeze", "node": "drive", "at_period": p, "periods": n}), bus
     )

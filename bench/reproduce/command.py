@@ -23,6 +23,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="all",
         help="000 = You 2019, 001 = Yao 2020, 003 = Zhao 2022, all (default)",
     )
+    p.add_argument(
+        "--claim",
+        dest="claims",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="run only this claim function of the papers (repeatable; its name as the progress lines print it, "
+        "e.g. claim_observer; a wrong name lists the papers' names)",
+    )
     p.add_argument("--bus", default="vcan0", help="vcan0 (default; the VM supplies it if needed) or direct")
     p.add_argument("--out", type=Path, default=None, help="report folder (default reports/TIMESTAMP)")
     p.add_argument(
@@ -48,6 +57,20 @@ def _load_functions(papers: list[str]) -> list[tuple[str, str, Any]]:
         except (ImportError, AttributeError) as exc:
             fns.append((code, name, exc))
     return fns
+
+
+def chosen(fns: list[tuple[str, str, Any]], names: list[str]) -> tuple[list[tuple[str, str, Any]], str | None]:
+    """The claim functions named by --claim (all when none is named), or why not: a name the papers lack."""
+    if not names:
+        return fns, None
+    known = [fn.__name__ for _, _, fn in fns if not isinstance(fn, Exception)]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        return [], (
+            f"bench reproduce: --claim {unknown[0]}: the paper(s) chosen have no claim function of that name; "
+            f"nothing was run or written. Their claim functions: {', '.join(known)}"
+        )
+    return [f for f in fns if isinstance(f[2], Exception) or f[2].__name__ in names], None
 
 
 def run_claim_function(fn: Any, bus: str, code: str, paper: str) -> list[dict[str, Any]]:
@@ -89,15 +112,16 @@ def _dur(s: float) -> str:
     return f"{s:.0f} s" if s < 90 else f"{s / 60:.0f} min"
 
 
-def collect(papers: list[str], bus: str, out: Path) -> list[dict[str, Any]]:
-    """Run every claim of the papers on `bus`; write claims.json; keep the runs under out/runs."""
+def collect(papers: list[str], bus: str, out: Path, names: list[str] | None = None) -> list[dict[str, Any]]:
+    """Run every claim of the papers (those named in `names`) on `bus`; write claims.json; keep the runs under
+    out/runs."""
     from bench import claims
     from bench.claims import ClaimResult
 
     claims.RUN_ROOT = out / "runs"
     claims.RUN_ROOT.mkdir(parents=True, exist_ok=True)
     results: list[dict[str, Any]] = []
-    fns = _load_functions(papers)
+    fns, _ = chosen(_load_functions(papers), names or [])
     t0 = time.monotonic()
     for i, (code, name, fn) in enumerate(fns):
         if isinstance(fn, Exception):
@@ -131,6 +155,7 @@ def _collect_in_vm(args: argparse.Namespace, out: Path) -> list[dict[str, Any]] 
 
     print(f"bench reproduce: host kernel has no SocketCAN; running the claims over {args.bus} inside the VM")
     cmd = [sys.executable, "-m", "bench.cli", "reproduce", "--paper", args.paper, "--bus", args.bus]
+    cmd += [a for name in args.claims for a in ("--claim", name)]
     rc = run_in_vm(
         [*cmd, "--out", str(out.resolve()), "--collect-only"],
         VmOptions(timeout_s=5400, rwdirs=[out.resolve().parent]),
@@ -164,9 +189,10 @@ def _out_folder(args: argparse.Namespace) -> tuple[Path, str | None]:
 def main(args: argparse.Namespace) -> int:
     papers = _papers(args.paper)
     if args.collect_only:  # inside the VM, into the folder the host made
-        collect(papers, args.bus, args.out or Path("reports") / time.strftime("%Y%m%d-%H%M%S"))
+        collect(papers, args.bus, args.out or Path("reports") / time.strftime("%Y%m%d-%H%M%S"), args.claims)
         return 0
     out, why = _out_folder(args)
+    why = chosen(_load_functions(papers), args.claims)[1] or why
     if why is not None:
         print(why, file=sys.stderr)
         return 2
@@ -179,7 +205,7 @@ def main(args: argparse.Namespace) -> int:
         if results is None:
             return 1
     else:
-        results = collect(papers, args.bus, out)
+        results = collect(papers, args.bus, out, args.claims)
     failed = make_views(out)
     wall = time.monotonic() - t0
     write_reports(out, results, args.bus, wall)

@@ -12,7 +12,7 @@ import pytest
 from can_site import Site
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes
 from canopen.sdo.exceptions import SdoAbortedError
-from canopen_helpers import Target, node_target
+from canopen_helpers import ANSWER_S, Target, node_target
 
 # (binary, its arguments, EDS kind, node-ID)
 TARGETS = [
@@ -54,7 +54,7 @@ def leaf_variables(od) -> list[ODVariable]:  # type: ignore[no-untyped-def]
     return out
 
 
-def heartbeat_states(t: Target, n: int, timeout: float = 3.0) -> list[int]:
+def heartbeat_states(t: Target, n: int, timeout: float = ANSWER_S) -> list[int]:
     t.capture.clear()
     frames = t.capture.wait_for(0x700 + t.node_id, n, timeout)
     return [f[0] for f in frames]
@@ -329,7 +329,7 @@ def test_pdo_remap_via_canopen_api_and_sync_tpdos(target: Target) -> None:
     for k in range(20):
         t.net.sync.transmit((k % 240) + 1)
         time.sleep(0.003)
-    frames = t.capture.wait_for(0x380 + t.node_id, 20, 3.0)
+    frames = t.capture.wait_for(0x380 + t.node_id, 20, ANSWER_S)
     assert len(frames) == 20
     values = [struct.unpack("<ff", f) for f in frames]
     assert all(len(f) == 8 for f in frames)
@@ -346,7 +346,7 @@ def test_pdo_remap_via_canopen_api_and_sync_tpdos(target: Target) -> None:
         t.net.sync.transmit((k % 240) + 1)
         time.sleep(0.003)
     # the ten answers awaited (a bound: through the CAN box on a loaded host they come late), then no more come
-    t.capture.wait_for(0x380 + t.node_id, 10, 10.0)
+    t.capture.wait_for(0x380 + t.node_id, 10, ANSWER_S)
     time.sleep(0.3)
     assert len(t.capture.with_id(0x380 + t.node_id)) == 10
     t.node.nmt.send_command(0x80)
@@ -444,7 +444,7 @@ def test_emcy_cob_id_fixed_while_valid(target: Target) -> None:
         t.node.sdo["COB-ID SYNC message"].raw = 0x80
     t.capture.clear()
     t.net.send_message(0x80, b"")  # a SYNC of the wrong length: EMCY 0x8240, now on 0xFF
-    emcy = t.capture.wait_for(0xFF, 1, 2.0)
+    emcy = t.capture.wait_for(0xFF, 1, ANSWER_S)
     assert emcy and struct.unpack_from("<H", emcy[0])[0] == 0x8240
     assert not t.capture.with_id(default)
     t.node.nmt.send_command(0x82)
@@ -460,7 +460,7 @@ def test_emcy_error_register_and_history(target: Target) -> None:
     t.capture.clear()
     # A SYNC with the wrong length (counter expected: 0x1019 = 240) -> EMCY 0x8240
     t.net.send_message(0x80, b"")
-    emcy = t.capture.wait_for(0x80 + t.node_id, 1, 2.0)
+    emcy = t.capture.wait_for(0x80 + t.node_id, 1, ANSWER_S)
     assert emcy, "no EMCY"
     code, reg = struct.unpack_from("<HB", emcy[0])
     assert code == 0x8240 and reg & 0x11 == 0x11
