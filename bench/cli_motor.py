@@ -23,10 +23,14 @@ def _cmd_check(args: argparse.Namespace) -> int:
     except MotorError as exc:
         print(f"bench motor check: {exc}", file=sys.stderr)
         return 65
-    fm = m.map
-    Ld, Lq, psi = fm.small_signal()
     print(f"{m.name}  ({m.path})")
     print(f"  source: {m.source}")
+    fm = m.map
+    if fm is None:  # the linear dq model or a model of its own table: the values as the plant is given them
+        print(f"  model: {m.model} (no flux map)")
+        print(f"  plant values: {', '.join(f'{k} = {v:g}' for k, v in m.values.items())}")
+        return 0
+    Ld, Lq, psi = fm.small_signal()
     print(
         f"  map: {m.map_file.name}, {len(fm.id_A)} x {len(fm.iq_A)} points, id {fm.id_A[0]:g} .. {fm.id_A[-1]:g} A, "
         f"iq {fm.iq_A[0]:g} .. {fm.iq_A[-1]:g} A: invertible"

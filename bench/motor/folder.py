@@ -1,6 +1,8 @@
 """A motor folder (docs/YOUR_MOTOR.md): `motor.toml` (the motor's name, source, pole pairs, R and its temperature
-model, mechanics) and its flux-map table (CSV or NumPy .npz), read and checked before anything starts. Every refusal
-(MotorError) names the file, the row or key, and the value; nothing is half-loaded.
+model, mechanics) and its machine model: a flux-map table (CSV or NumPy .npz), or the linear dq model's Ld_H, Lq_H,
+psi_Wb with at most one machine model's own table (a plant.eds record "Model <name>": [harmonic]), read and checked
+before anything starts. Every refusal (MotorError) names the file, the row or key, and the value; nothing is
+half-loaded.
 
     [motor]
     name = "..."               # required
@@ -18,6 +20,10 @@ model, mechanics) and its flux-map table (CSV or NumPy .npz), read and checked b
     T_amb_degC = 40
     thermal_R_K_per_W = 0.5
     thermal_C_J_per_K = 400
+
+Without [flux_map] the folder's [motor] also gives Ld_H, Lq_H and psi_Wb (required), and the machine model is
+dq_linear, or the one whose table follows ([harmonic]: psi_5_Wb, psi_7_Wb, cogging_Nm, cogging_periods, the keys of
+plant.eds "Model harmonic"; any model's record gives its table, bench.eds.model_records).
 """
 
 from __future__ import annotations
@@ -30,11 +36,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from canopen.objectdictionary import datatypes
 
 from bench.motor.fluxmap import MAX_POINTS, FluxMap
 from bench.scenario.model import ScenarioError
 
 DESCRIPTION = "motor.toml"
+INTEGER_TYPES = datatypes.INTEGER_TYPES  # an entry a motor.toml gives as an integer
 COLUMNS = ("id_A", "iq_A", "psi_d_Wb", "psi_q_Wb")
 MOTOR_KEYS = {
     "name": str,
@@ -46,6 +54,7 @@ MOTOR_KEYS = {
     "I_trip_A": float,
 }
 REQUIRED = ("name", "source", "pole_pairs", "R_ohm")
+LINEAR_KEYS = ("Ld_H", "Lq_H", "psi_Wb")  # [motor] keys of a folder without a map (the map's small-signal otherwise)
 THERMAL_KEYS = ("R_alpha_per_K", "T_ref_degC", "T_amb_degC", "thermal_R_K_per_W", "thermal_C_J_per_K")
 
 
@@ -58,15 +67,16 @@ class MotorFolder:
     path: Path
     name: str
     source: str
-    map: FluxMap
-    map_file: Path
+    map: FluxMap | None  # the flux map (model flux_map), None for a model without one
+    map_file: Path | None
     values: dict[str, float | int] = field(default_factory=dict)  # plant.eds Motor model entries, by name
     rows: dict[tuple[int, int], int] = field(default_factory=dict)  # grid point -> CSV row (for messages)
+    model: str = "flux_map"  # plant.eds Motor model.model's ValueName
 
     def where(self, i: int | None, j: int | None, other: tuple[int, int] | None = None) -> str:
         """A grid point (and the one it is compared with) as the user finds it: the CSV rows, or the arrays' indices
         of an .npz."""
-        if i is None or j is None:
+        if i is None or j is None or self.map is None:
             return str(self.map_file)
         if (i, j) in self.rows:
             then = f" and row {self.rows[other]}" if other in self.rows else ""
@@ -88,11 +98,18 @@ def load(folder: str | Path) -> MotorFolder:
         raise MotorError(f"{desc}: not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise MotorError(f"{desc}: cannot read: {exc}") from None
+    models = model_tables()
+    allowed = ("motor", "flux_map", "thermal", *models)
     for table in raw:
-        if table not in ("motor", "flux_map", "thermal"):
-            raise MotorError(f"{desc}: unknown table [{table}]; allowed: [motor], [flux_map], [thermal]")
-    values = _motor_values(desc, raw.get("motor"))
+        if table not in allowed:
+            raise MotorError(f"{desc}: unknown table [{table}]; allowed: {', '.join(f'[{t}]' for t in allowed)}")
+    chosen = [t for t in raw if t in ("flux_map", *models)]
+    if len(chosen) > 1:
+        raise MotorError(f"{desc}: [{chosen[0]}] and [{chosen[1]}]: a folder describes one machine model")
+    values = _motor_values(desc, raw.get("motor"), linear="flux_map" not in raw)
     values.update(_thermal_values(desc, raw.get("thermal")))
+    if "flux_map" not in raw:
+        return _model_folder(path, desc, raw, values, models)
     fm = raw.get("flux_map")
     if not isinstance(fm, dict) or not isinstance(fm.get("file"), str):
         raise MotorError(f'{desc}: [flux_map] file = "..." is required (a .csv or .npz in the folder)')
@@ -115,21 +132,62 @@ def load(folder: str | Path) -> MotorFolder:
     return motor
 
 
-def _motor_values(desc: Path, motor: Any) -> dict[str, Any]:
+def model_tables() -> dict[str, str]:
+    """A motor folder's table of each machine model with a record of its own (plant.eds "Model <name>"): the table
+    [<name>] -> the record."""
+    from bench.eds import MODEL_RECORD, model_records
+
+    return {rec[len(MODEL_RECORD) :]: rec for rec in model_records()}
+
+
+def _model_folder(
+    path: Path, desc: Path, raw: dict[str, Any], values: dict[str, Any], models: dict[str, str]
+) -> MotorFolder:
+    """A folder without a map: the linear dq model, or the model whose table it has (its keys those of the model's
+    record, numbers; their ranges are the EDS's, checked with the scenario's own)."""
+    from bench.eds import params
+
+    chosen = [t for t in raw if t in models]  # at most one (load)
+    if "thermal" in raw:
+        raise MotorError(f"{desc}: [thermal] is the flux-map model's (the plant's other models keep R constant)")
+    model = chosen[0] if chosen else "dq_linear"
+    if chosen:
+        table, keys = raw[model], params("plant", (models[model],))
+        if not isinstance(table, dict):
+            raise MotorError(f"{desc}: [{model}] must be a table")
+        for key, value in table.items():
+            if key not in keys:
+                raise MotorError(f"{desc}: unknown key {model}.{key}; allowed: {', '.join(keys)}")
+            if not _number(value, integer=keys[key].data_type in INTEGER_TYPES):
+                raise MotorError(f"{desc}: {model}.{key} = {value!r}: expected {_kind(_type(keys[key]))}")
+            values[key] = value
+    name, source = str(values.pop("name")), str(values.pop("source"))
+    return MotorFolder(path, name, source, None, None, values, model=model)
+
+
+def _motor_values(desc: Path, motor: Any, linear: bool) -> dict[str, Any]:
+    """[motor]'s values; `linear`: the folder has no map, so Ld_H, Lq_H and psi_Wb are its."""
     if not isinstance(motor, dict):
         raise MotorError(f"{desc}: missing [motor] table with at least {', '.join(REQUIRED)}")
+    known = {**MOTOR_KEYS, **dict.fromkeys(LINEAR_KEYS, float)} if linear else MOTOR_KEYS
     out: dict[str, Any] = {}
     for key, value in motor.items():
-        if key not in MOTOR_KEYS:
-            raise MotorError(f"{desc}: unknown key motor.{key}; allowed: {', '.join(MOTOR_KEYS)}")
-        kind = MOTOR_KEYS[key]
+        if key in LINEAR_KEYS and not linear:
+            raise MotorError(
+                f"{desc}: motor.{key}: a folder with a [flux_map] takes its {', '.join(LINEAR_KEYS)} from the map "
+                "(its slope at zero current); remove the key"
+            )
+        if key not in known:
+            raise MotorError(f"{desc}: unknown key motor.{key}; allowed: {', '.join(known)}")
+        kind = known[key]
         ok = isinstance(value, str) if kind is str else _number(value, integer=kind is int)
         if not ok or (kind is str and not value.strip()):
             raise MotorError(f"{desc}: motor.{key} = {value!r}: expected {_kind(kind)}")
         out[key] = value
-    for key in REQUIRED:
+    for key in (*REQUIRED, *LINEAR_KEYS) if linear else REQUIRED:
         if key not in out:
-            raise MotorError(f"{desc}: motor.{key} is required")
+            why = " (a folder without a [flux_map] gives the linear dq model's Ld_H, Lq_H, psi_Wb)" if linear else ""
+            raise MotorError(f"{desc}: motor.{key} is required{why}")
     if not out["R_ohm"] > 0:
         raise MotorError(f"{desc}: motor.R_ohm = {out['R_ohm']!r}: a phase resistance must be > 0")
     return out
@@ -154,6 +212,10 @@ def _number(v: Any, integer: bool) -> bool:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         return False
     return float(v) == int(v) if integer else True
+
+
+def _type(p: Any) -> type:
+    return int if p.data_type in INTEGER_TYPES else float
 
 
 def _kind(kind: type) -> str:

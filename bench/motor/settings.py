@@ -1,9 +1,9 @@
 """What a motor folder gives a scenario ([motor] folder = "DIR", `bench run --motor DIR`): the plant settings of
 plant.eds "Motor model" (the folder's values, model = flux_map, and the map's small-signal Ld_H, Lq_H, psi_Wb, which
-the drive's controller is configured from; the over-current trip level, the folder's I_trip_A or where the map
-ends), and the check of the map's range against the inverter's trip level
-(the plant must not extrapolate the map before it trips) and, given the scenario, against what the trip does
-(bench/motor/trip.py: the short-circuit current at the run's speed)."""
+the drive's controller is configured from; a folder without a map: its model and its values as they are; the
+over-current trip level, the folder's I_trip_A or where the map ends), and the check of the map's range against the
+inverter's trip level (the plant must not extrapolate the map before it trips) and, given the scenario, against what
+the trip does (bench/motor/trip.py: the short-circuit current at the run's speed)."""
 
 from __future__ import annotations
 
@@ -28,9 +28,13 @@ def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]
         motor = load(path)
     except MotorError as exc:
         raise ScenarioError(f"{where}: motor.folder = {folder!r}: {exc}") from None
+    if motor.map is None:  # the linear dq model or a model of its own table: the folder gives every value
+        values: dict[str, Any] = {"model": motor.model, **motor.values}
+        trip = values.pop("I_trip_A", None)
+        return motor, _settings(where, folder, motor, values, trip, tables)
     Ld, Lq, psi = motor.map.small_signal()
     # the model first: the plant accepts the thermal entries on the flux-map model only
-    values: dict[str, Any] = {"model": "flux_map", "Ld_H": Ld, "Lq_H": Lq, "psi_Wb": psi, **motor.values}
+    values = {"model": "flux_map", "Ld_H": Ld, "Lq_H": Lq, "psi_Wb": psi, **motor.values}
     trip = values.pop("I_trip_A", None)
     if trip is None:  # the plant trips before the dq currents can leave the map
         edge = min(-float(motor.map.id_A[0]), float(motor.map.id_A[-1]), -float(motor.map.iq_A[0]),
@@ -43,15 +47,23 @@ def folder_settings(where: str, folder: Any, tables: dict[str, dict[str, Param]]
                 "transient); extend the map to negative and positive currents on both axes (docs/YOUR_MOTOR.md)"
             )
         trip = edge * DQ_PER_PHASE
+    return motor, _settings(where, folder, motor, values, trip, tables)
+
+
+def _settings(
+    where: str, folder: Any, motor: MotorFolder, values: dict[str, Any], trip: Any, tables: dict[str, dict[str, Param]]
+) -> list[Setting]:
+    """The folder's values (and its trip level, when it has one) as plant settings, each checked against the EDS."""
     out = []
     desc = str(motor.path / "motor.toml")
     try:
         for key, value in values.items():
             out.append(setting(desc, "motor", key, value, tables))
-        out.append(setting(desc, "drive", "I_trip_A", trip, tables))
+        if trip is not None:
+            out.append(setting(desc, "drive", "I_trip_A", trip, tables))
     except ScenarioError as exc:
         raise ScenarioError(f"{where}: motor.folder = {folder!r}: {exc}") from None
-    return motor, out
+    return out
 
 
 def check_range(where: str, motor: MotorFolder, trip_A: float, scenario: Any = None) -> TripNote | None:
@@ -61,9 +73,9 @@ def check_range(where: str, motor: MotorFolder, trip_A: float, scenario: Any = N
     drive.I_trip_A beyond the map is refused.  With the scenario (parsed, its events too), the currents after the
     trip as well: its drive.trip_reaction at its speed (bench/motor/trip.py check_trip: a refusal, or for a free
     rotor the note the run's summary should carry)."""
-    if trip_A <= 0:
-        return None
     fm = motor.map
+    if trip_A <= 0 or fm is None:  # no trip, or no map to leave
+        return None
     reach = trip_A / DQ_PER_PHASE
     for axis, g in (("id_A", fm.id_A), ("iq_A", fm.iq_A)):
         if g[0] > -reach * (1 - 1e-9) or g[-1] < reach * (1 - 1e-9):  # (rounding of the default)

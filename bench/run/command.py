@@ -267,7 +267,7 @@ def motor_block(sc: Scenario) -> dict[str, Any]:
 
     if sc.motor_folder is not None:
         folder = Path(sc.motor_folder.path)
-        files = [folder / DESCRIPTION, Path(sc.motor_folder.map_file)]
+        files = [folder / DESCRIPTION, *([Path(sc.motor_folder.map_file)] if sc.motor_folder.map_file else [])]
         return {"folder": str(folder), "fmu": None, "name": sc.motor_folder.name, "digest": files_digest(folder, files)}
     if sc.motor_fmu is not None:
         fmu = Path(sc.motor_fmu.path)

@@ -107,7 +107,7 @@ def motor_truth(sc: Any, dq: tuple[float, float] | None) -> dict[str, float]:
     """With a motor folder ([motor] folder): its map's incremental inductances at the point's last operating point
     (motor.Ldd_H, motor.Lqq_H, motor.Ldq_H) and the chord of psi_q from iq = 0 (motor.Lqq_chord_H): the truth an
     identified L_hat is compared with (docs/YOUR_MOTOR.md)."""
-    if sc.motor_folder is None or dq is None or not all(math.isfinite(v) for v in dq):
+    if sc.motor_folder is None or sc.motor_folder.map is None or dq is None or not all(math.isfinite(v) for v in dq):
         return {}
     fm = sc.motor_folder.map
     e = fm.eval(dq[0], dq[1])

@@ -93,3 +93,52 @@ def test_a_sweep_over_the_fifth_harmonic(tmp_path: Path) -> None:
     peaks = [r["max_phase_current_A"] for r in rows]
     assert peaks[0] < peaks[1] < peaks[2], peaks
     assert rows[0]["status"] == "ok"
+
+
+def _folder(path: Path, motor: dict[str, Any], **tables: dict[str, Any]) -> Path:
+    def toml(values: dict[str, Any]) -> str:
+        return "".join(f"{k} = {v!r}\n" if not isinstance(v, str) else f'{k} = "{v}"\n' for k, v in values.items())
+
+    path.mkdir(parents=True, exist_ok=True)
+    text = "[motor]\n" + toml({"name": "harmonic test motor", "source": "this test", **motor})
+    text += "".join(f"[{name}]\n{toml(values)}" for name, values in tables.items())
+    (path / "motor.toml").write_text(text)
+    return path
+
+
+def test_a_motor_folder_gives_the_harmonic_model_as_the_scenario_keys_do(hil_run: HilRunner, tmp_path: Path) -> None:
+    """The motor folder's [harmonic] table (the keys of plant.eds "Model harmonic") and [motor]'s Ld_H, Lq_H, psi_Wb:
+    the same plant as a scenario's [motor] keys, traces bit for bit; the summary names the folder."""
+    keys = hil_run(STEP, HARMONIC, bus="direct", name="keys").expect_status("ok")
+    plant = keys.summary["plant"]
+    base = {k: plant[k] for k in ("pole_pairs", "R_ohm", "Ld_H", "Lq_H", "psi_Wb")}
+    folder = _folder(tmp_path / "motor", base, harmonic={"psi_5_Wb": PSI5, "psi_7_Wb": PSI7})
+    rest = {k: v for k, v in HARMONIC.items() if not k.startswith("motor.") or k.startswith("motor.mech")}
+    rest["motor.omega_imposed_rad_s"] = W_M
+    run = hil_run(STEP, rest, bus="direct", motor=folder, name="folder").expect_status("ok")
+    assert run.summary["motor"]["folder"] == str(folder)
+    for col in ("i_a_A", "i_b_A", "v_alpha_V", "v_beta_V"):
+        np.testing.assert_array_equal(run.traces[col], keys.traces[col], err_msg=col)
+
+
+def test_a_motor_folder_without_a_map_is_checked_key_by_key(tmp_path: Path) -> None:
+    base = {"pole_pairs": 4, "R_ohm": 0.2, "Ld_H": 0.002, "Lq_H": 0.003, "psi_Wb": 0.05}
+    ok = _folder(tmp_path / "ok", base, harmonic={"psi_5_Wb": 0.001, "cogging_periods": 24})
+    res = bench_cli("motor", "check", ok, expect=0)
+    assert "model: harmonic" in res.stdout and "psi_5_Wb = 0.001" in res.stdout, res.stdout
+    linear = _folder(tmp_path / "linear", base)
+    assert "model: dq_linear" in bench_cli("motor", "check", linear, expect=0).stdout
+    bad = {
+        "no Ld_H": (_folder(tmp_path / "a", {k: v for k, v in base.items() if k != "Ld_H"}), "motor.Ld_H is required"),
+        "unknown": (_folder(tmp_path / "b", base, harmonic={"psi_11_Wb": 0.1}), "unknown key harmonic.psi_11_Wb"),
+        "not a number": (_folder(tmp_path / "c", base, harmonic={"psi_5_Wb": "x"}), "harmonic.psi_5_Wb = 'x'"),
+        "an integer": (_folder(tmp_path / "d", base, harmonic={"cogging_periods": 2.5}), "expected an integer"),
+        "thermal": (_folder(tmp_path / "e", base, thermal={"T_ref_degC": 20}), "[thermal] is the flux-map"),
+        "two models": (
+            _folder(tmp_path / "f", base, harmonic={}, flux_map={"file": "x.csv"}),
+            "a folder describes one machine model",
+        ),
+    }
+    for what, (folder, text) in bad.items():
+        res = bench_cli("motor", "check", folder)
+        assert res.returncode == 65 and text in res.stderr, (what, res.stderr)

@@ -160,7 +160,7 @@ class Configurator:
         self.configure_heartbeats()
         if sc.preset:
             plant.sdo["Motor preset"].raw = sc.preset
-        if sc.motor_folder is not None:  # the map first: the plant refuses model = flux_map without one
+        if sc.motor_folder is not None and sc.motor_folder.map is not None:  # the map first: model = flux_map needs it
             self._write_flux_map(sc.motor_folder)
         if sc.motor_fmu is not None:  # the FMU first: the plant refuses model = fmu without one
             self._write_fmu(sc.motor_fmu)
