@@ -45,9 +45,24 @@ CFLAGS_HOST := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -D_GNU_SOURCE -fPIC
 INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated -Iplant_rt/blocks -Iplant_rt/models \
        -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Iprotocols/faults -Itests/c
 # The papers' current laws: law folders as a user's (firmware_shim/laws/<paper>/: C files, headers, law.eds), built
-# into every drive; gen_od.py merges their law.eds records (protocols/gen_law.py).
+# into every drive; gen_od.py merges their law.eds records (protocols/gen_law.py). Their folders are on the include
+# path of the tests and tools that test them; a law's own C files see only their folder and the law interface (LAW_INC).
 LAW_DIRS := $(patsubst %/law.eds,%,$(wildcard firmware_shim/laws/*/law.eds))
 INC += $(addprefix -I,$(LAW_DIRS))
+# A law folder's names: its law.eds's CurrentLaws key (a descriptor current_law_<name> each).
+law_names = $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_,[:space:]]*\).*/\1/p' \
+              '$(1)/law.eds' 2>/dev/null | head -n 1 | tr ',' ' ')
+# What a law's C files are compiled with, a paper's as a user's: their own folder (-I$(<D) or -I$(LAW_DIR)) and the law
+# interface, firmware_shim/core (current_law.h, dq_math.h, drive_config.h) and the generated OD fields it includes.
+LAW_INC = $(filter -I$(GEN_DIR) -Iprotocols/generated -Ifirmware_shim/core,$(INC))
+# The checks of a law folder's objects, a paper's as a user's: each name's descriptor defined (nm; $(1) names,
+# $(2) objects, $(3) who), and the members the drive calls unconditionally filled with a state that fits (law_check.c).
+law_nm_check = for n in $(1); do nm $(2) | grep -Eq " [RDBGS] current_law_$$n\$$" || { echo "make: $(3): no C file \
+	of the folder defines the symbol current_law_$$n (const current_law_t current_law_$$n = {...};)" >&2; exit 1; }; done
+law_check_run = for n in $(1); do rm -f $(BUILD)/law_check.err; \
+	$(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n firmware_shim/law/law_check.c $(LIBFW) -lm -o $(BUILD)/bin/law_check \
+	2> $(BUILD)/law_check.err && $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
+	sed 's|^law_check: |make: $(2): |' $(BUILD)/law_check.err >&2; exit 1; }; done
 
 # The FMU loader (plant_rt/fmu/: host glue, dlopen): the FMI 2.0/3.0 co-simulation interface it calls is declared
 # by its own plant_rt/fmu/plant_fmi_api.h (no external FMI header), so it is always built, with our warnings.
@@ -74,8 +89,7 @@ ifneq ($(words $(LAW)),1)
 $(error LAW=$(LAW): a path with white space, which make cannot take: link the folder from a path without (ln -s '<folder>' /tmp/my_law; make LAW=/tmp/my_law))
 endif
 LAW_DIR  := $(patsubst %/,%,$(strip $(LAW)))
-LAW_NAMES := $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\([A-Za-z0-9_,[:space:]]*\).*/\1/p' \
-              '$(LAW_DIR)/law.eds' 2>/dev/null | head -n 1 | tr ',' ' ')
+LAW_NAMES := $(call law_names,$(LAW_DIR))
 LAW_NAME := $(firstword $(LAW_NAMES))
 ifeq ($(LAW_NAME),)
 $(error LAW=$(LAW): no $(LAW_DIR)/law.eds with a CurrentLaws=<law name> key)
@@ -147,6 +161,9 @@ mcu: $(MCU_ELF) $(MCU_BUILD)/drive_mcu.bin
 $(MCU_BUILD)/obj/%.o: %.c
 	@mkdir -p $(@D)
 	$(MCU_CC) $(MCU_CFLAGS) $(MCU_INC) -MMD -MP -c $< -o $@
+$(MCU_BUILD)/obj/firmware_shim/laws/%.o: firmware_shim/laws/%.c
+	@mkdir -p $(@D)
+	$(MCU_CC) $(MCU_CFLAGS) $(LAW_INC) -I$(<D) -MMD -MP -c $< -o $@
 $(MCU_ELF): $(MCU_OBJ) $(MCU_DIR)/mps2_an386.ld
 	$(MCU_CC) $(MCU_ARCH) -T $(MCU_DIR)/mps2_an386.ld -nostartfiles --specs=nano.specs --specs=nosys.specs \
 	    -Wl,--gc-sections -Wl,-Map=$(MCU_BUILD)/drive_mcu.map $(MCU_OBJ) -lm -o $@
@@ -180,7 +197,7 @@ $(SAN_DIR)/fault_gateway: protocols/faults/fault_gateway_main.c $(FAULT_SRC) pro
 	$(CC) $(CSTD) $(WARN) -D_GNU_SOURCE $(SAN_FLAGS) $(INC) $(filter %.c,$^) -o $@
 
 all: $(LIBCO) $(LIBSCAN) $(PROTO_TOOLS) $(PROTO_TESTS) $(PLANT_TOOLS) $(PLANT_TESTS) \
-     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB) $(if $(HAVE_MCU_CC),mcu) sanitize
+     $(FW_TOOLS) $(FW_TESTS) $(NODE_BINS) $(SHLIB) $(if $(HAVE_MCU_CC),mcu) sanitize $(BUILD)/laws.checked
 
 # What an installed package runs (setup.py makes it at install time in the package's copy of the sources,
 # bench/_root): the node processes, the gateway, libhil.so, the tools, the MCU image when its toolchain is there.
@@ -225,6 +242,15 @@ $(BUILD)/obj/firmware_shim/shim/%.o: firmware_shim/shim/%.c
 $(BUILD)/obj/firmware_shim/%.o: firmware_shim/%.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_FW) $(INC) -MMD -MP -c $< -o $@
+$(BUILD)/obj/firmware_shim/laws/%.o: firmware_shim/laws/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_FW) $(LAW_INC) -I$(<D) -MMD -MP -c $< -o $@
+# The papers' law folders checked as `make LAW=DIR` checks a user's (law_nm_check, law_check_run).
+$(BUILD)/laws.checked: firmware_shim/law/law_check.c $(LIBFW)
+	@mkdir -p $(BUILD)/bin
+	@$(foreach d,$(LAW_DIRS),$(call law_nm_check,$(call law_names,$(d)),$(call obj,$(wildcard $(d)/*.c)),$(d)) && \
+	  $(call law_check_run,$(call law_names,$(d)),$(d)) && ) true
+	@touch $@
 $(BUILD)/obj/%.o: %.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_CORE) $(INC) -MMD -MP -c $< -o $@
@@ -313,23 +339,19 @@ $(call obj,$(CO_SRC) $(SCAN_SRC) $(PLANT_SRC) $(FW_SRC) $(HIL_SRC) $(wildcard fi
     protocols/faults/fault_gateway_main.c) $(MCU_OBJ): | $(GEN_STAMP)
 $(BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_FW) $(INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
+	$(CC) $(CFLAGS_FW) $(LAW_INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
 $(MCU_BUILD)/obj/law/%.o: $(LAW_DIR)/%.c $(LAW_FROM)
 	@mkdir -p $(@D)
-	$(MCU_CC) $(MCU_CFLAGS) $(MCU_INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
+	$(MCU_CC) $(MCU_CFLAGS) $(LAW_INC) -I$(LAW_DIR) -MMD -MP -c $< -o $@
 # The folder must define the descriptor each of its names promises (current_law_table.c refers to it).
 $(LAW_OK): $(call obj,$(LAW_SRC))
-	@for n in $(LAW_NAMES); do nm $^ | grep -Eq " [RDBGS] current_law_$$n\$$" || { echo "make: LAW=$(LAW): no C file \
-	of the folder defines the symbol current_law_$$n (const current_law_t current_law_$$n = {...};)" >&2; exit 1; }; done
+	@$(call law_nm_check,$(LAW_NAMES),$^,LAW=$(LAW))
 	@touch $@
 $(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
 # ... and fills the members the drive calls unconditionally, with a state that fits (firmware_shim/law/law_check.c).
 $(LAW_CHECKED): firmware_shim/law/law_check.c $(LIBFW)
 	@mkdir -p $(BUILD)/bin
-	@for n in $(LAW_NAMES); do rm -f $(BUILD)/law_check.err; \
-	 $(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n $< $(LIBFW) -lm -o $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err && \
-	 $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
-	 sed 's|^law_check: |make: LAW=$(LAW): |' $(BUILD)/law_check.err >&2; exit 1; }; done
+	@$(call law_check_run,$(LAW_NAMES),LAW=$(LAW))
 	@touch $@
 $(BUILD)/bin/drive_node $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_CHECKED)
 endif

@@ -149,8 +149,8 @@ def _write_summary(out: Path, res: RunResult, name: str) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from bench.run.console import print_result
-    from bench.run.outputs import Progress
     from bench.run.pipeline import replay_log
+    from bench.run.progress import Progress
     from bench.run.sinks import TRACES_FILE, TraceFileSink
 
     try:

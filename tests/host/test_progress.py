@@ -1,4 +1,4 @@
-"""Progress of a run on stderr (bench/run/outputs.py): lines without a terminal, a rate that only counts
+"""Progress of a run on stderr (bench/run/progress.py): lines without a terminal, a rate that only counts
 time that passed, a final line; direct runs show it too."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import pytest
 from bench_cli import bench_cli
 
 from bench.paths import REPO
-from bench.run import outputs
-from bench.run.outputs import Progress
+from bench.run import progress
+from bench.run.progress import Progress
 
 RATE = re.compile(r"\(([\d,]+)/s|, ([\d,]+) periods/s")
 
@@ -37,7 +37,7 @@ def test_first_update_after_a_boot_gives_no_impossible_rate(
     """A VM boots (20 s of nothing), then the first update brings 300000 periods at once: no rate from
     that instant; later rates count the periods after it over the time after it; a final line."""
     clock = Clock()
-    monkeypatch.setattr(outputs.time, "monotonic", clock)
+    monkeypatch.setattr(progress.time, "monotonic", clock)
     bar = Progress(1_000_000, "run (VM)", every_s=5.0)
     clock.t += 20.0
     bar.update(300_000)
@@ -68,7 +68,7 @@ def test_close_says_the_end_once_and_nothing_without_progress(capsys: pytest.Cap
 
 def test_trace_chunks_move_the_bar() -> None:
     """The run's trace chunks move the active bar within a segment (direct runs had no progress)."""
-    sink = outputs._ProgressSink()
+    sink = progress.ProgressSink()
     bar = Progress(1000, "run")
     sink.bar = bar
     for start in range(0, 1000, 250):
