@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.run.bus.buses import VM_CAN
+from bench.run.bus.buses import vm_links
 from bench.run.outputs import Outputs
 from bench.scenario import Scenario, ScenarioError, load
 
@@ -143,12 +143,11 @@ def vm_options(args: argparse.Namespace) -> Any:
     SJA1000) on one emulated bus, as many as the highest canN asks."""
     from bench.run.bus.vm import VmOptions
 
-    names = tuple(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n))
-    cans = [int(n[3:]) for n in names if VM_CAN.fullmatch(n)]
+    interfaces, can_controllers = vm_links(tuple(dict.fromkeys(n for n in (args.bus, args.drive_bus) if n)))
     return VmOptions(
         timeout_s=3600,
-        interfaces=tuple(n for n in names if not VM_CAN.fullmatch(n)),
-        can_controllers=max(cans) + 1 if cans else 0,
+        interfaces=interfaces,
+        can_controllers=can_controllers,
         # --drive mcu: one vCPU. The image's frames cross can-gw between vcan0 and slcan0, and the guest kernel
         # queues a frame on the backlog of the CPU its sender runs on: with two vCPUs and a loaded host a
         # sender that moved between them had its frames reordered (the plant's currents after its sample: the
