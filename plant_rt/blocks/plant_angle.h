@@ -15,14 +15,27 @@ double plant_angle_wrap_2pi(double x, int64_t *revs);
 /* cos/sin(theta_e) of the state recomputed from theta_m (theta_e = p theta_m). */
 void plant_angle_resync(plant_state_t *s, const plant_config_t *c);
 
+/* The stator-frame currents of the present state (inverse Park). */
+static inline void plant_angle_alpha_beta(const plant_state_t *s, double *i_alpha_A, double *i_beta_A)
+{
+    *i_alpha_A = s->cos_e * s->id_A - s->sin_e * s->iq_A;
+    *i_beta_A = s->sin_e * s->id_A + s->cos_e * s->iq_A;
+}
+
+/* Phase currents of stator-frame currents (amplitude-invariant inverse Clarke). */
+static inline void plant_angle_abc(double i_alpha_A, double i_beta_A, double *ia_A, double *ib_A, double *ic_A)
+{
+    *ia_A = i_alpha_A;
+    *ib_A = -0.5 * i_alpha_A + 0.5 * PLANT_SQRT3 * i_beta_A;
+    *ic_A = -0.5 * i_alpha_A - 0.5 * PLANT_SQRT3 * i_beta_A;
+}
+
 /* Phase currents of the present state (inverse Park, amplitude-invariant inverse Clarke). */
 static inline void plant_angle_phase_currents(const plant_state_t *s, double *ia_A, double *ib_A, double *ic_A)
 {
-    const double ial = s->cos_e * s->id_A - s->sin_e * s->iq_A;
-    const double ibe = s->sin_e * s->id_A + s->cos_e * s->iq_A;
-    *ia_A = ial;
-    *ib_A = -0.5 * ial + 0.5 * PLANT_SQRT3 * ibe;
-    *ic_A = -0.5 * ial - 0.5 * PLANT_SQRT3 * ibe;
+    double ial, ibe;
+    plant_angle_alpha_beta(s, &ial, &ibe);
+    plant_angle_abc(ial, ibe, ia_A, ib_A, ic_A);
 }
 
 #endif

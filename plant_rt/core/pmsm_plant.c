@@ -348,13 +348,14 @@ void plant_step(plant_state_t *s, const plant_config_t *c, double v_alpha_V, dou
 
 void plant_sample(plant_state_t *s, const plant_config_t *c, plant_meas_t *m)
 {
-    double ia, ib, ic;
-    plant_angle_phase_currents(s, &ia, &ib, &ic);
+    double ial, ibe, ia, ib, ic;
+    plant_angle_alpha_beta(s, &ial, &ibe);
+    plant_angle_abc(ial, ibe, &ia, &ib, &ic);
     m->i_a_true_A = ia;
     m->i_b_true_A = ib;
     m->i_c_true_A = ic;
-    m->i_alpha_A = s->cos_e * s->id_A - s->sin_e * s->iq_A;
-    m->i_beta_A = s->sin_e * s->id_A + s->cos_e * s->iq_A;
+    m->i_alpha_A = ial;
+    m->i_beta_A = ibe;
     m->id_A = s->id_A;
     m->iq_A = s->iq_A;
     m->theta_m_true_rad = s->theta_m_rad;
