@@ -79,13 +79,59 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from bench.tools.plan import format_plan, make_plan
 
     try:
+        if args.from_log is not None:
+            return _plan_from_log(args)
+        if args.latency_us or args.worst_case_stuffing:
+            raise ValueError("--latency-us / --worst-case-stuffing = given: must be used with --from-log")
+        ts = 55e-6 if args.ts is None else args.ts
         plan = make_plan(
-            args.bitrate, args.ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation
+            args.bitrate, ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation
         )
-    except ValueError as exc:  # bad input: exit 2, as every command's
+    except ValueError as exc:  # bad input: exit 2, as every command's; nothing written
         print(f"bench plan: {exc}", file=sys.stderr)
         return 2
     print(plan.to_json() if args.json else format_plan(plan))
+    return 0
+
+
+def _latencies(given: list[str]) -> dict[str, float]:
+    """--latency-us NODE=US (repeatable) as {node: seconds}."""
+    out: dict[str, float] = {}
+    for item in given:
+        node, _, value = item.partition("=")
+        try:
+            us = float(value)
+        except ValueError:
+            us = float("nan")
+        if node not in ("plant", "drive") or not (0 <= us <= 1e6):
+            raise ValueError(f"--latency-us = {item}: must be NODE=US, NODE plant or drive, US in [0, 1e6]")
+        out[node] = us * 1e-6
+    return out
+
+
+def _plan_from_log(args: argparse.Namespace) -> int:
+    from bench.tools.plan import make_plan
+    from bench.tools.plan_log import format_log_plan, run_ts, simulate
+
+    log = Path(args.from_log)
+    if not log.is_file():
+        raise ValueError(f"--from-log = {log}: must be a run's bus.log (no such file)")
+    ts, ts_from = args.ts, "--ts"
+    if ts is None:
+        ts, ts_from = run_ts(log), f"{log.parent / 'summary.json'}"
+    if ts is None:
+        raise ValueError(f"--ts = none: must be given (no summary.json with Ts_s beside {log})")
+    data_bitrate = args.data_bitrate if args.fd else None
+    if args.fd and data_bitrate is None:
+        raise ValueError("--data-bitrate = None: must be in (0, 12e6] bit/s with --fd")
+    plan = simulate(
+        log, args.bitrate, data_bitrate, ts, _latencies(args.latency_us or []), args.max_load,
+        args.worst_case_stuffing, ts_from,
+    )  # fmt: skip
+    plan.formula_s = make_plan(
+        args.bitrate, ts, args.fd, data_bitrate, args.max_load, plan.extra_tpdos
+    ).time_per_period_s
+    print(plan.to_json() if args.json else format_log_plan(plan))
     return 0
 
 
@@ -93,10 +139,38 @@ def plan_arguments(pl: argparse.ArgumentParser) -> None:
     pl.add_argument("--bitrate", type=float, default=1e6, help="nominal bit rate, bit/s (default 1e6)")
     pl.add_argument("--fd", action="store_true", help="CAN FD with bit-rate switch")
     pl.add_argument("--data-bitrate", type=float, default=None, help="CAN FD data-phase bit rate, bit/s")
-    pl.add_argument("--ts", type=float, default=55e-6, help="control period Ts, s (default 55e-6, You 2019)")
+    pl.add_argument(
+        "--ts",
+        type=float,
+        default=None,
+        help="control period Ts, s (default 55e-6, You 2019; with --from-log: the run's summary.json Ts_s)",
+    )
     pl.add_argument("--max-load", type=float, default=0.8, help="highest acceptable bus load (default 0.8)")
     pl.add_argument("--trace-pdos", type=int, default=0, help="live-trace PDOs added per period (default 0)")
     pl.add_argument("--trace-decimation", type=int, default=1, help="one trace PDO every N periods (default 1)")
+    pl.add_argument(
+        "--from-log",
+        metavar="RUN/bus.log",
+        help="replay the frames a run sent onto a simulated physical bus at --bitrate (--fd: every frame as a CAN "
+        "FD frame with bit-rate switch at --data-bitrate): each frame's exact length from its identifier and "
+        "payload (bit stuffing, CRC), arbitration by identifier, a period from each SYNC: SYNC at its start, the "
+        "plant's TPDOs when the SYNC has ended + the plant's latency, the drive's when the last measurement it "
+        "consumes has ended + its latency, every other frame (SDO, heartbeat, EMCY) at the period start. Reports "
+        "per period the bus time, whether the command ends before the next SYNC and the load: p50, p99, max, "
+        "overruns. The frames before the first SYNC (configuration) and after the loop are left out",
+    )
+    pl.add_argument(
+        "--latency-us",
+        action="append",
+        metavar="NODE=US",
+        help="with --from-log: a node's transmit latency, us, from the frame it reacts to until its frame is queued "
+        "(NODE plant or drive; repeatable; default 0 for both: the bus alone)",
+    )
+    pl.add_argument(
+        "--worst-case-stuffing",
+        action="store_true",
+        help="with --from-log: every frame at the worst case of bit stuffing (the formula's) instead of its exact bits",
+    )
     pl.add_argument("--json", action="store_true", help="print one JSON object")
 
 

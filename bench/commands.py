@@ -75,11 +75,15 @@ COMMANDS: tuple[Command, ...] = (
     ),
     Command(
         "plan",
-        help="will the PDO set fit a real-time period on this bus?",
+        help="will the PDO set fit a real-time period on this bus? (--from-log: the frames a run sent)",
         description="Bits per control period of the configured PDO set (from the EDS files) with "
         "worst-case bit stuffing, bus load, whether Ts fits in real time, the fastest "
         "period that does, and what to change. Example: bench plan --bitrate 1000000 "
-        "--ts 55e-6",
+        "--ts 55e-6. With --from-log RUN/bus.log: the frames the run sent, replayed onto a simulated "
+        "physical bus (each frame's exact stuffed length, arbitration by identifier, each node's "
+        "transmit latency): per period the bus time, whether the command ends before the next SYNC, "
+        "the load; p50, p99, max and the periods that overrun. Example: bench plan --from-log "
+        "RUN/bus.log --fd --data-bitrate 5e6 --latency-us drive=5",
         arguments=cli_tools.plan_arguments,
         handler=cli_tools.cmd_plan,
     ),

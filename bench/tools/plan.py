@@ -17,6 +17,10 @@ mapped length, plus the optional trace PDOs. The frames of one period are causal
 chained (SYNC -> measurement -> command), so the period must hold all of them; a
 period "fits" when the bus load stays at or below ``max_load`` (default 0.8), leaving
 room for the controller's computation and other traffic.
+
+This is the plan before a run. The frames a run actually sent, with each frame's exact length, arbitration and
+the nodes' latencies, are simulated by bench.tools.plan_log (`bench plan --from-log RUN/bus.log`); the worst-case
+lengths here are bench.tools.wire.worst_bits, derived there from the frame's fields.
 """
 
 from __future__ import annotations
@@ -86,7 +90,7 @@ def _bad(field: str, value: object, allowed: str) -> ValueError:
     return ValueError(f"{field} = {value}: must be {allowed}")
 
 
-def _check_inputs(
+def check_inputs(
     bitrate: float,
     ts_s: float,
     fd: bool,
@@ -121,7 +125,7 @@ def make_plan(
     trace_pdos: int = 0,
     trace_decimation: int = 1,
 ) -> Plan:
-    _check_inputs(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation)
+    check_inputs(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation)
     plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load)
     for what, n, per in pdo_set(trace_pdos, trace_decimation):
         if fd:
