@@ -79,8 +79,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from bench.tools.plan import format_plan, make_plan
 
     try:
+        if args.scenario is not None and args.from_log is not None:
+            raise ValueError("--scenario and --from-log = both given: must be one (a scenario is run to make its log)")
+        if args.scenario is not None:
+            return _plan_from_scenario(args)
         if args.from_log is not None:
             return _plan_from_log(args)
+        if args.overrides:
+            raise ValueError("--set = given: must be used with --scenario")
         if args.latency_us or args.worst_case_stuffing:
             raise ValueError("--latency-us / --worst-case-stuffing = given: must be used with --from-log")
         ts = 55e-6 if args.ts is None else args.ts
@@ -107,6 +113,28 @@ def _latencies(given: list[str]) -> dict[str, float]:
             raise ValueError(f"--latency-us = {item}: must be NODE=US, NODE plant or drive, US in [0, 1e6]")
         out[node] = us * 1e-6
     return out
+
+
+def _plan_from_scenario(args: argparse.Namespace) -> int:
+    """The frames of the scenario's own PDO mapping (its trace PDOs, its events' SDO writes): a direct run of it
+    (lockstep in this process's C library, a second for the 1 s scenario) into a folder removed afterwards, its
+    bus.log simulated as --from-log's."""
+    import subprocess
+    import tempfile
+
+    scenario = Path(args.scenario)
+    if not scenario.is_file():
+        raise ValueError(f"--scenario = {scenario}: must be a scenario file (no such file)")
+    with tempfile.TemporaryDirectory(prefix="bench-plan-") as tmp:
+        run = Path(tmp) / "run"
+        sets = [a for kv in args.overrides for a in ("--set", kv)]
+        cmd = [sys.executable, "-m", "bench.cli", "run", str(scenario), "--bus", "direct", "--no-viewer", *sets]
+        res = subprocess.run([*cmd, "--out", str(run)], capture_output=True, text=True)
+        if not (run / "bus.log").is_file():
+            raise ValueError(f"--scenario = {scenario}: its direct run wrote no bus.log: {res.stderr.strip()[-800:]}")
+        print(f"bench plan: the frames of a direct run of {scenario} (status {res.returncode})", file=sys.stderr)
+        args.from_log = run / "bus.log"
+        return _plan_from_log(args)
 
 
 def _plan_from_log(args: argparse.Namespace) -> int:
@@ -158,6 +186,20 @@ def plan_arguments(pl: argparse.ArgumentParser) -> None:
         "consumes has ended + its latency, every other frame (SDO, heartbeat, EMCY) at the period start. Reports "
         "per period the bus time, whether the command ends before the next SYNC and the load: p50, p99, max, "
         "overruns. The frames before the first SYNC (configuration) and after the loop are left out",
+    )
+    pl.add_argument(
+        "--scenario",
+        metavar="FILE",
+        help="the frames of this scenario's own PDO mapping (its trace PDOs, its events' SDO writes): the scenario "
+        "runs in direct mode (no file kept) and its frames are simulated as with --from-log",
+    )
+    pl.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="with --scenario: override a scenario value, as bench run --set",
     )
     pl.add_argument(
         "--latency-us",

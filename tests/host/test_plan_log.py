@@ -172,3 +172,18 @@ def test_cli_refusals(tmp_path: Path) -> None:
     assert "--from-log" in alone.stderr
     for res in (missing, no_sync, no_ts, alone):
         assert res.stdout == "" and "Traceback" not in res.stderr
+
+
+def test_a_scenarios_own_frames(direct_run: Path) -> None:
+    """--scenario: the frames of the scenario's own mapping (its two trace PDOs on: 6 a period, where the EDS
+    defaults have 4), the same as --from-log of a direct run of it (direct runs are deterministic)."""
+    scen = json.loads(bench_cli("plan", "--scenario", REPO / "scenarios/you2019_step.toml", "--json", expect=0).stdout)
+    log = json.loads(bench_cli("plan", "--from-log", direct_run / "bus.log", "--json", expect=0).stdout)
+    for d in (scen, log):
+        d.pop("log"), d.pop("ts_from")
+    assert scen == log
+    assert make_plan(1e6, scen["ts_s"]).time_per_period_s < scen["bus_time_s"]["p50"]  # more frames than the defaults
+    refused = bench_cli("plan", "--scenario", REPO / "scenarios/you2019_step.toml", "--set", "scenario.periods=-1")
+    assert refused.returncode == 2 and "scenario.periods = -1" in refused.stderr, refused.stderr
+    both = bench_cli("plan", "--scenario", REPO / "scenarios/you2019_step.toml", "--from-log", direct_run / "bus.log")
+    assert both.returncode == 2 and "--scenario and --from-log" in both.stderr
