@@ -23,18 +23,17 @@ grouped by cause) into the soak's folder, build/soak/<time>/. Exit 0 when no fal
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
 from collections import Counter
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+
+from bench.tools.busy import busy_loops
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # run as a script: the bench's own modules (the CAN box's state)
@@ -61,20 +60,6 @@ def test_vcan(hil_run, i):
 def test_direct(hil_run, i):
     hil_run(SCENARIO).expect_status("ok").expect_no_emcy()
 '''
-
-
-@contextlib.contextmanager
-def busy_loops(n: int) -> Iterator[list[int]]:
-    """n busy loops, killed by their PIDs when the block ends (also on SIGTERM, turned into SystemExit)."""
-    procs = [subprocess.Popen(["sh", "-c", "while :; do :; done"]) for _ in range(n)]
-    old = signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    try:
-        yield [p.pid for p in procs]
-    finally:
-        for p in procs:
-            p.kill()
-            p.wait()
-        signal.signal(signal.SIGTERM, old)
 
 
 def outcomes(junit: Path) -> dict[str, tuple[bool, str]]:
@@ -186,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     subprocess.run([str(BENCH), "box", "up"], check=False)  # booted once, before the load: not counted in a round
     rounds: list[dict[str, Any]] = []
     try:
-        with busy_loops(a.busy) as pids:
+        with busy_loops(a.busy, sigterm_exits=True) as pids:
             print(f"soak: busy loops {pids}", flush=True)
             for k in range(a.rounds):
                 rounds.append(plugin_round(folder, a.tests, k))

@@ -30,6 +30,7 @@ from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.run.verdict.summary import EXIT_CODES
 from bench.scenario import load
+from bench.tools.busy import busy_loops
 
 STEP = REPO / "scenarios" / "you2019_step.toml"
 TUNE = REPO / "tests" / "scenarios" / "parity.toml"
@@ -62,13 +63,8 @@ def test_lockstep_under_cpu_load_is_bit_identical(vcan0: str, tmp_path: Path) ->
     quiet = run_scenario(sc, RunOptions(bus=vcan0, out=tmp_path / "quiet"), keep_trace=True)
     # Busy loops at the nodes' priority, twice as many as there are CPUs: the nodes, the master and the
     # recorder get a third of a CPU each, the loop runs several times slower; nothing else may change.
-    hogs = [subprocess.Popen(["sh", "-c", "while :; do :; done"]) for _ in range(2 * (os.cpu_count() or 1))]
-    try:
+    with busy_loops(2 * (os.cpu_count() or 1)):
         loaded = run_scenario(sc, RunOptions(bus=vcan0, out=tmp_path / "loaded"), keep_trace=True)
-    finally:
-        for h in hogs:
-            h.kill()
-            h.wait()
     for name, res in (("quiet", quiet), ("loaded", loaded)):
         s = res.summary
         # what a failure needs to be explained (it once failed under load with its message lost): the first

@@ -26,10 +26,8 @@ import contextlib
 import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -48,7 +46,7 @@ TARGET_P99_RATIO_OTHER = 2.0  # at any other Ts, and under load or with the live
 TARGET_P999_RATIO = 2.0  # at Ts = 100 us, idle
 TARGET_OVERRUN_FACTOR = 1.2  # overruns <= this x cyclictest's wake-ups a period or more late
 TARGET_OVERRUN_TS_US = 100.0
-BURNER = "while :; do :; done"
+BURNER = "while :; do :; done"  # bench/tools/busy.py LOOP, as the report names it
 MISSING = "bench perf: the realtime section needs cyclictest (Debian's rt-tests): apt-get install rt-tests"
 STATS = ("min", "mean", "p50", "p99", "p99_9", "max")
 
@@ -171,27 +169,11 @@ def burner_cpus() -> list[int]:
     return [c for c in cpus if c != plant_cpu()] or cpus
 
 
-@contextlib.contextmanager
-def burners(n: int) -> Iterator[list[int]]:
-    """n busy loops (bash) on the CPUs other than the plant's, each in its own session; killed by their pid on
-    the way out."""
-    pin = ["taskset", "-c", ",".join(str(c) for c in burner_cpus())] if shutil.which("taskset") else []
-    procs = [
-        subprocess.Popen(
-            [*pin, "bash", "-c", BURNER],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        for _ in range(n)
-    ]
-    try:
-        yield [p.pid for p in procs]
-    finally:
-        for p in procs:
-            p.kill()
-            p.wait()
+def burners(n: int) -> contextlib.AbstractContextManager[list[int]]:
+    """n busy loops on the CPUs other than the plant's (bench/tools/busy.py); killed by their pid on the way out."""
+    from bench.tools.busy import busy_loops
+
+    return busy_loops(n, burner_cpus())
 
 
 def _ratio(a: float | None, b: float | None) -> float | None:
