@@ -35,10 +35,31 @@ SERIAL = {
 }
 
 
+# The "box" group's files in the order they run: the MCU image's own VMs first (the box down), then those that only use
+# the box (one boot for the three), then those that kill, stop and boot it (test_box.py's fixture finds it up).
+BOX_ORDER = (
+    "test_mcu_image.py",
+    "test_mcu_in_the_loop.py",
+    "test_reproduce_report.py",
+    "test_user_project.py",
+    "test_example_law.py",
+    "test_box.py",
+    "test_hil_cancel.py",
+)
+
+assert set(BOX_ORDER) == {f for f, g in SERIAL.items() if g == "box"}, "a file of the box group without its place"
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         if CAN_DIR in Path(str(item.fspath)).parents:
             item.add_marker(pytest.mark.can)
+
+    def rank(item: pytest.Item) -> int:  # a stable sort: the other files keep their order, before the box group's
+        name = Path(str(item.fspath)).name
+        return BOX_ORDER.index(name) if name in BOX_ORDER else -1
+
+    items.sort(key=rank)
 
 
 @pytest.hookimpl(optionalhook=True)
