@@ -52,6 +52,7 @@ class BoxLog:
     cancelled: str | None = None  # how the session was cut short: "cancelled by SIGTERM", "interrupted"
     end: str | None = None  # what the session's end did with the box
     down: bool = False  # whether the box was down at the session's end
+    ours_at_end: bool = False  # the box up at the session's end was booted by one of its runs (not by ensure)
 
     def export(self) -> dict[str, Any]:
         return {"boots": self.boots, "runs": self.runs, "slots": sorted(self.slots), "cancelled": self.cancelled}
@@ -219,6 +220,7 @@ def finish(config: pytest.Config) -> None:
         os.environ[life.OWNER_ENV] = log.env_before
     info = life.read_info()
     idle = f"{info.idle_timeout_s:g} s" if info is not None else ""
+    log.ours_at_end = info is not None and info.booted_by == log.token
     if info is None:
         log.down = True
         log.end = "down at the session's end" + _last_end()
@@ -253,7 +255,9 @@ def summary_line(log: BoxLog) -> str | None:
         n = len(log.boots)
         each = ", ".join(f"{b['s']:.1f} s" + (f", {b['worker']}" if b.get("worker") else "") for b in log.boots)
         head = f"booted {'once' if n == 1 else f'{n} times'} by this session ({each})"
-    elif log.up_before:
+    elif log.ours_at_end and log.up_before:  # the box of before ended, and a run of this session booted another
+        head = "booted by a run of this session (the one up before it ended)"
+    elif log.up_before and not log.ours_at_end:
         head = "up before this session"
     else:
         head = "booted by a run of this session"

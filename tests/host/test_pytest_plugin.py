@@ -392,6 +392,11 @@ def test_the_box_line_and_which_runs_go_to_the_box() -> None:
     )
     before = BoxLog(up_before="someone", runs=1, slots={4}, end="left up: ...")
     assert summary_line(before) == "hil: CAN box: up before this session; 1 run in it, slot 4; left up: ..."
+    # the box of before ended mid-session and a run of this session booted another (its token): said so
+    again = BoxLog(up_before="someone", runs=2, slots={1}, end="stopped ...", ours_at_end=True)
+    assert summary_line(again) == (
+        "hil: CAN box: booted by a run of this session (the one up before it ended); 2 runs in it, slot 1; stopped ..."
+    )
     assert needs("direct") is None and needs("can0") is None
     assert needs("vcan0", ["--drive", "mcu"]) is None and needs("vcan0", ["--drive=mcu"]) is None  # a VM of its own
     assert needs("vcan0", ["--box"]) == "asked for (--box or BENCH_BOX=1)"
