@@ -292,6 +292,12 @@ def run_scenario(
     )
     if sc.trip_note:  # a free rotor whose trip reaction may leave its flux map (bench/motor/trip.py): never silent
         res.summary.setdefault("notes", []).append(sc.trip_note)
+    outside = (res.summary.get("counters") or {}).get("plant_outside_map_periods")
+    if outside:  # the flux-map model counts the periods that ended off its grid (plant.eds Run control)
+        res.summary.setdefault("notes", []).append(
+            f"the currents left the flux map's grid in {outside} periods: the plant extrapolated the map there "
+            "(extend the map, or lower drive.I_trip_A: docs/YOUR_MOTOR.md)"
+        )
     if collector is not None:
         res.trace = collector.trace
     return res

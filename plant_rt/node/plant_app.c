@@ -221,6 +221,7 @@ static void hook_on_sync(void *user, co_node_t *node, uint8_t counter)
     publish_sample(app, counter, status);
 
     rc->period_index = (uint32_t)app->k;
+    rc->outside_map_periods = app->state.outside_map_periods;
     /* Still running until the command for this sample is in (see plant_app_poll). */
     rc->state = 1u;
 }

@@ -185,7 +185,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2002_Sensors.encoder_lines = 0x9C4u,
     .mfr.x2002_Sensors.adc_offset_b_A = 0.0f,
     .mfr.x2002_Sensors.adc_full_scale_A = 0.0f,
-    .mfr.x2003_run_control.highest_sub_index_supported = 0x9u,
+    .mfr.x2003_run_control.highest_sub_index_supported = 0xAu,
     .mfr.x2003_run_control.mode = 0x0u,
     .mfr.x2003_run_control.run_periods = 0x0u,
     .mfr.x2003_run_control.period_index = 0x0u,
@@ -195,6 +195,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2003_run_control.trip_clear = 0x0u,
     .mfr.x2003_run_control.trip_active = 0x0u,
     .mfr.x2003_run_control.state = 0x0u,
+    .mfr.x2003_run_control.outside_map_periods = 0x0u,
     .mfr.x2004_motor_preset = "you2019",
     .mfr.x2005_plant_state.highest_sub_index_supported = 0xCu,
     .mfr.x2005_plant_state.id_A = 0.0f,
@@ -437,6 +438,7 @@ static const co_od_entry_t entries[] = {
     {0x2003u, 0x07u, CO_DT_UNSIGNED8, CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.trip_clear), &OD_PLANT.mfr.x2003_run_control.trip_clear, {.i = 0}, {.i = 1}}, /* trip_clear */
     {0x2003u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.trip_active), &OD_PLANT.mfr.x2003_run_control.trip_active, {.i = 0}, {.i = 0}}, /* trip_active */
     {0x2003u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2003_run_control.state), &OD_PLANT.mfr.x2003_run_control.state, {.i = 0}, {.i = 0}}, /* state */
+    {0x2003u, 0x0Au, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.outside_map_periods), &OD_PLANT.mfr.x2003_run_control.outside_map_periods, {.i = 0}, {.i = 0}}, /* outside_map_periods */
     {0x2004u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_PLANT.mfr.x2004_motor_preset, {.i = 0}, {.i = 0}}, /* Motor preset */
     {0x2005u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported), &OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2005u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.id_A), &OD_PLANT.mfr.x2005_plant_state.id_A, {.i = 0}, {.i = 0}}, /* id_A */

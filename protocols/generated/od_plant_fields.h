@@ -222,6 +222,7 @@
 #define OD_PLANT_RUN_CONTROL_TRIP_CLEAR_SUB 0x07u
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_SUB 0x08u
 #define OD_PLANT_RUN_CONTROL_STATE_SUB 0x09u
+#define OD_PLANT_RUN_CONTROL_OUTSIDE_MAP_PERIODS_SUB 0x0Au
 #define OD_PLANT_MOTOR_PRESET_IDX 0x2004u
 #define OD_PLANT_PLANT_STATE_IDX 0x2005u
 #define OD_PLANT_PLANT_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
@@ -431,6 +432,7 @@ typedef struct {
     uint8_t trip_clear;
     uint8_t trip_active;
     uint8_t state;
+    uint32_t outside_map_periods;
 } od_plant_run_control_t;
 
 
@@ -447,7 +449,8 @@ typedef struct {
     X(0x2003u, 0x05u, x2003_run_control, missed_commands, 0u) \
     X(0x2003u, 0x06u, x2003_run_control, late_commands, 0u) \
     X(0x2003u, 0x08u, x2003_run_control, trip_active, 0u) \
-    X(0x2003u, 0x09u, x2003_run_control, state, 0u)
+    X(0x2003u, 0x09u, x2003_run_control, state, 0u) \
+    X(0x2003u, 0x0Au, x2003_run_control, outside_map_periods, 0u)
 
 #define OD_PLANT_RUN_CONTROL_MODE_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_RUN_PERIODS_DEFAULT 0u
@@ -458,6 +461,7 @@ typedef struct {
 #define OD_PLANT_RUN_CONTROL_TRIP_CLEAR_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_STATE_DEFAULT 0u
+#define OD_PLANT_RUN_CONTROL_OUTSIDE_MAP_PERIODS_DEFAULT 0u
 
 /* 0x2005 Plant state */
 typedef struct {

@@ -280,3 +280,23 @@ def test_the_ready_sweep_puts_the_identified_L_beside_the_maps_truth(tmp_path: P
         assert 0.5 * lqq < r["identified.L_hat_H"] < 1.2 * lqq, r
     assert rows[-1]["motor.Lqq_H"] < 0.6 * rows[0]["motor.Lqq_H"]  # it saturates over the sweep
     assert (out / "line_inductance.png").stat().st_size > 5000
+
+
+def test_the_periods_off_the_map_are_counted_and_named(hil_run: HilRunner, tmp_path: Path) -> None:
+    """With the trip off (drive.I_trip_A = 0, which asks the map for nothing) a 15 A step leaves a +-10 A map: the
+    plant counts the periods that ended off its grid (plant.eds Run control.outside_map_periods), the summary has
+    the count and a note naming the extrapolation. The count equals the samples whose dq currents (the trace's)
+    are off the grid, within the samples' float32 rounding at the edge; a run on the map counts 0 and says nothing."""
+    g = np.linspace(-10.0, 10.0, 5)
+    idg, iqg = np.meshgrid(g, g, indexing="ij")
+    folder = write_folder(tmp_path / "small", g, g, LD_H * idg + PSI_WB, LQ_H * iqg)
+    over = {"drive.I_trip_A": 0.0, "references.iq_ref_A": 15.0}
+    run = hil_run(STEP, over, bus="direct", motor=folder, name="off").expect_status("ok")
+    n = run.summary["counters"]["plant_outside_map_periods"]
+    tr = run.traces
+    off = np.maximum(np.abs(tr["id_A"][1:]), np.abs(tr["iq_A"][1:])) - 10.0  # rows 1..: the ends of periods 1..
+    assert np.count_nonzero(off > 1e-4) <= n <= np.count_nonzero(off > -1e-4), (n, off.max())
+    assert n > 0 and any(f"left the flux map's grid in {n} periods" in note for note in run.summary["notes"])
+    inside = hil_run(STEP, {"drive.I_trip_A": 0.0}, bus="direct", motor=folder, name="on").expect_status("ok")
+    assert inside.summary["counters"]["plant_outside_map_periods"] == 0
+    assert not any("flux map's grid" in note for note in inside.summary.get("notes") or [])

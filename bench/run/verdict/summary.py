@@ -250,6 +250,7 @@ def build_summary(
             "plant_missed_commands": dec.sdo.plant.get("Run control", "missed_commands"),
             "plant_late_commands": dec.sdo.plant.get("Run control", "late_commands"),
             "plant_period_index": dec.sdo.plant.get("Run control", "period_index"),
+            "plant_outside_map_periods": dec.sdo.plant.get("Run control", "outside_map_periods"),
             "drive_current_steps": ctl.get("Drive status", "current_steps"),
             "drive_lost_measurements": ctl.get("Drive status", "lost_measurements"),
             "drive_late_measurements": ctl.get("Drive status", "late_measurements"),
