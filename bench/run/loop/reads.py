@@ -14,7 +14,11 @@ from bench.laws import result_reads
 CONTROLLER_VALUES = ("controller", "R_hat_ohm", "Ld_hat_H", "Lq_hat_H", "psi_hat_Wb", "Vmax_V", "Ts_s", "pole_pairs")
 # Statuses read at the end: (node, object, entries).
 END_READS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    ("plant", "Run control", ("missed_commands", "late_commands", "period_index", "trip_active", "outside_map_periods")),
+    (
+        "plant",
+        "Run control",
+        ("missed_commands", "late_commands", "period_index", "trip_active", "outside_map_periods"),
+    ),
     ("drive", "Drive status", ("current_steps", "lost_measurements", "late_measurements")),
     ("drive", "Controller", CONTROLLER_VALUES),
     *result_reads(),
