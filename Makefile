@@ -56,13 +56,14 @@ law_names = $(shell sed -n 's/^[[:space:]]*CurrentLaws[[:space:]]*=[[:space:]]*\
 # interface, firmware_shim/core (current_law.h, dq_math.h, drive_config.h) and the generated OD fields it includes.
 LAW_INC = $(filter -I$(GEN_DIR) -Iprotocols/generated -Ifirmware_shim/core,$(INC))
 # The checks of a law folder's objects, a paper's as a user's: each name's descriptor defined (nm; $(1) names,
-# $(2) objects, $(3) who), and the members the drive calls unconditionally filled with a state that fits (law_check.c).
+# $(2) objects, $(3) who), and the members the drive calls unconditionally filled with a state that fits (law_check.c;
+# $(1) names, $(2) who, $(3) the check program's name: the papers' and a user's law apart, for make -j).
 law_nm_check = for n in $(1); do nm $(2) | grep -Eq " [RDBGS] current_law_$$n\$$" || { echo "make: $(3): no C file \
 	of the folder defines the symbol current_law_$$n (const current_law_t current_law_$$n = {...};)" >&2; exit 1; }; done
-law_check_run = for n in $(1); do rm -f $(BUILD)/law_check.err; \
-	$(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n firmware_shim/law/law_check.c $(LIBFW) -lm -o $(BUILD)/bin/law_check \
-	2> $(BUILD)/law_check.err && $(BUILD)/bin/law_check 2> $(BUILD)/law_check.err || { \
-	sed 's|^law_check: |make: $(2): |' $(BUILD)/law_check.err >&2; exit 1; }; done
+law_check_run = for n in $(1); do rm -f $(BUILD)/$(3).err; \
+	$(CC) $(CFLAGS_HOST) $(INC) -DLAW_NAME=$$n firmware_shim/law/law_check.c $(LIBFW) -lm -o $(BUILD)/bin/$(3) \
+	2> $(BUILD)/$(3).err && $(BUILD)/bin/$(3) 2> $(BUILD)/$(3).err || { \
+	sed 's|^law_check: |make: $(2): |' $(BUILD)/$(3).err >&2; exit 1; }; done
 
 # The FMU loader (plant_rt/fmu/: host glue, dlopen): the FMI 2.0/3.0 co-simulation interface it calls is declared
 # by its own plant_rt/fmu/plant_fmi_api.h (no external FMI header), so it is always built, with our warnings.
@@ -249,7 +250,7 @@ $(BUILD)/obj/firmware_shim/laws/%.o: firmware_shim/laws/%.c
 $(BUILD)/laws.checked: firmware_shim/law/law_check.c $(LIBFW)
 	@mkdir -p $(BUILD)/bin
 	@$(foreach d,$(LAW_DIRS),$(call law_nm_check,$(call law_names,$(d)),$(call obj,$(wildcard $(d)/*.c)),$(d)) && \
-	  $(call law_check_run,$(call law_names,$(d)),$(d)) && ) true
+	  $(call law_check_run,$(call law_names,$(d)),$(d),law_check_papers) && ) true
 	@touch $@
 $(BUILD)/obj/%.o: %.c
 	@mkdir -p $(@D)
@@ -351,7 +352,7 @@ $(LIBFW) $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_OK)
 # ... and fills the members the drive calls unconditionally, with a state that fits (firmware_shim/law/law_check.c).
 $(LAW_CHECKED): firmware_shim/law/law_check.c $(LIBFW)
 	@mkdir -p $(BUILD)/bin
-	@$(call law_check_run,$(LAW_NAMES),LAW=$(LAW))
+	@$(call law_check_run,$(LAW_NAMES),LAW=$(LAW),law_check)
 	@touch $@
 $(BUILD)/bin/drive_node $(BUILD)/libhil.so $(MCU_ELF): | $(LAW_CHECKED)
 endif

@@ -79,6 +79,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from bench.tools.plan import format_plan, make_plan
 
     try:
+        _plan_option_mix(args)
         if args.scenario is not None and args.from_log is not None:
             raise ValueError("--scenario and --from-log = both given: must be one (a scenario is run to make its log)")
         if args.scenario is not None:
@@ -98,6 +99,22 @@ def cmd_plan(args: argparse.Namespace) -> int:
         return 2
     print(plan.to_json() if args.json else format_plan(plan))
     return 0
+
+
+def _plan_option_mix(args: argparse.Namespace) -> None:
+    """Options that mean nothing together are refused, never ignored."""
+    if args.data_bitrate is not None and not args.fd:
+        raise ValueError(f"--data-bitrate = {args.data_bitrate:g}: must be used with --fd (a classic bus has one rate)")
+    if args.fd and args.data_bitrate is not None and args.data_bitrate < args.bitrate:
+        raise ValueError(
+            f"--data-bitrate = {args.data_bitrate:g}: must be >= --bitrate ({args.bitrate:g}; CAN FD switches up)"
+        )
+    frames_given = args.from_log is not None or args.scenario is not None
+    if frames_given and (args.trace_pdos != 0 or args.trace_decimation != 1):
+        raise ValueError(
+            "--trace-pdos / --trace-decimation = given: the frames of --from-log or --scenario are the run's own "
+            "(its trace PDOs included); use them without"
+        )
 
 
 def _latencies(given: list[str]) -> dict[str, float]:
@@ -129,7 +146,7 @@ def _plan_from_scenario(args: argparse.Namespace) -> int:
         run = Path(tmp) / "run"
         sets = [a for kv in args.overrides for a in ("--set", kv)]
         cmd = [sys.executable, "-m", "bench.cli", "run", str(scenario), "--bus", "direct", "--no-viewer", *sets]
-        res = subprocess.run([*cmd, "--out", str(run)], capture_output=True, text=True)
+        res = subprocess.run([*cmd, "--out", str(run)], capture_output=True, text=True, timeout=3600)
         if not (run / "bus.log").is_file():
             raise ValueError(f"--scenario = {scenario}: its direct run wrote no bus.log: {res.stderr.strip()[-800:]}")
         print(f"bench plan: the frames of a direct run of {scenario} (status {res.returncode})", file=sys.stderr)

@@ -33,10 +33,10 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-from bench.tools.busy import busy_loops
-
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))  # run as a script: the bench's own modules (the CAN box's state)
+sys.path.insert(0, str(REPO))  # run as a script: the bench's own modules (the CAN box's state, the busy loops)
+from bench.tools.busy import busy_loops  # noqa: E402 (after the path it is found on)
+
 PY = REPO / ".venv" / "bin" / "python"
 BENCH = REPO / ".venv" / "bin" / "bench"
 

@@ -238,7 +238,8 @@ def freeze_timeout_us(bus: str) -> int:
 
 
 def check_freeze_drive(bus: str, law: Law) -> FaultCheck:
-    # n x the command timeout (plus up to one heartbeat period) well within the heartbeat consumer time (1 s)
+    # n x the command timeout (plus up to one heartbeat period) well within the heartbeat consumer time (1 s; the
+    # CAN box's 5 s: freeze_timeout_us)
     # that the frozen drive's silence must not reach; each the longest it can be: a loaded machine's stall
     # beyond it elsewhere in the run would hold a command the fault did not cause
     p, n = STEP_AT + 10, 1

@@ -107,7 +107,10 @@ def load(folder: str | Path) -> MotorFolder:
     if len(chosen) > 1:
         raise MotorError(f"{desc}: [{chosen[0]}] and [{chosen[1]}]: a folder describes one machine model")
     values = _motor_values(desc, raw.get("motor"), linear="flux_map" not in raw)
-    values.update(_thermal_values(desc, raw.get("thermal")))
+    thermal = _thermal_values(desc, raw.get("thermal"))
+    _in_range(desc, "motor", values)
+    _in_range(desc, "thermal", thermal)
+    values.update(thermal)
     if "flux_map" not in raw:
         return _model_folder(path, desc, raw, values, models)
     fm = raw.get("flux_map")
@@ -161,6 +164,7 @@ def _model_folder(
             if not _number(value, integer=keys[key].data_type in INTEGER_TYPES):
                 raise MotorError(f"{desc}: {model}.{key} = {value!r}: expected {_kind(_type(keys[key]))}")
             values[key] = value
+        _in_range(desc, model, {k: v for k, v in values.items() if k in keys}, keys)
     name, source = str(values.pop("name")), str(values.pop("source"))
     return MotorFolder(path, name, source, None, None, values, model=model)
 
@@ -191,6 +195,21 @@ def _motor_values(desc: Path, motor: Any, linear: bool) -> dict[str, Any]:
     if not out["R_ohm"] > 0:
         raise MotorError(f"{desc}: motor.R_ohm = {out['R_ohm']!r}: a phase resistance must be > 0")
     return out
+
+
+def _in_range(desc: Path, table: str, values: dict[str, Any], keys: dict[str, Any] | None = None) -> None:
+    """Each EDS entry of the folder's `table` in its plant.eds range (the scenario's own check, bench.scenario.settings
+    setting), named as the file writes it ("harmonic.psi_5_Wb"): refused here, before anything starts."""
+    from bench.scenario.settings import param_tables, setting
+
+    tables = param_tables()
+    own = keys if keys is not None else {**tables["motor"], "I_trip_A": tables["drive"]["I_trip_A"]}
+    for key, value in values.items():
+        if key in own:
+            try:
+                setting(str(desc), table, key, value, {table: own})
+            except ScenarioError as exc:
+                raise MotorError(str(exc)) from None
 
 
 def _thermal_values(desc: Path, thermal: Any) -> dict[str, float]:

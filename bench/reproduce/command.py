@@ -193,6 +193,11 @@ def main(args: argparse.Namespace) -> int:
         return 0
     out, why = _out_folder(args)
     why = chosen(_load_functions(papers), args.claims)[1] or why
+    if args.claims and args.publish and why is None:  # a published report is the papers' whole set
+        why = (
+            "bench reproduce: --publish with --claim: a published report holds every claim of the papers chosen, "
+            "not some of them; nothing was run or written. Publish a run without --claim."
+        )
     if why is not None:
         print(why, file=sys.stderr)
         return 2

@@ -50,27 +50,33 @@ class LoopIds:
 
 
 def loop_ids(plant_id: int, drive_id: int) -> LoopIds:
-    """The loop's COB-IDs from the EDS files (every TPDO, enabled or not: a run may enable one by SDO)."""
+    """The loop's COB-IDs from the EDS files (every TPDO, enabled or not: a run may enable one by SDO). Which plant
+    TPDOs the drive consumes (and the reverse) is read at the EDS's own node-IDs, where each node's RPDOs name the
+    other's TPDOs, and carried by TPDO number to the run's IDs (the bench points the RPDOs there by SDO)."""
+    from bench.eds import default_node_id
     from bench.eds import load as load_od
 
-    plant, drive = load_od("plant", plant_id), load_od("drive", drive_id)
-
-    def cobs(od: Any, base: int, valid_only: bool) -> set[int]:
-        out = set()
+    def cobs(od: Any, base: int, valid_only: bool) -> dict[int, int]:
+        out = {}
         for n in range(4):
             try:
                 value = int(od[base + n][1].default)
             except KeyError:
                 continue
             if not (valid_only and value & 0x80000000):
-                out.add(value & 0x7FF)
+                out[n] = value & 0x7FF
         return out
 
+    plant0, drive0 = load_od("plant", default_node_id("plant")), load_od("drive", default_node_id("drive"))
+    measured = {n for n, c in cobs(plant0, 0x1800, False).items() if c in cobs(drive0, 0x1400, True).values()}
+    commanding = {n for n, c in cobs(drive0, 0x1800, False).items() if c in cobs(plant0, 0x1400, True).values()}
+    plant, drive = load_od("plant", plant_id), load_od("drive", drive_id)
     p_tx, d_tx = cobs(plant, 0x1800, False), cobs(drive, 0x1800, False)
-    measurement = p_tx & cobs(drive, 0x1400, True)
-    command = d_tx & cobs(plant, 0x1400, True)
+    measurement = {c for n, c in p_tx.items() if n in measured}
+    command = {c for n, c in d_tx.items() if n in commanding}
     sync = int(plant[0x1005].default) & 0x7FF
-    return LoopIds(sync, frozenset(p_tx), frozenset(d_tx), frozenset(measurement or p_tx), frozenset(command or d_tx))
+    p, d = frozenset(p_tx.values()), frozenset(d_tx.values())
+    return LoopIds(sync, p, d, frozenset(measurement) or p, frozenset(command) or d)
 
 
 def run_node_ids(log: Path) -> tuple[int, int, str]:
@@ -135,7 +141,8 @@ class PeriodResult:
     bus_time_s: float
     chain_end_s: float
     load: float
-    fits: bool  # the chain ends before the next SYNC
+    fits: bool  # the chain ends before the next SYNC (and the period has its command)
+    has_command: bool = True  # a drive TPDO the plant consumes was in the period (else the chain ends earlier)
 
 
 @dataclass
@@ -167,6 +174,8 @@ class LogPlan:
     extra_tpdos: int  # TPDOs per period (median) that the other node does not consume: the trace PDOs
     overruns: int  # periods whose chain ends after the next SYNC
     over_load: int  # periods above max_load
+    longer_than_ts: int = 0  # periods whose frames take longer than Ts: on the real bus a backlog grows each period
+    no_command: int = 0  # periods without a command frame (a lost one): never counted as fitting
     periods: list[PeriodResult] = field(default_factory=list)
     formula_s: float | None = None  # bench plan's worst-case formula on the EDS PDO set + extra_tpdos, same bus
 
@@ -303,9 +312,9 @@ def simulate(
         extra.append(sum(1 for k in kinds if k in ("plant", "drive")))
         timed = [(m.arbitration_id, wire.bits(m).time_s(bitrate, data_bitrate)) for m in frames]
         sim = simulate_period(timed, kinds, lat)
-        results.append(
-            PeriodResult(n, len(frames), sim.bus_time_s, sim.chain_end_s, sim.busy_s / ts_s, sim.chain_end_s <= ts_s)
-        )
+        cmd = "command" in kinds
+        fits = cmd and sim.chain_end_s <= ts_s and sim.bus_time_s <= ts_s
+        results.append(PeriodResult(n, len(frames), sim.bus_time_s, sim.chain_end_s, sim.busy_s / ts_s, fits, cmd))
     bus = np.array([r.bus_time_s for r in results])
     chain = np.array([r.chain_end_s for r in results])
     load = np.array([r.load for r in results])
@@ -330,6 +339,8 @@ def simulate(
         extra_tpdos=int(np.median(extra)),
         overruns=int((chain > ts_s).sum()),
         over_load=int((load > max_load).sum()),
+        longer_than_ts=int((bus > ts_s).sum()),
+        no_command=sum(not r.has_command for r in results),
         periods=results,
     )
 
@@ -362,6 +373,13 @@ def format_log_plan(plan: LogPlan) -> str:
         f"the command comes after the next SYNC in {plan.overruns} of {n} periods; the load exceeds "
         f"{plan.max_load * 100:.0f}% in {plan.over_load} of {n}"
     )
+    if plan.longer_than_ts:
+        lines.append(
+            f"the frames of a period take longer than Ts in {plan.longer_than_ts} of {n} periods: each is simulated "
+            "from an idle bus; on the real bus the backlog would grow from period to period"
+        )
+    if plan.no_command:
+        lines.append(f"{plan.no_command} of {n} periods have no command frame (lost?): none of them counts as fitting")
     if plan.formula_s is not None:
         lines.append(
             f"bench plan's formula (worst-case stuffing; the EDS PDO set + {plan.extra_tpdos} trace PDOs): "

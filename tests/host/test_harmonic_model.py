@@ -134,6 +134,11 @@ def test_a_motor_folder_without_a_map_is_checked_key_by_key(tmp_path: Path) -> N
         "not a number": (_folder(tmp_path / "c", base, harmonic={"psi_5_Wb": "x"}), "harmonic.psi_5_Wb = 'x'"),
         "an integer": (_folder(tmp_path / "d", base, harmonic={"cogging_periods": 2.5}), "expected an integer"),
         "thermal": (_folder(tmp_path / "e", base, thermal={"T_ref_degC": 20}), "[thermal] is the flux-map"),
+        "out of range": (_folder(tmp_path / "g", {**base, "Ld_H": -0.001}), "motor.Ld_H = -0.001 is out of range"),
+        "the record's range": (
+            _folder(tmp_path / "h", base, harmonic={"psi_5_Wb": 1e9}),
+            "harmonic.psi_5_Wb = 1000000000.0 is out of range",
+        ),
         "two models": (
             _folder(tmp_path / "f", base, harmonic={}, flux_map={"file": "x.csv"}),
             "a folder describes one machine model",

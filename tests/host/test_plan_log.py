@@ -64,6 +64,7 @@ def test_hand_made_log_schedule(tmp_path: Path) -> None:
     assert [p.load for p in plan.periods] == pytest.approx([b / 600 for b in busy])
     assert [p.fits for p in plan.periods] == [True, False, False]
     assert plan.overruns == 2 and plan.over_load == 2  # 470/600 = 0.78 <= 0.8; 670/600, 605/600 above
+    assert plan.longer_than_ts == 2 and plan.no_command == 0  # 670 and 625 us of frames in a 600 us period
     assert plan.bus_time_s.p50 / US == pytest.approx(625)
     assert plan.bus_time_s.p99 / US == pytest.approx(625 + 0.98 * (670 - 625))  # linear between the top two
     assert plan.bus_time_s.max / US == pytest.approx(670)
@@ -152,6 +153,8 @@ def test_cli_from_log(direct_run: Path) -> None:
         (["--bitrate", "2e6"], "--bitrate"),
         (["--fd"], "--data-bitrate"),
         (["--max-load", "0"], "--max-load"),
+        (["--data-bitrate", "8e6"], "--data-bitrate"),  # without --fd: a classic bus has one rate
+        (["--fd", "--bitrate", "1e6", "--data-bitrate", "5e5"], "--data-bitrate"),  # below the nominal rate
     ],
 )
 def test_cli_bad_numbers(tmp_path: Path, extra: list[str], field: str) -> None:
@@ -170,7 +173,9 @@ def test_cli_refusals(tmp_path: Path) -> None:
     assert no_ts.stderr.startswith("bench plan: --ts = ") and "summary.json" in no_ts.stderr
     alone = bench_cli("plan", "--latency-us", "drive=1", expect=2)
     assert "--from-log" in alone.stderr
-    for res in (missing, no_sync, no_ts, alone):
+    traced = bench_cli("plan", "--from-log", _write(tmp_path, HAND_LOG), "--ts", "1e-3", "--trace-pdos", "2", expect=2)
+    assert "--trace-pdos" in traced.stderr and "the run's own" in traced.stderr
+    for res in (missing, no_sync, no_ts, alone, traced):
         assert res.stdout == "" and "Traceback" not in res.stderr
 
 
@@ -187,3 +192,25 @@ def test_a_scenarios_own_frames(direct_run: Path) -> None:
     assert refused.returncode == 2 and "scenario.periods = -1" in refused.stderr, refused.stderr
     both = bench_cli("plan", "--scenario", REPO / "scenarios/you2019_step.toml", "--from-log", direct_run / "bus.log")
     assert both.returncode == 2 and "--scenario and --from-log" in both.stderr
+
+
+def test_a_period_without_its_command_never_fits(tmp_path: Path) -> None:
+    """The hand log's first period without its command frame (a lost one): its chain would end at the last
+    measurement (345 us, well inside Ts), but a period without its command is counted as such, never as fitting."""
+    lost = HAND_LOG.replace(f"(1.000030) vcan0 210#{EIGHT}\n", "")
+    plan = simulate(_write(tmp_path, lost), 1e6, None, 600 * US, {"plant": 10 * US, "drive": 20 * US}, 0.8, True)
+    first = plan.periods[0]
+    assert not first.has_command and not first.fits and first.chain_end_s / US == pytest.approx(345)
+    assert plan.no_command == 1 and [p.has_command for p in plan.periods] == [False, True, True]
+
+
+def test_a_run_at_other_node_ids(tmp_path: Path) -> None:
+    """A run at plant node-ID 0x11: summary.json records its node_ids, the simulation takes them from there and
+    finds the loop's frames at those IDs (the command ends before the period's last frame, the trace PDOs)."""
+    out = tmp_path / "run"
+    bench_cli("run", REPO / "scenarios/you2019_step.toml", "--bus", "direct", "--no-viewer", "--plant-id", "0x11",
+              "--out", out, expect=0)  # fmt: skip
+    assert json.loads((out / "summary.json").read_text())["node_ids"] == {"plant": 0x11, "drive": 0x20}
+    plan = json.loads(bench_cli("plan", "--from-log", out / "bus.log", "--json", expect=0).stdout)
+    assert plan["node_ids"] == {"plant": 0x11, "drive": 0x20} and plan["node_ids_from"] == "summary.json"
+    assert plan["chain_end_s"]["p50"] < plan["bus_time_s"]["p50"]

@@ -162,3 +162,7 @@ def test_a_claim_the_papers_lack_is_refused_naming_theirs(tmp_path: Path) -> Non
     assert res.returncode == 2, res.stdout + res.stderr
     assert "--claim claim_nope" in res.stderr and "claim_observer" in res.stderr, res.stderr
     assert not out.exists()
+    pub = bench_cli("reproduce", "--paper", "001", "--claim", "claim_observer", "--bus", "direct", "--out", out,
+                    "--publish", tmp_path / "pub")  # fmt: skip
+    assert pub.returncode == 2 and "--publish with --claim" in pub.stderr, pub.stderr
+    assert not out.exists() and not (tmp_path / "pub").exists()

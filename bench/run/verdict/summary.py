@@ -226,6 +226,7 @@ def build_summary(
         "schema_version": SCHEMA_VERSION,
         "scenario": scenario,
         "bus": bus,
+        "node_ids": {st.name: st.node_id for st in dec.sdo.states},  # the nodes' IDs on the bus (bench plan reads them)
         "status": status,
         "status_expected": expected,
         "expect": list(expect),

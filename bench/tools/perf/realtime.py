@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.paths import REPO
+from bench.tools.busy import LOOP
 from bench.tools.perf.common import REALTIME_PERIODS, REALTIME_QUICK_PERIODS, REALTIME_TS_US, measure
 from bench.tools.perf.cyclictest import PRIORITY, plant_cpu, run_cyclictest
 from bench.tools.perf.pipeline import bench_command
@@ -46,7 +47,7 @@ TARGET_P99_RATIO_OTHER = 2.0  # at any other Ts, and under load or with the live
 TARGET_P999_RATIO = 2.0  # at Ts = 100 us, idle
 TARGET_OVERRUN_FACTOR = 1.2  # overruns <= this x cyclictest's wake-ups a period or more late
 TARGET_OVERRUN_TS_US = 100.0
-BURNER = "while :; do :; done"  # bench/tools/busy.py LOOP, as the report names it
+BURNER = LOOP  # the busy loop, as the report names it
 MISSING = "bench perf: the realtime section needs cyclictest (Debian's rt-tests): apt-get install rt-tests"
 STATS = ("min", "mean", "p50", "p99", "p99_9", "max")
 
