@@ -1,11 +1,14 @@
 /*
  * plant_rk4.c - classical RK4 over a period and its sub-steps (plant_rk4.h).
  *
- * Only <math.h>: no OS, no heap, no stdio.
+ * Only <math.h>/<string.h>: no OS, no heap, no stdio.
  */
 #include "plant_rk4.h"
 
 #include <math.h>
+#include <string.h>
+
+#include "plant_angle.h"
 
 void plant_rk4_run(plant_rk4_deriv_fn f, void *ctx, double *y, int n_y, uint32_t n, double h)
 {
@@ -43,4 +46,32 @@ uint32_t plant_rk4_clamp_substeps(const plant_config_t *c, double nreal)
         n = c->rk4_min_substeps;
     }
     return n < 1u ? 1u : n;
+}
+
+void plant_rk4_dq_begin(const plant_state_t *s, double *y)
+{
+    memset(y, 0, sizeof(double) * DQ_N);
+    y[DQ_ID] = s->id_A;
+    y[DQ_IQ] = s->iq_A;
+    y[DQ_C] = s->cos_e;
+    y[DQ_S] = s->sin_e;
+    y[DQ_W] = s->omega_m_rad_s;
+}
+
+void plant_rk4_dq_end(plant_state_t *s, const plant_config_t *c, const double *y)
+{
+    s->id_A = y[DQ_ID];
+    s->iq_A = y[DQ_IQ];
+    s->omega_m_rad_s = y[DQ_W];
+    s->energy.in_J += y[DQ_EIN];
+    s->energy.copper_J += y[DQ_ECU];
+    s->energy.mech_J += y[DQ_EME];
+    s->energy.friction_J += y[DQ_EFR];
+    s->energy.load_J += y[DQ_ELD];
+    if (y[DQ_TH] != 0.0) {
+        s->theta_m_rad = plant_angle_wrap_2pi(s->theta_m_rad + y[DQ_TH], &s->revolutions);
+        /* cos/sin were integrated too (to RK4 accuracy); re-derive them from theta_m so the angle and the encoder
+         * stay exactly consistent. */
+        plant_angle_resync(s, c);
+    }
 }

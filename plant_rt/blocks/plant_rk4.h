@@ -41,4 +41,14 @@ static inline void plant_rk4_mech_deriv(const plant_config_t *c, bool free_mech,
     }
 }
 
+/* The state the rotor-frame models integrate over a period (the linear model off its exact path, the harmonic model):
+ * the currents, the electrical angle's cos/sin, the mechanical angle's increment, the speed, and the energies. */
+enum { DQ_ID, DQ_IQ, DQ_C, DQ_S, DQ_TH, DQ_W, DQ_EIN, DQ_ECU, DQ_EME, DQ_EFR, DQ_ELD, DQ_N };
+
+/* y[DQ_N] from the state at the period's start (the increments and energies 0). */
+void plant_rk4_dq_begin(const plant_state_t *s, double *y);
+/* The state from y at the period's end: currents, speed, the energies added, the angle wrapped with its whole turns
+ * and its cos/sin re-derived from it (the angle and the encoder exactly consistent). */
+void plant_rk4_dq_end(plant_state_t *s, const plant_config_t *c, const double *y);
+
 #endif

@@ -4,10 +4,9 @@
  * on the RK4 path (q-axis saturation, free mechanics: plant_rk4.h), and with the switches off (plant_bridge.h).
  * Model and integration scheme: pmsm_plant.h.
  *
- * Only <math.h>/<string.h>: no OS, no heap, no stdio.
+ * Only <math.h>: no OS, no heap, no stdio.
  */
 #include <math.h>
-#include <string.h>
 
 #include "dq_linear_step.h"
 #include "plant_angle.h"
@@ -20,7 +19,6 @@
 /* RK4 path                                                              */
 /* ===================================================================== */
 
-enum { Y_ID, Y_IQ, Y_C, Y_S, Y_TH, Y_W, Y_EIN, Y_ECU, Y_EME, Y_EFR, Y_ELD, Y_N };
 
 typedef struct {
     const plant_config_t *c;
@@ -37,8 +35,8 @@ static void rk_deriv(void *ctx, const double *y, double *dy)
 {
     const rk_ctx_t *k = (const rk_ctx_t *)ctx;
     const plant_config_t *c = k->c;
-    const double id = y[Y_ID], iq = y[Y_IQ], ce = y[Y_C], se = y[Y_S];
-    const double wm = y[Y_W];
+    const double id = y[DQ_ID], iq = y[DQ_IQ], ce = y[DQ_C], se = y[DQ_S];
+    const double wm = y[DQ_W];
     const double we = k->p * wm;
     double psiq, Linc;
     if (c->sat_enable) {
@@ -68,16 +66,16 @@ static void rk_deriv(void *ctx, const double *y, double *dy)
         vd = k->va * ce + k->vb * se;
         vq = -k->va * se + k->vb * ce;
     }
-    dy[Y_ID] = (vd - c->R_ohm * id + we * psiq) / c->Ld_H;
-    dy[Y_IQ] = (vq - c->R_ohm * iq - we * psid) / Linc;
-    dy[Y_C] = -we * se;
-    dy[Y_S] = we * ce;
-    dy[Y_TH] = wm;
+    dy[DQ_ID] = (vd - c->R_ohm * id + we * psiq) / c->Ld_H;
+    dy[DQ_IQ] = (vq - c->R_ohm * iq - we * psid) / Linc;
+    dy[DQ_C] = -we * se;
+    dy[DQ_S] = we * ce;
+    dy[DQ_TH] = wm;
     const double Te = 1.5 * k->p * (psid * iq - psiq * id);
-    plant_rk4_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[Y_W], &dy[Y_EFR], &dy[Y_ELD]);
-    dy[Y_EIN] = 1.5 * (vd * id + vq * iq);
-    dy[Y_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
-    dy[Y_EME] = Te * wm;
+    plant_rk4_mech_deriv(c, k->free_mech, k->invJ, Te, wm, &dy[DQ_W], &dy[DQ_EFR], &dy[DQ_ELD]);
+    dy[DQ_EIN] = 1.5 * (vd * id + vq * iq);
+    dy[DQ_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
+    dy[DQ_EME] = Te * wm;
 }
 
 /* The context, the sub-steps of the period (the stiffness bound) and the start state of the RK4 path. */
@@ -97,41 +95,17 @@ static uint32_t rk_begin(rk_ctx_t *k, double *y, plant_state_t *s, const plant_c
 
     const uint32_t n = plant_rk4_clamp_substeps(c, plant_rk4_stiff_substeps(s, c, k->p));
     s->last_substeps = n;
-    memset(y, 0, sizeof(double) * Y_N);
-    y[Y_ID] = s->id_A;
-    y[Y_IQ] = s->iq_A;
-    y[Y_C] = s->cos_e;
-    y[Y_S] = s->sin_e;
-    y[Y_W] = s->omega_m_rad_s;
+    plant_rk4_dq_begin(s, y);
     return n;
-}
-
-/* The state from the RK4 path's end state. */
-static void rk_end(plant_state_t *s, const plant_config_t *c, const double *y)
-{
-    s->id_A = y[Y_ID];
-    s->iq_A = y[Y_IQ];
-    s->omega_m_rad_s = y[Y_W];
-    s->energy.in_J += y[Y_EIN];
-    s->energy.copper_J += y[Y_ECU];
-    s->energy.mech_J += y[Y_EME];
-    s->energy.friction_J += y[Y_EFR];
-    s->energy.load_J += y[Y_ELD];
-    if (y[Y_TH] != 0.0) {
-        s->theta_m_rad = plant_angle_wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
-        /* cos/sin were integrated too (to RK4 accuracy); re-derive them from
-         * theta_m so the angle and the encoder stay exactly consistent. */
-        plant_angle_resync(s, c);
-    }
 }
 
 static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
 {
     rk_ctx_t k;
-    double y[Y_N];
+    double y[DQ_N];
     const uint32_t n = rk_begin(&k, y, s, c, va, vb, vd0, vq0);
-    plant_rk4_run(rk_deriv, &k, y, Y_N, n, c->Ts_s / (double)n);
-    rk_end(s, c, y);
+    plant_rk4_run(rk_deriv, &k, y, DQ_N, n, c->Ts_s / (double)n);
+    plant_rk4_dq_end(s, c, y);
 }
 
 /* ---- the switches off (plant_bridge.h): the same RK4 model, its voltage from the diodes ---- */
@@ -139,16 +113,16 @@ static void step_rk4(plant_state_t *s, const plant_config_t *c, double va, doubl
 static void br_currents(void *ctx, const double *y, double *ia, double *ib)
 {
     (void)ctx;
-    *ia = y[Y_C] * y[Y_ID] - y[Y_S] * y[Y_IQ];
-    *ib = y[Y_S] * y[Y_ID] + y[Y_C] * y[Y_IQ];
+    *ia = y[DQ_C] * y[DQ_ID] - y[DQ_S] * y[DQ_IQ];
+    *ib = y[DQ_S] * y[DQ_ID] + y[DQ_C] * y[DQ_IQ];
 }
 
 static void br_set_currents(void *ctx, double *y, double ia, double ib)
 {
     (void)ctx;
-    const double n2 = y[Y_C] * y[Y_C] + y[Y_S] * y[Y_S]; /* the inverse of br_currents' rotation */
-    y[Y_ID] = (y[Y_C] * ia + y[Y_S] * ib) / n2;
-    y[Y_IQ] = (-y[Y_S] * ia + y[Y_C] * ib) / n2;
+    const double n2 = y[DQ_C] * y[DQ_C] + y[DQ_S] * y[DQ_S]; /* the inverse of br_currents' rotation */
+    y[DQ_ID] = (y[DQ_C] * ia + y[DQ_S] * ib) / n2;
+    y[DQ_IQ] = (-y[DQ_S] * ia + y[DQ_C] * ib) / n2;
 }
 
 /* The linear model (exact or RK4 path alike) for one period with the switches off: its RK4 path with the diodes'
@@ -157,14 +131,14 @@ static void br_set_currents(void *ctx, double *y, double ia, double ib)
 static void step_bridge_rk4(plant_state_t *s, const plant_config_t *c)
 {
     rk_ctx_t k;
-    double y[Y_N];
+    double y[DQ_N];
     const uint32_t n = rk_begin(&k, y, s, c, 0.0, 0.0, 0.0, 0.0);
     k.bridge = &s->bridge;
     s->bridge.Vdc_V = c->Vdc_V;
-    const plant_bridge_model_t m = {&k, Y_N, rk_deriv, br_currents, br_set_currents};
+    const plant_bridge_model_t m = {&k, DQ_N, rk_deriv, br_currents, br_set_currents};
     s->last_substeps = n * PLANT_BRIDGE_SUBSTEPS;
     plant_bridge_period(&s->bridge, &m, y, c->Ts_s, s->last_substeps);
-    rk_end(s, c, y);
+    plant_rk4_dq_end(s, c, y);
 }
 
 /* ===================================================================== */

@@ -22,19 +22,16 @@
  * Only <math.h>: no OS, no heap, no stdio.
  */
 #include <math.h>
-#include <string.h>
 
 #include "dq_linear/dq_linear.h"
-#include "plant_angle.h"
 #include "plant_model.h"
 #include "plant_rk4.h"
 
-enum { Y_ID, Y_IQ, Y_C, Y_S, Y_TH, Y_W, Y_EIN, Y_ECU, Y_EME, Y_EFR, Y_ELD, Y_N };
 
 typedef struct {
     const plant_config_t *c;
     double va, vb, vd0, vq0; /* the applied voltage: stator frame; the rotor-hold values */
-    double p, invJ, theta0;  /* theta0: theta_m at the period's start (y[Y_TH] counts from it) */
+    double p, invJ, theta0;  /* theta0: theta_m at the period's start (y[DQ_TH] counts from it) */
     bool rotor_hold, free_mech;
     double psi5, psi7, cog_Nm, cog_n;
 } hm_ctx_t;
@@ -66,7 +63,7 @@ static void deriv(void *ctx, const double *y, double *dy)
 {
     const hm_ctx_t *k = (const hm_ctx_t *)ctx;
     const plant_config_t *c = k->c;
-    const double id = y[Y_ID], iq = y[Y_IQ], ce = y[Y_C], se = y[Y_S], wm = y[Y_W];
+    const double id = y[DQ_ID], iq = y[DQ_IQ], ce = y[DQ_C], se = y[DQ_S], wm = y[DQ_W];
     const double we = k->p * wm;
     double pd, pq, dpd, dpq;
     magnet_flux(c, k->psi5, k->psi7, ce, se, &pd, &pq, &dpd, &dpq);
@@ -80,17 +77,17 @@ static void deriv(void *ctx, const double *y, double *dy)
         vd = k->va * ce + k->vb * se;
         vq = -k->va * se + k->vb * ce;
     }
-    dy[Y_ID] = (vd - c->R_ohm * id + we * psiq - we * dpd) / c->Ld_H;
-    dy[Y_IQ] = (vq - c->R_ohm * iq - we * psid - we * dpq) / Linc;
-    dy[Y_C] = -we * se;
-    dy[Y_S] = we * ce;
-    dy[Y_TH] = wm;
+    dy[DQ_ID] = (vd - c->R_ohm * id + we * psiq - we * dpd) / c->Ld_H;
+    dy[DQ_IQ] = (vq - c->R_ohm * iq - we * psid - we * dpq) / Linc;
+    dy[DQ_C] = -we * se;
+    dy[DQ_S] = we * ce;
+    dy[DQ_TH] = wm;
     const double Te = 1.5 * k->p * (psid * iq - psiq * id + id * dpd + iq * dpq);
-    const double Tc = cogging_Nm(k->cog_Nm, k->cog_n, k->theta0 + y[Y_TH]);
-    plant_rk4_mech_deriv(c, k->free_mech, k->invJ, Te + Tc, wm, &dy[Y_W], &dy[Y_EFR], &dy[Y_ELD]);
-    dy[Y_EIN] = 1.5 * (vd * id + vq * iq);
-    dy[Y_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
-    dy[Y_EME] = Te * wm; /* the windings' account: the cogging torque's power is the rotor's */
+    const double Tc = cogging_Nm(k->cog_Nm, k->cog_n, k->theta0 + y[DQ_TH]);
+    plant_rk4_mech_deriv(c, k->free_mech, k->invJ, Te + Tc, wm, &dy[DQ_W], &dy[DQ_EFR], &dy[DQ_ELD]);
+    dy[DQ_EIN] = 1.5 * (vd * id + vq * iq);
+    dy[DQ_ECU] = 1.5 * c->R_ohm * (id * id + iq * iq);
+    dy[DQ_EME] = Te * wm; /* the windings' account: the cogging torque's power is the rotor's */
 }
 
 static void begin(hm_ctx_t *k, double *y, const plant_state_t *s, const plant_config_t *c)
@@ -106,28 +103,7 @@ static void begin(hm_ctx_t *k, double *y, const plant_state_t *s, const plant_co
     k->psi7 = (double)h->psi_7_Wb;
     k->cog_Nm = (double)h->cogging_Nm;
     k->cog_n = (double)h->cogging_periods;
-    memset(y, 0, sizeof(double) * Y_N);
-    y[Y_ID] = s->id_A;
-    y[Y_IQ] = s->iq_A;
-    y[Y_C] = s->cos_e;
-    y[Y_S] = s->sin_e;
-    y[Y_W] = s->omega_m_rad_s;
-}
-
-static void end(plant_state_t *s, const plant_config_t *c, const double *y)
-{
-    s->id_A = y[Y_ID];
-    s->iq_A = y[Y_IQ];
-    s->omega_m_rad_s = y[Y_W];
-    s->energy.in_J += y[Y_EIN];
-    s->energy.copper_J += y[Y_ECU];
-    s->energy.mech_J += y[Y_EME];
-    s->energy.friction_J += y[Y_EFR];
-    s->energy.load_J += y[Y_ELD];
-    if (y[Y_TH] != 0.0) {
-        s->theta_m_rad = plant_angle_wrap_2pi(s->theta_m_rad + y[Y_TH], &s->revolutions);
-        plant_angle_resync(s, c); /* the angle and the encoder exactly consistent (as the linear model) */
-    }
+    plant_rk4_dq_begin(s, y);
 }
 
 static void step(plant_state_t *s, const plant_config_t *c, double va, double vb, double vd0, double vq0)
@@ -137,7 +113,7 @@ static void step(plant_state_t *s, const plant_config_t *c, double va, double vb
         return;
     }
     hm_ctx_t k;
-    double y[Y_N];
+    double y[DQ_N];
     begin(&k, y, s, c);
     k.va = va;
     k.vb = vb;
@@ -149,8 +125,8 @@ static void step(plant_state_t *s, const plant_config_t *c, double va, double vb
     const double lam = s->lam_base + 7.0 * k.p * wm + k.cog_n * wm;
     const uint32_t n = plant_rk4_clamp_substeps(c, ceil(c->Ts_s * lam / c->rk4_h_rel));
     s->last_substeps = n;
-    plant_rk4_run(deriv, &k, y, Y_N, n, c->Ts_s / (double)n);
-    end(s, c, y);
+    plant_rk4_run(deriv, &k, y, DQ_N, n, c->Ts_s / (double)n);
+    plant_rk4_dq_end(s, c, y);
 }
 
 static int prepare(plant_state_t *s, const plant_config_t *c, double p)
