@@ -20,7 +20,17 @@ from bench.paths import REPO, STATE
 from bench.root import INSTALLED
 from bench.run.bus.box.control import BoxGone
 from bench.run.bus.box.guest import guest_script
-from bench.run.bus.box.life import BOX_DIR, MASTER_IDS, STOPPING, TAPS, BoxInfo, is_ready, slot_held, touch_use
+from bench.run.bus.box.life import (
+    BOX_CPUS,
+    BOX_DIR,
+    MASTER_IDS,
+    STOPPING,
+    TAPS,
+    BoxInfo,
+    is_ready,
+    slot_held,
+    touch_use,
+)
 from bench.run.bus.vm import VmOptions, _check_path, _vng_argv, find_kernel, readiness, vng_path
 
 
@@ -54,7 +64,7 @@ def main(argv: list[str]) -> int:
     path = ["export PATH=/usr/local/sbin:/usr/sbin:/sbin:/usr/bin:/bin"]
     job.write_text(guest_script(BOX_DIR, len(info.ports), path, MASTER_IDS))
     home = _check_path(STATE if INSTALLED else REPO)
-    opts = VmOptions(timeout_s=0, qemu_opts=qemu_opts(info))
+    opts = VmOptions(cpus=BOX_CPUS, timeout_s=0, qemu_opts=qemu_opts(info))
     cmd = _vng_argv(vng, kern[0], opts, {home}, job)
     cmd[-1] = f"bash {job}"
     env = dict(os.environ)

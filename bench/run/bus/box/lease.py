@@ -63,7 +63,13 @@ class Lease:
         return life.channel(self.info.tap_port(self.slot))
 
     def in_ns(self, argv: list[str]) -> str:
-        return f"ip netns exec {self.ns} " + " ".join(shlex.quote(a) for a in argv)
+        """A command line that runs `argv` in the slot's namespace, on the slot's one vCPU of the box (life.BOX_CPUS).
+        vcan queues a frame on the backlog of the CPU its sender runs on: a sender that moved between the guest's
+        CPUs between two frames had them delivered in the other order (soak 3 of issue 52: the plant's 0x190 and
+        0x290 of one period, the drive's EMCY 0xFF02), which no real bus does to one node's frames. One more exec
+        (taskset) per process."""
+        cpu = (self.slot - 1) % life.BOX_CPUS
+        return f"ip netns exec {self.ns} taskset -c {cpu} " + " ".join(shlex.quote(a) for a in argv)
 
     # ---------------------------------------------------------------- set-up
     def _prepare(self) -> None:

@@ -24,6 +24,7 @@ from bench.run.bus.box.control import BoxError, BoxGone, Control, pid_alive
 
 BOX_DIR = STATE / "box"
 STOPPING = "stopping.json"  # written by the keeper while it powers the box off
+BOX_CPUS = 2  # the box's vCPUs (keeper.py boots it so); each slot's processes run on one of them (lease.in_ns)
 TAPS = "taps.on"  # present while the taps see their slots' vcan0 (set_taps)
 OWNER_ENV = "BENCH_BOX_OWNER"  # recorded in the state of a box this process boots (BoxInfo.booted_by)
 DEFAULT_IDLE_S = 600.0  # a box nobody used for this long powers off (bench box up --idle-timeout, BENCH_BOX_IDLE_S)
