@@ -19,7 +19,6 @@
 /* RK4 path                                                              */
 /* ===================================================================== */
 
-
 typedef struct {
     const plant_config_t *c;
     double va, vb;   /* applied, stator frame */

@@ -27,7 +27,6 @@
 #include "plant_model.h"
 #include "plant_rk4.h"
 
-
 typedef struct {
     const plant_config_t *c;
     double va, vb, vd0, vq0; /* the applied voltage: stator frame; the rotor-hold values */
