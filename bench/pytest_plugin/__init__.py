@@ -5,10 +5,12 @@
         run.expect_status("ok").expect_settles_within(2, signal="iq").expect_overshoot_below(1.0)
         assert abs(run["iq_A"][-1] - 1.0) < 0.01
 
-Fixtures: `hil_run` (a callable: one `bench run` per call, its result a HilRun; fixture.py says its arguments)
+Fixtures: `hil_run` (a callable: one `bench run` per call, a direct one in the test's process, its result a HilRun;
+fixture.py says its arguments)
 and `hil_bus` (the session's bus). Options (and ini keys): --hil-bus (hil_bus; direct, vcan0, can0 ...; default
 direct), --hil-law=DIR (hil_law; a user's current law, built at the session's start as `bench run --law`
-does), --hil-out=DIR (hil_out; the run folders, default <rootdir>/hil-runs); the DIR options with "=": pytest
+does), --hil-out=DIR (hil_out; the run folders, default <rootdir>/hil-runs), --hil-isolate (hil_isolate; every run a
+process of its own); the DIR options with "=": pytest
 takes a separate DIR for a test path when it looks for its rootdir. A bus that is not there, the VM
 fallback not ready, a law that does not build: pytest stops with "ERROR: ..." before any test. A failing
 test's report names each run's folder, bus log and Rerun recording; its key figures are JUnit properties.
@@ -72,6 +74,16 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "setup, naming the missing piece, instead of being skipped (for the CI job that must run them)",
     )
     parser.addini("hil_require", "as --hil-require", type="bool", default=False)
+    group.addoption(
+        "--hil-isolate",
+        dest="hil_isolate",
+        action="store_true",
+        default=None,
+        help="every hil_run a `bench run` process of its own; without it a direct run (no law= of the call, no "
+        "timeout=) runs in the test's process, ~100x cheaper, and a crash of the C library ends that process (an "
+        "xdist worker: pytest reports it and goes on)",
+    )
+    parser.addini("hil_isolate", "as --hil-isolate", type="bool", default=False)
     # --hil-law=DIR rather than --hil-law DIR: pytest looks for its rootdir before it loads plugins, and takes a
     # folder after an option it does not know yet for a test path (pytest-dev/pytest#8846)
     eq = "; write --hil-{name}=DIR (pytest would take a separate DIR for a test path when it looks for its rootdir)"
@@ -98,8 +110,14 @@ def pytest_configure(config: pytest.Config) -> None:
     out = _path(config, "out") or config.rootpath / "hil-runs"
     option = "--hil-bus" if cli or not ini else f"{config.inipath or 'the ini file'}: hil_bus"
     require = bool(config.getoption("hil_require") or config.getini("hil_require"))
+    isolate = bool(config.getoption("hil_isolate") or config.getini("hil_isolate"))
     config.stash[SETTINGS] = Settings(
-        bus=cli or ini or "direct", law=_path(config, "law"), out=out, bus_option=option, require=require
+        bus=cli or ini or "direct",
+        law=_path(config, "law"),
+        out=out,
+        bus_option=option,
+        require=require,
+        isolate=isolate,
     )
     config.addinivalue_line(
         "markers",

@@ -20,7 +20,9 @@ from bench.pytest_plugin.runner import (
     check_scenario,
     command,
     execute,
+    execute_here,
     finish,
+    in_process,
     motor_properties,
     names_controller,
     override_list,
@@ -50,13 +52,15 @@ class HilRunner:
     summary.json names it with a digest of its files ("motor"), and the JUnit properties hil_motor and
     hil_motor_digest. name: the run folder's name (default: the scenario file's stem, or the dict's
     scenario.name). faults, events: [[faults]] / [[events]] tables (dicts) run after the scenario's own
-    (docs/FAULTS.md). timeout: seconds before the run is stopped (SIGTERM) and the test fails. extra_args: more
-    `bench run` options (["--drive", "mcu"], ["--log-format", "asc"], ...).
+    (docs/FAULTS.md). timeout: seconds before the run is stopped (SIGTERM) and the test fails (the run then goes to a
+    process of its own: a run in the test's process cannot be stopped). extra_args: more `bench run` options
+    (["--drive", "mcu"], ["--log-format", "asc"], ...).
 
-    The run goes to <--hil-out>/<test node id>/<name>[-N]/ (-N: the name's N-th run in the test). A scenario
-    that does not exist or does not check against the EDS, a bus that is not there, a law that does not build, a
-    run that writes no summary.json: the test fails naming the problem. A run that ends with a status other than
-    ok is a result, not a failure: assert on it (run.expect_status("ok"))."""
+    A direct run without a law= and a timeout= runs in this process (bench/cli_in_process.py; --hil-isolate: never),
+    the others as `bench run` processes. The run goes to <--hil-out>/<test node id>/<name>[-N]/ (-N: the name's N-th
+    run in the test). A scenario that does not exist or does not check against the EDS, a bus that is not there, a
+    law that does not build, a run that writes no summary.json: the test fails naming the problem. A run that ends
+    with a status other than ok is a result, not a failure: assert on it (run.expect_status("ok"))."""
 
     def __init__(self, request: pytest.FixtureRequest, settings: Settings) -> None:
         self._settings = settings
@@ -180,6 +184,8 @@ class HilRunner:
         import bench.pytest_plugin.box as box  # not `from bench.pytest_plugin`: no arrow to the face
 
         reason = box.needs(bus, extra)
+        if reason is None and in_process(cmd, timeout, env, self._settings.isolate):
+            return execute_here(cmd)
         if reason is None:
             return execute(cmd, timeout, env)
         from bench.run.bus.box.control import BoxError

@@ -137,10 +137,9 @@ def check_scenario(path: Path, overrides: list[str], shown: str | None, build: P
     in this process so a bad one fails the test before any run; the Scenario read. Skipped (None) when this
     process already read another build's EDS than the runs will (bench.paths imported before --hil-law set
     BENCH_BUILD_DIR): `bench run` then refuses a bad scenario itself (exit 2, its message in the failure)."""
-    import bench.paths
+    from bench.cli_in_process import same_build
 
-    env = str(build) if build is not None else os.environ.get("BENCH_BUILD_DIR")
-    if bench.paths.BUILD != Path(env or bench.paths.REPO / "build").resolve():
+    if not same_build(build):
         return None  # a law's build (hil_run's law=): `bench run` checks the scenario against that build's EDS
     from bench.scenario import ScenarioError, load, unselected_law
 
@@ -208,6 +207,24 @@ def execute(
             _stop(proc)
         raise
     return proc.returncode, out, err, False
+
+
+def execute_here(cmd: list[str]) -> tuple[int, str, str, bool]:
+    """The run of `cmd` (a `command()`) in this process (bench/cli_in_process.py): as `execute` returns it."""
+    from bench.cli_in_process import run_here
+
+    ran = run_here(cmd[4:])
+    return ran.exit_code, ran.stdout, ran.stderr, False
+
+
+def in_process(cmd: list[str], timeout: float | None, env: Mapping[str, str] | None, isolate: bool) -> bool:
+    """Whether hil_run runs `cmd` in this process: a direct run of this process's build (no law= of the call),
+    without a timeout (a run here cannot be stopped) and without --hil-isolate."""
+    if isolate or timeout is not None or env:
+        return False
+    from bench.cli_in_process import runs_here
+
+    return runs_here(cmd[4:])
 
 
 def tail(text: str, lines: int = TAIL_LINES) -> str:

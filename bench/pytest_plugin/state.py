@@ -29,6 +29,7 @@ class Settings:
     out: Path
     bus_option: str = "--hil-bus"  # where the bus was chosen, as messages name it
     require: bool = False  # --hil-require: a test whose hil marker asks for what is missing fails, not skips
+    isolate: bool = False  # --hil-isolate: every run a `bench run` process of its own (else direct runs in process)
     bus_problems: dict[str, str | None] = field(default_factory=dict)  # checked buses: their problem or None
     laws: dict[Path, LawBuild] = field(default_factory=dict)  # the session's law builds, by folder
 

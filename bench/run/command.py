@@ -236,6 +236,11 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         print(f"bench run: FAILED: {exc}", file=sys.stderr)
         _discard(partial, out)
         return 1, None, None
+    except BaseException:  # in a caller's process (bench/run/inprocess.py): a test cancelled, a SystemExit
+        if outputs is not None:
+            outputs.abort()
+        _discard(partial, out)
+        raise
     # The loop is complete and decoded: from here on its results are kept, whatever comes.
     assert outputs is not None
     result.summary["motor"] = motor

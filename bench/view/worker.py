@@ -21,10 +21,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from bench.view.worker_procs import _STARTED, ROLES, _Proc, _take, discard, prestart
+from bench.view.worker_procs import _STARTED, ROLES, _Proc, _take, discard, give_back, prestart, reuse, reusing
 from bench.view.worker_roles import main
 
-__all__ = ["ROLES", "ViewWorker", "_STARTED", "_Proc", "discard", "main", "prestart"]
+__all__ = ["ROLES", "ViewWorker", "_STARTED", "_Proc", "discard", "main", "prestart", "reuse"]
 
 
 class ViewWorker:
@@ -52,6 +52,7 @@ class ViewWorker:
             "rrd": rrd,
             "serve_for": serve_for,
             "bind": bind,
+            "keep": reusing() and live == "none",  # the processes serve the next run too (worker_procs.reuse)
         }
         self.rerun = _take("rerun")
         self.plots = _take("plots")
@@ -96,17 +97,25 @@ class ViewWorker:
             "finish",
             {"summary": result.summary, "windows": result.step_windows, "envelopes": result.envelopes, "title": title},
         )
-        self.rerun.close_input()
-        self.plots.close_input()
+        if not self.spec["keep"]:
+            self.rerun.close_input()
+            self.plots.close_input()
 
     def finish_wait(self) -> list[str]:
         """The files written (run.rrd and the PNGs), once both processes are done with them."""
         if self.skipped:
             return []
-        self.wait_ready()
-        files = list(self.rerun.recv().get("files", []))
-        self.plots.first()  # ready
-        files += list(self.plots.recv().get("files", []))
+        try:
+            self.wait_ready()
+            files = list(self.rerun.recv().get("files", []))
+            self.plots.first()  # ready
+            files += list(self.plots.recv().get("files", []))
+        except BaseException:
+            self.abort()  # a process that failed its run (or a kept one in the middle of it) serves no other
+            raise
+        if self.spec["keep"]:
+            give_back(self.rerun)
+            give_back(self.plots)
         return files
 
     def serve(self, seconds: float | None) -> None:
@@ -114,6 +123,8 @@ class ViewWorker:
         terminal's process group, or to the bench alone: then the bench stops it); wait for it."""
         from bench.stop import deferred
 
+        if self.spec["keep"]:
+            return  # no viewer; the processes went back for the next run (finish_wait)
         sys.stdout.flush()  # the results are said before the wait (a pipe buffers them otherwise)
         try:
             self.rerun.proc.wait()

@@ -39,13 +39,14 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
             sink.write(payload[0])
         elif kind == "finish":
             sink.end(payload[0]["summary"])
+            break
     reply(files=["run.rrd"] if spec["rrd"] else [])
     if spec["live"] == "serve":
         _serve_until(sink.url or "", spec.get("serve_for"), reply.fd)
         sink.close()
         serve.stop()  # the ports are free when this process ends
         os._exit(0)  # skip rerun's teardown (its stream's server is gone)
-    elif spec["live"] == "none":
+    elif spec["live"] == "none" and not spec.get("keep"):
         os._exit(0)  # the recording is complete (end() flushed and closed it): skip rerun's slow teardown
     sink.close()
     return 0
@@ -61,8 +62,9 @@ def _without_rerun(spec: dict[str, Any], msgs: Any, reply: Any, why: str) -> int
         return 2
     print(f"bench: no run.rrd: {missing_extra('view', 'a Rerun recording', why)}", file=sys.stderr, flush=True)
     reply(ready=True, url=None)
-    for _ in msgs:
-        pass
+    for kind, *_ in msgs:
+        if kind == "finish":
+            break
     reply(files=[])
     return 0
 
@@ -109,8 +111,11 @@ def _plots_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
             steps = plots.step_plots(folder, p["windows"], p["summary"]["steps"], p["title"])
             ov = plots.overview_plot(folder, p["envelopes"], p["title"], p["summary"]["Ts_s"])
             files += [x.name for x in steps] + ([ov.name] if ov else [])
+            break
     reply(files=files)
-    os._exit(0)  # nothing left to tidy
+    if not spec.get("keep"):
+        os._exit(0)  # nothing left to tidy
+    return 0
 
 
 def main(role: str, reply_fd: int) -> int:
@@ -171,13 +176,24 @@ def _main(role: str, reply_fd: int) -> int:
                 return
 
     msgs = messages()
-    first = next(msgs, None)
-    if first is None or first[0] != "spec":  # the bench did not need us
-        return 0
+    while True:  # one run, or with "keep" in its spec one after another (worker_procs.reuse)
+        first = next(msgs, None)
+        if first is None or first[0] != "spec":  # the bench did not need us (again)
+            if timing:
+                print(f"[{role} +{time.monotonic() - t0:.3f} s] end of input", file=sys.stderr, flush=True)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(0)  # a kept process's end: its recordings are closed, rerun's teardown is skipped
+        rc = _one_run(role, first[1], msgs, reply, without)
+        if rc or not first[1].get("keep"):
+            return rc
+
+
+def _one_run(role: str, spec: dict[str, Any], msgs: Any, reply: Any, without: str | None) -> int:
     if without is not None:
-        return _without_rerun(first[1], msgs, reply, without)
+        return _without_rerun(spec, msgs, reply, without)
     try:
-        return (_rerun_role if role == "rerun" else _plots_role)(first[1], msgs, reply)
+        return (_rerun_role if role == "rerun" else _plots_role)(spec, msgs, reply)
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # noqa: BLE001

@@ -125,7 +125,15 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
     ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
     (
         "the command line",
-        ("bench.cli", "bench.commands", "bench.cli_tools", "bench.cli_runs", "bench.cli_box", "bench.cli_motor"),
+        (
+            "bench.cli",
+            "bench.commands",
+            "bench.cli_tools",
+            "bench.cli_runs",
+            "bench.cli_box",
+            "bench.cli_motor",
+            "bench.cli_in_process",
+        ),
     ),
     ("the pytest plugin", ("bench.pytest_plugin",)),
 ]

@@ -338,19 +338,23 @@ def test_a_long_wait():  # without xdist never reached: the session stops after 
 """
 
 
-@pytest.mark.parametrize("xdist", [[], ["-n", "2"]], ids=["one-process", "xdist"])
+@pytest.mark.parametrize(
+    "xdist", [[], ["-n", "2", "--hil-isolate"]], ids=["one-process-run-in-process", "xdist-run-in-a-process"]
+)
 def test_a_sigterm_cancels_the_running_test_and_ends_the_session(tmp_path: Path, xdist: list[str]) -> None:
-    """SIGTERM to pytest while a direct run runs: the run is stopped, the test skipped naming the signal, the
-    session interrupted after it (under xdist: no worker reported crashed, none replaced), no traceback."""
+    """SIGTERM to pytest while a direct run runs (in the test's process, or with --hil-isolate in a `bench run` of
+    its own): the run is stopped, the test skipped naming the signal, the session interrupted after it (under
+    xdist: no worker reported crashed, none replaced), no traceback, no run folder left half-written."""
     (tmp_path / "test_cancel.py").write_text(CANCELLED)
     (tmp_path / "pytest.ini").write_text("[pytest]\n")
     argv = [sys.executable, "-m", "pytest", *PLUGIN, "-rs", *xdist, "-p", "xdist" if xdist else "no:xdist"]
     proc = subprocess.Popen(
         [*argv, "test_cancel.py"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
+    runs = tmp_path / "hil-runs"
     try:
         deadline = time.monotonic() + 300
-        while not _pids(f"bench.cli run .*{tmp_path}") and proc.poll() is None and time.monotonic() < deadline:
+        while not list(runs.glob("*/*.partial")) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.2)
         time.sleep(1)
         proc.send_signal(signal.SIGTERM)
@@ -364,6 +368,7 @@ def test_a_sigterm_cancels_the_running_test_and_ends_the_session(tmp_path: Path,
     assert _result_line(out) == (f"{2 if xdist else 1} skipped"), said
     assert "Traceback" not in said and "crashed" not in said and "replacing" not in said, said
     assert not _pids(f"bench.cli run .*{tmp_path}")  # hil_run stopped its run
+    assert not list(runs.glob("*/*.partial")) and list(runs.glob("*/*.failed")), list(runs.rglob("*"))
     assert "hil: CAN box" not in said  # a session that used no box says nothing of it
 
 
@@ -515,3 +520,36 @@ def test_the_plugin_is_cheap_to_import() -> None:
     code = "import sys, bench.pytest_plugin; print(sorted(m for m in sys.modules if m.startswith(('bench', 'numpy'))))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60)
     assert out.stdout.split() == ["['bench',", "'bench.pytest_plugin',", "'bench.pytest_plugin.state']"], out.stdout
+
+
+# ------------------------------------------------------------------ a crash of the C library in the test's process
+
+CRASHING = f"""
+def test_a_crash(hil_run):
+    hil_run({str(ZERO_LAW_SCENARIO)!r}, {{"controller.controller": "hil_crash_law"}})
+
+
+def test_after_it(hil_run):
+    assert hil_run({str(STEP)!r}, {{"scenario.periods": 40}}).status == "ok"
+"""
+
+
+def test_a_crash_in_the_test_process_is_reported_and_the_session_goes_on(
+    hil_pytester: pytest.Pytester, tmp_path: Path
+) -> None:
+    """A law that faults (SIGSEGV once the reference steps) in a direct run in the test's process (--hil-law: the
+    session's build): under xdist the worker's crash is that test's failure, named, and the next test runs; with
+    --hil-isolate the run's own process crashes and the test fails with its exit status; the session goes on."""
+    law = _law(tmp_path, "hil_crash_law")
+    src = law / "zero_law.c"
+    crash = "if (in->iq_ref_A > 0.5f) *(volatile uint32_t *)(uintptr_t)cfg->Ts_s = 1u; /* a wild write */\n    "
+    src.write_text(src.read_text().replace("    (void)in;\n", "    " + crash, 1))
+    hil_pytester.makepyfile(test_crash=CRASHING)
+    xdist = _run(hil_pytester, f"--hil-law={law}", "-n", "2", "-p", "xdist")
+    out = _output(xdist)
+    assert xdist.parseoutcomes().get("failed") == 1 and xdist.parseoutcomes().get("passed") == 1, out
+    assert "test_crash.py::test_a_crash" in out and "crashed while running" in out, out
+    isolated = _run(hil_pytester, f"--hil-law={law}", "--hil-isolate", "-p", "no:xdist")
+    out = _output(isolated)
+    assert isolated.parseoutcomes() == {"failed": 1, "passed": 1}, out
+    assert "exit status -11 (killed by signal 11)" in out, out
