@@ -66,9 +66,11 @@ def chosen(fns: list[tuple[str, str, Any]], names: list[str]) -> tuple[list[tupl
     known = [fn.__name__ for _, _, fn in fns if not isinstance(fn, Exception)]
     unknown = [n for n in names if n not in known]
     if unknown:
+        broken = [f"{name}'s claims module did not import ({fn})" for _, name, fn in fns if isinstance(fn, Exception)]
         return [], (
             f"bench reproduce: --claim {unknown[0]}: the paper(s) chosen have no claim function of that name; "
-            f"nothing was run or written. Their claim functions: {', '.join(known)}"
+            f"nothing was run or written. Their claim functions: {', '.join(known) or 'none'}"
+            + (f"; {'; '.join(broken)}" if broken else "")
         )
     return [f for f in fns if isinstance(f[2], Exception) or f[2].__name__ in names], None
 

@@ -31,7 +31,7 @@ from typing import Any
 import can
 import numpy as np
 
-from bench.tools.wire import WireBits, exact_bits, worst_bits
+from bench.tools.wire import WireBits, classic_stream, exact_bits, worst_bits
 
 
 class LogPlanError(ValueError):
@@ -191,15 +191,26 @@ class WireCache:
         self._bits: dict[tuple[int, bool, bool, bool, bytes], WireBits] = {}
 
     def bits(self, m: can.Message) -> WireBits:
+        if m.is_remote_frame:  # CAN FD has no remote frame: a classic one on either bus, its RTR bit and DLC as sent
+            return self._remote(m)
         fd = self.fd or m.is_fd
         brs = m.bitrate_switch if m.is_fd else fd  # a classic frame of the log rides an FD bus with BRS
-        data = b"" if m.is_remote_frame else bytes(m.data)
+        data = bytes(m.data)
         key = (m.arbitration_id, m.is_extended_id, fd, brs, data)
         if key not in self._bits:
             if self.worst:
                 self._bits[key] = worst_bits(len(data), fd, m.is_extended_id, brs)
             else:
                 self._bits[key] = exact_bits(m.arbitration_id, data, fd, m.is_extended_id, brs)
+        return self._bits[key]
+
+    def _remote(self, m: can.Message) -> WireBits:
+        key = (m.arbitration_id, m.is_extended_id, False, False, b"remote %d" % m.dlc)
+        if key not in self._bits:
+            if self.worst:
+                self._bits[key] = worst_bits(0, False, m.is_extended_id, False)
+            else:
+                self._bits[key] = classic_stream(m.arbitration_id, b"", m.is_extended_id, True, m.dlc).wire()
         return self._bits[key]
 
 

@@ -214,3 +214,19 @@ def test_a_run_at_other_node_ids(tmp_path: Path) -> None:
     plan = json.loads(bench_cli("plan", "--from-log", out / "bus.log", "--json", expect=0).stdout)
     assert plan["node_ids"] == {"plant": 0x11, "drive": 0x20} and plan["node_ids_from"] == "summary.json"
     assert plan["chain_end_s"]["p50"] < plan["bus_time_s"]["p50"]
+
+
+def test_a_remote_frame_is_counted_as_sent() -> None:
+    """A remote frame (a node guarding request, RTR 1 with its DLC) is a classic frame on either bus, its RTR bit and
+    DLC as the log has them: not the data frame of 0 bytes, not an FD frame."""
+    import can
+
+    from bench.tools.plan_log import WireCache
+    from bench.tools.wire import classic_stream
+
+    rtr = can.Message(arbitration_id=0x70A, is_extended_id=False, is_remote_frame=True, dlc=1)
+    want = classic_stream(0x70A, b"", remote=True, dlc=1).wire()
+    for fd in (False, True):
+        got = WireCache(fd, worst=False).bits(rtr)
+        assert got == want and got.data == 0, (fd, got)  # no data-phase bits: no bit-rate switch
+    assert want != classic_stream(0x70A, b"").wire()  # the RTR bit and the DLC change the stuffing and the CRC

@@ -166,3 +166,18 @@ def test_a_claim_the_papers_lack_is_refused_naming_theirs(tmp_path: Path) -> Non
                     "--publish", tmp_path / "pub")  # fmt: skip
     assert pub.returncode == 2 and "--publish with --claim" in pub.stderr, pub.stderr
     assert not out.exists() and not (tmp_path / "pub").exists()
+
+
+def test_a_claim_of_a_paper_whose_claims_do_not_import_names_the_import_error() -> None:
+    from bench.reproduce.command import chosen
+
+    fns = [
+        ("001", "Yao 2020", ImportError("no module named numpy.fake")),
+        ("000", "You 2019", test_every_claim_has_a_verdict),
+    ]
+    picked, why = chosen(fns, ["claim_observer"])
+    assert (
+        picked == []
+        and why is not None
+        and "Yao 2020's claims module did not import (no module named numpy.fake)" in why
+    )
