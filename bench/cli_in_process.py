@@ -17,6 +17,7 @@ import argparse
 import contextlib
 import io
 import os
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -51,9 +52,11 @@ def _parser() -> argparse.ArgumentParser:
 def _parse(argv: list[str]) -> argparse.Namespace | int:
     """`bench run ARGV` parsed, or argparse's exit status (its message on sys.stderr)."""
     try:
-        return _parser().parse_args(["run", *argv])
+        args = _parser().parse_args(["run", *argv])
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2
+    args.overrides = list(args.overrides or [])  # not the parser's default list, shared by every parse
+    return args
 
 
 def runs_here(argv: list[str]) -> bool:
@@ -69,13 +72,26 @@ def runs_here(argv: list[str]) -> bool:
 
 
 def run_here(argv: list[str]) -> Ran:
-    """`bench run ARGV` (ARGV without "run") in this process, as the command's handler runs it (bench/cli_runs.py);
-    bad arguments are exit status 2 with argparse's message, as from the command."""
+    """`bench run ARGV` (ARGV without "run") in this process, as the command runs it (the extras it lacks refused,
+    then its handler, bench/cli_runs.py); bad arguments are exit status 2 with argparse's message, as from the
+    command. A Ctrl-C is the caller's: the run stops (its folder NAME.failed, or complete if its loop was), then
+    KeyboardInterrupt is raised here."""
+    from bench.cli import _lacking
+    from bench.commands import find
     from bench.view.worker import reuse
 
     reuse()
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         args = _parse(argv)
-        code = args if isinstance(args, int) else int(args.func(args))
+        if isinstance(args, int):
+            code = args
+        elif (refusal := _lacking(find("run"), args)) is not None:
+            print(refusal, file=sys.stderr)
+            code = 2
+        else:
+            args.in_caller = True  # bench/run/command.py: a Ctrl-C while the results are written is the caller's
+            code = int(args.func(args))
+    if code == 130:
+        raise KeyboardInterrupt(f"bench run interrupted: {err.getvalue().strip().splitlines()[-1:]}")
     return Ran(code, out.getvalue(), err.getvalue())

@@ -236,7 +236,7 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
         print(f"bench run: FAILED: {exc}", file=sys.stderr)
         _discard(partial, out)
         return 1, None, None
-    except BaseException:  # in a caller's process (bench/run/inprocess.py): a test cancelled, a SystemExit
+    except BaseException:  # in a caller's process (bench/cli_in_process.py): a test cancelled, a SystemExit
         if outputs is not None:
             outputs.abort()
         _discard(partial, out)
@@ -244,7 +244,8 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
     # The loop is complete and decoded: from here on its results are kept, whatever comes.
     assert outputs is not None
     result.summary["motor"] = motor
-    cut = _finish_keeping(outputs, result, partial)
+    # in the caller's process (bench/cli_in_process.py) a Ctrl-C is the caller's: it stops the writing at once
+    cut, pending = _finish_keeping(outputs, result, partial, own_sigint=not getattr(args, "in_caller", False))
     if out.exists():
         out.rmdir()
     partial.rename(out)
@@ -254,6 +255,8 @@ def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
             f"bench run: the results were not all written; the run is complete and kept in {out} ({cut})",
             file=sys.stderr,
         )
+        if pending is not None:  # the caller's (a cancelled test): its folder kept, then its exception
+            raise pending
         return (130 if cut.startswith("interrupted") else 1), result, out
     if outputs.interrupted:  # Ctrl-C while the results were written: they are, and serving is not wanted
         outputs.abort()
@@ -295,10 +298,14 @@ def files_digest(base: Path, files: list[Path]) -> str | None:
     return h.hexdigest()[:16]
 
 
-def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
+def _finish_keeping(
+    outputs: Outputs, result: Any, partial: Path, own_sigint: bool = True
+) -> tuple[str | None, BaseException | None]:
     """Write the results of a complete run. A first Ctrl-C waits for them (said on the terminal); a
-    second stops the writing, and what it did not get to is said (the summary is always written).
-    Returns None, or what the second Ctrl-C left out."""
+    second stops the writing, and what it did not get to is said (the summary is always written). Without
+    `own_sigint` (a run in the caller's process) the first Ctrl-C stops the writing. Returns None or what the
+    Ctrl-C left out, and an exception of the caller's that stopped the writing (pytest's cancel: bench/pytest_plugin/
+    cancel.py), for the caller to raise again once the folder is complete."""
     import signal
 
     presses = [0]
@@ -316,23 +323,26 @@ def _finish_keeping(outputs: Outputs, result: Any, partial: Path) -> str | None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a third press must not cut the saving below
         raise KeyboardInterrupt
 
-    main = threading.current_thread() is threading.main_thread()
+    main = own_sigint and threading.current_thread() is threading.main_thread()
     old = signal.signal(signal.SIGINT, on_sigint) if main else None
     try:
         outputs.finish(result)
-        return None
-    except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - the run's data is kept whatever failed
+        return None, None
+    except BaseException as exc:  # noqa: BLE001 - the run's data is kept whatever failed
         if main:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         why = "interrupted" if isinstance(exc, KeyboardInterrupt) else f"writing failed: {exc}"
+        if not isinstance(exc, KeyboardInterrupt | Exception):
+            why = f"stopped by the caller ({type(exc).__name__}: {exc})"
         try:
             outputs.abort()
         finally:
             outputs.write_summary(result, complete=False)
         missing = [f for f in ("bus.log", "run.rrd") if not (partial / f).exists()]
+        pending = None if isinstance(exc, KeyboardInterrupt | Exception) else exc
         return f"{why}; the plots and the recording may be incomplete" + (
             f"; missing: {', '.join(missing)}" if missing else ""
-        )
+        ), pending
     finally:
         if main:
             signal.signal(signal.SIGINT, old)

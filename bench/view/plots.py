@@ -45,8 +45,24 @@ STYLE = Style(
 )
 
 
+class XY(pygal.XY):
+    """pygal's XY chart with its attribute lookup made cheap: pygal's (3.1) BaseGraph.__getattribute__ looks every
+    attribute up in the chart's render state through two more Python-level lookups, ~9 per plotted value (180,000
+    calls for the overview of a short run: 0.135 s of its 0.15 s). The same lookup, in the same order (the render
+    state's own values first, then the chart's), without the recursion: the same SVG (its class name is pygal's
+    "xy-graph" still), in half the time."""
+
+    def __getattribute__(self, name: str) -> Any:
+        state = object.__getattribute__(self, "__dict__").get("state")
+        if state is not None and name != "state" and name[:2] != "__":
+            values = state.__dict__
+            if name in values:
+                return values[name]
+        return object.__getattribute__(self, name)
+
+
 def _chart(title: str, x_title: str, y_title: str, width: int = 760, height: int = 330) -> pygal.XY:
-    return pygal.XY(
+    return XY(
         title=title,
         x_title=x_title,
         y_title=y_title,

@@ -44,7 +44,7 @@ class ViewWorker:
     ) -> None:
         self.spec = {
             "name": name,
-            "folder": str(folder),
+            "folder": str(Path(folder).absolute()),  # a kept process keeps the cwd it started in
             "live": live,
             "live_decimate": live_decimate,
             "web_port": web_port,

@@ -164,4 +164,5 @@ def _take(role: str) -> _Proc:
     while (proc := _STARTED.pop(role, None)) is not None:
         if proc.proc.poll() is None and proc.error is None:
             return proc
+        proc.kill(grace_s=0.5)  # ended or broken since it was kept: reaped, not left running
     return _Proc(role)

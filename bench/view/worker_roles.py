@@ -40,6 +40,8 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
         elif kind == "finish":
             sink.end(payload[0]["summary"])
             break
+    if spec.get("keep") and spec["live"] == "none":
+        sink.close()  # before the reply: nothing of this run is said after it (the next run's replies follow)
     reply(files=["run.rrd"] if spec["rrd"] else [])
     if spec["live"] == "serve":
         _serve_until(sink.url or "", spec.get("serve_for"), reply.fd)

@@ -1,4 +1,4 @@
-"""hil_run's direct runs run in the test's process (bench/run/inprocess.py): the same run as a `bench run` process,
+"""hil_run's direct runs run in the test's process (bench/cli_in_process.py): the same run as a `bench run` process,
 bit for bit (traces.npy, bus.log, the summary but for its wall-clock timing), whatever ran in the process before
 (the reused viewer and plot processes, the loaded C library), and the same files."""
 
@@ -87,3 +87,29 @@ def test_the_kept_viewer_processes_are_replaced_after_their_runs(
         assert (out / "run.rrd").is_file() and list(out.glob("*.svg")), sorted(out.iterdir())
         pids.append(worker_procs._STARTED["rerun"].proc.pid)
     assert len(set(pids)) >= 2 and pids[0] != pids[2], pids  # the runs' processes: kept for 2, then replaced
+
+
+class Cancelled(BaseException):
+    """What pytest's cancel raises in a running test (bench/pytest_plugin/cancel.py: pytest.skip.Exception)."""
+
+
+@pytest.mark.parametrize("stop", [Cancelled("the test was cancelled"), KeyboardInterrupt()], ids=["cancel", "ctrl-c"])
+def test_a_stop_while_the_results_are_written_keeps_the_run_and_reaches_the_caller(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, stop: BaseException
+) -> None:
+    """The caller's exception (a cancelled test) or Ctrl-C after the loop: the complete run is kept in its folder
+    (summary.json saying what was not written; no NAME.partial), and the exception reaches the caller (a Ctrl-C as
+    KeyboardInterrupt: the pytest session stops, as it did when the run was a process of its own)."""
+    from bench.cli_in_process import run_here
+    from bench.run import outputs
+
+    def finish(self: Any, result: Any) -> None:
+        raise stop
+
+    monkeypatch.setattr(outputs.Outputs, "finish", finish)
+    out = tmp_path / "run"
+    with pytest.raises(type(stop)):
+        run_here([str(REPO / SCENARIOS[0]), "--bus", "direct", "--out", str(out), "--set", "scenario.periods=40"])
+    assert not out.with_name("run.partial").exists() and (out / "traces.npy").is_file(), sorted(tmp_path.iterdir())
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["periods"] == 40 and summary["files"]["recording"] is None

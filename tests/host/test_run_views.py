@@ -144,6 +144,33 @@ def test_stacked_plots_declare_each_panel_where_it_is_drawn(tmp_path: Path) -> N
         assert y == height, path.name  # the panels fill the document: no blank band, none cut off
 
 
+def test_the_cheap_lookup_draws_pygals_own_svg(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """bench.view.plots.XY (pygal's XY with a cheaper attribute lookup) draws the SVG pygal's own XY draws, but for
+    the random ids pygal gives each chart: a pygal whose lookup gives other values for these plots fails here."""
+    import re
+
+    import pygal
+
+    from bench.view import plots
+
+    k = np.arange(-5, 30)
+    win = {"at_period": 20, "period": 20 + k, "iq_A": (k > 1).astype(float), "iq_ref_A": (k >= 0).astype(float)}
+    win["vq_V"] = 80.0 * (k == 1)
+    step = {"at_period": 20, "signal": "iq", "periods_to_settle": 2, "from_A": 0.0, "to_A": 1.0, "overshoot_A": 0.0}
+    start = np.arange(0, 400, 4)
+    env = {n: (start, np.sin(start / 50.0), np.sin(start / 50.0) + 0.1) for n in ("iq_A", "vq_V", "omega_rad_s")}
+
+    def drawn(folder: Path) -> list[str]:
+        folder.mkdir()
+        paths = [*plots.step_plots(folder, [win], [step], "t"), plots.overview_plot(folder, env, "t", 1e-4)]
+        ids = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}")
+        return [ids.sub("ID", p.read_text()) for p in paths if p is not None]
+
+    cheap = drawn(tmp_path / "cheap")
+    monkeypatch.setattr(plots, "XY", pygal.XY)
+    assert len(cheap) == 2 and cheap == drawn(tmp_path / "pygal")
+
+
 @pytest.mark.parametrize("rows_n", [2, 3, 12])
 def test_sweep_heatmap_text_stays_inside_the_figure(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, rows_n: int
