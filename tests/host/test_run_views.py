@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -116,6 +117,17 @@ def _svg_boxes(path: Path) -> tuple[tuple[float, float], list[tuple[float, float
     return (vb[2], vb[3]), boxes
 
 
+def _plot_inputs() -> tuple[dict[str, Any], dict[str, Any], dict[str, tuple[np.ndarray, ...]]]:
+    """A step window, its step and three signals' envelopes, made up: what the plots draw."""
+    k = np.arange(-5, 30)
+    win = {"at_period": 20, "period": 20 + k, "iq_A": (k > 1).astype(float), "iq_ref_A": (k >= 0).astype(float)}
+    win["vq_V"] = 80.0 * (k == 1)
+    step = {"at_period": 20, "signal": "iq", "periods_to_settle": 2, "from_A": 0.0, "to_A": 1.0, "overshoot_A": 0.0}
+    start = np.arange(0, 400, 4)
+    env = {n: (start, np.sin(start / 50.0), np.sin(start / 50.0) + 0.1) for n in ("iq_A", "vq_V", "omega_rad_s")}
+    return win, step, env
+
+
 def test_stacked_plots_declare_each_panel_where_it_is_drawn(tmp_path: Path) -> None:
     """Each panel of a step plot / the overview is a nested <svg>: with its own size it sits in its band of
     the document; without (as before), Chromium scaled each into the whole document: ~600 px blank atop the
@@ -123,12 +135,7 @@ def test_stacked_plots_declare_each_panel_where_it_is_drawn(tmp_path: Path) -> N
     document, each at the scale 1 of its viewBox."""
     from bench.view.plots import overview_plot, step_plots
 
-    k = np.arange(-5, 30)
-    win = {"at_period": 20, "period": 20 + k, "iq_A": (k > 1).astype(float), "iq_ref_A": (k >= 0).astype(float)}
-    win["vq_V"] = 80.0 * (k == 1)
-    step = {"at_period": 20, "signal": "iq", "periods_to_settle": 2, "from_A": 0.0, "to_A": 1.0, "overshoot_A": 0.0}
-    start = np.arange(0, 400, 4)
-    env = {n: (start, np.sin(start / 50.0), np.sin(start / 50.0) + 0.1) for n in ("iq_A", "vq_V", "omega_rad_s")}
+    win, step, env = _plot_inputs()
     paths = [*step_plots(tmp_path, [win], [step], "t"), overview_plot(tmp_path, env, "t", 1e-4)]
     assert len(paths) == 2
     for path in paths:
@@ -153,12 +160,7 @@ def test_the_cheap_lookup_draws_pygals_own_svg(tmp_path: Path, monkeypatch: pyte
 
     from bench.view import plots
 
-    k = np.arange(-5, 30)
-    win = {"at_period": 20, "period": 20 + k, "iq_A": (k > 1).astype(float), "iq_ref_A": (k >= 0).astype(float)}
-    win["vq_V"] = 80.0 * (k == 1)
-    step = {"at_period": 20, "signal": "iq", "periods_to_settle": 2, "from_A": 0.0, "to_A": 1.0, "overshoot_A": 0.0}
-    start = np.arange(0, 400, 4)
-    env = {n: (start, np.sin(start / 50.0), np.sin(start / 50.0) + 0.1) for n in ("iq_A", "vq_V", "omega_rad_s")}
+    win, step, env = _plot_inputs()
 
     def drawn(folder: Path) -> list[str]:
         folder.mkdir()
