@@ -204,11 +204,12 @@ def _configure_and_run(
 ) -> tuple[float, dict[str, Any] | None]:
     """NMT reset, SDO configuration, the periods, the end-of-run reads: (the loop's wall time, and when it
     stopped early why: LoopStopped.to_dict(), a verdict, not a failure: the frames so far are kept)."""
-    sess.reset_nodes()
-    sess.configure()
-    sess.hold_plant_cpu()
     t_run = time.monotonic()
     try:
+        sess.reset_nodes()
+        sess.configure()  # a CAN box that ends here stops the run as in its loop (Session._check_box)
+        sess.hold_plant_cpu()
+        t_run = time.monotonic()
         run_wall = sess.run(progress, tick)
         sess.statuses()
     except LoopStopped as exc:

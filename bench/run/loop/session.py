@@ -128,7 +128,11 @@ class Session(SessionBus):
             self._stop_nodes()
 
     def configure(self) -> None:
-        self.config.configure()
+        try:
+            self.config.configure()
+        except (SdoCommunicationError, can.CanError):  # a box that ended while its nodes were configured
+            self._check_box(-1)
+            raise
 
     def linger(self) -> None:
         """After a lost node: let the survivor's reaction happen and be recorded (its heartbeat consumer
@@ -141,6 +145,15 @@ class Session(SessionBus):
 
     # ---------------------------------------------------------------- NMT
     def reset_nodes(self) -> None:
+        """NMT reset of both nodes and their boot-up awaited; a CAN box that ends meanwhile stops the run as in
+        its loop (node_lost, cause box_lost)."""
+        try:
+            self._reset_nodes()
+        except (RuntimeError, can.CanError):
+            self._check_box(-1)
+            raise
+
+    def _reset_nodes(self) -> None:
         booted: dict[int, bool] = {}
         all_booted = threading.Event()  # set by the notifier (a bus) or at once (direct): no polling delay
 
