@@ -4,6 +4,7 @@ names the first event and its period (bench/run/verdict/summary.py verdict) and 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -64,26 +65,31 @@ def print_result(out: Path, result: Any) -> None:
         )
     status = s["status"]
     osc = s.get("oscillating_steps") or []
-    why = {
-        "tripped": f"the plant's over-current trip latched at period {s.get('first_trip_period')} "
-        f"(I_trip_A = {s['plant'].get('I_trip_A')}{_reaction(s)})",
-        "diverged": (
+    reasons: dict[str, Callable[[], str]] = {  # each said only for its status: the others' figures may be None
+        "tripped": lambda: (
+            f"the plant's over-current trip latched at period {s.get('first_trip_period')} "
+            f"(I_trip_A = {s['plant'].get('I_trip_A')}{_reaction(s)})"
+        ),
+        "diverged": lambda: (
             f"the step at period {osc[0]} never settles: its error still swings over half the step at "
             "the end of its window (an unstable loop held by the voltage limit)"
             if osc
             else f"a phase current of {s['max_phase_current_A']:.3g} A, beyond "
             f"{s['divergence_bound_A']:.3g} A that the inverter can drive through the winding"
         ),
-        "non_finite": f"non-finite values arrived in PDOs: {', '.join(nf)}",
-        "frames_lost": (s["stopped"]["message"] if s.get("stopped") else _frames_lost(s)),
-        "node_lost": (s.get("stopped") or {}).get("message", ""),
-        "interference": f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
-        f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
-        f"first in period {bs.get('interference', {}).get('first_period')}",
-        "law_fault": _law_fault(s),
-        "realtime_overrun": _realtime_overrun(s),
-        "plant_fault": _plant_fault(s),
-    }.get(status, "")
+        "non_finite": lambda: f"non-finite values arrived in PDOs: {', '.join(nf)}",
+        "frames_lost": lambda: s["stopped"]["message"] if s.get("stopped") else _frames_lost(s),
+        "node_lost": lambda: (s.get("stopped") or {}).get("message", ""),
+        "interference": lambda: (
+            f"{bs.get('interference', {}).get('frames')} frames on the loop's own identifiers that "
+            f"the loop did not send ({_ids(bs.get('interference', {}).get('by_cob_id', {}))}), the "
+            f"first in period {bs.get('interference', {}).get('first_period')}"
+        ),
+        "law_fault": lambda: _law_fault(s),
+        "realtime_overrun": lambda: _realtime_overrun(s),
+        "plant_fault": lambda: _plant_fault(s),
+    }
+    why = reasons.get(status, lambda: "")()
     at, also = _first_events(s)
     if status == "ok":
         print("status: ok")
