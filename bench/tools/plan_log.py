@@ -195,8 +195,7 @@ class WireCache:
             return self._remote(m)
         fd = self.fd or m.is_fd
         brs = m.bitrate_switch if m.is_fd else fd  # a classic frame of the log rides an FD bus with BRS
-        data = bytes(m.data)
-        key = (m.arbitration_id, m.is_extended_id, fd, brs, data)
+        key = (m.arbitration_id, m.is_extended_id, fd, brs, data := bytes(m.data))
         if key not in self._bits:
             if self.worst:
                 self._bits[key] = worst_bits(len(data), fd, m.is_extended_id, brs)
@@ -207,10 +206,8 @@ class WireCache:
     def _remote(self, m: can.Message) -> WireBits:
         key = (m.arbitration_id, m.is_extended_id, False, False, b"remote %d" % m.dlc)
         if key not in self._bits:
-            if self.worst:
-                self._bits[key] = worst_bits(0, False, m.is_extended_id, False)
-            else:
-                self._bits[key] = classic_stream(m.arbitration_id, b"", m.is_extended_id, True, m.dlc).wire()
+            exact = classic_stream(m.arbitration_id, b"", m.is_extended_id, True, m.dlc)
+            self._bits[key] = worst_bits(0, False, m.is_extended_id, False) if self.worst else exact.wire()
         return self._bits[key]
 
 
