@@ -93,5 +93,6 @@ def run_here(argv: list[str]) -> Ran:
             args.in_caller = True  # bench/run/command.py: a Ctrl-C while the results are written is the caller's
             code = int(args.func(args))
     if code == 130:
-        raise KeyboardInterrupt(f"bench run interrupted: {err.getvalue().strip().splitlines()[-1:]}")
+        said = err.getvalue().strip().splitlines()
+        raise KeyboardInterrupt(f"bench run interrupted: {said[-1] if said else 'no message'}")
     return Ran(code, out.getvalue(), err.getvalue())
