@@ -256,17 +256,23 @@ def run_scenario(
         if opts.out is not None:
             opts.out.mkdir(parents=True, exist_ok=True)
         sess.box = kind.lease(sc.timing == "realtime")  # the CAN box's slot, when the buses are there
-        if recorders is not None:  # candump, before the nodes start
-            source = kind.recorder(recorders, opened=False)
-        sess.open()
-        if recorders is not None and source is None:  # libhil's frames, or the master's bus
-            source = kind.recorder(recorders, opened=True)
+        try:
+            if recorders is not None:  # candump, before the nodes start
+                source = kind.recorder(recorders, opened=False)
+            sess.open()
+            if recorders is not None and source is None:  # libhil's frames, or the master's bus
+                source = kind.recorder(recorders, opened=True)
+        except Exception as exc:  # the CAN box ended while the run's processes started: a verdict, as in the loop
+            if (stopped := sess.box_ended(exc)) is None:
+                raise
+            run_wall = 0.0
+        else:
 
-        def tick() -> None:
-            if source is not None:
-                pipe.feed(source.drain())
+            def tick() -> None:
+                if source is not None:
+                    pipe.feed(source.drain())
 
-        run_wall, stopped = _configure_and_run(sess, progress, tick)
+            run_wall, stopped = _configure_and_run(sess, progress, tick)
         ran = True
     finally:
         sess.close()

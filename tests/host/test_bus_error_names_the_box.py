@@ -55,3 +55,52 @@ def test_a_bus_error_with_every_node_alive_is_the_bus_error(monkeypatch: pytest.
     bl = loop(Watch(after_s=None))
     with pytest.raises(CanOperationError):
         bl._poll({"period_index": FailingEntry(), "state": FailingEntry()}, 10)
+
+
+class EndedBox:
+    """A CAN box lease whose box ended (`why`), or is up (None)."""
+
+    def __init__(self, why: str | None) -> None:
+        self.why = why
+
+    def gone(self) -> str | None:
+        return self.why
+
+
+def _kind_whose_recorder_fails(why: str | None) -> Any:
+    """The direct bus, but leased from a box that `why` ended and whose candump fails to start, as when the box's
+    QEMU is killed 0.2 s after the run took its slot."""
+    from bench.run.bus.kind_direct import DirectKind
+
+    class Kind(DirectKind):
+        def lease(self, realtime: bool) -> Any:
+            return EndedBox(why)
+
+        def recorder(self, rec: Any, opened: bool) -> Any:
+            if not opened:
+                raise RuntimeError("candump on vcan0 in the CAN box failed: -9")
+            return super().recorder(rec, opened)
+
+    return Kind("direct", None)
+
+
+@pytest.mark.parametrize("why", ["its QEMU process ended (killed by signal 9)", None])
+def test_a_box_that_ends_while_the_run_starts_is_node_lost(why: str | None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The run's processes starting in a box that ends: node_lost (cause box_lost, exit 8) with what failed, as in
+    the loop; the same failure in a box that is up stays the failure (bench run's FAILED, exit 1)."""
+    from bench.paths import REPO
+    from bench.run import RunOptions, run_scenario
+    from bench.run.bus import buses
+    from bench.scenario import load
+
+    monkeypatch.setattr(buses, "bus_of", lambda opts, faults=False, box=True: _kind_whose_recorder_fails(why))
+    sc = load(REPO / "scenarios" / "you2019_step.toml", ["scenario.periods=50"])
+    if why is None:
+        with pytest.raises(RuntimeError, match="candump on vcan0 in the CAN box failed"):
+            run_scenario(sc, RunOptions(bus="direct"))
+        return
+    res = run_scenario(sc, RunOptions(bus="direct"))
+    stopped = res.summary["stopped"]
+    assert (res.status, res.exit_code, res.summary["periods"]) == ("node_lost", 8, 0)
+    assert stopped["cause"] == "box_lost" and why in stopped["message"]
+    assert stopped["failed"] == "candump on vcan0 in the CAN box failed: -9"

@@ -257,6 +257,17 @@ class Session(SessionBus):
                 details={"cause": "box_lost"},
             ) from None
 
+    def box_ended(self, failure: BaseException) -> dict[str, Any] | None:
+        """When the run's CAN box ended (killed, crashed) while the run's processes started: the early stop it is
+        (LoopStopped.to_dict(), node_lost, cause box_lost, with `failure`, what it made fail); None otherwise."""
+        try:
+            self._check_box(-1)
+        except LoopStopped as stop:
+            out = stop.to_dict()
+            out["failed"] = str(failure)
+            return out
+        return None
+
     def fault_log(self) -> tuple[list[tuple[Any, ...]], int]:
         """The fault injector's actions (period, t_us, rule, kind, side, cob_id, data) and how many it could
         not log; after the run (direct: from the in-process injector; a bus: from the gateway's log)."""
