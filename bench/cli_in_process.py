@@ -49,7 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     return build_parser(["run"])
 
 
-def _parse(argv: list[str]) -> argparse.Namespace | int:
+def parse_run(argv: list[str]) -> argparse.Namespace | int:
     """`bench run ARGV` parsed, or argparse's exit status (its message on sys.stderr)."""
     try:
         args = _parser().parse_args(["run", *argv])
@@ -65,7 +65,7 @@ def runs_here(argv: list[str]) -> bool:
     from bench.run.bus.buses import bus_of_args
 
     with contextlib.redirect_stderr(io.StringIO()):  # a refusal is the process's to say (hil_run shows it)
-        args = _parse(argv)
+        args = parse_run(argv)
     if isinstance(args, int) or getattr(args, "law", None) is not None:
         return False
     return bus_of_args(args).in_process and same_build()
@@ -83,7 +83,7 @@ def run_here(argv: list[str]) -> Ran:
     reuse()
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        args = _parse(argv)
+        args = parse_run(argv)
         if isinstance(args, int):
             code = args
         elif (refusal := _lacking(find("run"), args)) is not None:

@@ -38,11 +38,11 @@ __all__ = ["HilRun", "Step", "load_run"]
 def __getattr__(name: str) -> Any:
     """HilRun, Step and load_run on demand (the plugin stays cheap to load)."""
     if name in ("HilRun", "load_run"):
-        from bench.pytest_plugin import result
+        import bench.result as result
 
         return getattr(result, name)
     if name == "Step":
-        from bench.pytest_plugin.steps import Step
+        from bench.result.steps import Step
 
         return Step
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -20,7 +20,7 @@ import pytest
 
 from bench.pytest_plugin.result import HilRun, RunFolderError, load_run
 from bench.pytest_plugin.state import LawBuild
-from bench.pytest_plugin.toml_text import dumps, value
+from bench.scenario.toml_text import dumps, value
 
 TAIL_LINES = 20
 MARKER = ".hil-runs"  # a test's folder the plugin made (and may empty on the test's next session)
@@ -47,19 +47,12 @@ def sanitize(text: str, limit: int = 100) -> str:
 
 def override_list(overrides: Overrides) -> list[str]:
     """`--set` items from {"controller.L_hat_ratio": 0.5} (values written as TOML) or ["k=v", ...]."""
-    if overrides is None:
-        return []
-    if isinstance(overrides, str):
-        return [overrides]
-    if isinstance(overrides, Mapping):
-        out = []
-        for k, v in overrides.items():
-            try:
-                out.append(f"{k}={value(v)}")
-            except TypeError as exc:
-                refuse(f"hil_run: override {k}: {exc}")
-        return out
-    return [str(o) for o in overrides]
+    from bench.scenario import set_items
+
+    try:
+        return set_items(overrides)
+    except TypeError as exc:
+        refuse(f"hil_run: {exc}")
 
 
 def table_overrides(path: Path, added: Mapping[str, Sequence[Mapping[str, Any]] | None]) -> list[str]:

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from bench.run.pipeline import Pipeline, RunResult, capture_to_log, replay_log, run_scenario
     from bench.run.record.canlog import read_frames
     from bench.run.record.sources import DirectSource, LogFollower
-    from bench.run.sinks import TraceFileSink
+    from bench.run.sinks import TraceFileSink, TraceRows
 
 # name -> (module, its name there); the imports above and __all__ say the same, for a type checker, a linter and the
 # import-graph test (tests/host/test_import_graph.py keeps the three equal)
@@ -45,6 +45,7 @@ _WHERE: dict[str, tuple[str, str]] = {
     "LogFollower": ("bench.run.record.sources", "LogFollower"),
     "read_frames": ("bench.run.record.canlog", "read_frames"),
     "TraceFileSink": ("bench.run.sinks", "TraceFileSink"),
+    "TraceRows": ("bench.run.sinks", "TraceRows"),
     # buses: the in-process one, the VM, the CAN box
     "DirectBus": ("bench.run.bus.direct", "DirectBus"),
     "Hil": ("bench.run.bus.direct", "Hil"),
@@ -67,6 +68,7 @@ __all__ = [
     "RunResult",
     "Session",
     "TraceFileSink",
+    "TraceRows",
     "VmOptions",
     "box_down",
     "box_info",

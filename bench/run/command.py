@@ -178,10 +178,11 @@ def run(args: argparse.Namespace) -> int:
     return execute(args)[0]
 
 
-def execute(args: argparse.Namespace) -> tuple[int, Any, Path | None]:
-    """`bench run` with its parsed arguments: (exit status, RunResult or None, result folder or None)."""
+def execute(args: argparse.Namespace, given: Scenario | None = None) -> tuple[int, Any, Path | None]:
+    """`bench run` with its parsed arguments: (exit status, RunResult or None, result folder or None). `given`: the
+    scenario already loaded (bench.api.run's, from a dict or a Scenario), instead of args.scenario's file."""
     try:
-        sc = load(args.scenario, args.overrides)
+        sc = given if given is not None else load(args.scenario, args.overrides)
         if (unselected := unselected_law([sc])) is not None:
             raise ScenarioError(unselected)
         _check_args(args)

@@ -106,7 +106,7 @@ class Outputs:
             "recording": "run.rrd" if complete and (self.folder / "run.rrd").exists() else None,
             "plots": plots or [],
         }
-        (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
+        (self.folder / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
 
     def abort(self) -> None:
         self.view.abort()
@@ -126,7 +126,7 @@ class Outputs:
         self.view.serve(args.serve_for)
 
 
-def _json_default(o: Any) -> Any:
+def json_default(o: Any) -> Any:
     import numpy as np
 
     if isinstance(o, np.generic):

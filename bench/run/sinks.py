@@ -28,6 +28,19 @@ def columns(signals: list[SignalInfo]) -> list[str]:
     return ["period", "t_s", *[s.name for s in signals]]
 
 
+def trace_dtype(signals: list[SignalInfo]) -> np.dtype:
+    """A trace row: the period, its time, each signal in its storage type (traces.npy's, TraceRows')."""
+    return np.dtype([("period", "<i8"), ("t_s", "<f8"), *[(s.name, s.storage) for s in signals]])
+
+
+def rows_of(dtype: np.dtype, chunk: dict[str, np.ndarray]) -> np.ndarray:
+    """A chunk's columns as rows of `dtype` (NaN where no frame carried a signal)."""
+    rows = np.empty(len(chunk["period"]), dtype=dtype)
+    for name in dtype.names or ():
+        rows[name] = chunk[name] if name in chunk else np.nan
+    return rows
+
+
 class TraceFileSink:
     """traces.npy: one numpy structured array, a row per period and a field per signal (NaN where
     no frame carried it), appended chunk by chunk. Its header is written first with room for any
@@ -43,7 +56,7 @@ class TraceFileSink:
         self.dtype: np.dtype | None = None
 
     def begin(self, signals: list[SignalInfo], ctx: Any) -> None:
-        self.dtype = np.dtype([("period", "<i8"), ("t_s", "<f8"), *[(s.name, s.storage) for s in signals]])
+        self.dtype = trace_dtype(signals)
         self._fh = open(self.path, "wb")  # noqa: SIM115 - closed in end()
         self._fh.write(self._header(0))
 
@@ -59,9 +72,7 @@ class TraceFileSink:
 
     def write(self, chunk: dict[str, np.ndarray]) -> None:
         assert self.dtype is not None
-        rows = np.empty(len(chunk["period"]), dtype=self.dtype)
-        for name in self.dtype.names or ():
-            rows[name] = chunk[name] if name in chunk else np.nan
+        rows = rows_of(self.dtype, chunk)
         self._fh.write(rows.tobytes())
         self.rows += len(rows)
 
@@ -72,6 +83,27 @@ class TraceFileSink:
         self._fh.write(self._header(self.rows))
         self._fh.close()
         self._fh = None
+
+
+class TraceRows:
+    """The whole trace in memory as the rows traces.npy holds (bench.api.run without files): `rows` after the end."""
+
+    def __init__(self) -> None:
+        self._parts: list[np.ndarray] = []
+        self.dtype: np.dtype | None = None
+        self.rows: np.ndarray | None = None
+
+    def begin(self, signals: list[SignalInfo], ctx: Any) -> None:
+        self.dtype = trace_dtype(signals)
+
+    def write(self, chunk: dict[str, np.ndarray]) -> None:
+        assert self.dtype is not None
+        self._parts.append(rows_of(self.dtype, chunk))
+
+    def end(self, summary: dict[str, Any]) -> None:
+        if self.dtype is not None:
+            self.rows = np.concatenate(self._parts) if self._parts else np.empty(0, dtype=self.dtype)
+        self._parts = []
 
 
 class TraceCollector:

@@ -56,7 +56,7 @@ This package's face: its modules, one concern each, and every name they offer, f
     settings.py   a table's key = value checked against the EDS (SECTION_OBJECTS, RATIOS)
     parsing.py    parse: the tables, the events, the trace and the faults of a scenario
     overrides.py  --set KEY=VALUE and --law DIR
-    files.py      load, loads: a scenario from its file or its text
+    files.py      load, loads, from_dict: a scenario from its file, its text or its tables
     faults.py     [[faults]]
     trace.py      [trace]
 """
@@ -64,9 +64,9 @@ This package's face: its modules, one concern each, and every name they offer, f
 from __future__ import annotations
 
 from bench.scenario.faults import Fault, FaultError, parse_faults, refuse_lockstep_stalls
-from bench.scenario.files import bundled, load, loads, scenario_path
+from bench.scenario.files import bundled, from_dict, load, loads, scenario_path
 from bench.scenario.model import SCENARIO_KEYS, STATUSES, TIMINGS, Event, Scenario, ScenarioError, Setting
-from bench.scenario.overrides import add_set_argument, apply_overrides, unselected_law
+from bench.scenario.overrides import add_set_argument, apply_overrides, set_items, unselected_law
 from bench.scenario.parsing import COMMAND_TIMEOUT, controller_at_start, default_trace, parse
 from bench.scenario.presets import DRIVE_PRESETS, PRESETS, MotorPreset, motor_preset, motor_presets
 from bench.scenario.settings import RATIOS, RESERVED, SECTION_OBJECTS
@@ -97,6 +97,8 @@ __all__ = [
     "default_trace",
     "load",
     "loads",
+    "from_dict",
+    "set_items",
     "motor_preset",
     "motor_presets",
     "parse",

@@ -1,11 +1,12 @@
 """Scenarios from their files or their text: load (a path, the bench's own scenario of that relative name when the
-folder has none: bundled, scenario_path) and loads (TOML text, with `--set` overrides)."""
+folder has none: bundled, scenario_path), loads (TOML text) and from_dict (its tables), with `--set` overrides."""
 
 from __future__ import annotations
 
 import sys
 import tomllib
 from pathlib import Path
+from typing import Any
 
 from bench.scenario.model import Scenario, ScenarioError
 from bench.scenario.overrides import apply_overrides, blame_override
@@ -54,6 +55,12 @@ def loads(text: str, where: str, overrides: list[str] | None = None) -> Scenario
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: not valid TOML: {exc}") from exc
+    return from_dict(raw, where, overrides)
+
+
+def from_dict(raw: dict[str, Any], where: str, overrides: list[str] | None = None) -> Scenario:
+    """A scenario from its tables as tomllib gives them (a TOML file's layout); a refusal an override caused names
+    the override."""
     if not overrides:
         return parse(raw, where)
     try:

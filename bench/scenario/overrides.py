@@ -1,5 +1,5 @@
-"""What the command line changes in a scenario: `--set KEY=VALUE` (add_set_argument, apply_overrides; a refusal
-it causes blames the override: blame_override) and `--law DIR`, whose law some scenario must select
+"""What the command line changes in a scenario: `--set KEY=VALUE` (add_set_argument, set_items, apply_overrides; a
+refusal it causes blames the override: blame_override) and `--law DIR`, whose law some scenario must select
 (unselected_law)."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ import copy
 import difflib
 import os
 import tomllib
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from bench.laws import law_names
@@ -40,6 +41,26 @@ def unselected_law(scenarios: list[Scenario], what: str = "the scenario") -> str
         f'--law: {what} does not select {which}: set [controller] controller = "{name}" '
         f"(or --set controller.controller={name})"
     )
+
+
+def set_items(overrides: Mapping[str, Any] | Sequence[str] | str | None) -> list[str]:
+    """`--set` items from {"controller.L_hat_ratio": 0.5} (values written as TOML) or ["k=v", ...] or "k=v";
+    TypeError names a value TOML cannot hold."""
+    from bench.scenario.toml_text import value
+
+    if overrides is None:
+        return []
+    if isinstance(overrides, str):
+        return [overrides]
+    if isinstance(overrides, Mapping):
+        out = []
+        for k, v in overrides.items():
+            try:
+                out.append(f"{k}={value(v)}")
+            except TypeError as exc:
+                raise TypeError(f"override {k}: {exc}") from None
+        return out
+    return [str(o) for o in overrides]
 
 
 def apply_overrides(raw: dict[str, Any], overrides: list[str], where: str) -> dict[str, Any]:

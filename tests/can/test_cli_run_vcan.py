@@ -11,7 +11,7 @@ from bench_cli import bench_cli
 
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
-from bench.run.outputs import _json_default
+from bench.run.outputs import json_default
 from bench.scenario import load
 
 SCENARIO = REPO / "tests" / "scenarios" / "parity.toml"
@@ -21,7 +21,7 @@ TIMEOUT_S = 900  # Python in the VM is slow
 def test_run_over_vcan_equals_direct_and_replays(vcan0: str, tmp_path: Path) -> None:
     # the direct run through the API (the CLI's direct path is tested on the host; Python in the VM is slow)
     direct = run_scenario(load(SCENARIO), RunOptions(bus="direct"), keep_trace=True)
-    sd = json.loads(json.dumps(direct.summary, default=_json_default))  # as summary.json has it
+    sd = json.loads(json.dumps(direct.summary, default=json_default))  # as summary.json has it
     td = direct.trace
     assert td is not None
     out = tmp_path / vcan0

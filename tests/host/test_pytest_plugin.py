@@ -25,7 +25,7 @@ from law_util import zero_law_as
 
 from bench.pytest_plugin.result import HilRun, load_run
 from bench.pytest_plugin.runner import override_list, sanitize, table_overrides, tail
-from bench.pytest_plugin.toml_text import dumps
+from bench.scenario.toml_text import dumps
 
 pytest_plugins = ["pytester"]
 
