@@ -40,9 +40,17 @@ from pathlib import Path
 from typing import Any
 
 from bench.result import HilRun, Step, load_run
-from bench.scenario import Scenario, ScenarioError, from_dict, load, set_items, unselected_law
+from bench.scenario import (
+    Scenario,
+    ScenarioError,
+    from_dict,
+    load,
+    set_items,
+    unselected_law,
+    unselected_python_law,
+)
 
-__all__ = ["HilRun", "RunFailed", "RunRefused", "ScenarioError", "in_process", "run"]
+__all__ = ["HilRun", "RunFailed", "RunRefused", "ScenarioError", "in_process", "port_check", "run"]
 
 ScenarioLike = str | os.PathLike[str] | Mapping[str, Any] | Scenario
 Overrides = Mapping[str, Any] | Sequence[str] | str | None
@@ -72,22 +80,59 @@ def run(
     *,
     bus: str = "direct",
     law: str | os.PathLike[str] | None = None,
+    py_law: Any = None,
     out: str | os.PathLike[str] | None = None,
 ) -> HilRun:
     """Run `scenario` (with `overrides`) on `bus` and return its HilRun; `out`: the folder its files go to (new or
-    empty), none written without it for a run in process; `law`: a current-law folder (`bench run --law`)."""
+    empty), none written without it for a run in process; `law`: a current-law folder (`bench run --law`);
+    `py_law`: a current law prototyped in Python (an object, or "FILE.py:Class": `bench run --py-law`)."""
     try:
         sets = set_items(overrides)
     except TypeError as exc:
         raise ScenarioError(str(exc)) from None
     folder = None if out is None else Path(out).expanduser().resolve()
     if not in_process(bus, law):
-        return _in_a_process(scenario, sets, bus, law, folder)
+        return _in_a_process(scenario, sets, bus, law, _py_law_spec(py_law), folder)
     sc = _scenario(scenario, sets)
     path = Path(sc.source) if Path(sc.source).is_file() else None
+    python_law = _py_law(py_law)
+    if python_law is not None and (unselected := unselected_python_law(sc, python_law.law)) is not None:
+        raise ScenarioError(unselected)
     if folder is None:
-        return _in_memory(sc, path)
-    return _to_folder(sc, path, folder)
+        return _in_memory(sc, path, python_law)
+    return _to_folder(sc, path, folder, python_law)
+
+
+def _py_law(py_law: Any) -> Any:
+    """The Python law object of a run in this process (a "FILE.py:Class" loaded), checked; None: none."""
+    if py_law is None:
+        return None
+    from bench.law_py import LawError, checked
+
+    try:
+        return checked(None, py_law) if isinstance(py_law, str) else checked(py_law, None)
+    except LawError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
+def _py_law_spec(py_law: Any) -> str | None:
+    """`--py-law`'s FILE.py:Class of a run in a process of its own: as given, or where the object's class is
+    defined (a class typed into a notebook has no file: its run needs this process, no law= and the direct bus)."""
+    if py_law is None or isinstance(py_law, str):
+        return py_law
+    import inspect
+
+    cls = type(py_law)
+    try:
+        source = inspect.getsourcefile(cls)
+    except TypeError:
+        source = None
+    if source is None or "<" in cls.__qualname__:
+        raise ScenarioError(
+            f"py_law: {cls.__qualname__} has no file a `bench run` process could load it from; give it as "
+            "'FILE.py:Class', or run it in this process (bus='direct', no law=)"
+        )
+    return f"{source}:{cls.__qualname__}"
 
 
 def _scenario(scenario: ScenarioLike, sets: list[str]) -> Scenario:
@@ -120,17 +165,17 @@ def _json_value(o: Any) -> Any:
     raise TypeError(f"a scenario value must be a number, a string, a boolean, a list or a table, not {o!r}")
 
 
-def _in_memory(sc: Scenario, path: Path | None) -> HilRun:
+def _in_memory(sc: Scenario, path: Path | None, py_law: Any = None) -> HilRun:
     """The run in this process, nothing written: `bench run --bus direct`'s run, its traces kept as rows."""
     from bench.canbus import LinkError
     from bench.run import RunOptions, TraceRows, run_scenario
-    from bench.run.command import motor_block
+    from bench.run.motor_block import motor_block
     from bench.run.outputs import json_default
 
     motor = motor_block(sc)  # the files as the scenario's load read them (as bench run's summary.json)
     rows = TraceRows()
     try:
-        res = run_scenario(sc, RunOptions(bus="direct"), sinks=[rows], envelopes=False)
+        res = run_scenario(sc, RunOptions(bus="direct", py_law=py_law), sinks=[rows], envelopes=False)
     except LinkError as exc:
         raise RunRefused(str(exc)) from exc
     except Exception as exc:
@@ -155,7 +200,7 @@ def _in_memory(sc: Scenario, path: Path | None) -> HilRun:
     )
 
 
-def _to_folder(sc: Scenario, path: Path | None, folder: Path) -> HilRun:
+def _to_folder(sc: Scenario, path: Path | None, folder: Path, py_law: Any = None) -> HilRun:
     """The run in this process as `bench run --out FOLDER` makes it (its parser's defaults, its handler), no viewer."""
     from bench.cli_in_process import parse_run
     from bench.run.command import execute
@@ -163,6 +208,7 @@ def _to_folder(sc: Scenario, path: Path | None, folder: Path) -> HilRun:
     args = parse_run([str(path or DICT), "--bus", "direct", "--out", str(folder), "--no-viewer"])
     assert not isinstance(args, int), "bench run's own arguments parse"
     args.in_caller = True  # a Ctrl-C while the results are written is the caller's (bench/run/command.py)
+    args.py_law_obj = py_law
     said_out, said_err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(said_out), contextlib.redirect_stderr(said_err):
         code, _result, written = execute(args, sc)
@@ -170,7 +216,12 @@ def _to_folder(sc: Scenario, path: Path | None, folder: Path) -> HilRun:
 
 
 def _in_a_process(
-    scenario: ScenarioLike, sets: list[str], bus: str, law: str | os.PathLike[str] | None, folder: Path | None
+    scenario: ScenarioLike,
+    sets: list[str],
+    bus: str,
+    law: str | os.PathLike[str] | None,
+    py_law: str | None,
+    folder: Path | None,
 ) -> HilRun:
     """`bench run` in a process of its own, read back from its folder (a temporary one without `out=`)."""
     with tempfile.TemporaryDirectory(prefix="bench-api-") as tmp:
@@ -180,6 +231,8 @@ def _in_a_process(
         cmd += [f"--set={s}" for s in sets]
         if law is not None:
             cmd += ["--law", str(Path(law).expanduser().resolve())]
+        if py_law is not None:
+            cmd += ["--py-law", py_law]
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         shown = path if not isinstance(scenario, Mapping) else None
         return _read_back(proc.returncode, out, shown, bus, proc.stdout, proc.stderr, keep=folder is not None)
@@ -225,3 +278,43 @@ def _read_back(
     rows = run.traces if run.traces_file is not None and run.traces_file.is_file() else None
     summary = {k: v for k, v in run.summary.items() if k != "files"}
     return HilRun(None, code, summary, run.status, run.steps, None, None, scenario, bus, stdout, stderr, rows)
+
+
+def port_check(
+    scenario: str | os.PathLike[str],
+    py_law: Any,
+    overrides: Overrides = None,
+    *,
+    law: str | os.PathLike[str] | None = None,
+    tolerance: float = 0.0,
+) -> Any:
+    """`bench port-check` from Python (a test's helper): the scenario with the Python prototype `py_law` (an object or
+    "FILE.py:Class") and with its C port (a registered law of this build, or the law folder `law`), compared; a
+    bench.port_check.PortReport (`agree`, `signals`, `text()`, `expect_agree()`). In this process without `law`,
+    else as a `bench port-check` process."""
+    from bench.port_check import PortReport
+    from bench.port_check import port_check as check
+
+    try:
+        sets = set_items(overrides)
+    except TypeError as exc:
+        raise ScenarioError(str(exc)) from None
+    if in_process("direct", law):
+        sc = _scenario(scenario, sets)
+        python_law = _py_law(py_law)
+        if (unselected := unselected_python_law(sc, python_law.law)) is not None:
+            raise ScenarioError(unselected)
+        return check(sc, python_law, tolerance)
+    spec = _py_law_spec(py_law)
+    assert law is not None and spec is not None
+    with tempfile.TemporaryDirectory(prefix="bench-port-check-") as tmp:
+        report = Path(tmp) / "report.json"
+        cmd = [sys.executable, "-m", "bench.cli", "port-check", str(_scenario_file(scenario, Path(tmp)))]
+        cmd += ["--law", str(Path(law).expanduser().resolve()), "--py-law", spec, "--tolerance", repr(tolerance)]
+        cmd += [*(f"--set={s}" for s in sets), "--json", str(report)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode not in (0, 1) or not report.is_file():
+            said = proc.stderr.strip().splitlines()
+            last = said[-1] if said else f"exit status {proc.returncode}"
+            raise RunRefused(last.removeprefix("bench port-check: "))
+        return PortReport.from_json(json.loads(report.read_text()))

@@ -134,3 +134,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from bench.demo import main
 
     return main(args)
+
+
+def port_check_arguments(p: argparse.ArgumentParser) -> None:
+    from bench.port_check import arguments
+
+    arguments(p)
+
+
+def cmd_port_check(args: argparse.Namespace) -> int:
+    from bench.port_check import cmd_port_check
+
+    return cmd_port_check(args)

@@ -125,6 +125,21 @@ COMMANDS: tuple[Command, ...] = (
         needs_for=cli_runs.serve_needs,
     ),
     Command(
+        "port-check",
+        help="a current law prototyped in Python against its C port: where they part, per signal",
+        description="Runs the scenario twice in direct mode, once with the Python prototype (--py-law, a class "
+        "with the C interface's face) and once with the registered law it stands in for (its C port; a law folder "
+        "with --law DIR), and compares every trace column period by period: the largest difference and the first "
+        "period they part beyond --tolerance (default 0: bit for bit). A prototype that computes in float32 and a "
+        "port that does the same operations agree bit for bit (docs/YOUR_CONTROLLER.md 'Prototype in Python "
+        "first'). Exit 0: they agree; 1: they part; 2: bad input. Example: bench port-check "
+        "examples/scenarios/complex_vector_pi_step.toml --law examples/laws/complex_vector_pi "
+        "--py-law examples/laws/complex_vector_pi/prototype.py:ComplexVectorPI",
+        arguments=cli_runs.port_check_arguments,
+        handler=cli_runs.cmd_port_check,
+        law=True,
+    ),
+    Command(
         "export",
         help="convert a CAN log (candump .log, .asc, .blf) to another format",
         description="Convert a CAN log: .asc (Vector ASCII) and .blf (Vector binary) with "

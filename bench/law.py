@@ -21,7 +21,7 @@ from pathlib import Path
 from bench.law_upgrade import explain
 from bench.root import REPO, STATE  # not bench.paths: it reads BENCH_BUILD_DIR once, at import
 
-COMMANDS = ("run", "sweep", "faults", "replay")  # the commands that take --law
+COMMANDS = ("run", "sweep", "faults", "replay", "port-check")  # the commands that take --law
 HELP = (
     "a user's current law: a folder of C files (and headers) and law.eds (one record in 0x2400..0x24FF naming "
     "the law in CurrentLaws=NAME, as the papers' folders firmware_shim/laws/*/ do); built first (make LAW=DIR "

@@ -108,6 +108,11 @@ def _record_of(law: str, path: Path | None) -> ODRecord | None:
     return None
 
 
+def law_record(law: str, path: Path | None = None) -> ODRecord | None:
+    """The EDS record of law `law` (the section whose CurrentLaws= names it), None for a law without one."""
+    return _record_of(law, path)
+
+
 def _key(raw: object, sec: str, key: str, law: str) -> str | None:
     """`key.<law>=` of the section, else `key=`, else None."""
     for k in (f"{key}.{law}", key):

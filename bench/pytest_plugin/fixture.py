@@ -236,6 +236,6 @@ def _motor_block(sc: Any) -> dict[str, Any] | None:
     """The motor block of a scenario this process read (a run that wrote no summary.json), or None."""
     if sc is None:
         return None
-    from bench.run.command import motor_block
+    from bench.run.motor_block import motor_block
 
     return motor_block(sc)

@@ -312,7 +312,7 @@ def provenance(path: Path, bus: str, law: LawBuild | None) -> list[tuple[str, st
 
 
 def motor_properties(block: Any) -> list[tuple[str, str]]:
-    """summary.json's "motor" block (bench.run.command.motor_block) as JUnit properties: motor (the folder, the
+    """summary.json's "motor" block (bench.run.motor_block) as JUnit properties: motor (the folder, the
     FMU, or builtin:<preset>) and motor_digest (16 hex of its files)."""
     if not isinstance(block, Mapping):
         return []

@@ -22,10 +22,19 @@ from bench.eds import add_node_id_arguments
 from bench.paths import lost_in_vm
 from bench.run.bus.buses import bus_problem
 from bench.run.console import print_result
+from bench.run.motor_block import motor_block
 from bench.run.outputs import Outputs
 from bench.run.record.canlog import LOG_FORMATS
 from bench.run.vm_run import run_in_vm_capture
-from bench.scenario import Scenario, ScenarioError, add_set_argument, load, scenario_path, unselected_law
+from bench.scenario import (
+    Scenario,
+    ScenarioError,
+    add_set_argument,
+    load,
+    scenario_path,
+    unselected_law,
+    unselected_python_law,
+)
 
 
 def default_out(sc: Scenario) -> Path:
@@ -108,6 +117,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="do not start the C drive (a physical drive implementing drive.eds is on the bus)",
     )
+    p.add_argument(
+        "--py-law",
+        default=None,
+        metavar="FILE.py:CLASS",
+        help="a current law prototyped in Python, in place of the registered law its class's `law` names (its record "
+        "configures it): a class with the C interface's face, called each period in the direct loop (--bus "
+        "direct only; docs/YOUR_CONTROLLER.md 'Prototype in Python first'); also module:CLASS",
+    )
     add_node_id_arguments(p)
     _output_arguments(p)
 
@@ -174,6 +191,24 @@ def _check_args(args: argparse.Namespace) -> None:
             raise ScenarioError(f"--{port.replace('_', '-')} = {getattr(args, port)}: a port is 1 .. 65535")
 
 
+def _python_law(args: argparse.Namespace, sc: Scenario) -> None:
+    """--py-law FILE.py:CLASS (or bench.api.run's object, args.py_law_obj): loaded and checked against the build's
+    laws (bench/law_py.py), before anything is written; the direct bus only."""
+    if getattr(args, "py_law_obj", None) is None and getattr(args, "py_law", None) is None:
+        return
+    from bench.law_py import LawError, checked
+    from bench.run.bus.buses import bus_of_args
+
+    if not bus_of_args(args).in_process:
+        raise ScenarioError(f"--py-law runs in the direct loop only: --bus direct, not --bus {args.bus}")
+    try:
+        args.py_law_obj = checked(getattr(args, "py_law_obj", None), args.py_law)
+    except LawError as exc:
+        raise ScenarioError(str(exc)) from None
+    if (unselected := unselected_python_law(sc, args.py_law_obj.law)) is not None:
+        raise ScenarioError(unselected)
+
+
 def run(args: argparse.Namespace) -> int:
     return execute(args)[0]
 
@@ -186,6 +221,7 @@ def execute(args: argparse.Namespace, given: Scenario | None = None) -> tuple[in
         if (unselected := unselected_law([sc])) is not None:
             raise ScenarioError(unselected)
         _check_args(args)
+        _python_law(args, sc)
     except ScenarioError as exc:
         print(f"bench run: {exc}", file=sys.stderr)
         return 2, None, None
@@ -264,39 +300,6 @@ def execute(args: argparse.Namespace, given: Scenario | None = None) -> tuple[in
     else:
         outputs.serve(args)
     return result.exit_code, result, out
-
-
-def motor_block(sc: Scenario) -> dict[str, Any]:
-    """summary.json "motor": the plant's motor as the run had it. A motor folder ([motor] folder, --motor DIR) or
-    an FMU ([motor.fmu]): {"folder": its absolute path or null, "fmu": the .fmu's or null, "name": motor.toml's
-    name or the FMU's model, "digest": 16 hex of the SHA-256 of its files} (the folder's motor.toml and the flux-map
-    table it names; the .fmu file: an FMU's mapping and parameters are the scenario's). A built-in motor:
-    {"builtin": its preset}."""
-    from bench.motor.folder import DESCRIPTION
-
-    if sc.motor_folder is not None:
-        folder = Path(sc.motor_folder.path)
-        files = [folder / DESCRIPTION, *([Path(sc.motor_folder.map_file)] if sc.motor_folder.map_file else [])]
-        return {"folder": str(folder), "fmu": None, "name": sc.motor_folder.name, "digest": files_digest(folder, files)}
-    if sc.motor_fmu is not None:
-        fmu = Path(sc.motor_fmu.path)
-        digest = files_digest(fmu.parent, [fmu])
-        return {"folder": None, "fmu": str(fmu), "name": sc.motor_fmu.model_name, "digest": digest}
-    return {"builtin": sc.preset}
-
-
-def files_digest(base: Path, files: list[Path]) -> str | None:
-    """16 hex of the SHA-256 of the files, each by its path from `base` and its bytes (bench.law.digest's way);
-    None when one can no longer be read (removed during the run: the run's results are kept all the same)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    try:
-        for f in files:
-            h.update(os.path.relpath(f, base).encode() + b"\0" + f.read_bytes() + b"\0")
-    except OSError:
-        return None
-    return h.hexdigest()[:16]
 
 
 def _finish_keeping(

@@ -42,6 +42,9 @@ class RunOptions:
     # vcan buses in the CAN box (bench/run/bus/box) even where the host could carry them (--box, BENCH_BOX=1);
     # without it the box is used only where the host's kernel cannot (bench/run/bus/buses.py box_reason)
     box: bool = False
+    # a current law prototyped in Python (bench/law_py.py: an object of a class with the C interface's face), in place
+    # of the registered law its `law` names; direct bus only (its methods are called in this process)
+    py_law: Any = None
 
 
 # The Cortex-M4F image of `--drive mcu` runs under qemu-system-arm's emulation (TCG) behind a serial SLCAN
@@ -87,4 +90,5 @@ def run_options(args: Any, out: Path) -> RunOptions:
         drive_tty=getattr(args, "drive_tty", None),
         heartbeat_timeout_ms=MCU_HEARTBEAT_TIMEOUT_MS if drive == "mcu" else RunOptions.heartbeat_timeout_ms,
         box=getattr(args, "box", False),
+        py_law=getattr(args, "py_law_obj", None),
     )

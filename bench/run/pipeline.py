@@ -297,6 +297,8 @@ def run_scenario(
         injected,
         floor=sess.direct.floor if sess.direct is not None else sess.floor,
     )
+    if sess.py_law is not None:  # a current law in Python (bench/law_py.py): what it did, and how it failed
+        _python_law(res, sess.py_law)
     if sc.trip_note:  # a free rotor whose trip reaction may leave its flux map (bench/motor/trip.py): never silent
         res.summary.setdefault("notes", []).append(sc.trip_note)
     outside = (res.summary.get("counters") or {}).get("plant_outside_map_periods")
@@ -308,6 +310,20 @@ def run_scenario(
     if collector is not None:
         res.trace = collector.trace
     return res
+
+
+def _python_law(res: RunResult, calls: Any) -> None:
+    """summary.json "python_law" (its class, the law it stood in for, its steps, its first exception) and a note on
+    that exception; a Ctrl-C during one of its methods is raised here, after the run's results are complete."""
+    res.summary["python_law"] = calls.summary()
+    if calls.failure is not None:
+        f = calls.failure
+        res.summary.setdefault("notes", []).append(
+            f"the Python law's {f.method}() raised {f.error} at its step {f.step}: its commands from then on were "
+            "NaN, which the drive refused (law_fault); the traceback is in summary.json python_law.exception"
+        )
+    if calls.interrupt is not None:
+        raise calls.interrupt
 
 
 def _end_box(sess: Session, keep: Path | None) -> None:

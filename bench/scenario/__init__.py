@@ -66,7 +66,13 @@ from __future__ import annotations
 from bench.scenario.faults import Fault, FaultError, parse_faults, refuse_lockstep_stalls
 from bench.scenario.files import bundled, from_dict, load, loads, scenario_path
 from bench.scenario.model import SCENARIO_KEYS, STATUSES, TIMINGS, Event, Scenario, ScenarioError, Setting
-from bench.scenario.overrides import add_set_argument, apply_overrides, set_items, unselected_law
+from bench.scenario.overrides import (
+    add_set_argument,
+    apply_overrides,
+    set_items,
+    unselected_law,
+    unselected_python_law,
+)
 from bench.scenario.parsing import COMMAND_TIMEOUT, controller_at_start, default_trace, parse
 from bench.scenario.presets import DRIVE_PRESETS, PRESETS, MotorPreset, motor_preset, motor_presets
 from bench.scenario.settings import RATIOS, RESERVED, SECTION_OBJECTS
@@ -107,4 +113,5 @@ __all__ = [
     "scenario_path",
     "trace_table",
     "unselected_law",
+    "unselected_python_law",
 ]

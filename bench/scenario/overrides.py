@@ -43,6 +43,23 @@ def unselected_law(scenarios: list[Scenario], what: str = "the scenario") -> str
     )
 
 
+def unselected_python_law(sc: Scenario, law: str) -> str | None:
+    """Under --py-law: a refusal when the scenario never runs the law the Python class stands in for (its `law`: the
+    controller at the start or one an event selects), else None."""
+    from bench.scenario.parsing import controller_at_start
+
+    if controller_at_start(sc) == law or law not in law_names():
+        return None
+    value = law_names().index(law)
+    for e in sc.events:
+        if any(st.key == "controller.controller" and int(st.value) == value for st in e.settings):
+            return None
+    return (
+        f"--py-law: the class stands in for {law}, which the scenario never selects: set [controller] controller = "
+        f'"{law}" (or --set controller.controller={law})'
+    )
+
+
 def set_items(overrides: Mapping[str, Any] | Sequence[str] | str | None) -> list[str]:
     """`--set` items from {"controller.L_hat_ratio": 0.5} (values written as TOML) or ["k=v", ...] or "k=v";
     TypeError names a value TOML cannot hold."""

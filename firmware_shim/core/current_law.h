@@ -117,9 +117,16 @@ static inline int current_law_usable(const current_law_t *law)
     return law->configure != 0 && law->step != 0 && law->state_bytes <= CURRENT_LAW_STATE_BYTES;
 }
 
+/* A row installed at run time in place of the registry's row of the same value: a law prototyped in Python,
+ * called through bench/direct/hil_pylaw.c in a direct run (docs/YOUR_CONTROLLER.md "Prototype in Python first");
+ * NULL (the nodes and the MCU image never set it): none. */
+extern const current_law_entry_t *current_law_override;
+
 /* The row of a Controller.controller value, NULL for none (open loop, unknown, unusable). */
 static inline const current_law_entry_t *current_law_find(uint8_t value)
 {
+    if (current_law_override != (const current_law_entry_t *)0 && current_law_override->value == value)
+        return current_law_override;
     for (uint8_t i = 0u; i < current_law_count; ++i)
         if (current_law_table[i].value == value)
             return current_law_usable(current_law_table[i].law) ? &current_law_table[i]

@@ -77,6 +77,8 @@ current_law_verdict_t drive_law_command(drive_t *drv, const current_law_entry_t 
     return e->law->command(state, &drv->cfg, record, subindex, running, apply);
 }
 
+const current_law_entry_t *current_law_override = NULL;
+
 /* The selected law's record: the one the drive holds, or its EDS defaults
  * when the drive holds another (a law selected without its record written). */
 static const void *law_record_of(const drive_t *drv, const current_law_entry_t *e)

@@ -112,6 +112,7 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
             "bench.signals",
             "bench.emcy",
             "bench.result",
+            "bench.law_py",
         ),
     ),
     ("scenario", ("bench.scenario", "bench.run.options", "bench.motor")),
@@ -122,7 +123,10 @@ FLOORS: list[tuple[str, tuple[str, ...]]] = [
     ("verdict", ("bench.run.verdict",)),
     ("sinks", ("bench.run.sinks", "bench.view")),
     ("a run", ("bench.run",)),
-    ("studies and masters", ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults")),
+    (
+        "studies and masters",
+        ("bench.claims", "bench.cia402", "bench.sweep", "bench.replay", "bench.faults", "bench.port_check"),
+    ),
     ("reports and tools", ("bench.reproduce", "bench.demo", "bench.tools")),
     (
         "the command line",

@@ -8,6 +8,7 @@ import ctypes
 import functools
 import threading
 import time
+from typing import Any
 
 import can
 import numpy as np
@@ -91,6 +92,12 @@ def _lib() -> ctypes.CDLL:
     lib.hil_run_realtime.argtypes = [ctypes.c_uint32]
     lib.hil_run_realtime.restype = ctypes.c_int32
     lib.hil_realtime_note.restype = ctypes.c_char_p
+    lib.hil_pylaw_install.argtypes = [ctypes.c_uint8, ctypes.c_void_p]
+    lib.hil_pylaw_install.restype = ctypes.c_int32
+    lib.hil_pylaw_layout.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+    lib.hil_pylaw_layout.restype = ctypes.c_uint32
+    lib.hil_pylaw_record_bytes.argtypes = [ctypes.c_uint8]
+    lib.hil_pylaw_record_bytes.restype = ctypes.c_uint32
     lib.hil_rt_dropped.restype = ctypes.c_uint64
     lib.hil_rt_period_ns.restype = ctypes.c_uint64
     lib.hil_probe_floor.argtypes = [ctypes.c_uint32, ctypes.c_uint32, ctypes.POINTER(ctypes.c_float)]
@@ -219,6 +226,31 @@ class Hil:
 
     def period(self) -> int:
         return int(self.lib.hil_plant_period())
+
+    def install_law(self, obj: Any) -> Any:
+        """A current law prototyped in Python (bench/law_py.py) in place of the registered law its `law` names, until
+        uninstall_law: its calls (bench.law_py.Calls: steps, first failure). LawError when it cannot stand in."""
+        from bench.law_py import LAYOUT, Calls, LawError, callbacks, law_value, record_struct
+
+        got = (ctypes.c_uint32 * 32)()
+        n = self.lib.hil_pylaw_layout(got, len(got))
+        if tuple(got[:n]) != LAYOUT:
+            raise LawError(f"bench/law_py.py's structs {LAYOUT} are not {self.lib._name}'s {tuple(got[:n])}: rebuild")
+        value = law_value(obj)
+        rec = record_struct(obj.law)
+        if (ctypes.sizeof(rec) if rec is not None else 0) != self.lib.hil_pylaw_record_bytes(value):
+            raise LawError(f"the record of {obj.law} as bench/law_py.py reads drive.eds is not the drive's: rebuild")
+        calls = Calls(obj, rec)
+        cb = callbacks(calls)
+        calls.keep.append(cb)  # the callbacks live as long as the law is installed
+        with self._lock:
+            if self.lib.hil_pylaw_install(value, ctypes.byref(cb)) != 0:
+                raise LawError(f"{obj.law}: the drive has no such law")
+        return calls
+
+    def uninstall_law(self) -> None:
+        with self._lock:
+            self.lib.hil_pylaw_uninstall()
 
 
 class DirectBus(can.BusABC):

@@ -27,7 +27,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from bench.run.bus.buses import bus_of
 from bench.run.bus.direct import DirectBus, Hil
 from bench.run.bus.direct_sdo import DirectSdo
-from bench.run.bus.kind import BusKind
+from bench.run.bus.kind import BusKind, SettingRefused
 from bench.run.bus.liveness import STARVED_S, Liveness, LoopStopped
 from bench.run.bus.nodes import NodeProcess
 from bench.run.loop import master
@@ -63,15 +63,23 @@ class Session(SessionBus):
         self.direct: DirectLoop | None = None  # direct mode: the in-process loop (its on_chunk, on_stop)
         self.bus_loop: BusLoop | None = None  # over a bus: the lockstep segments (run())
         self.liveness: Liveness | None = None
+        self.py_law: Any = None  # a Python law in the loop: its calls (bench.law_py.Calls)
 
     def open(self) -> None:
         if self.kind.in_process:
             self.hil = Hil(self.opts.plant_id, self.opts.drive_id)
+            if self.opts.py_law is not None:  # before the configuration, which configures the law
+                self.py_law = self.hil.install_law(self.opts.py_law)
             if self.sc.faults:
                 self.hil.set_faults(rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id))
             self.net.bus = self.kind.master_bus(self.opts, self.hil)
             self.direct = DirectLoop(self.hil, self.opts, realtime=self.sc.timing == "realtime")
         else:
+            if self.opts.py_law is not None:
+                raise SettingRefused(
+                    "a current law in Python runs in the direct loop only (--bus direct): its methods are called in "
+                    "this process; over a bus, run its C port (--law DIR)"
+                )
             self._open_bus()
             # the CAN box: QEMU's emulation may starve one node for seconds (options.py BOX_CONSUMER_MS)
             self.config.consumer_ms = self.kind.consumer_ms(self.config.consumer_ms)
@@ -100,6 +108,8 @@ class Session(SessionBus):
             )
 
     def close(self) -> None:
+        if self.py_law is not None and self.hil is not None:
+            self.hil.uninstall_law()
         if self.plant_cpu is not None:
             self.plant_cpu.release()
             self.plant_cpu = None
