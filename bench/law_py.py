@@ -232,18 +232,7 @@ class Calls:
     steps: int = 0
     failure: Failure | None = None
     interrupt: BaseException | None = None
-    _views: dict[tuple[type, int], Any] = field(default_factory=dict)
     keep: list[Any] = field(default_factory=list)
-
-    def view(self, kind: type | None, addr: int | None) -> Any:
-        """The ctypes view of the struct at `addr` (the drive's own: cfg, the record, the command are fixed)."""
-        if kind is None or addr is None:
-            return None
-        key = (kind, addr)
-        got = self._views.get(key)
-        if got is None:
-            got = self._views[key] = kind.from_address(addr)
-        return got
 
     def fail(self, method: str, exc: BaseException) -> None:
         if not isinstance(exc, Exception):  # Ctrl-C, SystemExit: the caller's, raised once the loop returns
@@ -280,26 +269,41 @@ class HilPyLaw(ctypes.Structure):
     _fields_ = [("configure", CONFIGURE), ("step", STEP), ("commit", STEP), ("reset", RESET), ("status", STATUS)]
 
 
+def _views(kind: type | None) -> Any:
+    """The ctypes view of a `kind` struct at an address, made again only when the address changes (the drive's cfg,
+    record and command stay where they are: a view a period would be most of a callback's cost)."""
+    last: list[Any] = [None, None]
+
+    def view(addr: int | None) -> Any:
+        if addr != last[0]:
+            last[0], last[1] = addr, (None if kind is None or addr is None else kind.from_address(addr))
+        return last[1]
+
+    return view
+
+
 def callbacks(calls: Calls) -> HilPyLaw:
     """The law's methods as C callbacks. A method that raises is the law's failure (Calls.fail): from then on its
     commands are NaN and its other methods are not called."""
-    obj, rec, view = calls.obj, calls.record, calls.view
+    obj, rec = calls.obj, calls.record
+    cfg_v, rec_v, in_v, out_v, app_v = _views(DriveConfig), _views(rec), _views(LawIn), _views(LawOut), _views(LawOut)
     first = [True]  # the drive may have configured the registered law before this one stood in: a first start
+    law_step = obj.step
 
     def configure(cfg: int, record: int | None, switched: int) -> None:
         if calls.failure is None:
             try:
-                obj.configure(view(DriveConfig, cfg), view(rec, record), bool(switched) or first[0])
+                obj.configure(cfg_v(cfg), rec_v(record), bool(switched) or first[0])
                 first[0] = False
             except BaseException as exc:  # noqa: BLE001 - the law's failure, named in the summary
                 calls.fail("configure", exc)
 
     def step(cfg: int, record: int | None, i: int, out: int) -> None:
         calls.steps += 1
-        o = view(LawOut, out)
+        o = out_v(out)
         if calls.failure is None:
             try:
-                obj.step(view(DriveConfig, cfg), view(rec, record), LawIn.from_address(i), o)
+                law_step(cfg_v(cfg), rec_v(record), in_v(i), o)
                 return
             except BaseException as exc:  # noqa: BLE001
                 calls.fail("step", exc)
@@ -308,7 +312,7 @@ def callbacks(calls: Calls) -> HilPyLaw:
     def commit(cfg: int, record: int | None, i: int, applied: int) -> None:
         if calls.failure is None:
             try:
-                obj.commit(view(DriveConfig, cfg), view(rec, record), LawIn.from_address(i), view(LawOut, applied))
+                obj.commit(cfg_v(cfg), rec_v(record), in_v(i), app_v(applied))
             except BaseException as exc:  # noqa: BLE001
                 calls.fail("commit", exc)
 
@@ -322,7 +326,7 @@ def callbacks(calls: Calls) -> HilPyLaw:
     def status(cfg: int, record: int | None) -> None:
         if calls.failure is None:
             try:
-                obj.status(view(DriveConfig, cfg), view(rec, record))
+                obj.status(cfg_v(cfg), rec_v(record))
             except BaseException as exc:  # noqa: BLE001
                 calls.fail("status", exc)
 

@@ -134,6 +134,15 @@ def test_port_check_finds_and_locates_a_one_ulp_change_in_the_port(tmp_path: Pat
     higher parts from the twin (exit 1), and the report names the first period and the signals."""
     agree = bench_cli("port-check", CVPI_STEP, "--law", CVPI, "--py-law", TWIN, timeout=900, expect=0)
     assert "agree bit for bit" in agree.stdout
+    events = tmp_path / "events.toml"  # the record and the drive's configuration changed mid-run: still one law
+    events.write_text(
+        CVPI_STEP.read_text().replace("periods = 700", "periods = 800")
+        + "\n[[events]]\nat_period = 500\n"
+        + "controller = { bandwidth_Hz = 600.0, cross_coupling = 0, discretisation = 0 }\n"
+        + "\n[[events]]\nat_period = 600\ncontroller = { Vmax_V = 20.0, emf_feedforward = 0 }\n"
+    )
+    agree = bench_cli("port-check", events, "--law", CVPI, "--py-law", TWIN, timeout=900, expect=0)
+    assert "over 800 periods" in agree.stdout and "agree bit for bit" in agree.stdout
     port = tmp_path / "complex_vector_pi"
     shutil.copytree(CVPI, port, ignore=shutil.ignore_patterns("prototype.py", "__pycache__"))
     c_file = port / "complex_vector_pi.c"

@@ -43,9 +43,14 @@ class ComplexVectorPI:
         self.Ki_V_As = w_bw * self.R_hat_ohm
         Ts = f32(cfg.Ts_s)
         self.rho = f32(expf(-self.R_hat_ohm * Ts / self.L_hat_H)) if self.L_hat_H > ZERO else ZERO
+        # what step() reads of cfg and the record, as float32 once: the drive configures the law again whenever
+        # either changes (and a float32 made once per period costs more than the law's arithmetic)
+        self.Ts_s, self.Vmax_V, self.advance = Ts, f32(cfg.Vmax_V), f32(cfg.angle_advance_periods)
+        self.discretisation, self.cross_coupling = record.discretisation, record.cross_coupling
+        self.emf_feedforward = record.emf_feedforward
 
-    def _gain(self, record: Any, Ts: np.float32, w: np.float32) -> None:
-        if record.discretisation != 0:
+    def _gain(self, Ts: np.float32, w: np.float32) -> None:
+        if self.discretisation != 0:
             c = f32(cosf(w * Ts))
             s = f32(sinf(w * Ts))
             self.g_d_V_A = self.Kp_V_A * (ONE - self.rho * c)
@@ -55,20 +60,20 @@ class ComplexVectorPI:
             self.g_q_V_A = Ts * w * self.Kp_V_A
 
     def step(self, cfg: Any, record: Any, i: Any, out: Any) -> None:
-        Ts = f32(cfg.Ts_s)
+        Ts = self.Ts_s
         w = f32(i.omega_e_rad_s)
-        w_cc = w if record.cross_coupling != 0 else ZERO
+        w_cc = w if self.cross_coupling != 0 else ZERO
         self.e_d_A = f32(i.id_ref_A) - f32(i.i_d_A)
         self.e_q_A = f32(i.iq_ref_A) - f32(i.i_q_A)
-        self._gain(record, Ts, w_cc)
+        self._gain(Ts, w_cc)
         self.v_d_raw_V = self.Kp_V_A * self.e_d_A + self.x_d_V
         self.v_q_raw_V = self.Kp_V_A * self.e_q_A + self.x_q_V
         ff_d = ZERO
-        ff_q = w * self.psi_hat_Wb if record.emf_feedforward != 0 else ZERO
+        ff_q = w * self.psi_hat_Wb if self.emf_feedforward != 0 else ZERO
         vd = self.v_d_raw_V + ff_d
         vq = self.v_q_raw_V + ff_q
         mag2 = vd * vd + vq * vq
-        vmax = f32(cfg.Vmax_V)
+        vmax = self.Vmax_V
         limited = 0
         if vmax > ZERO and mag2 > vmax * vmax:
             k = vmax / f32(sqrtf(mag2))
@@ -78,7 +83,7 @@ class ComplexVectorPI:
         self.limited = limited
         self.v_d_out_V = vd - ff_d
         self.v_q_out_V = vq - ff_q
-        th = f32(i.theta_e_rad) + f32(cfg.angle_advance_periods) * w * Ts
+        th = f32(i.theta_e_rad) + self.advance * w * Ts
         c = f32(cosf(th))
         s = f32(sinf(th))
         out.v_d_V, out.v_q_V = vd, vq
@@ -97,7 +102,7 @@ class ComplexVectorPI:
             self.x_d_V, self.x_q_V = xd, xq
             return
         # back-calculation: x = (R_hat + j w_e L_hat) i, |x| <= |applied|
-        wL = (f32(i.omega_e_rad_s) if record.cross_coupling != 0 else ZERO) * self.L_hat_H
+        wL = (f32(i.omega_e_rad_s) if self.cross_coupling != 0 else ZERO) * self.L_hat_H
         i_d, i_q = f32(i.i_d_A), f32(i.i_q_A)
         xd = self.R_hat_ohm * i_d - wL * i_q
         xq = self.R_hat_ohm * i_q + wL * i_d
