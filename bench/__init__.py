@@ -27,4 +27,9 @@ def _version() -> str:
         return "0+unknown"
 
 
-__version__ = _version()
+def __getattr__(name: str) -> str:
+    """`bench.__version__`, read when first asked for (tomllib and the metadata cost every `bench` command ~30 ms)."""
+    if name == "__version__":
+        globals()["__version__"] = version = _version()
+        return version
+    raise AttributeError(f"module 'bench' has no attribute {name!r}")
