@@ -21,6 +21,7 @@ from can_site import Site
 from cia402_standin import DRIVE_ID, StandIn
 
 from bench.paths import EDS_DIR, REPO
+from bench.run.options import BOX_STALL_S
 
 CYCLE_MS = 50  # the box's guest (QEMU's software emulation) stalls processes up to ~150 ms
 # Bounds on waits, not timings: in the CI's VM a bench's start-up (imports) takes ~25 s and its way out
@@ -59,7 +60,7 @@ def read_drive(site: Site, *indices: int) -> list[int]:
     net.connect(**site.bus_kwargs())
     try:
         node = canopen.RemoteNode(DRIVE_ID, str(EDS_DIR / "drive.eds"))
-        node.sdo.RESPONSE_TIMEOUT = 5.0
+        node.sdo.RESPONSE_TIMEOUT = BOX_STALL_S if site.in_box else 5.0  # the bench's bound in the box
         net.add_node(node)
         return [int(node.sdo[i].raw) for i in indices]
     finally:
