@@ -127,6 +127,12 @@ def _py_law_spec(py_law: Any) -> str | None:
         source = inspect.getsourcefile(cls)
     except TypeError:
         source = None
+    if cls.__module__ == "__main__":  # its process would run the caller's script again, which runs this run ...
+        raise ScenarioError(
+            f"py_law: {cls.__qualname__} is defined in the script that runs: a `bench run` process (law= or a bus) "
+            "loads it from a module of its own; move the class to a file and give it as 'FILE.py:Class' (or an "
+            "object imported from there), or run it in this process (bus='direct', no law=)"
+        )
     if source is None or "<" in cls.__qualname__:
         raise ScenarioError(
             f"py_law: {cls.__qualname__} has no file a `bench run` process could load it from; give it as "
@@ -239,22 +245,23 @@ def _in_a_process(
 
 
 def _scenario_file(scenario: ScenarioLike, tmp: Path) -> Path:
-    """The scenario as a file `bench run` reads: its own, or a dict's tables written as TOML (their relative paths
-    made absolute to the current folder, as in this process)."""
-    if isinstance(scenario, Scenario) and Path(scenario.source).is_file():
-        return Path(scenario.source)
+    """The scenario as a file `bench run` reads: its own file, or the tables of a dict or of a Scenario (its
+    overrides applied) written as TOML, their relative paths made absolute as this process reads them (to the
+    scenario file's folder, a dict's to the current folder)."""
     if isinstance(scenario, str | os.PathLike):
         return Path(scenario).expanduser().resolve() if Path(scenario).expanduser().exists() else Path(scenario)
     from bench.scenario.toml_text import dumps
 
     table = _plain(scenario.raw if isinstance(scenario, Scenario) else scenario)
+    source = Path(scenario.source) if isinstance(scenario, Scenario) else None
+    base = source.parent if source is not None and source.is_file() else Path.cwd()
     motor = table.get("motor")
     if isinstance(motor, dict):
         if isinstance(motor.get("folder"), str):
-            motor["folder"] = os.path.abspath(Path(motor["folder"]).expanduser())
+            motor["folder"] = os.path.abspath(base / Path(motor["folder"]).expanduser())
         fmu = motor.get("fmu")
         if isinstance(fmu, dict) and isinstance(fmu.get("file"), str):
-            fmu["file"] = os.path.abspath(Path(fmu["file"]).expanduser())
+            fmu["file"] = os.path.abspath(base / Path(fmu["file"]).expanduser())
     path = tmp / "scenario.toml"
     path.write_text(dumps(table))
     return path
@@ -299,18 +306,22 @@ def port_check(
         sets = set_items(overrides)
     except TypeError as exc:
         raise ScenarioError(str(exc)) from None
+    if py_law is None:
+        raise ScenarioError("port_check: py_law is the prototype: an object of its class or 'FILE.py:Class'")
+    if not tolerance >= 0:
+        raise ScenarioError(f"port_check: tolerance = {tolerance}: must be >= 0 (0: bit for bit)")
     if in_process("direct", law):
         sc = _scenario(scenario, sets)
         python_law = _py_law(py_law)
         if (unselected := unselected_python_law(sc, python_law.law)) is not None:
             raise ScenarioError(unselected)
         return check(sc, python_law, tolerance)
-    spec = _py_law_spec(py_law)
-    assert law is not None and spec is not None
+    spec = str(_py_law_spec(py_law))
     with tempfile.TemporaryDirectory(prefix="bench-port-check-") as tmp:
         report = Path(tmp) / "report.json"
         cmd = [sys.executable, "-m", "bench.cli", "port-check", str(_scenario_file(scenario, Path(tmp)))]
-        cmd += ["--law", str(Path(law).expanduser().resolve()), "--py-law", spec, "--tolerance", repr(tolerance)]
+        cmd += ["--py-law", spec, "--tolerance", repr(tolerance)]
+        cmd += ["--law", str(Path(law).expanduser().resolve())] if law is not None else []
         cmd += [*(f"--set={s}" for s in sets), "--json", str(report)]
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if proc.returncode not in (0, 1) or not report.is_file():

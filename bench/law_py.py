@@ -101,7 +101,12 @@ LAYOUT = (
     DriveConfig.Ts_s.offset,
     DriveConfig.speed_loop_divider.offset,
     DriveConfig.R_hat_ohm.offset,
+    DriveConfig.Ld_hat_H.offset,
+    DriveConfig.Lq_hat_H.offset,
+    DriveConfig.psi_hat_Wb.offset,
+    DriveConfig.pole_pairs.offset,
     DriveConfig.Vmax_V.offset,
+    DriveConfig.J_hat_kgm2.offset,
     DriveConfig.vlimit_radial.offset,
     DriveConfig.angle_advance_periods.offset,
 )
@@ -172,7 +177,11 @@ def load_law(spec: str) -> Any:
         path = Path(where).expanduser().resolve()
         if not path.is_file():
             raise LawError(f"--py-law {spec!r}: no such file {path}")
-        mod_name = f"bench_py_law_{path.stem}"
+        import hashlib
+
+        mod_name = f"bench_py_law_{path.stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+        if str(path.parent) not in sys.path:  # its helper modules next to it import as from a script of that folder
+            sys.path.insert(0, str(path.parent))
         loader = importlib.util.spec_from_file_location(mod_name, path)
         assert loader is not None and loader.loader is not None
         module = importlib.util.module_from_spec(loader)
@@ -202,6 +211,8 @@ def law_value(obj: Any, eds: Path | None = None) -> int:
     """The Controller.controller value of the registered law `obj` stands in for (its `law` attribute)."""
     from bench.laws import law_names
 
+    if isinstance(obj, type):
+        raise LawError(f"py_law takes an instance of the law's class: {obj.__name__}(), not the class {obj.__name__}")
     names = law_names(eds)
     law = getattr(obj, "law", None)
     if not isinstance(law, str) or law not in names[1:]:
@@ -232,14 +243,30 @@ class Calls:
     steps: int = 0
     failure: Failure | None = None
     interrupt: BaseException | None = None
+    stop: Any = None  # asks the loop to return (hil_pylaw_interrupt)
     keep: list[Any] = field(default_factory=list)
 
     def fail(self, method: str, exc: BaseException) -> None:
         if not isinstance(exc, Exception):  # Ctrl-C, SystemExit: the caller's, raised once the loop returns
             self.interrupt = self.interrupt or exc
+            if self.stop is not None:
+                self.stop()
         if self.failure is None:
             text = "".join(traceback.format_exception(exc))
             self.failure = Failure(method, self.steps, f"{type(exc).__name__}: {exc}", text)
+
+    def report(self, summary: dict[str, Any]) -> None:
+        """Into a run's summary: "python_law" (its class, the law it stood in for, its steps, its first exception) and
+        a note on that exception; a Ctrl-C during one of its methods is raised here, once the run's results are."""
+        summary["python_law"] = self.summary()
+        if self.failure is not None:
+            f = self.failure
+            summary.setdefault("notes", []).append(
+                f"the Python law's {f.method}() raised {f.error} at its step {f.step}: its commands from then on were "
+                "NaN, which the drive refused (law_fault); the traceback is in summary.json python_law.exception"
+            )
+        if self.interrupt is not None:
+            raise self.interrupt
 
     def summary(self) -> dict[str, Any]:
         cls = type(self.obj)
@@ -282,18 +309,28 @@ def _views(kind: type | None) -> Any:
     return view
 
 
+def _copy(kind: type | None, addr: int | None) -> Any:
+    """A copy of the `kind` struct at `addr`: what the law reads and may not change (the C interface's const)."""
+    return None if kind is None or addr is None else kind.from_buffer_copy(kind.from_address(addr))
+
+
 def callbacks(calls: Calls) -> HilPyLaw:
-    """The law's methods as C callbacks. A method that raises is the law's failure (Calls.fail): from then on its
-    commands are NaN and its other methods are not called."""
+    """The law's methods as C callbacks. What C gives a law as const (cfg, the record but in status(), the sample, the
+    command applied) the method gets as a copy: a write to it changes nothing of the drive's, as in C it would not
+    compile. cfg and the record are copied when the drive configures the law, which it does on any change of either.
+    A method that raises is the law's failure (Calls.fail): from then on its commands are NaN and its other methods
+    are not called."""
     obj, rec = calls.obj, calls.record
-    cfg_v, rec_v, in_v, out_v, app_v = _views(DriveConfig), _views(rec), _views(LawIn), _views(LawOut), _views(LawOut)
+    out_v, rec_v = _views(LawOut), _views(rec)
+    given: list[Any] = [None, None]  # the copies of cfg and the record of the last configure
     first = [True]  # the drive may have configured the registered law before this one stood in: a first start
     law_step = obj.step
 
     def configure(cfg: int, record: int | None, switched: int) -> None:
+        given[0], given[1] = _copy(DriveConfig, cfg), _copy(rec, record)
         if calls.failure is None:
             try:
-                obj.configure(cfg_v(cfg), rec_v(record), bool(switched) or first[0])
+                obj.configure(given[0], given[1], bool(switched) or first[0])
                 first[0] = False
             except BaseException as exc:  # noqa: BLE001 - the law's failure, named in the summary
                 calls.fail("configure", exc)
@@ -303,7 +340,7 @@ def callbacks(calls: Calls) -> HilPyLaw:
         o = out_v(out)
         if calls.failure is None:
             try:
-                law_step(cfg_v(cfg), rec_v(record), in_v(i), o)
+                law_step(given[0], given[1], LawIn.from_buffer_copy(LawIn.from_address(i)), o)
                 return
             except BaseException as exc:  # noqa: BLE001
                 calls.fail("step", exc)
@@ -312,7 +349,8 @@ def callbacks(calls: Calls) -> HilPyLaw:
     def commit(cfg: int, record: int | None, i: int, applied: int) -> None:
         if calls.failure is None:
             try:
-                obj.commit(cfg_v(cfg), rec_v(record), in_v(i), app_v(applied))
+                sample = LawIn.from_buffer_copy(LawIn.from_address(i))
+                obj.commit(given[0], given[1], sample, LawOut.from_buffer_copy(LawOut.from_address(applied)))
             except BaseException as exc:  # noqa: BLE001
                 calls.fail("commit", exc)
 
@@ -326,7 +364,7 @@ def callbacks(calls: Calls) -> HilPyLaw:
     def status(cfg: int, record: int | None) -> None:
         if calls.failure is None:
             try:
-                obj.status(cfg_v(cfg), rec_v(record))
+                obj.status(given[0], rec_v(record))  # its status entries: the record the drive shows and traces
             except BaseException as exc:  # noqa: BLE001
                 calls.fail("status", exc)
 

@@ -139,6 +139,9 @@ def port_check(sc: Scenario, py_law: Any, tolerance: float = 0.0) -> PortReport:
     """`sc` run with the Python law `py_law` and with the registered law it stands in for, compared."""
     from bench.run import RunOptions, TraceRows, run_scenario
 
+    if not tolerance >= 0:  # NaN too: no difference is beyond it, and everything would agree
+        raise ScenarioError(f"tolerance = {tolerance}: must be >= 0 (0: bit for bit)")
+
     runs = []
     for law in (py_law, None):
         rows = TraceRows()
@@ -174,7 +177,7 @@ def cmd_port_check(args: argparse.Namespace) -> int:
 
     try:
         if not args.tolerance >= 0:
-            raise ScenarioError(f"--tolerance = {args.tolerance}: must be >= 0")
+            raise ScenarioError(f"--tolerance = {args.tolerance}: must be >= 0 (0: bit for bit)")
         sc = load(args.scenario, args.overrides)
         law = checked(None, args.py_law)
         if (unselected := unselected_python_law(sc, law.law)) is not None:

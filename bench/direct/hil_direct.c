@@ -309,7 +309,7 @@ uint32_t hil_run(uint32_t max_periods)
     uint32_t n = 0;
     int64_t idle_since = H.now_us;
     H.running = 1;
-    while (n < max_periods) {
+    while (n < max_periods && !hil_pylaw_stopping()) {
         const uint32_t before = H.plant.syncs;
         const int plant_up = !H.killed[FI_SIDE_A] && !H.frozen[FI_SIDE_A];
         const int64_t wish = plant_up ? plant_app_poll(&H.plant, H.now_us) : -1;

@@ -9,8 +9,10 @@
  * One law at a time, as one drive per process (hil_direct.c). */
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "current_law.h"
+#include "hil_internal.h"
 
 typedef struct {
     void (*configure)(const drive_config_t *cfg, const void *record, int32_t switched);
@@ -26,41 +28,50 @@ int32_t hil_pylaw_install(uint8_t value, const hil_pylaw_t *cb);
 void hil_pylaw_uninstall(void);
 uint32_t hil_pylaw_layout(uint32_t *out, uint32_t max);
 uint32_t hil_pylaw_record_bytes(uint8_t value);
+void hil_pylaw_interrupt(void);
 
 static hil_pylaw_t g_cb;
 static current_law_t g_law;
 static current_law_entry_t g_row;
+static volatile int32_t g_stop; /* a Ctrl-C in one of the law's methods: the loop returns (hil_pylaw_stopping) */
+
+/* Whether the law is still the one installed: after hil_pylaw_uninstall the drive may hold the row until its next
+ * configuration, and the callbacks (the caller's) are gone. */
+static int installed(void) { return current_law_override == &g_row; }
 
 static void py_configure(void *state, const drive_config_t *cfg, const void *record, int switched)
 {
     (void)state;
-    g_cb.configure(cfg, record, (int32_t)switched);
+    if (installed()) g_cb.configure(cfg, record, (int32_t)switched);
 }
 
 static void py_step(void *state, const drive_config_t *cfg, const void *record, const current_law_in_t *in,
                     current_law_out_t *out)
 {
     (void)state;
-    g_cb.step(cfg, record, in, out);
+    if (installed())
+        g_cb.step(cfg, record, in, out);
+    else
+        memset(out, 0, sizeof *out); /* 0 V until the drive takes its registered law again */
 }
 
 static void py_commit(void *state, const drive_config_t *cfg, const void *record, const current_law_in_t *in,
                       const current_law_out_t *applied)
 {
     (void)state;
-    g_cb.commit(cfg, record, in, applied);
+    if (installed()) g_cb.commit(cfg, record, in, applied);
 }
 
 static void py_reset(void *state)
 {
     (void)state;
-    g_cb.reset();
+    if (installed()) g_cb.reset();
 }
 
 static void py_status(const void *state, const drive_config_t *cfg, void *record)
 {
     (void)state;
-    g_cb.status(cfg, record);
+    if (installed()) g_cb.status(cfg, record);
 }
 
 /* The law of Controller.controller value `value` from now on: 0, or -1 when no registered law has that value
@@ -73,6 +84,7 @@ int32_t hil_pylaw_install(uint8_t value, const hil_pylaw_t *cb)
         if (current_law_table[i].value == value) row = &current_law_table[i];
     if (row == NULL) return -1;
     current_law_override = NULL;
+    g_stop = 0;
     g_cb = *cb;
     g_law = (current_law_t){
         .state_bytes = 0u,
@@ -92,7 +104,22 @@ int32_t hil_pylaw_install(uint8_t value, const hil_pylaw_t *cb)
     return 0;
 }
 
-void hil_pylaw_uninstall(void) { current_law_override = NULL; }
+void hil_pylaw_uninstall(void)
+{
+    current_law_override = NULL;
+    g_stop = 0;
+    memset(&g_cb, 0, sizeof g_cb);
+}
+
+/* A Ctrl-C during one of the law's methods: the lockstep loop returns at its next step, a real-time run at its next
+ * deadline (hil_stop), and the caller raises it. */
+void hil_pylaw_interrupt(void)
+{
+    g_stop = 1;
+    hil_stop();
+}
+
+int hil_pylaw_stopping(void) { return g_stop; }
 
 /* The layout bench/law_py.py mirrors with ctypes, checked before a law is installed: sizes and offsets in the
  * order of its LAYOUT. */
@@ -108,7 +135,12 @@ uint32_t hil_pylaw_layout(uint32_t *out, uint32_t max)
         (uint32_t)offsetof(drive_config_t, Ts_s),
         (uint32_t)offsetof(drive_config_t, speed_loop_divider),
         (uint32_t)offsetof(drive_config_t, R_hat_ohm),
+        (uint32_t)offsetof(drive_config_t, Ld_hat_H),
+        (uint32_t)offsetof(drive_config_t, Lq_hat_H),
+        (uint32_t)offsetof(drive_config_t, psi_hat_Wb),
+        (uint32_t)offsetof(drive_config_t, pole_pairs),
         (uint32_t)offsetof(drive_config_t, Vmax_V),
+        (uint32_t)offsetof(drive_config_t, J_hat_kgm2),
         (uint32_t)offsetof(drive_config_t, vlimit_radial),
         (uint32_t)offsetof(drive_config_t, angle_advance_periods),
     };

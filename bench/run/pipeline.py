@@ -236,18 +236,39 @@ def run_scenario(
     `envelopes=False` leaves out the signals' envelopes (RunResult.envelopes, for an overview plot: a sweep's
     point draws none), the same summary for less work.
     Over SocketCAN the frames come from candump's log in `opts.out` (which must be set). The bus's kind is chosen
-    once (bench/run/bus/buses.py bus_of): the session, the recorder and the CAN box's lease ask it."""
+    once (bench/run/bus/buses.py bus_of): the session, the recorder and the CAN box's lease ask it. Runs on the direct
+    bus take turns within a process (one plant and drive per process, in libhil's statics): a second thread's run
+    waits for the first's end."""
     from bench.run.bus.buses import bus_of
-    from bench.run.recorder import RunRecorders
+    from bench.run.bus.direct import ONE_AT_A_TIME
 
     opts = opts or RunOptions()
+    kind = bus_of(opts, bool(sc.faults))
+    if not kind.in_process:
+        return _run(sc, opts, kind, sinks, frame_sinks, keep_trace, progress, envelopes)
+    with ONE_AT_A_TIME:
+        return _run(sc, opts, kind, sinks, frame_sinks, keep_trace, progress, envelopes)
+
+
+def _run(
+    sc: Scenario,
+    opts: RunOptions,
+    kind: Any,
+    sinks: list[Sink] | None,
+    frame_sinks: list[FrameSink] | None,
+    keep_trace: bool,
+    progress: Progress | None,
+    envelopes: bool,
+) -> RunResult:
+    """run_scenario on its chosen bus."""
+    from bench.run.recorder import RunRecorders
+
     sinks = list(sinks or [])
     collector = TraceCollector() if keep_trace else None
     if collector is not None:
         sinks.append(collector)
     pipe = Pipeline(opts.plant_id, opts.drive_id, sinks, frame_sinks, sc.expect, envelopes)
     t0 = time.monotonic()
-    kind = bus_of(opts, bool(sc.faults))
     sess = Session(sc, opts, kind)
     recorders = RunRecorders(sess) if opts.record else None
     source: Any = None
@@ -298,7 +319,7 @@ def run_scenario(
         floor=sess.direct.floor if sess.direct is not None else sess.floor,
     )
     if sess.py_law is not None:  # a current law in Python (bench/law_py.py): what it did, and how it failed
-        _python_law(res, sess.py_law)
+        sess.py_law.report(res.summary)
     if sc.trip_note:  # a free rotor whose trip reaction may leave its flux map (bench/motor/trip.py): never silent
         res.summary.setdefault("notes", []).append(sc.trip_note)
     outside = (res.summary.get("counters") or {}).get("plant_outside_map_periods")
@@ -310,20 +331,6 @@ def run_scenario(
     if collector is not None:
         res.trace = collector.trace
     return res
-
-
-def _python_law(res: RunResult, calls: Any) -> None:
-    """summary.json "python_law" (its class, the law it stood in for, its steps, its first exception) and a note on
-    that exception; a Ctrl-C during one of its methods is raised here, after the run's results are complete."""
-    res.summary["python_law"] = calls.summary()
-    if calls.failure is not None:
-        f = calls.failure
-        res.summary.setdefault("notes", []).append(
-            f"the Python law's {f.method}() raised {f.error} at its step {f.step}: its commands from then on were "
-            "NaN, which the drive refused (law_fault); the traceback is in summary.json python_law.exception"
-        )
-    if calls.interrupt is not None:
-        raise calls.interrupt
 
 
 def _end_box(sess: Session, keep: Path | None) -> None:

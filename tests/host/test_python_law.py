@@ -169,3 +169,85 @@ def test_the_port_check_helper_in_process_and_in_a_law_build() -> None:
     with pytest.raises(AssertionError, match="they part at period"):
         parted.expect_agree()
     port_check(CVPI_STEP, TWIN, law=CVPI).expect_agree()
+
+
+class Cheat(Proportional):
+    """Writes what C gives it as const: the drive's Vmax_V (what its command is checked against) and the command
+    applied (what the drive sends after commit)."""
+
+    def step(self, cfg: Any, record: Any, i: Any, out: Any) -> None:
+        cfg.Vmax_V = 1e6
+        super().step(cfg, record, i, out)
+        out.v_alpha_V = out.v_d_V = 500.0
+
+    def commit(self, cfg: Any, record: Any, i: Any, applied: Any) -> None:
+        applied.v_alpha_V = 500.0
+
+
+def test_what_c_gives_as_const_cannot_be_changed_from_python() -> None:
+    r = run(STEP, PI, py_law=Cheat())
+    assert r.status == "law_fault"  # its 500 V was judged against the drive's own Vmax_V
+    assert np.nanmax(np.abs(r["v_alpha_V"])) < 200.0  # the 500 V written into `applied` was never sent
+
+
+class Interrupted(Proportional):
+    def step(self, cfg: Any, record: Any, i: Any, out: Any) -> None:
+        if self.steps == 49:
+            raise KeyboardInterrupt
+        super().step(cfg, record, i, out)
+
+
+def test_a_ctrl_c_in_a_law_method_stops_the_loop_at_once() -> None:
+    from bench.run.bus.direct import _lib
+
+    with pytest.raises(KeyboardInterrupt):
+        run(STEP, {**PI, "scenario.periods": 5000}, py_law=Interrupted())
+    assert int(_lib().hil_plant_period()) < 100  # the plant's periods when the loop returned: not the run's 5000
+
+
+def test_runs_from_two_threads_take_turns_and_give_the_same_numbers() -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    alone = run(STEP, {"scenario.periods": 300}).traces.tobytes()
+    with ThreadPoolExecutor(2) as pool:
+        runs = list(pool.map(lambda _: run(STEP, {"scenario.periods": 300}), range(4)))
+    assert all(r.status == "ok" and r.traces.tobytes() == alone for r in runs)
+    with ThreadPoolExecutor(2) as pool:  # two Python laws: each run keeps its own
+        laws = [Proportional() for _ in range(4)]
+        done = list(pool.map(lambda law: run(STEP, PI, py_law=law), laws))
+    assert all(law.steps == 120 for law in laws) and len({r.traces.tobytes() for r in done}) == 1
+
+
+def test_the_library_refuses_what_a_law_process_could_not_load(tmp_path: Path) -> None:
+    main_class = type("MyPI", (Proportional,), {"__module__": "__main__"})
+    with pytest.raises(ScenarioError, match="defined in the script that runs"):
+        run(CVPI_STEP, None, law=CVPI, py_law=main_class())
+    with pytest.raises(ScenarioError, match=r"an instance of the law's class: Proportional\(\)"):
+        run(STEP, PI, py_law=Proportional)
+    from bench.api import port_check
+
+    with pytest.raises(ScenarioError, match="tolerance = nan"):
+        port_check(STEP, Proportional(), PI, tolerance=float("nan"))
+
+
+def test_a_scenario_object_s_overrides_reach_a_law_process_and_a_law_file_imports_its_neighbours(
+    tmp_path: Path,
+) -> None:
+    from bench.scenario import load
+
+    sc = load(STEP, ["scenario.periods=150"])  # in this build; its run selects the law folder's law
+    ran = run(sc, {"controller.controller": "complex_vector_pi"}, law=CVPI)  # a `bench run` process in the law's build
+    assert len(ran.traces) == 150 and ran.summary["identified"]["controller"] == "complex_vector_pi"
+    (tmp_path / "gains.py").write_text("def kp(bw, L):\n    return 6.283185307179586 * bw * L\n")
+    (tmp_path / "my_law.py").write_text(
+        "from gains import kp\n"
+        "class P:\n    law = 'pi'\n"
+        "    def configure(self, cfg, rec, sw):\n        self.k = kp(rec.pi_bandwidth_Hz, cfg.Lq_hat_H)\n"
+        "    def step(self, cfg, rec, i, out):\n        out.v_alpha_V = self.k * (i.iq_ref_A - i.i_q_A)\n"
+    )
+    res = bench_cli(
+        "run", STEP, "--bus", "direct", "--py-law", f"{tmp_path / 'my_law.py'}:P", "--set", "controller.controller=pi",
+        "--set", "scenario.periods=60", "--out", tmp_path / "out", "--no-viewer", cwd=REPO,
+    )  # fmt: skip
+    assert res.returncode in (0, 7), res.stderr  # ran (its status is the law's business)
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["python_law"]["steps"] == 60

@@ -107,6 +107,11 @@ def _lib() -> ctypes.CDLL:
     return lib
 
 
+# One run at a time on the in-process bus: one plant and one drive per process, in libhil's statics (and one Python
+# law: bench/direct/hil_pylaw.c). bench.run.run_scenario holds it for a direct run's whole life.
+ONE_AT_A_TIME = threading.Lock()
+
+
 class Hil:
     """The in-process plant + drive (one per process: the C side holds them in statics)."""
 
@@ -240,7 +245,7 @@ class Hil:
         rec = record_struct(obj.law)
         if (ctypes.sizeof(rec) if rec is not None else 0) != self.lib.hil_pylaw_record_bytes(value):
             raise LawError(f"the record of {obj.law} as bench/law_py.py reads drive.eds is not the drive's: rebuild")
-        calls = Calls(obj, rec)
+        calls = Calls(obj, rec, stop=self.lib.hil_pylaw_interrupt)
         cb = callbacks(calls)
         calls.keep.append(cb)  # the callbacks live as long as the law is installed
         with self._lock:

@@ -108,8 +108,6 @@ class Session(SessionBus):
             )
 
     def close(self) -> None:
-        if self.py_law is not None and self.hil is not None:
-            self.hil.uninstall_law()
         if self.plant_cpu is not None:
             self.plant_cpu.release()
             self.plant_cpu = None
@@ -136,6 +134,8 @@ class Session(SessionBus):
                 self._kept = False
                 master.give_back(self.master)
             self._stop_nodes()
+            if self.py_law is not None and self.hil is not None:  # after the NMT Stop: the law's last calls are its
+                self.hil.uninstall_law()
 
     def configure(self) -> None:
         try:
