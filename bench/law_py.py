@@ -169,7 +169,14 @@ def record_struct(law: str, eds: Path | None = None) -> type[ctypes.Structure] |
 
 
 def load_law(spec: str) -> Any:
-    """An instance of the class `spec` names: "FILE.py:Class" (a path) or "module:Class" (importable)."""
+    """An instance of the class `spec` names: "FILE.py:Class" (a path) or "module:Class" (importable); its module is
+    imported once per process (a sweep's worker makes a new object a point)."""
+    return law_class(spec)()
+
+
+@cache
+def law_class(spec: str) -> Any:
+    """The class `spec` names (load_law)."""
     where, sep, name = spec.rpartition(":")
     if not sep or not where or not name:
         raise LawError(f"--py-law {spec!r}: expected FILE.py:Class or module:Class")
@@ -192,7 +199,7 @@ def load_law(spec: str) -> Any:
     cls = getattr(module, name, None)
     if cls is None:
         raise LawError(f"--py-law {spec!r}: {where} has no {name}")
-    return cls()
+    return cls
 
 
 def checked(obj: Any, spec: str | None) -> Any:

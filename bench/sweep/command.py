@@ -70,6 +70,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from bench.scenario import add_set_argument  # here: the module reads the EDS, --help of other commands need not
 
     add_set_argument(g, "fixed overrides applied to every point")
+    g.add_argument(
+        "--py-law",
+        default=None,
+        metavar="FILE.py:CLASS",
+        help="every point with a current law prototyped in Python in place of the registered law its class names "
+        "(bench run --py-law; docs/YOUR_CONTROLLER.md section 10)",
+    )
     r = p.add_argument_group("where it runs")
     r.add_argument(
         "--workers",
@@ -151,9 +158,28 @@ def _study(args: argparse.Namespace) -> tuple[Any, str, Space, tuple[str, float,
                 seen += [point] if key == "controller.controller" else []
         if (unselected := unselected_law(seen, "the study (its scenario and its points)")) is not None:
             raise ScenarioError(unselected)
+        _python_law(args, sc)
     except ScenarioError as exc:
         raise Refused(str(exc)) from exc
     return sc, text, space, bis, cond
+
+
+def _python_law(args: argparse.Namespace, sc: Any) -> None:
+    """--py-law: its class loaded and checked here, before any point runs; the workers get FILE.py made absolute."""
+    if args.py_law is None:
+        return
+    from bench.law_py import LawError, checked
+    from bench.scenario import ScenarioError, unselected_python_law
+
+    try:
+        law = checked(None, args.py_law)
+    except LawError as exc:
+        raise ScenarioError(str(exc)) from None
+    if (unselected := unselected_python_law(sc, law.law)) is not None:
+        raise ScenarioError(unselected)
+    where, _, name = args.py_law.rpartition(":")
+    if where.endswith(".py"):
+        args.py_law = f"{Path(where).expanduser().resolve()}:{name}"
 
 
 def _spec(args: argparse.Namespace, text: str, space: Space) -> dict[str, Any]:
@@ -165,6 +191,7 @@ def _spec(args: argparse.Namespace, text: str, space: Space) -> dict[str, Any]:
         "bisect": args.bisect,
         "until": args.until,
         "tol": args.tol,
+        **({"py_law": args.py_law} if args.py_law else {}),
     }
 
 
@@ -235,6 +262,7 @@ def _start_engine(args: argparse.Namespace, sc: Any) -> Engine | None:
     except OSError as exc:  # no scheduler at that address, or it did not answer in time
         print(f"bench sweep: --scheduler {args.scheduler}: {exc}", file=sys.stderr)
         return None
+    engine.py_law = args.py_law
     print(f"bench sweep: {sc.name} ({sc.periods} periods a point) on {engine.where}")
     if engine.dashboard:
         where = "" if args.scheduler else f" (listening on {engine.dashboard_listens}; --dashboard-address)"

@@ -47,6 +47,7 @@ class Engine:
         dashboard_address: str = DASHBOARD,
     ) -> None:
         self.serial = serial
+        self.py_law: str | None = None  # every point's Python law (FILE.py:Class, bench run --py-law)
         self.client: Any = None
         self.cluster: Any = None
         self.where = "this process (serial)"
@@ -110,12 +111,12 @@ class Engine:
     def run(self, scenario_text: str, where: str, fixed: list[str], todo: list[list[dict[str, str]]]) -> Iterator[Rows]:
         if self.serial:
             for batch in todo:
-                yield run_batch(scenario_text, where, fixed, batch)
+                yield run_batch(scenario_text, where, fixed, batch, self.py_law)
             return
         from dask.distributed import as_completed
 
         # the scenario's text (a kilobyte) goes with each task: nothing to keep alive between calls
-        futures = [self.client.submit(run_batch, scenario_text, where, fixed, b, pure=False) for b in todo]
+        futures = [self.client.submit(run_batch, scenario_text, where, fixed, b, self.py_law, pure=False) for b in todo]
         try:
             for fut in as_completed(futures):
                 try:

@@ -63,9 +63,11 @@ def _number(v: Any) -> float | None:
     return float(v)
 
 
-def run_point(scenario_text: str, where: str, fixed: list[str], values: dict[str, str]) -> dict[str, Any]:
-    """Run one point; a point the scenario or a node refuses is a row with its reason, not the end of
-    the study."""
+def run_point(
+    scenario_text: str, where: str, fixed: list[str], values: dict[str, str], py_law: str | None = None
+) -> dict[str, Any]:
+    """Run one point (`py_law`: its current law prototyped in Python, a new object a point); a point the scenario or
+    a node refuses is a row with its reason, not the end of the study."""
     from bench.run import RunOptions, run_scenario
     from bench.scenario import ScenarioError, loads
     from bench.sweep.space import point_id
@@ -75,7 +77,12 @@ def run_point(scenario_text: str, where: str, fixed: list[str], values: dict[str
     try:
         sc = loads(scenario_text, where, [*fixed, *(f"{k}={v}" for k, v in values.items())])
         env = ErrorEnvelope()
-        res = run_scenario(sc, RunOptions(bus="direct"), sinks=[env], envelopes=False)  # no plot of a point
+        law = None
+        if py_law is not None:
+            from bench.law_py import load_law
+
+            law = load_law(py_law)
+        res = run_scenario(sc, RunOptions(bus="direct", py_law=law), sinks=[env], envelopes=False)  # no plot
     except (ScenarioError, ValueError, RuntimeError) as exc:
         row.update(status="refused", reason=str(exc), point_s=time.perf_counter() - t0, worker_pid=os.getpid())
         return row
@@ -117,7 +124,9 @@ def motor_truth(sc: Any, dq: tuple[float, float] | None) -> dict[str, float]:
     return out
 
 
-def run_batch(scenario_text: str, where: str, fixed: list[str], batch: list[dict[str, str]]) -> list[dict[str, Any]]:
+def run_batch(
+    scenario_text: str, where: str, fixed: list[str], batch: list[dict[str, str]], py_law: str | None = None
+) -> list[dict[str, Any]]:
     """Several points in one task: a Dask task costs about a millisecond of scheduling; a batch keeps
     that small next to short points."""
-    return [run_point(scenario_text, where, fixed, values) for values in batch]
+    return [run_point(scenario_text, where, fixed, values, py_law) for values in batch]

@@ -251,3 +251,30 @@ def test_a_scenario_object_s_overrides_reach_a_law_process_and_a_law_file_import
     )  # fmt: skip
     assert res.returncode in (0, 7), res.stderr  # ran (its status is the law's business)
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["python_law"]["steps"] == 60
+
+
+def test_a_sweep_runs_every_point_with_the_python_law(tmp_path: Path) -> None:
+    """`bench sweep --py-law`: a P law's steady-state error at standstill is R / (R + Kp) of the step, Kp = 2 pi
+    f_bw Lq_hat (the You 2019 preset: R 1.4 ohm, Lq 4.54 mH), at each point of the bandwidth grid."""
+    import pyarrow.parquet as pq
+
+    law = tmp_path / "p_law.py"
+    law.write_text(
+        "import math\nclass P:\n    law = 'pi'\n"
+        "    def configure(self, cfg, rec, sw):\n        self.k = 2 * math.pi * rec.pi_bandwidth_Hz * cfg.Lq_hat_H\n"
+        "    def step(self, cfg, rec, i, out):\n"
+        "        vd, vq = self.k * (i.id_ref_A - i.i_d_A), self.k * (i.iq_ref_A - i.i_q_A)\n"
+        "        c, s = math.cos(i.theta_e_rad), math.sin(i.theta_e_rad)\n"
+        "        out.v_alpha_V, out.v_beta_V = vd * c - vq * s, vd * s + vq * c\n"
+    )
+    bench_cli(
+        "sweep", STEP, "--grid", "controller.pi_bandwidth_Hz=200,800", "--set", "controller.controller=pi",
+        "--set", "scenario.periods=100", "--py-law", f"{law}:P", "--serial", "--out", tmp_path / "sw", expect=0,
+    )  # fmt: skip
+    rows = pq.read_table(tmp_path / "sw" / "sweep.parquet").to_pylist()
+    for row in rows:
+        kp = 2 * math.pi * float(row["controller.pi_bandwidth_Hz"]) * 4.54e-3
+        assert abs(-row["steady_state_error_A"] - 1.4 / (1.4 + kp)) < 0.01, row
+    assert len(rows) == 2
+    refused = bench_cli("sweep", STEP, "--grid", "controller.L_hat_ratio=1,2", "--py-law", f"{law}:P", expect=2)
+    assert "never selects" in refused.stderr
