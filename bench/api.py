@@ -123,16 +123,16 @@ def _py_law_spec(py_law: Any) -> str | None:
     import inspect
 
     cls = type(py_law)
-    try:
-        source = inspect.getsourcefile(cls)
-    except TypeError:
-        source = None
     if cls.__module__ == "__main__":  # its process would run the caller's script again, which runs this run ...
         raise ScenarioError(
             f"py_law: {cls.__qualname__} is defined in the script that runs: a `bench run` process (law= or a bus) "
             "loads it from a module of its own; move the class to a file and give it as 'FILE.py:Class' (or an "
             "object imported from there), or run it in this process (bus='direct', no law=)"
         )
+    try:
+        source = inspect.getsourcefile(cls)
+    except (TypeError, OSError):
+        source = None
     if source is None or "<" in cls.__qualname__:
         raise ScenarioError(
             f"py_law: {cls.__qualname__} has no file a `bench run` process could load it from; give it as "

@@ -46,7 +46,4 @@ int64_t hil_now_us(void);
 
 /* hil_pylaw.c: a Ctrl-C in a Python law's method asked the loop to return (hil_run checks it each period). */
 int hil_pylaw_stopping(void);
-/* hil_rt_threads.c: ask a real-time run to stop at its next deadline. */
-void hil_stop(void);
-
 #endif /* HIL_INTERNAL_H */

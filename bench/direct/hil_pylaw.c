@@ -111,13 +111,9 @@ void hil_pylaw_uninstall(void)
     memset(&g_cb, 0, sizeof g_cb);
 }
 
-/* A Ctrl-C during one of the law's methods: the lockstep loop returns at its next step, a real-time run at its next
- * deadline (hil_stop), and the caller raises it. */
-void hil_pylaw_interrupt(void)
-{
-    g_stop = 1;
-    hil_stop();
-}
+/* A Ctrl-C during one of the law's methods: the lockstep loop returns at its next step (a real-time run is asked by
+ * the caller through hil_stop), and the caller raises it. */
+void hil_pylaw_interrupt(void) { g_stop = 1; }
 
 int hil_pylaw_stopping(void) { return g_stop; }
 

@@ -245,7 +245,13 @@ class Hil:
         rec = record_struct(obj.law)
         if (ctypes.sizeof(rec) if rec is not None else 0) != self.lib.hil_pylaw_record_bytes(value):
             raise LawError(f"the record of {obj.law} as bench/law_py.py reads drive.eds is not the drive's: rebuild")
-        calls = Calls(obj, rec, stop=self.lib.hil_pylaw_interrupt)
+        lib = self.lib
+
+        def stop() -> None:  # the lockstep loop at its next step, a real-time run at its next deadline
+            lib.hil_pylaw_interrupt()
+            lib.hil_stop()
+
+        calls = Calls(obj, rec, stop=stop)
         cb = callbacks(calls)
         calls.keep.append(cb)  # the callbacks live as long as the law is installed
         with self._lock:
