@@ -23,8 +23,8 @@ def cmd_box(args: argparse.Namespace) -> int:
             print("bench box up: the box is already up; its idle timeout stays (bench box down first)", file=sys.stderr)
         t0 = time.monotonic()
         try:
-            info = life.up(args.idle_timeout)
-        except BoxError as exc:
+            info = life.up(args.idle_timeout, accel=args.accel)
+        except (BoxError, ValueError) as exc:
             print(f"bench box up: {exc}", file=sys.stderr)
             return 1
         took = time.monotonic() - t0
@@ -50,6 +50,9 @@ def cmd_box(args: argparse.Namespace) -> int:
     return _print_status(life.status(), args.json)
 
 
+ACCEL_NAMES = {"kvm": "KVM", "tcg": "TCG (emulation)", "kvm?": "trying KVM"}
+
+
 def _print_status(st: dict[str, Any], as_json: bool) -> int:
     if as_json:
         print(json.dumps(st, indent=2))
@@ -67,6 +70,7 @@ def _print_status(st: dict[str, Any], as_json: bool) -> int:
         f"{st['keeper_pid']}, powers off after {st['idle_timeout_s']:g} s unused"
         + (f" (idle {idle:.0f} s)" if idle is not None else "")
     )
+    print(f"accelerator: {ACCEL_NAMES.get(st['accel'], st['accel'])} ({st['accel_why']})")
     taps = "on" if st.get("taps") else "off (bench box tap on: a slot's tap then sees its vcan0)"
     print(f"taps: {taps}")
     print("slot  run                          tap: python-can can.Bus(interface=..., channel=...)")
@@ -94,5 +98,14 @@ def box_arguments(b: argparse.ArgumentParser) -> None:
         default=None,
         metavar="S",
         help="up: power off after S seconds without a run (default 600, or BENCH_BOX_IDLE_S; 0: never)",
+    )
+    b.add_argument(
+        "--accel",
+        choices=("auto", "kvm", "tcg"),
+        default=None,
+        help="up: the accelerator of a box booted now. auto (default, or BENCH_BOX_ACCEL): KVM when /dev/kvm is "
+        "usable and KVM has not failed on this host before, else TCG; kvm: try KVM even if it failed before; tcg: "
+        "never KVM. A KVM guest not up within 30 s (BENCH_BOX_KVM_DEADLINE_S) is stopped and the box boots on TCG, "
+        "said in one line",
     )
     b.add_argument("--json", action="store_true", help="status as JSON (the tap channels of each slot)")

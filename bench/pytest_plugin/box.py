@@ -146,7 +146,10 @@ def ensure(config: pytest.Config, test: str, reason: str) -> None:
         return
     booted: list[bool] = []
 
-    def starting(_text: str) -> None:
+    def starting(text: str) -> None:
+        if booted:  # a later line of the boot (a KVM attempt that failed): as it is
+            say(config, f"hil: {text.removeprefix('bench: ')}", later=True)
+            return
         booted.append(True)
         say(config, f"hil: booting the CAN box for {test} ({reason}); {LIVE_HINT}")
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from bench.run.bus.box.life import down as box_down
+    from bench.run.bus.box.life import next_accel as box_next_accel
     from bench.run.bus.box.life import read_info as box_info
     from bench.run.bus.box.life import status as box_status
     from bench.run.bus.direct import DirectBus, Hil
@@ -55,6 +56,7 @@ _WHERE: dict[str, tuple[str, str]] = {
     "box_status": ("bench.run.bus.box.life", "status"),
     "box_info": ("bench.run.bus.box.life", "read_info"),
     "box_down": ("bench.run.bus.box.life", "down"),
+    "box_next_accel": ("bench.run.bus.box.life", "next_accel"),
 }
 
 __all__ = [
@@ -72,6 +74,7 @@ __all__ = [
     "VmOptions",
     "box_down",
     "box_info",
+    "box_next_accel",
     "box_status",
     "capture_to_log",
     "enable_cia402",

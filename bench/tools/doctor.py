@@ -127,16 +127,28 @@ def _box_state() -> str:
     st = box_status()
     if st["state"] == "down":
         last = st.get("last_end")
-        return "down (the next vcan run boots it, ~15-60 s; or `bench box up`)" + (
+        return f"down (the next vcan run boots it, {_next_accel()}; or `bench box up`)" + (
             f"; last: {last['why']}" if last else ""
         )
     if st["state"] == "stopping":
         return f"stopping ({st['why']})"
     used = sum(1 for x in st.get("slots", []) if x.get("in_use"))
     return (
-        f"{st['state']}, up {st['up_s']:.0f} s, {used} of {len(st.get('slots', []))} slots in use, powers off after "
-        f"{st['idle_timeout_s']:g} s unused (`bench box status` lists the slots' python-can channels)"
+        f"{st['state']} on {st.get('accel', 'tcg').upper()} ({st.get('accel_why', '')}), up {st['up_s']:.0f} s, "
+        f"{used} of {len(st.get('slots', []))} slots in use, powers off after {st['idle_timeout_s']:g} s unused "
+        "(`bench box status` lists the slots' python-can channels)"
     )
+
+
+def _next_accel() -> str:
+    """Which accelerator the next boot uses, and why."""
+    from bench.run import box_next_accel
+
+    try:
+        kvm, why = box_next_accel()
+    except ValueError as exc:
+        return str(exc)
+    return f"trying KVM first ({why})" if kvm else f"on TCG, ~15-60 s ({why})"
 
 
 def report() -> int:

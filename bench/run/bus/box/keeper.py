@@ -15,9 +15,11 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 from bench.paths import REPO, STATE
 from bench.root import INSTALLED
+from bench.run.bus.box import accel
 from bench.run.bus.box.control import BoxGone
 from bench.run.bus.box.guest import guest_script
 from bench.run.bus.box.life import (
@@ -64,21 +66,28 @@ def main(argv: list[str]) -> int:
     path = ["export PATH=/usr/local/sbin:/usr/sbin:/sbin:/usr/bin:/bin"]
     job.write_text(guest_script(BOX_DIR, len(info.ports), path, MASTER_IDS))
     home = _check_path(STATE if INSTALLED else REPO)
-    opts = VmOptions(cpus=BOX_CPUS, timeout_s=0, qemu_opts=qemu_opts(info))
-    cmd = _vng_argv(vng, kern[0], opts, {home}, job)
-    cmd[-1] = f"bash {job}"
+    (BOX_DIR / "console.log").write_bytes(b"")  # this box's: a KVM attempt's lines, then the boot's
+
+    def command(kvm: bool) -> list[str]:
+        opts = VmOptions(cpus=BOX_CPUS, timeout_s=0, qemu_opts=qemu_opts(info), kvm=kvm)
+        cmd = _vng_argv(vng, kern[0], opts, {home}, job)
+        cmd[-1] = f"bash {job}"
+        return cmd
+
     env = dict(os.environ)
     env["PATH"] = os.pathsep.join([str(vng.parent), env.get("PATH", "")])
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda s, f: stop.set())
     signal.signal(signal.SIGINT, lambda s, f: stop.set())
     t0 = time.monotonic()
-    # QEMU reopens its stdout: a pipe (never a file), and an open stdin
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env)
-    (BOX_DIR / "state.json").write_text(json.dumps(info.__dict__))
-    threading.Thread(target=_copy_console, args=(proc,), daemon=True).start()
+    plan = accel.plan(BOX_DIR, info.accel_asked)
+    info.accel_why = plan.why
+    proc = _try_kvm(info, command(True), env, stop) if plan.try_kvm else None
+    if proc is None and not stop.is_set():
+        info.accel = "tcg"
+        proc = _start_vm(info, command(False), env, [])
     why = "stopped (bench box down)"
-    while True:
+    while proc is not None:
         if stop.wait(0.5):
             break
         if proc.poll() is not None:
@@ -95,11 +104,79 @@ def main(argv: list[str]) -> int:
     (BOX_DIR / STOPPING).write_text(json.dumps({"keeper_pid": os.getpid(), "why": why}))
     (BOX_DIR / "ready").unlink(missing_ok=True)
     (BOX_DIR / "state.json").unlink(missing_ok=True)
-    _power_off(info, proc)
+    if proc is not None:
+        _power_off(info, proc)
     _ended(why)
     (BOX_DIR / TAPS).unlink(missing_ok=True)
     (BOX_DIR / STOPPING).unlink(missing_ok=True)
     return 0
+
+
+def _start_vm(info: BoxInfo, cmd: list[str], env: dict[str, str], tail: list[str]) -> subprocess.Popen[bytes]:
+    """virtme-ng started (QEMU reopens its stdout: a pipe, never a file, and an open stdin), its console copied to
+    console.log (and its last lines to `tail`), state.json written."""
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env)
+    (BOX_DIR / "state.json").write_text(json.dumps(info.__dict__))
+    threading.Thread(target=_copy_console, args=(proc, tail), daemon=True).start()
+    return proc
+
+
+def _try_kvm(
+    info: BoxInfo, cmd: list[str], env: dict[str, str], stop: threading.Event
+) -> subprocess.Popen[bytes] | None:
+    """The VM booted with KVM, or None: QEMU ended, or the guest did not raise its links within the deadline (the
+    attempt is then stopped, the failure recorded in kvm.json and said in info.accel_why), or the box was stopped
+    meanwhile."""
+    info.accel = "kvm?"
+    tail: list[str] = []
+    proc = _start_vm(info, cmd, env, tail)
+    deadline_s = accel.deadline_s()
+    t0 = time.monotonic()
+    failed = None
+    while not is_ready():
+        if proc.poll() is not None:
+            time.sleep(0.2)  # the console's last lines
+            said = [line for line in tail if "error" in line.lower()] or tail or [f"QEMU ended ({proc.returncode})"]
+            failed = f"QEMU ended: {said[-1].strip()}"
+            break
+        if stop.is_set() or time.monotonic() - t0 > deadline_s:
+            failed = None if stop.is_set() else f"no guest within {deadline_s:g} s ({accel.DEADLINE_ENV})"
+            _stop_tree(proc)
+            break
+        time.sleep(0.1)
+    else:
+        info.accel = "kvm"
+        accel.forget_failure(BOX_DIR)
+        (BOX_DIR / "state.json").write_text(json.dumps(info.__dict__))
+        return proc
+    for name in ("ready", "guest.failed"):  # what the attempt's guest may have written
+        (BOX_DIR / name).unlink(missing_ok=True)
+    if failed is not None:
+        accel.record_failure(BOX_DIR, failed)
+        info.accel_why = f"{accel.FAILED}: {failed}; the next boots use TCG (bench box up --accel kvm tries again)"
+    return None
+
+
+def _stop_tree(proc: subprocess.Popen[bytes]) -> None:
+    """virtme-ng and what it started (its shell, virtme-run, QEMU: children, not a group of their own) killed."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    todo, tree = [proc.pid], []
+    while todo:
+        pid = todo.pop()
+        tree.append(pid)
+        todo += children.get(pid, [])
+    for pid in reversed(tree):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    proc.wait()
 
 
 def _idle_for(info: BoxInfo) -> float:
@@ -138,12 +215,13 @@ def _power_off(info: BoxInfo, proc: subprocess.Popen[bytes]) -> None:
         pass
 
 
-def _copy_console(proc: subprocess.Popen[bytes]) -> None:
+def _copy_console(proc: subprocess.Popen[bytes], tail: list[str]) -> None:
     assert proc.stdout is not None
-    with open(BOX_DIR / "console.log", "wb") as fh:
+    with open(BOX_DIR / "console.log", "ab") as fh:  # a KVM attempt's lines stay before the TCG boot's
         for raw in iter(proc.stdout.readline, b""):
             fh.write(raw)
             fh.flush()
+            tail[:] = [*tail[-19:], raw.decode(errors="replace")]
 
 
 def _ended(why: str) -> None:

@@ -48,6 +48,11 @@ class BoxInfo:
     # who booted it: BENCH_BOX_OWNER of the booting process (a pytest session's token: the session stops only a
     # box it booted, never one another session or a user started while it ran), or None
     booted_by: str | None = None
+    # the accelerator: asked for (auto, kvm, tcg: accel.choice), what runs ("kvm" or "tcg"; "kvm?" while the keeper
+    # tries KVM) and why (accel.Plan.why, or the failure of a KVM attempt)
+    accel_asked: str = "auto"
+    accel: str = "tcg"
+    accel_why: str = ""
 
     @property
     def control(self) -> Control:
@@ -110,10 +115,17 @@ def idle_timeout_default() -> float:
     return float(env) if env else DEFAULT_IDLE_S
 
 
-def up(idle_timeout_s: float | None = None, slots: int = DEFAULT_SLOTS, say: Any = None) -> BoxInfo:
-    """The running box, booted now if there is none (waits until its links are up). `say` prints progress."""
+def up(
+    idle_timeout_s: float | None = None, slots: int = DEFAULT_SLOTS, say: Any = None, accel: str | None = None
+) -> BoxInfo:
+    """The running box, booted now if there is none (waits until its links are up). `say` prints progress; `accel`
+    (auto, kvm, tcg; default BENCH_BOX_ACCEL or auto) chooses the accelerator of a box booted now (bench/run/bus/box/
+    accel.py). A KVM attempt that failed is said in one line."""
     import fcntl
 
+    from bench.run.bus.box import accel as accel_mod
+
+    asked = accel_mod.choice(accel)
     say = say or (lambda text: print(text, file=sys.stderr, flush=True))
     BOX_DIR.mkdir(parents=True, exist_ok=True)
     with open(BOX_DIR / "up.lock", "a+b") as lock:  # one boot at a time; the others wait for it
@@ -126,7 +138,7 @@ def up(idle_timeout_s: float | None = None, slots: int = DEFAULT_SLOTS, say: Any
                 "bench: starting the CAN box (a VM with the kernel's vcan; this host's kernel has no SocketCAN): "
                 f"boot ~15-60 s, once; it powers off after {idle:g} s unused (bench box down stops it now)"
             )
-            info, proc = _start_keeper(idle, slots)
+            info, proc = _start_keeper(idle, slots, asked)
         else:
             proc = None
         t0 = time.monotonic()
@@ -137,10 +149,22 @@ def up(idle_timeout_s: float | None = None, slots: int = DEFAULT_SLOTS, say: Any
                 down()
                 raise BoxError(f"the CAN box did not come up within {BOOT_WAIT_S:.0f} s (see {BOX_DIR}/console.log)")
             time.sleep(0.2)
-    return read_info() or info
+    now = read_info() or info
+    if proc is not None and now.accel == "tcg" and now.accel_why.startswith(accel_mod.FAILED):
+        say(f"bench: the CAN box runs on TCG (emulation): {now.accel_why}")
+    return now
 
 
-def _start_keeper(idle_s: float, slots: int) -> tuple[BoxInfo, subprocess.Popen[bytes]]:
+def next_accel() -> tuple[bool, str]:
+    """Whether the next boot tries KVM, and why (or why not): bench/run/bus/box/accel.py. ValueError for a bad
+    BENCH_BOX_ACCEL."""
+    from bench.run.bus.box import accel
+
+    plan = accel.plan(BOX_DIR, accel.choice())
+    return plan.try_kvm, plan.why
+
+
+def _start_keeper(idle_s: float, slots: int, accel: str) -> tuple[BoxInfo, subprocess.Popen[bytes]]:
     for name in ("ready", "guest.failed", "exit.json", "state.json", TAPS):
         (BOX_DIR / name).unlink(missing_ok=True)
     for old in BOX_DIR.glob("slot-*.state"):  # the last box's namespaces are gone with it
@@ -155,6 +179,7 @@ def _start_keeper(idle_s: float, slots: int) -> tuple[BoxInfo, subprocess.Popen[
         idle_timeout_s=idle_s,
         booted_s=None,
         booted_by=os.environ.get(OWNER_ENV) or None,
+        accel_asked=accel,
     )
     log = open(BOX_DIR / "keeper.log", "wb")  # noqa: SIM115 - the keeper's own; closed here once started
     proc = subprocess.Popen(
@@ -281,6 +306,8 @@ def status() -> dict[str, Any]:
         "keeper_pid": info.keeper_pid,
         "up_s": round(time.time() - info.started, 1),
         "booted_s": info.booted_s,
+        "accel": info.accel,
+        "accel_why": info.accel_why,
         "idle_timeout_s": info.idle_timeout_s,
         "control_port": info.control_port,
         "taps": taps_on(),
