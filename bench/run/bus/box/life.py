@@ -150,6 +150,10 @@ def up(
                 raise BoxError(f"the CAN box did not come up within {BOOT_WAIT_S:.0f} s (see {BOX_DIR}/console.log)")
             time.sleep(0.2)
     now = read_info() or info
+    settle = time.monotonic() + 1.0  # the keeper writes booted_s within 0.5 s of the guest's ready mark
+    while proc is not None and now.booted_s is None and time.monotonic() < settle:
+        time.sleep(0.05)
+        now = read_info() or now
     if proc is not None and now.accel == "tcg" and now.accel_why.startswith(accel_mod.FAILED):
         say(f"bench: the CAN box runs on TCG (emulation): {now.accel_why}")
     return now
