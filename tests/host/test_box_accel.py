@@ -71,3 +71,9 @@ def test_bench_box_up_refuses_an_unknown_accelerator_before_booting() -> None:
     assert "invalid choice: 'hvf'" in res.stderr
     res = bench_cli("box", "up", env={**os.environ, accel.ACCEL_ENV: "hvf"}, expect=1)
     assert "BENCH_BOX_ACCEL='hvf'" in res.stderr
+
+
+def test_bench_box_up_refuses_a_bad_kvm_deadline_before_booting() -> None:
+    res = bench_cli("box", "up", env={**os.environ, accel.DEADLINE_ENV: "soon"}, expect=1)
+    assert "bench box up: BENCH_BOX_KVM_DEADLINE_S='soon': seconds, > 0" in res.stderr, res.stderr
+    assert "starting the CAN box" not in res.stderr

@@ -128,9 +128,9 @@ def _try_kvm(
     attempt is then stopped, the failure recorded in kvm.json and said in info.accel_why), or the box was stopped
     meanwhile."""
     info.accel = "kvm?"
+    deadline_s = accel.deadline_s()  # read before QEMU starts (life.up has checked it)
     tail: list[str] = []
     proc = _start_vm(info, cmd, env, tail)
-    deadline_s = accel.deadline_s()
     t0 = time.monotonic()
     failed = None
     while not is_ready():

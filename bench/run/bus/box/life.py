@@ -126,6 +126,7 @@ def up(
     from bench.run.bus.box import accel as accel_mod
 
     asked = accel_mod.choice(accel)
+    accel_mod.deadline_s()  # a bad BENCH_BOX_KVM_DEADLINE_S refused here, not in the keeper with its VM started
     say = say or (lambda text: print(text, file=sys.stderr, flush=True))
     BOX_DIR.mkdir(parents=True, exist_ok=True)
     with open(BOX_DIR / "up.lock", "a+b") as lock:  # one boot at a time; the others wait for it
