@@ -42,7 +42,7 @@ CSTD    := -std=c11
 CFLAGS_CORE := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -fPIC
 CFLAGS_FW   := $(CFLAGS_CORE) -Wfloat-conversion
 CFLAGS_HOST := $(CSTD) $(OPT) $(PATHMAP) $(WARN) -D_GNU_SOURCE -fPIC
-INC := -Iprotocols/canopen -Iprotocols/socketcan -Iprotocols/generated -Iplant_rt/blocks -Iplant_rt/models \
+INC := -Iprotocols/canopen -Iprotocols/coding -Iprotocols/socketcan -Iprotocols/generated -Iplant_rt/blocks -Iplant_rt/models \
        -Iplant_rt/core -Iplant_rt/node -Ifirmware_shim/core -Ifirmware_shim/shim -Ifirmware_shim/port -Iprotocols/faults -Itests/c
 # The papers' current laws: law folders as a user's (firmware_shim/laws/<paper>/: C files, headers, law.eds), built
 # into every drive; gen_od.py merges their law.eds records (protocols/gen_law.py). Their folders are on the include

@@ -92,8 +92,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
             raise ValueError("--latency-us / --worst-case-stuffing = given: must be used with --from-log")
         ts = 55e-6 if args.ts is None else args.ts
         plan = make_plan(
-            args.bitrate, ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation
-        )
+            args.bitrate, ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation,
+            args.frames,
+        )  # fmt: skip
     except ValueError as exc:  # bad input: exit 2, as every command's; nothing written
         print(f"bench plan: {exc}", file=sys.stderr)
         return 2
@@ -110,6 +111,11 @@ def _plan_option_mix(args: argparse.Namespace) -> None:
             f"--data-bitrate = {args.data_bitrate:g}: must be >= --bitrate ({args.bitrate:g}; CAN FD switches up)"
         )
     frames_given = args.from_log is not None or args.scenario is not None
+    if frames_given and args.frames != "default":
+        raise ValueError(
+            f"--frames = {args.frames}: the frames of --from-log or --scenario are the run's own (with --scenario: "
+            f"--set frames.measurement={args.frames})"
+        )
     if frames_given and (args.trace_pdos != 0 or args.trace_decimation != 1):
         raise ValueError(
             "--trace-pdos / --trace-decimation = given: the frames of --from-log or --scenario are the run's own "
@@ -173,14 +179,17 @@ def _plan_from_log(args: argparse.Namespace) -> int:
         log, args.bitrate, data_bitrate, ts, _latencies(args.latency_us or []), args.max_load,
         args.worst_case_stuffing, ts_from,
     )  # fmt: skip
+    plan.frame_set = "compact" if plan.measurement_frames == 1 else "default"
     plan.formula_s = make_plan(
-        args.bitrate, ts, args.fd, data_bitrate, args.max_load, plan.extra_tpdos
+        args.bitrate, ts, args.fd, data_bitrate, args.max_load, plan.extra_tpdos, 1, plan.frame_set
     ).time_per_period_s
     print(plan.to_json() if args.json else format_log_plan(plan))
     return 0
 
 
 def plan_arguments(pl: argparse.ArgumentParser) -> None:
+    from bench.scenario.frames import MEASUREMENT_SETS
+
     pl.add_argument("--bitrate", type=float, default=1e6, help="nominal bit rate, bit/s (default 1e6)")
     pl.add_argument("--fd", action="store_true", help="CAN FD with bit-rate switch")
     pl.add_argument("--data-bitrate", type=float, default=None, help="CAN FD data-phase bit rate, bit/s")
@@ -193,6 +202,15 @@ def plan_arguments(pl: argparse.ArgumentParser) -> None:
     pl.add_argument("--max-load", type=float, default=0.8, help="highest acceptable bus load (default 0.8)")
     pl.add_argument("--trace-pdos", type=int, default=0, help="live-trace PDOs added per period (default 0)")
     pl.add_argument("--trace-decimation", type=int, default=1, help="one trace PDO every N periods (default 1)")
+    pl.add_argument(
+        "--frames",
+        choices=MEASUREMENT_SETS,
+        default="default",
+        help="the measurement's frame set (a scenario's [frames] measurement): default, the plant's TPDO1 {i_a_A, "
+        "i_b_A} and TPDO2 {theta_m_rad, sync_counter, status, sample_index} as REAL32 values in two 8-byte frames; "
+        "compact, one 8-byte frame {i_a_code, i_b_code, theta_code, sync_counter, status} of integer codes, exact "
+        "for the plant's quantizing ADC and encoder (docs/PHYSICAL_BUS.md)",
+    )
     pl.add_argument(
         "--from-log",
         metavar="RUN/bus.log",

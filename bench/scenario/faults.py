@@ -294,10 +294,11 @@ def refuse_lockstep_stalls(
         )
 
 
-def rules_text(faults: list[Fault], plant_id: int, drive_id: int) -> str:
-    """The injector's rules (protocols/faults/fault_rules.h), one line per fault, in order."""
+def rules_text(faults: list[Fault], plant_id: int, drive_id: int, measurement_mark: bool = False) -> str:
+    """The injector's rules (protocols/faults/fault_rules.h), one line per fault, in order; `measurement_mark`: the
+    plant's compact measurement frame (its TPDO1) starts the periods, not a SYNC ([frames] period_mark)."""
     ids = cob_ids(plant_id, drive_id)
-    lines = []
+    lines = [f"period_cob=0x{ids['plant.TPDO1']:03X}  # [frames] period_mark"] if measurement_mark and faults else []
     for f in faults:
         if f.kind in FRAME_KINDS:
             cob = ids[f.frame] if f.frame else f.cob_id

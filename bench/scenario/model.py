@@ -40,6 +40,25 @@ class Setting:
     ratio_of: tuple[tuple[str, str], ...] = ()  # ((drive param, plant param), ...)
 
 
+@dataclass(frozen=True)
+class FrameSet:
+    """[frames] (bench/scenario/frames.py): the measurement's mapping and, for "compact", its coding (None: the
+    bench chooses it from the plant's sensors at configuration: frames.coding_for)."""
+
+    measurement: str = "default"
+    current_lsb_A: float | None = None
+    angle_counts: int | None = None
+    period_mark: str = "sync"  # or "measurement": the compact frame marks the period, no SYNC frame
+
+    @property
+    def compact(self) -> bool:
+        return self.measurement == "compact"
+
+    @property
+    def sync_less(self) -> bool:
+        return self.period_mark == "measurement"
+
+
 @dataclass
 class Event:
     at_period: int
@@ -63,6 +82,7 @@ class Scenario:
     raw: dict[str, Any] = field(default_factory=dict)
     motor_folder: Any = None  # bench.motor.MotorFolder of [motor] folder (its map is written to the plant's 0x2008)
     motor_fmu: Any = None  # bench.motor.fmu.FmuPlant of [motor.fmu] (its text is written to the plant's 0x2009)
+    frames: FrameSet = field(default_factory=FrameSet)  # [frames] (bench/scenario/frames.py)
     trip_note: str | None = None  # a free rotor whose trip reaction may leave the flux map (bench/motor/trip.py)
 
     def event_periods(self) -> list[int]:

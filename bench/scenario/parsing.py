@@ -10,6 +10,7 @@ from bench.eds import Param, enum
 from bench.eds import load as load_od
 from bench.laws import law_info
 from bench.scenario.faults import FaultError, parse_faults, refuse_lockstep_stalls
+from bench.scenario.frames import parse_frames
 from bench.scenario.model import SCENARIO_KEYS, STATUSES, TIMINGS, Event, Scenario, ScenarioError
 from bench.scenario.presets import PRESETS, drive_preset
 from bench.scenario.settings import SECTION_OBJECTS, param_tables, setting
@@ -19,7 +20,7 @@ COMMAND_TIMEOUT = "drive.command_timeout_us"  # plant.eds 0x2003:04, set in the 
 
 
 def parse(raw: dict[str, Any], where: str) -> Scenario:
-    allowed_top = {"scenario", "events", "faults", "trace", *SECTION_OBJECTS}
+    allowed_top = {"scenario", "events", "faults", "trace", "frames", *SECTION_OBJECTS}
     for key in raw:
         if key not in allowed_top:
             raise ScenarioError(f"{where}: unknown table [{key}]; allowed: {', '.join(sorted(allowed_top))}")
@@ -61,6 +62,7 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         for key, value in (drive_preset(where, values) if section == "drive" else values).items():
             sc.settings.append(setting(where, section, key, value, tables))
     sc.events = _events(raw, where, periods, tables)
+    sc.frames = parse_frames(raw.get("frames"), where)
     sc.events.sort(key=lambda e: e.at_period)
     if sc.motor_folder is not None:  # the trip level, and what the trip does at the run's speed (events included)
         from bench.motor.settings import check_range

@@ -19,8 +19,13 @@ SECTION_OBJECTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "controller": ("drive", ("Controller", "Outer loops", *law_records(), "Safe state")),
     "references": ("drive", ("References",)),
 }
-# Run-control entries the bench drives itself (scenario.timing sets the mode).
-RESERVED = {("Run control", "run_periods"), ("Run control", "trip_clear"), ("Run control", "mode")}
+# Run-control entries the bench drives itself (scenario.timing sets the mode, [frames] the period mark).
+RESERVED = {
+    ("Run control", "run_periods"),
+    ("Run control", "trip_clear"),
+    ("Run control", "mode"),
+    ("Run control", "period_mark"),  # [frames] period_mark (bench/scenario/frames.py)
+}
 RATIOS = {
     "R_hat_ratio": (("R_hat_ohm", "R_ohm"),),
     "Ld_hat_ratio": (("Ld_hat_H", "Ld_H"),),

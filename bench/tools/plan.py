@@ -34,6 +34,7 @@ import canopen
 from bench.canbus import classic_frame_bits, fd_frame_bits
 from bench.eds import default_node_id
 from bench.paths import EDS_DIR
+from bench.scenario.frames import COMPACT_MAP, MEASUREMENT_SETS
 
 
 @dataclass
@@ -52,6 +53,7 @@ class Plan:
     fd: bool
     ts_s: float
     max_load: float
+    frame_set: str = "default"  # [frames] measurement (bench/scenario/frames.py)
     frames: list[FrameUse] = field(default_factory=list)
     bits_per_period: float = 0.0
     time_per_period_s: float = 0.0
@@ -65,22 +67,30 @@ class Plan:
         return json.dumps(d, indent=2)
 
 
-def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1) -> list[tuple[str, int, float]]:
-    """(what, data bytes, frames per period) of one control period, from the EDS files."""
+def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1, frames: str = "default") -> list[tuple[str, int, float]]:
+    """(what, data bytes, frames per period) of one control period, from the EDS files; `frames`: the scenario's
+    measurement set ([frames] measurement, bench/scenario/frames.py): "compact" maps the plant's TPDO1 as
+    COMPACT_MAP and leaves its TPDO2 off, as the bench does by SDO."""
+    if frames not in MEASUREMENT_SETS:
+        raise _bad("--frames", frames, f"one of {', '.join(MEASUREMENT_SETS)}")
     out: list[tuple[str, int, float]] = []
     plant = canopen.import_od(str(EDS_DIR / "plant.eds"), node_id=default_node_id("plant"))
     drive = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=default_node_id("drive"))
     ov = plant["Synchronous counter overflow value"].default or 0
     out.append(("SYNC (plant)", 1 if ov >= 2 else 0, 1.0))
+    compact_bits = sum(len(plant[obj][name]) for obj, name in COMPACT_MAP)
     for name, od in (("plant", plant), ("drive", drive)):
         for n in range(4):
             comm, mapping = od[0x1800 + n], od[0x1A00 + n]
             cob = comm[1].default
-            if cob & 0x80000000:
+            if cob & 0x80000000 or (frames == "compact" and name == "plant" and n == 1):
                 continue
             count = mapping[0].default
             bits = sum((mapping[i].default & 0xFF) for i in range(1, count + 1))
-            out.append((f"{name} TPDO{n + 1} (0x{cob & 0x7FF:03X})", bits // 8, 1.0))
+            what = f"{name} TPDO{n + 1} (0x{cob & 0x7FF:03X})"
+            if frames == "compact" and name == "plant" and n == 0:
+                bits, what = compact_bits, what + " compact"
+            out.append((what, bits // 8, 1.0))
     for i in range(trace_pdos):
         out.append((f"trace PDO {i + 1}", 8, 1.0 / trace_decimation))
     return out
@@ -124,10 +134,11 @@ def make_plan(
     max_load: float = 0.8,
     trace_pdos: int = 0,
     trace_decimation: int = 1,
+    frames: str = "default",
 ) -> Plan:
     check_inputs(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation)
-    plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load)
-    for what, n, per in pdo_set(trace_pdos, trace_decimation):
+    plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load, frames)
+    for what, n, per in pdo_set(trace_pdos, trace_decimation, frames):
         if fd:
             nominal, data = fd_frame_bits(n)
             plan.frames.append(
@@ -151,17 +162,19 @@ def make_plan(
             "or run lockstep (the default): the plant waits for each command, so any period "
             "is emulated exactly, only slower than real time"
         )
+        if frames == "default":
+            small = make_plan(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation, "compact")
+            plan.advice.append(
+                f'or the compact measurement frame (scenario [frames] measurement = "compact"; bench plan --frames '
+                f"compact): one frame instead of two, {small.time_per_period_s * 1e6:.1f} us per period "
+                f"({'fits' if small.fits else 'still does not fit'}; fastest {small.fastest_period_s * 1e6:.1f} us)"
+            )
         if not fd:
-            fd_plan = make_plan(bitrate, ts_s, True, 5e6, max_load, trace_pdos, trace_decimation)
+            fd_plan = make_plan(bitrate, ts_s, True, 5e6, max_load, trace_pdos, trace_decimation, frames)
             plan.advice.append(
                 f"or CAN FD at {bitrate / 1e6:g}/5 Mbit/s: {fd_plan.time_per_period_s * 1e6:.1f} us "
                 f"per period ({'fits' if fd_plan.fits else 'still does not fit'}; fastest "
                 f"{fd_plan.fastest_period_s * 1e6:.1f} us)"
-            )
-        if fd:
-            plan.advice.append(
-                "with CAN FD, per-frame overhead dominates: map the plant's two measurement "
-                "PDOs into one 12-byte frame (PDO re-mapping by SDO)"
             )
         if trace_pdos:
             plan.advice.append("or fewer / more decimated trace PDOs (--trace-pdos, --trace-decimation)")
@@ -173,7 +186,7 @@ def format_plan(plan: Plan) -> str:
         f"bus: {'CAN FD' if plan.fd else 'classic CAN'} {plan.bitrate / 1e6:g} Mbit/s"
         + (f", data phase {plan.data_bitrate / 1e6:g} Mbit/s" if plan.fd and plan.data_bitrate else "")
         + f"; control period Ts = {plan.ts_s * 1e6:.2f} us",
-        "frames per period (worst-case bit stuffing):",
+        f"frames per period ({plan.frame_set} measurement frame set; worst-case bit stuffing):",
     ]
     for f in plan.frames:
         lines.append(

@@ -16,8 +16,7 @@ Per period: the bus time (SYNC start to the end of the period's last frame), the
 -> the plant TPDOs the drive consumes -> the drive TPDOs the plant consumes) and whether it comes before the
 next SYNC (Ts), and the load (the frames' wire time / Ts). Over the run: p50, p99 and max, how many periods miss
 the deadline and how many exceed the load limit. Which identifiers are the SYNC, the plant's and the drive's
-comes from the EDS files at the run's node-IDs (summary.json "node_ids" when it records them, else the EDS
-defaults).
+comes from the EDS files at the run's node-IDs (summary.json "node_ids" when it records them, else the EDS's).
 """
 
 from __future__ import annotations
@@ -172,12 +171,14 @@ class LogPlan:
     chain_end_s: Stats
     load: Stats
     extra_tpdos: int  # TPDOs per period (median) that the other node does not consume: the trace PDOs
+    measurement_frames: int  # plant TPDOs the drive consumes per period (median): 2 by default, 1 compact
     overruns: int  # periods whose chain ends after the next SYNC
     over_load: int  # periods above max_load
     longer_than_ts: int = 0  # periods whose frames take longer than Ts: on the real bus a backlog grows each period
     no_command: int = 0  # periods without a command frame (a lost one): never counted as fitting
     periods: list[PeriodResult] = field(default_factory=list)
-    formula_s: float | None = None  # bench plan's worst-case formula on the EDS PDO set + extra_tpdos, same bus
+    formula_s: float | None = None  # bench plan's worst-case formula on the EDS PDO set + extra_tpdos, same bus,
+    frame_set: str = "default"  # and the measurement frame set the log shows (measurement_frames)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
@@ -314,10 +315,11 @@ def simulate(
     if not fd and any(m.is_fd for p in cut.periods for m in p):
         raise LogPlanError(f"{log} holds CAN FD frames: a classic bus cannot carry them (give --fd --data-bitrate)")
     wire = WireCache(fd, worst)
-    results, extra = [], []
+    results, extra, meas = [], [], []
     for n, frames in enumerate(cut.periods):
         kinds = [_kind(m, ids) for m in frames]
         extra.append(sum(1 for k in kinds if k in ("plant", "drive")))
+        meas.append(kinds.count("measurement"))
         timed = [(m.arbitration_id, wire.bits(m).time_s(bitrate, data_bitrate)) for m in frames]
         sim = simulate_period(timed, kinds, lat)
         cmd = "command" in kinds
@@ -345,6 +347,7 @@ def simulate(
         chain_end_s=_stats(chain),
         load=_stats(load),
         extra_tpdos=int(np.median(extra)),
+        measurement_frames=int(np.median(meas)),
         overruns=int((chain > ts_s).sum()),
         over_load=int((load > max_load).sum()),
         longer_than_ts=int((bus > ts_s).sum()),
@@ -356,11 +359,8 @@ def simulate(
 def format_log_plan(plan: LogPlan) -> str:
     """The simulation as text, bench plan's worst-case formula for the same bus beside it when it is known."""
     us = 1e6
-    bus = (
-        f"CAN FD {plan.bitrate / 1e6:g}/{(plan.data_bitrate or 0) / 1e6:g} Mbit/s (bit-rate switch)"
-        if plan.fd
-        else (f"classic CAN {plan.bitrate / 1e6:g} Mbit/s")
-    )
+    fd = f"CAN FD {plan.bitrate / 1e6:g}/{(plan.data_bitrate or 0) / 1e6:g} Mbit/s (bit-rate switch)"
+    bus = fd if plan.fd else f"classic CAN {plan.bitrate / 1e6:g} Mbit/s"
     lines = [
         f"bus: {bus}; Ts = {plan.ts_s * us:.2f} us ({plan.ts_from}); transmit latency plant "
         f"{plan.latency_s['plant'] * us:g} us, drive {plan.latency_s['drive'] * us:g} us; "
@@ -390,8 +390,8 @@ def format_log_plan(plan: LogPlan) -> str:
         lines.append(f"{plan.no_command} of {n} periods have no command frame (lost?): none of them counts as fitting")
     if plan.formula_s is not None:
         lines.append(
-            f"bench plan's formula (worst-case stuffing; the EDS PDO set + {plan.extra_tpdos} trace PDOs): "
-            f"{plan.formula_s * us:.2f} us per period"
+            f"bench plan's formula (worst-case stuffing; the EDS PDO set, {plan.frame_set} measurement frame set, + "
+            f"{plan.extra_tpdos} trace PDOs): {plan.formula_s * us:.2f} us per period"
         )
     worst = sorted(plan.periods, key=lambda r: -r.bus_time_s)[:3]
     lines.append(

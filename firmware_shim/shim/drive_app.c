@@ -164,6 +164,17 @@ static void safe_step(drive_app_t *app)
     app->cmd.v_beta_V = 0.0f;
 }
 
+/* An event-driven TPDO3/4 that maps no CiA 402 object (0x6000-0x67FF, sent on their own events) is a trace of the
+ * step: it goes out after each current step, the state after step k in period k (the bench maps the trace TPDOs so
+ * when no SYNC marks the period; with SYNC they are synchronous: the state after step k - 1 at SYNC k). */
+static int step_event_tpdo(const co_pdo_t *p)
+{
+    if (!p->valid || p->trans_type < 254u) return 0;
+    for (uint8_t i = 0; i < p->count; ++i)
+        if (p->entry[i]->index >= 0x6000u && p->entry[i]->index <= 0x67FFu) return 0;
+    return 1;
+}
+
 /* The current step on the measurement and references of the OD: CiA 402 power -> law step, 0 V or open loop ->
  * guard (law output, overrun) -> fault transition -> TPDO1 (and the live trace's TPDO2 when due).  Supervision
  * counts it when it finishes the period. */
@@ -200,6 +211,8 @@ static void step(drive_app_t *app)
     m->x2102_voltage_command.v_beta_V = app->cmd.v_beta_V;
     co_tpdo_request(node, 0);                   /* event-driven: goes out now */
     if (rec.live_due) co_tpdo_request(node, 1); /* values refreshed when read */
+    for (uint8_t n = 2; n < CO_NUM_PDO; ++n)
+        if (step_event_tpdo(&node->tpdo[n])) co_tpdo_request(node, n);
 }
 
 /* One period, on the measurement's RPDO2: supervision admits it (or not: a second copy of the sample just
@@ -242,11 +255,17 @@ static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
 {
     drive_app_t *app = (drive_app_t *)user;
     app->node = node;
-    if (pdo == 0u)
-        drive_sup_on_rpdo1(&app->sup);
-    else if (pdo == 1u)
+    const co_pdo_t *p = &node->rpdo[pdo];
+    /* the measurement: the RPDO with the SYNC counter is the period's (RPDO2 by default); another one of
+     * 0x2100 carries the currents before it (RPDO1); the compact frame carries both, and its codes */
+    if (co_pdo_maps_entry(p, OD_DRIVE_MEASUREMENT_IDX, OD_DRIVE_MEASUREMENT_SYNC_COUNTER_SUB)) {
+        const int coded = drive_meas_coding_take(&app->coding, node, p);
+        if (coded || co_pdo_maps_entry(p, OD_DRIVE_MEASUREMENT_IDX, OD_DRIVE_MEASUREMENT_I_A_A_SUB))
+            drive_sup_on_rpdo1(&app->sup);
         drive_app_period(app);
-    else if (co_pdo_maps(&node->rpdo[pdo], OD_DRIVE_CONTROLWORD_IDX))
+    } else if (co_pdo_maps(p, OD_DRIVE_MEASUREMENT_IDX))
+        drive_sup_on_rpdo1(&app->sup);
+    else if (co_pdo_maps(p, OD_DRIVE_CONTROLWORD_IDX))
         drive_cia402_controlword(&app->cia); /* RPDO4 by default; the target torque is read by the next step */
     /* pdo 2 (references): read by the next step */
 }
@@ -255,6 +274,7 @@ static void hk_on_nmt(void *user, co_node_t *node, co_nmt_state_t state)
 {
     drive_app_t *app = (drive_app_t *)user;
     drive_sup_reset_sequencing(&app->sup);
+    drive_meas_coding_reset(&app->coding);
     /* CiA 402: leaving OPERATIONAL disables the power stage (the "disable voltage" reaction of 0x6007) */
     if (state != CO_NMT_OPERATIONAL) {
         const int was_powered = drive_cia402_powered(&app->cia);
@@ -293,6 +313,7 @@ static void hk_on_reset(void *user, co_node_t *node, int communication_only)
     /* both resets leave the safe state (the stack has forgotten the active EMCYs), and the CiA 402 state
      * machine starts again in SWITCH ON DISABLED */
     drive_sup_reset(&app->sup, !communication_only);
+    drive_meas_coding_reset(&app->coding);
     drive_cia402_reset(&app->cia);
     drive_recorder_publish_buffer(&app->rec);
 }

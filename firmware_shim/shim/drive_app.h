@@ -158,6 +158,7 @@
 #include "drive_cia402.h"
 #include "drive_core.h"
 #include "drive_law_slot.h"
+#include "drive_meas_coding.h"
 #include "drive_recorder.h"
 /* The drive's manufacturer-specific EMCY codes (CiA 301 0xFF00-0xFFFF), DRIVE_EMCY_*: generated from the
  * [EmergencyCodes] of drive.eds by protocols/gen_od.py; the late reasons and non-finite fields of their MSEFs,
@@ -177,6 +178,7 @@ typedef struct {
     drive_cia402_t cia;
     drive_law_slot_t law;
     drive_recorder_t rec;
+    drive_meas_coding_t coding; /* the compact measurement frame's codes */
 
     /* last inputs / output of the current step */
     drive_meas_t meas;

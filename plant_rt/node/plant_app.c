@@ -6,6 +6,7 @@
 #include <math.h>
 
 #include "co_field_map.h"
+#include "meas_coding.h"
 
 #define RUN_FOREVER 0xFFFFFFFFu
 
@@ -26,6 +27,13 @@ static void publish_sample(plant_app_t *app, uint8_t sync_counter, uint8_t statu
     x->sync_counter = sync_counter;
     x->status = status;
     x->sample_index = (uint16_t)app->k;
+    od_plant_mfr_t *m = plant_mfr(app->node);
+    const od_plant_measurement_coding_t *coding = &m->x2104_measurement_coding;
+    bool clipped = false;
+    x->i_a_code = meas_code_current(x->i_a_A, coding->current_lsb_A, &clipped);
+    x->i_b_code = meas_code_current(x->i_b_A, coding->current_lsb_A, &clipped);
+    x->theta_code = meas_code_angle(x->theta_m_rad, coding->angle_counts);
+    if (clipped) x->status |= PLANT_STATUS_CLIPPED;
     plant_app_plant_state_t *p = &app->plant_state;
     p->id_A = app->meas.id_A;
     p->iq_A = app->meas.iq_A;
@@ -39,7 +47,6 @@ static void publish_sample(plant_app_t *app, uint8_t sync_counter, uint8_t statu
     p->Lqq_H = app->state.Lqq_H;
     p->T_winding_degC = app->state.T_winding_degC;
     p->R_winding_ohm = app->state.R_winding_ohm;
-    od_plant_mfr_t *m = plant_mfr(app->node);
     OD_PLANT_MEASUREMENT_STATUS(MEASUREMENT_SET)
     OD_PLANT_PLANT_STATE_STATUS(PLANT_STATE_SET)
 }
@@ -83,9 +90,13 @@ static int64_t command_wait_left_us(const plant_app_t *app, int64_t now_us)
     return left > 0 ? left : 0;
 }
 
+/* The period's SYNC: on the bus, or (0x2003:0B period_mark = measurement) seen by the plant alone, the measurement
+ * TPDO with its counter marking the period (co_sync_produce_local). */
 static int produce(plant_app_t *app, int64_t now_us)
 {
     app->paused = false;
+    if (plant_mfr(app->node)->x2003_run_control.period_mark == OD_PLANT_PERIOD_MARK_MEASUREMENT)
+        return co_sync_produce_local(app->node, now_us);
     return co_sync_produce(app->node, now_us);
 }
 

@@ -42,13 +42,16 @@ static inline bool plant_od_realtime(const od_plant_mfr_t *m)
  * SYNC fills them and the list od_plant_fields.h generates (OD_PLANT_<RECORD>_STATUS) copies them
  * to the OD, so an entry's name is written once, in the EDS.  (0x2003 Run control's status stays
  * in the OD: the plant counts and tests it there.) */
-typedef struct { /* 0x2100 Measurement (TPDO1, TPDO2) */
+typedef struct { /* 0x2100 Measurement (TPDO1, TPDO2; or the compact frame) */
     float i_a_A;
     float i_b_A;
     float theta_m_rad;
     uint8_t sync_counter;
     uint8_t status; /* PLANT_STATUS_* */
     uint16_t sample_index;
+    int16_t i_a_code; /* the compact frame's codes (protocols/coding/meas_coding.h, 0x2104) */
+    int16_t i_b_code;
+    uint16_t theta_code;
 } plant_app_measurement_t;
 
 typedef struct { /* 0x2005 Plant state: the model's truth, REAL32 in the OD */

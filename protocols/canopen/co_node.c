@@ -183,7 +183,8 @@ static void sync_event(co_node_t *node, uint8_t counter)
     }
 }
 
-int co_sync_produce(co_node_t *node, int64_t now_us)
+/* A SYNC of the producer: its frame on the bus (send) or not (co_sync_produce_local), then its event. */
+static int sync_produce(co_node_t *node, int64_t now_us, bool send)
 {
     node->now_us = now_us;
     uint32_t cob = node->c_sync_cob;
@@ -191,15 +192,15 @@ int co_sync_produce(co_node_t *node, int64_t now_us)
     if (node->nmt != CO_NMT_OPERATIONAL && node->nmt != CO_NMT_PRE_OPERATIONAL) return -1;
     uint8_t ov = node->c_sync_overflow;
     uint8_t counter = 0;
-    if (ov >= 2u) {
-        counter = (uint8_t)(node->sync_counter >= ov ? 1u : node->sync_counter + 1u);
-        co_tx_send(&node->tx, (uint16_t)(cob & 0x7FFu), &counter, 1);
-    } else {
-        co_tx_send(&node->tx, (uint16_t)(cob & 0x7FFu), NULL, 0);
-    }
+    if (ov >= 2u) counter = (uint8_t)(node->sync_counter >= ov ? 1u : node->sync_counter + 1u);
+    if (send) co_tx_send(&node->tx, (uint16_t)(cob & 0x7FFu), ov >= 2u ? &counter : NULL, ov >= 2u ? 1u : 0u);
     sync_event(node, counter);
     return counter;
 }
+
+int co_sync_produce(co_node_t *node, int64_t now_us) { return sync_produce(node, now_us, true); }
+
+int co_sync_produce_local(co_node_t *node, int64_t now_us) { return sync_produce(node, now_us, false); }
 
 /* CiA 301 rules of an SDO write to the SYNC objects (0x1005, 0x1019). */
 static uint32_t sync_check_write(const co_node_t *node, const co_od_entry_t *e, const uint8_t *data)

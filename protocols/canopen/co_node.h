@@ -144,6 +144,11 @@ int64_t co_node_next_event_us(const co_node_t *node, int64_t now_us, int64_t max
 /* Produce one SYNC now (SYNC producer only; lockstep calls this explicitly).
  * Returns the counter sent (0 when the counter is disabled), or -1 if not producer/not allowed. */
 int co_sync_produce(co_node_t *node, int64_t now_us);
+/* The producer's SYNC without its frame: the counter advances, the synchronous RPDOs are actuated, the hooks run
+ * and the synchronous TPDOs go out as at co_sync_produce, but no SYNC frame is sent (the period is marked on the
+ * bus by another frame: the plant's measurement TPDO with the counter inside, issue 54). Not CiA 301: its
+ * synchronous PDOs follow a SYNC that only this node sees. Same returns as co_sync_produce. */
+int co_sync_produce_local(co_node_t *node, int64_t now_us);
 
 /* Request an event-driven (or type-0) TPDO. pdo is 0-based. */
 void co_tpdo_request(co_node_t *node, uint8_t pdo);

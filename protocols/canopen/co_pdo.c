@@ -58,6 +58,13 @@ bool co_pdo_maps(const co_pdo_t *p, uint16_t index)
     return false;
 }
 
+bool co_pdo_maps_entry(const co_pdo_t *p, uint16_t index, uint8_t subindex)
+{
+    for (uint8_t i = 0; i < p->count; ++i)
+        if (p->entry[i]->index == index && p->entry[i]->subindex == subindex) return true;
+    return false;
+}
+
 bool co_pdo_owns(const co_pdo_t *p, uint16_t index)
 {
     return index == p->link.comm_index || index == p->link.map_index;

@@ -95,6 +95,8 @@ void co_pdo_bind(co_pdo_t *p);
 
 /* Does this PDO map an entry of object `index`? */
 bool co_pdo_maps(const co_pdo_t *p, uint16_t index);
+/* Whether the PDO maps this entry (index and sub-index). */
+bool co_pdo_maps_entry(const co_pdo_t *p, uint16_t index, uint8_t subindex);
 
 /* Is `index` this PDO's communication or mapping parameter? */
 bool co_pdo_owns(const co_pdo_t *p, uint16_t index);

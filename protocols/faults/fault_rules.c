@@ -120,6 +120,7 @@ int fi_parse_rules(fi_t *fi, const char *text, char *err, size_t err_len)
         r.threshold = FI_ALWAYS;
         r.dlc = -1;
         int fields = 0;
+        long period_cob = -1;
         for (char *tok = strtok(line, " \t\r"); tok; tok = strtok(NULL, " \t\r")) {
             char *eq = strchr(tok, '=');
             if (!eq) {
@@ -127,6 +128,11 @@ int fi_parse_rules(fi_t *fi, const char *text, char *err, size_t err_len)
                 return -1;
             }
             *eq = '\0';
+            unsigned long long cob = 0;
+            if (strcmp(tok, "period_cob") == 0 && parse_u64(eq + 1, 0x7FF, &cob) == 0) {
+                period_cob = (long)cob;
+                continue;
+            }
             int rc = set_field(&r, tok, eq + 1);
             if (rc == -2) {
                 snprintf(err, err_len, "fault rule line %d: unknown key %s", line_no, tok);
@@ -137,6 +143,14 @@ int fi_parse_rules(fi_t *fi, const char *text, char *err, size_t err_len)
                 return -1;
             }
             ++fields;
+        }
+        if (period_cob >= 0 && fields == 0) { /* `period_cob=0x190`: the frame that starts a period (fi_t.sync_cob) */
+            fi->sync_cob = (uint16_t)period_cob;
+            continue;
+        }
+        if (period_cob >= 0) {
+            snprintf(err, err_len, "fault rule line %d: period_cob= stands on a line of its own", line_no);
+            return -1;
         }
         if (fields == 0) continue;
         if (r.kind == 0) {

@@ -6,6 +6,9 @@
  *   kind=corrupt from=a cob=0x190 at=50 bit=31              kind=corrupt ... dlc=4
  *   kind=freeze from=b at=100 periods=5    kind=kill from=b at=100    kind=reset from=b at=100 node_id=0x20
  *
+ *   period_cob=0x190      (a line of its own: the identifier whose frames from side a start the periods;
+ *                          default the SYNC's, 0x080; the plant's measurement frame when it marks the period)
+ *
  * kinds: drop delay duplicate corrupt reorder freeze kill reset; from: a (plant side) | b (drive
  * side) | any; cob: 0..0x7FF or any. Unknown keys and bad values are refused (the bench validates
  * the scenario first; this is the last line of defence). Uses the C library only (strtoul, strtod).

@@ -145,16 +145,22 @@ static const od_drive_ram_t defaults = {
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_6 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_7 = 0x0u,
     .comm.x1A03_tpdo4_mapping_parameter.mapping_entry_8 = 0x0u,
-    .mfr.x2100_Measurement.highest_sub_index_supported = 0x6u,
+    .mfr.x2100_Measurement.highest_sub_index_supported = 0x9u,
     .mfr.x2100_Measurement.i_a_A = 0.0f,
     .mfr.x2100_Measurement.i_b_A = 0.0f,
     .mfr.x2100_Measurement.theta_m_rad = 0.0f,
     .mfr.x2100_Measurement.sync_counter = 0x0u,
     .mfr.x2100_Measurement.status = 0x0u,
     .mfr.x2100_Measurement.sample_index = 0x0u,
+    .mfr.x2100_Measurement.i_a_code = 0,
+    .mfr.x2100_Measurement.i_b_code = 0,
+    .mfr.x2100_Measurement.theta_code = 0x0u,
     .mfr.x2102_voltage_command.highest_sub_index_supported = 0x2u,
     .mfr.x2102_voltage_command.v_alpha_V = 0.0f,
     .mfr.x2102_voltage_command.v_beta_V = 0.0f,
+    .mfr.x2104_measurement_coding.highest_sub_index_supported = 0x2u,
+    .mfr.x2104_measurement_coding.current_lsb_A = 0.0010000000474974513f,
+    .mfr.x2104_measurement_coding.angle_counts = 0x10000u,
     .mfr.x2200_Controller.highest_sub_index_supported = 0xCu,
     .mfr.x2200_Controller.controller = 0x2u,
     .mfr.x2200_Controller.Ts_s = 5.500000042957254e-05f,
@@ -469,9 +475,15 @@ static const co_od_entry_t entries[] = {
     {0x2100u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2100_Measurement.sync_counter), &OD_DRIVE.mfr.x2100_Measurement.sync_counter, {.i = 0}, {.i = 0}}, /* sync_counter */
     {0x2100u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2100_Measurement.status), &OD_DRIVE.mfr.x2100_Measurement.status, {.i = 0}, {.i = 0}}, /* status */
     {0x2100u, 0x06u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2100_Measurement.sample_index), &OD_DRIVE.mfr.x2100_Measurement.sample_index, {.i = 0}, {.i = 0}}, /* sample_index */
+    {0x2100u, 0x07u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2100_Measurement.i_a_code), &OD_DRIVE.mfr.x2100_Measurement.i_a_code, {.i = 0}, {.i = 0}}, /* i_a_code */
+    {0x2100u, 0x08u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2100_Measurement.i_b_code), &OD_DRIVE.mfr.x2100_Measurement.i_b_code, {.i = 0}, {.i = 0}}, /* i_b_code */
+    {0x2100u, 0x09u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2100_Measurement.theta_code), &OD_DRIVE.mfr.x2100_Measurement.theta_code, {.i = 0}, {.i = 0}}, /* theta_code */
     {0x2102u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2102_voltage_command.highest_sub_index_supported), &OD_DRIVE.mfr.x2102_voltage_command.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2102u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2102_voltage_command.v_alpha_V), &OD_DRIVE.mfr.x2102_voltage_command.v_alpha_V, {.i = 0}, {.i = 0}}, /* v_alpha_V */
     {0x2102u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_DRIVE.mfr.x2102_voltage_command.v_beta_V), &OD_DRIVE.mfr.x2102_voltage_command.v_beta_V, {.i = 0}, {.i = 0}}, /* v_beta_V */
+    {0x2104u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2104_measurement_coding.highest_sub_index_supported), &OD_DRIVE.mfr.x2104_measurement_coding.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2104u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2104_measurement_coding.current_lsb_A), &OD_DRIVE.mfr.x2104_measurement_coding.current_lsb_A, {.f = 9.999999974752427e-07f}, {.f = 10.0f}}, /* current_lsb_A */
+    {0x2104u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2104_measurement_coding.angle_counts), &OD_DRIVE.mfr.x2104_measurement_coding.angle_counts, {.i = 1}, {.i = 65536}}, /* angle_counts */
     {0x2200u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2200_Controller.highest_sub_index_supported), &OD_DRIVE.mfr.x2200_Controller.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2200u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.controller), &OD_DRIVE.mfr.x2200_Controller.controller, {.i = 0}, {.i = 5}}, /* controller */
     {0x2200u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.Ts_s), &OD_DRIVE.mfr.x2200_Controller.Ts_s, {.f = 9.999999974752427e-07f}, {.f = 0.10000000149011612f}}, /* Ts_s */

@@ -176,10 +176,17 @@
 #define OD_DRIVE_MEASUREMENT_SYNC_COUNTER_SUB 0x04u
 #define OD_DRIVE_MEASUREMENT_STATUS_SUB 0x05u
 #define OD_DRIVE_MEASUREMENT_SAMPLE_INDEX_SUB 0x06u
+#define OD_DRIVE_MEASUREMENT_I_A_CODE_SUB 0x07u
+#define OD_DRIVE_MEASUREMENT_I_B_CODE_SUB 0x08u
+#define OD_DRIVE_MEASUREMENT_THETA_CODE_SUB 0x09u
 #define OD_DRIVE_VOLTAGE_COMMAND_IDX 0x2102u
 #define OD_DRIVE_VOLTAGE_COMMAND_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_VOLTAGE_COMMAND_V_ALPHA_V_SUB 0x01u
 #define OD_DRIVE_VOLTAGE_COMMAND_V_BETA_V_SUB 0x02u
+#define OD_DRIVE_MEASUREMENT_CODING_IDX 0x2104u
+#define OD_DRIVE_MEASUREMENT_CODING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_MEASUREMENT_CODING_CURRENT_LSB_A_SUB 0x01u
+#define OD_DRIVE_MEASUREMENT_CODING_ANGLE_COUNTS_SUB 0x02u
 #define OD_DRIVE_CONTROLLER_IDX 0x2200u
 #define OD_DRIVE_CONTROLLER_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_CONTROLLER_CONTROLLER_SUB 0x01u
@@ -364,6 +371,9 @@ typedef struct {
     uint8_t sync_counter;
     uint8_t status;
     uint16_t sample_index;
+    int16_t i_a_code;
+    int16_t i_b_code;
+    uint16_t theta_code;
 } od_drive_measurement_t;
 
 
@@ -374,7 +384,10 @@ typedef struct {
     X(0x2100u, 0x03u, x2100_Measurement, theta_m_rad, 0.0f) \
     X(0x2100u, 0x04u, x2100_Measurement, sync_counter, 0u) \
     X(0x2100u, 0x05u, x2100_Measurement, status, 0u) \
-    X(0x2100u, 0x06u, x2100_Measurement, sample_index, 0u)
+    X(0x2100u, 0x06u, x2100_Measurement, sample_index, 0u) \
+    X(0x2100u, 0x07u, x2100_Measurement, i_a_code, 0) \
+    X(0x2100u, 0x08u, x2100_Measurement, i_b_code, 0) \
+    X(0x2100u, 0x09u, x2100_Measurement, theta_code, 0u)
 
 #define OD_DRIVE_MEASUREMENT_I_A_A_DEFAULT 0.0f
 #define OD_DRIVE_MEASUREMENT_I_B_A_DEFAULT 0.0f
@@ -382,6 +395,9 @@ typedef struct {
 #define OD_DRIVE_MEASUREMENT_SYNC_COUNTER_DEFAULT 0u
 #define OD_DRIVE_MEASUREMENT_STATUS_DEFAULT 0u
 #define OD_DRIVE_MEASUREMENT_SAMPLE_INDEX_DEFAULT 0u
+#define OD_DRIVE_MEASUREMENT_I_A_CODE_DEFAULT 0
+#define OD_DRIVE_MEASUREMENT_I_B_CODE_DEFAULT 0
+#define OD_DRIVE_MEASUREMENT_THETA_CODE_DEFAULT 0u
 
 /* 0x2102 Voltage command */
 typedef struct {
@@ -398,6 +414,22 @@ typedef struct {
 
 #define OD_DRIVE_VOLTAGE_COMMAND_V_ALPHA_V_DEFAULT 0.0f
 #define OD_DRIVE_VOLTAGE_COMMAND_V_BETA_V_DEFAULT 0.0f
+
+/* 0x2104 Measurement coding */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float current_lsb_A;
+    uint32_t angle_counts;
+} od_drive_measurement_coding_t;
+
+
+/* 0x2104 Measurement coding, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_MEASUREMENT_CODING_PARAMS(X) \
+    X(0x2104u, 0x01u, x2104_measurement_coding, current_lsb_A, 0.0010000000474974513f) \
+    X(0x2104u, 0x02u, x2104_measurement_coding, angle_counts, 65536u)
+
+#define OD_DRIVE_MEASUREMENT_CODING_CURRENT_LSB_A_DEFAULT 0.0010000000474974513f
+#define OD_DRIVE_MEASUREMENT_CODING_ANGLE_COUNTS_DEFAULT 65536u
 
 /* 0x2200 Controller */
 typedef struct {

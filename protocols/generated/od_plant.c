@@ -185,7 +185,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2002_Sensors.encoder_lines = 0x9C4u,
     .mfr.x2002_Sensors.adc_offset_b_A = 0.0f,
     .mfr.x2002_Sensors.adc_full_scale_A = 0.0f,
-    .mfr.x2003_run_control.highest_sub_index_supported = 0xAu,
+    .mfr.x2003_run_control.highest_sub_index_supported = 0xBu,
     .mfr.x2003_run_control.mode = 0x0u,
     .mfr.x2003_run_control.run_periods = 0x0u,
     .mfr.x2003_run_control.period_index = 0x0u,
@@ -196,6 +196,7 @@ static const od_plant_ram_t defaults = {
     .mfr.x2003_run_control.trip_active = 0x0u,
     .mfr.x2003_run_control.state = 0x0u,
     .mfr.x2003_run_control.outside_map_periods = 0x0u,
+    .mfr.x2003_run_control.period_mark = 0x0u,
     .mfr.x2004_motor_preset = "you2019",
     .mfr.x2005_plant_state.highest_sub_index_supported = 0xCu,
     .mfr.x2005_plant_state.id_A = 0.0f,
@@ -234,16 +235,22 @@ static const od_plant_ram_t defaults = {
     .mfr.x200A_model_harmonic.psi_7_Wb = 0.0f,
     .mfr.x200A_model_harmonic.cogging_Nm = 0.0f,
     .mfr.x200A_model_harmonic.cogging_periods = 0x0u,
-    .mfr.x2100_Measurement.highest_sub_index_supported = 0x6u,
+    .mfr.x2100_Measurement.highest_sub_index_supported = 0x9u,
     .mfr.x2100_Measurement.i_a_A = 0.0f,
     .mfr.x2100_Measurement.i_b_A = 0.0f,
     .mfr.x2100_Measurement.theta_m_rad = 0.0f,
     .mfr.x2100_Measurement.sync_counter = 0x0u,
     .mfr.x2100_Measurement.status = 0x0u,
     .mfr.x2100_Measurement.sample_index = 0x0u,
+    .mfr.x2100_Measurement.i_a_code = 0,
+    .mfr.x2100_Measurement.i_b_code = 0,
+    .mfr.x2100_Measurement.theta_code = 0x0u,
     .mfr.x2102_voltage_command.highest_sub_index_supported = 0x2u,
     .mfr.x2102_voltage_command.v_alpha_V = 0.0f,
     .mfr.x2102_voltage_command.v_beta_V = 0.0f,
+    .mfr.x2104_measurement_coding.highest_sub_index_supported = 0x2u,
+    .mfr.x2104_measurement_coding.current_lsb_A = 0.0010000000474974513f,
+    .mfr.x2104_measurement_coding.angle_counts = 0x10000u,
 };
 
 static const co_od_entry_t entries[] = {
@@ -439,6 +446,7 @@ static const co_od_entry_t entries[] = {
     {0x2003u, 0x08u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.trip_active), &OD_PLANT.mfr.x2003_run_control.trip_active, {.i = 0}, {.i = 0}}, /* trip_active */
     {0x2003u, 0x09u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2003_run_control.state), &OD_PLANT.mfr.x2003_run_control.state, {.i = 0}, {.i = 0}}, /* state */
     {0x2003u, 0x0Au, CO_DT_UNSIGNED32, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2003_run_control.outside_map_periods), &OD_PLANT.mfr.x2003_run_control.outside_map_periods, {.i = 0}, {.i = 0}}, /* outside_map_periods */
+    {0x2003u, 0x0Bu, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2003_run_control.period_mark), &OD_PLANT.mfr.x2003_run_control.period_mark, {.i = 0}, {.i = 1}}, /* period_mark */
     {0x2004u, 0x00u, CO_DT_VISIBLE_STRING, CO_ODF_READ | CO_ODF_WRITE, 32, OD_PLANT.mfr.x2004_motor_preset, {.i = 0}, {.i = 0}}, /* Motor preset */
     {0x2005u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported), &OD_PLANT.mfr.x2005_plant_state.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2005u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2005_plant_state.id_A), &OD_PLANT.mfr.x2005_plant_state.id_A, {.i = 0}, {.i = 0}}, /* id_A */
@@ -487,9 +495,15 @@ static const co_od_entry_t entries[] = {
     {0x2100u, 0x04u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.sync_counter), &OD_PLANT.mfr.x2100_Measurement.sync_counter, {.i = 0}, {.i = 0}}, /* sync_counter */
     {0x2100u, 0x05u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.status), &OD_PLANT.mfr.x2100_Measurement.status, {.i = 0}, {.i = 0}}, /* status */
     {0x2100u, 0x06u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.sample_index), &OD_PLANT.mfr.x2100_Measurement.sample_index, {.i = 0}, {.i = 0}}, /* sample_index */
+    {0x2100u, 0x07u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_a_code), &OD_PLANT.mfr.x2100_Measurement.i_a_code, {.i = 0}, {.i = 0}}, /* i_a_code */
+    {0x2100u, 0x08u, CO_DT_INTEGER16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.i_b_code), &OD_PLANT.mfr.x2100_Measurement.i_b_code, {.i = 0}, {.i = 0}}, /* i_b_code */
+    {0x2100u, 0x09u, CO_DT_UNSIGNED16, CO_ODF_READ | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2100_Measurement.theta_code), &OD_PLANT.mfr.x2100_Measurement.theta_code, {.i = 0}, {.i = 0}}, /* theta_code */
     {0x2102u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2102_voltage_command.highest_sub_index_supported), &OD_PLANT.mfr.x2102_voltage_command.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2102u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2102_voltage_command.v_alpha_V), &OD_PLANT.mfr.x2102_voltage_command.v_alpha_V, {.i = 0}, {.i = 0}}, /* v_alpha_V */
     {0x2102u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_PDO, sizeof(OD_PLANT.mfr.x2102_voltage_command.v_beta_V), &OD_PLANT.mfr.x2102_voltage_command.v_beta_V, {.i = 0}, {.i = 0}}, /* v_beta_V */
+    {0x2104u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2104_measurement_coding.highest_sub_index_supported), &OD_PLANT.mfr.x2104_measurement_coding.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2104u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2104_measurement_coding.current_lsb_A), &OD_PLANT.mfr.x2104_measurement_coding.current_lsb_A, {.f = 9.999999974752427e-07f}, {.f = 10.0f}}, /* current_lsb_A */
+    {0x2104u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2104_measurement_coding.angle_counts), &OD_PLANT.mfr.x2104_measurement_coding.angle_counts, {.i = 1}, {.i = 65536}}, /* angle_counts */
 };
 
 const co_od_t od_plant = {entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_PLANT, &defaults, sizeof(od_plant_comm_t), sizeof(od_plant_ram_t)};

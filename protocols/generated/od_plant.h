@@ -266,6 +266,7 @@ typedef struct {
     od_plant_model_harmonic_t x200A_model_harmonic;
     od_plant_measurement_t x2100_Measurement;
     od_plant_voltage_command_t x2102_voltage_command;
+    od_plant_measurement_coding_t x2104_measurement_coding;
 } od_plant_mfr_t;
 
 /* The communication part comes first: a communication reset restores it alone. */

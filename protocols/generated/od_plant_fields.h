@@ -223,6 +223,7 @@
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_SUB 0x08u
 #define OD_PLANT_RUN_CONTROL_STATE_SUB 0x09u
 #define OD_PLANT_RUN_CONTROL_OUTSIDE_MAP_PERIODS_SUB 0x0Au
+#define OD_PLANT_RUN_CONTROL_PERIOD_MARK_SUB 0x0Bu
 #define OD_PLANT_MOTOR_PRESET_IDX 0x2004u
 #define OD_PLANT_PLANT_STATE_IDX 0x2005u
 #define OD_PLANT_PLANT_STATE_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
@@ -275,10 +276,17 @@
 #define OD_PLANT_MEASUREMENT_SYNC_COUNTER_SUB 0x04u
 #define OD_PLANT_MEASUREMENT_STATUS_SUB 0x05u
 #define OD_PLANT_MEASUREMENT_SAMPLE_INDEX_SUB 0x06u
+#define OD_PLANT_MEASUREMENT_I_A_CODE_SUB 0x07u
+#define OD_PLANT_MEASUREMENT_I_B_CODE_SUB 0x08u
+#define OD_PLANT_MEASUREMENT_THETA_CODE_SUB 0x09u
 #define OD_PLANT_VOLTAGE_COMMAND_IDX 0x2102u
 #define OD_PLANT_VOLTAGE_COMMAND_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_VOLTAGE_COMMAND_V_ALPHA_V_SUB 0x01u
 #define OD_PLANT_VOLTAGE_COMMAND_V_BETA_V_SUB 0x02u
+#define OD_PLANT_MEASUREMENT_CODING_IDX 0x2104u
+#define OD_PLANT_MEASUREMENT_CODING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_PLANT_MEASUREMENT_CODING_CURRENT_LSB_A_SUB 0x01u
+#define OD_PLANT_MEASUREMENT_CODING_ANGLE_COUNTS_SUB 0x02u
 /* 0x2000 Motor model */
 typedef struct {
     uint8_t highest_sub_index_supported;
@@ -433,6 +441,7 @@ typedef struct {
     uint8_t trip_active;
     uint8_t state;
     uint32_t outside_map_periods;
+    uint8_t period_mark;
 } od_plant_run_control_t;
 
 
@@ -441,7 +450,8 @@ typedef struct {
     X(0x2003u, 0x01u, x2003_run_control, mode, 0u) \
     X(0x2003u, 0x02u, x2003_run_control, run_periods, 0u) \
     X(0x2003u, 0x04u, x2003_run_control, command_timeout_us, 0u) \
-    X(0x2003u, 0x07u, x2003_run_control, trip_clear, 0u)
+    X(0x2003u, 0x07u, x2003_run_control, trip_clear, 0u) \
+    X(0x2003u, 0x0Bu, x2003_run_control, period_mark, 0u)
 
 /* 0x2003 Run control, status: X(index, subindex, record, field, EDS default) */
 #define OD_PLANT_RUN_CONTROL_STATUS(X) \
@@ -462,6 +472,7 @@ typedef struct {
 #define OD_PLANT_RUN_CONTROL_TRIP_ACTIVE_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_STATE_DEFAULT 0u
 #define OD_PLANT_RUN_CONTROL_OUTSIDE_MAP_PERIODS_DEFAULT 0u
+#define OD_PLANT_RUN_CONTROL_PERIOD_MARK_DEFAULT 0u
 
 /* 0x2005 Plant state */
 typedef struct {
@@ -607,6 +618,9 @@ typedef struct {
     uint8_t sync_counter;
     uint8_t status;
     uint16_t sample_index;
+    int16_t i_a_code;
+    int16_t i_b_code;
+    uint16_t theta_code;
 } od_plant_measurement_t;
 
 
@@ -617,7 +631,10 @@ typedef struct {
     X(0x2100u, 0x03u, x2100_Measurement, theta_m_rad, 0.0f) \
     X(0x2100u, 0x04u, x2100_Measurement, sync_counter, 0u) \
     X(0x2100u, 0x05u, x2100_Measurement, status, 0u) \
-    X(0x2100u, 0x06u, x2100_Measurement, sample_index, 0u)
+    X(0x2100u, 0x06u, x2100_Measurement, sample_index, 0u) \
+    X(0x2100u, 0x07u, x2100_Measurement, i_a_code, 0) \
+    X(0x2100u, 0x08u, x2100_Measurement, i_b_code, 0) \
+    X(0x2100u, 0x09u, x2100_Measurement, theta_code, 0u)
 
 #define OD_PLANT_MEASUREMENT_I_A_A_DEFAULT 0.0f
 #define OD_PLANT_MEASUREMENT_I_B_A_DEFAULT 0.0f
@@ -625,6 +642,9 @@ typedef struct {
 #define OD_PLANT_MEASUREMENT_SYNC_COUNTER_DEFAULT 0u
 #define OD_PLANT_MEASUREMENT_STATUS_DEFAULT 0u
 #define OD_PLANT_MEASUREMENT_SAMPLE_INDEX_DEFAULT 0u
+#define OD_PLANT_MEASUREMENT_I_A_CODE_DEFAULT 0
+#define OD_PLANT_MEASUREMENT_I_B_CODE_DEFAULT 0
+#define OD_PLANT_MEASUREMENT_THETA_CODE_DEFAULT 0u
 
 /* 0x2102 Voltage command */
 typedef struct {
@@ -641,6 +661,22 @@ typedef struct {
 
 #define OD_PLANT_VOLTAGE_COMMAND_V_ALPHA_V_DEFAULT 0.0f
 #define OD_PLANT_VOLTAGE_COMMAND_V_BETA_V_DEFAULT 0.0f
+
+/* 0x2104 Measurement coding */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    float current_lsb_A;
+    uint32_t angle_counts;
+} od_plant_measurement_coding_t;
+
+
+/* 0x2104 Measurement coding, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_PLANT_MEASUREMENT_CODING_PARAMS(X) \
+    X(0x2104u, 0x01u, x2104_measurement_coding, current_lsb_A, 0.0010000000474974513f) \
+    X(0x2104u, 0x02u, x2104_measurement_coding, angle_counts, 65536u)
+
+#define OD_PLANT_MEASUREMENT_CODING_CURRENT_LSB_A_DEFAULT 0.0010000000474974513f
+#define OD_PLANT_MEASUREMENT_CODING_ANGLE_COUNTS_DEFAULT 65536u
 
 /* the machine models' own records ("Model <name>"): X(name, record type, record member, index, its
  * parameters' X-macro list) */
@@ -687,11 +723,18 @@ enum {
     OD_PLANT_MODE_REALTIME = 1
 };
 
+/* 0x2003:0B Run control.period_mark */
+enum {
+    OD_PLANT_PERIOD_MARK_SYNC = 0,
+    OD_PLANT_PERIOD_MARK_MEASUREMENT = 1
+};
+
 /* 0x2100:05 Measurement.status bits (BitNames of plant.eds) */
 #define PLANT_STATUS_TRIP 0x01u
 #define PLANT_STATUS_HOLDING 0x02u
 #define PLANT_STATUS_MISSED 0x04u
 #define PLANT_STATUS_HELD 0x08u
+#define PLANT_STATUS_CLIPPED 0x10u
 
 /* EMCY error codes ([EmergencyCodes] of plant.eds) */
 #define PLANT_EMCY_OVERCURRENT 0x2310u /* over-current trip (CiA 301 0x23xx current, device output side) */

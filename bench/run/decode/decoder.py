@@ -43,11 +43,13 @@ from canopen.nmt import NMT_COMMANDS
 
 from bench.eds import default_node_id
 from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.decode.coding import decoded_names
 from bench.run.decode.counts import DecodeStats, PdoStats
 from bench.run.decode.layout import BusLayout, layout_from_sdo
 from bench.run.decode.rows import REFERENCES, Rows, Where
 from bench.run.decode.sdo_log import SdoLog
-from bench.run.decode.syncs import genuine_syncs, plant_field, starts_loop
+from bench.run.decode.syncs import PeriodMark, genuine_syncs, mark_candidates, period_mark, plant_field, starts_loop
+from bench.scenario.frames import CODING
 from bench.signals import SignalInfo, column_name
 
 __all__ = ["DecodeStats", "Decoder", "PdoStats", "Profile", "layout_from_sdo"]
@@ -91,6 +93,8 @@ class Decoder:
         self._nmt_seen = False  # an NMT command went by (a master configuring the nodes) ...
         self._nmt_started = False  # ... and NMT start: the loop's SYNCs come after it
         self._meas: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sync_counter
+        self._mark: PeriodMark | None = None  # what starts a period (frozen with the layout)
+        self._step_traces: set[int] = set()  # drive TPDOs sent after each step (event-driven traces)
         self._known: np.ndarray = self._base_known()
         self._kind = self._kinds()
         self.emcy: list[dict[str, object]] = []
@@ -121,12 +125,16 @@ class Decoder:
             p for p in layout.pdos if p.node == "drive" and any(q.startswith("Voltage command.") for q, _ in p.signals)
         ]
         self._cmd_cob = cmd[0].cob_id if cmd and self.hil else None
+        self._step_traces = {p.cob_id for p in layout.pdos if p.node == "drive" and p.trans_type > 240} - {
+            self._cmd_cob
+        }
         layout.pdos = [p for p in layout.pdos if p not in hold]
         self._known = self._base_known()
         for p in [*layout.pdos, *hold]:
             self._known[p.cob_id & 0x7FF] = True
         self._kind = self._kinds()
         self._meas = plant_field(layout, "Measurement.sync_counter", "B")
+        self._mark = self._period_mark()
         where = Where(
             plant_field(layout, "Measurement.sample_index", "H"), plant_field(layout, "Measurement.status", "B")
         )
@@ -134,6 +142,7 @@ class Decoder:
             self.pole_pairs = int(self.sdo.plant.get("Motor model", "pole_pairs") or 1)
             self.ts_s = float(self.sdo.plant.get("Inverter", "Ts_s") or 1.0)
         self._rows = Rows(layout, self.sdo, self.stats, self.hil, where, self.ts_s, self.pole_pairs, t0_us)
+        self._rows.mark = self._mark
         names: list[SignalInfo] = [SignalInfo.of("sync_counter", "SYNC", "<f4")]
         for pdo in layout.pdos:
             self.stats.pdos[pdo.cob_id] = PdoStats(pdo)
@@ -143,6 +152,15 @@ class Decoder:
                     SignalInfo.of(column_name(q), f"{pdo.node} {pdo.pdo} {q}", "<f4" if fmt in "fbBhH?" else "<f8")
                 )
         cols = {s.name for s in names}
+        coded = decoded_names(cols) if self.hil else []
+        if coded:  # the compact measurement frame: its codes decoded with the plant's coding (0x2104)
+            names += [SignalInfo.of(n, "decoded from the compact frame (Measurement coding)", "<f4") for n in coded]
+            cols |= set(coded)
+            plant = self.sdo.plant
+            self._rows.coding = (
+                float(plant.get(CODING, "current_lsb_A") or 0.0),
+                int(plant.get(CODING, "angle_counts") or 65536),
+            )
         if self.hil and {"i_a_A", "i_b_A", "theta_m_rad"} <= cols:
             names += [SignalInfo.of(n, "derived (Park transform)") for n in ("id_A", "iq_A")]
             if {"v_alpha_V", "v_beta_V"} <= cols:
@@ -228,7 +246,7 @@ class Decoder:
         its index in buf, or None when it is not in (the carry keeps what is still to be judged)."""
         start = 0
         while True:
-            hits = np.nonzero(buf["cob_id"][start:] == self.sdo.sync_cob_id)[0]
+            hits = np.nonzero(np.isin(buf["cob_id"][start:], mark_candidates(self.sdo, self.hil)))[0]
             first = start + int(hits[0]) if len(hits) else len(buf)
             self._follow_sdo(buf[start:first], np.zeros(first - start, dtype=np.int64))
             self._count_new(buf[start:first], np.zeros(first - start, dtype=np.int64))
@@ -240,7 +258,11 @@ class Decoder:
             if first == len(buf):
                 self._carry = np.zeros(0, dtype=FRAME_DTYPE)
                 return None
-            if buf["cob_id"][first] == self.sdo.sync_cob_id:
+            mark = self._period_mark()
+            if not mark.is_sync and buf["cob_id"][first] == mark.cob_id:
+                if (not self._nmt_seen or self._nmt_started) and buf["dlc"][first] == mark.length:
+                    return first  # the plant's first measurement frame after NMT start: the loop's first period
+            elif buf["cob_id"][first] == self.sdo.sync_cob_id and mark.is_sync:
                 # HIL: a SYNC while the master configures (NMT reset seen, no start yet) is not the loop's
                 starts = not self._nmt_seen or self._nmt_started or not self.hil
                 judged = self._starts_loop(buf, first) if starts else False
@@ -269,6 +291,9 @@ class Decoder:
             cmd = cmd[cmd > last]
             if len(cmd):
                 end = int(cmd[0]) + 1
+                # event-driven trace TPDOs (no SYNC frames) follow the command of their step: the last period's
+                while end < len(buf) and int(buf["cob_id"][end]) in self._step_traces:
+                    end += 1
                 tail = buf["cob_id"][end:].astype(np.int64) & 0x7FF
                 after = ~self._service[tail]  # not SDO, NMT, EMCY, heartbeat, nor the hold announcement
                 if self.hold_cob_id is not None:
@@ -301,8 +326,13 @@ class Decoder:
         return starts_loop(buf, at, self.sdo.sync_cob_id, self._overflow(), meas)
 
     def _genuine_syncs(self, buf: np.ndarray) -> np.ndarray:
-        assert self.layout is not None
+        assert self.layout is not None and self._mark is not None
+        if not self._mark.is_sync:
+            return self._mark.marks(buf)
         return genuine_syncs(buf, self.layout.sync_cob_id, self._overflow(), self._meas)
+
+    def _period_mark(self) -> PeriodMark:
+        return period_mark(self.sdo, self.hil)
 
     def _count_new(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """Frames on identifiers the run does not use, by COB-ID, and the EMCYs (each frame once, when new)."""

@@ -17,9 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.eds import bits
+from bench.run.decode.coding import decode_codes
 from bench.run.decode.counts import DecodeStats, PdoStats
 from bench.run.decode.layout import BusLayout, PdoLayout
 from bench.run.decode.sdo_log import SdoLog
+from bench.run.decode.syncs import PeriodMark
 from bench.signals import column_name
 
 SQRT3 = math.sqrt(3.0)
@@ -66,6 +68,8 @@ class Rows:
         self.ts_s, self.pole_pairs, self.t0_us = ts_s, pole_pairs, t0_us
         self._last_sync = -1
         self._last_sync_period = -1
+        self.coding: tuple[float, int] | None = None  # the compact frame's (current_lsb_A, angle_counts)
+        self.mark = PeriodMark(layout.sync_cob_id)  # what starts a period (the decoder's, when it froze the layout)
 
     def shift(self, pdo: PdoLayout) -> int:
         """Row of a frame minus the period it was sent in (see the module's docstring)."""
@@ -116,6 +120,8 @@ class Rows:
         st.missing_measurements += int(miss_meas.sum())
         st.missing_commands += int(miss_cmd.sum())
         st.lost(out["period"][miss_meas | miss_cmd])
+        if self.coding is not None:
+            decode_codes(out, *self.coding)
         if self.hil:
             with np.errstate(invalid="ignore", over="ignore"):  # non-finite values stay so (and are counted)
                 self._park(out)
@@ -132,14 +138,17 @@ class Rows:
         n = r1 - r0
         cob = buf["cob_id"]
         sync = np.flatnonzero(is_sync)  # the loop's SYNCs (Decoder._genuine_syncs): each starts its period
-        foreign_sync = np.flatnonzero((cob == self.layout.sync_cob_id) & ~is_sync)
-        fs_per = period_of[foreign_sync]
-        self.stats.interfere(self.layout.sync_cob_id, fs_per[(fs_per >= r0) & (fs_per < r1)])
+        mark = self.mark
+        if mark.is_sync:  # (a measurement frame of another length is counted with its PDO's columns)
+            foreign_sync = np.flatnonzero((cob == mark.cob_id) & ~is_sync)
+            fs_per = period_of[foreign_sync]
+            self.stats.interfere(mark.cob_id, fs_per[(fs_per >= r0) & (fs_per < r1)])
         sp = period_of[sync]
         keep = (sp >= r0) & (sp < r1)
         sc = np.full(n, np.nan)
         dlc = buf["dlc"][sync[keep]]
-        sc[sp[keep] - r0] = np.where(dlc > 0, buf["data"][sync[keep], 0], -1)
+        at = mark.counter_at or 0
+        sc[sp[keep] - r0] = np.where(dlc > at, buf["data"][sync[keep], at], -1)
         t_us = np.full(n, np.nan)
         t_us[sp[keep] - r0] = buf["t_us"][sync[keep]].astype(np.float64)
         return sc, t_us

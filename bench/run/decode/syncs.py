@@ -10,14 +10,61 @@ which no CANopen library decides for a recorder.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from bench.run.decode.layout import BusLayout
+from bench.run.decode.layout import BusLayout, layout_from_sdo
+from bench.run.decode.sdo_log import SdoLog
+from bench.scenario.frames import PERIOD_MARKS
 
 # foreign SYNCs tolerated between the plant's SYNC and its measurement (a plant descheduled for 15 ms in a VM
 # while a flood ran at 2 ms saw 4); far fewer than the 240 SYNCs after which the counter repeats
 SYNC_LOOKBACK = 32
 START_LOOKAHEAD = 4096  # frames searched after a SYNC for the measurement that makes it the loop's first
+
+
+@dataclass(frozen=True)
+class PeriodMark:
+    """What starts a period on the bus: the plant's SYNC (CiA 301), or (plant.eds 0x2003:0B period_mark =
+    measurement, bench/scenario/frames.py) its compact measurement frame with the SYNC counter inside."""
+
+    cob_id: int
+    counter_at: int | None = 0  # byte offset of the SYNC counter in the frame (a SYNC's: 0)
+    length: int | None = None  # the measurement frame's length; None: a SYNC (genuine_syncs judges it)
+
+    @property
+    def is_sync(self) -> bool:
+        return self.length is None
+
+    def marks(self, buf: np.ndarray) -> np.ndarray:
+        """Mask of the measurement frames that mark a period (every one of its length: the plant's alone)."""
+        return (buf["cob_id"] == self.cob_id) & (buf["dlc"] == self.length)
+
+
+def measurement_mark(layout: BusLayout) -> PeriodMark | None:
+    """The mark of a plant whose measurement frame marks its periods: the PDO carrying Measurement.sync_counter."""
+    meas = plant_field(layout, "Measurement.sync_counter", "B")
+    if meas is None:
+        return None
+    pdo = next(p for p in layout.pdos if p.node == "plant" and p.cob_id == meas[0])
+    return PeriodMark(meas[0], meas[1], pdo.numpy_dtype().itemsize)
+
+
+def period_mark(sdo: SdoLog, hil: bool) -> PeriodMark:
+    """What starts a period, as the bus set the plant up so far (plant.eds 0x2003:0B period_mark by SDO)."""
+    if hil and sdo.plant.get("Run control", "period_mark") == PERIOD_MARKS.index("measurement"):
+        mark = measurement_mark(layout_from_sdo(sdo))
+        if mark is not None:
+            return mark
+    return PeriodMark(sdo.sync_cob_id)
+
+
+def mark_candidates(sdo: SdoLog, hil: bool) -> list[int]:
+    """Identifiers that may start the loop: the SYNC's, and (HIL) the plant's TPDOs (a measurement frame as mark)."""
+    if not hil:
+        return [sdo.sync_cob_id]
+    return [sdo.sync_cob_id, *(p.cob_id for p in layout_from_sdo(sdo).pdos if p.node == "plant")]
 
 
 def plant_field(layout: BusLayout, name: str, fmt: str) -> tuple[int, int] | None:

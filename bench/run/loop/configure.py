@@ -15,6 +15,7 @@ from bench.eds import eds_path, float_limits
 from bench.run.bus.kind import SettingRefused
 from bench.run.loop.reads import PLANT_VALUES
 from bench.scenario import Setting
+from bench.scenario.frames import CODING, COMPACT_MAP, PERIOD_MARKS, coding_for
 
 if TYPE_CHECKING:
     from bench.run.options import RunOptions
@@ -228,6 +229,31 @@ class Configurator:
             )
             self._write(node.sdo["Producer heartbeat time"], hb, "producer heartbeat time")
 
+    def wire_compact(self) -> None:
+        """[frames] measurement = "compact" (bench/scenario/frames.py): the coding into both nodes' 0x2104, the
+        measurement in the plant's TPDO1 and the drive's RPDO1, the plant's TPDO2 and the drive's RPDO2 off."""
+        plant, drive = self.plant, self.drive
+        sensors = plant.sdo["Sensors"]
+        lsb, counts = coding_for(self.sc.frames, float(sensors["adc_lsb_A"].raw), int(sensors["encoder_lines"].raw))
+        for node in (plant, drive):
+            coding = node.sdo[CODING]
+            self._write(coding["current_lsb_A"], lsb, "frames.current_lsb_A")
+            self._write(coding["angle_counts"], counts, "frames.angle_counts")
+        for m, cob in ((plant.tpdo[1], None), (drive.rpdo[1], plant.tpdo[1].cob_id)):
+            m.clear()
+            for obj, name in COMPACT_MAP:
+                m.add_variable(obj, name)
+            if cob is not None:
+                m.cob_id = cob
+            m.enabled = True
+            m.save()
+        for m in (plant.tpdo[2], drive.rpdo[2]):
+            m.enabled = False
+            m.save()
+        if self.sc.frames.sync_less:
+            mark = PERIOD_MARKS.index("measurement")
+            self._write(plant.sdo["Run control"]["period_mark"], mark, "frames.period_mark")
+
     def wire_pdos(self) -> None:
         """Link the plant's measurement TPDOs to the drive's RPDOs and the drive's command
         TPDO to the plant's RPDO (COB-IDs read from the nodes), and map the trace PDOs."""
@@ -242,11 +268,14 @@ class Configurator:
         plant.tpdo[HOLD_TPDO].read(from_od=from_od)
         for num in self.sc.trace:
             drive.tpdo[num].read(from_od=from_od)
-        for num in (1, 2):
-            m = drive.rpdo[num]
-            m.cob_id = plant.tpdo[num].cob_id
-            m.enabled = True
-            m.save()
+        if self.sc.frames.compact:
+            self.wire_compact()
+        else:
+            for num in (1, 2):
+                m = drive.rpdo[num]
+                m.cob_id = plant.tpdo[num].cob_id
+                m.enabled = True
+                m.save()
         m = plant.rpdo[1]
         m.cob_id = drive.tpdo[1].cob_id
         m.enabled = True
@@ -267,6 +296,8 @@ class Configurator:
             for sig in signals:
                 obj, sub = sig.split(".")
                 m.add_variable(obj, sub)
-            m.trans_type = 1  # synchronous: the values after step k-1, sent at SYNC k
+            # synchronous: the values after step k-1, sent at SYNC k; without SYNC frames event-driven: the values
+            # after step k, sent after it (the drive sends such a TPDO after each step: drive_app.c step_event_tpdo)
+            m.trans_type = 254 if self.sc.frames.sync_less else 1
             m.enabled = True
             m.save()

@@ -71,7 +71,9 @@ class Session(SessionBus):
             if self.opts.py_law is not None:  # before the configuration, which configures the law
                 self.py_law = self.hil.install_law(self.opts.py_law)
             if self.sc.faults:
-                self.hil.set_faults(rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id))
+                self.hil.set_faults(
+                    rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id, self.sc.frames.sync_less)
+                )
             self.net.bus = self.kind.master_bus(self.opts, self.hil)
             self.direct = DirectLoop(self.hil, self.opts, realtime=self.sc.timing == "realtime")
         else:

@@ -106,7 +106,7 @@ class SessionBus:
             pids = {n: p.proc.pid for n, p in self.node_procs.items() if isinstance(p, NodeProcess) and p.proc}
             if out is None:
                 raise ValueError("a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)")
-            rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id)
+            rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id, self.sc.frames.sync_less)
             self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids, box=self.box).start()
         self.net.bus = self.kind.master_bus(self.opts, self.box)
         self.net.listeners.extend(self.kind.master_listeners())

@@ -1,0 +1,100 @@
+"""A scenario's [frames] table: which PDO mapping carries the measurement (issue 54's frame sets). Each set is a
+PDO mapping the bench writes by SDO (run/loop/configure.py), not another code path in the nodes:
+
+- "default": the plant's TPDO1 {i_a_A, i_b_A} and TPDO2 {theta_m_rad, sync_counter, status, sample_index},
+  REAL32 values, two 8-byte frames after each SYNC;
+- "compact": one 8-byte frame, TPDO1 {i_a_code, i_b_code, theta_code, sync_counter, status}: the currents as
+  signed counts of current_lsb_A, the angle as counts of 1/angle_counts of a revolution (plant.eds and drive.eds
+  0x2100:07-09, 0x2104; protocols/coding/meas_coding.h). With the ADC model quantizing and an encoder, the
+  bench chooses the ADC's LSB and the encoder's 4 x lines, and the codes carry the sensor models' readings
+  exactly; otherwise the reading is rounded to half a count at most. The drive numbers its samples by the SYNC
+  counter the frame carries (there is no room for the 16-bit sample index).
+
+period_mark = "measurement" (with the compact frame): the plant sends no SYNC frame; its compact measurement frame,
+the SYNC counter inside, marks the period. The plant still counts its SYNCs and runs its synchronous PDOs on them
+(co_sync_produce_local): not CiA 301, whose synchronous PDOs follow a SYNC on the bus. The drive computes on the
+frame's arrival as always; the trace TPDOs become event-driven, sent after each step (the state after step k in
+period k, as the SYNC's trace gives it one period later); the drive's measurement timeout, counted in SYNCs, does
+not run (no SYNC reaches it).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from bench.eds import eds_path, float_limits, load
+from bench.scenario.model import FrameSet, ScenarioError
+
+MEASUREMENT_SETS = ("default", "compact")
+PERIOD_MARKS = ("sync", "measurement")  # plant.eds 0x2003:0B period_mark's ValueNames
+FRAMES_KEYS = ("measurement", "current_lsb_A", "angle_counts", "period_mark")
+CODING = "Measurement coding"  # plant.eds / drive.eds 0x2104
+# The compact frame's mapping: the plant's TPDO1 and the drive's RPDO1, in this order (2 + 2 + 2 + 1 + 1 bytes).
+COMPACT_MAP = (
+    ("Measurement", "i_a_code"),
+    ("Measurement", "i_b_code"),
+    ("Measurement", "theta_code"),
+    ("Measurement", "sync_counter"),
+    ("Measurement", "status"),
+)
+
+
+def _limits(name: str) -> tuple[float, float]:
+    var = load("drive")[CODING][name]
+    lo, hi = float_limits(eds_path("drive"), var) if name == "current_lsb_A" else (var.min, var.max)
+    assert lo is not None and hi is not None, f"drive.eds {CODING}.{name} has no limits"
+    return float(lo), float(hi)
+
+
+def parse_frames(raw: Any, where: str) -> FrameSet:
+    """[frames] checked: a known set, and the coding's values in the EDS's range."""
+    if raw is None:
+        return FrameSet()
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where}: [frames] must be a table")
+    for key in raw:
+        if key not in FRAMES_KEYS:
+            raise ScenarioError(f"{where}: unknown key frames.{key}; allowed in [frames]: {', '.join(FRAMES_KEYS)}")
+    measurement = raw.get("measurement", "default")
+    if measurement not in MEASUREMENT_SETS:
+        raise ScenarioError(
+            f"{where}: frames.measurement = {measurement!r}: expected one of {', '.join(MEASUREMENT_SETS)}"
+        )
+    lsb, counts = raw.get("current_lsb_A"), raw.get("angle_counts")
+    if (lsb is not None or counts is not None) and measurement != "compact":
+        raise ScenarioError(
+            f"{where}: frames.current_lsb_A and frames.angle_counts need frames.measurement = 'compact'"
+        )
+    if lsb is not None:
+        lo, hi = _limits("current_lsb_A")
+        if isinstance(lsb, bool) or not isinstance(lsb, (int, float)) or not lo <= float(lsb) <= hi:
+            raise ScenarioError(f"{where}: frames.current_lsb_A = {lsb!r}: expected a number in {lo:g} .. {hi:g} (A)")
+        lsb = float(lsb)
+    if counts is not None:
+        lo, hi = _limits("angle_counts")
+        if isinstance(counts, bool) or not isinstance(counts, int) or not lo <= counts <= hi:
+            raise ScenarioError(f"{where}: frames.angle_counts = {counts!r}: expected an integer in {lo:g} .. {hi:g}")
+    mark = raw.get("period_mark", "sync")
+    if mark not in PERIOD_MARKS:
+        raise ScenarioError(f"{where}: frames.period_mark = {mark!r}: expected one of {', '.join(PERIOD_MARKS)}")
+    if mark == "measurement" and measurement != "compact":
+        raise ScenarioError(
+            f"{where}: frames.period_mark = 'measurement' needs frames.measurement = 'compact' (the one frame that "
+            "carries the whole sample and its SYNC counter marks the period)"
+        )
+    return FrameSet(measurement, lsb, counts, mark)
+
+
+def coding_for(frames: FrameSet, adc_lsb_A: float, encoder_lines: int) -> tuple[float, int]:
+    """The compact frame's (current_lsb_A, angle_counts): the scenario's, else the plant's ADC LSB when it
+    quantizes (its codes then travel exactly) or the EDS default, and the encoder's counts (4 x lines) when it has
+    one that fits 16 bits, else the EDS default (65536)."""
+    od = load("drive")[CODING]
+    lsb = frames.current_lsb_A
+    if lsb is None:
+        lsb = float(adc_lsb_A) if adc_lsb_A > 0 else float(od["current_lsb_A"].default)
+    counts = frames.angle_counts
+    if counts is None:
+        cpr = 4 * int(encoder_lines)
+        counts = cpr if 0 < cpr <= 65536 else int(od["angle_counts"].default)
+    return lsb, counts

@@ -1,0 +1,38 @@
+"""Issue 54's compact measurement frame ([frames] measurement = "compact") over vcan, through `bench run`: the plant
+and drive processes map it by SDO and code/decode it in C, and with the ADC model quantizing and an encoder the
+run is today's default run in direct mode bit for bit in every column both have, for the three papers' scenarios
+(the direct twin of tests/host/test_frame_sets.py, which compares compact and default in direct mode)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from bench_cli import bench_cli
+
+from bench.paths import REPO
+
+PAPERS = ["you2019_step", "yao2020_identification", "zhao2022_stability"]
+SENSORS = ("--set", "drive.adc_lsb_A=0.005", "--set", "drive.encoder_lines=2500")
+
+
+def run(scenario: str, out: Path, *args: str) -> tuple[dict[str, Any], Any]:
+    bench_cli("run", REPO / "scenarios" / f"{scenario}.toml", "--no-viewer", "--out", out, *SENSORS, *args,
+              timeout=1800)  # fmt: skip
+    return json.loads((out / "summary.json").read_text()), np.load(out / "traces.npy")
+
+
+@pytest.mark.parametrize("scenario", PAPERS)
+def test_compact_frame_over_vcan_is_the_default_direct_run(scenario: str, vcan0: str, tmp_path: Path) -> None:
+    d_sum, direct = run(scenario, tmp_path / "direct", "--bus", "direct")
+    c_sum, compact = run(scenario, tmp_path / "vcan", "--bus", vcan0, "--set", "frames.measurement=compact")
+    assert c_sum["status"] == d_sum["status"] and c_sum["status_expected"], (c_sum["status"], d_sum["status"])
+    assert c_sum["bus_stats"]["lost_frames"] == 0 and c_sum["counters"]["drive_lost_measurements"] == 0
+    assert {"i_a_code", "theta_code"} <= set(compact.dtype.names) and "sample_index" not in compact.dtype.names
+    common = [n for n in direct.dtype.names if n in compact.dtype.names]
+    assert {"i_a_A", "i_b_A", "theta_m_rad", "v_alpha_V", "v_beta_V", "iq_A"} <= set(common)
+    for col in common:
+        np.testing.assert_array_equal(compact[col], direct[col], err_msg=col)

@@ -1,0 +1,151 @@
+"""Issue 54's frame sets ([frames], bench/scenario/frames.py), run the way users run them (bench.api.run, in process):
+
+- the compact measurement frame with the ADC model quantizing and an encoder is today's run bit for bit in every
+  column both have (currents, angle, commands, the Park transforms, the law's trace), over the three papers'
+  scenarios, with one measurement frame a period instead of two;
+- without the sensor models the decoded currents sit on the code's grid, and the drive still numbers its samples:
+  a dropped measurement frame is one the drive counts as lost (from the SYNC counter the frame carries);
+- bad [frames] values are refused naming the key and the allowed values.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from bench.api import ScenarioError, run
+from bench.paths import REPO
+from bench.scenario import load
+from bench.signals import column_name
+
+PAPERS = [
+    "scenarios/you2019_step.toml",  # You 2019, the deadbeat step
+    "scenarios/yao2020_identification.toml",  # Yao 2020, the R/L identification
+    "scenarios/zhao2022_stability.toml",  # Zhao 2022, a stability point
+]
+SENSORS = ["drive.adc_lsb_A=0.005", "drive.encoder_lines=2500"]  # quantizing ADC, You 2019's 2500-line encoder
+COMPACT = ["frames.measurement=compact"]
+
+
+@pytest.mark.parametrize("scenario", PAPERS, ids=[s.split("/")[-1][:-5] for s in PAPERS])
+def test_compact_frame_is_todays_run_bit_for_bit_with_the_sensor_models(scenario: str, tmp_path: Path) -> None:
+    default = run(scenario, SENSORS, out=tmp_path / "default")
+    compact = run(scenario, SENSORS + COMPACT, out=tmp_path / "compact")
+    assert default.status == compact.status and compact.status_expected, (default.status, compact.status)
+    a, c = np.load(tmp_path / "default" / "traces.npy"), np.load(tmp_path / "compact" / "traces.npy")
+    assert len(a) == len(c) == default.summary["periods"]
+    common = [n for n in a.dtype.names if n in c.dtype.names]
+    for name in ("i_a_A", "i_b_A", "theta_m_rad", "v_alpha_V", "v_beta_V", "id_A", "iq_A"):
+        assert name in common, name
+    differ = [n for n in common if a[n].tobytes() != c[n].tobytes()]
+    assert differ == [], f"columns that differ: {differ}"
+    # the compact layout carried the codes (and no sample index): one frame a period less on the bus
+    assert {"i_a_code", "i_b_code", "theta_code"} <= set(c.dtype.names) and "sample_index" not in c.dtype.names
+    periods = default.summary["periods"]
+    assert _frames_on(tmp_path / "default", 0x190, 0x290) == (periods, periods)
+    assert _frames_on(tmp_path / "compact", 0x190, 0x290) == (periods, 0)
+
+
+def _frames_on(folder: Path, *cob_ids: int) -> tuple[int, ...]:
+    """Frames of each identifier in a run's bus.log (python-can's reader)."""
+    with can.LogReader(str(folder / "bus.log")) as log:
+        ids = [m.arbitration_id for m in log]
+    return tuple(ids.count(c) for c in cob_ids)
+
+
+def test_compact_frame_without_sensor_models_rounds_to_its_code() -> None:
+    r = run("scenarios/you2019_step.toml", [*COMPACT, "frames.current_lsb_A=0.002"])
+    assert r.status == "ok"
+    rows = r.rows
+    assert rows is not None
+    lsb = float(np.float32(0.002))
+    for code, amps in (("i_a_code", "i_a_A"), ("i_b_code", "i_b_A")):
+        k = rows[code].astype(np.float64)
+        assert np.all(k == np.round(k))
+        assert np.array_equal(rows[amps], (lsb * k).astype(np.float32).astype(np.float64))
+    assert np.abs(rows["i_b_code"]).max() > 100  # the step moved them (at theta = 0, i_a carries no q current)
+    # the step still reaches its reference through the 2 mA grid: the last 20 periods within 2 codes of 1 A
+    assert np.abs(rows["iq_A"][-20:] - 1.0).max() < 2 * lsb
+
+
+def test_a_dropped_compact_frame_is_counted_lost_by_the_drive() -> None:
+    """The compact frame has no sample index: the drive numbers its samples by the SYNC counter they carry."""
+    drop = 'faults=[{kind="drop", frame="plant.TPDO1", at_period=50}]'
+    r = run(
+        "scenarios/you2019_step.toml",
+        [*COMPACT, drop, "scenario.expect='frames_lost'", "drive.command_timeout_us=2000000"],
+    )
+    assert r.status == "frames_lost"
+    assert r.summary["bus_stats"]["drive_lost_measurements"] == 1
+    assert r.summary["bus_stats"]["drive_late_measurements"] == 0
+
+
+@pytest.mark.parametrize("scenario", PAPERS, ids=[s.split("/")[-1][:-5] for s in PAPERS])
+def test_measurement_as_period_mark_is_todays_run_without_a_sync_frame(scenario: str, tmp_path: Path) -> None:
+    """period_mark = "measurement": no SYNC frame; the same loop, and the law's trace one period earlier on the bus
+    (event-driven after step k instead of synchronous at SYNC k + 1): the same rows but two kinds. The SYNC's trace
+    of the last step never comes (after the loop), and a row just before an event's period: the SYNC samples
+    after the event's SDO writes (between the periods), the event-driven trace the step's own state before them."""
+    default = run(scenario, SENSORS, out=tmp_path / "default")
+    marked = run(scenario, [*SENSORS, *COMPACT, "frames.period_mark=measurement"], out=tmp_path / "marked")
+    assert default.status == marked.status and marked.status_expected, (default.status, marked.status)
+    a, c = np.load(tmp_path / "default" / "traces.npy"), np.load(tmp_path / "marked" / "traces.npy")
+    assert len(a) == len(c) == default.summary["periods"]
+    traced = set(_trace_columns(scenario))
+    assert traced, "the scenario traces its law's quantities"
+    apart = np.zeros(len(a), dtype=bool)
+    apart[-1] = True
+    apart[[k - 1 for k in load(REPO / scenario).event_periods() if 0 < k <= len(a)]] = True
+    for name in (n for n in a.dtype.names if n in c.dtype.names):
+        rows = ~apart if name in traced else np.ones(len(a), dtype=bool)
+        assert a[name][rows].tobytes() == c[name][rows].tobytes(), name
+    periods = default.summary["periods"]
+    assert _frames_on(tmp_path / "marked", 0x080, 0x190, 0x290) == (0, periods, 0)
+    assert _frames_on(tmp_path / "default", 0x080)[0] >= periods
+    assert marked.summary["bus_stats"]["sync_counter_gaps"] == 0 and marked.summary["bus_stats"]["lost_frames"] == 0
+
+
+def _trace_columns(scenario: str) -> list[str]:
+    """The columns of the scenario's drive trace TPDOs ([trace] or its law's default trace)."""
+    return [column_name(e) for entries in load(REPO / scenario).trace.values() for e in entries]
+
+
+def test_a_dropped_marking_frame_is_counted_lost_by_the_drive() -> None:
+    drop = 'faults=[{kind="drop", frame="plant.TPDO1", at_period=50}]'
+    r = run(
+        "scenarios/you2019_step.toml",
+        [*COMPACT, "frames.period_mark=measurement", drop, "scenario.expect='frames_lost'",
+         "drive.command_timeout_us=2000000"],
+    )  # fmt: skip
+    assert r.status == "frames_lost"
+    assert r.summary["bus_stats"]["drive_lost_measurements"] == 1
+
+
+@pytest.mark.parametrize(
+    ("override", "said"),
+    [
+        ("frames.measurement=tiny", "frames.measurement = 'tiny': expected one of default, compact"),
+        ("frames.current_lsb_A=0", "frames.current_lsb_A = 0: expected a number in 1e-06 .. 10 (A)"),
+        ("frames.angle_counts=70000", "frames.angle_counts = 70000: expected an integer in 1 .. 65536"),
+        (
+            "frames.crc=1",
+            "unknown key frames.crc; allowed in [frames]: measurement, current_lsb_A, angle_counts, period_mark",
+        ),
+        ("frames.period_mark=none", "frames.period_mark = 'none': expected one of sync, measurement"),
+    ],
+)
+def test_bad_frames_values_are_refused_by_name(override: str, said: str) -> None:
+    extra = [] if override.startswith(("frames.measurement", "frames.crc")) else COMPACT
+    with pytest.raises(ScenarioError) as err:
+        run("scenarios/you2019_step.toml", [*extra, override])
+    assert said in str(err.value)
+
+
+def test_a_coding_or_a_mark_without_the_compact_frame_is_refused() -> None:
+    with pytest.raises(ScenarioError, match="need frames.measurement = 'compact'"):
+        run("scenarios/you2019_step.toml", ["frames.current_lsb_A=0.001"])
+    with pytest.raises(ScenarioError, match="period_mark = 'measurement' needs frames.measurement = 'compact'"):
+        run("scenarios/you2019_step.toml", ["frames.period_mark=measurement"])
