@@ -93,7 +93,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         ts = 55e-6 if args.ts is None else args.ts
         plan = make_plan(
             args.bitrate, ts, args.fd, args.data_bitrate, args.max_load, args.trace_pdos, args.trace_decimation,
-            args.frames,
+            args.frames, args.period_mark,
         )  # fmt: skip
     except ValueError as exc:  # bad input: exit 2, as every command's; nothing written
         print(f"bench plan: {exc}", file=sys.stderr)
@@ -111,11 +111,13 @@ def _plan_option_mix(args: argparse.Namespace) -> None:
             f"--data-bitrate = {args.data_bitrate:g}: must be >= --bitrate ({args.bitrate:g}; CAN FD switches up)"
         )
     frames_given = args.from_log is not None or args.scenario is not None
-    if frames_given and args.frames != "default":
+    if frames_given and (args.frames != "default" or args.period_mark != "sync"):
         raise ValueError(
-            f"--frames = {args.frames}: the frames of --from-log or --scenario are the run's own (with --scenario: "
-            f"--set frames.measurement={args.frames})"
+            f"--frames = {args.frames}, --period-mark = {args.period_mark}: the frames of --from-log or --scenario are "
+            "the run's own (with --scenario: --set frames.measurement=compact --set frames.period_mark=measurement)"
         )
+    if args.period_mark == "measurement" and args.frames != "compact":
+        raise ValueError("--period-mark = measurement: must be used with --frames compact (the frame that marks it)")
     if frames_given and (args.trace_pdos != 0 or args.trace_decimation != 1):
         raise ValueError(
             "--trace-pdos / --trace-decimation = given: the frames of --from-log or --scenario are the run's own "
@@ -162,7 +164,8 @@ def _plan_from_scenario(args: argparse.Namespace) -> int:
 
 def _plan_from_log(args: argparse.Namespace) -> int:
     from bench.tools.plan import make_plan
-    from bench.tools.plan_log import format_log_plan, run_ts, simulate
+    from bench.tools.plan_log import format_log_plan, simulate
+    from bench.tools.plan_periods import run_ts
 
     log = Path(args.from_log)
     if not log.is_file():
@@ -180,15 +183,17 @@ def _plan_from_log(args: argparse.Namespace) -> int:
         args.worst_case_stuffing, ts_from,
     )  # fmt: skip
     plan.frame_set = "compact" if plan.measurement_frames == 1 else "default"
-    plan.formula_s = make_plan(
-        args.bitrate, ts, args.fd, data_bitrate, args.max_load, plan.extra_tpdos, 1, plan.frame_set
-    ).time_per_period_s
+    mark = "sync" if plan.mark == "SYNC" else "measurement"
+    if mark == "sync" or plan.frame_set == "compact":  # else no set of the formula's (it has no other mark)
+        plan.formula_s = make_plan(
+            args.bitrate, ts, args.fd, data_bitrate, args.max_load, plan.extra_tpdos, 1, plan.frame_set, mark
+        ).time_per_period_s
     print(plan.to_json() if args.json else format_log_plan(plan))
     return 0
 
 
 def plan_arguments(pl: argparse.ArgumentParser) -> None:
-    from bench.scenario.frames import MEASUREMENT_SETS
+    from bench.scenario.frames import MEASUREMENT_SETS, PERIOD_MARKS
 
     pl.add_argument("--bitrate", type=float, default=1e6, help="nominal bit rate, bit/s (default 1e6)")
     pl.add_argument("--fd", action="store_true", help="CAN FD with bit-rate switch")
@@ -210,6 +215,14 @@ def plan_arguments(pl: argparse.ArgumentParser) -> None:
         "i_b_A} and TPDO2 {theta_m_rad, sync_counter, status, sample_index} as REAL32 values in two 8-byte frames; "
         "compact, one 8-byte frame {i_a_code, i_b_code, theta_code, sync_counter, status} of integer codes, exact "
         "for the plant's quantizing ADC and encoder (docs/PHYSICAL_BUS.md)",
+    )
+    pl.add_argument(
+        "--period-mark",
+        choices=PERIOD_MARKS,
+        default="sync",
+        help="what marks a period (a scenario's [frames] period_mark): sync, the plant's SYNC (CiA 301); "
+        "measurement (with --frames compact), the compact measurement frame with the SYNC counter inside: no SYNC "
+        "frame on the bus",
     )
     pl.add_argument(
         "--from-log",

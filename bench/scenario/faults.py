@@ -258,19 +258,27 @@ def loop_frames(plant_id: int | None = None, drive_id: int | None = None) -> dic
 
 
 def refuse_lockstep_stalls(
-    faults: list[Fault], where: str, timing: str, expect: tuple[str, ...], command_timeout_us: Callable[[int], float]
+    faults: list[Fault],
+    where: str,
+    timing: str,
+    expect: tuple[str, ...],
+    command_timeout_us: Callable[[int], float],
+    compact: bool = False,
 ) -> None:
     """In lockstep with [drive] command_timeout_us = 0 (plant.eds 0x2003:04, its default) the plant waits for
     every command: a fault that takes a frame of the loop away (dropped, or delayed to a later period that
     cannot come) or freezes the drive stalls the loop; the run would wait 10 s of simulated time, then say
     frames_lost. Refused before anything starts, unless the scenario expects frames_lost.
-    `command_timeout_us(period)`: the value in effect at that period (the scenario's, its events')."""
+    `command_timeout_us(period)`: the value in effect at that period (the scenario's, its events'); `compact`: the
+    scenario's compact measurement frame ([frames]): the plant's TPDO1 carries the sample, not its TPDO2."""
     if timing != "lockstep" or "frames_lost" in expect:
         return
     from bench.eds import default_node_id
 
     loop = loop_frames()
     names = cob_ids(default_node_id("plant"), default_node_id("drive"))
+    if compact:
+        loop = {c: n for c, n in loop.items() if not n.startswith("plant.")} | {names["plant.TPDO1"]: "plant.TPDO1"}
     for f in faults:
         if command_timeout_us(f.at_period) > 0:
             continue

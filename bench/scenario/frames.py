@@ -23,6 +23,7 @@ from __future__ import annotations
 from typing import Any
 
 from bench.eds import eds_path, float_limits, load
+from bench.scenario.faults import Fault, FaultError
 from bench.scenario.model import FrameSet, ScenarioError
 
 MEASUREMENT_SETS = ("default", "compact")
@@ -98,3 +99,33 @@ def coding_for(frames: FrameSet, adc_lsb_A: float, encoder_lines: int) -> tuple[
         cpr = 4 * int(encoder_lines)
         counts = cpr if 0 < cpr <= 65536 else int(od["angle_counts"].default)
     return lsb, counts
+
+
+def refuse_unsent_frames(faults: list[Fault], frames: FrameSet, where: str) -> None:
+    """A frame fault on a frame the scenario's set never sends (the plant's TPDO2 with the compact frame, the SYNC
+    with the measurement as the period's mark) could never act: refused, naming the frame that carries it now."""
+    gone = {"plant.TPDO2": "the compact frame (plant.TPDO1) carries the whole sample"} if frames.compact else {}
+    if frames.sync_less:
+        gone["SYNC"] = "the compact frame (plant.TPDO1) marks the period"
+    for f in faults:
+        if f.frame in gone:
+            raise FaultError(
+                f"{where}: faults[{f.index}] ({f.kind} of {f.frame}): this scenario's [frames] never sends "
+                f"{f.frame}: {gone[f.frame]}"
+            )
+
+
+def coding_refusal(lsb_A: float, chosen: str, full_scale_A: float) -> str | None:
+    """Why the compact frame's coding cannot carry this plant's readings (None: it can): a step outside the EDS's
+    range, or one whose +-32767 counts do not reach the ADC model's full scale (0: none). `chosen`: where the step
+    came from. Beyond +-32767 counts a reading is clipped and the plant's status says so (bit 4, clipped)."""
+    lo, hi = _limits("current_lsb_A")
+    if not lo <= lsb_A <= hi:
+        return f"frames.current_lsb_A = {lsb_A:g} ({chosen}): must be in {lo:g} .. {hi:g} A; set frames.current_lsb_A"
+    if full_scale_A > 32767 * lsb_A:
+        return (
+            f"frames.current_lsb_A = {lsb_A:g} A ({chosen}) carries +-{32767 * lsb_A:g} A, less than the ADC model's "
+            f"full scale {full_scale_A:g} A (drive.adc_full_scale_A): its readings beyond would be clipped. Set "
+            f"frames.current_lsb_A >= {full_scale_A / 32767:.3g} (the codes then round the ADC's readings)"
+        )
+    return None

@@ -10,7 +10,7 @@ from bench.eds import Param, enum
 from bench.eds import load as load_od
 from bench.laws import law_info
 from bench.scenario.faults import FaultError, parse_faults, refuse_lockstep_stalls
-from bench.scenario.frames import parse_frames
+from bench.scenario.frames import parse_frames, refuse_unsent_frames
 from bench.scenario.model import SCENARIO_KEYS, STATUSES, TIMINGS, Event, Scenario, ScenarioError
 from bench.scenario.presets import PRESETS, drive_preset
 from bench.scenario.settings import SECTION_OBJECTS, param_tables, setting
@@ -72,7 +72,10 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
     try:
         sc.trace = trace_table(where, raw["trace"]) if "trace" in raw else default_trace(sc)
         sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
-        refuse_lockstep_stalls(sc.faults, where, timing, sc.expect, lambda k: value_at(sc, COMMAND_TIMEOUT, k))
+        refuse_lockstep_stalls(
+            sc.faults, where, timing, sc.expect, lambda k: value_at(sc, COMMAND_TIMEOUT, k), sc.frames.compact
+        )
+        refuse_unsent_frames(sc.faults, sc.frames, where)
     except (FaultError, TraceError) as exc:
         raise ScenarioError(str(exc)) from None
     return sc

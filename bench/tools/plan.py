@@ -34,7 +34,7 @@ import canopen
 from bench.canbus import classic_frame_bits, fd_frame_bits
 from bench.eds import default_node_id
 from bench.paths import EDS_DIR
-from bench.scenario.frames import COMPACT_MAP, MEASUREMENT_SETS
+from bench.scenario.frames import COMPACT_MAP, MEASUREMENT_SETS, PERIOD_MARKS
 
 
 @dataclass
@@ -53,7 +53,7 @@ class Plan:
     fd: bool
     ts_s: float
     max_load: float
-    frame_set: str = "default"  # [frames] measurement (bench/scenario/frames.py)
+    frame_set: str = "default measurement frame set"  # [frames] (bench/scenario/frames.py), in words
     frames: list[FrameUse] = field(default_factory=list)
     bits_per_period: float = 0.0
     time_per_period_s: float = 0.0
@@ -67,17 +67,23 @@ class Plan:
         return json.dumps(d, indent=2)
 
 
-def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1, frames: str = "default") -> list[tuple[str, int, float]]:
+def pdo_set(
+    trace_pdos: int = 0, trace_decimation: int = 1, frames: str = "default", period_mark: str = "sync"
+) -> list[tuple[str, int, float]]:
     """(what, data bytes, frames per period) of one control period, from the EDS files; `frames`: the scenario's
     measurement set ([frames] measurement, bench/scenario/frames.py): "compact" maps the plant's TPDO1 as
-    COMPACT_MAP and leaves its TPDO2 off, as the bench does by SDO."""
+    COMPACT_MAP and leaves its TPDO2 off, as the bench does by SDO; `period_mark` "measurement": no SYNC frame."""
     if frames not in MEASUREMENT_SETS:
         raise _bad("--frames", frames, f"one of {', '.join(MEASUREMENT_SETS)}")
+    if period_mark not in PERIOD_MARKS or (period_mark == "measurement" and frames != "compact"):
+        marks = ", ".join(PERIOD_MARKS)
+        raise _bad("--period-mark", period_mark, f"one of {marks} (measurement with --frames compact)")
     out: list[tuple[str, int, float]] = []
     plant = canopen.import_od(str(EDS_DIR / "plant.eds"), node_id=default_node_id("plant"))
     drive = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=default_node_id("drive"))
     ov = plant["Synchronous counter overflow value"].default or 0
-    out.append(("SYNC (plant)", 1 if ov >= 2 else 0, 1.0))
+    if period_mark == "sync":
+        out.append(("SYNC (plant)", 1 if ov >= 2 else 0, 1.0))
     compact_bits = sum(len(plant[obj][name]) for obj, name in COMPACT_MAP)
     for name, od in (("plant", plant), ("drive", drive)):
         for n in range(4):
@@ -89,7 +95,7 @@ def pdo_set(trace_pdos: int = 0, trace_decimation: int = 1, frames: str = "defau
             bits = sum((mapping[i].default & 0xFF) for i in range(1, count + 1))
             what = f"{name} TPDO{n + 1} (0x{cob & 0x7FF:03X})"
             if frames == "compact" and name == "plant" and n == 0:
-                bits, what = compact_bits, what + " compact"
+                bits, what = compact_bits, what + (" compact, mark" if period_mark == "measurement" else " compact")
             out.append((what, bits // 8, 1.0))
     for i in range(trace_pdos):
         out.append((f"trace PDO {i + 1}", 8, 1.0 / trace_decimation))
@@ -135,10 +141,12 @@ def make_plan(
     trace_pdos: int = 0,
     trace_decimation: int = 1,
     frames: str = "default",
+    period_mark: str = "sync",
 ) -> Plan:
     check_inputs(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation)
-    plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load, frames)
-    for what, n, per in pdo_set(trace_pdos, trace_decimation, frames):
+    set_name = f"{frames} measurement frame set" + ("" if period_mark == "sync" else ", no SYNC: it marks the period")
+    plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load, set_name)
+    for what, n, per in pdo_set(trace_pdos, trace_decimation, frames, period_mark):
         if fd:
             nominal, data = fd_frame_bits(n)
             plan.frames.append(
@@ -162,15 +170,24 @@ def make_plan(
             "or run lockstep (the default): the plant waits for each command, so any period "
             "is emulated exactly, only slower than real time"
         )
-        if frames == "default":
-            small = make_plan(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation, "compact")
+        if period_mark == "sync":
+            if frames == "default":
+                small = make_plan(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation, "compact")
+                plan.advice.append(
+                    f'or the compact measurement frame ([frames] measurement = "compact"; --frames compact): one '
+                    f"frame instead of two, {small.time_per_period_s * 1e6:.1f} us per period "
+                    f"({'fits' if small.fits else 'still does not fit'}; fastest {small.fastest_period_s * 1e6:.1f} us)"
+                )
+            least = make_plan(
+                bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation, "compact", "measurement"
+            )
             plan.advice.append(
-                f'or the compact measurement frame (scenario [frames] measurement = "compact"; bench plan --frames '
-                f"compact): one frame instead of two, {small.time_per_period_s * 1e6:.1f} us per period "
-                f"({'fits' if small.fits else 'still does not fit'}; fastest {small.fastest_period_s * 1e6:.1f} us)"
+                f'or the compact frame as the period\'s mark, no SYNC frame ([frames] period_mark = "measurement"; '
+                f"--frames compact --period-mark measurement): {least.time_per_period_s * 1e6:.1f} us per period "
+                f"({'fits' if least.fits else 'still does not fit'}; fastest {least.fastest_period_s * 1e6:.1f} us)"
             )
         if not fd:
-            fd_plan = make_plan(bitrate, ts_s, True, 5e6, max_load, trace_pdos, trace_decimation, frames)
+            fd_plan = make_plan(bitrate, ts_s, True, 5e6, max_load, trace_pdos, trace_decimation, frames, period_mark)
             plan.advice.append(
                 f"or CAN FD at {bitrate / 1e6:g}/5 Mbit/s: {fd_plan.time_per_period_s * 1e6:.1f} us "
                 f"per period ({'fits' if fd_plan.fits else 'still does not fit'}; fastest "
@@ -186,7 +203,7 @@ def format_plan(plan: Plan) -> str:
         f"bus: {'CAN FD' if plan.fd else 'classic CAN'} {plan.bitrate / 1e6:g} Mbit/s"
         + (f", data phase {plan.data_bitrate / 1e6:g} Mbit/s" if plan.fd and plan.data_bitrate else "")
         + f"; control period Ts = {plan.ts_s * 1e6:.2f} us",
-        f"frames per period ({plan.frame_set} measurement frame set; worst-case bit stuffing):",
+        f"frames per period ({plan.frame_set}; worst-case bit stuffing):",
     ]
     for f in plan.frames:
         lines.append(

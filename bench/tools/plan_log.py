@@ -25,112 +25,12 @@ import json
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 import can
 import numpy as np
 
+from bench.tools.plan_periods import LogPlanError, kind_of, loop_ids, read_periods, run_node_ids
 from bench.tools.wire import WireBits, classic_stream, exact_bits, worst_bits
-
-
-class LogPlanError(ValueError):
-    """A log or an input the simulation cannot use; the message names it."""
-
-
-@dataclass(frozen=True)
-class LoopIds:
-    """COB-IDs of the loop: the SYNC, each node's TPDOs, and which of them the other node consumes."""
-
-    sync: int
-    plant: frozenset[int]
-    drive: frozenset[int]
-    measurement: frozenset[int]  # plant TPDOs the drive receives
-    command: frozenset[int]  # drive TPDOs the plant receives
-
-
-def loop_ids(plant_id: int, drive_id: int) -> LoopIds:
-    """The loop's COB-IDs from the EDS files (every TPDO, enabled or not: a run may enable one by SDO). Which plant
-    TPDOs the drive consumes (and the reverse) is read at the EDS's own node-IDs, where each node's RPDOs name the
-    other's TPDOs, and carried by TPDO number to the run's IDs (the bench points the RPDOs there by SDO)."""
-    from bench.eds import default_node_id
-    from bench.eds import load as load_od
-
-    def cobs(od: Any, base: int, valid_only: bool) -> dict[int, int]:
-        out = {}
-        for n in range(4):
-            try:
-                value = int(od[base + n][1].default)
-            except KeyError:
-                continue
-            if not (valid_only and value & 0x80000000):
-                out[n] = value & 0x7FF
-        return out
-
-    plant0, drive0 = load_od("plant", default_node_id("plant")), load_od("drive", default_node_id("drive"))
-    measured = {n for n, c in cobs(plant0, 0x1800, False).items() if c in cobs(drive0, 0x1400, True).values()}
-    commanding = {n for n, c in cobs(drive0, 0x1800, False).items() if c in cobs(plant0, 0x1400, True).values()}
-    plant, drive = load_od("plant", plant_id), load_od("drive", drive_id)
-    p_tx, d_tx = cobs(plant, 0x1800, False), cobs(drive, 0x1800, False)
-    measurement = {c for n, c in p_tx.items() if n in measured}
-    command = {c for n, c in d_tx.items() if n in commanding}
-    sync = int(plant[0x1005].default) & 0x7FF
-    p, d = frozenset(p_tx.values()), frozenset(d_tx.values())
-    return LoopIds(sync, p, d, frozenset(measurement) or p, frozenset(command) or d)
-
-
-def run_node_ids(log: Path) -> tuple[int, int, str]:
-    """(plant, drive, where from): summary.json beside the log when it records node_ids, else the EDS defaults."""
-    from bench.eds import default_node_id
-
-    summary = _summary(log)
-    ids = summary.get("node_ids") if summary else None
-    if isinstance(ids, dict) and isinstance(ids.get("plant"), int) and isinstance(ids.get("drive"), int):
-        return ids["plant"], ids["drive"], "summary.json"
-    return default_node_id("plant"), default_node_id("drive"), "the EDS defaults"
-
-
-def run_ts(log: Path) -> float | None:
-    """The run's control period from summary.json beside the log, None when there is none."""
-    summary = _summary(log)
-    ts = summary.get("Ts_s") if summary else None
-    return float(ts) if isinstance(ts, (int, float)) and math.isfinite(ts) and ts > 0 else None
-
-
-def _summary(log: Path) -> dict[str, Any] | None:
-    path = log.parent / "summary.json"
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return data if isinstance(data, dict) else None
-
-
-@dataclass
-class Periods:
-    periods: list[list[can.Message]]
-    before: int  # frames before the first SYNC (configuration), left out
-    after: int  # frames after the last period's loop frames (teardown), left out
-    frames: int
-
-
-def read_periods(log: Path, ids: LoopIds) -> Periods:
-    """The log's frames cut at each SYNC (python-can's log reader: candump -l, FD frames `id##Fdata` too)."""
-    try:
-        messages = [m for m in can.LogReader(str(log)) if not m.is_error_frame]
-    except (OSError, ValueError) as exc:
-        raise LogPlanError(f"{log}: not a CAN log python-can reads ({exc})") from exc
-    starts = [i for i, m in enumerate(messages) if m.arbitration_id == ids.sync and not m.is_extended_id]
-    if not starts:
-        raise LogPlanError(
-            f"{log}: no SYNC (COB-ID 0x{ids.sync:03X}) among its {len(messages)} frames: nothing to cut into periods"
-        )
-    loop = ids.plant | ids.drive
-    tail = messages[starts[-1] :]
-    last_loop = max((i for i, m in enumerate(tail) if m.arbitration_id in loop), default=0)
-    end = starts[-1] + last_loop + 1
-    bounds = [*starts, end]
-    periods = [messages[a:b] for a, b in zip(bounds, bounds[1:], strict=False)]
-    return Periods(periods, starts[0], len(messages) - end, len(messages))
 
 
 @dataclass
@@ -172,6 +72,7 @@ class LogPlan:
     load: Stats
     extra_tpdos: int  # TPDOs per period (median) that the other node does not consume: the trace PDOs
     measurement_frames: int  # plant TPDOs the drive consumes per period (median): 2 by default, 1 compact
+    mark: str  # what starts each period: "SYNC", or the plant's measurement frame ("mark (0x190)") without SYNCs
     overruns: int  # periods whose chain ends after the next SYNC
     over_load: int  # periods above max_load
     longer_than_ts: int = 0  # periods whose frames take longer than Ts: on the real bus a backlog grows each period
@@ -221,10 +122,14 @@ class PeriodSim:
 
 
 def simulate_period(frames: list[tuple[int, float]], kinds: list[str], latency: dict[str, float]) -> PeriodSim:
-    """One period on an idle bus from the SYNC's start (t = 0). `frames`: (identifier, wire time s) in log order;
+    """One period on an idle bus from the SYNC's start (t = 0; a period without a SYNC: the plant's frames queued
+    at its latency). `frames`: (identifier, wire time s) in log order;
     `kinds`: "sync", "measurement" (a plant TPDO the drive consumes), "plant", "command" (a drive TPDO the plant
     consumes), "drive" or "other". `latency`: "plant", "drive" transmit latency, s."""
     ready: list[float | None] = [0.0 if k in ("sync", "other") else None for k in kinds]
+    if "sync" not in kinds:  # no SYNC frame ([frames] period_mark): the plant's period starts its measurement
+        plant = latency["plant"]
+        ready = [plant if k in ("measurement", "plant") else r for k, r in zip(kinds, ready, strict=True)]
     waiting = sum(1 for k in kinds if k == "measurement")
     t, busy, order = 0.0, 0.0, []
     ends: dict[str, float] = {}
@@ -260,19 +165,6 @@ def simulate_period(frames: list[tuple[int, float]], kinds: list[str], latency: 
             release("drive", t)
     chain = ends.get("command", ends.get("measurement", ends.get("sync", 0.0)))
     return PeriodSim(t, chain, busy, order)
-
-
-def _kind(m: can.Message, ids: LoopIds) -> str:
-    cob = m.arbitration_id
-    if m.is_extended_id:
-        return "other"
-    if cob == ids.sync:
-        return "sync"
-    if cob in ids.plant:
-        return "measurement" if cob in ids.measurement else "plant"
-    if cob in ids.drive:
-        return "command" if cob in ids.command else "drive"
-    return "other"
 
 
 def _stats(values: np.ndarray) -> Stats:
@@ -317,7 +209,7 @@ def simulate(
     wire = WireCache(fd, worst)
     results, extra, meas = [], [], []
     for n, frames in enumerate(cut.periods):
-        kinds = [_kind(m, ids) for m in frames]
+        kinds = [kind_of(m, ids) for m in frames]
         extra.append(sum(1 for k in kinds if k in ("plant", "drive")))
         meas.append(kinds.count("measurement"))
         timed = [(m.arbitration_id, wire.bits(m).time_s(bitrate, data_bitrate)) for m in frames]
@@ -348,6 +240,7 @@ def simulate(
         load=_stats(load),
         extra_tpdos=int(np.median(extra)),
         measurement_frames=int(np.median(meas)),
+        mark="SYNC" if cut.mark == ids.sync else f"mark (0x{cut.mark:03X})",
         overruns=int((chain > ts_s).sum()),
         over_load=int((load > max_load).sum()),
         longer_than_ts=int((bus > ts_s).sum()),
@@ -372,13 +265,13 @@ def format_log_plan(plan: LogPlan) -> str:
     ]
     for name, s, scale in (
         ("bus time (us)", plan.bus_time_s, us),
-        ("SYNC->command end (us)", plan.chain_end_s, us),
+        (f"{plan.mark.split(' ')[0]}->command end (us)", plan.chain_end_s, us),
         ("load (% of Ts)", plan.load, 100.0),
     ):
         lines.append(f"{name:<28}{s.p50 * scale:>10.2f}{s.p99 * scale:>10.2f}{s.max * scale:>10.2f}")
     n = len(plan.periods)
     lines.append(
-        f"the command comes after the next SYNC in {plan.overruns} of {n} periods; the load exceeds "
+        f"the command comes after the next {plan.mark} in {plan.overruns} of {n} periods; the load exceeds "
         f"{plan.max_load * 100:.0f}% in {plan.over_load} of {n}"
     )
     if plan.longer_than_ts:

@@ -13,7 +13,9 @@ void drive_meas_coding_reset(drive_meas_coding_t *c)
     c->index = 0u;
 }
 
-/* The sample index of a coded sample: counter steps since the last one (0: the same sample again). */
+/* The sample index of a coded sample: counter steps since the last one (0: the same sample again). A counter
+ * behind the last one (more than half a cycle ahead: a late or reordered frame) is an old sample: its index is
+ * that many before the last one, which stays (the supervision counts it late, never 239 lost). */
 static uint16_t next_index(drive_meas_coding_t *c, uint8_t counter, uint8_t overflow)
 {
     if (!c->have_last) {
@@ -21,6 +23,7 @@ static uint16_t next_index(drive_meas_coding_t *c, uint8_t counter, uint8_t over
         c->index = (uint16_t)(overflow >= 2u && counter > 0u ? counter - 1u : 0u);
     } else if (overflow >= 2u) {
         const unsigned steps = ((unsigned)counter + overflow - c->last_counter) % overflow;
+        if (steps > overflow / 2u) return (uint16_t)(c->index - (overflow - steps));
         c->index = (uint16_t)(c->index + steps);
     } else {
         c->index = (uint16_t)(c->index + 1u);

@@ -17,6 +17,17 @@
 #define MEASUREMENT_SET(index, sub, record, field, eds_default) CO_FIELD_SET_OD(*m, x, record, field);
 #define PLANT_STATE_SET(index, sub, record, field, eds_default) CO_FIELD_SET_OD(*m, p, record, field);
 
+/* A valid TPDO maps the compact frame's current codes (0x2100:07): only then are they computed (and bit 4 of the
+ * status, a clipped code, said), so that the default frame set's status is what it always was. */
+static bool codes_mapped(const co_node_t *node)
+{
+    for (uint8_t n = 0; n < CO_NUM_PDO; ++n)
+        if (node->tpdo[n].valid &&
+            co_pdo_maps_entry(&node->tpdo[n], OD_PLANT_MEASUREMENT_IDX, OD_PLANT_MEASUREMENT_I_A_CODE_SUB))
+            return true;
+    return false;
+}
+
 /* The sample of this SYNC -> 0x2100 (the TPDOs) and 0x2005. */
 static void publish_sample(plant_app_t *app, uint8_t sync_counter, uint8_t status)
 {
@@ -28,12 +39,14 @@ static void publish_sample(plant_app_t *app, uint8_t sync_counter, uint8_t statu
     x->status = status;
     x->sample_index = (uint16_t)app->k;
     od_plant_mfr_t *m = plant_mfr(app->node);
-    const od_plant_measurement_coding_t *coding = &m->x2104_measurement_coding;
-    bool clipped = false;
-    x->i_a_code = meas_code_current(x->i_a_A, coding->current_lsb_A, &clipped);
-    x->i_b_code = meas_code_current(x->i_b_A, coding->current_lsb_A, &clipped);
-    x->theta_code = meas_code_angle(x->theta_m_rad, coding->angle_counts);
-    if (clipped) x->status |= PLANT_STATUS_CLIPPED;
+    if (codes_mapped(app->node)) { /* the compact frame: its codes, and the status says a clipped current */
+        const od_plant_measurement_coding_t *coding = &m->x2104_measurement_coding;
+        bool clipped = false;
+        x->i_a_code = meas_code_current(x->i_a_A, coding->current_lsb_A, &clipped);
+        x->i_b_code = meas_code_current(x->i_b_A, coding->current_lsb_A, &clipped);
+        x->theta_code = meas_code_angle(x->theta_m_rad, coding->angle_counts);
+        if (clipped) x->status |= PLANT_STATUS_CLIPPED;
+    }
     plant_app_plant_state_t *p = &app->plant_state;
     p->id_A = app->meas.id_A;
     p->iq_A = app->meas.iq_A;

@@ -4,7 +4,7 @@
  *     LSB as current_lsb_A and decoded, it is the same float, bit for bit; the same for the encoder's angle with
  *     angle_counts = 4 x lines (the count is the encoder's own count);
  *   - with the models off, a decoded value is within half a count of the float (plus the float's rounding);
- *   - currents beyond +-32767 counts (and NaN) are clipped and said so; a full turn wraps to count 0.
+ *   - currents beyond +-32767 counts are clipped and said so, a NaN stays a NaN; a full turn wraps to count 0.
  * The readings come from plant_sample (pmsm_plant.h) over swept currents and angles, not from the coding's code.
  */
 #include <math.h>
@@ -107,7 +107,11 @@ static void clipping_and_wrap(void)
     clipped = false;
     CHECK(meas_code_current(32.767f, 0.001f, &clipped) == 32767 && !clipped, "32.767 A: 32767, not clipped");
     clipped = false;
-    CHECK(meas_code_current(NAN, 0.001f, &clipped) == 0 && clipped, "NaN: 0, clipped");
+    CHECK(meas_code_current(NAN, 0.001f, &clipped) == MEAS_CODING_NAN && !clipped, "NaN: -32768, not clipped");
+    CHECK(isnan(meas_decode_current(MEAS_CODING_NAN, 0.001f)), "-32768 decodes to NaN");
+    CHECK(meas_code_current(INFINITY, 0.001f, &clipped) == 32767 && clipped, "+inf: 32767, clipped");
+    CHECK(meas_decode_current(-32767, 0.001f) == (float)((double)0.001f * -32767.0), "-32767 is a current: %.9g",
+          (double)meas_decode_current(-32767, 0.001f));
     CHECK(meas_code_angle((float)(2.0 * M_PI) - 1e-6f, 65536u) == 0u, "just below a full turn: count 0");
     CHECK(meas_code_angle(-1e-6f, 65536u) == 0u, "just below 0: count 0");
     CHECK(meas_code_angle((float)M_PI, 4u) == 2u, "pi at 4 counts: 2");

@@ -10,7 +10,8 @@
  *    same holds for the count.
  * Anything else is quantized: at most half a count (current_lsb_A / 2, pi / angle_counts rad) plus the float's
  * own rounding; currents beyond +-32767 counts are clipped (the encoder says so). A clipped ADC full scale that
- * is not a whole number of LSBs is one such value.
+ * is not a whole number of LSBs is one such value. A NaN current travels as -32768 and stays NaN; the angle has no
+ * spare code (65536 counts take them all): a NaN angle travels as count 0.
  *
  * Header only, pure C11 with <math.h>: no OS headers, no allocation (the plant and the drive firmware, the MCU
  * image included, compile it as it is). */
@@ -23,19 +24,25 @@
 
 #define MEAS_CODING_TWO_PI 6.283185307179586476925286766559005768
 #define MEAS_CODING_CURRENT_MAX 32767
+#define MEAS_CODING_NAN ((int16_t)-32768) /* a current that is not a number */
 
-/* A current's count; *clipped is set when it had to be limited to +-32767 (a NaN travels as 0, clipped). */
+/* A current's count; *clipped is set when it had to be limited to +-32767 (an infinity too). A NaN travels as
+ * MEAS_CODING_NAN (-32768, which no clipped value takes) and decodes to NaN: the drive's non-finite path runs. */
 static inline int16_t meas_code_current(float value_A, float lsb_A, bool *clipped)
 {
     const double c = floor((double)value_A / (double)lsb_A + 0.5);
+    if (c != c) return MEAS_CODING_NAN;
     if (!(c <= (double)MEAS_CODING_CURRENT_MAX && c >= -(double)MEAS_CODING_CURRENT_MAX)) {
         *clipped = true;
-        return c < 0.0 ? (int16_t)-MEAS_CODING_CURRENT_MAX : (c > 0.0 ? (int16_t)MEAS_CODING_CURRENT_MAX : 0);
+        return c < 0.0 ? (int16_t)-MEAS_CODING_CURRENT_MAX : (int16_t)MEAS_CODING_CURRENT_MAX;
     }
     return (int16_t)c;
 }
 
-static inline float meas_decode_current(int16_t code, float lsb_A) { return (float)((double)lsb_A * (double)code); }
+static inline float meas_decode_current(int16_t code, float lsb_A)
+{
+    return code == MEAS_CODING_NAN ? (float)NAN : (float)((double)lsb_A * (double)code);
+}
 
 /* The angle's count in [0, counts): the nearest count, a full turn wrapping to 0. */
 static inline uint16_t meas_code_angle(float theta_rad, uint32_t counts)

@@ -10,14 +10,19 @@
 
 from __future__ import annotations
 
+import json
+import threading
 from pathlib import Path
 
 import can
 import numpy as np
 import pytest
+from bench_cli import bench_cli
 
-from bench.api import ScenarioError, run
+from bench.api import RunRefused, ScenarioError, run
 from bench.paths import REPO
+from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.decode.decoder import Decoder
 from bench.scenario import load
 from bench.signals import column_name
 
@@ -149,3 +154,87 @@ def test_a_coding_or_a_mark_without_the_compact_frame_is_refused() -> None:
         run("scenarios/you2019_step.toml", ["frames.current_lsb_A=0.001"])
     with pytest.raises(ScenarioError, match="period_mark = 'measurement' needs frames.measurement = 'compact'"):
         run("scenarios/you2019_step.toml", ["frames.period_mark=measurement"])
+
+
+def test_replay_of_a_run_without_sync_frames_is_the_run(tmp_path: Path) -> None:
+    """`bench replay` of the log of a run whose periods the compact frame marks: the run's traces, bit for bit (the
+    layout, the coding and the mark from the log's own SDO traffic)."""
+    run("scenarios/you2019_step.toml", [*SENSORS, *COMPACT, "frames.period_mark=measurement"], out=tmp_path / "run")
+    bench_cli("replay", tmp_path / "run" / "bus.log", "--no-viewer", "--out", tmp_path / "replay", expect=0)
+    a, b = np.load(tmp_path / "run" / "traces.npy"), np.load(tmp_path / "replay" / "traces.npy")
+    assert a.dtype.names == b.dtype.names and len(a) == len(b) == 200
+    for name in a.dtype.names:
+        assert a[name].tobytes() == b[name].tobytes(), name
+
+
+def test_a_lost_or_repeated_marking_frame_does_not_shift_the_rows(tmp_path: Path) -> None:
+    """The decoder numbers the periods of a SYNC-less run by the counter in the compact frame: the run's log with
+    period 100's frames gone (its measurement lost on the bus: the drive never answered it) and period 150's
+    measurement frame recorded twice replays to the run's rows, but row 100, which is missing (and counted)."""
+    run("scenarios/you2019_step.toml", [*COMPACT, "frames.period_mark=measurement"], out=tmp_path / "run")
+    lines = (tmp_path / "run" / "bus.log").read_text().splitlines(keepends=True)
+    marks = [i for i, line in enumerate(lines) if " 190#" in line]
+    assert len(marks) == 200
+    lost = [i for i in range(marks[100], marks[101]) if " 190#" in lines[i] or " 210#" in lines[i] or
+            " 3A0#" in lines[i] or " 4A0#" in lines[i]]  # fmt: skip
+    assert len(lost) == 4  # the measurement, the command and the two trace TPDOs of period 100
+    edited = [line for i, line in enumerate(lines) if i not in lost]
+    edited.insert(edited.index(lines[marks[150]]) + 1, lines[marks[150]])
+    (tmp_path / "edited.log").write_text("".join(edited))
+    res = bench_cli("replay", tmp_path / "edited.log", "--no-viewer", "--out", tmp_path / "replay")
+    assert res.returncode == 6, res.stdout[-2000:]  # frames_lost: period 100
+    a, b = np.load(tmp_path / "run" / "traces.npy"), np.load(tmp_path / "replay" / "traces.npy")
+    assert len(a) == len(b) == 200
+    stats = json.loads((tmp_path / "replay" / "summary.json").read_text())["bus_stats"]
+    assert stats["missing_measurements"] == 1 and stats["missing_commands"] == 1
+    # the repeated frame started no period: it is one frame too many in period 150, as a repeated frame is with SYNC
+    assert stats["interference"]["frames"] == 1 and stats["interference"]["first_period"] == 150
+    rows = np.ones(200, dtype=bool)
+    rows[[99, 100]] = False  # row 100 lost; row 99's trace is the state after step 99, sent in period 100
+    for name in a.dtype.names:
+        assert a[name][rows].tobytes() == b[name][rows].tobytes(), name
+    assert np.isnan(b["i_a_code"][100]) and np.isnan(b["v_alpha_V"][100])
+    assert a["i_a_code"][99] == b["i_a_code"][99] and a["v_alpha_V"][99] == b["v_alpha_V"][99]
+
+
+def test_a_log_that_starts_mid_period_decodes() -> None:
+    """A capture that starts in the middle of a period (a plant TPDO before the first SYNC) is decoded, not looped on:
+    the frames before the first SYNC are left, the periods start at it."""
+    frames = np.zeros(6, dtype=FRAME_DTYPE)
+    frames["cob_id"] = [0x190, 0x080, 0x190, 0x290, 0x080, 0x190]
+    frames["dlc"] = [8, 1, 8, 8, 1, 8]
+    frames["t_us"] = np.arange(6)
+    frames["data"][1, 0], frames["data"][4, 0] = 5, 6
+    frames["data"][3, 4] = 5  # the sync_counter of TPDO2 (theta_m_rad, sync_counter, ...)
+    done = threading.Event()
+    result: list[object] = []
+
+    def decode() -> None:
+        dec = Decoder()
+        result.append(dec.feed(frames, last=True))
+        result.append(dec.finish())
+        done.set()
+
+    threading.Thread(target=decode, daemon=True).start()
+    assert done.wait(30), "the decoder did not return"
+
+
+def test_faults_on_frames_the_set_never_sends_are_refused() -> None:
+    with pytest.raises(ScenarioError, match=r"never sends plant\.TPDO2: the compact frame \(plant\.TPDO1\) carries"):
+        run("scenarios/you2019_step.toml", [*COMPACT, 'faults=[{kind="drop", frame="plant.TPDO2", at_period=5}]'])
+    with pytest.raises(ScenarioError, match="never sends SYNC: the compact frame"):
+        run(
+            "scenarios/you2019_step.toml",
+            [*COMPACT, "frames.period_mark=measurement", 'faults=[{kind="drop", frame="SYNC", at_period=5}]'],
+        )
+    # with the compact frame its loss stalls a plant that waits for every command: refused as a stall
+    with pytest.raises(ScenarioError, match=r"a drop of plant\.TPDO1 \(a frame of the loop\) stalls"):
+        run("scenarios/you2019_step.toml", [*COMPACT, 'faults=[{kind="drop", frame="plant.TPDO1", at_period=5}]'])
+
+
+def test_a_coding_that_cannot_reach_the_adc_full_scale_is_refused() -> None:
+    with pytest.raises(RunRefused) as err:
+        run("scenarios/you2019_step.toml", [*COMPACT, "drive.adc_lsb_A=0.005", "drive.adc_full_scale_A=200"])
+    said = str(err.value)
+    assert "frames.current_lsb_A = 0.005 A (the ADC model's LSB) carries +-163.835 A" in said
+    assert "full scale 200 A" in said and "frames.current_lsb_A >= 0.0061" in said

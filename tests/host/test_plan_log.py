@@ -230,3 +230,26 @@ def test_a_remote_frame_is_counted_as_sent() -> None:
         got = WireCache(fd, worst=False).bits(rtr)
         assert got == want and got.data == 0, (fd, got)  # no data-phase bits: no bit-rate switch
     assert want != classic_stream(0x70A, b"").wire()  # the RTR bit and the DLC change the stuffing and the CRC
+
+
+@pytest.mark.parametrize("bitrate, data_bitrate", [(1e6, None), (2e6, 8e6)])
+def test_a_run_without_sync_frames_is_cut_at_its_measurement_frame(
+    tmp_path_factory: pytest.TempPathFactory, bitrate: float, data_bitrate: float | None
+) -> None:
+    """[frames] period_mark = "measurement", no trace PDOs: no SYNC on the bus, each period is the plant's compact
+    frame (0x190) and the drive's command; at the worst case of stuffing each such period is the formula's."""
+    out = tmp_path_factory.mktemp("marked")
+    sets = ("--set", "frames.measurement=compact", "--set", "frames.period_mark=measurement", "--set", "trace={}")
+    bench_cli("run", REPO / "scenarios/you2019_step.toml", "--bus", "direct", "--no-viewer", "--out", out, *sets,
+              expect=0)  # fmt: skip
+    ts = json.loads((out / "summary.json").read_text())["Ts_s"]
+    worst = simulate(out / "bus.log", bitrate, data_bitrate, ts, worst=True)
+    assert worst.mark == "mark (0x190)" and len(worst.periods) == 200
+    formula = make_plan(bitrate, ts, data_bitrate is not None, data_bitrate, frames="compact",
+                        period_mark="measurement").time_per_period_s  # fmt: skip
+    loop_only = [p for p in worst.periods if p.frames == 2]
+    assert len(loop_only) > 190
+    for p in loop_only:
+        assert abs(p.bus_time_s - formula) <= 2 / bitrate
+    res = bench_cli("plan", "--from-log", out / "bus.log", expect=0)
+    assert "mark->command end" in res.stdout and "after the next mark (0x190)" in res.stdout

@@ -134,7 +134,7 @@ class Decoder:
             self._known[p.cob_id & 0x7FF] = True
         self._kind = self._kinds()
         self._meas = plant_field(layout, "Measurement.sync_counter", "B")
-        self._mark = self._period_mark()
+        self._mark = period_mark(self.sdo, self.hil)
         where = Where(
             plant_field(layout, "Measurement.sample_index", "H"), plant_field(layout, "Measurement.status", "B")
         )
@@ -157,9 +157,11 @@ class Decoder:
             names += [SignalInfo.of(n, "decoded from the compact frame (Measurement coding)", "<f4") for n in coded]
             cols |= set(coded)
             plant = self.sdo.plant
+            lsb, counts = plant.get(CODING, "current_lsb_A"), plant.get(CODING, "angle_counts")
+            od = plant.od[CODING]  # a value the log never set: the EDS's, as the nodes had it
             self._rows.coding = (
-                float(plant.get(CODING, "current_lsb_A") or 0.0),
-                int(plant.get(CODING, "angle_counts") or 65536),
+                float(od["current_lsb_A"].default if lsb is None else lsb),
+                int(od["angle_counts"].default if counts is None else counts),
             )
         if self.hil and {"i_a_A", "i_b_A", "theta_m_rad"} <= cols:
             names += [SignalInfo.of(n, "derived (Park transform)") for n in ("id_A", "iq_A")]
@@ -216,10 +218,11 @@ class Decoder:
             buf, new_from = buf[first:], 0
             self._carry_genuine = True  # judged the plant's first SYNC by _starts_loop
         assert self._rows is not None
-        sync = self._genuine_syncs(buf)
+        steps = self._period_steps(buf)
         if self._carry_genuine:
-            sync[0] = True  # buf starts at a plant SYNC (decided with the chunk before)
-        period_of = self._base + np.cumsum(sync) - 1  # frames before the carry's SYNC: none (it starts with one)
+            steps[0] = 1  # buf starts at a plant SYNC (decided with the chunk before)
+        sync = steps > 0
+        period_of = self._base + np.cumsum(steps) - 1  # frames before the carry's SYNC: none (it starts with one)
         self._count_new(buf[new_from:], period_of[new_from:])
         sdo = self.sdo.mask(buf)
         sdo[:new_from] = False
@@ -244,10 +247,10 @@ class Decoder:
     def _loop_start(self, buf: np.ndarray) -> int | None:
         """Follow the configuration traffic up to the loop's first SYNC (whose COB-ID that traffic may set):
         its index in buf, or None when it is not in (the carry keeps what is still to be judged)."""
-        start = 0
+        start = scan = 0  # the configuration followed up to start; candidates looked for from scan
         while True:
-            hits = np.nonzero(np.isin(buf["cob_id"][start:], mark_candidates(self.sdo, self.hil)))[0]
-            first = start + int(hits[0]) if len(hits) else len(buf)
+            hits = np.nonzero(np.isin(buf["cob_id"][scan:], mark_candidates(self.sdo, self.hil)))[0]
+            first = scan + int(hits[0]) if len(hits) else len(buf)
             self._follow_sdo(buf[start:first], np.zeros(first - start, dtype=np.int64))
             self._count_new(buf[start:first], np.zeros(first - start, dtype=np.int64))
             seg = buf[start:first]
@@ -258,7 +261,7 @@ class Decoder:
             if first == len(buf):
                 self._carry = np.zeros(0, dtype=FRAME_DTYPE)
                 return None
-            mark = self._period_mark()
+            mark, start, scan = period_mark(self.sdo, self.hil), first, first + 1  # not taken: the next segment's
             if not mark.is_sync and buf["cob_id"][first] == mark.cob_id:
                 if (not self._nmt_seen or self._nmt_started) and buf["dlc"][first] == mark.length:
                     return first  # the plant's first measurement frame after NMT start: the loop's first period
@@ -272,16 +275,17 @@ class Decoder:
                 if judged:
                     return first
                 self.stats.foreign[self.sdo.sync_cob_id] = self.stats.foreign.get(self.sdo.sync_cob_id, 0) + 1
-                first += 1
-            start = first
+                start = scan  # a foreign SYNC is counted here, not again with the next segment
 
     def finish(self) -> dict[str, np.ndarray] | None:
         """The rows left: the last period's drive trace TPDOs never come (NaN)."""
         if self.layout is None or len(self._carry) == 0:
             return None
         buf = self._carry
-        sync = self._genuine_syncs(buf)
-        sync[0] |= self._carry_genuine  # the carry starts at a plant SYNC
+        steps = self._period_steps(buf)
+        if self._carry_genuine:
+            steps[0] = 1  # the carry starts at a plant SYNC
+        sync = steps > 0
         if self._cmd_cob is not None and sync.any():
             # the loop ends with the command of its last period (what the plant waits for before it holds):
             # what follows is after the loop (a flood there is counted, and cannot change the verdict)
@@ -290,17 +294,22 @@ class Decoder:
             cmd = np.flatnonzero((buf["cob_id"] == self._cmd_cob) & (buf["dlc"] == cmd_len))
             cmd = cmd[cmd > last]
             if len(cmd):
-                end = int(cmd[0]) + 1
+                end = scan = int(cmd[0]) + 1
                 # event-driven trace TPDOs (no SYNC frames) follow the command of their step: the last period's
-                while end < len(buf) and int(buf["cob_id"][end]) in self._step_traces:
-                    end += 1
+                # (a heartbeat or an SDO frame may come between them)
+                while scan < len(buf) and (
+                    int(buf["cob_id"][scan]) in self._step_traces or self._service[buf["cob_id"][scan] & 0x7FF]
+                ):
+                    scan += 1
+                    if int(buf["cob_id"][scan - 1]) in self._step_traces:
+                        end = scan
                 tail = buf["cob_id"][end:].astype(np.int64) & 0x7FF
                 after = ~self._service[tail]  # not SDO, NMT, EMCY, heartbeat, nor the hold announcement
                 if self.hold_cob_id is not None:
                     after &= tail != self.hold_cob_id
                 self.stats.after_loop_frames += int(after.sum())
-                buf, sync = buf[:end], sync[:end]
-        period_of = self._base + np.cumsum(sync) - 1
+                buf, sync, steps = buf[:end], sync[:end], steps[:end]
+        period_of = self._base + np.cumsum(steps) - 1
         stop = int(period_of[-1]) + 1
         self._carry = np.zeros(0, dtype=FRAME_DTYPE)
         return self._make_rows(buf, period_of, sync, stop) if stop > self._emitted else None
@@ -325,14 +334,11 @@ class Decoder:
         meas = plant_field(layout_from_sdo(self.sdo), "Measurement.sync_counter", "B")
         return starts_loop(buf, at, self.sdo.sync_cob_id, self._overflow(), meas)
 
-    def _genuine_syncs(self, buf: np.ndarray) -> np.ndarray:
+    def _period_steps(self, buf: np.ndarray) -> np.ndarray:  # a plant SYNC starts one; a mark: PeriodMark.steps
         assert self.layout is not None and self._mark is not None
         if not self._mark.is_sync:
-            return self._mark.marks(buf)
-        return genuine_syncs(buf, self.layout.sync_cob_id, self._overflow(), self._meas)
-
-    def _period_mark(self) -> PeriodMark:
-        return period_mark(self.sdo, self.hil)
+            return self._mark.steps(buf, self._overflow())
+        return genuine_syncs(buf, self.layout.sync_cob_id, self._overflow(), self._meas).astype(np.int64)
 
     def _count_new(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """Frames on identifiers the run does not use, by COB-ID, and the EMCYs (each frame once, when new)."""

@@ -37,9 +37,27 @@ class PeriodMark:
     def is_sync(self) -> bool:
         return self.length is None
 
-    def marks(self, buf: np.ndarray) -> np.ndarray:
-        """Mask of the measurement frames that mark a period (every one of its length: the plant's alone)."""
-        return (buf["cob_id"] == self.cob_id) & (buf["dlc"] == self.length)
+    def steps(self, buf: np.ndarray, overflow: int) -> np.ndarray:
+        """Periods each frame of buf starts (0: none), the first mark 1. A measurement frame of the mark's length
+        starts as many periods as its SYNC counter moved on from the mark before (0x1019's cycle): a repeated
+        counter (a duplicate) or one behind (a late or reordered frame: more than half a cycle on) starts none, a
+        gap of n counts starts n (the periods between lost). Without a counter (0x1019 < 2) each starts one."""
+        steps = np.zeros(len(buf), dtype=np.int64)
+        pos = np.flatnonzero((buf["cob_id"] == self.cob_id) & (buf["dlc"] == self.length))
+        if overflow < 2 or self.counter_at is None or len(pos) == 0:
+            steps[pos] = 1
+            return steps
+        counter = buf["data"][pos, self.counter_at].astype(np.int64)
+        while True:  # drop the marks that move the counter by 0 or backwards, against the mark kept before them
+            d = (np.diff(counter) % overflow) if len(counter) > 1 else np.zeros(0, dtype=np.int64)
+            bad = np.flatnonzero((d == 0) | (d > overflow // 2)) + 1
+            if len(bad) == 0:
+                break
+            keep = np.ones(len(pos), dtype=bool)
+            keep[bad] = False  # a run of old frames goes one a round: each is judged again against the one kept
+            pos, counter = pos[keep], counter[keep]
+        steps[pos] = np.r_[1, np.diff(counter) % overflow]
+        return steps
 
 
 def measurement_mark(layout: BusLayout) -> PeriodMark | None:

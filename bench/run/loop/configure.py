@@ -15,7 +15,7 @@ from bench.eds import eds_path, float_limits
 from bench.run.bus.kind import SettingRefused
 from bench.run.loop.reads import PLANT_VALUES
 from bench.scenario import Setting
-from bench.scenario.frames import CODING, COMPACT_MAP, PERIOD_MARKS, coding_for
+from bench.scenario.frames import CODING, COMPACT_MAP, PERIOD_MARKS, coding_for, coding_refusal
 
 if TYPE_CHECKING:
     from bench.run.options import RunOptions
@@ -234,7 +234,16 @@ class Configurator:
         measurement in the plant's TPDO1 and the drive's RPDO1, the plant's TPDO2 and the drive's RPDO2 off."""
         plant, drive = self.plant, self.drive
         sensors = plant.sdo["Sensors"]
-        lsb, counts = coding_for(self.sc.frames, float(sensors["adc_lsb_A"].raw), int(sensors["encoder_lines"].raw))
+        adc_lsb = float(sensors["adc_lsb_A"].raw)
+        lsb, counts = coding_for(self.sc.frames, adc_lsb, int(sensors["encoder_lines"].raw))
+        chosen = (
+            "the scenario's"
+            if self.sc.frames.current_lsb_A is not None
+            else ("the ADC model's LSB" if adc_lsb > 0 else "the EDS default")
+        )
+        refusal = coding_refusal(lsb, chosen, float(sensors["adc_full_scale_A"].raw))
+        if refusal is not None:
+            raise SettingRefused(refusal)
         for node in (plant, drive):
             coding = node.sdo[CODING]
             self._write(coding["current_lsb_A"], lsb, "frames.current_lsb_A")
