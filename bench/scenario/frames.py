@@ -13,9 +13,9 @@ PDO mapping the bench writes by SDO (run/loop/configure.py), not another code pa
 period_mark = "measurement" (with the compact frame): the plant sends no SYNC frame; its compact measurement frame,
 the SYNC counter inside, marks the period. The plant still counts its SYNCs and runs its synchronous PDOs on them
 (co_sync_produce_local): not CiA 301, whose synchronous PDOs follow a SYNC on the bus. The drive computes on the
-frame's arrival as always; the trace TPDOs become event-driven, sent after each step (the state after step k in
-period k, as the SYNC's trace gives it one period later); the drive's measurement timeout, counted in SYNCs, does
-not run (no SYNC reaches it).
+frame's arrival as always; the trace TPDOs become event-driven, sent when the next measurement arrives, before that
+period's step (the state after step k in period k + 1, as the SYNC's trace at SYNC k + 1: the same rows); the
+drive's measurement timeout, counted in SYNCs, does not run (no SYNC reaches it).
 """
 
 from __future__ import annotations

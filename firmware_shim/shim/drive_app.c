@@ -165,9 +165,10 @@ static void safe_step(drive_app_t *app)
 }
 
 /* An event-driven TPDO3/4 that maps no CiA 402 object (0x6000-0x67FF, sent on their own events) is a trace of the
- * step: it goes out after each current step, the state after step k in period k (the bench maps the trace TPDOs so
- * when no SYNC marks the period; with SYNC they are synchronous: the state after step k - 1 at SYNC k). */
-static int step_event_tpdo(const co_pdo_t *p)
+ * period: it goes out when the next period's measurement arrives, before that period's step, the state after the
+ * step before (the bench maps the trace TPDOs so when no SYNC marks the period: a synchronous one would go out at
+ * SYNC k + 1 with the same values; sent after the step, the plant's next measurement could overtake it). */
+static int period_trace_tpdo(const co_pdo_t *p)
 {
     if (!p->valid || p->trans_type < 254u) return 0;
     for (uint8_t i = 0; i < p->count; ++i)
@@ -211,8 +212,6 @@ static void step(drive_app_t *app)
     m->x2102_voltage_command.v_beta_V = app->cmd.v_beta_V;
     co_tpdo_request(node, 0);                   /* event-driven: goes out now */
     if (rec.live_due) co_tpdo_request(node, 1); /* values refreshed when read */
-    for (uint8_t n = 2; n < CO_NUM_PDO; ++n)
-        if (step_event_tpdo(&node->tpdo[n])) co_tpdo_request(node, n);
 }
 
 /* One period, on the measurement's RPDO2: supervision admits it (or not: a second copy of the sample just
@@ -259,6 +258,8 @@ static void hk_on_rpdo(void *user, co_node_t *node, uint8_t pdo)
     /* the measurement: the RPDO with the SYNC counter is the period's (RPDO2 by default); another one of
      * 0x2100 carries the currents before it (RPDO1); the compact frame carries both, and its codes */
     if (co_pdo_maps_entry(p, OD_DRIVE_MEASUREMENT_IDX, OD_DRIVE_MEASUREMENT_SYNC_COUNTER_SUB)) {
+        for (uint8_t n = 2; n < CO_NUM_PDO; ++n) /* the step before's traces, before this period's step */
+            if (period_trace_tpdo(&node->tpdo[n])) co_tpdo_request(node, n);
         const int coded = drive_meas_coding_take(&app->coding, node, p);
         if (coded || co_pdo_maps_entry(p, OD_DRIVE_MEASUREMENT_IDX, OD_DRIVE_MEASUREMENT_I_A_A_SUB))
             drive_sup_on_rpdo1(&app->sup);

@@ -94,7 +94,6 @@ class Decoder:
         self._nmt_started = False  # ... and NMT start: the loop's SYNCs come after it
         self._meas: tuple[int, int] | None = None  # (COB-ID, byte offset) of Measurement.sync_counter
         self._mark: PeriodMark | None = None  # what starts a period (frozen with the layout)
-        self._step_traces: set[int] = set()  # drive TPDOs sent after each step (event-driven traces)
         self._known: np.ndarray = self._base_known()
         self._kind = self._kinds()
         self.emcy: list[dict[str, object]] = []
@@ -125,9 +124,6 @@ class Decoder:
             p for p in layout.pdos if p.node == "drive" and any(q.startswith("Voltage command.") for q, _ in p.signals)
         ]
         self._cmd_cob = cmd[0].cob_id if cmd and self.hil else None
-        self._step_traces = {p.cob_id for p in layout.pdos if p.node == "drive" and p.trans_type > 240} - {
-            self._cmd_cob
-        }
         layout.pdos = [p for p in layout.pdos if p not in hold]
         self._known = self._base_known()
         for p in [*layout.pdos, *hold]:
@@ -294,15 +290,7 @@ class Decoder:
             cmd = np.flatnonzero((buf["cob_id"] == self._cmd_cob) & (buf["dlc"] == cmd_len))
             cmd = cmd[cmd > last]
             if len(cmd):
-                end = scan = int(cmd[0]) + 1
-                # event-driven trace TPDOs (no SYNC frames) follow the command of their step: the last period's
-                # (a heartbeat or an SDO frame may come between them)
-                while scan < len(buf) and (
-                    int(buf["cob_id"][scan]) in self._step_traces or self._service[buf["cob_id"][scan] & 0x7FF]
-                ):
-                    scan += 1
-                    if int(buf["cob_id"][scan - 1]) in self._step_traces:
-                        end = scan
+                end = int(cmd[0]) + 1
                 tail = buf["cob_id"][end:].astype(np.int64) & 0x7FF
                 after = ~self._service[tail]  # not SDO, NMT, EMCY, heartbeat, nor the hold announcement
                 if self.hold_cob_id is not None:

@@ -74,8 +74,16 @@ class Rows:
     def shift(self, pdo: PdoLayout) -> int:
         """Row of a frame minus the period it was sent in (see the module's docstring)."""
         if self.hil:
-            return -1 if pdo.node == "drive" and pdo.trans_type <= 240 else 0
+            return -1 if self.behind(pdo) else 0
         return 1 if pdo.received else 0
+
+    def behind(self, pdo: PdoLayout) -> bool:
+        """A drive TPDO that carries the step before: a synchronous one (at SYNC k + 1), and without SYNC frames an
+        event-driven trace (the drive sends it when the next measurement arrives, before its step: drive_app.c)."""
+        if pdo.node != "drive":
+            return False
+        commands = any(q.startswith("Voltage command.") for q, _ in pdo.signals)
+        return pdo.trans_type <= 240 or (not self.mark.is_sync and not commands)
 
     def make(
         self, buf: np.ndarray, period_of: np.ndarray, is_sync: np.ndarray, r0: int, r1: int
@@ -214,7 +222,8 @@ class Rows:
         the frame that gives the period's value."""
         st = self.stats
         dup = np.r_[False, per[1:] == per[:-1]]
-        is_cmd = pdo.node == "drive" and pdo.trans_type > 240
+        commands = any(q.startswith("Voltage command.") for q, _ in pdo.signals)
+        is_cmd = pdo.node == "drive" and pdo.trans_type > 240 and commands
         safe = _safe_state_commands(buf, period_of, pos, per, self.sdo.drive.node_id) if is_cmd else None
         if safe is not None and safe.any():
             # the drive entering its safe state sends 0 V at once, after the period's own command
@@ -231,7 +240,7 @@ class Rows:
             return pos[last], per[last]
         # a PDO twice in a period that holds the next period's sample: the SYNC between them was lost
         # (frames_lost), not a foreign frame (a synchronous drive TPDO is one behind)
-        shift = 1 if pdo.node == "drive" and pdo.trans_type <= 240 else 0
+        shift = 1 if self.behind(pdo) else 0
         lost = dup & np.isin(per + shift, late.misaligned)
         drop = np.zeros_like(dup)
         if shift:

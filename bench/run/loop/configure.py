@@ -305,8 +305,8 @@ class Configurator:
             for sig in signals:
                 obj, sub = sig.split(".")
                 m.add_variable(obj, sub)
-            # synchronous: the values after step k-1, sent at SYNC k; without SYNC frames event-driven: the values
-            # after step k, sent after it (the drive sends such a TPDO after each step: drive_app.c step_event_tpdo)
+            # synchronous: the values after step k-1, sent at SYNC k; without SYNC frames event-driven: the drive
+            # sends such a TPDO when measurement k arrives, before step k (drive_app.c period_trace_tpdo): the same
             m.trans_type = 254 if self.sc.frames.sync_less else 1
             m.enabled = True
             m.save()
