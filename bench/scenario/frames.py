@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from bench.eds import eds_path, float_limits, load
+from bench.eds import load, params
 from bench.scenario.faults import Fault, FaultError
 from bench.scenario.model import FrameSet, ScenarioError
 
@@ -41,10 +41,10 @@ COMPACT_MAP = (
 
 
 def _limits(name: str) -> tuple[float, float]:
-    var = load("drive")[CODING][name]
-    lo, hi = float_limits(eds_path("drive"), var) if name == "current_lsb_A" else (var.min, var.max)
-    assert lo is not None and hi is not None, f"drive.eds {CODING}.{name} has no limits"
-    return float(lo), float(hi)
+    """The EDS's range of a 0x2104 entry (the scenario's own checker's, bench.eds.params)."""
+    p = params("drive", (CODING,))[name]
+    assert p.low is not None and p.high is not None, f"drive.eds {CODING}.{name} has no limits"
+    return float(p.low), float(p.high)
 
 
 def parse_frames(raw: Any, where: str) -> FrameSet:
