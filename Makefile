@@ -148,7 +148,7 @@ MCU_CC    := arm-none-eabi-gcc
 MCU_DIR   := firmware_shim/mcu/mps2_an386
 MCU_BUILD := $(BUILD)/mcu
 MCU_ARCH  := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
-MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(PATHMAP) $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off \
+MCU_CFLAGS := $(MCU_ARCH) -O2 -g $(PATHMAP) $(CSTD) $(WARN) -Wfloat-conversion -ffp-contract=off -DCO_FRAME_MAX_DATA=8u \
               -ffunction-sections -fdata-sections -ffreestanding -fno-common
 MCU_INC   := $(INC) -I$(MCU_DIR)
 MCU_SRC   := $(CO_SRC) $(FW_SRC) $(SHIM_APP_SRC) $(wildcard firmware_shim/port/*.c) \

@@ -130,6 +130,7 @@ def link_info_json(text: str) -> dict[str, Any] | None:
         "kind": info.get("info_kind", "can" if link.get("link_type") == "can" else link.get("link_type")),
         "up": "UP" in link.get("flags", []),
         "operstate": link.get("operstate"),
+        "mtu": link.get("mtu"),  # 16: classic CAN frames only; 72: CAN FD too
         "rx_frames": stats.get("rx", {}).get("packets"),
         "tx_frames": stats.get("tx", {}).get("packets"),
         "rx_errors": stats.get("rx", {}).get("errors"),

@@ -116,8 +116,12 @@ def _plan_option_mix(args: argparse.Namespace) -> None:
             f"--frames = {args.frames}, --period-mark = {args.period_mark}: the frames of --from-log or --scenario are "
             "the run's own (with --scenario: --set frames.measurement=compact --set frames.period_mark=measurement)"
         )
-    if args.period_mark == "measurement" and args.frames != "compact":
-        raise ValueError("--period-mark = measurement: must be used with --frames compact (the frame that marks it)")
+    if args.period_mark == "measurement" and args.frames == "default":
+        raise ValueError(
+            "--period-mark = measurement: must be used with --frames compact or single_frame (the frame that marks it)"
+        )
+    if args.frames == "single_frame" and not args.fd:
+        raise ValueError("--frames = single_frame: must be used with --fd (one 16-byte CAN FD frame)")
     if frames_given and (args.trace_pdos != 0 or args.trace_decimation != 1):
         raise ValueError(
             "--trace-pdos / --trace-decimation = given: the frames of --from-log or --scenario are the run's own "
@@ -182,9 +186,8 @@ def _plan_from_log(args: argparse.Namespace) -> int:
         log, args.bitrate, data_bitrate, ts, _latencies(args.latency_us or []), args.max_load,
         args.worst_case_stuffing, ts_from,
     )  # fmt: skip
-    plan.frame_set = "compact" if plan.measurement_frames == 1 else "default"
     mark = "sync" if plan.mark == "SYNC" else "measurement"
-    if mark == "sync" or plan.frame_set == "compact":  # else no set of the formula's (it has no other mark)
+    if (mark == "sync" or plan.frame_set != "default") and (args.fd or plan.frame_set != "single_frame"):
         plan.formula_s = make_plan(
             args.bitrate, ts, args.fd, data_bitrate, args.max_load, plan.extra_tpdos, 1, plan.frame_set, mark
         ).time_per_period_s
@@ -214,25 +217,27 @@ def plan_arguments(pl: argparse.ArgumentParser) -> None:
         help="the measurement's frame set (a scenario's [frames] measurement): default, the plant's TPDO1 {i_a_A, "
         "i_b_A} and TPDO2 {theta_m_rad, sync_counter, status, sample_index} as REAL32 values in two 8-byte frames; "
         "compact, one 8-byte frame {i_a_code, i_b_code, theta_code, sync_counter, status} of integer codes, exact "
-        "for the plant's quantizing ADC and encoder (docs/PHYSICAL_BUS.md)",
+        "for the plant's quantizing ADC and encoder; single_frame (with --fd), one 16-byte CAN FD frame of the "
+        "default set's REAL32 values (docs/PHYSICAL_BUS.md)",
     )
     pl.add_argument(
         "--period-mark",
         choices=PERIOD_MARKS,
         default="sync",
         help="what marks a period (a scenario's [frames] period_mark): sync, the plant's SYNC (CiA 301); "
-        "measurement (with --frames compact), the compact measurement frame with the SYNC counter inside: no SYNC "
-        "frame on the bus",
+        "measurement (with --frames compact or single_frame), the one measurement frame with the SYNC counter "
+        "inside: no SYNC frame on the bus",
     )
     pl.add_argument(
         "--from-log",
         metavar="RUN/bus.log",
-        help="replay the frames a run sent onto a simulated physical bus at --bitrate (--fd: every frame as a CAN "
-        "FD frame with bit-rate switch at --data-bitrate): each frame's exact length from its identifier and "
-        "payload (bit stuffing, CRC), arbitration by identifier, a period from each SYNC: SYNC at its start, the "
-        "plant's TPDOs when the SYNC has ended + the plant's latency, the drive's when the last measurement it "
-        "consumes has ended + its latency, every other frame (SDO, heartbeat, EMCY) at the period start. Reports "
-        "per period the bus time, whether the command ends before the next SYNC and the load: p50, p99, max, "
+        help="replay the frames a run sent onto a simulated physical bus at --bitrate (--fd: a classic run's "
+        "frames as CAN FD frames with bit-rate switch at --data-bitrate; a CAN FD run's frames as it sent them): "
+        "each frame's exact length from its identifier and payload (bit stuffing, CRC), arbitration by identifier, "
+        "a period from each SYNC (or from the measurement frame that marks it): SYNC at its start, the plant's "
+        "TPDOs when the SYNC has ended + the plant's latency, the drive's when the last measurement it consumes "
+        "has ended + its latency, every other frame (SDO, heartbeat, EMCY) at the period start. Reports per period "
+        "the bus time, whether the command ends before the next SYNC and the load: p50, p99, max, "
         "overruns. The frames before the first SYNC (configuration) and after the loop are left out",
     )
     pl.add_argument(

@@ -344,3 +344,4 @@ int64_t hil_now_us(void) { return H.now_us; }
 uint64_t hil_plant_period(void) { return H.plant.k; }
 uint64_t hil_bus_frames(void) { return H.bus.frames; }
 uint32_t hil_frame_size(void) { return (uint32_t)sizeof(hil_frame_t); }
+uint32_t hil_frame_fd_size(void) { return (uint32_t)sizeof(hil_frame_fd_t); }

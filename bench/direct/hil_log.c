@@ -11,6 +11,10 @@
  * A line (what candump -L writes and python-can reads):
  *     (1712345678.123456) vcan0 1A0#0011223344556677\n
  *     (1712345678.123457) vcan0 700#\n                       (dlc 0)
+ *     (1712345678.123458) vcan0 181##1<32 hex digits>\n      (CAN FD, 16 bytes; the digit after ## is candump's
+ *                                                           flags: 1 = bit-rate switch)
+ * A classic run's frames are 24-byte hil_frame_t records; a run with CAN FD PDOs has 88-byte hil_frame_fd_t
+ * (hil_log_format_fd, hil_log_parse_fd).
  * Pure C11, no allocation, no OS headers; called from Python by ctypes (build/libhil.so).
  */
 #include <stdint.h>
@@ -26,6 +30,8 @@
  *   + 16 hex + "\n"  =  46 + L  bytes.
  * A buffer of n * hil_log_line_max(channel) bytes always holds n lines. */
 #define HIL_LOG_LINE_FIXED 46u
+/* A CAN FD line: "##" and the flags digit instead of "#", 128 hex digits instead of 16. */
+#define HIL_LOG_LINE_FIXED_FD (HIL_LOG_LINE_FIXED + 2u + 112u)
 
 static const char HEX_UP[] = "0123456789ABCDEF";
 
@@ -77,6 +83,13 @@ uint64_t hil_log_line_max(const char *channel)
     return L ? HIL_LOG_LINE_FIXED + L : 0;
 }
 
+/* The same for hil_log_format_fd's lines. */
+uint64_t hil_log_line_max_fd(const char *channel)
+{
+    uint64_t L = channel_len(channel);
+    return L ? HIL_LOG_LINE_FIXED_FD + L : 0;
+}
+
 /* Seconds with at least 10 digits, zero-padded (candump's %010llu). Returns the length. */
 static unsigned put_seconds(char *p, uint64_t s)
 {
@@ -99,6 +112,59 @@ static unsigned put_seconds(char *p, uint64_t s)
     return n;
 }
 
+/* One frame's line at p (room checked by the caller); returns its length. fd: "III##F" + data (F: the flags
+ * digit, 1 = bit-rate switch), else "III#" + data, dlc above 8 written as 8. */
+static unsigned put_line(char *p, uint64_t ts, const char *channel, uint64_t L, unsigned id, unsigned dlc,
+                         const uint8_t *data, int fd, int brs)
+{
+    char *const p0 = p;
+    uint64_t s = ts / 1000000u;
+    unsigned us = (unsigned)(ts % 1000000u);
+    *p++ = '(';
+    p += put_seconds(p, s);
+    *p++ = '.';
+    p[0] = DEC2[2 * (us / 10000)];
+    p[1] = DEC2[2 * (us / 10000) + 1];
+    p[2] = DEC2[2 * (us / 100 % 100)];
+    p[3] = DEC2[2 * (us / 100 % 100) + 1];
+    p[4] = DEC2[2 * (us % 100)];
+    p[5] = DEC2[2 * (us % 100) + 1];
+    p += 6;
+    *p++ = ')';
+    *p++ = ' ';
+    memcpy(p, channel, (size_t)L);
+    p += L;
+    *p++ = ' ';
+    p[0] = HEX_UP[id >> 8];
+    p[1] = HEX_UP[(id >> 4) & 0xF];
+    p[2] = HEX_UP[id & 0xF];
+    p[3] = '#';
+    p += 4;
+    if (fd) {
+        *p++ = '#';
+        *p++ = brs ? '1' : '0';
+    } else if (dlc > 8) {
+        dlc = 8;
+    }
+    for (unsigned k = 0; k < dlc; ++k) {
+        uint8_t b = data[k];
+        p[0] = HEX_UP[b >> 4];
+        p[1] = HEX_UP[b & 0xF];
+        p += 2;
+    }
+    *p++ = '\n';
+    return (unsigned)(p - p0);
+}
+
+/* The bytes of one line exactly (a buffer's last lines may still fit where the worst case does not). */
+static uint64_t line_need(uint64_t ts, uint64_t L, unsigned dlc, int fd)
+{
+    uint64_t digits = 1;
+    for (uint64_t v = ts / 1000000u; v >= 10; v /= 10) ++digits;
+    if (digits < 10) digits = 10;
+    return 1 + digits + 1 + 6 + 2 + L + 1 + 3 + 1 + (fd ? 2u : 0u) + 2u * dlc + 1;
+}
+
 /* n frames -> n candump lines in out[0..cap). Time stamp = t0_us + f[i].t_us (absolute µs
  * since the epoch: keep it absolute, log2asc prints its header again for every frame whose
  * stamp has 0 seconds). cob_id is written as 3 hex digits of its 11 bits, dlc above 8 as 8
@@ -114,50 +180,32 @@ uint64_t hil_log_format(const hil_frame_t *f, uint32_t n, uint64_t t0_us, const 
     char *p = out;
     char *const end = out + cap;
     for (uint32_t i = 0; i < n; ++i) {
-        if ((uint64_t)(end - p) < line_max) {
-            /* may still fit (short seconds / data): check this line exactly */
-            const hil_frame_t *g = &f[i];
-            uint64_t ts = t0_us + g->t_us, s = ts / 1000000u;
-            uint64_t digits = 1;
-            for (uint64_t v = s; v >= 10; v /= 10) ++digits;
-            if (digits < 10) digits = 10;
-            unsigned dlc = g->dlc > 8 ? 8u : g->dlc;
-            uint64_t need = 1 + digits + 1 + 6 + 2 + L + 1 + 3 + 1 + 2u * dlc + 1;
-            if ((uint64_t)(end - p) < need) return 0;
-        }
         const hil_frame_t *g = &f[i];
-        uint64_t ts = t0_us + g->t_us;
-        uint64_t s = ts / 1000000u;
-        unsigned us = (unsigned)(ts % 1000000u);
-        *p++ = '(';
-        p += put_seconds(p, s);
-        *p++ = '.';
-        p[0] = DEC2[2 * (us / 10000)];
-        p[1] = DEC2[2 * (us / 10000) + 1];
-        p[2] = DEC2[2 * (us / 100 % 100)];
-        p[3] = DEC2[2 * (us / 100 % 100) + 1];
-        p[4] = DEC2[2 * (us % 100)];
-        p[5] = DEC2[2 * (us % 100) + 1];
-        p += 6;
-        *p++ = ')';
-        *p++ = ' ';
-        memcpy(p, channel, (size_t)L);
-        p += L;
-        *p++ = ' ';
-        unsigned id = g->cob_id & 0x7FFu;
-        p[0] = HEX_UP[id >> 8];
-        p[1] = HEX_UP[(id >> 4) & 0xF];
-        p[2] = HEX_UP[id & 0xF];
-        p[3] = '#';
-        p += 4;
         unsigned dlc = g->dlc > 8 ? 8u : g->dlc;
-        for (unsigned k = 0; k < dlc; ++k) {
-            uint8_t b = g->data[k];
-            p[0] = HEX_UP[b >> 4];
-            p[1] = HEX_UP[b & 0xF];
-            p += 2;
-        }
-        *p++ = '\n';
+        if ((uint64_t)(end - p) < line_max && (uint64_t)(end - p) < line_need(t0_us + g->t_us, L, dlc, 0)) return 0;
+        p += put_line(p, t0_us + g->t_us, channel, L, g->cob_id & 0x7FFu, dlc, g->data, 0, 0);
+    }
+    return (uint64_t)(p - out);
+}
+
+/* The same for the records of a run with CAN FD PDOs: a frame with HIL_FRAME_FDF becomes a "##" line (its flags
+ * digit 1 with HIL_FRAME_BRS), the others classic lines. cap >= n * hil_log_line_max_fd(channel) is always
+ * enough. */
+uint64_t hil_log_format_fd(const hil_frame_fd_t *f, uint32_t n, uint64_t t0_us, const char *channel, char *out,
+                           uint64_t cap)
+{
+    uint64_t L = channel_len(channel);
+    if (!f || !out || L == 0 || n == 0) return 0;
+    const uint64_t line_max = HIL_LOG_LINE_FIXED_FD + L;
+    char *p = out;
+    char *const end = out + cap;
+    for (uint32_t i = 0; i < n; ++i) {
+        const hil_frame_fd_t *g = &f[i];
+        int fd = (g->flags & HIL_FRAME_FDF) != 0;
+        unsigned dlc = g->dlc > (fd ? 64u : 8u) ? (fd ? 64u : 8u) : g->dlc;
+        if ((uint64_t)(end - p) < line_max && (uint64_t)(end - p) < line_need(t0_us + g->t_us, L, dlc, fd)) return 0;
+        p += put_line(p, t0_us + g->t_us, channel, L, g->cob_id & 0x7FFu, dlc, g->data, fd,
+                      (g->flags & HIL_FRAME_BRS) != 0);
     }
     return (uint64_t)(p - out);
 }
@@ -188,8 +236,8 @@ enum { LINE_FRAME, LINE_EXTENDED, LINE_OTHER, LINE_BAD, LINE_SILENT };
 #define HIL_CAN_ERR_FLAG 0x20000000u
 #define HIL_CAN_EFF_MASK 0x1FFFFFFFu
 
-/* One line [p, e) without its '\n'. LINE_FRAME fills *fr. */
-static int parse_line(const char *p, const char *e, hil_frame_t *fr)
+/* One line [p, e) without its '\n'. LINE_FRAME fills *fr (a CAN FD frame of any length, flags set). */
+static int parse_line(const char *p, const char *e, hil_frame_fd_t *fr)
 {
     while (e > p && is_space(e[-1])) --e; /* "\r\n" line ends, trailing blanks */
     while (p < e && is_space(*p)) ++p;
@@ -266,10 +314,11 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
     }
     ++p; /* '#' */
 
-    int fd = 0;
+    int fd = 0, fd_flags = 0;
     if (p < q && *p == '#') { /* CAN FD: ##<flags><data> */
         ++p;
         if (p >= q || hexval(*p) < 0) return LINE_BAD;
+        fd_flags = hexval(*p);
         ++p;
         fd = 1;
     }
@@ -290,7 +339,6 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
         data[dlc++] = (uint8_t)((hi << 4) | lo);
         p += 2;
     }
-    if (dlc > 8) return LINE_OTHER; /* CAN FD frame longer than classic CAN */
     if (kind != LINE_FRAME) return kind;
 
     memset(fr, 0, sizeof *fr);
@@ -300,6 +348,7 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
     fr->dlc = (uint8_t)dlc;
     fr->sender = 255;
     memcpy(fr->data, data, dlc);
+    fr->flags = (uint8_t)(fd ? (HIL_FRAME_FDF | ((fd_flags & 1) ? HIL_FRAME_BRS : 0u)) : 0u);
     return LINE_FRAME;
 }
 
@@ -312,8 +361,8 @@ static int parse_line(const char *p, const char *e, hil_frame_t *fr)
  * (unparsable, the first of them 1-based among these lines); blank lines and comment lines
  * ('#' or ';' first) count as lines only. t_us = absolute µs of the time stamp, seq = 0,
  * sender = 255, data past dlc = 0. Never reads outside buf[0..len). */
-uint32_t hil_log_parse_counted(const char *buf, uint64_t len, hil_frame_t *out, uint32_t cap, uint64_t *consumed,
-                               hil_log_counts_t *counts)
+static uint32_t parse_lines(const char *buf, uint64_t len, void *out, int wide, uint32_t cap, uint64_t *consumed,
+                            hil_log_counts_t *counts)
 {
     hil_log_counts_t c = {0, 0, 0, 0, 0};
     uint64_t used = 0;
@@ -321,13 +370,25 @@ uint32_t hil_log_parse_counted(const char *buf, uint64_t len, hil_frame_t *out, 
     if (buf && out) {
         const char *p = buf;
         const char *const end = buf + len;
+        hil_frame_fd_t fr;
         while (n < cap && p < end) {
             const char *nl = memchr(p, '\n', (size_t)(end - p));
             if (!nl) break;
             ++c.lines;
-            int k = parse_line(p, nl, &out[n]);
+            int k = parse_line(p, nl, &fr);
+            if (k == LINE_FRAME && !wide && fr.dlc > 8) k = LINE_OTHER; /* CAN FD beyond a classic record */
             if (k == LINE_FRAME) {
-                ++n;
+                if (wide) {
+                    ((hil_frame_fd_t *)out)[n++] = fr;
+                } else {
+                    hil_frame_t *g = &((hil_frame_t *)out)[n++];
+                    g->t_us = fr.t_us;
+                    g->seq = 0;
+                    g->cob_id = fr.cob_id;
+                    g->dlc = fr.dlc;
+                    g->sender = fr.sender;
+                    memcpy(g->data, fr.data, 8);
+                }
             } else if (k == LINE_EXTENDED) {
                 ++c.skipped;
                 ++c.extended;
@@ -345,6 +406,20 @@ uint32_t hil_log_parse_counted(const char *buf, uint64_t len, hil_frame_t *out, 
     return n;
 }
 
+uint32_t hil_log_parse_counted(const char *buf, uint64_t len, hil_frame_t *out, uint32_t cap, uint64_t *consumed,
+                               hil_log_counts_t *counts)
+{
+    return parse_lines(buf, len, out, 0, cap, consumed, counts);
+}
+
+/* The same into hil_frame_fd_t records: CAN FD frames of any length kept (flags: HIL_FRAME_FDF, HIL_FRAME_BRS from
+ * candump's flags digit), nothing skipped for its length. */
+uint32_t hil_log_parse_counted_fd(const char *buf, uint64_t len, hil_frame_fd_t *out, uint32_t cap, uint64_t *consumed,
+                                  hil_log_counts_t *counts)
+{
+    return parse_lines(buf, len, out, 1, cap, consumed, counts);
+}
+
 /* hil_log_parse_counted with one count: *skipped = the lines that are not an 11-bit data frame
  * of <= 8 bytes (skipped frames and unparsable lines together), as a follower of a growing log needs. */
 uint32_t hil_log_parse(const char *buf, uint64_t len, hil_frame_t *out, uint32_t cap, uint64_t *consumed,
@@ -352,6 +427,16 @@ uint32_t hil_log_parse(const char *buf, uint64_t len, hil_frame_t *out, uint32_t
 {
     hil_log_counts_t c;
     uint32_t n = hil_log_parse_counted(buf, len, out, cap, consumed, &c);
+    if (skipped) *skipped = c.skipped + c.unparsable;
+    return n;
+}
+
+/* hil_log_parse for hil_frame_fd_t records. */
+uint32_t hil_log_parse_fd(const char *buf, uint64_t len, hil_frame_fd_t *out, uint32_t cap, uint64_t *consumed,
+                          uint64_t *skipped)
+{
+    hil_log_counts_t c;
+    uint32_t n = hil_log_parse_counted_fd(buf, len, out, cap, consumed, &c);
     if (skipped) *skipped = c.skipped + c.unparsable;
     return n;
 }

@@ -10,7 +10,8 @@
 
 static struct {
     uint32_t seq; /* bus order */
-    hil_frame_t *rec;
+    void *rec;    /* hil_frame_t, or hil_frame_fd_t when wide */
+    int wide;
     uint32_t rec_cap, rec_n;
     uint64_t rec_dropped;
     hil_frame_t mq[MASTER_Q];
@@ -19,6 +20,26 @@ static struct {
 } M;
 
 void hil_master_reset(void) { memset(&M, 0, sizeof M); }
+
+static void record_wide(const co_frame_t *f, uint8_t sender, int64_t t_us, uint32_t seq)
+{
+    if (M.rec_n >= M.rec_cap) {
+        ++M.rec_dropped;
+        return;
+    }
+    hil_frame_fd_t *r = &((hil_frame_fd_t *)M.rec)[M.rec_n++];
+    uint8_t n = f->dlc > 64u ? 64u : f->dlc;
+    r->t_us = (uint64_t)t_us;
+    r->seq = seq;
+    r->cob_id = (uint16_t)(f->cob_id & 0x7FFu);
+    r->dlc = n;
+    r->sender = sender;
+    memcpy(r->data, f->data, n);
+    memset(&r->data[n], 0, (size_t)(64u - n));
+    r->flags =
+        (uint8_t)(((f->flags & CO_FRAME_FDF) ? HIL_FRAME_FDF : 0u) | ((f->flags & CO_FRAME_BRS) ? HIL_FRAME_BRS : 0u));
+    memset(r->pad, 0, sizeof r->pad);
+}
 
 void hil_master_record(const co_frame_t *f, uint8_t sender, int64_t t_us, int running)
 {
@@ -32,14 +53,16 @@ void hil_master_record(const co_frame_t *f, uint8_t sender, int64_t t_us, int ru
     r.t_us = (uint64_t)t_us;
     r.seq = M.seq++;
     r.cob_id = (uint16_t)(f->cob_id & 0x7FFu);
-    r.dlc = f->dlc;
+    r.dlc = f->dlc > 8u ? 8u : f->dlc; /* the master's queue: SDO answers, classic frames */
     r.sender = sender;
-    memcpy(r.data, f->data, f->dlc);
-    if (M.rec) {
-        if (M.rec_n < M.rec_cap)
-            M.rec[M.rec_n++] = r;
+    memcpy(r.data, f->data, r.dlc);
+    if (M.rec && M.wide) {
+        record_wide(f, sender, t_us, r.seq);
+    } else if (M.rec) {
+        if (M.rec_n < M.rec_cap && f->dlc <= 8u)
+            ((hil_frame_t *)M.rec)[M.rec_n++] = r;
         else
-            ++M.rec_dropped;
+            ++M.rec_dropped; /* full, or a CAN FD frame the classic record cannot hold */
     }
     /* The master sees every frame of the nodes, like a CAN controller would, except the
      * PDO stream of a run (it reads the recorder instead). */
@@ -65,7 +88,7 @@ int hil_master_answer(uint32_t mark, uint16_t resp_cob, uint8_t resp[8])
     return 0;
 }
 
-void hil_set_recorder(hil_frame_t *buf, uint32_t capacity)
+void hil_set_recorder(void *buf, uint32_t capacity)
 {
     M.rec = buf;
     M.rec_cap = capacity;
@@ -73,7 +96,9 @@ void hil_set_recorder(hil_frame_t *buf, uint32_t capacity)
     M.rec_dropped = 0;
 }
 
-uint32_t hil_take(hil_frame_t *buf, uint32_t capacity)
+void hil_set_recorder_fd(int wide) { M.wide = wide != 0; }
+
+uint32_t hil_take(void *buf, uint32_t capacity)
 {
     hil_lock();
     uint32_t n = M.rec_n;

@@ -11,11 +11,14 @@
 
 /* ---- libhil.so's API (ctypes: bench/run/bus/direct.py) */
 
-/* Recorder: every frame on the bus goes into the caller's buffer (no allocation here). */
-void hil_set_recorder(hil_frame_t *buf, uint32_t capacity);
+/* Recorder: every frame on the bus goes into the caller's buffer (no allocation here): hil_frame_t records, or
+ * hil_frame_fd_t after hil_set_recorder_fd(1) (a run whose PDOs are CAN FD; a classic record cannot hold a frame
+ * of more than 8 bytes: it counts as dropped). */
+void hil_set_recorder(void *buf, uint32_t capacity);
+void hil_set_recorder_fd(int wide);
 /* The frames recorded so far (their count, returned) and a fresh buffer for the next ones, in one step under
  * the bus lock (real time: the nodes' threads record while the caller takes). */
-uint32_t hil_take(hil_frame_t *buf, uint32_t capacity);
+uint32_t hil_take(void *buf, uint32_t capacity);
 uint32_t hil_recorded(void);
 uint64_t hil_record_dropped(void);
 /* Next frame of the nodes for the master; returns 1 when one was copied. */

@@ -40,7 +40,7 @@ class RunRecorders:
         sess = self.sess
         assert sess.hil is not None and sess.direct is not None
         min_frames = 0 if sess.sc.timing == "realtime" else self.opts.chunk_periods
-        source = DirectSource(sess.hil, self.opts.chunk_periods, min_frames=min_frames)
+        source = DirectSource(sess.hil, self.opts.chunk_periods, min_frames=min_frames, fd=sess.sc.frames.fd)
         sess.direct.on_chunk = source.collect
         sess.direct.on_stop = source.release
         return source

@@ -12,7 +12,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE, join
 from bench.signals import SignalInfo
 
 TRACES_FILE = "traces.npy"
@@ -137,7 +137,7 @@ class FrameCollector:
 
     def close(self) -> None:
         if self._parts:
-            self.frames = np.concatenate([self.frames, *self._parts])
+            self.frames = join([self.frames, *self._parts])
             self._parts = []
 
 

@@ -10,12 +10,21 @@ PDO mapping the bench writes by SDO (run/loop/configure.py), not another code pa
   exactly; otherwise the reading is rounded to half a count at most. The drive numbers its samples by the SYNC
   counter the frame carries (there is no room for the 16-bit sample index).
 
-period_mark = "measurement" (with the compact frame): the plant sends no SYNC frame; its compact measurement frame,
-the SYNC counter inside, marks the period. The plant still counts its SYNCs and runs its synchronous PDOs on them
-(co_sync_produce_local): not CiA 301, whose synchronous PDOs follow a SYNC on the bus. The drive computes on the
-frame's arrival as always; the trace TPDOs become event-driven, sent when the next measurement arrives, before that
-period's step (the state after step k in period k + 1, as the SYNC's trace at SYNC k + 1: the same rows); the
-drive's measurement timeout, counted in SYNCs, does not run (no SYNC reaches it).
+- "single_frame" (needs can = "fd"): one 16-byte CAN FD frame, TPDO1 {i_a_A, i_b_A, theta_m_rad, sync_counter,
+  status, sample_index}: today's REAL32 values, the two default frames' fields in one.
+
+can = "fd": every PDO of the loop travels in CAN FD frames (plant.eds and drive.eds 0x2105:01 pdo_frame_format;
+bit_rate_switch = true, the default, with the data phase at the data bit rate); SDO, NMT, SYNC, EMCY and heartbeat
+stay classic frames (not CiA 1301: docs/PHYSICAL_BUS.md), and so does the plant's hold announcement (0x2105:02), which
+a master behind a classic-only link (the CAN box's SLCAN bridge) must hear. The values are the same floats or codes:
+a run on CAN FD equals the same run on classic frames in every column.
+
+period_mark = "measurement" (with the compact or the single frame): the plant sends no SYNC frame; its one
+measurement frame, the SYNC counter inside, marks the period. The plant still counts its SYNCs and runs its
+synchronous PDOs on them (co_sync_produce_local): not CiA 301, whose synchronous PDOs follow a SYNC on the bus.
+The drive computes on the frame's arrival as always; the trace TPDOs become event-driven, sent when the next
+measurement arrives, before that period's step (the state after step k in period k + 1, as the SYNC's trace at
+SYNC k + 1: the same rows); the drive's measurement timeout, counted in SYNCs, does not run (no SYNC reaches it).
 """
 
 from __future__ import annotations
@@ -26,10 +35,12 @@ from bench.eds import load, params
 from bench.scenario.faults import Fault, FaultError
 from bench.scenario.model import FrameSet, ScenarioError
 
-MEASUREMENT_SETS = ("default", "compact")
+MEASUREMENT_SETS = ("default", "compact", "single_frame")
 PERIOD_MARKS = ("sync", "measurement")  # plant.eds 0x2003:0B period_mark's ValueNames
-FRAMES_KEYS = ("measurement", "current_lsb_A", "angle_counts", "period_mark")
+CAN_KINDS = ("classic", "fd")
+FRAMES_KEYS = ("measurement", "current_lsb_A", "angle_counts", "period_mark", "can", "bit_rate_switch")
 CODING = "Measurement coding"  # plant.eds / drive.eds 0x2104
+CAN_FD = "CAN FD"  # plant.eds / drive.eds 0x2105
 # The compact frame's mapping: the plant's TPDO1 and the drive's RPDO1, in this order (2 + 2 + 2 + 1 + 1 bytes).
 COMPACT_MAP = (
     ("Measurement", "i_a_code"),
@@ -37,6 +48,15 @@ COMPACT_MAP = (
     ("Measurement", "theta_code"),
     ("Measurement", "sync_counter"),
     ("Measurement", "status"),
+)
+# The single CAN FD frame's mapping (4 + 4 + 4 + 1 + 1 + 2 = 16 bytes: a CAN FD length, no padding).
+SINGLE_FRAME_MAP = (
+    ("Measurement", "i_a_A"),
+    ("Measurement", "i_b_A"),
+    ("Measurement", "theta_m_rad"),
+    ("Measurement", "sync_counter"),
+    ("Measurement", "status"),
+    ("Measurement", "sample_index"),
 )
 
 
@@ -78,12 +98,33 @@ def parse_frames(raw: Any, where: str) -> FrameSet:
     mark = raw.get("period_mark", "sync")
     if mark not in PERIOD_MARKS:
         raise ScenarioError(f"{where}: frames.period_mark = {mark!r}: expected one of {', '.join(PERIOD_MARKS)}")
-    if mark == "measurement" and measurement != "compact":
+    if mark == "measurement" and measurement not in ("compact", "single_frame"):
         raise ScenarioError(
-            f"{where}: frames.period_mark = 'measurement' needs frames.measurement = 'compact' (the one frame that "
-            "carries the whole sample and its SYNC counter marks the period)"
+            f"{where}: frames.period_mark = 'measurement' needs frames.measurement = 'compact' or 'single_frame' (the "
+            "one frame that carries the whole sample and its SYNC counter marks the period)"
         )
-    return FrameSet(measurement, lsb, counts, mark)
+    can, brs = _can(raw, where)
+    if measurement == "single_frame" and can != "fd":
+        raise ScenarioError(
+            f"{where}: frames.measurement = 'single_frame' is 16 bytes: it needs frames.can = 'fd' (classic CAN "
+            "frames hold 8; frames.measurement = 'compact' fits them)"
+        )
+    return FrameSet(measurement, lsb, counts, mark, can, brs)
+
+
+def _can(raw: dict[str, Any], where: str) -> tuple[str, bool]:
+    """frames.can and frames.bit_rate_switch, checked."""
+    can = raw.get("can", "classic")
+    if can not in CAN_KINDS:
+        raise ScenarioError(f"{where}: frames.can = {can!r}: expected one of {', '.join(CAN_KINDS)}")
+    brs = raw.get("bit_rate_switch", True)
+    if not isinstance(brs, bool):
+        raise ScenarioError(f"{where}: frames.bit_rate_switch = {brs!r}: expected true or false")
+    if "bit_rate_switch" in raw and can != "fd":
+        raise ScenarioError(
+            f"{where}: frames.bit_rate_switch needs frames.can = 'fd' (classic frames have no data phase)"
+        )
+    return can, brs
 
 
 def coding_for(frames: FrameSet, adc_lsb_A: float, encoder_lines: int) -> tuple[float, int]:
@@ -104,9 +145,10 @@ def coding_for(frames: FrameSet, adc_lsb_A: float, encoder_lines: int) -> tuple[
 def refuse_unsent_frames(faults: list[Fault], frames: FrameSet, where: str) -> None:
     """A frame fault on a frame the scenario's set never sends (the plant's TPDO2 with the compact frame, the SYNC
     with the measurement as the period's mark) could never act: refused, naming the frame that carries it now."""
-    gone = {"plant.TPDO2": "the compact frame (plant.TPDO1) carries the whole sample"} if frames.compact else {}
+    one = f"the {frames.measurement} frame (plant.TPDO1)"
+    gone = {"plant.TPDO2": f"{one} carries the whole sample"} if frames.one_frame else {}
     if frames.sync_less:
-        gone["SYNC"] = "the compact frame (plant.TPDO1) marks the period"
+        gone["SYNC"] = f"{one} marks the period"
     for f in faults:
         if f.frame in gone:
             raise FaultError(

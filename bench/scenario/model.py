@@ -45,14 +45,25 @@ class FrameSet:
     """[frames] (bench/scenario/frames.py): the measurement's mapping and, for "compact", its coding (None: the
     bench chooses it from the plant's sensors at configuration: frames.coding_for)."""
 
-    measurement: str = "default"
+    measurement: str = "default"  # or "compact" (8 bytes of integer codes), "single_frame" (16 bytes, CAN FD)
     current_lsb_A: float | None = None
     angle_counts: int | None = None
-    period_mark: str = "sync"  # or "measurement": the compact frame marks the period, no SYNC frame
+    period_mark: str = "sync"  # or "measurement": the one measurement frame marks the period, no SYNC frame
+    can: str = "classic"  # or "fd": the PDOs in CAN FD frames (plant.eds / drive.eds 0x2105)
+    bit_rate_switch: bool = True  # CAN FD frames with their data phase at the data bit rate
 
     @property
     def compact(self) -> bool:
         return self.measurement == "compact"
+
+    @property
+    def one_frame(self) -> bool:
+        """The whole sample in one frame (compact or single_frame): it can mark the period."""
+        return self.measurement in ("compact", "single_frame")
+
+    @property
+    def fd(self) -> bool:
+        return self.can == "fd"
 
     @property
     def sync_less(self) -> bool:

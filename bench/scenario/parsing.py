@@ -73,7 +73,7 @@ def parse(raw: dict[str, Any], where: str) -> Scenario:
         sc.trace = trace_table(where, raw["trace"]) if "trace" in raw else default_trace(sc)
         sc.faults = parse_faults(raw.get("faults"), where, periods, timing, seed, tuple(sc.event_periods()))
         refuse_lockstep_stalls(
-            sc.faults, where, timing, sc.expect, lambda k: value_at(sc, COMMAND_TIMEOUT, k), sc.frames.compact
+            sc.faults, where, timing, sc.expect, lambda k: value_at(sc, COMMAND_TIMEOUT, k), sc.frames.one_frame
         )
         refuse_unsent_frames(sc.faults, sc.frames, where)
     except (FaultError, TraceError) as exc:

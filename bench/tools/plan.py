@@ -34,7 +34,7 @@ import canopen
 from bench.canbus import classic_frame_bits, fd_frame_bits
 from bench.eds import default_node_id
 from bench.paths import EDS_DIR
-from bench.scenario.frames import COMPACT_MAP, MEASUREMENT_SETS, PERIOD_MARKS
+from bench.scenario.frames import COMPACT_MAP, MEASUREMENT_SETS, PERIOD_MARKS, SINGLE_FRAME_MAP
 
 
 @dataclass
@@ -71,31 +71,33 @@ def pdo_set(
     trace_pdos: int = 0, trace_decimation: int = 1, frames: str = "default", period_mark: str = "sync"
 ) -> list[tuple[str, int, float]]:
     """(what, data bytes, frames per period) of one control period, from the EDS files; `frames`: the scenario's
-    measurement set ([frames] measurement, bench/scenario/frames.py): "compact" maps the plant's TPDO1 as
-    COMPACT_MAP and leaves its TPDO2 off, as the bench does by SDO; `period_mark` "measurement": no SYNC frame."""
+    measurement set ([frames] measurement, bench/scenario/frames.py): "compact" and "single_frame" map the plant's
+    TPDO1 as COMPACT_MAP / SINGLE_FRAME_MAP and leave its TPDO2 off, as the bench does by SDO; `period_mark`
+    "measurement": no SYNC frame."""
     if frames not in MEASUREMENT_SETS:
         raise _bad("--frames", frames, f"one of {', '.join(MEASUREMENT_SETS)}")
-    if period_mark not in PERIOD_MARKS or (period_mark == "measurement" and frames != "compact"):
+    if period_mark not in PERIOD_MARKS or (period_mark == "measurement" and frames == "default"):
         marks = ", ".join(PERIOD_MARKS)
-        raise _bad("--period-mark", period_mark, f"one of {marks} (measurement with --frames compact)")
+        raise _bad("--period-mark", period_mark, f"one of {marks} (measurement with --frames compact or single_frame)")
     out: list[tuple[str, int, float]] = []
     plant = canopen.import_od(str(EDS_DIR / "plant.eds"), node_id=default_node_id("plant"))
     drive = canopen.import_od(str(EDS_DIR / "drive.eds"), node_id=default_node_id("drive"))
     ov = plant["Synchronous counter overflow value"].default or 0
     if period_mark == "sync":
         out.append(("SYNC (plant)", 1 if ov >= 2 else 0, 1.0))
-    compact_bits = sum(len(plant[obj][name]) for obj, name in COMPACT_MAP)
+    one_map = {"compact": COMPACT_MAP, "single_frame": SINGLE_FRAME_MAP}.get(frames)
+    one_bits = sum(len(plant[obj][name]) for obj, name in one_map) if one_map else 0
     for name, od in (("plant", plant), ("drive", drive)):
         for n in range(4):
             comm, mapping = od[0x1800 + n], od[0x1A00 + n]
             cob = comm[1].default
-            if cob & 0x80000000 or (frames == "compact" and name == "plant" and n == 1):
+            if cob & 0x80000000 or (one_map and name == "plant" and n == 1):
                 continue
             count = mapping[0].default
             bits = sum((mapping[i].default & 0xFF) for i in range(1, count + 1))
             what = f"{name} TPDO{n + 1} (0x{cob & 0x7FF:03X})"
-            if frames == "compact" and name == "plant" and n == 0:
-                bits, what = compact_bits, what + (" compact, mark" if period_mark == "measurement" else " compact")
+            if one_map and name == "plant" and n == 0:
+                bits, what = one_bits, what + f" {frames}" + (", mark" if period_mark == "measurement" else "")
             out.append((what, bits // 8, 1.0))
     for i in range(trace_pdos):
         out.append((f"trace PDO {i + 1}", 8, 1.0 / trace_decimation))
@@ -144,6 +146,8 @@ def make_plan(
     period_mark: str = "sync",
 ) -> Plan:
     check_inputs(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation)
+    if frames == "single_frame" and not fd:
+        raise _bad("--frames", frames, "default or compact on classic CAN (single_frame is 16 bytes: give --fd)")
     set_name = f"{frames} measurement frame set" + ("" if period_mark == "sync" else ", no SYNC: it marks the period")
     plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load, set_name)
     for what, n, per in pdo_set(trace_pdos, trace_decimation, frames, period_mark):
@@ -171,6 +175,13 @@ def make_plan(
             "is emulated exactly, only slower than real time"
         )
         if period_mark == "sync":
+            if frames == "default" and fd:
+                one = make_plan(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation, "single_frame")
+                plan.advice.append(
+                    f"or the measurement's REAL32 values in one 16-byte CAN FD frame ([frames] measurement = "
+                    f'"single_frame"; --frames single_frame): {one.time_per_period_s * 1e6:.1f} us per period '
+                    f"({'fits' if one.fits else 'still does not fit'}; fastest {one.fastest_period_s * 1e6:.1f} us)"
+                )
             if frames == "default":
                 small = make_plan(bitrate, ts_s, fd, data_bitrate, max_load, trace_pdos, trace_decimation, "compact")
                 plan.advice.append(

@@ -86,17 +86,19 @@ class LogPlan:
 
 
 class WireCache:
-    """Each distinct frame's wire bits, computed once."""
+    """Each distinct frame's wire bits, computed once. On a CAN FD bus the classic frames of a classic run's log are
+    simulated as CAN FD frames with the bit-rate switch (what the same run would send with frames.can = "fd"); a log
+    that holds CAN FD frames is simulated as sent (`as_sent`: its classic frames, SDO and the like, stay classic)."""
 
-    def __init__(self, fd: bool, worst: bool) -> None:
-        self.fd, self.worst = fd, worst
+    def __init__(self, fd: bool, worst: bool, as_sent: bool = False) -> None:
+        self.fd, self.worst, self.as_sent = fd, worst, as_sent
         self._bits: dict[tuple[int, bool, bool, bool, bytes], WireBits] = {}
 
     def bits(self, m: can.Message) -> WireBits:
         if m.is_remote_frame:  # CAN FD has no remote frame: a classic one on either bus, its RTR bit and DLC as sent
             return self._remote(m)
-        fd = self.fd or m.is_fd
-        brs = m.bitrate_switch if m.is_fd else fd  # a classic frame of the log rides an FD bus with BRS
+        fd = m.is_fd or (self.fd and not self.as_sent)
+        brs = m.bitrate_switch if m.is_fd else fd  # a classic frame of a classic log rides an FD bus with BRS
         key = (m.arbitration_id, m.is_extended_id, fd, brs, data := bytes(m.data))
         if key not in self._bits:
             if self.worst:
@@ -184,6 +186,14 @@ def check_inputs(
             raise LogPlanError(f"--latency-us = {node}={lat * 1e6:g}: must be plant=US or drive=US, 0 <= US <= 1e6")
 
 
+def _frame_set(frames: int, longest: int) -> str:
+    """The measurement frame set a log shows: two frames, default; one of 8 bytes, compact; one longer, the
+    single CAN FD frame."""
+    if frames != 1:
+        return "default"
+    return "compact" if longest <= 8 else "single_frame"
+
+
 def simulate(
     log: Path,
     bitrate: float,
@@ -204,14 +214,16 @@ def simulate(
     plant_id, drive_id, ids_from = run_node_ids(log)
     ids = loop_ids(plant_id, drive_id)
     cut = read_periods(log, ids)
-    if not fd and any(m.is_fd for p in cut.periods for m in p):
+    sent_fd = any(m.is_fd for p in cut.periods for m in p)
+    if not fd and sent_fd:
         raise LogPlanError(f"{log} holds CAN FD frames: a classic bus cannot carry them (give --fd --data-bitrate)")
-    wire = WireCache(fd, worst)
-    results, extra, meas = [], [], []
+    wire = WireCache(fd, worst, as_sent=sent_fd)
+    results, extra, meas, meas_bytes = [], [], [], 0
     for n, frames in enumerate(cut.periods):
         kinds = [kind_of(m, ids) for m in frames]
         extra.append(sum(1 for k in kinds if k in ("plant", "drive")))
         meas.append(kinds.count("measurement"))
+        meas_bytes = max([meas_bytes] + [len(m.data) for m, k in zip(frames, kinds, strict=True) if k == "measurement"])
         timed = [(m.arbitration_id, wire.bits(m).time_s(bitrate, data_bitrate)) for m in frames]
         sim = simulate_period(timed, kinds, lat)
         cmd = "command" in kinds
@@ -240,6 +252,7 @@ def simulate(
         load=_stats(load),
         extra_tpdos=int(np.median(extra)),
         measurement_frames=int(np.median(meas)),
+        frame_set=_frame_set(int(np.median(meas)), meas_bytes),
         mark="SYNC" if cut.mark == ids.sync else f"mark (0x{cut.mark:03X})",
         overruns=int((chain > ts_s).sum()),
         over_load=int((load > max_load).sum()),

@@ -1,4 +1,4 @@
-/* co_node.c - NMT slave, heartbeat producer/consumer, SYNC, the SDO write path and
+/* co_node.c - NMT slave, heartbeat producer (its consumers: co_hb.c), SYNC, the SDO write path and
  * frame dispatch to the services (EMCY, PDO, SDO server) (CiA 301). */
 #include "co_node.h"
 
@@ -6,23 +6,8 @@
 
 #define IDX_SYNC_COBID 0x1005u
 #define IDX_CYCLE_PERIOD 0x1006u
-#define IDX_HB_CONSUMER 0x1016u
 #define IDX_HB_PRODUCER 0x1017u
 #define IDX_SYNC_OVERFLOW 0x1019u
-
-static void configure_hb_consumers(co_node_t *node)
-{
-    uint32_t n = co_od_get_u32(node->od, IDX_HB_CONSUMER, 0);
-    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
-        co_hb_consumer_t *c = &node->hb[i];
-        memset(c, 0, sizeof *c);
-        if (i + 1u > n) continue;
-        uint32_t v = co_od_get_u32(node->od, IDX_HB_CONSUMER, (uint8_t)(i + 1u));
-        c->node_id = (uint8_t)(v >> 16);
-        c->time_ms = (uint16_t)v;
-        c->active = c->node_id >= 1u && c->node_id <= 127u && c->time_ms > 0u;
-    }
-}
 
 static void refresh_cache(co_node_t *node)
 {
@@ -60,6 +45,15 @@ static void cache_rpdo_cobs(co_node_t *node)
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) node->rpdo_cob[i] = node->rpdo[i].valid ? node->rpdo[i].cob_id : 0xFFFFu;
 }
 
+static void configure_pdos(co_node_t *node)
+{
+    for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
+        co_pdo_configure(&node->rpdo[i]);
+        co_pdo_configure(&node->tpdo[i]);
+    }
+    cache_rpdo_cobs(node);
+}
+
 static void reset(co_node_t *node, int communication_only)
 {
     co_od_reset(node->od, node->node_id, communication_only);
@@ -68,12 +62,8 @@ static void reset(co_node_t *node, int communication_only)
     co_emcy_forget_active(&node->emcy);
     if (node->hooks.on_reset) node->hooks.on_reset(node->user, node, communication_only);
     refresh_cache(node);
-    for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
-        co_pdo_configure(&node->rpdo[i]);
-        co_pdo_configure(&node->tpdo[i]);
-    }
-    cache_rpdo_cobs(node);
-    configure_hb_consumers(node);
+    configure_pdos(node);
+    co_hb_configure(node->hb, node->od);
     enter_nmt_state(node, CO_NMT_INITIALIZING);
     /* Boot-up message: COB-ID 0x700 + node-ID, one byte 0x00. */
     uint8_t zero = 0;
@@ -128,6 +118,7 @@ void co_node_init(co_node_t *node, const co_od_t *od, uint8_t node_id, co_tx_fn 
     node->pdo_env.on_rpdo = service_on_rpdo;
     node->pdo_env.on_rpdo_rx = service_on_rpdo_rx;
     node->pdo_env.ctx = node;
+    co_fd_attach(&node->pdo_env.fd, od); /* 0x2105 CAN FD */
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
         co_rpdo_init(&node->rpdo[i], i, &node->pdo_env);
         co_tpdo_init(&node->tpdo[i], i, &node->pdo_env);
@@ -239,6 +230,8 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
     if (abort) return abort;
     abort = sync_check_write(node, e, data);
     if (abort) return abort;
+    abort = co_fd_check_write(e, data, operational(node));
+    if (abort) return abort;
     co_pdo_t *pdo = pdo_owning(node, e->index);
     if (pdo) {
         abort = co_pdo_check_write(pdo, e, data, node->c_sync_cob);
@@ -252,34 +245,19 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
     co_emcy_before_store(&node->emcy, e);
     co_od_store(e, data, len);
     if (e->index < 0x2000u) refresh_cache(node);
-    if (e->index == IDX_HB_CONSUMER) configure_hb_consumers(node);
+    if (e->index == 0x1016u) co_hb_configure(node->hb, node->od); /* the heartbeat consumers */
     if (e->index == IDX_HB_PRODUCER) node->hb_next_us = node->now_us + (int64_t)node->c_hb_ms * 1000;
     if (e->index == IDX_CYCLE_PERIOD) node->sync_next_us = node->now_us;
     if (pdo) {
         co_pdo_configure(pdo);
         cache_rpdo_cobs(node);
     }
+    if (e->index == CO_IDX_CAN_FD) configure_pdos(node); /* beyond 8 bytes a PDO is valid only with CAN FD */
     if (x != NULL && x->written != NULL) x->written(x->object, e);
     return 0;
 }
 
 /* ------------------------------------------------------------------ dispatch */
-
-static void hb_consume(co_node_t *node, uint16_t id, uint8_t state, int64_t now_us)
-{
-    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
-        co_hb_consumer_t *c = &node->hb[i];
-        if (c->active && id == 0x700u + c->node_id) {
-            if (c->timed_out) {
-                c->timed_out = false;
-                co_emcy_clear_error(&node->emcy, CO_EMCY_HEARTBEAT);
-            }
-            c->seen = true;
-            c->last_us = now_us;
-            c->state = state;
-        }
-    }
-}
 
 void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
 {
@@ -287,7 +265,7 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
     ++node->rx_frames;
     if (frame->cob_id & CO_FRAME_RTR) return; /* remote frames are not used (CiA recommends against) */
     uint16_t id = (uint16_t)(frame->cob_id & 0x7FFu);
-    if (frame->dlc > 8u) return;
+    if (frame->dlc > CO_FRAME_MAX_DATA) return;
 
     /* An RPDO first (the frames of every period): its COB-ID is never one of the ids below (co_cob_restricted;
      * the SYNC's keeps its precedence should 0x1005 be set to an RPDO's later), so the order changes nothing. */
@@ -309,7 +287,7 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
 
     /* Heartbeat consumer (also in STOPPED). */
     if (id > 0x700u && id <= 0x77Fu && frame->dlc == 1u) {
-        hb_consume(node, id, frame->data[0], now_us);
+        co_hb_consume(node->hb, &node->emcy, id, frame->data[0], now_us);
         return;
     }
     if (node->nmt == CO_NMT_STOPPED) return;
@@ -329,29 +307,6 @@ void co_node_process(co_node_t *node, const co_frame_t *frame, int64_t now_us)
     if (id == 0x600u + node->node_id) co_sdo_server_process(&node->sdo, frame, node->now_us);
 }
 
-static void hb_check_consumers(co_node_t *node, int64_t now_us)
-{
-    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
-        co_hb_consumer_t *c = &node->hb[i];
-        if (!c->active || c->timed_out || !c->seen) continue; /* monitoring starts at the first heartbeat */
-        if (now_us - c->last_us > (int64_t)c->time_ms * 1000) {
-            c->timed_out = true;
-            uint8_t msef[5] = {c->node_id, 0, 0, 0, 0};
-            co_emcy_report_error(&node->emcy, CO_EMCY_HEARTBEAT, CO_ERR_REG_COMMUNICATION, msef);
-            if (node->hooks.on_hb_timeout) node->hooks.on_hb_timeout(node->user, node, c->node_id);
-        }
-    }
-}
-
-void co_node_excuse_us(co_node_t *node, int64_t stall_us)
-{
-    if (stall_us <= 0) return;
-    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
-        co_hb_consumer_t *c = &node->hb[i];
-        if (c->active && c->seen && !c->timed_out) c->last_us += stall_us;
-    }
-}
-
 void co_node_tick(co_node_t *node, int64_t now_us)
 {
     node->now_us = now_us;
@@ -363,7 +318,10 @@ void co_node_tick(co_node_t *node, int64_t now_us)
         node->hb_next_us += (int64_t)hb_ms * 1000;
         if (node->hb_next_us <= now_us) node->hb_next_us = now_us + (int64_t)hb_ms * 1000;
     }
-    hb_check_consumers(node, now_us);
+    uint32_t late = co_hb_check(node->hb, &node->emcy, now_us);
+    for (uint8_t i = 0; late != 0u && i < CO_HB_CONSUMERS; ++i)
+        if (((late >> i) & 1u) && node->hooks.on_hb_timeout)
+            node->hooks.on_hb_timeout(node->user, node, node->hb[i].node_id);
     if (node->sync_timer_enabled) {
         uint32_t period = node->c_cycle_us;
         if (period && now_us >= node->sync_next_us) {
@@ -381,6 +339,8 @@ void co_node_tick(co_node_t *node, int64_t now_us)
     }
 }
 
+void co_node_excuse_us(co_node_t *node, int64_t stall_us) { co_hb_excuse(node->hb, stall_us); }
+
 int64_t co_node_next_event_us(const co_node_t *node, int64_t now_us, int64_t max_us)
 {
     int64_t next = now_us + max_us;
@@ -388,13 +348,7 @@ int64_t co_node_next_event_us(const co_node_t *node, int64_t now_us, int64_t max
     if (node->sync_timer_enabled && node->c_cycle_us && node->sync_next_us < next) next = node->sync_next_us;
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) next = co_tpdo_next_event(&node->tpdo[i], next);
     next = co_sdo_server_next_event(&node->sdo, next);
-    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
-        const co_hb_consumer_t *c = &node->hb[i];
-        if (c->active && !c->timed_out && c->seen) {
-            int64_t to = c->last_us + (int64_t)c->time_ms * 1000 + 1;
-            if (to < next) next = to;
-        }
-    }
+    next = co_hb_next_event(node->hb, next);
     int64_t d = next - now_us;
     return d < 0 ? 0 : d;
 }

@@ -18,13 +18,13 @@
 #include "co_bindings.h"
 #include "co_emcy.h"
 #include "co_frame.h"
+#include "co_hb.h"
 #include "co_od.h"
 #include "co_pdo.h"
 #include "co_sdo_server.h"
 #include "co_tx.h"
 
 #define CO_NUM_PDO 4u
-#define CO_HB_CONSUMERS 4u
 
 typedef enum {
     CO_NMT_INITIALIZING = 0x00,
@@ -63,16 +63,6 @@ typedef struct {
     /* A monitored node's heartbeat was not seen in time. */
     void (*on_hb_timeout)(void *user, co_node_t *node, uint8_t node_id);
 } co_hooks_t;
-
-typedef struct {
-    uint8_t node_id;
-    uint16_t time_ms;
-    bool active;
-    bool timed_out;
-    bool seen;
-    int64_t last_us;
-    uint8_t state;
-} co_hb_consumer_t;
 
 struct co_node {
     const co_od_t *od;

@@ -1,12 +1,10 @@
-/* co_pdo.c - PDOs (CiA 301 7.2.2): mapping from the OD, synchronous (1-240, and
- * acyclic 0) and event-driven (254/255) transmission with inhibit and event
- * timers, RPDO deadline monitoring, synchronous RPDOs actuated at the next SYNC,
- * and the re-mapping procedure by SDO with its abort codes.
- * SYNC start value (TPDO sub 6, types 1-240; CiA 301 7.5.2.37): with a SYNC counter
- * (0x1019 >= 2) and a start value S != 0, the first PDO goes out at the SYNC whose
- * counter is S, then every transmission type-th SYNC (S + n, S + 2n, ...: as CANopenNode's
- * CO_TPDO_process); without a counter S is ignored.  Start value 0: the first PDO at the
- * n-th SYNC.  Sub 6 may be written only while the PDO is not valid. */
+/* co_pdo.c - PDOs (CiA 301 7.2.2): mapping from the OD, synchronous (1-240, and acyclic 0) and event-driven
+ * (254/255) transmission with inhibit and event timers, RPDO deadline monitoring, synchronous RPDOs actuated at the
+ * next SYNC, the re-mapping procedure by SDO with its abort codes, and CAN FD frames (co_fd.h, 0x2105).
+ * SYNC start value (TPDO sub 6, types 1-240; CiA 301 7.5.2.37): with a SYNC counter (0x1019 >= 2) and a start value
+ * S != 0, the first PDO goes out at the SYNC whose counter is S, then every transmission type-th SYNC (S + n,
+ * S + 2n, ...: as CANopenNode's CO_TPDO_process); without a counter S is ignored.  Start value 0: the first PDO at
+ * the n-th SYNC.  Sub 6 may be written only while the PDO is not valid. */
 #include "co_pdo.h"
 
 #include <string.h>
@@ -50,6 +48,10 @@ void co_pdo_bind(co_pdo_t *p)
         ++p->n_refresh;
     }
 }
+
+static uint8_t pdo_flags(const co_pdo_t *p) { return co_fd_flags(&p->link.env->fd, p->link.is_tpdo, p->link.number); }
+
+uint8_t co_pdo_max_bytes(const co_pdo_t *p) { return pdo_flags(p) ? (uint8_t)CO_FRAME_MAX_DATA : 8u; }
 
 bool co_pdo_maps(const co_pdo_t *p, uint16_t index)
 {
@@ -112,7 +114,7 @@ void co_pdo_configure(co_pdo_t *p)
         p->entry[i] = e;
         bytes += co_dt_size(e->datatype);
     }
-    if (bytes > 8u) {
+    if (bytes > co_pdo_max_bytes(p)) { /* mapped for CAN FD, and the node went back to classic frames */
         count = 0;
         bytes = 0;
     }
@@ -183,7 +185,7 @@ static uint32_t check_map_write(const co_pdo_t *p, const co_od_entry_t *e, const
             if (a) return a == CO_ABORT_NO_SUB ? CO_ABORT_NO_OBJECT : a;
             bytes += co_dt_size(m->datatype);
         }
-        if (bytes > 8u) return CO_ABORT_MAP_LEN;
+        if (bytes > co_pdo_max_bytes(p)) return CO_ABORT_MAP_LEN;
         return 0;
     }
     if (count != 0u) return CO_ABORT_UNSUPPORTED; /* step b) not done */
@@ -268,7 +270,8 @@ void co_rpdo_receive(co_pdo_t *p, const co_frame_t *frame, int64_t now_us)
         }
         return; /* not processed (CiA 301) */
     }
-    if (frame->dlc > p->bytes && !p->length_reported) {
+    uint8_t wire = (frame->flags & CO_FRAME_FDF) ? co_frame_fd_len(p->bytes) : p->bytes; /* CAN FD: padded */
+    if (frame->dlc > wire && !p->length_reported) {
         co_emcy_report_error(emcy, CO_EMCY_PDO_LENGTH_EXCEEDED, CO_ERR_REG_COMMUNICATION, msef);
         p->length_reported = true;
     }
@@ -314,7 +317,8 @@ static int tpdo_send(co_pdo_t *p, bool operational, int64_t now_us)
     const co_pdo_env_t *env = p->link.env;
     if (!p->valid || !operational) return -1;
     for (uint8_t r = 0; r < p->n_refresh; ++r) p->refresh[r]->read(p->refresh[r]->object, p->refresh_entry[r]);
-    uint8_t d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    uint8_t d[CO_FRAME_MAX_DATA];
+    memset(d, 0, 8);
     uint8_t off = 0;
     if (p->block != NULL) {
         copy_bytes(d, p->block, p->bytes);
@@ -331,7 +335,7 @@ static int tpdo_send(co_pdo_t *p, bool operational, int64_t now_us)
     p->pending = false;
     p->last_tx_us = now_us;
     p->next_event_us = (p->trans_type >= 254u && p->event_ms) ? now_us + (int64_t)p->event_ms * 1000 : 0;
-    return co_tx_send(env->tx, p->cob_id, d, p->bytes);
+    return co_tx_send_fd(env->tx, p->cob_id, d, p->bytes, pdo_flags(p));
 }
 
 static bool inhibit_elapsed(const co_pdo_t *p, int64_t now_us)

@@ -13,6 +13,7 @@
 #include <stdint.h>
 
 #include "co_emcy.h"
+#include "co_fd.h"
 #include "co_frame.h"
 #include "co_od.h"
 #include "co_tx.h"
@@ -29,6 +30,7 @@ typedef struct {
     void (*on_rpdo)(void *ctx, uint8_t pdo);           /* an RPDO wrote the OD */
     void (*on_rpdo_rx)(void *ctx, uint8_t pdo);        /* an RPDO frame was accepted (each one, when it came) */
     void *ctx;
+    co_fd_t fd; /* the node's CAN FD PDOs (0x2105): a CAN FD PDO maps up to CO_FRAME_MAX_DATA bytes */
 } co_pdo_env_t;
 
 /* Where a PDO sits; kept when it is re-configured. */
@@ -75,7 +77,7 @@ typedef struct {
     int64_t last_tx_us;
     int64_t next_event_us;
     /* RPDO */
-    uint8_t rx_buf[8];
+    uint8_t rx_buf[CO_FRAME_MAX_DATA];
     bool rx_buffered; /* synchronous RPDO waiting for the next SYNC */
     int64_t last_rx_us;
     bool deadline_armed;
@@ -94,6 +96,9 @@ void co_pdo_configure(co_pdo_t *p);
 void co_pdo_bind(co_pdo_t *p);
 
 /* Does this PDO map an entry of object `index`? */
+/* The most bytes this PDO may map: 8, or CO_FRAME_MAX_DATA when it travels in CAN FD frames (0x2105). */
+uint8_t co_pdo_max_bytes(const co_pdo_t *p);
+
 bool co_pdo_maps(const co_pdo_t *p, uint16_t index);
 /* Whether the PDO maps this entry (index and sub-index). */
 bool co_pdo_maps_entry(const co_pdo_t *p, uint16_t index, uint8_t subindex);

@@ -20,5 +20,8 @@ void co_tx_init(co_tx_t *tx, co_tx_fn fn, void *user);
 
 /* Send an 11-bit frame of dlc bytes; returns the driver's result (0 = queued). */
 int co_tx_send(co_tx_t *tx, uint16_t cob_id, const uint8_t *data, uint8_t dlc);
+/* The same with the frame's flags (CO_FRAME_FDF, CO_FRAME_BRS): more than 8 bytes need CO_FRAME_FDF and go out
+ * padded with zeros to the next CAN FD length (co_frame_fd_len); a length the frame cannot hold is refused. */
+int co_tx_send_fd(co_tx_t *tx, uint16_t cob_id, const uint8_t *data, uint8_t dlc, uint8_t flags);
 
 #endif /* CO_TX_H */

@@ -161,6 +161,9 @@ static const od_drive_ram_t defaults = {
     .mfr.x2104_measurement_coding.highest_sub_index_supported = 0x2u,
     .mfr.x2104_measurement_coding.current_lsb_A = 0.0010000000474974513f,
     .mfr.x2104_measurement_coding.angle_counts = 0x10000u,
+    .mfr.x2105_can_fd.highest_sub_index_supported = 0x2u,
+    .mfr.x2105_can_fd.pdo_frame_format = 0x0u,
+    .mfr.x2105_can_fd.classic_tpdos = 0x0u,
     .mfr.x2200_Controller.highest_sub_index_supported = 0xCu,
     .mfr.x2200_Controller.controller = 0x2u,
     .mfr.x2200_Controller.Ts_s = 5.500000042957254e-05f,
@@ -484,6 +487,9 @@ static const co_od_entry_t entries[] = {
     {0x2104u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2104_measurement_coding.highest_sub_index_supported), &OD_DRIVE.mfr.x2104_measurement_coding.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2104u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2104_measurement_coding.current_lsb_A), &OD_DRIVE.mfr.x2104_measurement_coding.current_lsb_A, {.f = 9.999999974752427e-07f}, {.f = 10.0f}}, /* current_lsb_A */
     {0x2104u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2104_measurement_coding.angle_counts), &OD_DRIVE.mfr.x2104_measurement_coding.angle_counts, {.i = 1}, {.i = 65536}}, /* angle_counts */
+    {0x2105u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2105_can_fd.highest_sub_index_supported), &OD_DRIVE.mfr.x2105_can_fd.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2105u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2105_can_fd.pdo_frame_format), &OD_DRIVE.mfr.x2105_can_fd.pdo_frame_format, {.i = 0}, {.i = 2}}, /* pdo_frame_format */
+    {0x2105u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2105_can_fd.classic_tpdos), &OD_DRIVE.mfr.x2105_can_fd.classic_tpdos, {.i = 0}, {.i = 15}}, /* classic_tpdos */
     {0x2200u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_DRIVE.mfr.x2200_Controller.highest_sub_index_supported), &OD_DRIVE.mfr.x2200_Controller.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2200u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.controller), &OD_DRIVE.mfr.x2200_Controller.controller, {.i = 0}, {.i = 5}}, /* controller */
     {0x2200u, 0x02u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_DRIVE.mfr.x2200_Controller.Ts_s), &OD_DRIVE.mfr.x2200_Controller.Ts_s, {.f = 9.999999974752427e-07f}, {.f = 0.10000000149011612f}}, /* Ts_s */

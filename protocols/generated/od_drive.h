@@ -256,6 +256,7 @@ typedef struct {
     od_drive_measurement_t x2100_Measurement;
     od_drive_voltage_command_t x2102_voltage_command;
     od_drive_measurement_coding_t x2104_measurement_coding;
+    od_drive_can_fd_t x2105_can_fd;
     od_drive_controller_t x2200_Controller;
     od_drive_references_t x2202_References;
     od_drive_outer_loops_t x2203_outer_loops;

@@ -187,6 +187,10 @@
 #define OD_DRIVE_MEASUREMENT_CODING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_MEASUREMENT_CODING_CURRENT_LSB_A_SUB 0x01u
 #define OD_DRIVE_MEASUREMENT_CODING_ANGLE_COUNTS_SUB 0x02u
+#define OD_DRIVE_CAN_FD_IDX 0x2105u
+#define OD_DRIVE_CAN_FD_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_DRIVE_CAN_FD_PDO_FRAME_FORMAT_SUB 0x01u
+#define OD_DRIVE_CAN_FD_CLASSIC_TPDOS_SUB 0x02u
 #define OD_DRIVE_CONTROLLER_IDX 0x2200u
 #define OD_DRIVE_CONTROLLER_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_DRIVE_CONTROLLER_CONTROLLER_SUB 0x01u
@@ -430,6 +434,22 @@ typedef struct {
 
 #define OD_DRIVE_MEASUREMENT_CODING_CURRENT_LSB_A_DEFAULT 0.0010000000474974513f
 #define OD_DRIVE_MEASUREMENT_CODING_ANGLE_COUNTS_DEFAULT 65536u
+
+/* 0x2105 CAN FD */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t pdo_frame_format;
+    uint8_t classic_tpdos;
+} od_drive_can_fd_t;
+
+
+/* 0x2105 CAN FD, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_DRIVE_CAN_FD_PARAMS(X) \
+    X(0x2105u, 0x01u, x2105_can_fd, pdo_frame_format, 0u) \
+    X(0x2105u, 0x02u, x2105_can_fd, classic_tpdos, 0u)
+
+#define OD_DRIVE_CAN_FD_PDO_FRAME_FORMAT_DEFAULT 0u
+#define OD_DRIVE_CAN_FD_CLASSIC_TPDOS_DEFAULT 0u
 
 /* 0x2200 Controller */
 typedef struct {
@@ -967,6 +987,13 @@ typedef struct {
 /* the machine models' own records ("Model <name>"): X(name, record type, record member, index, its
  * parameters' X-macro list) */
 #define OD_DRIVE_MODEL_RECORDS(X)
+
+/* 0x2105:01 CAN FD.pdo_frame_format */
+enum {
+    OD_DRIVE_PDO_FRAME_FORMAT_CLASSIC = 0,
+    OD_DRIVE_PDO_FRAME_FORMAT_FD = 1,
+    OD_DRIVE_PDO_FRAME_FORMAT_FD_BRS = 2
+};
 
 /* 0x2200:01 Controller.controller */
 enum {

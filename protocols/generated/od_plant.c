@@ -251,6 +251,9 @@ static const od_plant_ram_t defaults = {
     .mfr.x2104_measurement_coding.highest_sub_index_supported = 0x2u,
     .mfr.x2104_measurement_coding.current_lsb_A = 0.0010000000474974513f,
     .mfr.x2104_measurement_coding.angle_counts = 0x10000u,
+    .mfr.x2105_can_fd.highest_sub_index_supported = 0x2u,
+    .mfr.x2105_can_fd.pdo_frame_format = 0x0u,
+    .mfr.x2105_can_fd.classic_tpdos = 0x0u,
 };
 
 static const co_od_entry_t entries[] = {
@@ -504,6 +507,9 @@ static const co_od_entry_t entries[] = {
     {0x2104u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2104_measurement_coding.highest_sub_index_supported), &OD_PLANT.mfr.x2104_measurement_coding.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
     {0x2104u, 0x01u, CO_DT_REAL32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2104_measurement_coding.current_lsb_A), &OD_PLANT.mfr.x2104_measurement_coding.current_lsb_A, {.f = 9.999999974752427e-07f}, {.f = 10.0f}}, /* current_lsb_A */
     {0x2104u, 0x02u, CO_DT_UNSIGNED32, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2104_measurement_coding.angle_counts), &OD_PLANT.mfr.x2104_measurement_coding.angle_counts, {.i = 1}, {.i = 65536}}, /* angle_counts */
+    {0x2105u, 0x00u, CO_DT_UNSIGNED8, CO_ODF_READ, sizeof(OD_PLANT.mfr.x2105_can_fd.highest_sub_index_supported), &OD_PLANT.mfr.x2105_can_fd.highest_sub_index_supported, {.i = 0}, {.i = 0}}, /* Highest sub-index supported */
+    {0x2105u, 0x01u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2105_can_fd.pdo_frame_format), &OD_PLANT.mfr.x2105_can_fd.pdo_frame_format, {.i = 0}, {.i = 2}}, /* pdo_frame_format */
+    {0x2105u, 0x02u, CO_DT_UNSIGNED8, CO_ODF_READ | CO_ODF_WRITE | CO_ODF_LIMITS, sizeof(OD_PLANT.mfr.x2105_can_fd.classic_tpdos), &OD_PLANT.mfr.x2105_can_fd.classic_tpdos, {.i = 0}, {.i = 15}}, /* classic_tpdos */
 };
 
 const co_od_t od_plant = {entries, (uint16_t)(sizeof entries / sizeof entries[0]), &OD_PLANT, &defaults, sizeof(od_plant_comm_t), sizeof(od_plant_ram_t)};

@@ -267,6 +267,7 @@ typedef struct {
     od_plant_measurement_t x2100_Measurement;
     od_plant_voltage_command_t x2102_voltage_command;
     od_plant_measurement_coding_t x2104_measurement_coding;
+    od_plant_can_fd_t x2105_can_fd;
 } od_plant_mfr_t;
 
 /* The communication part comes first: a communication reset restores it alone. */

@@ -287,6 +287,10 @@
 #define OD_PLANT_MEASUREMENT_CODING_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
 #define OD_PLANT_MEASUREMENT_CODING_CURRENT_LSB_A_SUB 0x01u
 #define OD_PLANT_MEASUREMENT_CODING_ANGLE_COUNTS_SUB 0x02u
+#define OD_PLANT_CAN_FD_IDX 0x2105u
+#define OD_PLANT_CAN_FD_HIGHEST_SUB_INDEX_SUPPORTED_SUB 0x00u
+#define OD_PLANT_CAN_FD_PDO_FRAME_FORMAT_SUB 0x01u
+#define OD_PLANT_CAN_FD_CLASSIC_TPDOS_SUB 0x02u
 /* 0x2000 Motor model */
 typedef struct {
     uint8_t highest_sub_index_supported;
@@ -678,6 +682,22 @@ typedef struct {
 #define OD_PLANT_MEASUREMENT_CODING_CURRENT_LSB_A_DEFAULT 0.0010000000474974513f
 #define OD_PLANT_MEASUREMENT_CODING_ANGLE_COUNTS_DEFAULT 65536u
 
+/* 0x2105 CAN FD */
+typedef struct {
+    uint8_t highest_sub_index_supported;
+    uint8_t pdo_frame_format;
+    uint8_t classic_tpdos;
+} od_plant_can_fd_t;
+
+
+/* 0x2105 CAN FD, parameters: X(index, subindex, record, field, EDS default) */
+#define OD_PLANT_CAN_FD_PARAMS(X) \
+    X(0x2105u, 0x01u, x2105_can_fd, pdo_frame_format, 0u) \
+    X(0x2105u, 0x02u, x2105_can_fd, classic_tpdos, 0u)
+
+#define OD_PLANT_CAN_FD_PDO_FRAME_FORMAT_DEFAULT 0u
+#define OD_PLANT_CAN_FD_CLASSIC_TPDOS_DEFAULT 0u
+
 /* the machine models' own records ("Model <name>"): X(name, record type, record member, index, its
  * parameters' X-macro list) */
 #define OD_PLANT_MODEL_RECORDS(X) \
@@ -727,6 +747,13 @@ enum {
 enum {
     OD_PLANT_PERIOD_MARK_SYNC = 0,
     OD_PLANT_PERIOD_MARK_MEASUREMENT = 1
+};
+
+/* 0x2105:01 CAN FD.pdo_frame_format */
+enum {
+    OD_PLANT_PDO_FRAME_FORMAT_CLASSIC = 0,
+    OD_PLANT_PDO_FRAME_FORMAT_FD = 1,
+    OD_PLANT_PDO_FRAME_FORMAT_FD_BRS = 2
 };
 
 /* 0x2100:05 Measurement.status bits (BitNames of plant.eds) */

@@ -2,6 +2,7 @@
 #include "co_socketcan.h"
 
 #include <errno.h>
+#include <stdbool.h>
 #include <linux/can.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
@@ -39,6 +40,9 @@ int co_socketcan_open(const char *ifname, int rcvbuf_bytes)
     }
     int one = 1;
     (void)setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &one, sizeof one);
+    /* CAN FD frames in and out where the link carries them (MTU 72): a node whose PDOs are classic still gets
+     * them (a classic-only link never has any). */
+    (void)setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &one, sizeof one);
     struct sockaddr_can addr;
     memset(&addr, 0, sizeof addr);
     addr.can_family = AF_CAN;
@@ -54,22 +58,38 @@ int co_socketcan_open(const char *ifname, int rcvbuf_bytes)
 int co_socketcan_send(void *user, const co_frame_t *frame)
 {
     int fd = *(const int *)user;
-    struct can_frame cf;
+    struct canfd_frame cf; /* a classic frame is its first CAN_MTU bytes (struct can_frame's layout) */
     memset(&cf, 0, sizeof cf);
     cf.can_id = frame->cob_id & CAN_SFF_MASK;
     if (frame->cob_id & CO_FRAME_RTR) cf.can_id |= CAN_RTR_FLAG;
-    cf.can_dlc = frame->dlc > 8 ? 8 : frame->dlc;
-    memcpy(cf.data, frame->data, cf.can_dlc);
+    bool fd_frame = (frame->flags & CO_FRAME_FDF) != 0u;
+    size_t size = fd_frame ? CANFD_MTU : CAN_MTU;
+    cf.len = frame->dlc > (fd_frame ? CANFD_MAX_DLEN : CAN_MAX_DLEN) ? (fd_frame ? CANFD_MAX_DLEN : CAN_MAX_DLEN)
+                                                                     : frame->dlc;
+    if (fd_frame) {
+        cf.flags = (frame->flags & CO_FRAME_BRS) ? CANFD_BRS : 0;
+#ifdef CANFD_FDF
+        cf.flags |= CANFD_FDF;
+#endif
+    }
+    memcpy(cf.data, frame->data, cf.len);
     for (int tries = 0; tries < 1000; ++tries) {
-        ssize_t n = write(fd, &cf, sizeof cf);
-        if (n == (ssize_t)sizeof cf) return 0;
+        ssize_t n = write(fd, &cf, size);
+        if (n == (ssize_t)size) return 0;
         if (n < 0 && (errno == ENOBUFS || errno == EAGAIN)) {
             /* Transmit queue full: back off briefly, as a CAN controller would wait for a free mailbox. */
             struct timespec ts = {0, 20000};
             nanosleep(&ts, NULL);
             continue;
         }
-        fprintf(stderr, "CAN write: %s\n", strerror(errno));
+        if (n < 0 && errno == EINVAL && fd_frame)
+            fprintf(stderr,
+                    "CAN write: a CAN FD frame (0x%03X, %u bytes) on a link that carries classic frames only "
+                    "(MTU 16): `ip link set IF mtu 72` for a vcan, `ip link set IF type can bitrate B dbitrate D "
+                    "fd on` for an adapter\n",
+                    (unsigned)(frame->cob_id & CAN_SFF_MASK), (unsigned)cf.len);
+        else
+            fprintf(stderr, "CAN write: %s\n", strerror(errno));
         return -1;
     }
     fprintf(stderr, "CAN write: transmit queue stayed full\n");
@@ -78,7 +98,7 @@ int co_socketcan_send(void *user, const co_frame_t *frame)
 
 int co_socketcan_recv(int fd, co_frame_t *frame, int64_t timeout_us, int64_t *ts_ns)
 {
-    struct can_frame cf;
+    struct canfd_frame cf; /* a classic frame fills its first CAN_MTU bytes */
     char ctrl[CMSG_SPACE(sizeof(struct timeval))];
     struct iovec iov = {.iov_base = &cf, .iov_len = sizeof cf};
     struct msghdr msg;
@@ -102,12 +122,15 @@ int co_socketcan_recv(int fd, co_frame_t *frame, int64_t timeout_us, int64_t *ts
         n = recvmsg(fd, &msg, MSG_DONTWAIT);
         if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) return 0;
     }
-    if (n < (ssize_t)sizeof cf) return n < 0 && errno == EINTR ? 0 : -1;
+    if (n != (ssize_t)CAN_MTU && n != (ssize_t)CANFD_MTU) return n < 0 && errno == EINTR ? 0 : -1;
     if (cf.can_id & (CAN_ERR_FLAG | CAN_EFF_FLAG)) return 0; /* only 11-bit CANopen frames */
+    bool fd_frame = n == (ssize_t)CANFD_MTU;
+    uint8_t max = fd_frame ? (uint8_t)CO_FRAME_MAX_DATA : 8u;
     frame->cob_id = cf.can_id & CAN_SFF_MASK;
     if (cf.can_id & CAN_RTR_FLAG) frame->cob_id |= CO_FRAME_RTR;
-    frame->dlc = cf.can_dlc > 8 ? 8 : cf.can_dlc;
-    memset(frame->data, 0, sizeof frame->data);
+    frame->dlc = cf.len > max ? max : cf.len;
+    frame->flags = fd_frame ? (uint8_t)(CO_FRAME_FDF | ((cf.flags & CANFD_BRS) ? CO_FRAME_BRS : 0u)) : 0u;
+    memset(frame->data, 0, 8);
     memcpy(frame->data, cf.data, frame->dlc);
     if (ts_ns) {
         *ts_ns = 0;

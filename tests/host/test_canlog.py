@@ -15,8 +15,8 @@ import can
 import numpy as np
 import pytest
 
-from bench.run.bus.frames import FRAME_DTYPE
-from bench.run.record import canlog
+from bench.run.bus.frames import FRAME_DTYPE, join
+from bench.run.record import canlog, messages
 from bench.run.record.canlog import LOG_FORMATS, CandumpWriter, export, read_frames
 
 LINE_RE = re.compile(rb"^\(\d{10}\.\d{6}\) vcan0 [0-9A-F]{3}#(?:[0-9A-F]{2}){0,8}$")
@@ -207,7 +207,7 @@ def test_python_can_writer_log_parses_the_same(tmp_path: Path) -> None:
     frames = absolute(random_frames(1000, seed=2), t0_now())
     path = tmp_path / "pycan.log"
     with can.Logger(str(path)) as logger:
-        for i, m in enumerate(canlog._to_messages(frames)):
+        for i, m in enumerate(messages.to_messages(frames)):
             m.is_rx = i % 3 != 0
             logger.on_message_received(m)
     assert b" T\n" in path.read_bytes() and b" R\n" in path.read_bytes()
@@ -284,11 +284,12 @@ MIXED = """\
 """
 MIXED_VALID = [
     (1700000000_000001, 0x123, b"\x11\x22"),
+    (1700000000_000006, 0x123, bytes.fromhex("112233445566778899AABBCC")),  # CAN FD, 12 bytes: a frame of ours
     (1700000000_000007, 0x1FF, b"\xaa\xbb"),
     (1700000000_000008, 0x124, b""),
     (1700000000_000009, 0x7FF, bytes(range(1, 9))),
 ]
-MIXED_SKIPPED = 5  # extended, error, 2 remote, FD of 12 bytes
+MIXED_SKIPPED = 4  # extended, error, 2 remote
 
 
 def check_valid(arr: np.ndarray, expect: list[tuple[int, int, bytes]]) -> None:
@@ -296,15 +297,15 @@ def check_valid(arr: np.ndarray, expect: list[tuple[int, int, bytes]]) -> None:
 
 
 def test_skipped_like_python_can(tmp_path: Path) -> None:
-    """Frames that are not 11-bit data frames of <= 8 bytes are skipped and counted, the same by the
-    C parser (.log) and through python-can (the same file gzipped: .log.gz goes through can.LogReader)."""
+    """Frames that are not 11-bit data frames (classic of <= 8 bytes, CAN FD of <= 64) are skipped and counted, the
+    same by the C parser (.log) and through python-can (the same file gzipped: .log.gz goes through can.LogReader)."""
     path = tmp_path / "mixed.log"
     path.write_text(MIXED)
     gz = tmp_path / "mixed.log.gz"
     gz.write_bytes(gzip.compress(MIXED.encode()))
     for p in (path, gz):
         it = read_frames(p, chunk_frames=3)
-        check_valid(np.concatenate(list(it)), MIXED_VALID)
+        check_valid(join(list(it)), MIXED_VALID)
         assert it.skipped == MIXED_SKIPPED, p
 
 

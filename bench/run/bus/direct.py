@@ -15,7 +15,7 @@ import numpy as np
 
 from bench.eds import default_node_id
 from bench.paths import BUILD
-from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE, FRAME_FD_DTYPE, frame_dtype
 
 
 class _Frame(ctypes.Structure):
@@ -74,6 +74,7 @@ def _lib() -> ctypes.CDLL:
     lib.hil_run.argtypes = [ctypes.c_uint32]
     lib.hil_run.restype = ctypes.c_uint32
     lib.hil_set_recorder.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+    lib.hil_set_recorder_fd.argtypes = [ctypes.c_int]
     lib.hil_recorded.restype = ctypes.c_uint32
     lib.hil_record_dropped.restype = ctypes.c_uint64
     lib.hil_now_us.restype = ctypes.c_int64
@@ -103,6 +104,7 @@ def _lib() -> ctypes.CDLL:
     lib.hil_probe_floor.argtypes = [ctypes.c_uint32, ctypes.c_uint32, ctypes.POINTER(ctypes.c_float)]
     lib.hil_probe_floor.restype = ctypes.c_int32
     assert lib.hil_frame_size() == FRAME_DTYPE.itemsize
+    assert lib.hil_frame_fd_size() == FRAME_FD_DTYPE.itemsize
     assert lib.hil_fault_event_size() == ctypes.sizeof(FaultEvent)
     return lib
 
@@ -161,17 +163,19 @@ class Hil:
         with self._lock:
             return f if self.lib.hil_recv(ctypes.byref(f)) else None
 
-    def start_recorder(self, capacity: int) -> None:
-        """Every frame on the in-process bus goes into a buffer of `capacity` frames, emptied by `take`."""
-        self._rec = np.empty(capacity, dtype=FRAME_DTYPE)  # written frame by frame: never read unwritten
+    def start_recorder(self, capacity: int, fd: bool = False) -> None:
+        """Every frame on the in-process bus goes into a buffer of `capacity` frames, emptied by `take`; `fd`: in
+        the wide record (FRAME_FD_DTYPE) of a run whose PDOs are CAN FD frames."""
+        self._rec = np.empty(capacity, dtype=frame_dtype(fd))  # written frame by frame: never read unwritten
         with self._lock:
+            self.lib.hil_set_recorder_fd(int(fd))
             self.lib.hil_set_recorder(self._rec.ctypes.data, capacity)
 
     def take(self) -> np.ndarray:
         """The frames recorded since the last call. The recorder moves on to a fresh buffer (no copy), in one
         step in C (in real time the nodes' threads record meanwhile)."""
         assert self._rec is not None
-        fresh = np.empty(len(self._rec), dtype=FRAME_DTYPE)
+        fresh = np.empty(len(self._rec), dtype=self._rec.dtype)
         with self._lock:
             if self.lib.hil_record_dropped():
                 raise RuntimeError(

@@ -154,7 +154,7 @@ def _guest_script(
         )
     for name in interfaces:
         up.append(
-            f"ip link add dev {name} type vcan && ip link set {name} txqueuelen 4000 && "
+            f"ip link add dev {name} type vcan && ip link set {name} mtu 72 txqueuelen 4000 && "
             f"ip link set up {name} || {{ echo 'bench vm: cannot create {name}' >&2; "
             f"echo 91 > {status_file}; exit 91; }}"
         )

@@ -42,7 +42,7 @@ import numpy as np
 from canopen.nmt import NMT_COMMANDS
 
 from bench.eds import default_node_id
-from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE, fd_len, join
 from bench.run.decode.coding import decoded_names
 from bench.run.decode.counts import DecodeStats, PdoStats
 from bench.run.decode.layout import BusLayout, layout_from_sdo
@@ -204,7 +204,7 @@ class Decoder:
     def _feed(self, frames: np.ndarray, last: bool) -> dict[str, np.ndarray] | None:
         if len(frames) == 0:
             return None
-        buf = np.concatenate([self._carry, frames]) if len(self._carry) else frames
+        buf = join([self._carry, frames]) if len(self._carry) else frames
         new_from = len(self._carry)
         if self.layout is None:
             first = self._loop_start(buf)
@@ -255,7 +255,7 @@ class Decoder:
                 self._nmt_seen = True
                 self._nmt_started |= bool((nmt["data"][:, 0] == 0x01).any())
             if first == len(buf):
-                self._carry = np.zeros(0, dtype=FRAME_DTYPE)
+                self._carry = buf[:0]
                 return None
             mark, start, scan = period_mark(self.sdo, self.hil), first, first + 1  # not taken: the next segment's
             if not mark.is_sync and buf["cob_id"][first] == mark.cob_id:
@@ -286,7 +286,7 @@ class Decoder:
             # the loop ends with the command of its last period (what the plant waits for before it holds):
             # what follows is after the loop (a flood there is counted, and cannot change the verdict)
             last = int(np.flatnonzero(sync)[-1])
-            cmd_len = next(p.numpy_dtype().itemsize for p in self.layout.pdos if p.cob_id == self._cmd_cob)
+            cmd_len = next(fd_len(p.numpy_dtype().itemsize) for p in self.layout.pdos if p.cob_id == self._cmd_cob)
             cmd = np.flatnonzero((buf["cob_id"] == self._cmd_cob) & (buf["dlc"] == cmd_len))
             cmd = cmd[cmd > last]
             if len(cmd):
@@ -299,7 +299,7 @@ class Decoder:
                 buf, sync, steps = buf[:end], sync[:end], steps[:end]
         period_of = self._base + np.cumsum(steps) - 1
         stop = int(period_of[-1]) + 1
-        self._carry = np.zeros(0, dtype=FRAME_DTYPE)
+        self._carry = buf[:0]
         return self._make_rows(buf, period_of, sync, stop) if stop > self._emitted else None
 
     def _make_rows(self, buf: np.ndarray, period_of: np.ndarray, sync: np.ndarray, stop: int) -> dict[str, np.ndarray]:

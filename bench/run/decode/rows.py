@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.eds import bits
+from bench.run.bus.frames import fd_len
 from bench.run.decode.coding import decode_codes
 from bench.run.decode.counts import DecodeStats, PdoStats
 from bench.run.decode.layout import BusLayout, PdoLayout
@@ -108,7 +109,7 @@ class Rows:
             per = period_of[pos] + self.shift(pdo)
             ok = (per >= r0) & (per < r1)
             pos, per = pos[ok], per[ok]
-            odd = buf["dlc"][pos] != pdo.numpy_dtype().itemsize
+            odd = buf["dlc"][pos] != fd_len(pdo.numpy_dtype().itemsize)
             if odd.any():  # the nodes send a PDO at its mapped length: another length is a frame they did not send
                 st.interfere(cob_id, per[odd])
                 pos, per = pos[~odd], per[~odd]

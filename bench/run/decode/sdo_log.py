@@ -178,7 +178,7 @@ class SdoLog:
     def feed(self, frames: np.ndarray, periods: np.ndarray) -> None:
         """SDO frames (see `mask`) in bus order, with the number of SYNCs seen before each."""
         # plain Python values, not a numpy scalar per field (a few hundred frames a run, run after run in a sweep)
-        data = np.ascontiguousarray(frames["data"]).tobytes()
+        data = np.ascontiguousarray(frames["data"][:, :8]).tobytes()  # SDO: classic frames, also in a CAN FD run
         cobs, dlcs = frames["cob_id"].tolist(), frames["dlc"].tolist()
         for i, (cob, dlc, period) in enumerate(zip(cobs, dlcs, periods.tolist(), strict=True)):
             if dlc != 8:

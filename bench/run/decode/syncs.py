@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.run.bus.frames import fd_len
 from bench.run.decode.layout import BusLayout, layout_from_sdo
 from bench.run.decode.sdo_log import SdoLog
 from bench.scenario.frames import PERIOD_MARKS
@@ -66,7 +67,7 @@ def measurement_mark(layout: BusLayout) -> PeriodMark | None:
     if meas is None:
         return None
     pdo = next(p for p in layout.pdos if p.node == "plant" and p.cob_id == meas[0])
-    return PeriodMark(meas[0], meas[1], pdo.numpy_dtype().itemsize)
+    return PeriodMark(meas[0], meas[1], fd_len(pdo.numpy_dtype().itemsize))
 
 
 def period_mark(sdo: SdoLog, hil: bool) -> PeriodMark:

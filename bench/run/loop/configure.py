@@ -15,7 +15,15 @@ from bench.eds import eds_path, float_limits
 from bench.run.bus.kind import SettingRefused
 from bench.run.loop.reads import PLANT_VALUES
 from bench.scenario import Setting
-from bench.scenario.frames import CODING, COMPACT_MAP, PERIOD_MARKS, coding_for, coding_refusal
+from bench.scenario.frames import (
+    CAN_FD,
+    CODING,
+    COMPACT_MAP,
+    PERIOD_MARKS,
+    SINGLE_FRAME_MAP,
+    coding_for,
+    coding_refusal,
+)
 
 if TYPE_CHECKING:
     from bench.run.options import RunOptions
@@ -229,6 +237,34 @@ class Configurator:
             )
             self._write(node.sdo["Producer heartbeat time"], hb, "producer heartbeat time")
 
+    def wire_can_fd(self) -> None:
+        """[frames] can = "fd": both nodes' PDOs in CAN FD frames (0x2105:01, with or without the bit-rate switch),
+        before any PDO is mapped beyond 8 bytes; the plant's hold announcement stays classic (0x2105:02) so that a
+        master behind a classic-only link (the CAN box's SLCAN bridge) hears it."""
+        fmt = 2 if self.sc.frames.bit_rate_switch else 1
+        for node in (self.plant, self.drive):
+            self._write(node.sdo[CAN_FD]["pdo_frame_format"], fmt, "frames.can")
+        self._write(self.plant.sdo[CAN_FD]["classic_tpdos"], 1 << (HOLD_TPDO - 1), "frames.can (hold announcement)")
+
+    def wire_single_frame(self) -> None:
+        """[frames] measurement = "single_frame": the measurement's REAL32 values in one CAN FD frame, the plant's
+        TPDO1 to the drive's RPDO1; TPDO2 and RPDO2 off."""
+        self._map_measurement(SINGLE_FRAME_MAP)
+
+    def _map_measurement(self, mapping: tuple[tuple[str, str], ...]) -> None:
+        plant, drive = self.plant, self.drive
+        for m, cob in ((plant.tpdo[1], None), (drive.rpdo[1], plant.tpdo[1].cob_id)):
+            m.clear()
+            for obj, name in mapping:
+                m.add_variable(obj, name)
+            if cob is not None:
+                m.cob_id = cob
+            m.enabled = True
+            m.save()
+        for m in (plant.tpdo[2], drive.rpdo[2]):
+            m.enabled = False
+            m.save()
+
     def wire_compact(self) -> None:
         """[frames] measurement = "compact" (bench/scenario/frames.py): the coding into both nodes' 0x2104, the
         measurement in the plant's TPDO1 and the drive's RPDO1, the plant's TPDO2 and the drive's RPDO2 off."""
@@ -248,20 +284,7 @@ class Configurator:
             coding = node.sdo[CODING]
             self._write(coding["current_lsb_A"], lsb, "frames.current_lsb_A")
             self._write(coding["angle_counts"], counts, "frames.angle_counts")
-        for m, cob in ((plant.tpdo[1], None), (drive.rpdo[1], plant.tpdo[1].cob_id)):
-            m.clear()
-            for obj, name in COMPACT_MAP:
-                m.add_variable(obj, name)
-            if cob is not None:
-                m.cob_id = cob
-            m.enabled = True
-            m.save()
-        for m in (plant.tpdo[2], drive.rpdo[2]):
-            m.enabled = False
-            m.save()
-        if self.sc.frames.sync_less:
-            mark = PERIOD_MARKS.index("measurement")
-            self._write(plant.sdo["Run control"]["period_mark"], mark, "frames.period_mark")
+        self._map_measurement(COMPACT_MAP)
 
     def wire_pdos(self) -> None:
         """Link the plant's measurement TPDOs to the drive's RPDOs and the drive's command
@@ -277,14 +300,21 @@ class Configurator:
         plant.tpdo[HOLD_TPDO].read(from_od=from_od)
         for num in self.sc.trace:
             drive.tpdo[num].read(from_od=from_od)
+        if self.sc.frames.fd:
+            self.wire_can_fd()
         if self.sc.frames.compact:
             self.wire_compact()
+        elif self.sc.frames.measurement == "single_frame":
+            self.wire_single_frame()
         else:
             for num in (1, 2):
                 m = drive.rpdo[num]
                 m.cob_id = plant.tpdo[num].cob_id
                 m.enabled = True
                 m.save()
+        if self.sc.frames.sync_less:
+            mark = PERIOD_MARKS.index("measurement")
+            self._write(plant.sdo["Run control"]["period_mark"], mark, "frames.period_mark")
         m = plant.rpdo[1]
         m.cob_id = drive.tpdo[1].cob_id
         m.enabled = True

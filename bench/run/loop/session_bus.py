@@ -67,6 +67,26 @@ class SessionBus:
             return
         infos = self.kind.prepare_links(self.box, self.opts.bitrate)
         self.links.update({name: {"before": info} for name, info in infos.items()})
+        if self.sc.frames.fd:
+            self._check_fd_links(infos)
+
+    def _check_fd_links(self, infos: dict[str, dict[str, Any] | None]) -> None:
+        """A scenario with CAN FD PDOs (frames.can = "fd") needs links that carry CAN FD frames (MTU 72): refused
+        before the nodes start, naming the link and how to set it."""
+        for name, info in infos.items():
+            mtu = None if info is None else info.get("mtu")
+            if mtu is not None and int(mtu) < 72:
+                fix = (
+                    "`bench box down`: the next run boots the CAN box with CAN FD links"
+                    if self.box is not None
+                    else f"`ip link set {name} mtu 72` (vcan)"
+                    if (info or {}).get("kind") == "vcan"
+                    else f"`ip link set {name} down && ip link set {name} type can bitrate B dbitrate D fd on && "
+                    f"ip link set {name} up`"
+                )
+                raise SettingRefused(
+                    f"frames.can = 'fd': {name} carries classic CAN frames only (MTU {mtu}); CAN FD needs MTU 72: {fix}"
+                )
 
     def _open_bus(self) -> None:
         """Over SocketCAN (or another python-can interface): the node processes (or the MCU image's serial
@@ -78,6 +98,12 @@ class SessionBus:
 
         drive_bus = self.kind.drive_bus
         self._check_node_faults()
+        if self.sc.frames.fd and self.opts.start_drive and self.opts.drive == "mcu":
+            raise SettingRefused(
+                "frames.can = 'fd': the Cortex-M4F image (--drive mcu) keeps classic CAN frames (its frames hold 8 "
+                "bytes and its link is SLCAN, a classic protocol): run it with frames.can = 'classic'"
+            )
+        self.opts.fd = self.opts.fd or self.sc.frames.fd  # a python-can adapter's bus opened for CAN FD frames
         self.prepare_links()
         if self.opts.start_plant:
             # real time on this host's SocketCAN: the plant's CPU kept out of its halt (issue 40; hold_plant_cpu

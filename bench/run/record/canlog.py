@@ -29,7 +29,8 @@ import can
 import numpy as np
 
 from bench.paths import BUILD
-from bench.run.bus.frames import FRAME_DTYPE
+from bench.run.bus.frames import FRAME_DTYPE, FRAME_FD_DTYPE, frame_dtype, is_fd
+from bench.run.record.messages import ours, to_frames, to_messages
 
 LOG_FORMATS = ("log", "asc", "blf")
 
@@ -89,6 +90,14 @@ def _hil() -> ctypes.CDLL:
             ctypes.POINTER(_LogCounts),
         ]
         lib.hil_log_parse_counted.restype = ctypes.c_uint32
+        lib.hil_log_line_max_fd.argtypes = lib.hil_log_line_max.argtypes
+        lib.hil_log_line_max_fd.restype = ctypes.c_uint64
+        lib.hil_log_format_fd.argtypes = lib.hil_log_format.argtypes
+        lib.hil_log_format_fd.restype = ctypes.c_uint64
+        lib.hil_log_parse_fd.argtypes = lib.hil_log_parse.argtypes
+        lib.hil_log_parse_fd.restype = ctypes.c_uint32
+        lib.hil_log_parse_counted_fd.argtypes = lib.hil_log_parse_counted.argtypes
+        lib.hil_log_parse_counted_fd.restype = ctypes.c_uint32
         _lib = lib
     return _lib
 
@@ -118,13 +127,17 @@ class CandumpWriter:
     def write(self, frames: np.ndarray) -> None:
         if self._fh is None:
             raise ValueError(f"{self.path}: writer is closed")
-        if frames.dtype != FRAME_DTYPE:
-            raise TypeError(f"frames must have FRAME_DTYPE, not {frames.dtype}")
+        if frames.dtype not in (FRAME_DTYPE, FRAME_FD_DTYPE):
+            raise TypeError(f"frames must have FRAME_DTYPE or FRAME_FD_DTYPE, not {frames.dtype}")
+        fd = is_fd(frames)
+        fmt = self._lib.hil_log_format_fd if fd else self._lib.hil_log_format
+        if fd and len(self._buf) < _WRITE_BATCH * int(self._lib.hil_log_line_max_fd(self._channel)):
+            self._buf = np.empty(_WRITE_BATCH * int(self._lib.hil_log_line_max_fd(self._channel)), dtype=np.uint8)
         arr = np.ascontiguousarray(frames.reshape(-1))
         buf_addr, cap = self._buf.ctypes.data, self._buf.nbytes
         for start in range(0, len(arr), _WRITE_BATCH):
             part = arr[start : start + _WRITE_BATCH]
-            n = int(self._lib.hil_log_format(part.ctypes.data, len(part), self.t0_us, self._channel, buf_addr, cap))
+            n = int(fmt(part.ctypes.data, len(part), self.t0_us, self._channel, buf_addr, cap))
             if n == 0:
                 raise RuntimeError("hil_log_format: buffer too small (line_max out of step with hil_log.c?)")
             self._fh.write(memoryview(self._buf)[:n])
@@ -234,15 +247,22 @@ class LogFrames(Iterator[np.ndarray]):
         have = pos = 0
         eof = discarding = cut = False
         consumed, counts = ctypes.c_uint64(), _LogCounts()
+        fd = False  # CAN FD lines seen: the wide record from then on (the chunks before stay classic)
         out = np.empty(self.chunk_frames, dtype=FRAME_DTYPE)
         filled = 0
         with open(self.path, "rb", buffering=0) as fh:
             while True:
+                if not fd and have > pos and _has_fd_line(buf[pos:have]):
+                    fd = True
+                    if filled:
+                        yield out[:filled].copy()
+                    out, filled = np.empty(self.chunk_frames, dtype=FRAME_FD_DTYPE), 0
+                parse = lib.hil_log_parse_counted_fd if fd else lib.hil_log_parse_counted
                 n = int(
-                    lib.hil_log_parse_counted(
+                    parse(
                         base + pos,
                         have - pos,
-                        out.ctypes.data + filled * FRAME_DTYPE.itemsize,
+                        out.ctypes.data + filled * out.dtype.itemsize,
                         self.chunk_frames - filled,
                         ctypes.byref(consumed),
                         ctypes.byref(counts),
@@ -253,7 +273,7 @@ class LogFrames(Iterator[np.ndarray]):
                 self._count(counts, cut)
                 if filled == self.chunk_frames:  # out full: more lines may wait in buf
                     yield out
-                    out = np.empty(self.chunk_frames, dtype=FRAME_DTYPE)
+                    out = np.empty(self.chunk_frames, dtype=out.dtype)
                     filled = 0
                     continue
                 # only a partial line (or nothing) is left: keep it, read more after it
@@ -298,30 +318,29 @@ class LogFrames(Iterator[np.ndarray]):
                 msgs = list(itertools.islice(it, self.chunk_frames))
                 if not msgs:
                     break
-                keep = [
-                    m
-                    for m in msgs
-                    if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame or len(m.data) > 8)
-                ]
+                keep = [m for m in msgs if ours(m)]
                 self.skipped += len(msgs) - len(keep)
                 self.extended += sum(
-                    1
-                    for m in msgs
-                    if m.is_extended_id and not (m.is_error_frame or m.is_remote_frame or len(m.data) > 8)
+                    1 for m in msgs if m.is_extended_id and not (m.is_error_frame or m.is_remote_frame)
                 )
                 if keep:
-                    yield _to_frames(keep)
+                    yield to_frames(keep)
+
+
+def _has_fd_line(block: np.ndarray) -> bool:
+    """Whether candump text holds a CAN FD line ("III##F...")."""
+    return bool(len(block) > 1 and ((block[:-1] == 0x23) & (block[1:] == 0x23)).any())
 
 
 def parse_candump(data: bytes) -> tuple[np.ndarray, int, int]:
     """The complete lines of candump log text: (frames, bytes used, lines skipped). What follows
     the last newline is left for the caller to pass again with more data (following a growing log)."""
     lib = _hil()
-    out = np.empty(max(1, data.count(b"\n")), dtype=FRAME_DTYPE)
+    fd = b"##" in data  # CAN FD lines: the wide record
+    out = np.empty(max(1, data.count(b"\n")), dtype=frame_dtype(fd))
     consumed, skipped = ctypes.c_uint64(), ctypes.c_uint64()
-    n = int(
-        lib.hil_log_parse(data, len(data), out.ctypes.data, len(out), ctypes.byref(consumed), ctypes.byref(skipped))
-    )
+    parse = lib.hil_log_parse_fd if fd else lib.hil_log_parse
+    n = int(parse(data, len(data), out.ctypes.data, len(out), ctypes.byref(consumed), ctypes.byref(skipped)))
     return out[:n], int(consumed.value), int(skipped.value)
 
 
@@ -329,30 +348,6 @@ def read_frames(path: Path, chunk_frames: int = 1 << 20) -> LogFrames:
     """The frames of any log (.log by hil_log_parse, others by can.LogReader) as FRAME_DTYPE chunks;
     the returned iterator's `.skipped` counts what was left out (see LogFrames)."""
     return LogFrames(path, chunk_frames)
-
-
-def _to_frames(msgs: list[can.Message]) -> np.ndarray:
-    """can.Messages (11-bit data frames of <= 8 bytes) -> FRAME_DTYPE, in their order, seq 0,
-    sender 255, t_us = round(timestamp * 1e6)."""
-    arr = np.zeros(len(msgs), dtype=FRAME_DTYPE)
-    arr["t_us"] = [round(m.timestamp * 1e6) for m in msgs]
-    arr["cob_id"] = [m.arbitration_id & 0x7FF for m in msgs]
-    arr["dlc"] = [len(m.data) for m in msgs]
-    arr["sender"] = 255
-    arr["data"] = np.frombuffer(b"".join(bytes(m.data).ljust(8, b"\0") for m in msgs), dtype=np.uint8).reshape(-1, 8)
-    return arr
-
-
-def _to_messages(frames: np.ndarray) -> list[can.Message]:
-    """FRAME_DTYPE -> can.Messages (timestamp = t_us / 1e6 s), for python-can's writers."""
-    ts, ids, dlcs = frames["t_us"].tolist(), frames["cob_id"].tolist(), frames["dlc"].tolist()
-    raw = np.ascontiguousarray(frames["data"]).tobytes()
-    return [
-        can.Message(
-            timestamp=t / 1e6, arbitration_id=i, is_extended_id=False, dlc=d, data=raw[8 * k : 8 * k + d], is_rx=True
-        )
-        for k, (t, i, d) in enumerate(zip(ts, ids, dlcs, strict=True))
-    ]
 
 
 def export(src: Path, dst: Path, progress: Callable[[int], None] | None = None) -> int:
@@ -373,7 +368,7 @@ def export(src: Path, dst: Path, progress: Callable[[int], None] | None = None) 
     logger = can.Logger(str(dst))
     try:
         for chunk in read_frames(src, chunk_frames=1 << 16):
-            for msg in _to_messages(chunk):
+            for msg in to_messages(chunk):
                 logger.on_message_received(msg)
             total += len(chunk)
             if progress is not None:

@@ -23,19 +23,23 @@ import can
 import numpy as np
 
 from bench.run.bus.direct import Hil
-from bench.run.bus.frames import empty
+from bench.run.bus.frames import empty, join
 from bench.run.bus.nodes import in_vm
-from bench.run.record.canlog import _to_frames, parse_candump
+from bench.run.record.canlog import parse_candump
+from bench.run.record.messages import ours, to_frames
 
 
 class DirectSource:
     """The in-process bus's recorder. `collect` runs on the loop's thread after each chunk (it waits
     while `max_waiting` chunks are not yet drained: bounded memory); `drain` on the decoding thread."""
 
-    def __init__(self, hil: Hil, chunk_periods: int, max_waiting: int = 2, min_frames: int = 0) -> None:
+    def __init__(
+        self, hil: Hil, chunk_periods: int, max_waiting: int = 2, min_frames: int = 0, fd: bool = False
+    ) -> None:
         self.hil = hil
-        # Frames per period: SYNC, 2 measurement TPDOs, the command, up to 3 trace TPDOs, and margin.
-        hil.start_recorder(chunk_periods * 12 + 65_536)
+        # Frames per period: SYNC, 2 measurement TPDOs, the command, up to 3 trace TPDOs, and margin. `fd`: the wide
+        # record of a run whose PDOs are CAN FD frames (bench/run/bus/frames.py).
+        hil.start_recorder(chunk_periods * 12 + 65_536, fd)
         self._chunks: list[np.ndarray] = []
         self._cond = threading.Condition()
         self._max = max_waiting
@@ -71,7 +75,7 @@ class DirectSource:
         if not self._held or (self._held_n < self._min and not final):
             return empty()
         chunks, self._held, self._held_n = self._held, [], 0
-        return chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
+        return join(chunks)
 
     def stop(self) -> None:
         self.release()
@@ -103,7 +107,7 @@ class LogFollower:
         frames, used, skipped = parse_candump(data)
         self._rest = data[used:]
         self.skipped += skipped
-        frames = np.concatenate([self._held, frames]) if len(self._held) else frames
+        frames = join([self._held, frames]) if len(self._held) else frames
         if len(frames) == 0:
             return frames
         frames = frames[np.argsort(frames["t_us"], kind="stable")]
@@ -120,7 +124,7 @@ def sorted_chunks(chunks: Iterable[np.ndarray], hold_us: int = 200_000) -> Itera
     for the next one, so that a frame a recorder wrote a little late still finds its place."""
     held = empty()
     for chunk in chunks:
-        frames = np.concatenate([held, chunk]) if len(held) else chunk
+        frames = join([held, chunk]) if len(held) else chunk
         if len(frames) == 0:
             continue
         frames = frames[np.argsort(frames["t_us"], kind="stable")]
@@ -289,9 +293,6 @@ class ListenerSource(can.Listener):
 
 
 def frames_from_messages(msgs: list[can.Message]) -> np.ndarray:
-    """python-can messages (11-bit data frames of up to 8 bytes) as frames, by time stamp."""
-    keep = sorted(
-        (m for m in msgs if not (m.is_extended_id or m.is_error_frame or m.is_remote_frame) and len(m.data) <= 8),
-        key=lambda m: m.timestamp,
-    )
-    return _to_frames(keep) if keep else empty()
+    """python-can messages (11-bit data frames, classic or CAN FD) as frames, by time stamp."""
+    keep = sorted((m for m in msgs if ours(m)), key=lambda m: m.timestamp)
+    return to_frames(keep) if keep else empty()

@@ -32,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from bench.canbus import classic_frame_bits
+from bench.canbus import classic_frame_bits, fd_frame_bits
 from bench.eds import enum
 from bench.laws import law_info, law_names
+from bench.run.bus.frames import FDF, is_fd
 from bench.run.decode.decoder import Decoder
 from bench.run.loop.reads import CONTROLLER_VALUES, PLANT_VALUES, STEP_COST
 from bench.scenario import STATUSES
@@ -180,9 +181,14 @@ def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
 
 
 def frame_bits(frames: np.ndarray) -> int:
-    """Worst-case bits of these frames on a classic CAN bus (by DLC)."""
-    counts = np.bincount(frames["dlc"], minlength=9)[:9]
-    return int(sum(int(c) * classic_frame_bits(d) for d, c in enumerate(counts)))
+    """Worst-case bits of these frames (by length): a classic frame's on a classic CAN bus; a CAN FD frame's (in a
+    run with CAN FD PDOs) both phases' bits, as `bench plan` counts them (their time depends on the two rates:
+    bench plan --from-log gives it)."""
+    fd = frames["flags"] & FDF != 0 if is_fd(frames) else np.zeros(len(frames), dtype=bool)
+    counts = np.bincount(frames["dlc"][~fd], minlength=9)[:9]
+    bits = sum(int(c) * classic_frame_bits(d) for d, c in enumerate(counts))
+    fd_counts = np.bincount(frames["dlc"][fd], minlength=65)
+    return int(bits + sum(int(c) * sum(fd_frame_bits(d)) for d, c in enumerate(fd_counts) if c))
 
 
 def verdict(

@@ -69,7 +69,8 @@ def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
     rules += [f"cangw -A -s vcan0 -d $m -e -f {c:03X}:{k:03X}" for c, k in master_ids]
     batch = "\\n".join(
         ["link set lo up"]
-        + [f"link add {v} type vcan\\nlink set {v} txqueuelen 4000 up" for v in ("vcan0", "vcan1")]
+        # MTU 72: the links carry CAN FD frames too (a scenario's frames.can = "fd"), and classic ones as before
+        + [f"link add {v} type vcan\\nlink set {v} mtu 72 txqueuelen 4000 up" for v in ("vcan0", "vcan1")]
         + ["link set $m txqueuelen 1000 up", "link set $t txqueuelen 1000 up"]
     )
     moves = "\\n".join(

@@ -123,7 +123,8 @@ class Lease:
         stats = " ".join(LINK_STATS)
         script = (
             f"read -r h <{HOLDER}{self.ns} || exit 3; for n in {' '.join(names)}; do d=/proc/$h/root/sys/class/net/$n; "
-            f'[ -e $d ] || {{ echo "$n -"; continue; }}; read -r f <$d/flags; read -r o <$d/operstate; l="$n $f $o"; '
+            f'[ -e $d ] || {{ echo "$n -"; continue; }}; read -r f <$d/flags; read -r o <$d/operstate; '
+            f'read -r u <$d/mtu; l="$n $f $o $u"; '
             f'for s in {stats}; do read -r v <$d/statistics/$s; l+=" $v"; done; echo "$l"; done'
         )
         try:
@@ -135,12 +136,13 @@ class Lease:
         infos: dict[str, dict[str, Any] | None] = dict.fromkeys(names)
         for line in out.splitlines():
             parts = line.split()
-            if len(parts) == 3 + len(LINK_STATS) and parts[0] in infos:
-                flags, counts = int(parts[1], 16), [int(v) for v in parts[3:]]
+            if len(parts) == 4 + len(LINK_STATS) and parts[0] in infos:
+                flags, counts = int(parts[1], 16), [int(v) for v in parts[4:]]
                 infos[parts[0]] = {
                     "kind": "vcan",
                     "up": bool(flags & 0x1),  # IFF_UP
                     "operstate": parts[2].upper(),  # as `ip -json` prints it
+                    "mtu": int(parts[3]),  # 72: CAN FD frames too
                     **dict(zip(LINK_KEYS, counts, strict=True)),
                 }
         return infos
