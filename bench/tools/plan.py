@@ -151,7 +151,10 @@ def make_plan(
     set_name = f"{frames} measurement frame set" + ("" if period_mark == "sync" else ", no SYNC: it marks the period")
     plan = Plan(bitrate, data_bitrate if fd else None, fd, ts_s, max_load, set_name)
     for what, n, per in pdo_set(trace_pdos, trace_decimation, frames, period_mark):
-        if fd:
+        if fd and what.startswith("SYNC"):  # the bench's SYNC stays a classic frame on a CAN FD bus (0x2105)
+            bits = classic_frame_bits(n)
+            plan.frames.append(FrameUse(what, n, per, bits, bits / bitrate))
+        elif fd:
             nominal, data = fd_frame_bits(n)
             plan.frames.append(
                 FrameUse(what, n, per, nominal + data, nominal / bitrate + data / (data_bitrate or bitrate))

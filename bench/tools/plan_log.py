@@ -86,18 +86,19 @@ class LogPlan:
 
 
 class WireCache:
-    """Each distinct frame's wire bits, computed once. On a CAN FD bus the classic frames of a classic run's log are
-    simulated as CAN FD frames with the bit-rate switch (what the same run would send with frames.can = "fd"); a log
-    that holds CAN FD frames is simulated as sent (`as_sent`: its classic frames, SDO and the like, stay classic)."""
+    """Each distinct frame's wire bits, computed once. On a CAN FD bus the PDOs of a classic run's log are simulated
+    as CAN FD frames with the bit-rate switch, its other frames (SYNC, SDO, NMT, heartbeat, EMCY) as classic frames:
+    what the same run sends with frames.can = "fd" (0x2105 switches the PDOs only). A log that holds CAN FD frames is
+    simulated as sent (`as_sent`)."""
 
     def __init__(self, fd: bool, worst: bool, as_sent: bool = False) -> None:
         self.fd, self.worst, self.as_sent = fd, worst, as_sent
         self._bits: dict[tuple[int, bool, bool, bool, bytes], WireBits] = {}
 
-    def bits(self, m: can.Message) -> WireBits:
+    def bits(self, m: can.Message, pdo: bool = True) -> WireBits:
         if m.is_remote_frame:  # CAN FD has no remote frame: a classic one on either bus, its RTR bit and DLC as sent
             return self._remote(m)
-        fd = m.is_fd or (self.fd and not self.as_sent)
+        fd = m.is_fd or (self.fd and pdo and not self.as_sent)
         brs = m.bitrate_switch if m.is_fd else fd  # a classic frame of a classic log rides an FD bus with BRS
         key = (m.arbitration_id, m.is_extended_id, fd, brs, data := bytes(m.data))
         if key not in self._bits:
@@ -224,7 +225,10 @@ def simulate(
         extra.append(sum(1 for k in kinds if k in ("plant", "drive")))
         meas.append(kinds.count("measurement"))
         meas_bytes = max([meas_bytes] + [len(m.data) for m, k in zip(frames, kinds, strict=True) if k == "measurement"])
-        timed = [(m.arbitration_id, wire.bits(m).time_s(bitrate, data_bitrate)) for m in frames]
+        timed = [
+            (m.arbitration_id, wire.bits(m, k not in ("sync", "other")).time_s(bitrate, data_bitrate))
+            for m, k in zip(frames, kinds, strict=True)
+        ]
         sim = simulate_period(timed, kinds, lat)
         cmd = "command" in kinds
         fits = cmd and sim.chain_end_s <= ts_s and sim.bus_time_s <= ts_s

@@ -96,3 +96,19 @@ def test_cli_frame_set_options() -> None:
     assert "--period-mark = measurement: must be used with --frames compact" in bad.stderr
     bad = bench_cli("plan", "--frames", "tiny", expect=2)
     assert "--frames" in bad.stderr and "default" in bad.stderr and "compact" in bad.stderr
+
+
+def test_can_fd_plans_keep_the_sync_classic_and_carry_the_single_frame() -> None:
+    """On a CAN FD bus the bench's SYNC stays a classic frame (0x2105 switches the PDOs only): the formula counts it
+    at the nominal rate; the single CAN FD measurement frame is 16 bytes, the compact one 8."""
+    single = make_plan(2e6, 100e-6, True, 8e6, frames="single_frame")
+    sync = next(f for f in single.frames if f.what.startswith("SYNC"))
+    assert sync.bits == classic_frame_bits(1) and sync.time_s == pytest.approx(classic_frame_bits(1) / 2e6)
+    meas = next(f for f in single.frames if "single_frame" in f.what)
+    nominal, data = fd_frame_bits(16)
+    assert meas.data_bytes == 16 and meas.time_s == pytest.approx(nominal / 2e6 + data / 8e6)
+    assert len(single.frames) == 3  # SYNC, the measurement, the command
+    marked = make_plan(2e6, 100e-6, True, 8e6, frames="single_frame", period_mark="measurement")
+    assert marked.fits and len(marked.frames) == 2
+    with pytest.raises(ValueError, match="single_frame is 16 bytes"):
+        make_plan(1e6, 100e-6, frames="single_frame")

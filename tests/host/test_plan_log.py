@@ -105,12 +105,13 @@ def direct_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _no_stuff_s(bitrate: float, data_bitrate: float | None) -> float:
     """The formula's time for today's frames (SYNC with a 1-byte counter, 5 eight-byte PDOs: 3 of the loop, 2
     trace) without the stuff bits it assumes: classic (34 + 8n - 1) // 4; FD 4 in the arbitration phase and
-    (5 + 8n - 1) // 4 in the data phase."""
+    (5 + 8n - 1) // 4 in the data phase. On a CAN FD bus the SYNC stays classic (the bench's 0x2105 switches the
+    PDOs only)."""
+    sync = (47 + 8) / bitrate
     if data_bitrate is None:
-        return ((47 + 8) + 5 * (47 + 64)) / bitrate
-    one = (34 - 4) / bitrate + (1 + 4 + 8 + 4 + 17 + 6) / data_bitrate
+        return sync + 5 * (47 + 64) / bitrate
     eight = (34 - 4) / bitrate + (1 + 4 + 64 + 4 + 17 + 6) / data_bitrate
-    return one + 5 * eight
+    return sync + 5 * eight
 
 
 @pytest.mark.parametrize("bitrate, data_bitrate", [(1e6, None), (1e6, 5e6), (2e6, 8e6)])
