@@ -7,7 +7,9 @@
  *  - an RPDO takes a CAN FD frame padded to its length without a length EMCY, and one longer than the padding
  *    with EMCY 0x8220; a shorter one is not processed (0x8210);
  *  - 0x2105 is written in PRE-OPERATIONAL only (0x08000022 in OPERATIONAL), within its EDS range (0x06090031);
- *    going back to classic frames leaves a PDO mapped beyond 8 bytes invalid (it sends nothing). */
+ *    going back to classic frames leaves a PDO mapped beyond 8 bytes invalid (it sends nothing).
+ * Built a second time as the Cortex-M4F image builds the core (CO_FRAME_MAX_DATA 8, with the sanitizers:
+ * build/tests/protocols_test_co_pdo_fd_classic): that node refuses CAN FD (0x06090031) and its PDOs stay classic. */
 #include <stdio.h>
 #include <string.h>
 
@@ -131,9 +133,29 @@ static void rpdo_frames(void)
     CHECK(rpdo_gets(20, 4.0f) == 0x8220, "a 20-byte frame: no EMCY 0x8220");
 }
 
+/* The classic-only build: CAN FD refused, a 14-byte mapping refused, an 8-byte TPDO a classic frame. */
+static void classic_only(void)
+{
+    start(&od_plant, 0x10);
+    CHECK(sdo_w(0x2105, 1, 1, 1) == CO_ABORT_VALUE_HIGH, "classic build: CAN FD accepted");
+    CHECK(sdo_w(0x2105, 1, 2, 1) == CO_ABORT_VALUE_HIGH, "classic build: CAN FD with BRS accepted");
+    CHECK(map_pdo(0x1800, 0x1A00, 0x190, MEAS14, 5, 254) == CO_ABORT_MAP_LEN, "classic build: 14 bytes accepted");
+    CHECK(map_pdo(0x1800, 0x1A00, 0x190, MEAS14, 2, 254) == 0, "classic build: 8 bytes refused");
+    co_nmt_command(&g_tb.node, CO_NMT_CS_START);
+    testbus_clear(&g_tb);
+    co_tpdo_request(&g_tb.node, 0);
+    testbus_step(&g_tb);
+    const co_frame_t *f = testbus_find(&g_tb, 0x190, 0);
+    CHECK(f != NULL && f->dlc == 8 && f->flags == 0, "classic build: TPDO1 not a classic 8-byte frame");
+}
+
 int main(void)
 {
-    tpdo_frames();
-    rpdo_frames();
+    if (CO_FRAME_MAX_DATA <= 8u) {
+        classic_only();
+    } else {
+        tpdo_frames();
+        rpdo_frames();
+    }
     return check_exit_code();
 }

@@ -5,7 +5,8 @@ today's classic run in direct mode bit for bit in every column both have, for th
 
 - frames.measurement = "single_frame" with the measurement as the period's mark: one 16-byte CAN FD frame a period
   from the plant, no SYNC frame;
-- the integer option (the compact frame, ADC model and encoder on) on CAN FD frames, You 2019's step."""
+- the integer option (the compact frame, ADC model and encoder on) on CAN FD frames without the bit-rate switch;
+- `bench replay` of the box's FD log (candump's `##` lines) is the run."""
 
 from __future__ import annotations
 
@@ -59,13 +60,20 @@ def test_single_can_fd_frame_over_vcan_is_the_classic_direct_run(scenario: str, 
     fd, lengths, classic = fd_frames_of(tmp_path / "vcan")
     assert {0x190, 0x210} <= fd and 16 in lengths and 0x290 not in fd | classic and 0x080 not in classic
     assert 0x490 in classic and 0x490 not in fd  # the plant's hold announcement: classic, for the SLCAN master
+    if scenario == "you2019_step":  # the box's log, replayed on the host: the run, bit for bit
+        bench_cli("replay", tmp_path / "vcan" / "bus.log", "--no-viewer", "--out", tmp_path / "replay", expect=0)
+        replay = np.load(tmp_path / "replay" / "traces.npy")
+        assert replay.dtype.names == vcan.dtype.names
+        for col in vcan.dtype.names:
+            np.testing.assert_array_equal(replay[col], vcan[col], err_msg=col)
 
 
-def test_compact_frame_on_can_fd_over_vcan_is_the_classic_direct_run(vcan0: str, tmp_path: Path) -> None:
-    d_sum, direct = run("you2019_step", tmp_path / "direct", "--bus", "direct")
+@pytest.mark.parametrize("scenario", PAPERS)
+def test_compact_frame_on_can_fd_over_vcan_is_the_classic_direct_run(scenario: str, vcan0: str, tmp_path: Path) -> None:
+    d_sum, direct = run(scenario, tmp_path / "direct", "--bus", "direct")
     args = ("--set", "frames.can=fd", "--set", "frames.measurement=compact", "--set", "frames.bit_rate_switch=false")
-    v_sum, vcan = run("you2019_step", tmp_path / "vcan", "--bus", vcan0, *args)
-    assert v_sum["status"] == d_sum["status"] == "ok"
+    v_sum, vcan = run(scenario, tmp_path / "vcan", "--bus", vcan0, *args)
+    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"]
     equal_columns(vcan, direct)
     fd, lengths, _ = fd_frames_of(tmp_path / "vcan")
     assert {0x190, 0x210} <= fd and 8 in lengths and max(lengths) == 8  # the compact frame fits classic sizes
