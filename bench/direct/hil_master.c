@@ -66,7 +66,7 @@ void hil_master_record(const co_frame_t *f, uint8_t sender, int64_t t_us, int ru
     }
     /* The master sees every frame of the nodes, like a CAN controller would, except the
      * PDO stream of a run (it reads the recorder instead). */
-    if (sender != CO_MEMBUS_EXTERNAL && !running) {
+    if (sender != CO_MEMBUS_EXTERNAL && !running && f->dlc <= 8u) { /* SDO answers, heartbeats: classic frames */
         if (M.mq_tail - M.mq_head < MASTER_Q)
             M.mq[M.mq_tail++ % MASTER_Q] = r;
         else

@@ -63,7 +63,7 @@ def bus_problem(bus: str, option: str = "--hil-bus", drive: str = "node") -> str
 
 def _create_hint(bus: str, virtual: bool) -> str:
     if virtual:
-        return f" (create it: sudo ip link add dev {bus} type vcan && sudo ip link set up {bus})"
+        return f" (create it: sudo ip link add dev {bus} type vcan mtu 72 && sudo ip link set up {bus})"
     return " (`ip -details link show` lists this machine's interfaces)"
 
 

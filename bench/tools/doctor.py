@@ -65,7 +65,7 @@ def collect() -> tuple[list[Check], str]:
             state or "absent",
             ""
             if state == "up" or not af.af_can
-            else "sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && sudo ip link set up vcan0",
+            else "sudo modprobe vcan && sudo ip link add dev vcan0 type vcan mtu 72 && sudo ip link set up vcan0",
             optional=True,
         )
     )

@@ -35,20 +35,14 @@ void co_hb_consume(co_hb_consumer_t hb[CO_HB_CONSUMERS], co_emcy_t *emcy, uint16
     }
 }
 
-uint32_t co_hb_check(co_hb_consumer_t hb[CO_HB_CONSUMERS], co_emcy_t *emcy, int64_t now_us)
+bool co_hb_check(co_hb_consumer_t *c, co_emcy_t *emcy, int64_t now_us)
 {
-    uint32_t out = 0;
-    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) {
-        co_hb_consumer_t *c = &hb[i];
-        if (!c->active || c->timed_out || !c->seen) continue; /* monitoring starts at the first heartbeat */
-        if (now_us - c->last_us > (int64_t)c->time_ms * 1000) {
-            c->timed_out = true;
-            uint8_t msef[5] = {c->node_id, 0, 0, 0, 0};
-            co_emcy_report_error(emcy, CO_EMCY_HEARTBEAT, CO_ERR_REG_COMMUNICATION, msef);
-            out |= 1u << i;
-        }
-    }
-    return out;
+    if (!c->active || c->timed_out || !c->seen) return false; /* monitoring starts at the first heartbeat */
+    if (now_us - c->last_us <= (int64_t)c->time_ms * 1000) return false;
+    c->timed_out = true;
+    uint8_t msef[5] = {c->node_id, 0, 0, 0, 0};
+    co_emcy_report_error(emcy, CO_EMCY_HEARTBEAT, CO_ERR_REG_COMMUNICATION, msef);
+    return true;
 }
 
 void co_hb_excuse(co_hb_consumer_t hb[CO_HB_CONSUMERS], int64_t stall_us)

@@ -26,8 +26,8 @@ void co_hb_configure(co_hb_consumer_t hb[CO_HB_CONSUMERS], const co_od_t *od);
 /* A heartbeat of node `id` (0x700 + id) in NMT state `state` at now_us; a consumer that had timed out clears
  * its EMCY. */
 void co_hb_consume(co_hb_consumer_t hb[CO_HB_CONSUMERS], co_emcy_t *emcy, uint16_t id, uint8_t state, int64_t now_us);
-/* Consumers whose heartbeat is late, each once: EMCY 0x8130; returns them (consumer i in bit i). */
-uint32_t co_hb_check(co_hb_consumer_t hb[CO_HB_CONSUMERS], co_emcy_t *emcy, int64_t now_us);
+/* A consumer whose heartbeat is late, once: EMCY 0x8130; returns true then (the node calls its hook). */
+bool co_hb_check(co_hb_consumer_t *c, co_emcy_t *emcy, int64_t now_us);
 /* A stall of the whole process (stall_us) is not the producers' fault: their deadlines move by it. */
 void co_hb_excuse(co_hb_consumer_t hb[CO_HB_CONSUMERS], int64_t stall_us);
 /* The earliest consumer deadline before next_us (or next_us). */

@@ -210,6 +210,19 @@ static uint32_t sync_check_write(const co_node_t *node, const co_od_entry_t *e, 
 
 /* ------------------------------------------------------------------ SDO writes */
 
+/* Whether the PDOs that are valid still fit their frames after 0x2105:sub = v (CiA 301: a PDO is made invalid
+ * before what it depends on changes; one mapped beyond 8 bytes is refused classic frames while it is valid). */
+static bool fd_write_keeps_pdos(const co_node_t *node, uint8_t sub, uint8_t v)
+{
+    for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
+        const co_pdo_t *t = &node->tpdo[i], *r = &node->rpdo[i];
+        bool classic = (sub == 1u && v == 0u) || (sub == 2u && ((v >> i) & 1u));
+        if (classic && t->valid && t->bytes > 8u) return false;
+        if (sub == 1u && v == 0u && r->valid && r->bytes > 8u) return false;
+    }
+    return true;
+}
+
 static co_pdo_t *pdo_owning(co_node_t *node, uint16_t index)
 {
     for (uint8_t i = 0; i < CO_NUM_PDO; ++i) {
@@ -232,6 +245,7 @@ static uint32_t sdo_write(void *ctx, const co_od_entry_t *e, const uint8_t *data
     if (abort) return abort;
     abort = co_fd_check_write(e, data, operational(node));
     if (abort) return abort;
+    if (e->index == CO_IDX_CAN_FD && !fd_write_keeps_pdos(node, e->subindex, data[0])) return CO_ABORT_PARAM_INCOMPAT;
     co_pdo_t *pdo = pdo_owning(node, e->index);
     if (pdo) {
         abort = co_pdo_check_write(pdo, e, data, node->c_sync_cob);
@@ -318,9 +332,8 @@ void co_node_tick(co_node_t *node, int64_t now_us)
         node->hb_next_us += (int64_t)hb_ms * 1000;
         if (node->hb_next_us <= now_us) node->hb_next_us = now_us + (int64_t)hb_ms * 1000;
     }
-    uint32_t late = co_hb_check(node->hb, &node->emcy, now_us);
-    for (uint8_t i = 0; late != 0u && i < CO_HB_CONSUMERS; ++i)
-        if (((late >> i) & 1u) && node->hooks.on_hb_timeout)
+    for (uint8_t i = 0; i < CO_HB_CONSUMERS; ++i) /* each late consumer: its EMCY, then the hook */
+        if (co_hb_check(&node->hb[i], &node->emcy, now_us) && node->hooks.on_hb_timeout)
             node->hooks.on_hb_timeout(node->user, node, node->hb[i].node_id);
     if (node->sync_timer_enabled) {
         uint32_t period = node->c_cycle_us;

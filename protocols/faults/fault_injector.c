@@ -208,7 +208,7 @@ void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us)
         case FI_CORRUPT: {
             co_frame_t c = *frame;
             if (r->dlc >= 0) {
-                for (uint8_t b = c.dlc; b < 8u; ++b) c.data[b] = 0u;
+                for (uint8_t b = c.dlc < (uint8_t)r->dlc ? c.dlc : (uint8_t)r->dlc; b < 8u; ++b) c.data[b] = 0u;
                 c.dlc = (uint8_t)r->dlc;
             } else if (r->bit < 8u * c.dlc) {
                 c.data[r->bit / 8u] ^= (uint8_t)(1u << (r->bit % 8u));

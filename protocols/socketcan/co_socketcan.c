@@ -85,8 +85,8 @@ int co_socketcan_send(void *user, const co_frame_t *frame)
         if (n < 0 && errno == EINVAL && fd_frame)
             fprintf(stderr,
                     "CAN write: a CAN FD frame (0x%03X, %u bytes) on a link that carries classic frames only "
-                    "(MTU 16): `ip link set IF mtu 72` for a vcan, `ip link set IF type can bitrate B dbitrate D "
-                    "fd on` for an adapter\n",
+                    "(MTU 16): `ip link set IF down && ip link set IF mtu 72 up` for a vcan, `ip link set IF type "
+                    "can bitrate B dbitrate D fd on` (the link down) for an adapter\n",
                     (unsigned)(frame->cob_id & CAN_SFF_MASK), (unsigned)cf.len);
         else
             fprintf(stderr, "CAN write: %s\n", strerror(errno));
@@ -128,7 +128,8 @@ int co_socketcan_recv(int fd, co_frame_t *frame, int64_t timeout_us, int64_t *ts
     uint8_t max = fd_frame ? (uint8_t)CO_FRAME_MAX_DATA : 8u;
     frame->cob_id = cf.can_id & CAN_SFF_MASK;
     if (cf.can_id & CAN_RTR_FLAG) frame->cob_id |= CO_FRAME_RTR;
-    frame->dlc = cf.len > max ? max : cf.len;
+    if (cf.len > max) return 0; /* longer than this build's frames hold: not for this node */
+    frame->dlc = cf.len;
     frame->flags = fd_frame ? (uint8_t)(CO_FRAME_FDF | ((cf.flags & CANFD_BRS) ? CO_FRAME_BRS : 0u)) : 0u;
     memset(frame->data, 0, 8);
     memcpy(frame->data, cf.data, frame->dlc);

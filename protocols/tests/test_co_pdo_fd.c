@@ -7,7 +7,8 @@
  *  - an RPDO takes a CAN FD frame padded to its length without a length EMCY, and one longer than the padding
  *    with EMCY 0x8220; a shorter one is not processed (0x8210);
  *  - 0x2105 is written in PRE-OPERATIONAL only (0x08000022 in OPERATIONAL), within its EDS range (0x06090031);
- *    going back to classic frames leaves a PDO mapped beyond 8 bytes invalid (it sends nothing).
+ *    going back to classic frames is refused while a valid PDO maps more than 8 bytes (0x06040043), and once it is
+ *    made invalid such a PDO stays without frames.
  * Built a second time as the Cortex-M4F image builds the core (CO_FRAME_MAX_DATA 8, with the sanitizers:
  * build/tests/protocols_test_co_pdo_fd_classic): that node refuses CAN FD (0x06090031) and its PDOs stay classic. */
 #include <stdio.h>
@@ -80,9 +81,13 @@ static void tpdo_frames(void)
     }
     const co_frame_t *h = testbus_find(&g_tb, 0x490, 0);
     CHECK(h != NULL && h->dlc == 4 && h->flags == 0, "TPDO4 (0x2105:02) not a classic frame");
-    /* back to classic frames: the 14-byte TPDO1 is invalid, sends nothing */
+    /* back to classic frames: refused while the 14-byte TPDO1 is valid (CiA 301: invalid first), then accepted */
     co_nmt_command(&g_tb.node, CO_NMT_CS_PREOP);
-    CHECK(sdo_w(0x2105, 1, 0, 1) == 0, "classic refused in PRE-OPERATIONAL");
+    CHECK(sdo_w(0x2105, 1, 0, 1) == CO_ABORT_PARAM_INCOMPAT, "classic accepted under a valid 14-byte TPDO1");
+    CHECK(sdo_w(0x2105, 2, 1, 1) == CO_ABORT_PARAM_INCOMPAT, "TPDO1 made classic while it maps 14 bytes");
+    CHECK(sdo_w(0x1800, 1, 0x80000190u, 4) == 0, "TPDO1 invalid refused");
+    CHECK(sdo_w(0x2105, 1, 0, 1) == 0, "classic refused with TPDO1 invalid");
+    CHECK(sdo_w(0x1800, 1, 0x190u, 4) == 0, "TPDO1 valid again refused");
     co_nmt_command(&g_tb.node, CO_NMT_CS_START);
     testbus_clear(&g_tb);
     co_tpdo_request(&g_tb.node, 0);

@@ -40,7 +40,9 @@ def vcan0() -> str:
         )
     state = interface_state("vcan0")
     if state != "up":
-        pytest.fail(f"vcan0 is {state or 'absent'}: create it (ip link add dev vcan0 type vcan; ip link set up vcan0)")
+        pytest.fail(
+            f"vcan0 is {state or 'absent'}: create it (ip link add dev vcan0 type vcan mtu 72; ip link set up vcan0)"
+        )
     return "vcan0"
 
 

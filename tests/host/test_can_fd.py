@@ -12,6 +12,7 @@ run equals today's classic run bit for bit in every column, over the three paper
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import can
 import numpy as np
@@ -107,3 +108,37 @@ def test_what_can_fd_cannot_mean_is_refused_by_name(overrides: list[str], said: 
     with pytest.raises(ScenarioError) as err:
         run("scenarios/you2019_step.toml", overrides)
     assert said in str(err.value)
+
+
+def test_a_dropped_can_fd_frame_is_counted_lost_by_the_drive() -> None:
+    """The fault injector acts on CAN FD frames as on classic ones: the single frame dropped once is one measurement
+    the drive counts as lost (its SYNC counter skips one)."""
+    drop = 'faults=[{kind="drop", frame="plant.TPDO1", at_period=50}]'
+    r = run(
+        "scenarios/you2019_step.toml",
+        [*SINGLE, "frames.period_mark=measurement", drop, "scenario.expect='frames_lost'",
+         "drive.command_timeout_us=2000000"],
+    )  # fmt: skip
+    assert r.status == "frames_lost"
+    assert r.summary["bus_stats"]["drive_lost_measurements"] == 1
+
+
+@pytest.mark.parametrize(
+    ("info", "box", "said"),
+    [
+        ({"kind": "vcan", "mtu": 16}, None, "`ip link set vcan0 down && ip link set vcan0 mtu 72 up`"),
+        ({"kind": "can", "mtu": 16}, None, "type can bitrate B dbitrate D fd on"),
+        ({"kind": "vcan", "mtu": 16}, object(), "`bench box down`"),
+    ],
+)
+def test_a_can_fd_run_on_a_classic_link_is_refused_with_the_fix(info: dict, box: object, said: str) -> None:
+    """A link of MTU 16 carries no CAN FD frame: the run is refused before its nodes start, naming the link and the
+    command that sets it (the kernel changes a vcan's MTU only while it is down); MTU 72 passes."""
+    from bench.run.bus.kind import SettingRefused
+    from bench.run.loop.session_bus import SessionBus
+
+    session = SimpleNamespace(box=box)
+    with pytest.raises(SettingRefused) as err:
+        SessionBus._check_fd_links(session, {"vcan0": info})  # type: ignore[arg-type]
+    assert "vcan0 carries classic CAN frames only (MTU 16)" in str(err.value) and said in str(err.value)
+    SessionBus._check_fd_links(session, {"vcan0": {**info, "mtu": 72}})  # type: ignore[arg-type]

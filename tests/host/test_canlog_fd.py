@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from bench.run.bus.frames import BRS, FDF, FRAME_DTYPE, FRAME_FD_DTYPE, fd_len, join, widen
+from bench.run.record import canlog
 from bench.run.record.canlog import CandumpWriter, export, parse_candump, read_frames
 
 LENGTHS = (0, 1, 8, 12, 16, 20, 24, 32, 48, 64)
@@ -93,9 +94,11 @@ def test_fd_export_keeps_length_and_bit_rate_switch(tmp_path: Path, fmt: str) ->
     same(frames, back)
 
 
-def test_a_log_that_turns_fd_later_reads_in_both_records(tmp_path: Path) -> None:
+def test_a_log_that_turns_fd_later_reads_in_both_records(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A run's configuration (classic SDO) fills the first blocks; the first CAN FD line comes later: the chunks
-    before it stay classic, those after are wide, and `join` widens the classic ones."""
+    before it stay classic, those after are wide, and `join` widens the classic ones. (The reader's block made
+    small, so that the classic lines fill several blocks before the first CAN FD line.)"""
+    monkeypatch.setattr(canlog, "_READ_BLOCK", 64 << 10)
     classic = np.zeros(5000, dtype=FRAME_DTYPE)
     classic["cob_id"] = 0x610
     classic["dlc"] = 8
@@ -107,7 +110,7 @@ def test_a_log_that_turns_fd_later_reads_in_both_records(tmp_path: Path) -> None
         w.write(classic)
         w.write(fd)
     chunks = list(read_frames(log, chunk_frames=1000))
-    assert {c.dtype for c in chunks} >= {FRAME_FD_DTYPE}
+    assert chunks[0].dtype == FRAME_DTYPE and chunks[-1].dtype == FRAME_FD_DTYPE
     back = join(chunks)
     assert len(back) == 5030
     same(widen(classic), back[:5000])

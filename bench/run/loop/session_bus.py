@@ -6,6 +6,7 @@ BusKind answers (bench/run/bus/kind.py)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -79,7 +80,7 @@ class SessionBus:
                 fix = (
                     "`bench box down`: the next run boots the CAN box with CAN FD links"
                     if self.box is not None
-                    else f"`ip link set {name} mtu 72` (vcan)"
+                    else f"`ip link set {name} down && ip link set {name} mtu 72 up` (vcan)"
                     if (info or {}).get("kind") == "vcan"
                     else f"`ip link set {name} down && ip link set {name} type can bitrate B dbitrate D fd on && "
                     f"ip link set {name} up`"
@@ -103,7 +104,6 @@ class SessionBus:
                 "frames.can = 'fd': the Cortex-M4F image (--drive mcu) keeps classic CAN frames (its frames hold 8 "
                 "bytes and its link is SLCAN, a classic protocol): run it with frames.can = 'classic'"
             )
-        self.opts.fd = self.opts.fd or self.sc.frames.fd  # a python-can adapter's bus opened for CAN FD frames
         self.prepare_links()
         if self.opts.start_plant:
             # real time on this host's SocketCAN: the plant's CPU kept out of its halt (issue 40; hold_plant_cpu
@@ -134,7 +134,9 @@ class SessionBus:
                 raise ValueError("a run with [[faults]] over SocketCAN needs opts.out (the gateway's rules and log)")
             rules = rules_text(self.sc.faults, self.opts.plant_id, self.opts.drive_id, self.sc.frames.sync_less)
             self.gateway = FaultGateway(rules, self.opts.bus, drive_bus, out, pids, box=self.box).start()
-        self.net.bus = self.kind.master_bus(self.opts, self.box)
+        # a python-can adapter's bus opened for CAN FD frames when the scenario's PDOs are (the caller's options kept)
+        opts = replace(self.opts, fd=True) if self.sc.frames.fd and not self.opts.fd else self.opts
+        self.net.bus = self.kind.master_bus(opts, self.box)
         self.net.listeners.extend(self.kind.master_listeners())
 
     def _plant_here_in_real_time(self) -> bool:

@@ -158,14 +158,14 @@ class CandumpWriter:
 
 
 class LogFrames(Iterator[np.ndarray]):
-    """The frames of a log as FRAME_DTYPE chunks (at most chunk_frames each, seq numbered across
-    chunks from 0, sender 255). After (or during) iteration: `frames` = frames yielded,
-    `skipped` = frames that are not an 11-bit data frame of <= 8 bytes (extended, error, remote,
-    CAN FD longer than 8 bytes), of them `extended` = extended-ID data frames; in a .log also
-    `unparsable` = lines that are no candump frame (garbage, a line longer than a block), the first
-    at line `first_unparsable_line`, and `truncated_line` = the last line's number when the file
-    ends without its end of line (a recorder cut mid-write): that line is not counted as
-    unparsable; its frame is kept when it still parses (only the '\n' was lost), else dropped
+    """The frames of a log as frame-record chunks (at most chunk_frames each, seq numbered across
+    chunks from 0, sender 255): FRAME_DTYPE, and FRAME_FD_DTYPE from the first CAN FD frame on
+    (bench/run/bus/frames.py `join` puts them together). After (or during) iteration: `frames` = frames
+    yielded, `skipped` = frames that are not an 11-bit data frame (extended, error, remote), of them
+    `extended` = extended-ID data frames; in a .log also `unparsable` = lines that are no candump frame
+    (garbage, a line longer than a block), the first at line `first_unparsable_line`, and `truncated_line` =
+    the last line's number when the file ends without its end of line (a recorder cut mid-write): that line is
+    not counted as unparsable; its frame is kept when it still parses (only the '\n' was lost), else dropped
     (`truncated_dropped`).
 
     t_us is what the format keeps: absolute µs for .log and .blf, µs from the first frame for
@@ -248,15 +248,17 @@ class LogFrames(Iterator[np.ndarray]):
         eof = discarding = cut = False
         consumed, counts = ctypes.c_uint64(), _LogCounts()
         fd = False  # CAN FD lines seen: the wide record from then on (the chunks before stay classic)
+        fresh = 0  # buf[fresh:have] not yet searched for a CAN FD line
         out = np.empty(self.chunk_frames, dtype=FRAME_DTYPE)
         filled = 0
         with open(self.path, "rb", buffering=0) as fh:
             while True:
-                if not fd and have > pos and _has_fd_line(buf[pos:have]):
+                if not fd and fresh < have and _has_fd_line(buf[max(pos, fresh - 1) : have]):
                     fd = True
                     if filled:
                         yield out[:filled].copy()
                     out, filled = np.empty(self.chunk_frames, dtype=FRAME_FD_DTYPE), 0
+                fresh = have
                 parse = lib.hil_log_parse_counted_fd if fd else lib.hil_log_parse_counted
                 n = int(
                     parse(
@@ -280,12 +282,12 @@ class LogFrames(Iterator[np.ndarray]):
                 rest = have - pos
                 if rest and pos:
                     ctypes.memmove(base, base + pos, rest)
-                have, pos = rest, 0
+                have, pos, fresh = rest, 0, rest
                 if eof:
                     break
                 if have == _READ_BLOCK:
                     self._long_line()
-                    have, discarding = 0, True
+                    have, discarding, fresh = 0, True, 0
                 got = fh.readinto(memoryview(buf)[have:_READ_BLOCK])
                 if not got:
                     eof = True
@@ -303,7 +305,7 @@ class LogFrames(Iterator[np.ndarray]):
                         continue
                     start = have + int(nl[0]) + 1
                     ctypes.memmove(base, base + start, have + got - start)
-                    have, discarding = have + got - start, False
+                    have, discarding, fresh = have + got - start, False, 0
                 else:
                     have += got
         if filled:

@@ -182,8 +182,9 @@ def bus_stats(dec: Decoder, bits_total: int) -> dict[str, Any]:
 
 def frame_bits(frames: np.ndarray) -> int:
     """Worst-case bits of these frames (by length): a classic frame's on a classic CAN bus; a CAN FD frame's (in a
-    run with CAN FD PDOs) both phases' bits, as `bench plan` counts them (their time depends on the two rates:
-    bench plan --from-log gives it)."""
+    run with CAN FD PDOs) both phases' bits, as `bench plan` counts them. summary.json's bus_load_1Mbit_at_Ts then
+    takes both phases at 1 Mbit/s (CAN FD without the bit-rate switch); the time on a bus with a data phase depends
+    on the two rates: `bench plan --from-log` gives it."""
     fd = frames["flags"] & FDF != 0 if is_fd(frames) else np.zeros(len(frames), dtype=bool)
     counts = np.bincount(frames["dlc"][~fd], minlength=9)[:9]
     bits = sum(int(c) * classic_frame_bits(d) for d, c in enumerate(counts))

@@ -84,7 +84,7 @@ class Lease:
         have = set(meta.get("links", ["vcan0", "vcan1"]))
         new = [v for v in self.links if v not in have]
         if new:
-            batch = "\\n".join(f"link add {v} type vcan\\nlink set {v} txqueuelen 4000 up" for v in new)
+            batch = "\\n".join(f"link add {v} type vcan\\nlink set {v} mtu 72 txqueuelen 4000 up" for v in new)
             cmds.append(f"printf '{batch}\\n' | ip -n {self.ns} -batch -")
         self.routed = [tuple(x) for x in meta.get("routed", [])]
         if self.bus != "vcan0" and (self.bus, "tx") not in self.routed:  # the boot's routes are vcan0's
