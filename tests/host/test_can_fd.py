@@ -110,19 +110,6 @@ def test_what_can_fd_cannot_mean_is_refused_by_name(overrides: list[str], said: 
     assert said in str(err.value)
 
 
-def test_a_dropped_can_fd_frame_is_counted_lost_by_the_drive() -> None:
-    """The fault injector acts on CAN FD frames as on classic ones: the single frame dropped once is one measurement
-    the drive counts as lost (its SYNC counter skips one)."""
-    drop = 'faults=[{kind="drop", frame="plant.TPDO1", at_period=50}]'
-    r = run(
-        "scenarios/you2019_step.toml",
-        [*SINGLE, "frames.period_mark=measurement", drop, "scenario.expect='frames_lost'",
-         "drive.command_timeout_us=2000000"],
-    )  # fmt: skip
-    assert r.status == "frames_lost"
-    assert r.summary["bus_stats"]["drive_lost_measurements"] == 1
-
-
 @pytest.mark.parametrize(
     ("info", "box", "said"),
     [

@@ -113,11 +113,16 @@ def _trace_columns(scenario: str) -> list[str]:
     return [column_name(e) for entries in load(REPO / scenario).trace.values() for e in entries]
 
 
-def test_a_dropped_marking_frame_is_counted_lost_by_the_drive() -> None:
+@pytest.mark.parametrize(
+    "frames", [COMPACT, ["frames.can=fd", "frames.measurement=single_frame"]], ids=["compact", "can_fd_single_frame"]
+)
+def test_a_dropped_marking_frame_is_counted_lost_by_the_drive(frames: list[str]) -> None:
+    """The fault injector acts on the one measurement frame, classic or CAN FD: dropped once, it is one
+    measurement the drive counts as lost (its SYNC counter skips one)."""
     drop = 'faults=[{kind="drop", frame="plant.TPDO1", at_period=50}]'
     r = run(
         "scenarios/you2019_step.toml",
-        [*COMPACT, "frames.period_mark=measurement", drop, "scenario.expect='frames_lost'",
+        [*frames, "frames.period_mark=measurement", drop, "scenario.expect='frames_lost'",
          "drive.command_timeout_us=2000000"],
     )  # fmt: skip
     assert r.status == "frames_lost"
