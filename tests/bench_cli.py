@@ -86,3 +86,17 @@ def spawn_bench(
     popen.setdefault("stderr", subprocess.PIPE)
     popen.setdefault("text", True)
     return subprocess.Popen(command(*args), cwd=cwd, env=_env(env), preexec_fn=sigint_default, **popen)
+
+
+def why(summary: Mapping[str, Any]) -> str:
+    """What a run's summary.json says of its verdict, for an assertion's message: the status and where it began, why
+    the loop stopped, the bus's loss and interference counts, and the links' counters (a frame lost by the recorder
+    shows as frames on the link that the log lacks)."""
+    stats = summary.get("bus_stats", {})
+    keep = {
+        k: v for k, v in stats.items() if any(w in k for w in ("lost", "late", "gap", "missing", "interf", "after"))
+    }
+    return (
+        f"status {summary.get('status')} from period {summary.get('status_first_period')}; stopped: "
+        f"{summary.get('stopped')}; flags {summary.get('status_flags')}; bus {keep}; links {summary.get('can_links')}"
+    )

@@ -17,7 +17,7 @@ from typing import Any
 import can
 import numpy as np
 import pytest
-from bench_cli import bench_cli
+from bench_cli import bench_cli, why
 
 from bench.paths import REPO
 
@@ -54,8 +54,8 @@ def fd_frames_of(folder: Path) -> tuple[set[int], set[int], set[int]]:
 def test_single_can_fd_frame_over_vcan_is_the_classic_direct_run(scenario: str, vcan0: str, tmp_path: Path) -> None:
     d_sum, direct = run(scenario, tmp_path / "direct", "--bus", "direct")
     v_sum, vcan = run(scenario, tmp_path / "vcan", "--bus", vcan0, *SINGLE_MARK)
-    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"], (v_sum["status"], d_sum["status"])
-    assert v_sum["bus_stats"]["lost_frames"] == 0 and v_sum["bus_stats"]["sync_counter_gaps"] == 0
+    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"], why(v_sum)
+    assert v_sum["bus_stats"]["lost_frames"] == 0 and v_sum["bus_stats"]["sync_counter_gaps"] == 0, why(v_sum)
     equal_columns(vcan, direct)
     fd, lengths, classic = fd_frames_of(tmp_path / "vcan")
     assert {0x190, 0x210} <= fd and 16 in lengths and 0x290 not in fd | classic and 0x080 not in classic
@@ -73,7 +73,7 @@ def test_compact_frame_on_can_fd_over_vcan_is_the_classic_direct_run(scenario: s
     d_sum, direct = run(scenario, tmp_path / "direct", "--bus", "direct")
     args = ("--set", "frames.can=fd", "--set", "frames.measurement=compact", "--set", "frames.bit_rate_switch=false")
     v_sum, vcan = run(scenario, tmp_path / "vcan", "--bus", vcan0, *args)
-    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"]
+    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"], why(v_sum)
     equal_columns(vcan, direct)
     fd, lengths, _ = fd_frames_of(tmp_path / "vcan")
     assert {0x190, 0x210} <= fd and 8 in lengths and max(lengths) == 8  # the compact frame fits classic sizes

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from bench_cli import bench_cli
+from bench_cli import bench_cli, why
 
 from bench.paths import REPO
 
@@ -34,7 +34,7 @@ def run(scenario: str, out: Path, *args: str) -> tuple[dict[str, Any], Any]:
 def test_compact_frame_over_vcan_is_the_default_direct_run(scenario: str, vcan0: str, tmp_path: Path) -> None:
     d_sum, direct = run(scenario, tmp_path / "direct", "--bus", "direct")
     c_sum, compact = run(scenario, tmp_path / "vcan", "--bus", vcan0, "--set", "frames.measurement=compact")
-    assert c_sum["status"] == d_sum["status"] and c_sum["status_expected"], (c_sum["status"], d_sum["status"])
+    assert c_sum["status"] == d_sum["status"] and c_sum["status_expected"], why(c_sum)
     assert c_sum["bus_stats"]["lost_frames"] == 0 and c_sum["counters"]["drive_lost_measurements"] == 0
     assert {"i_a_code", "theta_code"} <= set(compact.dtype.names) and "sample_index" not in compact.dtype.names
     common = [n for n in direct.dtype.names if n in compact.dtype.names]
@@ -50,8 +50,8 @@ def test_measurement_as_period_mark_over_vcan_equals_direct(scenario: str, vcan0
     marked = ("--set", "frames.measurement=compact", "--set", "frames.period_mark=measurement")
     d_sum, direct = run(scenario, tmp_path / "direct", "--bus", "direct", *marked)
     v_sum, vcan = run(scenario, tmp_path / "vcan", "--bus", vcan0, *marked)
-    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"]
-    assert v_sum["bus_stats"]["lost_frames"] == 0 and v_sum["bus_stats"]["sync_counter_gaps"] == 0
+    assert v_sum["status"] == d_sum["status"] and v_sum["status_expected"], why(v_sum)
+    assert v_sum["bus_stats"]["lost_frames"] == 0 and v_sum["bus_stats"]["sync_counter_gaps"] == 0, why(v_sum)
     assert vcan.dtype.names == direct.dtype.names
     for col in direct.dtype.names:
         np.testing.assert_array_equal(vcan[col], direct[col], err_msg=col)
