@@ -20,6 +20,7 @@ import pytest
 from bench_cli import bench_cli
 
 from bench.api import ScenarioError, run
+from bench.paths import REPO
 
 PAPERS = [
     "scenarios/you2019_step.toml",  # You 2019, the deadbeat step
@@ -99,7 +100,7 @@ def test_replay_and_export_of_a_can_fd_log(tmp_path: Path) -> None:
     ("overrides", "said"),
     [
         (["frames.measurement=single_frame"], "frames.measurement = 'single_frame' is 16 bytes: it needs frames.can"),
-        (["frames.bit_rate_switch=false"], "frames.bit_rate_switch needs frames.can = 'fd'"),
+        (["frames.bit_rate_switch=false"], "frames.bit_rate_switch = false needs frames.can = 'fd'"),
         (["frames.can=fdx"], "frames.can = 'fdx': expected one of classic, fd"),
         ([*FD, "frames.bit_rate_switch=1"], "frames.bit_rate_switch = 1: expected true or false"),
     ],
@@ -129,3 +130,15 @@ def test_a_can_fd_run_on_a_classic_link_is_refused_with_the_fix(info: dict, box:
         SessionBus._check_fd_links(session, {"vcan0": info})  # type: ignore[arg-type]
     assert "vcan0 carries classic CAN frames only (MTU 16)" in str(err.value) and said in str(err.value)
     SessionBus._check_fd_links(session, {"vcan0": {**info, "mtu": 72}})  # type: ignore[arg-type]
+
+
+def test_the_docs_frames_table_switched_back_to_classic_by_set(tmp_path: Path) -> None:
+    """docs/PHYSICAL_BUS.md's [frames] table (can = "fd", bit_rate_switch = true, single_frame, its mark) in a
+    scenario, and the same scenario with --set frames.can=classic --set frames.measurement=compact: both run (the
+    default bit_rate_switch = true is harmless on classic frames)."""
+    text = (REPO / "docs" / "PHYSICAL_BUS.md").read_text()
+    table = text.split("## CAN FD in the loop", 1)[1].split("```toml", 1)[1].split("```", 1)[0]
+    scenario = tmp_path / "fd.toml"
+    scenario.write_text((REPO / "scenarios" / "you2019_step.toml").read_text() + table)
+    assert run(scenario, []).status == "ok"
+    assert run(scenario, ["frames.can=classic", "frames.measurement=compact"]).status == "ok"
