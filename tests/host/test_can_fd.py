@@ -18,16 +18,11 @@ import can
 import numpy as np
 import pytest
 from bench_cli import bench_cli
+from papers import PAPERS, SENSORS
 
 from bench.api import ScenarioError, run
 from bench.paths import REPO
 
-PAPERS = [
-    "scenarios/you2019_step.toml",  # You 2019, the deadbeat step
-    "scenarios/yao2020_identification.toml",  # Yao 2020, the R/L identification
-    "scenarios/zhao2022_stability.toml",  # Zhao 2022, a stability point
-]
-SENSORS = ["drive.adc_lsb_A=0.005", "drive.encoder_lines=2500"]  # quantizing ADC, You 2019's 2500-line encoder
 FD = ["frames.can=fd"]
 SINGLE = [*FD, "frames.measurement=single_frame"]
 LOOP_COBS = {0x190, 0x290, 0x210}  # plant TPDO1, TPDO2, drive TPDO1 (the EDS's COB-IDs at the default node-IDs)

@@ -18,6 +18,7 @@ import can
 import numpy as np
 import pytest
 from bench_cli import bench_cli
+from papers import PAPERS, SENSORS
 
 from bench.api import RunRefused, ScenarioError, run
 from bench.paths import REPO
@@ -26,12 +27,6 @@ from bench.run.decode.decoder import Decoder
 from bench.scenario import load
 from bench.signals import column_name
 
-PAPERS = [
-    "scenarios/you2019_step.toml",  # You 2019, the deadbeat step
-    "scenarios/yao2020_identification.toml",  # Yao 2020, the R/L identification
-    "scenarios/zhao2022_stability.toml",  # Zhao 2022, a stability point
-]
-SENSORS = ["drive.adc_lsb_A=0.005", "drive.encoder_lines=2500"]  # quantizing ADC, You 2019's 2500-line encoder
 COMPACT = ["frames.measurement=compact"]
 
 
