@@ -88,9 +88,9 @@ def _main(argv: list[str]) -> int:
     if rc:
         return rc
     if command is not None and command.viewer is not None and not helping and command.viewer(argv):
-        from bench.view.worker import prestart
+        from bench.view.worker_procs import prestart, roles_in_argv
 
-        prestart()  # the viewer and plot processes import rerun and matplotlib while we import the rest
+        prestart(roles_in_argv(argv))  # the viewer and plot processes import rerun and pygal while we import the rest
     parser = build_parser(argv[:1])  # the chosen command's arguments only
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

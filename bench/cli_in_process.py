@@ -21,6 +21,10 @@ import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.view.deferred import DeferredView
 
 
 @dataclass
@@ -30,6 +34,7 @@ class Ran:
     exit_code: int
     stdout: str
     stderr: str
+    view: DeferredView | None = None  # with view_later: the recording and plots, not drawn yet
 
 
 def same_build(build: Path | None = None) -> bool:
@@ -71,7 +76,7 @@ def runs_here(argv: list[str]) -> bool:
     return bus_of_args(args).in_process and same_build()
 
 
-def run_here(argv: list[str]) -> Ran:
+def run_here(argv: list[str], view_later: bool = False) -> Ran:
     """`bench run ARGV` (ARGV without "run") in this process, as the command runs it (the extras it lacks refused,
     then its handler, bench/cli_runs.py); bad arguments are exit status 2 with argparse's message, as from the
     command. A Ctrl-C is the caller's: the run stops (its folder NAME.failed, or complete if its loop was), then
@@ -82,6 +87,7 @@ def run_here(argv: list[str]) -> Ran:
 
     reuse()
     out, err = io.StringIO(), io.StringIO()
+    views: list[DeferredView] = []
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         args = parse_run(argv)
         if isinstance(args, int):
@@ -91,8 +97,10 @@ def run_here(argv: list[str]) -> Ran:
             code = 2
         else:
             args.in_caller = True  # bench/run/command.py: a Ctrl-C while the results are written is the caller's
+            if view_later:  # the recording and plots drawn later, or never (bench/view/deferred.py)
+                args.view_later = views
             code = int(args.func(args))
     if code == 130:
         said = err.getvalue().strip().splitlines()
         raise KeyboardInterrupt(f"bench run interrupted: {said[-1] if said else 'no message'}")
-    return Ran(code, out.getvalue(), err.getvalue())
+    return Ran(code, out.getvalue(), err.getvalue(), views[0] if views else None)

@@ -62,7 +62,7 @@ def section_of(var: ODVariable) -> str:
 @cache
 def raw_eds(path: str) -> configparser.ConfigParser:
     """An EDS file as INI text (the keys canopen does not read: ValueNames, BitNames, CurrentLaws ...), read once."""
-    return reader.parse(path)  # type: ignore[no-any-return]
+    return _cached_files("raw", (Path(path),), lambda: reader.parse(path))
 
 
 def default_node_id(node: str) -> int:
@@ -116,11 +116,19 @@ def _code_key() -> bytes:
 
 
 def _cached(what: str, node: str, build: Callable[[], T]) -> T:
-    """`build()` memoized on disk, keyed by the EDS file's content and the canopen version: parsing
-    an EDS costs ~0.1 s of every command's start; unpickling it a few ms."""
-    path = eds_path(node)
-    key = hashlib.sha256(path.read_bytes() + _code_key() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
-    cache = STATE / "eds-cache" / f"{node}-{key}.pickle"
+    """`build()` memoized on disk, keyed by the node's EDS file's content (`_cached_files`)."""
+    return _cached_files(what, (eds_path(node),), build)
+
+
+def _cached_files(what: str, paths: tuple[Path, ...], build: Callable[[], T]) -> T:
+    """`build()` memoized on disk, keyed by the files' content, this code and the canopen version: parsing
+    an EDS costs ~0.1 s of every command's start (a few ms an INI parse); unpickling it a few ms."""
+    try:
+        content = b"".join(path.read_bytes() for path in paths)
+    except OSError:  # a missing file: build() says which, in its own words
+        return build()
+    key = hashlib.sha256(content + _code_key() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
+    cache = STATE / "eds-cache" / f"{paths[0].stem}-{key}.pickle"
     try:
         return pickle.loads(cache.read_bytes())  # type: ignore[no-any-return]
     except (OSError, pickle.PickleError, EOFError, AttributeError):
@@ -146,7 +154,9 @@ def emcy_table() -> dict[str, tuple[Any, ...]]:
     """Every EMCY code the nodes send, by where the EDS declares it: "common" (common.ini: the CANopen stack's
     own), "plant", "drive" (each node's [EmergencyCodes]); each an eds_reader.EmcyCode (name, code, description).
     A code or a name declared twice is refused (EdsError)."""
-    return reader.emcy_table(EDS_DIR, ("plant", "drive"))  # type: ignore[no-any-return]
+    nodes = ("plant", "drive")
+    files = (common_path(), *(eds_path(n) for n in nodes))
+    return _cached_files("emcy", files, lambda: reader.emcy_table(EDS_DIR, nodes))
 
 
 def fault_injector_size(key: str) -> int:

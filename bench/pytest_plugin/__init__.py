@@ -27,12 +27,13 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from bench.pytest_plugin.state import RUN_TEXTS, SETTINGS, Settings
+from bench.pytest_plugin.state import RUN_TEXTS, RUN_VIEWS, SETTINGS, LaterView, Settings
 
 if TYPE_CHECKING:
     from bench.pytest_plugin.fixture import HilRunner
 
 __all__ = ["HilRun", "Step", "load_run"]
+VIEWS = ("failed", "all")  # --hil-view
 
 
 def __getattr__(name: str) -> Any:
@@ -84,6 +85,16 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "xdist worker: pytest reports it and goes on)",
     )
     parser.addini("hil_isolate", "as --hil-isolate", type="bool", default=False)
+    group.addoption(
+        "--hil-view",
+        dest="hil_view",
+        choices=VIEWS,
+        default=None,
+        help="the run.rrd recording and SVG plots of a direct run in the test's process: 'failed' (default) draws "
+        "them only for a failing test's runs, when it fails (a passing test's run costs ~5x less); 'all' draws them "
+        "for every run. A run in a process of its own always has them",
+    )
+    parser.addini("hil_view", "as --hil-view", default="failed")
     # --hil-law=DIR rather than --hil-law DIR: pytest looks for its rootdir before it loads plugins, and takes a
     # folder after an option it does not know yet for a test path (pytest-dev/pytest#8846)
     eq = "; write --hil-{name}=DIR (pytest would take a separate DIR for a test path when it looks for its rootdir)"
@@ -111,6 +122,9 @@ def pytest_configure(config: pytest.Config) -> None:
     option = "--hil-bus" if cli or not ini else f"{config.inipath or 'the ini file'}: hil_bus"
     require = bool(config.getoption("hil_require") or config.getini("hil_require"))
     isolate = bool(config.getoption("hil_isolate") or config.getini("hil_isolate"))
+    view = str(config.getoption("hil_view") or config.getini("hil_view") or "failed")
+    if view not in VIEWS:
+        raise pytest.UsageError(f"{config.inipath or 'the ini file'}: hil_view = {view!r}: one of {', '.join(VIEWS)}")
     config.stash[SETTINGS] = Settings(
         bus=cli or ini or "direct",
         law=_path(config, "law"),
@@ -118,6 +132,7 @@ def pytest_configure(config: pytest.Config) -> None:
         bus_option=option,
         require=require,
         isolate=isolate,
+        view=view,
     )
     config.addinivalue_line(
         "markers",
@@ -210,6 +225,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if log is not None and log.pending:  # an xdist worker's box lines, for the controller to print
         report.hil_box_lines, log.pending = log.pending, []
     texts = item.stash.get(RUN_TEXTS, None)
+    views = item.stash.get(RUN_VIEWS, None)
+    if views and texts and report.failed:  # --hil-view=failed: the runs' recording and plots, now
+        _draw(views, texts)
+    if views and report.when == "teardown":
+        views.clear()  # a passing test's kept chunks go
     if texts and report.failed:
         title = "HIL run" if len(texts) == 1 else f"HIL runs ({len(texts)})"
         report.sections.append((title, "\n\n".join(texts)))
@@ -217,3 +237,21 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         # system-out under junit_logging = system-out or all: CI servers that show no properties (GitLab) show it
         item.add_report_section("call", "stdout", f"{title}\n" + "\n\n".join(texts))
     return report
+
+
+def _draw(views: list[LaterView], texts: list[str]) -> None:
+    """Draw the kept runs' recording and plots, and write their report texts again to name them."""
+    from dataclasses import replace
+
+    from bench.pytest_plugin.result import report_text
+
+    for later in views:
+        try:
+            files = later.view.draw(later.run.folder)
+        except Exception as exc:  # noqa: BLE001 - the test's failure is the report's subject, not this
+            texts[later.text] += f"\nrecording and plots: not drawn ({exc})"
+            continue
+        folder = later.run.folder
+        run = replace(later.run, recording=folder / "run.rrd" if "run.rrd" in files else later.run.recording)
+        texts[later.text] = report_text(run) + "\n" + later.reproduce
+    views.clear()

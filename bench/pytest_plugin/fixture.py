@@ -32,7 +32,7 @@ from bench.pytest_plugin.runner import (
     scenario_file,
     table_overrides,
 )
-from bench.pytest_plugin.state import RUN_TEXTS, LawBuild, Settings
+from bench.pytest_plugin.state import RUN_TEXTS, RUN_VIEWS, LaterView, LawBuild, Settings
 
 
 class HilRunner:
@@ -114,7 +114,8 @@ class HilRunner:
         folder = self._runs.folder / run_name
         run_sets = sets if motor_args else [*sets, *motor_sets]  # a folder as --motor DIR: its override
         cmd = command(path, folder, bus, run_sets, [*motor_args, *extra_args])
-        run = finish(cmd, folder, path, bus, self._execute(cmd, timeout, env, bus, extra_args), timeout)
+        later: list[Any] = []
+        run = finish(cmd, folder, path, bus, self._execute(cmd, timeout, env, bus, extra_args, later), timeout)
         texts = self._node.stash.setdefault(RUN_TEXTS, [])
         n = len(texts) + 1
         prefix = "hil_" if n == 1 else f"hil_run{n}_"
@@ -125,7 +126,11 @@ class HilRunner:
             props += motor_properties(_motor_block(checked))
             self._node.user_properties.extend((prefix + k, str(v)) for k, v in props)
             refuse(run.message)
-        texts.append(report_text(run) + "\n" + self._reproduce(cmd, built, chosen))
+        reproduce = self._reproduce(cmd, built, chosen)
+        if later:  # drawn if the test fails (bench/pytest_plugin/__init__.py, pytest_runtest_makereport)
+            views = self._node.stash.setdefault(RUN_VIEWS, [])
+            views.append(LaterView(later[0], run, len(texts), reproduce))
+        texts.append(report_text(run) + "\n" + reproduce)
         self._node.user_properties.extend(junit_properties(run, prefix))
         given += motor_properties(run.summary.get("motor"))
         self._node.user_properties.extend((prefix + k, str(v)) for k, v in given)
@@ -176,7 +181,13 @@ class HilRunner:
         return Path(os.path.abspath(next((t for t in tried if kind(t)), tried[0])))
 
     def _execute(
-        self, cmd: list[str], timeout: float | None, env: dict[str, str], bus: str, extra: Sequence[str]
+        self,
+        cmd: list[str],
+        timeout: float | None,
+        env: dict[str, str],
+        bus: str,
+        extra: Sequence[str],
+        later: list[Any],
     ) -> tuple[int, str, str, bool]:
         """The run; one through the CAN box boots it first if none is up (box.ensure: said on the terminal), and
         is counted with the slot it took for the session's line on the box."""
@@ -185,7 +196,7 @@ class HilRunner:
 
         reason = box.needs(bus, extra)
         if reason is None and in_process(cmd, timeout, env, self._settings.isolate):
-            return execute_here(cmd)
+            return execute_here(cmd, later if self._settings.view == "failed" else None)
         if reason is None:
             return execute(cmd, timeout, env)
         from bench.run.bus.box.control import BoxError

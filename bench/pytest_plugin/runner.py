@@ -202,11 +202,14 @@ def execute(
     return proc.returncode, out, err, False
 
 
-def execute_here(cmd: list[str]) -> tuple[int, str, str, bool]:
-    """The run of `cmd` (a `command()`) in this process (bench/cli_in_process.py): as `execute` returns it."""
+def execute_here(cmd: list[str], later: list[Any] | None = None) -> tuple[int, str, str, bool]:
+    """The run of `cmd` (a `command()`) in this process (bench/cli_in_process.py): as `execute` returns it. With a
+    `later` list, its recording and plots are not drawn: what draws them is appended (bench/view/deferred.py)."""
     from bench.cli_in_process import run_here
 
-    ran = run_here(cmd[4:])
+    ran = run_here(cmd[4:], view_later=later is not None)
+    if later is not None and ran.view is not None:
+        later.append(ran.view)
     return ran.exit_code, ran.stdout, ran.stderr, False
 
 

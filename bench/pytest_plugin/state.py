@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -30,9 +31,22 @@ class Settings:
     bus_option: str = "--hil-bus"  # where the bus was chosen, as messages name it
     require: bool = False  # --hil-require: a test whose hil marker asks for what is missing fails, not skips
     isolate: bool = False  # --hil-isolate: every run a `bench run` process of its own (else direct runs in process)
+    view: str = "failed"  # --hil-view: an in-process run's recording and plots drawn for every run, or a failing test's
     bus_problems: dict[str, str | None] = field(default_factory=dict)  # checked buses: their problem or None
     laws: dict[Path, LawBuild] = field(default_factory=dict)  # the session's law builds, by folder
 
 
 SETTINGS = pytest.StashKey[Settings]()
 RUN_TEXTS = pytest.StashKey[list[str]]()  # on a test item: per run of hil_run, what its report shows
+RUN_VIEWS = pytest.StashKey[list["LaterView"]]()  # on a test item: its in-process runs' recording and plots, not drawn
+
+
+@dataclass
+class LaterView:
+    """An in-process run whose recording and plots are drawn if its test fails (--hil-view=failed): `view` draws
+    them (bench/view/deferred.py), then the run's report text, `RUN_TEXTS[text]`, is written again."""
+
+    view: Any  # bench.view.deferred.DeferredView
+    run: Any  # its HilRun
+    text: int  # its index in RUN_TEXTS
+    reproduce: str  # the report's reproduce line, as written

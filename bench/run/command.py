@@ -166,6 +166,14 @@ def _output_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer (the .rrd is still saved)")
     p.add_argument("--live-decimate", type=int, default=1, help="send every Nth period to the live viewer")
+    p.add_argument(
+        "--no-rrd",
+        action="store_true",
+        help="do not write run.rrd, the Rerun recording (a live viewer, --serve or spawned, still shows the run; "
+        "bench replay of bus.log makes the recording later); with --no-plots and no live viewer the run starts no "
+        "helper process and imports neither rerun nor pygal",
+    )
+    p.add_argument("--no-plots", action="store_true", help="do not write the SVG plots")
 
 
 def _check_args(args: argparse.Namespace) -> None:

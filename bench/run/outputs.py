@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -38,22 +37,30 @@ class Outputs:
             self.frame_sinks.append(CandumpWriter(self.log_path, args.bus))
 
     def _view_worker(self) -> Any:
+        from bench.view.deferred import KEEP_PERIODS, DeferredView
         from bench.view.worker import ViewWorker
+        from bench.view.worker_procs import live_of
 
-        live = "none"
-        if self.args.serve:
-            live = "serve"
-        elif not self.args.no_viewer and (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-            live = "spawn"
+        live = live_of(self.args.serve, self.args.no_viewer)
+        kwargs: dict[str, Any] = {
+            "live_decimate": self.args.live_decimate,
+            "rrd": not getattr(self.args, "no_rrd", False),
+            "plots": not getattr(self.args, "no_plots", False),
+        }
+        later = getattr(self.args, "view_later", None)  # the plugin's in-process runs (bench/cli_in_process.py)
+        if later is not None and live == "none" and self.sc.periods <= KEEP_PERIODS:
+            view = DeferredView(self.sc.name, self.folder, **kwargs)
+            later.append(view)
+            return view
         worker = ViewWorker(
             self.sc.name,
             self.folder,
             live=live,
-            live_decimate=self.args.live_decimate,
             web_port=getattr(self.args, "web_port", 9090),
             grpc_port=getattr(self.args, "grpc_port", 9876),
             serve_for=getattr(self.args, "serve_for", None),
             bind=getattr(self.args, "serve_bind", "127.0.0.1"),
+            **kwargs,
         )
         if live == "serve":  # fail before the run if the ports are taken; the address, once, now
             worker.wait_ready()

@@ -21,7 +21,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from bench.view.worker_procs import _STARTED, ROLES, _Proc, _take, discard, give_back, prestart, reuse, reusing
+from bench.view.worker_procs import (
+    _STARTED,
+    ROLES,
+    _Proc,
+    _take,
+    discard,
+    give_back,
+    prestart,
+    reuse,
+    reusing,
+    roles_for,
+)
 from bench.view.worker_roles import main
 
 __all__ = ["ROLES", "ViewWorker", "_STARTED", "_Proc", "discard", "main", "prestart", "reuse"]
@@ -41,6 +52,7 @@ class ViewWorker:
         rrd: bool = True,
         serve_for: float | None = None,
         bind: str = "127.0.0.1",
+        plots: bool = True,
     ) -> None:
         self.spec = {
             "name": name,
@@ -54,23 +66,29 @@ class ViewWorker:
             "bind": bind,
             "keep": reusing() and live == "none",  # the processes serve the next run too (worker_procs.reuse)
         }
-        self.rerun = _take("rerun")
-        self.plots = _take("plots")
-        self.rerun.send("spec", self.spec)
-        self.plots.send("spec", self.spec)
+        # each process only when the run needs it (--no-rrd, --no-plots: bench/view/worker_procs.roles_for)
+        roles = roles_for(rrd, plots, live)
+        self.rerun = _take("rerun") if "rerun" in roles else None
+        self.plots = _take("plots") if "plots" in roles else None
+        self.procs = [p for p in (self.rerun, self.plots) if p is not None]
+        for proc in self.procs:
+            proc.send("spec", self.spec)
         self.live = live
         self.url: str | None = None
         self.skipped: str | None = None  # why the recording and the plots were not made
 
     def wait_ready(self) -> None:
         """Block until the rerun process has its viewer up (serving: the ports are taken, or the error is known)."""
-        self.url = self.rerun.first().get("url")
+        if self.rerun is not None:
+            self.url = self.rerun.first().get("url")
 
     def begin(self, signals: list[Any], ctx: Any = None) -> None:
-        self.rerun.send("begin", signals)
+        if self.rerun is not None:
+            self.rerun.send("begin", signals)
 
     def write(self, chunk: dict[str, Any]) -> None:
-        self.rerun.send("chunk", chunk)
+        if self.rerun is not None:
+            self.rerun.send("chunk", chunk)
 
     def end(self, summary: dict[str, Any]) -> None:
         pass  # the plots need the step windows too: see finish()
@@ -82,7 +100,7 @@ class ViewWorker:
         imports take minutes in the VM): they are stopped, and the run has no recording and no plots
         (`bench replay` of its bus.log makes them). When they are up, it gets them as any run."""
         if result.summary.get("stopped") and self.live != "serve":
-            if not (self.rerun.ready_now() and self.plots.ready_now()):
+            if not all(p.ready_now() for p in self.procs):
                 self.abort()
                 Path(self.spec["folder"], "run.rrd").unlink(missing_ok=True)
                 self.skipped = "the run stopped early and the viewer processes were still starting"
@@ -92,30 +110,30 @@ class ViewWorker:
                     flush=True,
                 )
                 return
-        self.rerun.send("finish", {"summary": result.summary})
-        self.plots.send(
-            "finish",
-            {"summary": result.summary, "windows": result.step_windows, "envelopes": result.envelopes, "title": title},
-        )
+        if self.rerun is not None:
+            self.rerun.send("finish", {"summary": result.summary})
+        if self.plots is not None:
+            plots = {"summary": result.summary, "windows": result.step_windows, "envelopes": result.envelopes}
+            self.plots.send("finish", {**plots, "title": title})
         if not self.spec["keep"]:
-            self.rerun.close_input()
-            self.plots.close_input()
+            for proc in self.procs:
+                proc.close_input()
 
     def finish_wait(self) -> list[str]:
         """The files written (run.rrd and the PNGs), once both processes are done with them."""
         if self.skipped:
             return []
         try:
-            self.wait_ready()
-            files = list(self.rerun.recv().get("files", []))
-            self.plots.first()  # ready
-            files += list(self.plots.recv().get("files", []))
+            files: list[str] = []
+            for proc in self.procs:
+                proc.first()  # ready
+                files += list(proc.recv().get("files", []))
         except BaseException:
             self.abort()  # a process that failed its run (or a kept one in the middle of it) serves no other
             raise
         if self.spec["keep"]:
-            give_back(self.rerun)
-            give_back(self.plots)
+            for proc in self.procs:
+                give_back(proc)
         return files
 
     def serve(self, seconds: float | None) -> None:
@@ -123,7 +141,7 @@ class ViewWorker:
         terminal's process group, or to the bench alone: then the bench stops it); wait for it."""
         from bench.stop import deferred
 
-        if self.spec["keep"]:
+        if self.spec["keep"] or self.rerun is None:
             return  # no viewer; the processes went back for the next run (finish_wait)
         sys.stdout.flush()  # the results are said before the wait (a pipe buffers them otherwise)
         try:
@@ -132,14 +150,15 @@ class ViewWorker:
             with deferred():  # a second signal must not leave the server behind
                 self.rerun.kill()
         with deferred():
-            self.plots.kill()
+            if self.plots is not None:
+                self.plots.kill()
 
     def abort(self) -> None:
         from bench.stop import deferred
 
         with deferred():
-            self.rerun.kill()
-            self.plots.kill()
+            for proc in self.procs:
+                proc.kill()
 
 
 if __name__ == "__main__":

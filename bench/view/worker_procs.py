@@ -118,9 +118,30 @@ class _Proc:
                 self.proc.wait()
 
 
-def prestart() -> None:
+def live_of(serve: bool, no_viewer: bool) -> str:
+    """The live viewer of a run: served (--serve), spawned (a display and no --no-viewer) or none."""
+    if serve:
+        return "serve"
+    if not no_viewer and (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return "spawn"
+    return "none"
+
+
+def roles_for(rrd: bool, plots: bool, live: str) -> tuple[str, ...]:
+    """The helper processes a run needs: "rerun" for run.rrd or a live viewer, "plots" for the plots."""
+    return tuple(r for r, on in (("rerun", rrd or live != "none"), ("plots", plots)) if on)
+
+
+def roles_in_argv(argv: list[str]) -> tuple[str, ...]:
+    """`roles_for` guessed from `bench run`'s arguments before they are parsed (prestart): an abbreviated option
+    is missed, and then a process is started late (`_take`) or stopped unused (`discard`), never lacking."""
+    live = live_of("--serve" in argv, "--no-viewer" in argv)
+    return roles_for("--no-rrd" not in argv, "--no-plots" not in argv, live)
+
+
+def prestart(roles: tuple[str, ...] = ROLES) -> None:
     """Start the helper processes now, so that their imports run while the bench imports its own."""
-    for role in ROLES:
+    for role in roles:
         if role not in _STARTED:
             _STARTED[role] = _Proc(role)
 

@@ -38,6 +38,31 @@ def test_run_direct_writes_every_result(tmp_path: Path) -> None:
     assert len(list(can.LogReader(str(out / "bus.log")))) == summary["bus_stats"]["frames"]
 
 
+@pytest.mark.parametrize("flags", [["--no-rrd"], ["--no-plots"], ["--no-rrd", "--no-plots"]])
+def test_run_without_the_recording_or_the_plots(tmp_path: Path, flags: list[str]) -> None:
+    """--no-rrd / --no-plots: the same run, its data bit for bit, without what was left out (named so in the
+    summary); with both no helper process starts (bench/view/worker_procs.roles_for)."""
+    full, lean = tmp_path / "full", tmp_path / "lean"
+    bench_cli("run", STEP, "--bus", "direct", "--out", full, "--no-viewer", expect=0)
+    bench_cli("run", STEP, "--bus", "direct", "--out", lean, "--no-viewer", *flags, expect=0)
+    for name in ("traces.npy", "bus.log"):
+        assert (lean / name).read_bytes() == (full / name).read_bytes(), name
+    files = json.loads((lean / "summary.json").read_text())["files"]
+    assert (files["recording"] is None) == ("--no-rrd" in flags) == (not (lean / "run.rrd").exists()), files
+    assert (files["plots"] == []) == ("--no-plots" in flags) == (not list(lean.glob("*.svg"))), files
+
+
+def test_which_helper_processes_a_run_starts() -> None:
+    from bench.view.worker_procs import roles_for, roles_in_argv
+
+    assert roles_for(True, True, "none") == ("rerun", "plots")
+    assert roles_for(False, False, "none") == ()
+    assert roles_for(False, False, "serve") == ("rerun",)  # the live view needs it, without a file
+    assert roles_for(False, True, "spawn") == ("rerun", "plots")
+    assert roles_in_argv(["run", "s.toml", "--no-rrd", "--no-plots", "--no-viewer"]) == ()
+    assert roles_in_argv(["run", "s.toml", "--no-rrd", "--serve"]) == ("rerun", "plots")
+
+
 def test_set_overrides_change_the_run(hil_run: HilRunner) -> None:
     run = hil_run(STEP, {"controller.L_hat_ratio": 1.2}, bus="direct")
     assert run.exit_code == 0, run.stderr

@@ -77,7 +77,7 @@ def test_matched_deadbeat_meets_its_spec(hil_run, hil_bus):
     step = run.step("iq")
     assert (step.at_period, step.from_A, step.to_A, step.periods_to_settle) == (20, 0.0, 1.0, 2)
     assert run.summary["bus_stats"]["lost_frames"] == 0
-    assert run.bus_log.is_file() and run.recording is not None and run.recording.is_file()
+    assert run.bus_log.is_file() and run.recording is None  # --hil-view=failed: drawn when a test fails
 
 
 def test_mismatched_inductance_overshoots(hil_run):
@@ -132,7 +132,21 @@ def test_the_session_passes_and_fails_where_it_should(session: tuple[pytest.RunR
         "test_a_missing_scenario",
         "test_a_key_the_eds_does_not_know",
     }, _output(result)
-    assert (root / "hil-runs" / "test_spec.py_test_matched_deadbeat_meets_its_spec" / "you2019_step").is_dir()
+    passed = root / "hil-runs" / "test_spec.py_test_matched_deadbeat_meets_its_spec" / "you2019_step"
+    assert passed.is_dir()
+    # --hil-view=failed (the default): a passing test's direct run draws no recording and no plots ...
+    assert {p.name for p in passed.iterdir()} == {"bus.log", "summary.json", "traces.npy"}
+    assert json.loads((passed / "summary.json").read_text())["files"]["recording"] is None
+    # ... a failing test's runs have them, drawn when it failed, and its summary.json names them
+    failed = root / "hil-runs" / "test_spec.py_test_mismatched_inductance_overshoots"
+    for run in sorted(p.parent for p in failed.glob("*/summary.json")):
+        files = json.loads((run / "summary.json").read_text())["files"]
+        assert files["recording"] == "run.rrd" and (run / "run.rrd").stat().st_size > 0, files
+        assert (
+            sorted(files["plots"])
+            == sorted(p.name for p in run.glob("*.svg"))
+            == ["overview.svg", "step_00_iq_p20.svg"]
+        )
 
 
 def test_a_broken_bound_names_the_measured_figure_the_bound_and_the_run(
@@ -209,6 +223,20 @@ def test_a_bus_that_is_not_there_is_an_error_before_any_test(hil_pytester: pytes
     assert result.ret == pytest.ExitCode.USAGE_ERROR, out
     assert f"ERROR: --hil-bus {bus}: " in out and "test_never_runs" not in out, out
     assert "Traceback" not in out and PLUGIN_FRAMES not in out, out
+
+
+def test_hil_view_all_draws_every_runs_recording_and_a_bad_value_is_refused(hil_pytester: pytest.Pytester) -> None:
+    hil_pytester.makepyfile(
+        "def test_passes(hil_run):\n    hil_run('scenarios/you2019_step.toml').expect_status('ok')\n"
+    )
+    result = _run(hil_pytester, "--hil-view=all")
+    assert result.ret == 0, _output(result)
+    run = next((hil_pytester.path / "hil-runs").glob("*/you2019_step"))
+    assert (run / "run.rrd").stat().st_size > 0 and (run / "overview.svg").is_file(), sorted(run.iterdir())
+    hil_pytester.makeini("[pytest]\nhil_view = sometimes\n")
+    result = _run(hil_pytester)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR, _output(result)
+    assert "hil_view = 'sometimes': one of failed, all" in _output(result), _output(result)
 
 
 def _law(tmp_path: Path, name: str) -> Path:

@@ -13,6 +13,7 @@ from bench_cli import bench_cli
 
 from bench.paths import REPO
 from bench.pytest_plugin.fixture import HilRunner
+from bench.pytest_plugin.state import RUN_VIEWS
 
 SCENARIOS = [
     "scenarios/you2019_step.toml",  # You 2019, the deadbeat step
@@ -30,7 +31,7 @@ def _summary(folder: Path) -> dict[str, Any]:
 
 @pytest.mark.parametrize("scenario", SCENARIOS, ids=[Path(s).stem for s in SCENARIOS])
 def test_a_run_in_process_is_the_run_of_a_process(
-    hil_run: HilRunner, tmp_path: Path, scenario: str, monkeypatch: pytest.MonkeyPatch
+    hil_run: HilRunner, tmp_path: Path, scenario: str, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
 ) -> None:
     import bench.pytest_plugin.fixture as fixture
 
@@ -43,11 +44,21 @@ def test_a_run_in_process_is_the_run_of_a_process(
     out = tmp_path / "process"
     bench_cli("run", REPO / scenario, "--bus", "direct", "--no-viewer", "--out", out)
     assert here.stdout == "" or "bench run:" in here.stdout  # the command's own output, captured
+    data = {"bus.log", "summary.json", "traces.npy"}
     for run in (here, again):
         assert (run.folder / "traces.npy").read_bytes() == (out / "traces.npy").read_bytes()
         assert run.bus_log.read_bytes() == (out / "bus.log").read_bytes()
+        # --hil-view=failed: the recording and plots are not drawn while the test passes ...
+        assert {p.name for p in run.folder.iterdir()} == data
+    # ... and drawn as the process drew them when it fails (bench/pytest_plugin/__init__.py: _draw)
+    kept = request.node.stash[RUN_VIEWS]
+    assert [later.run for later in kept] == [here, again]
+    for later in kept:
+        later.view.draw(later.run.folder)
+    for run in (here, again):
         assert _summary(run.folder) == _summary(out)
         assert sorted(p.name for p in run.folder.iterdir()) == sorted(p.name for p in out.iterdir())
+        assert (run.folder / "run.rrd").stat().st_size > 0
 
 
 def test_bad_arguments_in_process_are_the_commands_refusal(tmp_path: Path) -> None:
