@@ -4,7 +4,9 @@
   (18,182 periods), the median after the first, beside the same runs as `bench run --bus direct` processes;
 - a current law in Python: the example law's twin (examples/laws/complex_vector_pi/prototype.py) over N periods
   beside its C port, in the law's build, periods/s and the cost a period adds;
-- `bench --help` and `python -c "import bench.api"` as whole processes.
+- `bench --help` and `python -c "import bench.api"` as whole processes;
+- a direct `hil_run` test in a pytest session (the call phase pytest times), drawing every run's recording and
+  plots (`--hil-view=all`) and only a failing test's (the default).
 
     .venv/bin/python scripts/library_perf.py [--reps 5]
 """
@@ -64,19 +66,70 @@ def in_process(reps: int) -> None:
         print(f"  bench.api.run {label}, in this process: {med_ms(took)} over {n}")
 
 
+LEAN = ["--no-rrd", "--no-plots"]
+
+
 def processes(reps: int) -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        for label, periods in (("200 periods", 200), ("1 s scenario", 18_182)):
+        for label, periods, extra in (
+            ("200 periods", 200, []),
+            ("1 s scenario", 18_182, []),
+            ("1 s scenario --no-rrd --no-plots", 18_182, LEAN),
+        ):
             took = []
             for k in range(reps):
-                out = Path(tmp) / f"{periods}-{k}"
-                cmd = [*BENCH, "run", str(STEP), "--bus", "direct", "--no-viewer", "--out", str(out)]
-                took.append(wall([*cmd, "--set", f"scenario.periods={periods}"]))
-            print(f"  bench run --bus direct {label}, whole process: {med_ms(took)} over {reps}")
+                out = Path(tmp) / f"{periods}-{len(extra)}-{k}"
+                cmd = [*BENCH, "run", str(STEP), "--bus", "direct", "--no-viewer", "--out", str(out), *extra]
+                try:
+                    took.append(wall([*cmd, "--set", f"scenario.periods={periods}"]))
+                except subprocess.CalledProcessError:
+                    break  # a bench without these options (the code before)
+            shown = f"{med_ms(took)} over {reps}" if took else "n/a (no such options)"
+            print(f"  bench run --bus direct {label}, whole process: {shown}")
         took = [wall([*BENCH, "--help"]) for _ in range(reps)]
         print(f"  bench --help, whole process: {med_ms(took)}")
         took = [wall([sys.executable, "-c", "import bench.api"]) for _ in range(reps)]
         print(f"  python -c 'import bench.api': {med_ms(took)}")
+
+
+PLUGIN_TESTS = """
+import time
+import pytest
+
+@pytest.mark.parametrize("k", range({n}))
+def test_step(hil_run, k):
+    t0 = time.perf_counter()
+    run = hil_run("scenarios/you2019_step.toml", {{"controller.L_hat_ratio": 1.0 + 0.01 * k}})
+    took = time.perf_counter() - t0
+    run.expect_status("ok")
+    if k:  # after the session's first
+        with open("took.txt", "a") as f:
+            f.write(f"{{took}}\\n")
+"""
+
+
+def plugin_tests(n: int = 21) -> None:
+    """A direct hil_run test of You 2019's step (200 periods): the hil_run call timed in the test, the median of
+    `n` - 1 after the session's first, with the recording and plots of every run (--hil-view=all) and only a
+    failing test's (the default), and the whole pytest session."""
+    for view in ("all", "failed"):
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / "test_steps.py").write_text(PLUGIN_TESTS.format(n=n))
+            (Path(tmp) / "pytest.ini").write_text("[pytest]\n")
+            cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+            t0 = time.perf_counter()
+            res = subprocess.run([*cmd, f"--hil-view={view}"], cwd=tmp, capture_output=True, text=True)
+            if res.returncode == 4:  # a bench without --hil-view (the code before): every run drew its view
+                if view == "failed":
+                    print("  a direct plugin test, --hil-view=failed: n/a (no such option)")
+                    continue
+                t0 = time.perf_counter()
+                res = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
+            session = time.perf_counter() - t0
+            took = Path(tmp, "took.txt")
+            calls = [float(x) for x in took.read_text().split()] if took.exists() else []
+            shown = f"{med_ms(calls)} over {len(calls)}" if calls else f"n/a ({res.stdout[-300:]!r})"
+            print(f"  a direct plugin test (200 periods), --hil-view={view}: {shown}; {n} tests: {session:.2f} s")
 
 
 def python_law(periods: int) -> None:
@@ -115,6 +168,7 @@ def main() -> int:
     print(f"{time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} cores, Python {sys.version.split()[0]}")
     in_process(args.reps)
     processes(args.reps)
+    plugin_tests()
     python_law(args.law_periods)
     return 0
 
