@@ -123,15 +123,16 @@ def _cached(what: str, node: str, build: Callable[[], T]) -> T:
 def _cached_files(what: str, paths: tuple[Path, ...], build: Callable[[], T]) -> T:
     """`build()` memoized on disk, keyed by the files' content, this code and the canopen version: parsing
     an EDS costs ~0.1 s of every command's start (a few ms an INI parse); unpickling it a few ms."""
-    try:
-        content = b"".join(path.read_bytes() for path in paths)
+    try:  # each file's own digest: text moved from one file to the next is another key
+        content = b"".join(hashlib.sha256(path.read_bytes()).digest() for path in paths)
     except OSError:  # a missing file: build() says which, in its own words
         return build()
-    key = hashlib.sha256(content + _code_key() + f"{canopen.__version__}|{what}".encode()).hexdigest()[:20]
+    versions = f"{canopen.__version__}|{sys.version_info[0]}.{sys.version_info[1]}|{what}"
+    key = hashlib.sha256(content + _code_key() + versions.encode()).hexdigest()[:20]
     cache = STATE / "eds-cache" / f"{paths[0].stem}-{key}.pickle"
     try:
         return pickle.loads(cache.read_bytes())  # type: ignore[no-any-return]
-    except (OSError, pickle.PickleError, EOFError, AttributeError):
+    except Exception:  # noqa: BLE001 - absent, torn or from other code: built again, and written over
         pass
     value = build()
     try:

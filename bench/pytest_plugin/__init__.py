@@ -91,7 +91,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         choices=VIEWS,
         default=None,
         help="the run.rrd recording and SVG plots of a direct run in the test's process: 'failed' (default) draws "
-        "them only for a failing test's runs, when it fails (a passing test's run costs ~5x less); 'all' draws them "
+        "them only for a failing test's runs, when it fails (a passing test's run costs ~10x less); 'all' draws them "
         "for every run. A run in a process of its own always has them",
     )
     parser.addini("hil_view", "as --hil-view", default="failed")
@@ -229,7 +229,9 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if views and texts and report.failed:  # --hil-view=failed: the runs' recording and plots, now
         _draw(views, texts)
     if views and report.when == "teardown":
-        views.clear()  # a passing test's kept chunks go
+        for later in views:
+            later.view.release()  # a passing test's kept chunks go
+        views.clear()
     if texts and report.failed:
         title = "HIL run" if len(texts) == 1 else f"HIL runs ({len(texts)})"
         report.sections.append((title, "\n\n".join(texts)))

@@ -165,7 +165,15 @@ def _output_arguments(p: argparse.ArgumentParser) -> None:
         "0.0.0.0 or :: lets anyone on the network watch the run)",
     )
     p.add_argument("--no-viewer", action="store_true", help="never spawn the Rerun viewer (the .rrd is still saved)")
-    p.add_argument("--live-decimate", type=int, default=1, help="send every Nth period to the live viewer")
+    p.add_argument(
+        "--live-decimate",
+        type=int,
+        default=None,
+        metavar="N",
+        help="send every Nth period to the live viewer; default: a min/max envelope of every signal, ~1000 buckets "
+        "a second of wall time whatever the run's rate, so the viewer keeps up (run.rrd has every period either "
+        "way; a viewer that falls behind loses live rows, counted in summary.json live_view, never holds up the run)",
+    )
     p.add_argument(
         "--no-rrd",
         action="store_true",
@@ -183,7 +191,7 @@ def _check_args(args: argparse.Namespace) -> None:
             raise ScenarioError(f"--{name.replace('_', '-')} = {v}: a node-ID is 1 .. 127")
     if args.plant_id == args.drive_id:
         raise ScenarioError("--plant-id and --drive-id must differ")
-    if args.live_decimate < 1:
+    if args.live_decimate is not None and args.live_decimate < 1:
         raise ScenarioError(f"--live-decimate = {args.live_decimate}: must be >= 1")
     if args.serve_for is not None and (args.serve_for < 0 or not args.serve):
         raise ScenarioError("--serve-for needs --serve and a number of seconds >= 0")

@@ -98,6 +98,15 @@ class Outputs:
         except RuntimeError as exc:  # the run and its data are fine: a view that failed is a warning
             print(f"bench run: warning: the recording or the plots were not written: {exc}", file=sys.stderr)
             shown = []
+        live = getattr(self.view, "live_stats", None)
+        if live:  # what the live viewer got: a viewer that fell behind lost rows of its view, never of the files
+            result.summary["live_view"] = live
+            if live["periods_dropped"]:
+                print(
+                    f"bench run: the live viewer fell behind: {live['periods_dropped']} of {live['periods']} periods "
+                    "were not sent to it (run.rrd has every one)",
+                    file=sys.stderr,
+                )
         self.write_summary(result, [f for f in shown if f.endswith(".svg")])
 
     def write_summary(self, result: Any, plots: list[str] | None = None, complete: bool = True) -> None:

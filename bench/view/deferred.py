@@ -5,7 +5,8 @@ run's ~100 ms: pygal's SVG, rerun's file); a failing one gets the same files as 
 the viewer processes get the same messages (bench/view/worker.py).
 
 What is kept is the run's decoded chunks (references: the pipeline hands each chunk over once and never changes it),
-the step windows and envelopes: a run longer than KEEP_PERIODS draws at once instead (its chunks would be large)."""
+the step windows and envelopes: a run longer than KEEP_PERIODS draws at once instead (its chunks would be large), and
+so does a run that finds the process keeping KEEP_BYTES already (a test of many runs), from then on."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 KEEP_PERIODS = 200_000  # longer runs draw their view at once: their chunks are not kept in memory
+KEEP_BYTES = 256 << 20  # what a process keeps of runs not drawn; beyond it a run draws as it goes, as without this
+_HELD = [0]  # bytes kept now by this process's DeferredViews
 
 
 class DeferredView:
@@ -29,13 +32,24 @@ class DeferredView:
         self.title = name
         self.live = "none"
         self.url: str | None = None
+        self.held = 0  # bytes of the kept chunks (counted in _HELD)
+        self.now: Any = None  # a ViewWorker drawing as the run goes, once the process keeps KEEP_BYTES
 
     # the sink's face (bench/run/sinks.py)
     def begin(self, signals: list[Any], ctx: Any = None) -> None:
         self.signals = signals
 
     def write(self, chunk: dict[str, Any]) -> None:
+        if self.now is not None:
+            self.now.write(chunk)
+            return
         self.chunks.append(chunk)
+        size = sum(getattr(v, "nbytes", 0) for v in chunk.values())
+        self.held += size
+        _HELD[0] += size
+        if _HELD[0] > KEEP_BYTES:  # this process keeps enough: this run's view is drawn as it goes, as without us
+            self.now = self._worker(self.folder)
+            self.release()
 
     def end(self, summary: dict[str, Any]) -> None:
         pass
@@ -45,16 +59,21 @@ class DeferredView:
         pass
 
     def finish(self, result: Any, title: str) -> None:
+        if self.now is not None:
+            self.now.finish(result, title)
+            return
         self.result, self.title = result, title
 
     def finish_wait(self) -> list[str]:
-        return []  # nothing drawn yet
+        return self.now.finish_wait() if self.now is not None else []  # nothing drawn yet
 
     def serve(self, seconds: float | None) -> None:
         pass
 
     def abort(self) -> None:
-        self.chunks = []
+        if self.now is not None:
+            self.now.abort()
+        self.release()
 
     def pending(self) -> bool:
         """Whether `draw` has something to draw: a run that reached its end (finish) and was not drawn."""
@@ -65,20 +84,37 @@ class DeferredView:
         is renamed when the run is complete; default that one), through the viewer processes (reused:
         bench/view/worker_procs.py), and name them in summary.json's "files"; the files written. Drawn once: the
         kept chunks are let go."""
-        from bench.view.worker import ViewWorker
-
+        if self.now is not None:  # drawn as it went (over the budget): its files are the run's already
+            return []
         if not self.pending():
             return []
         folder = Path(folder) if folder is not None else self.folder
+        worker = self._worker(folder)
+        for proc in worker.procs:  # ready: a run that stopped early is drawn too (ViewWorker.finish skips it else)
+            proc.first()
+        worker.finish(self.result, self.title)
+        if worker.skipped:
+            raise RuntimeError(worker.skipped)
+        files = worker.finish_wait()
+        self.release()
+        _name_in_summary(folder / "summary.json", files)
+        return files
+
+    def _worker(self, folder: Path) -> Any:
+        """A ViewWorker given what was kept (the run's signals and chunks so far)."""
+        from bench.view.worker import ViewWorker
+
         worker = ViewWorker(self.name, folder, **self.worker)
         worker.begin(self.signals or [])
         for chunk in self.chunks:
             worker.write(chunk)
-        worker.finish(self.result, self.title)
-        files = worker.finish_wait()
+        return worker
+
+    def release(self) -> None:
+        """Let the kept chunks go (drawn, or a passing test's run: never drawn)."""
+        _HELD[0] -= self.held
+        self.held = 0
         self.chunks, self.result = [], None
-        _name_in_summary(folder / "summary.json", files)
-        return files
 
 
 def _name_in_summary(path: Path, files: list[str]) -> None:

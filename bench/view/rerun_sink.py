@@ -32,6 +32,7 @@ import rerun as rr
 
 from bench.run.verdict.realtime import COMMAND_T, SYNC_T, TIMING_COLUMNS, BusTiming, summary_segments
 from bench.signals import SignalInfo
+from bench.view.live_feed import LiveFeed
 from bench.view.rerun_blueprint import RERUN_0_23, TIMING, blueprint_for, entity_path, events_blueprint
 from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
 from bench.view.serve import serve as _serve
@@ -115,7 +116,7 @@ class RerunSink:
         name: str,
         rrd: Path | None,
         live: Literal["none", "spawn", "serve"] = "none",
-        live_decimate: int = 1,
+        live_decimate: int | None = None,
         web_port: int = 9090,
         grpc_port: int = 9876,
         memory_limit: str = "1GiB",
@@ -125,7 +126,8 @@ class RerunSink:
             raise ValueError(f"live must be 'none', 'spawn' or 'serve', not {live!r}")
         self.name = name
         self.rrd = Path(rrd) if rrd is not None else None
-        self.live_decimate = max(1, int(live_decimate))
+        self.live_decimate = None if live_decimate is None else max(1, int(live_decimate))
+        self.feed: LiveFeed | None = None  # the live stream's sending thread (bench/view/live_feed.py)
         self._url: str | None = None
         self._signals: list[SignalInfo] = []
         self._paths: dict[str, str] = {}
@@ -152,6 +154,10 @@ class RerunSink:
             self.file = rr.RecordingStream(APPLICATION_ID, recording_id=name)
             self.file.save(str(self.rrd))
 
+    def live_stats(self) -> dict[str, Any] | None:
+        """What the live viewer was sent (bench/view/live_feed.py, LiveFeed.stats), or None without one."""
+        return self.feed.stats() if self.feed is not None else None
+
     @property
     def url(self) -> str | None:
         """The address a browser opens (serve mode), else None."""
@@ -168,6 +174,7 @@ class RerunSink:
             self.file.send_blueprint(bp, make_active=False, make_default=True)
         if self.live is not None:
             self.live.send_blueprint(bp, make_active=True, make_default=True)
+            self.feed = LiveFeed(self.live, self.live_decimate)
         self._begun = True
 
     def _warn_once(self, key: str, message: str) -> None:
@@ -216,31 +223,27 @@ class RerunSink:
         self._log(columns, period, t_s, self._rows_seen)
         self._rows_seen += n
 
-    def _log(self, columns: list[tuple[str, np.ndarray]], period: np.ndarray, t_s: np.ndarray, seen: int) -> None:
+    def _log(
+        self, columns: list[tuple[str, np.ndarray]], period: np.ndarray, t_s: np.ndarray, seen: int, whole: bool = False
+    ) -> None:
         """Rows to the file (all) and the live viewer (every live_decimate-th; `seen`: rows before these)."""
         if self.file is not None:
             self._send(self.file, columns, period, t_s)
             # Block until this chunk is encoded to the file: the stream's queue would otherwise
             # grow with the run when logging outpaces the file writer.
             self.file.flush()
-        if self.live is not None:
-            first = (-seen) % self.live_decimate
-            sl = slice(first, None, self.live_decimate)
-            if first < len(period):
-                self._send(
-                    self.live,
-                    [(p, np.ascontiguousarray(v[sl])) for p, v in columns],
-                    np.ascontiguousarray(period[sl]),
-                    np.ascontiguousarray(t_s[sl]),
-                )
+        if self.feed is not None:
+            self.feed.put(columns, period, t_s, seen, whole)  # thinned, by its own thread, dropped if the viewer lags
 
     def _timed(self, chunk: dict[str, np.ndarray]) -> np.ndarray:
         """A real-time chunk's time stamps kept (the blueprint gets its timing view with the first); its turnaround."""
         if not self._timing:
             bp = blueprint_for(self._signals, timing=True)
-            for rec in (self.file, self.live):
-                if rec is not None:
-                    rec.send_blueprint(bp, make_active=rec is self.live, make_default=True)
+            if self.file is not None:
+                self.file.send_blueprint(bp, make_active=False, make_default=True)
+            if self.live is not None and self.feed is not None:
+                live = self.live
+                self.feed.call(lambda: live.send_blueprint(bp, make_active=True, make_default=True))
         self._timing.add(chunk)
         sync = np.asarray(chunk[SYNC_T], dtype=np.float64)
         cmd = np.asarray(chunk[COMMAND_T], dtype=np.float64) if COMMAND_T in chunk else np.full(len(sync), np.nan)
@@ -254,7 +257,7 @@ class RerunSink:
         pp = self._timing.per_period(segs)
         if len(pp.period):
             ts_s = float(summary.get("Ts_s") or 0.0)
-            self._log([(LATENESS_PATH, pp.lateness)], pp.period, pp.period * ts_s, int(pp.period[0]))
+            self._log([(LATENESS_PATH, pp.lateness)], pp.period, pp.period * ts_s, int(pp.period[0]), whole=True)
 
     def end(self, summary: dict[str, Any] | None = None) -> None:
         """Flush everything; the .rrd is complete and readable afterwards. Serving goes on. From `summary` (as
@@ -275,6 +278,8 @@ class RerunSink:
         if self.file is not None:
             self.file.flush()
             self.file.disconnect()  # writes the footer and closes the file
+        if self.feed is not None:
+            self.feed.close()  # what is queued, up to its bound
         if self.live is not None:
             try:
                 self.live.flush() if RERUN_0_23 else self.live.flush(timeout_sec=10.0)  # 0.23: 2 s without progress
@@ -291,13 +296,18 @@ class RerunSink:
         for r in rep["reactions"]:
             rows.append((r["period"], f"events/reactions/{r['node']}", f"{r['node']}: {r['what']}", "INFO"))
         bp = events_blueprint(self._signals, timing=bool(self._timing))
-        for rec in (self.file, self.live):
-            if rec is None:
-                continue
+
+        def write(rec: rr.RecordingStream) -> None:
             for period, path, text, level in sorted(rows):
                 rec.set_time("period", sequence=period)
                 rec.log(path, rr.TextLog(text, level=level))
             rec.send_blueprint(bp, make_active=rec is self.live, make_default=True)
+
+        if self.file is not None:
+            write(self.file)
+        if self.live is not None and self.feed is not None:
+            live = self.live
+            self.feed.call(lambda: write(live))  # in order with the rows, by the live stream's thread
 
     def serve_until(self, seconds: float | None) -> None:
         """Keep the web viewer up after the run: until Ctrl-C (None) or for `seconds`."""

@@ -46,7 +46,7 @@ class ViewWorker:
         name: str,
         folder: Path,
         live: str = "none",
-        live_decimate: int = 1,
+        live_decimate: int | None = None,
         web_port: int = 9090,
         grpc_port: int = 9876,
         rrd: bool = True,
@@ -76,6 +76,7 @@ class ViewWorker:
         self.live = live
         self.url: str | None = None
         self.skipped: str | None = None  # why the recording and the plots were not made
+        self.live_stats: dict[str, Any] | None = None  # what the live viewer was sent (bench/view/live_feed.py)
 
     def wait_ready(self) -> None:
         """Block until the rerun process has its viewer up (serving: the ports are taken, or the error is known)."""
@@ -127,7 +128,9 @@ class ViewWorker:
             files: list[str] = []
             for proc in self.procs:
                 proc.first()  # ready
-                files += list(proc.recv().get("files", []))
+                reply = proc.recv()
+                files += list(reply.get("files", []))
+                self.live_stats = reply.get("live") or self.live_stats
         except BaseException:
             self.abort()  # a process that failed its run (or a kept one in the middle of it) serves no other
             raise

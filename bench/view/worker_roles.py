@@ -42,7 +42,7 @@ def _rerun_role(spec: dict[str, Any], msgs: Any, reply: Any) -> int:
             break
     if spec.get("keep") and spec["live"] == "none":
         sink.close()  # before the reply: nothing of this run is said after it (the next run's replies follow)
-    reply(files=["run.rrd"] if spec["rrd"] else [])
+    reply(files=["run.rrd"] if spec["rrd"] else [], live=sink.live_stats())
     if spec["live"] == "serve":
         _serve_until(sink.url or "", spec.get("serve_for"), reply.fd)
         sink.close()

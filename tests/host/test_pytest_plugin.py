@@ -225,7 +225,7 @@ def test_a_bus_that_is_not_there_is_an_error_before_any_test(hil_pytester: pytes
     assert "Traceback" not in out and PLUGIN_FRAMES not in out, out
 
 
-def test_hil_view_all_draws_every_runs_recording_and_a_bad_value_is_refused(hil_pytester: pytest.Pytester) -> None:
+def test_hil_view_all_a_stopped_runs_drawing_and_a_bad_value(hil_pytester: pytest.Pytester) -> None:
     hil_pytester.makepyfile(
         "def test_passes(hil_run):\n    hil_run('scenarios/you2019_step.toml').expect_status('ok')\n"
     )
@@ -233,6 +233,19 @@ def test_hil_view_all_draws_every_runs_recording_and_a_bad_value_is_refused(hil_
     assert result.ret == 0, _output(result)
     run = next((hil_pytester.path / "hil-runs").glob("*/you2019_step"))
     assert (run / "run.rrd").stat().st_size > 0 and (run / "overview.svg").is_file(), sorted(run.iterdir())
+    # the default: a failing test's run that stopped early (a node killed) gets its recording and plots too
+    hil_pytester.makepyfile(
+        "def test_fails(hil_run):\n"
+        "    run = hil_run('scenarios/you2019_step.toml', {'scenario.expect': 'node_lost'},\n"
+        "                  faults=[{'kind': 'kill', 'node': 'plant', 'at_period': 150}])\n"
+        "    assert run.status == 'ok'\n"
+    )
+    result = _run(hil_pytester)
+    assert result.ret == pytest.ExitCode.TESTS_FAILED, _output(result)
+    run = next((hil_pytester.path / "hil-runs").glob("*test_fails/you2019_step"))
+    assert json.loads((run / "summary.json").read_text())["status"] == "node_lost"
+    assert (run / "run.rrd").stat().st_size > 0 and (run / "overview.svg").is_file(), sorted(run.iterdir())
+    assert f"recording:   {run / 'run.rrd'}" in _output(result), _output(result)
     hil_pytester.makeini("[pytest]\nhil_view = sometimes\n")
     result = _run(hil_pytester)
     assert result.ret == pytest.ExitCode.USAGE_ERROR, _output(result)

@@ -124,3 +124,25 @@ def test_a_stop_while_the_results_are_written_keeps_the_run_and_reaches_the_call
     assert not out.with_name("run.partial").exists() and (out / "traces.npy").is_file(), sorted(tmp_path.iterdir())
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "ok" and summary["periods"] == 40 and summary["files"]["recording"] is None
+
+
+def test_a_process_that_keeps_enough_draws_the_next_runs_as_they_go(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--hil-view=failed keeps the runs' chunks only up to deferred.KEEP_BYTES a process: beyond it a run draws its
+    recording and plots as it goes, as with --hil-view=all, and nothing is kept for it."""
+    import bench.view.deferred as deferred
+    from bench.cli_in_process import run_here
+
+    monkeypatch.setattr(deferred, "KEEP_BYTES", 1)  # every run is over the budget
+    argv = [str(REPO / SCENARIOS[0]), "--bus", "direct", "--no-viewer", "--out"]
+    ran = run_here([*argv, str(tmp_path / "over")], view_later=True)
+    assert ran.exit_code == 0, ran.stderr
+    assert ran.view is not None and ran.view.draw() == [] and deferred._HELD[0] == 0
+    assert (tmp_path / "over" / "run.rrd").stat().st_size > 0 and (tmp_path / "over" / "overview.svg").is_file()
+    monkeypatch.setattr(deferred, "KEEP_BYTES", 1 << 40)
+    ran = run_here([*argv, str(tmp_path / "kept")], view_later=True)
+    assert ran.view is not None and deferred._HELD[0] == ran.view.held > 0
+    assert not (tmp_path / "kept" / "run.rrd").exists()
+    ran.view.release()
+    assert deferred._HELD[0] == 0

@@ -117,7 +117,8 @@ def test_without_a_c_compiler_pip_says_which_package_to_install(tmp_path: Path) 
 def test_the_example_project_passes_in_direct_mode(user: Path) -> None:
     """Two workers (pytest-xdist), two laws in the session, the vcan test skipped where can-utils is missing."""
     project = _project(user, "direct")
-    res = _pytest(user, project, "-n", "2", "--junitxml", "junit.xml", env=_without_candump(user))
+    # --hil-view=all: every run draws its view, so the plain install's "no run.rrd" below is checked on each
+    res = _pytest(user, project, "-n", "2", "--junitxml", "junit.xml", "--hil-view=all", env=_without_candump(user))
     out = res.stdout
     assert res.returncode == 0, out[-4000:] + res.stderr[-2000:]
     assert re.search(r"\b5 passed, 1 skipped\b", out), out[-2000:]
