@@ -6,6 +6,8 @@ its own, never holding up the run or its recording.
   rows come at so that about LIVE_BUCKETS_PER_S buckets a second of wall time go out (a real-time run at 100 us
   brings 10,000 rows a second: buckets of 10; a direct lockstep run at 400,000: buckets of 400). A spike of one
   period stays in view, where every Nth period would miss it. `--live-decimate N` sends every Nth period, as before.
+- **What is drawn.** The live viewer's views show the last LIVE_WINDOW_S simulated seconds before the time cursor,
+  which follows the run: what a frame draws stays the same as the run grows (the whole run is in run.rrd).
 - **Never blocking.** The rows go through a bounded queue to the sending thread: when the viewer (or the network) is
   slower than the run, rerun's channel fills, the thread waits, the queue fills, and the rows of the chunks that
   find it full are dropped from the live view, counted (`stats`). The recording (run.rrd) gets every row anyway:
@@ -27,8 +29,10 @@ import numpy as np
 import rerun as rr
 
 LIVE_BUCKETS_PER_S = 1000  # envelope buckets a second of wall time: two points each, per signal
+LIVE_WINDOW_S = 10.0  # the live viewer's views show the last this many simulated seconds (bench/view/rerun_blueprint)
 QUEUE_CHUNKS = 4  # chunks waiting for the sending thread before new ones are dropped
 END_BUCKETS = 2000  # envelope buckets of a column of the whole run sent at its end (the SYNC lateness)
+LIVE_SEND_S = 0.5  # the live stream's rows go out gathered, this often
 END_WAIT_S = 10.0  # at the run's end, how long what is queued may take to reach the viewer
 
 Columns = list[tuple[str, np.ndarray]]
@@ -60,6 +64,11 @@ def envelope_index(values: np.ndarray, bucket: int) -> np.ndarray:
     return idx[keep]
 
 
+def _gather(pending: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]], item: Item) -> None:
+    for path, values, period, t_s in item:
+        pending.setdefault(path, []).append((values, period, t_s))
+
+
 class LiveFeed:
     """The live stream `rec`: `put` thins a chunk's columns and queues them (or drops them when the queue is full),
     a thread sends them; `call` queues other work for the stream (a blueprint, the end's events); `close` waits up to
@@ -69,7 +78,8 @@ class LiveFeed:
         self.rec = rec
         self.decimate = decimate
         self._queue: queue.Queue[Item | Callable[[], None] | None] = queue.Queue(maxsize=QUEUE_CHUNKS)
-        self._last = time.monotonic()
+        self._clock = time.monotonic  # the rows' arrival times (a test sets its own)
+        self._last = self._clock()
         self.periods = self.periods_dropped = self.points = 0
         self.buckets: list[int] = []  # the envelope's bucket sizes, min and max (stats)
         self._thread = threading.Thread(target=self._send_loop, daemon=True, name="bench-live-view")
@@ -103,7 +113,7 @@ class LiveFeed:
             rows = np.arange(first, len(period), self.decimate)
             return [(p, v[rows], period[rows], t_s[rows]) for p, v in columns]
         if bucket is None:
-            now = time.monotonic()
+            now = self._clock()
             rate = len(period) / max(now - self._last, 1e-3)  # rows a second of wall time, as they come
             self._last = now
             bucket = max(1, math.ceil(rate / LIVE_BUCKETS_PER_S))
@@ -116,17 +126,38 @@ class LiveFeed:
         return out
 
     def _send_loop(self) -> None:
-        while (item := self._queue.get()) is not None:
+        """Rows gathered per signal and sent every LIVE_SEND_S: a viewer takes few large chunks far better than many
+        small ones (each chunk is a store insertion in the viewer)."""
+        pending: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        last = time.monotonic()
+        while True:
             try:
+                item = self._queue.get(timeout=LIVE_SEND_S)
+            except queue.Empty:
+                item = ()  # nothing new: what is gathered goes out if due
+            try:
+                if item is None or callable(item) or time.monotonic() - last >= LIVE_SEND_S:
+                    if not callable(item) and item:
+                        _gather(pending, item)
+                        item = ()
+                    self._send(pending)
+                    last = time.monotonic()
+                if item is None:
+                    return
                 if callable(item):
                     item()
-                    continue
-                for path, values, period, t_s in item:
-                    if len(period):
-                        times = [rr.TimeColumn("period", sequence=period), rr.TimeColumn("sim_time", duration=t_s)]
-                        self.rec.send_columns(path, indexes=times, columns=rr.Scalars.columns(scalars=values))
+                elif item:
+                    _gather(pending, item)
             except Exception as exc:  # noqa: BLE001 - a viewer that went away must not end the run
                 print(f"rerun: live viewer: {exc}", file=sys.stderr, flush=True)
+
+    def _send(self, pending: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]) -> None:
+        for path, parts in pending.items():
+            values, period, t_s = (np.concatenate(x) for x in zip(*parts, strict=True))
+            if len(period):
+                times = [rr.TimeColumn("period", sequence=period), rr.TimeColumn("sim_time", duration=t_s)]
+                self.rec.send_columns(path, indexes=times, columns=rr.Scalars.columns(scalars=values))
+        pending.clear()
 
     def close(self) -> None:
         """Send what is queued (up to END_WAIT_S), then stop the thread; the rest of the queue is dropped."""

@@ -32,7 +32,7 @@ import rerun as rr
 
 from bench.run.verdict.realtime import COMMAND_T, SYNC_T, TIMING_COLUMNS, BusTiming, summary_segments
 from bench.signals import SignalInfo
-from bench.view.live_feed import LiveFeed
+from bench.view.live_feed import LIVE_WINDOW_S, LiveFeed
 from bench.view.rerun_blueprint import RERUN_0_23, TIMING, blueprint_for, entity_path, events_blueprint
 from bench.view.serve import DEFAULT_BIND, PORT_OPTIONS, ServeError, listening
 from bench.view.serve import serve as _serve
@@ -172,8 +172,9 @@ class RerunSink:
         bp = blueprint_for(self._signals)
         if self.file is not None:
             self.file.send_blueprint(bp, make_active=False, make_default=True)
-        if self.live is not None:
-            self.live.send_blueprint(bp, make_active=True, make_default=True)
+        if self.live is not None:  # the last LIVE_WINDOW_S of the run, scrolling with it
+            live_bp = blueprint_for(self._signals, window_s=LIVE_WINDOW_S)
+            self.live.send_blueprint(live_bp, make_active=True, make_default=True)
             self.feed = LiveFeed(self.live, self.live_decimate)
         self._begun = True
 
@@ -242,8 +243,8 @@ class RerunSink:
             if self.file is not None:
                 self.file.send_blueprint(bp, make_active=False, make_default=True)
             if self.live is not None and self.feed is not None:
-                live = self.live
-                self.feed.call(lambda: live.send_blueprint(bp, make_active=True, make_default=True))
+                live, live_bp = self.live, blueprint_for(self._signals, timing=True, window_s=LIVE_WINDOW_S)
+                self.feed.call(lambda: live.send_blueprint(live_bp, make_active=True, make_default=True))
         self._timing.add(chunk)
         sync = np.asarray(chunk[SYNC_T], dtype=np.float64)
         cmd = np.asarray(chunk[COMMAND_T], dtype=np.float64) if COMMAND_T in chunk else np.full(len(sync), np.nan)
@@ -295,12 +296,13 @@ class RerunSink:
                 rows.append((p, "events/faults", f"fault {f['fault']}: {f['description']}", "WARN"))
         for r in rep["reactions"]:
             rows.append((r["period"], f"events/reactions/{r['node']}", f"{r['node']}: {r['what']}", "INFO"))
-        bp = events_blueprint(self._signals, timing=bool(self._timing))
 
         def write(rec: rr.RecordingStream) -> None:
             for period, path, text, level in sorted(rows):
                 rec.set_time("period", sequence=period)
                 rec.log(path, rr.TextLog(text, level=level))
+            window = LIVE_WINDOW_S if rec is self.live else None
+            bp = events_blueprint(self._signals, timing=bool(self._timing), window_s=window)
             rec.send_blueprint(bp, make_active=rec is self.live, make_default=True)
 
         if self.file is not None:
