@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
         _stdout_gone()
         return stop.EXIT_SIGPIPE  # as a shell reports a command ended by SIGPIPE
     finally:
-        worker = sys.modules.get(f"{__package__}.view.worker")
+        worker = sys.modules.get(f"{__package__}.view.worker_procs")  # prestart()'s, and every ViewWorker's
         if worker is not None:
             with stop.deferred():
                 worker.discard()  # viewer processes a run started and did not use: stopped now, not waited for

@@ -174,7 +174,9 @@ def test_a_closed_stdout_ends_a_command_quietly() -> None:
 
 def test_a_sweep_listens_on_this_machine_and_its_ctrl_c_is_one_line(tmp_path: Path) -> None:
     out = tmp_path / "sw"
-    b = Bench("sweep", STEP, "--grid", "controller.L_hat_ratio=0.5:1.5:0.001", "--workers", "2", "--out", str(out))
+    # 10,001 points (~25 s at ~400 points/s here): still running when the Ctrl-C comes, 3 s after the first points
+    grid = "controller.L_hat_ratio=0.5:1.5:0.0001"
+    b = Bench("sweep", STEP, "--grid", grid, "--workers", "2", "--out", str(out))
     try:
         assert b.wait_for("points to run", 240), b.text()
         dash = re.search(r"Dask dashboard http://[^:/]+:(\d+)/", b.text())

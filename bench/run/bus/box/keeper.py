@@ -158,7 +158,22 @@ def _try_kvm(
 
 
 def _stop_tree(proc: subprocess.Popen[bytes]) -> None:
-    """virtme-ng and what it started (its shell, virtme-run, QEMU: children, not a group of their own) killed."""
+    """virtme-ng and what it started (its shell, virtme-run, virtiofsd, QEMU: children, not a group of their own)
+    killed. Stopped first, parents before children, until a look finds no new one: a process still running while
+    its parent is killed can fork a child the scan missed, which then outlives the attempt and can hold what the TCG
+    boot after it needs (the CI once saw that boot end at once with status 255)."""
+    stopped: list[int] = []
+    while new := [pid for pid in _tree(proc.pid) if pid not in stopped]:
+        for pid in new:  # top-down: a stopped process forks no more, and its children stay its children
+            _signal(pid, signal.SIGSTOP)
+            stopped.append(pid)
+    for pid in stopped:
+        _signal(pid, signal.SIGKILL)
+    proc.wait()
+
+
+def _tree(root: int) -> list[int]:
+    """`root` and its descendants, parents first (from /proc)."""
     children: dict[int, list[int]] = {}
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
@@ -166,17 +181,19 @@ def _stop_tree(proc: subprocess.Popen[bytes]) -> None:
         except (OSError, IndexError):
             continue
         children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    todo, tree = [proc.pid], []
+    tree, todo = [], [root]
     while todo:
-        pid = todo.pop()
+        pid = todo.pop(0)
         tree.append(pid)
         todo += children.get(pid, [])
-    for pid in reversed(tree):
-        try:
-            os.kill(pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-    proc.wait()
+    return tree
+
+
+def _signal(pid: int, sig: signal.Signals) -> None:
+    try:
+        os.kill(pid, sig)
+    except ProcessLookupError:
+        pass
 
 
 def _idle_for(info: BoxInfo) -> float:
