@@ -30,8 +30,6 @@ class DeferredView:
         self.chunks: list[dict[str, Any]] = []
         self.result: Any = None
         self.title = name
-        self.live = "none"
-        self.url: str | None = None
         self.held = 0  # bytes of the kept chunks (counted in _HELD)
         self.now: Any = None  # a ViewWorker drawing as the run goes, once the process keeps KEEP_BYTES
 

@@ -136,18 +136,15 @@ class LiveFeed:
             except queue.Empty:
                 item = ()  # nothing new: what is gathered goes out if due
             try:
+                if item and not callable(item):
+                    _gather(pending, item)
                 if item is None or callable(item) or time.monotonic() - last >= LIVE_SEND_S:
-                    if not callable(item) and item:
-                        _gather(pending, item)
-                        item = ()
-                    self._send(pending)
+                    self._send(pending)  # the rows before a job, the last ones, or those due
                     last = time.monotonic()
                 if item is None:
                     return
                 if callable(item):
                     item()
-                elif item:
-                    _gather(pending, item)
             except Exception as exc:  # noqa: BLE001 - a viewer that went away must not end the run
                 print(f"rerun: live viewer: {exc}", file=sys.stderr, flush=True)
 
