@@ -175,13 +175,24 @@ static int match(fi_t *fi, const co_frame_t *f, uint8_t from)
     return -1;
 }
 
+static int is_sync(const fi_t *fi, const co_frame_t *frame, uint8_t from)
+{
+    return from == FI_SIDE_A && (frame->cob_id & 0x7FFu) == fi->sync_cob && !(frame->cob_id & CO_FRAME_RTR);
+}
+
+void fi_pass(fi_t *fi, const co_frame_t *frame, uint8_t from)
+{
+    ++fi->frames_in;
+    ++fi->frames_out;
+    if (is_sync(fi, frame, from)) ++fi->period;
+}
+
 void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us)
 {
     ++fi->frames_in;
     if (fi->n_held) release(fi, due_time, &now_us, now_us); /* held in us and due: before what comes after */
-    const int is_sync =
-        from == FI_SIDE_A && (frame->cob_id & 0x7FFu) == fi->sync_cob && !(frame->cob_id & CO_FRAME_RTR);
-    if (is_sync) {
+    const int sync = is_sync(fi, frame, from);
+    if (sync) {
         ++fi->period;
         memset(fi->nth, 0, fi->n_rules * sizeof fi->nth[0]); /* the rules in use (the others stay 0) */
         node_faults(fi, now_us);
@@ -222,7 +233,7 @@ void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us)
     }
     if (fi->n_held) {
         if (i < 0 || fi->rule[i].kind != FI_REORDER) release(fi, due_reorder, &from, now_us);
-        if (is_sync) release(fi, due_period, &fi->period, now_us);
+        if (sync) release(fi, due_period, &fi->period, now_us);
     }
 }
 

@@ -125,6 +125,11 @@ void fi_init(fi_t *fi, fi_emit_fn emit, fi_node_fn node, void *user);
 int fi_add_rule(fi_t *fi, const fi_rule_t *rule);
 /* A frame from side `from` at the transport's time now_us. */
 void fi_frame(fi_t *fi, const co_frame_t *frame, uint8_t from, int64_t now_us);
+/* Whether the injector has no rule: every frame passes at once, unchanged, and nothing is ever held (the caller may
+ * then hand each frame over itself and only count it with fi_pass, instead of fi_frame's call back). */
+static inline int fi_passes_all(const fi_t *fi) { return fi->n_rules == 0u; }
+/* What fi_frame does with a frame when the injector has no rule, but the emit: the frame and the period counted. */
+void fi_pass(fi_t *fi, const co_frame_t *frame, uint8_t from);
 /* Release frames delayed in microseconds whose time has come. */
 void fi_tick(fi_t *fi, int64_t now_us);
 /* Time of the next microsecond release, or -1 when none is held. */
