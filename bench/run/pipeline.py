@@ -281,6 +281,8 @@ def _run(
             if recorders is not None:  # candump, before the nodes start
                 source = kind.recorder(recorders, opened=False)
             sess.open()
+            if hasattr(source, "await_ready"):  # candump in the CAN box, started with the nodes: listening before NMT
+                source.await_ready()
             if recorders is not None and source is None:  # libhil's frames, or the master's bus
                 source = kind.recorder(recorders, opened=True)
         except Exception as exc:  # the CAN box ended while the run's processes started: a verdict, as in the loop

@@ -68,7 +68,10 @@ class CanBoxKind(BusKind):
     def master_bus(self, opts: RunOptions, held: Any) -> can.BusABC:
         # the slot's SLCAN port (python-can's slcan interface): the box passes it SDO answers and heartbeats only
         # (box/life.py MASTER_IDS), and the hold announcement once configured (hear_also)
-        return can.Bus(interface="slcan", channel=held.master_channel, sleep_after_open=0)
+        # (box/protocol_boxsocket.py: pyserial's socket:// port without its 0.3 s nap at close)
+        from bench.run.bus.box.protocol_boxsocket import use
+
+        return can.Bus(interface="slcan", channel=use(held.master_channel), sleep_after_open=0)
 
     def master_listeners(self) -> list[can.Listener]:
         return [BridgeErrors()]  # a box that ends breaks the port: judged by the session (Session._check_box)

@@ -224,11 +224,24 @@ class BoxCandumpSource:
         self.copier = lease.popen(
             ["tail", "---disable-inotify", "-s", "0.5", "-c", "+1", "-f", str(self.guest)], self.path, err=err
         )
-        time.sleep(0.2)
-        if self.proc.poll(fresh=True) is not None:
-            why = err.read_text(errors="replace").strip() if err.exists() else ""
-            raise RuntimeError(f"candump on {iface} in the CAN box failed: {why or self.proc.returncode}")
+        self._iface, self._err = iface, err
         self.follower = LogFollower(self.path)
+
+    def await_ready(self) -> None:
+        """Until candump listens, asked of the guest in one request: its process is candump (`ip netns exec` and
+        `taskset` have exec'd: ~0.3 s under TCG) and holds a socket (its CAN socket: candump 2020.11 opens no other),
+        or it ended. Up to 3 s, 10 ms naps. The run asks it once its nodes were started, before their NMT reset: the
+        two starts overlap. (A fixed 0.2 s nap before: the log missed the bench's NMT reset commands.)"""
+        p, iface, err = self.proc, self._iface, self._err
+        _, out = self.lease.ctl.sh(
+            "c=$(command -v candump); for ((k = 0; k < 300; k++)); do [ -e " + p.exit_file + " ] && break; "
+            f'if [ /proc/{p.pid}/exe -ef "$c" ]; then for f in /proc/{p.pid}/fd/*; do [ -S $f ] && break 2; done; fi; '
+            f"read -r -t 0.01 -u 4 _; done; echo {p.exit_text()}",
+            timeout_s=60,
+        )
+        if p.ended_with(out) is not None:
+            why = err.read_text(errors="replace").strip() if err.exists() else ""
+            raise RuntimeError(f"candump on {iface} in the CAN box failed: {why or p.returncode}")
 
     def drain(self, final: bool = False) -> np.ndarray:
         return self.follower.drain(final)
@@ -237,34 +250,42 @@ class BoxCandumpSource:
         from bench.run.bus.box.control import BoxGone
         from bench.run.bus.box.lease import await_file
 
-        g, p = self.guest, self.proc
-        size = "$(stat -c %s " + str(g) + ")"
-        # one request (each costs the guest tens of ms under TCG): candump has written all the run sent once its log
-        # holds a frame stamped after the run's end (the guest's clock, now: foreign traffic goes on, a flood), or
-        # once the log stops growing (a quiet bus) - SIGINT before that drops what still waits in its socket (a
-        # loaded guest's candump may be seconds behind a flood: the end of the loop was lost); then SIGINT, its
-        # exit, the log's final size, and the log unlinked (the copier reads on from its open descriptor)
-        n = int(CATCH_UP_S / 0.3)
-        nap = "read -r -t 0.3 -u 4 _"
-        script = (
-            f"e=${{EPOCHREALTIME/./}}; a=-1; b={size}; k=0; while [ $a != $b ] && [ $k -lt {n} ]; do "
-            f"{nap}; a=$b; b={size}; k=$((k + 1)); "
+        g, p, cp = self.guest, self.proc, self.copier
+        # One request (each costs the guest ~10 ms under TCG, each exec in it ~90 ms). candump has written all the
+        # run sent once its output stopped growing for 0.3 s (the nodes have ended: Session.close; its output's
+        # position read from /proc every 20 ms, no exec) or, when it goes on growing (a flood of foreign traffic),
+        # once its log holds a frame stamped after the run's end (the guest's clock; looked at every 0.3 s) -
+        # SIGINT before that drops what still waits in its socket (a loaded guest's candump may be seconds behind a
+        # flood: the end of the loop was lost). Then SIGINT and its exit; the copier stopped where it is (its
+        # output's position: what it copied), killed, and the rest of the log appended by this request (the copier
+        # looks only every half second); the two exit statuses; the log unlinked.
+        n = int(CATCH_UP_S / 0.02)
+        pos = f"x=-; while read -r a v; do [ $a = pos: ] && x=$v && break; done </proc/{p.pid}/fdinfo/1"
+        copied = f"c=0; while read -r a v; do [ $a = pos: ] && c=$v && break; done </proc/{cp.pid}/fdinfo/1"
+        stamped = (
             rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "
-            f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break; done; "
-            f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 1000)}; echo {size}; rm -f {g}"
+            f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break"
+        )
+        script = (
+            f"e=${{EPOCHREALTIME/./}}; w=-; q=0; for ((k = 1; k <= {n}; k++)); do read -r -t 0.02 -u 4 _; "
+            f"[ -e {p.exit_file} ] && break; {pos} 2>/dev/null; "
+            f'if [ "$x" = "$w" ]; then q=$((q + 1)); [ $q -ge 15 ] && break; else w=$x; q=0; fi; '
+            f"if [ $((k % 15)) = 0 ]; then {stamped}; fi; done; "
+            f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 1000)}; "
+            f"kill -19 {cp.pid} 2>/dev/null; {copied} 2>/dev/null; kill -9 {cp.pid} 2>/dev/null; "
+            f"{await_file(f'-e {cp.exit_file}', 1000)}; tail -c +$((c + 1)) {g} >>{self.path}; "
+            f"echo {p.exit_text()} {cp.exit_text()}; rm -f {g}"
         )
         try:
             _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 60)
-            p.poll(fresh=True)
-            total = int(out.split()[-1])
-            deadline = time.monotonic() + 120
-            while self.path.stat().st_size < total and time.monotonic() < deadline:  # the copy catches up
-                time.sleep(0.1)
-        except (BoxGone, ValueError, IndexError, OSError):
+            rc_dump, rc_copy = out.split()[-2:]
+            p.ended_with(rc_dump)
+            cp.ended_with(rc_copy)
+        except (BoxGone, ValueError, IndexError):
             pass
         finally:
-            p.kill()
-            self.copier.kill()
+            p.kill()  # no request when it ended (its status known)
+            cp.kill()
 
     def cleanup(self) -> None:
         err = self.path.with_name("candump.err")

@@ -280,11 +280,22 @@ class BoxPopen:
 
     def _exit_now(self) -> int | None:
         rc, out = self.lease.ctl.sh(f"f=/run/box/{self.tag}.exit; [ -e $f ] && read -r x <$f && echo $x; true")
-        text = out.strip()
-        if not text:
+        return self.ended_with(out)
+
+    def ended_with(self, text: str) -> int | None:
+        """The exit status a guest command line read from exit_file (empty or '-': still running), kept as
+        returncode, so that no further request asks it."""
+        text = text.strip()
+        if not text or text == "-":
             return None
         code = int(text)
-        return -(code - 128) if code > 128 else code  # a shell's 128+N: killed by signal N (Popen says -N)
+        self.returncode = -(code - 128) if code > 128 else code  # a shell's 128+N: killed by signal N (Popen: -N)
+        return self.returncode
+
+    def exit_text(self) -> str:
+        """A guest command line's word that expands to the exit status once it ended, else '-'."""
+        f = self.exit_file
+        return f"$([ -e {f} ] && read -r x <{f} && echo $x || echo -)"
 
     def poll(self, fresh: bool = False) -> int | None:
         """The exit status, None while it runs (asked of the guest at most every POLL_CACHE_S unless `fresh`)."""
@@ -337,15 +348,18 @@ class BoxPopen:
         f, n = self.exit_file, max(1, int(timeout_s * 100))
         cont = f"kill -18 {self.pid} 2>/dev/null; " if wake else ""
         try:
-            self.lease.ctl.sh(
+            _, out = self.lease.ctl.sh(
                 f"kill -15 {self.pid} 2>/dev/null; {cont}{await_file(f'-e {f}', n)}; "
-                f"[ -e {f} ] || kill -9 {self.pid} 2>/dev/null; true",
+                f"[ -e {f} ] || {{ kill -9 {self.pid} 2>/dev/null; {await_file(f'-e {f}', 100)}; }}; "
+                f"echo {self.exit_text()}",
                 timeout_s=timeout_s + 30,
             )
         except BoxGone as exc:
             self.gone = str(exc)
             self.returncode = -signal.SIGKILL
             return self.returncode
+        if self.ended_with(out.split()[-1] if out.split() else "") is not None:  # its status in the same request
+            return self.returncode  # type: ignore[return-value]
         return self.wait(timeout=30)
 
     def wait(self, timeout: float | None = None) -> int:
