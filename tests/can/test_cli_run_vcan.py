@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from bench_cli import bench_cli
 
+from bench.eds import default_node_id
 from bench.paths import REPO
 from bench.run import RunOptions, run_scenario
 from bench.run.outputs import json_default
@@ -37,6 +38,11 @@ def test_run_over_vcan_equals_direct_and_replays(vcan0: str, tmp_path: Path) -> 
     log = tmp_path / vcan0 / "bus.log"
     first = log.read_text().split("\n", 1)[0]
     assert first.startswith("(") and f" {vcan0} " in first  # candump -L: absolute kernel time stamps
+    # candump listened before the bench reset the nodes: the log holds the master's NMT reset of both (in the CAN
+    # box it is started with the nodes and awaited; a fixed nap once let the log begin after them)
+    frames = [line.split()[2] for line in log.read_text().splitlines() if line.startswith("(")]
+    resets = {f for f in frames if f.startswith("000#81")}
+    assert resets == {f"000#81{default_node_id(n):02X}" for n in ("plant", "drive")}, frames[:6]
     bench_cli("replay", log, "--no-viewer", timeout=TIMEOUT_S, expect=0)
     sr = json.loads((log.parent / "replay" / "summary.json").read_text())
     for key in ("status", "steps", "identified", "counters"):
