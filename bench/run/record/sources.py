@@ -205,6 +205,7 @@ class CandumpSource:
 
 
 CATCH_UP_S = 120.0  # a box run's end: a bound on candump's catching up with the bus (a flood in a TCG guest)
+COPY_S = 0.1  # how often the copier looks at candump's log in the box (tail -s)
 
 
 class BoxCandumpSource:
@@ -222,7 +223,10 @@ class BoxCandumpSource:
         err = lease.stage / "candump.err"
         self.proc = lease.popen(["candump", "-L", "-r", str(8 << 20), iface], self.guest, err=err)
         self.copier = lease.popen(
-            ["tail", "---disable-inotify", "-s", "0.5", "-c", "+1", "-f", str(self.guest)], self.path, err=err
+            ["tail", "---disable-inotify", "-s", str(COPY_S), "-c", "+1", "-f", str(self.guest)],
+            self.path,
+            err=err,
+            in_slot=False,
         )
         self._iface, self._err = iface, err
         self.follower = LogFollower(self.path)
@@ -250,42 +254,42 @@ class BoxCandumpSource:
         from bench.run.bus.box.control import BoxGone
         from bench.run.bus.box.lease import await_file
 
-        g, p, cp = self.guest, self.proc, self.copier
+        g, p = self.guest, self.proc
         # One request (each costs the guest ~10 ms under TCG, each exec in it ~90 ms). candump has written all the
-        # run sent once its output stopped growing for 0.3 s (the nodes have ended: Session.close; its output's
-        # position read from /proc every 20 ms, no exec) or, when it goes on growing (a flood of foreign traffic),
-        # once its log holds a frame stamped after the run's end (the guest's clock; looked at every 0.3 s) -
-        # SIGINT before that drops what still waits in its socket (a loaded guest's candump may be seconds behind a
-        # flood: the end of the loop was lost). Then SIGINT and its exit; the copier stopped where it is (its
-        # output's position: what it copied), killed, and the rest of the log appended by this request (the copier
-        # looks only every half second); the two exit statuses; the log unlinked.
+        # run sent once it sleeps (state S: blocked in select, its socket empty) with its output unchanged for 0.1 s
+        # (read from /proc every 20 ms, no exec; the nodes have ended: Session.close), or, when its output goes on
+        # growing (a flood of foreign traffic), once its log holds a frame stamped after the run's end (the guest's
+        # clock; looked at every 0.3 s) - SIGINT before that drops what still waits in its socket (a loaded guest's
+        # candump may be seconds behind a flood: the end of the loop was lost). Then SIGINT, its exit, the log's
+        # final size and candump's status; the copier (tail -s COPY_S) brings the rest to the stage, where this side
+        # waits for it, and the log is unlinked (the copier reads on from its open descriptor).
         n = int(CATCH_UP_S / 0.02)
+        state = f"read -r l </proc/{p.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
         pos = f"x=-; while read -r a v; do [ $a = pos: ] && x=$v && break; done </proc/{p.pid}/fdinfo/1"
-        copied = f"c=0; while read -r a v; do [ $a = pos: ] && c=$v && break; done </proc/{cp.pid}/fdinfo/1"
         stamped = (
             rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "
             f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break"
         )
         script = (
             f"e=${{EPOCHREALTIME/./}}; w=-; q=0; for ((k = 1; k <= {n}; k++)); do read -r -t 0.02 -u 4 _; "
-            f"[ -e {p.exit_file} ] && break; {pos} 2>/dev/null; "
-            f'if [ "$x" = "$w" ]; then q=$((q + 1)); [ $q -ge 15 ] && break; else w=$x; q=0; fi; '
+            f"[ -e {p.exit_file} ] && break; {pos} 2>/dev/null; {state} 2>/dev/null; "
+            f'if [ "$x" = "$w" ]; then q=$((q + 1)); [ $q -ge 5 ] && [ "$st" = S ] && break; else w=$x; q=0; fi; '
             f"if [ $((k % 15)) = 0 ]; then {stamped}; fi; done; "
             f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 1000)}; "
-            f"kill -19 {cp.pid} 2>/dev/null; {copied} 2>/dev/null; kill -9 {cp.pid} 2>/dev/null; "
-            f"{await_file(f'-e {cp.exit_file}', 1000)}; tail -c +$((c + 1)) {g} >>{self.path}; "
-            f"echo {p.exit_text()} {cp.exit_text()}; rm -f {g}"
+            f"echo $(stat -c %s {g}) {p.exit_text()}; rm -f {g}"
         )
         try:
             _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 60)
-            rc_dump, rc_copy = out.split()[-2:]
+            total, rc_dump = out.split()[-2:]
             p.ended_with(rc_dump)
-            cp.ended_with(rc_copy)
-        except (BoxGone, ValueError, IndexError):
+            deadline = time.monotonic() + 120
+            while self.path.stat().st_size < int(total) and time.monotonic() < deadline:  # the copy catches up
+                time.sleep(0.02)
+        except (BoxGone, ValueError, IndexError, OSError):
             pass
         finally:
             p.kill()  # no request when it ended (its status known)
-            cp.kill()
+            self.copier.kill()
 
     def cleanup(self) -> None:
         err = self.path.with_name("candump.err")

@@ -169,10 +169,11 @@ class Lease:
         return None
 
     # ---------------------------------------------------------------- processes
-    def popen(self, argv: list[str], log: Path | None, err: Path | None = None) -> BoxPopen:
+    def popen(self, argv: list[str], log: Path | None, err: Path | None = None, in_slot: bool = True) -> BoxPopen:
         """Start `argv` in the run's namespace, its output to `log` (under the stage: shared with the guest),
-        its standard error there too or to `err`."""
-        p = BoxPopen(self, argv, log, err)
+        its standard error there too or to `err`. in_slot=False: a helper that needs neither the slot's network
+        namespace nor its vCPU (two execs fewer: ~0.2 s of the guest's time under TCG)."""
+        p = BoxPopen(self, argv, log, err, in_slot)
         self.procs.append(p)
         return p
 
@@ -252,7 +253,9 @@ class BoxPopen:
     """A process in the box, with the part of subprocess.Popen's face the bench uses (pid, poll, wait,
     send_signal, terminate, kill, returncode). Its exit status is written by a waiting shell in the guest."""
 
-    def __init__(self, lease: Lease, argv: list[str], log: Path | None, err: Path | None = None) -> None:
+    def __init__(
+        self, lease: Lease, argv: list[str], log: Path | None, err: Path | None = None, in_slot: bool = True
+    ) -> None:
         self.lease = lease
         self.tag = uuid.uuid4().hex[:10]
         self.returncode: int | None = None
@@ -263,8 +266,9 @@ class BoxPopen:
         out = shlex.quote(str(log)) if log is not None else "/dev/null"
         err_to = "&1" if err is None else shlex.quote(str(err))
         # a subshell of the agent's (a fork, no exec) waits for the process and writes its exit status
+        run = lease.in_ns(argv) if in_slot else " ".join(shlex.quote(a) for a in argv)
         cmd = (
-            f"( {lease.in_ns(argv)} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
+            f"( {run} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
             f"echo $? >{d}/{self.tag}.exit ) >/dev/null 2>&1 </dev/null & "
             f"{await_file(f'-s {d}/{self.tag}.pid', 500)}; "
             f"read -r p <{d}/{self.tag}.pid && echo $p"
