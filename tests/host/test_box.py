@@ -151,10 +151,12 @@ def test_a_stopped_run_leaves_the_box_healthy_for_the_next(box: dict, tmp_path: 
     assert run.returncode == rc, out + err
     info = life.read_info()
     assert info is not None  # the box is still up
-    rc, pids = info.control.sh(f"ip netns pids b{slot}; echo holder; cat /run/box/holder-b{slot}")
-    left, holder = pids.split("holder")
-    assert rc == 0 and left.split() == holder.split(), pids  # nothing of the run is left in its namespace, but
-    # the slot's own holder process (bench/run/bus/box/guest.py)
+    rc, pids = info.control.sh(
+        f"ip netns pids b{slot}; echo own; cat /run/box/holder-b{slot} /run/box/launch-b{slot}.pid"
+    )
+    left, own = pids.split("own")
+    assert rc == 0 and sorted(left.split()) == sorted(own.split()), pids  # nothing of the run is left in its
+    # namespace, but the slot's own holder and launcher processes (bench/run/bus/box/guest.py)
     assert not _status()["slots"][slot - 1]["in_use"]
     bench_cli("run", STEP, "--bus", "vcan0", "--box", "--out", tmp_path / "again", "--no-viewer", expect=0)
 

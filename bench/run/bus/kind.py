@@ -106,6 +106,11 @@ class BusKind(ABC):
         """What the kernel reports of the run's links now (after the run)."""
         return {}
 
+    def end_processes(self, procs: list[Any], timeout_s: float) -> None:
+        """The run's node processes ended together before each one's own stop (which then finds it ended): a kind
+        whose every request costs (the CAN box) does it in one; others leave it to each process."""
+        return None
+
     def consumer_ms(self, asked: int) -> int:
         """The nodes' heartbeat-consumer time (0x1016) for a run that asks for `asked`."""
         return asked

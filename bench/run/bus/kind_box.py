@@ -53,6 +53,11 @@ class CanBoxKind(BusKind):
     def link_infos(self, held: Any, names: list[str]) -> dict[str, dict[str, Any] | None]:
         return dict(held.link_infos(names))
 
+    def end_processes(self, procs: list[Any], timeout_s: float) -> None:
+        from bench.run.bus.box.lease import BoxPopen, end_all
+
+        end_all([p for p in procs if isinstance(p, BoxPopen)], timeout_s, wake=True)
+
     def consumer_ms(self, asked: int) -> int:
         return max(asked, BOX_CONSUMER_MS)
 

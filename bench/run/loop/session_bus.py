@@ -167,6 +167,8 @@ class SessionBus:
 
     def _stop_nodes(self) -> None:
         """The node processes and the fault gateway stopped, and the links' state after the run noted (close())."""
+        # together where that saves requests (the CAN box), then each its own stop (its log closed); 5 s: stop's own
+        self.kind.end_processes([p.proc for p in self.procs if isinstance(p, NodeProcess) and p.proc], 5.0)
         for p in self.procs:
             p.stop()
         if self.gateway is not None:

@@ -223,7 +223,18 @@ class BoxCandumpSource:
         err = lease.stage / "candump.err"
         self.proc = lease.popen(["candump", "-L", "-r", str(8 << 20), iface], self.guest, err=err)
         self.copier = lease.popen(
-            ["tail", "---disable-inotify", "-s", str(COPY_S), "-c", "+1", "-f", str(self.guest)],
+            [
+                "tail",
+                "---disable-inotify",
+                "-s",
+                str(COPY_S),
+                "--pid",
+                str(self.proc.pid),
+                "-c",
+                "+1",
+                "-f",
+                str(self.guest),
+            ],
             self.path,
             err=err,
             in_slot=False,
@@ -254,15 +265,15 @@ class BoxCandumpSource:
         from bench.run.bus.box.control import BoxGone
         from bench.run.bus.box.lease import await_file
 
-        g, p = self.guest, self.proc
+        g, p, cp = self.guest, self.proc, self.copier
         # One request (each costs the guest ~10 ms under TCG, each exec in it ~90 ms). candump has written all the
         # run sent once it sleeps (state S: blocked in select, its socket empty) with its output unchanged for 0.1 s
         # (read from /proc every 20 ms, no exec; the nodes have ended: Session.close), or, when its output goes on
         # growing (a flood of foreign traffic), once its log holds a frame stamped after the run's end (the guest's
         # clock; looked at every 0.3 s) - SIGINT before that drops what still waits in its socket (a loaded guest's
-        # candump may be seconds behind a flood: the end of the loop was lost). Then SIGINT, its exit, the log's
-        # final size and candump's status; the copier (tail -s COPY_S) brings the rest to the stage, where this side
-        # waits for it, and the log is unlinked (the copier reads on from its open descriptor).
+        # candump may be seconds behind a flood: the end of the loop was lost). Then SIGINT and its exit; the copier
+        # (tail -f --pid) copies the rest and ends by itself once candump has ended: its exit awaited, the whole log
+        # is on the stage (the share is mounted `sync` in the guest); both exit statuses; the log unlinked.
         n = int(CATCH_UP_S / 0.02)
         state = f"read -r l </proc/{p.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
         pos = f"x=-; while read -r a v; do [ $a = pos: ] && x=$v && break; done </proc/{p.pid}/fdinfo/1"
@@ -276,20 +287,18 @@ class BoxCandumpSource:
             f'if [ "$x" = "$w" ]; then q=$((q + 1)); [ $q -ge 5 ] && [ "$st" = S ] && break; else w=$x; q=0; fi; '
             f"if [ $((k % 15)) = 0 ]; then {stamped}; fi; done; "
             f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 1000)}; "
-            f"echo $(stat -c %s {g}) {p.exit_text()}; rm -f {g}"
+            f"{await_file(f'-e {cp.exit_file}', 6000)}; echo {p.exit_text()} {cp.exit_text()}; rm -f {g}"
         )
         try:
-            _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 60)
-            total, rc_dump = out.split()[-2:]
+            _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 120)
+            rc_dump, rc_copy = out.split()[-2:]
             p.ended_with(rc_dump)
-            deadline = time.monotonic() + 120
-            while self.path.stat().st_size < int(total) and time.monotonic() < deadline:  # the copy catches up
-                time.sleep(0.02)
-        except (BoxGone, ValueError, IndexError, OSError):
+            cp.ended_with(rc_copy)
+        except (BoxGone, ValueError, IndexError):
             pass
         finally:
             p.kill()  # no request when it ended (its status known)
-            self.copier.kill()
+            cp.kill()
 
     def cleanup(self) -> None:
         err = self.path.with_name("candump.err")

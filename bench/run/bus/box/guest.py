@@ -16,6 +16,8 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
+from bench.run.bus.box.life import BOX_CPUS
+
 # Verbs of the control channel (bench/run/bus/box/control.py sends them):
 #   sh LINE    run the command line (one line) in a subshell, answer its status and output (stdout+stderr)
 #   ping -     answer 0 and the guest's uptime
@@ -52,6 +54,7 @@ done
 
 
 HOLDER = "/run/box/holder-"  # + the namespace: the PID of its holder process (_slot_lines)
+LAUNCHER = "/run/box/launch-"  # + the namespace: its launcher's fifo, + ".pid": the launcher's PID (_slot_lines)
 
 
 def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
@@ -64,7 +67,10 @@ def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
     at a time, the PDO stream stays in the box where candump records it). QEMU drops what is routed to a port no
     host has connected: a master that connects later sees no old frame. A holder process sleeps in each
     namespace for the box's life: /proc/HOLDER/root/sys/class/net is the namespace's own sysfs, read by the
-    agent's builtins (Lease.link_infos: ~30 ms, where an `ip` exec costs 270-520 ms under TCG)."""
+    agent's builtins (Lease.link_infos: ~30 ms, where an `ip` exec costs 270-520 ms under TCG). A launcher, a bash
+    in the namespace on the slot's vCPU, reads command lines from its fifo and runs each in the background: a
+    process it starts is in the slot and on its vCPU with one exec, its own (Lease.popen; `ip netns exec` and
+    `taskset` before it cost ~145 ms of the guest's time a process under TCG)."""
     rules = ["cangw -A -s $t -d vcan0 -e", "cangw -A -s $m -d vcan0 -e"]
     rules += [f"cangw -A -s vcan0 -d $m -e -f {c:03X}:{k:03X}" for c, k in master_ids]
     batch = "\\n".join(
@@ -83,7 +89,11 @@ def _slot_lines(slots: int, master_ids: list[tuple[int, int]]) -> list[str]:
         "  ( m=bslc$((2 * s - 1)); t=bslc$((2 * s)); ns=b$s",
         f'  printf "{batch}\\n" | ip -n $ns -batch - || fail "slot $s links"',
         f'  ip netns exec $ns bash -c "{" && ".join(rules)}" || fail "slot $s routes"',
-        f"  ip netns exec $ns sleep infinity </dev/null >/dev/null 2>&1 & echo $! >{HOLDER}$ns ) &",
+        f"  ip netns exec $ns sleep infinity </dev/null >/dev/null 2>&1 & echo $! >{HOLDER}$ns",
+        f'  mkfifo {LAUNCHER}$ns || fail "slot $s launcher"',
+        f"  ip netns exec $ns taskset -c $(((s - 1) % {BOX_CPUS})) bash -c "
+        + shlex.quote('exec 6<>"$1"; while IFS= read -r -u 6 c; do eval "$c"; done')
+        + f" launcher {LAUNCHER}$ns </dev/null >/dev/null 2>&1 & echo $! >{LAUNCHER}$ns.pid ) &",
         "done",
         "wait",
     ]

@@ -20,7 +20,7 @@ from typing import IO, Any
 
 from bench.run.bus.box import life
 from bench.run.bus.box.control import BoxError, BoxGone, Control
-from bench.run.bus.box.guest import HOLDER
+from bench.run.bus.box.guest import HOLDER, LAUNCHER
 
 # a link's counters in sysfs (statistics/NAME) and their keys in canbus.link_info
 LINK_STATS = ("rx_packets", "tx_packets", "rx_errors", "tx_errors", "rx_dropped", "tx_dropped")
@@ -80,7 +80,8 @@ class Lease:
         meta = _slot_meta(self.slot)
         cmds = []
         if not meta.get("clean", True):
-            cmds.append(f'ip netns pids {self.ns} | grep -vx "$(<{HOLDER}{self.ns})" | xargs -r kill -9; true')
+            keep = f'-e "$(<{HOLDER}{self.ns})" -e "$(<{LAUNCHER}{self.ns}.pid)"'  # the box's own, for its life
+            cmds.append(f"ip netns pids {self.ns} | grep -vx {keep} | xargs -r kill -9; true")
         have = set(meta.get("links", ["vcan0", "vcan1"]))
         new = [v for v in self.links if v not in have]
         if new:
@@ -265,14 +266,24 @@ class BoxPopen:
         d = "/run/box"
         out = shlex.quote(str(log)) if log is not None else "/dev/null"
         err_to = "&1" if err is None else shlex.quote(str(err))
-        # a subshell of the agent's (a fork, no exec) waits for the process and writes its exit status
-        run = lease.in_ns(argv) if in_slot else " ".join(shlex.quote(a) for a in argv)
-        cmd = (
-            f"( {run} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
-            f"echo $? >{d}/{self.tag}.exit ) >/dev/null 2>&1 </dev/null & "
-            f"{await_file(f'-s {d}/{self.tag}.pid', 500)}; "
-            f"read -r p <{d}/{self.tag}.pid && echo $p"
-        )
+        plain = " ".join(shlex.quote(a) for a in argv)
+
+        def wrapped(run: str) -> str:  # a subshell waits for the process and writes its exit status
+            return (
+                f"( {run} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
+                f"echo $? >{d}/{self.tag}.exit ) >/dev/null 2>&1 </dev/null &"
+            )
+
+        # in the slot: through its launcher (guest._slot_lines) while it runs, else as a box booted by an older
+        # bench does it (`ip netns exec`, `taskset`); outside it: a subshell of the agent's (a fork, no exec)
+        start = wrapped(plain)
+        if in_slot:
+            f = f"{LAUNCHER}{lease.ns}"
+            start = (
+                f"if [ -p {f} ] && read -r lp <{f}.pid && [ -e /proc/$lp ]; then "
+                f"printf '%s\\n' {shlex.quote(start)} >{f}; else {wrapped(lease.in_ns(argv))} fi;"
+            )
+        cmd = f"{start} {await_file(f'-s {d}/{self.tag}.pid', 500)}; read -r p <{d}/{self.tag}.pid && echo $p"
         out_text = lease.ctl.check(cmd, f"starting {Path(argv[0]).name}")
         self.pid = int(out_text.strip().splitlines()[-1])
         self.args = argv
@@ -347,24 +358,8 @@ class BoxPopen:
     def end(self, timeout_s: float, wake: bool = False) -> int:
         """SIGTERM (and SIGCONT when `wake`), its exit awaited up to `timeout_s`, else SIGKILL: in one request
         (nodes.end_process; each request costs the guest tens of ms)."""
-        if self.poll() is not None:
-            return self.returncode  # type: ignore[return-value]
-        f, n = self.exit_file, max(1, int(timeout_s * 100))
-        cont = f"kill -18 {self.pid} 2>/dev/null; " if wake else ""
-        try:
-            _, out = self.lease.ctl.sh(
-                f"kill -15 {self.pid} 2>/dev/null; {cont}{await_file(f'-e {f}', n)}; "
-                f"[ -e {f} ] || {{ kill -9 {self.pid} 2>/dev/null; {await_file(f'-e {f}', 100)}; }}; "
-                f"echo {self.exit_text()}",
-                timeout_s=timeout_s + 30,
-            )
-        except BoxGone as exc:
-            self.gone = str(exc)
-            self.returncode = -signal.SIGKILL
-            return self.returncode
-        if self.ended_with(out.split()[-1] if out.split() else "") is not None:  # its status in the same request
-            return self.returncode  # type: ignore[return-value]
-        return self.wait(timeout=30)
+        end_all([self], timeout_s, wake)
+        return self.returncode if self.returncode is not None else self.wait(timeout=30)
 
     def wait(self, timeout: float | None = None) -> int:
         """Its exit status, waited for in the guest (one request per 5 s, no polling from here)."""
@@ -385,3 +380,33 @@ class BoxPopen:
                 self.gone = str(exc)
                 self.returncode = -signal.SIGKILL
             self.poll(fresh=True)
+
+
+def end_all(procs: list[BoxPopen], timeout_s: float, wake: bool = False) -> None:
+    """SIGTERM (and SIGCONT when `wake`: a frozen process gets its SIGTERM at once) to each of a lease's processes
+    still running, their exits awaited up to `timeout_s` in all, SIGKILL to what is left, and every exit status,
+    in one request (a run's nodes end together: Session.close)."""
+    left = [p for p in procs if p.returncode is None]
+    if not left:
+        return
+    pids = " ".join(str(p.pid) for p in left)
+    cont = f"kill -18 {pids} 2>/dev/null; " if wake else ""
+    ended = " -a ".join(f"-e {p.exit_file}" for p in left)
+    killed = " ".join(
+        f"[ -e {p.exit_file} ] || {{ kill -9 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 100)}; }};"
+        for p in left
+    )
+    try:
+        _, out = left[0].lease.ctl.sh(
+            f"kill -15 {pids} 2>/dev/null; {cont}{await_file(ended, max(1, int(timeout_s * 100)))}; {killed} "
+            f"echo {' '.join(p.exit_text() for p in left)}",
+            timeout_s=timeout_s + 30,
+        )
+    except BoxGone as exc:
+        for p in left:
+            p.gone = str(exc)
+            p.returncode = -signal.SIGKILL
+        return
+    words = out.split()[-len(left) :]
+    for p, word in zip(left, words, strict=False):
+        p.ended_with(word)
