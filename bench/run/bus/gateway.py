@@ -34,7 +34,7 @@ class FaultGateway:
         for side, name in (("a", "plant"), ("b", "drive")):
             if name in pids:
                 self.argv += [f"--pid-{side}", str(pids[name])]
-        self.proc: Any = None  # subprocess.Popen or lease.BoxPopen
+        self.proc: Any = None  # subprocess.Popen or boxproc.BoxPopen
         self._fh: Any = None
 
     def start(self, timeout_s: float = 10.0) -> FaultGateway:

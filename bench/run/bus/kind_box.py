@@ -54,7 +54,7 @@ class CanBoxKind(BusKind):
         return dict(held.link_infos(names))
 
     def end_processes(self, procs: list[Any], timeout_s: float) -> None:
-        from bench.run.bus.box.lease import BoxPopen, end_all
+        from bench.run.bus.box.boxproc import BoxPopen, end_all
 
         end_all([p for p in procs if isinstance(p, BoxPopen)], timeout_s, wake=True)
 

@@ -20,7 +20,7 @@ class NodeProcess:
         self.argv = [str(binary(name)), *args]
         self.log = log
         self.box = box  # a CAN box lease (bench/run/bus/box/lease.py): the process runs in the box's namespace
-        self.proc: Any = None  # subprocess.Popen, or lease.BoxPopen (the same face)
+        self.proc: Any = None  # subprocess.Popen, or boxproc.BoxPopen (the same face)
         self._log_fh = None
 
     def start(self) -> NodeProcess:
@@ -52,7 +52,7 @@ class NodeProcess:
 def end_process(proc: Any, log_fh: Any, timeout_s: float, wake: bool = False) -> int:
     """SIGTERM (and SIGCONT when `wake`: a frozen (SIGSTOP) process gets its SIGTERM at once), SIGKILL after
     `timeout_s`; closes its log file; returns its exit status."""
-    if hasattr(proc, "end"):  # lease.BoxPopen: all of it in one request to the CAN box
+    if hasattr(proc, "end"):  # boxproc.BoxPopen: all of it in one request to the CAN box
         proc.end(timeout_s, wake)
     elif proc.poll() is None:
         proc.send_signal(signal.SIGTERM)
@@ -72,7 +72,7 @@ def process_state(proc: Any) -> str | None:
     """The kernel's state letter of a running process (R, S, T when stopped ...), here or in the CAN box."""
     if proc is None or proc.pid is None:
         return None
-    if hasattr(proc, "state"):  # lease.BoxPopen: asked of the guest
+    if hasattr(proc, "state"):  # boxproc.BoxPopen: asked of the guest
         return proc.state()  # type: ignore[no-any-return]
     try:  # /proc/PID/stat: "pid (comm) state ...", comm may hold spaces and parentheses
         return Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()[0]

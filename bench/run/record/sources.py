@@ -271,8 +271,8 @@ class BoxCandumpSource:
         return self.follower.drain(final)
 
     def stop(self) -> None:
+        from bench.run.bus.box.boxproc import await_file
         from bench.run.bus.box.control import BoxGone
-        from bench.run.bus.box.lease import await_file
 
         g, p, cp = self.guest, self.proc, self.copier
         # One request (each costs the guest ~10 ms under TCG, each exec in it ~90 ms). candump has written all the
