@@ -12,6 +12,7 @@ from __future__ import annotations
 import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -245,27 +246,37 @@ class BoxCandumpSource:
                 str(self.guest),
             ],
             self.path,
-            err=err,
+            err=lease.stage / "copier.err",
             in_slot=False,
         )
         self._iface, self._err = iface, err
         self.follower = LogFollower(self.path)
 
     def await_ready(self) -> None:
-        """Until candump listens, asked of the guest in one request: its process is candump (`ip netns exec` and
-        `taskset` have exec'd: ~0.3 s under TCG) and holds a socket (its CAN socket: candump 2020.11 opens no other),
-        or it ended. Up to 3 s, 10 ms naps. The run asks it once its nodes were started, before their NMT reset: the
+        """Until candump listens, asked of the guest in one request: its process is candump (what ran before it has
+        exec'd), it sleeps (state S: in select, after its socket was bound) and holds a socket (its CAN socket), or it
+        ended. Up to 3 s, 10 ms naps. The run asks it once its nodes were started, before their NMT reset: the
         two starts overlap. (A fixed 0.2 s nap before: the log missed the bench's NMT reset commands.)"""
         p, iface, err = self.proc, self._iface, self._err
+        state = f"read -r l </proc/{p.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
         _, out = self.lease.ctl.sh(
-            "c=$(command -v candump); for ((k = 0; k < 300; k++)); do [ -e " + p.exit_file + " ] && break; "
-            f'if [ /proc/{p.pid}/exe -ef "$c" ]; then for f in /proc/{p.pid}/fd/*; do [ -S $f ] && break 2; done; fi; '
-            f"read -r -t 0.01 -u 4 _; done; echo {p.exit_text()}",
+            f"c=$(command -v candump); r=late; l=; st=; for ((k = 0; k < 300; k++)); do [ -s {p.exit_file} ] && break; "
+            f'if [ -n "$c" ] && [ /proc/{p.pid}/exe -ef "$c" ]; then {state} 2>/dev/null; '
+            f'if [ "$st" = S ]; then for f in /proc/{p.pid}/fd/*; do [ -S $f ] && r=ready && break 2; done; fi; fi; '
+            f"read -r -t 0.01 -u 4 _; done; echo $r {p.exit_text()}",
             timeout_s=60,
         )
-        if p.ended_with(out) is not None:
+        words = out.split()
+        if p.ended_with(words[-1] if words else "") is not None:
             why = err.read_text(errors="replace").strip() if err.exists() else ""
             raise RuntimeError(f"candump on {iface} in the CAN box failed: {why or p.returncode}")
+        if words[-2:-1] != ["ready"]:  # asleep in select with its socket: it has bound it
+            print(
+                f"bench: warning: candump on {iface} in the CAN box did not show that it listens within 3 s; the log "
+                "may miss the run's first frames",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def drain(self, final: bool = False) -> np.ndarray:
         return self.follower.drain(final)
@@ -283,7 +294,6 @@ class BoxCandumpSource:
         # candump may be seconds behind a flood: the end of the loop was lost). Then SIGINT and its exit; the copier
         # (tail -f --pid) copies the rest and ends by itself once candump has ended: its exit awaited, the whole log
         # is on the stage (the share is mounted `sync` in the guest); both exit statuses; the log unlinked.
-        n = int(CATCH_UP_S / 0.02)
         state = f"read -r l </proc/{p.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
         pos = f"x=-; while read -r a v; do [ $a = pos: ] && x=$v && break; done </proc/{p.pid}/fdinfo/1"
         stamped = (
@@ -291,12 +301,13 @@ class BoxCandumpSource:
             f"[ $((10#${{BASH_REMATCH[1]}}${{BASH_REMATCH[2]}})) -ge $e ] && break"
         )
         script = (
-            f"e=${{EPOCHREALTIME/./}}; w=-; q=0; for ((k = 1; k <= {n}; k++)); do read -r -t 0.02 -u 4 _; "
-            f"[ -e {p.exit_file} ] && break; {pos} 2>/dev/null; {state} 2>/dev/null; "
+            f"e=${{EPOCHREALTIME/./}}; w=-; q=0; l=; st=; x=-; for ((k = 1; ; k++)); do read -r -t 0.02 -u 4 _; "
+            f"[ $((${{EPOCHREALTIME/./}} - e)) -gt {int(CATCH_UP_S * 1e6)} ] && break; "
+            f"[ -s {p.exit_file} ] && break; {pos} 2>/dev/null; {state} 2>/dev/null; "
             f'if [ "$x" = "$w" ]; then q=$((q + 1)); [ $q -ge 5 ] && [ "$st" = S ] && break; else w=$x; q=0; fi; '
             f"if [ $((k % 15)) = 0 ]; then {stamped}; fi; done; "
-            f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 1000)}; "
-            f"{await_file(f'-e {cp.exit_file}', 6000)}; echo {p.exit_text()} {cp.exit_text()}; rm -f {g}"
+            f"kill -2 {p.pid} 2>/dev/null; {await_file(f'-s {p.exit_file}', 1000)}; "
+            f"{await_file(f'-s {cp.exit_file}', 6000)}; echo {p.exit_text()} {cp.exit_text()}; rm -f {g}"
         )
         try:
             _, out = self.lease.ctl.sh(script, timeout_s=CATCH_UP_S + 120)
@@ -310,9 +321,10 @@ class BoxCandumpSource:
             cp.kill()
 
     def cleanup(self) -> None:
-        err = self.path.with_name("candump.err")
-        if err.exists() and err.stat().st_size == 0:
-            err.unlink()
+        for name in ("candump.err", "copier.err"):
+            err = self.path.with_name(name)
+            if err.exists() and err.stat().st_size == 0:
+                err.unlink()
 
 
 class ListenerSource(can.Listener):

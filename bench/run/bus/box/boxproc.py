@@ -53,7 +53,7 @@ class BoxPopen:
 
         def wrapped(run: str) -> str:  # a subshell waits for the process and writes its exit status
             return (
-                f"( {run} >{out} 2>{err_to} </dev/null & echo $! >{d}/{self.tag}.pid; wait $!; "
+                f"( {run} >{out} 2>{err_to} </dev/null 6<&- & echo $! >{d}/{self.tag}.pid; wait $!; "
                 f"echo $? >{d}/{self.tag}.exit ) >/dev/null 2>&1 </dev/null &"
             )
 
@@ -63,8 +63,8 @@ class BoxPopen:
         if in_slot:
             f = f"{LAUNCHER}{lease.ns}"
             start = (
-                f"if [ -p {f} ] && read -r lp <{f}.pid && [ -e /proc/$lp ]; then "
-                f"printf '%s\\n' {shlex.quote(start)} >{f}; else {wrapped(lease.in_ns(argv))} fi;"
+                f"if [ -p {f} ] && read -r lp <{f}.pid && [ /proc/$lp/fd/6 -ef {f} ]; then "
+                f"printf '%s\\n' {shlex.quote(start)} 1<>{f}; else {wrapped(lease.in_ns(argv))} fi;"
             )
         cmd = f"{start} {await_file(f'-s {d}/{self.tag}.pid', 500)}; read -r p <{d}/{self.tag}.pid && echo $p"
         out_text = lease.ctl.check(cmd, f"starting {Path(argv[0]).name}")
@@ -73,11 +73,12 @@ class BoxPopen:
 
     @property
     def exit_file(self) -> str:
-        """The guest's file its exit status is written to once it has ended."""
+        """The guest's file its exit status is written to once it has ended (test it with `-s`: the shell creates
+        it before it writes the status)."""
         return f"/run/box/{self.tag}.exit"
 
     def _exit_now(self) -> int | None:
-        rc, out = self.lease.ctl.sh(f"f=/run/box/{self.tag}.exit; [ -e $f ] && read -r x <$f && echo $x; true")
+        rc, out = self.lease.ctl.sh(f"f=/run/box/{self.tag}.exit; [ -s $f ] && read -r x <$f && echo $x; true")
         return self.ended_with(out)
 
     def ended_with(self, text: str) -> int | None:
@@ -93,7 +94,7 @@ class BoxPopen:
     def exit_text(self) -> str:
         """A guest command line's word that expands to the exit status once it ended, else '-'."""
         f = self.exit_file
-        return f"$([ -e {f} ] && read -r x <{f} && echo $x || echo -)"
+        return f"$([ -s {f} ] && read -r x <{f} && echo $x || echo -)"
 
     def poll(self, fresh: bool = False) -> int | None:
         """The exit status, None while it runs (asked of the guest at most every POLL_CACHE_S unless `fresh`)."""
@@ -158,7 +159,7 @@ class BoxPopen:
                 raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
             try:
                 n = max(1, int(left * 100))
-                self.lease.ctl.sh(await_file(f"-e {f}", n), timeout_s=left + 30)
+                self.lease.ctl.sh(await_file(f"-s {f}", n), timeout_s=left + 30)
             except BoxGone as exc:
                 self.gone = str(exc)
                 self.returncode = -signal.SIGKILL
@@ -174,9 +175,9 @@ def end_all(procs: list[BoxPopen], timeout_s: float, wake: bool = False) -> None
         return
     pids = " ".join(str(p.pid) for p in left)
     cont = f"kill -18 {pids} 2>/dev/null; " if wake else ""
-    ended = " -a ".join(f"-e {p.exit_file}" for p in left)
+    ended = " -a ".join(f"-s {p.exit_file}" for p in left)
     killed = " ".join(
-        f"[ -e {p.exit_file} ] || {{ kill -9 {p.pid} 2>/dev/null; {await_file(f'-e {p.exit_file}', 100)}; }};"
+        f"[ -s {p.exit_file} ] || {{ kill -9 {p.pid} 2>/dev/null; {await_file(f'-s {p.exit_file}', 100)}; }};"
         for p in left
     )
     try:

@@ -41,6 +41,7 @@ class Lease:
         self.ctl: Control = info.control
         self.stage = life.BOX_DIR / "runs" / f"{slot}-{uuid.uuid4().hex[:8]}"
         self.procs: list[BoxPopen] = []
+        self.started_unseen = False  # a process whose start was not seen (BoxPopen raised): the slot is not clean
         self.closed = False
         self._tap_opened = False
 
@@ -165,7 +166,11 @@ class Lease:
         """Start `argv` in the run's namespace, its output to `log` (under the stage: shared with the guest),
         its standard error there too or to `err`. in_slot=False: a helper that needs neither the slot's network
         namespace nor its vCPU (two execs fewer: ~0.2 s of the guest's time under TCG)."""
-        p = BoxPopen(self, argv, log, err, in_slot)
+        try:
+            p = BoxPopen(self, argv, log, err, in_slot)
+        except BoxError:  # not seen to start: it may still start late, so the slot is cleaned before its next run
+            self.started_unseen = True
+            raise
         self.procs.append(p)
         return p
 
@@ -182,7 +187,7 @@ class Lease:
                 self.ctl.sh(f"kill -9 {' '.join(map(str, left))} 2>/dev/null; true", timeout_s=30)
             if self._tap_opened and not life.taps_on():
                 self.ctl.sh(life.tap_rule(self.slot, False), timeout_s=30)
-            _write_slot_meta(self.slot, {**_slot_meta(self.slot), "clean": True})
+            _write_slot_meta(self.slot, {**_slot_meta(self.slot), "clean": not self.started_unseen})
         except BoxGone:
             pass
         finally:

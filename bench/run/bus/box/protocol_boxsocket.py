@@ -31,8 +31,9 @@ class Serial(protocol_socket.Serial):
         if self.is_open and self._socket:
             try:
                 self._socket.shutdown(socket.SHUT_RDWR)
-                self._socket.close()
             except OSError:
                 pass
+            finally:
+                self._socket.close()
             self._socket = None
         self.is_open = False
