@@ -258,7 +258,7 @@ class BoxCandumpSource:
         ended. Up to 3 s, 10 ms naps. The run asks it once its nodes were started, before their NMT reset: the
         two starts overlap. (A fixed 0.2 s nap before: the log missed the bench's NMT reset commands.)"""
         p, iface, err = self.proc, self._iface, self._err
-        state = f"read -r l </proc/{p.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
+        state = p.state_text()
         _, out = self.lease.ctl.sh(
             f"c=$(command -v candump); r=late; l=; st=; for ((k = 0; k < 300; k++)); do [ -s {p.exit_file} ] && break; "
             f'if [ -n "$c" ] && [ /proc/{p.pid}/exe -ef "$c" ]; then {state} 2>/dev/null; '
@@ -294,7 +294,7 @@ class BoxCandumpSource:
         # candump may be seconds behind a flood: the end of the loop was lost). Then SIGINT and its exit; the copier
         # (tail -f --pid) copies the rest and ends by itself once candump has ended: its exit awaited, the whole log
         # is on the stage (the share is mounted `sync` in the guest); both exit statuses; the log unlinked.
-        state = f"read -r l </proc/{p.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
+        state = p.state_text()
         pos = f"x=-; while read -r a v; do [ $a = pos: ] && x=$v && break; done </proc/{p.pid}/fdinfo/1"
         stamped = (
             rf"[[ $(tail -c 300 {g}) =~ .*\(([0-9]+)\.([0-9]{{6}})\)\  ]] && "

@@ -78,7 +78,7 @@ class BoxPopen:
         return f"/run/box/{self.tag}.exit"
 
     def _exit_now(self) -> int | None:
-        rc, out = self.lease.ctl.sh(f"f=/run/box/{self.tag}.exit; [ -s $f ] && read -r x <$f && echo $x; true")
+        _, out = self.lease.ctl.sh(f"echo {self.exit_text()}")
         return self.ended_with(out)
 
     def ended_with(self, text: str) -> int | None:
@@ -95,6 +95,11 @@ class BoxPopen:
         """A guest command line's word that expands to the exit status once it ended, else '-'."""
         f = self.exit_file
         return f"$([ -s {f} ] && read -r x <{f} && echo $x || echo -)"
+
+    def state_text(self) -> str:
+        """A guest command line that sets `st` to its kernel state letter (/proc/PID/stat, builtins only; empty
+        once it is gone) - `l` and `st` are set first, the agent runs under `set -u`."""
+        return f"l=; st=; read -r l 2>/dev/null </proc/{self.pid}/stat; st=${{l##*) }}; st=${{st%% *}}"
 
     def poll(self, fresh: bool = False) -> int | None:
         """The exit status, None while it runs (asked of the guest at most every POLL_CACHE_S unless `fresh`)."""
